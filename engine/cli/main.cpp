@@ -1,0 +1,68 @@
+// The `dvs` command line. Sub-commands are added here as the engine grows; each prints one clear
+// message and exits non-zero on any user error.
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "dvs/error.hpp"
+#include "dvs/info.hpp"
+
+namespace {
+
+const char* kUsage =
+    "dvs — dynamic view synthesis on any Vulkan GPU\n"
+    "\n"
+    "usage: dvs <command> [options]\n"
+    "\n"
+    "commands:\n"
+    "  info            list the Vulkan devices, their features, memory and limits\n"
+    "\n"
+    "common options:\n"
+    "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
+    "  -h, --help       this help\n"
+    "  --version        print the version\n";
+
+int run_info(const std::vector<std::string>& args) {
+  std::string device;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--device") {
+      if (i + 1 >= args.size()) throw dvs::Error("--device needs a value: an index (0) or part of a device name");
+      device = args[++i];
+    } else if (args[i] == "-h" || args[i] == "--help") {
+      std::cout << "usage: dvs info [--device I|NAME]\n";
+      return 0;
+    } else {
+      throw dvs::Error("dvs info: unknown option '" + args[i] + "' (see dvs info --help)");
+    }
+  }
+  std::cout << dvs::device_report(device);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  try {
+    if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
+      std::cout << kUsage;
+      return args.empty() ? 2 : 0;
+    }
+    if (args[0] == "--version") {
+      std::cout << "dvs " << dvs::version() << "\n";
+      return 0;
+    }
+    std::string cmd = args[0];
+    std::vector<std::string> rest(args.begin() + 1, args.end());
+    if (cmd == "info") return run_info(rest);
+    std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
+    return 2;
+  } catch (const dvs::Error& e) {
+    std::cerr << "dvs: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "dvs: internal error: " << e.what() << "\n";
+    return 3;
+  }
+}

@@ -1,0 +1,13 @@
+// Device listing for `dvs info` and for applications that let a user choose a GPU.
+#pragma once
+#include <string>
+
+namespace dvs {
+
+// Every Vulkan device with its type, driver, Vulkan version, subgroup size, features and limits; marks
+// the one that `device_spec` (index, name substring, or "" for the default/DVS_DEVICE) selects.
+std::string device_report(const std::string& device_spec = "");
+
+const char* version();
+
+}  // namespace dvs

@@ -1,0 +1,271 @@
+#include "vk/context.hpp"
+
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+
+#include "vk/check.hpp"
+#include "vk/memory.hpp"
+#include "vk/pipeline.hpp"
+#include "vk/profiler.hpp"
+#include "vk/transfer.hpp"
+
+namespace dvs::vk {
+namespace {
+
+constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
+
+bool env_on(const char* name) {
+  const char* v = std::getenv(name);
+  return v && *v && std::strcmp(v, "0") != 0;
+}
+
+bool instance_has_layer(const char* name) {
+  uint32_t n = 0;
+  vkEnumerateInstanceLayerProperties(&n, nullptr);
+  std::vector<VkLayerProperties> layers(n);
+  vkEnumerateInstanceLayerProperties(&n, layers.data());
+  for (auto& l : layers)
+    if (std::strcmp(l.layerName, name) == 0) return true;
+  return false;
+}
+
+bool instance_has_extension(const char* name) {
+  uint32_t n = 0;
+  vkEnumerateInstanceExtensionProperties(nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> exts(n);
+  vkEnumerateInstanceExtensionProperties(nullptr, &n, exts.data());
+  for (auto& e : exts)
+    if (std::strcmp(e.extensionName, name) == 0) return true;
+  return false;
+}
+
+VKAPI_ATTR VkBool32 VKAPI_CALL on_debug_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                VkDebugUtilsMessageTypeFlagsEXT,
+                                                const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+  std::string msg = std::string(severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "[validation error] "
+                                                                                           : "[validation warning] ") +
+                    (data && data->pMessage ? data->pMessage : "");
+  std::cerr << msg << "\n";
+  static_cast<Context*>(user)->add_validation_message(std::move(msg));
+  return VK_FALSE;
+}
+
+// Creates an instance; validation adds the Khronos layer and a debug messenger.
+VkInstance create_instance(bool validation, bool& portability) {
+  uint32_t loader_version = VK_API_VERSION_1_0;
+  vkEnumerateInstanceVersion(&loader_version);
+  if (loader_version < VK_API_VERSION_1_2)
+    throw Error("The Vulkan loader supports only " + version_string(loader_version) +
+                "; dvs needs Vulkan 1.2. Update the Vulkan loader (libvulkan1).");
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.pApplicationName = "dvs";
+  app.pEngineName = "dvs";
+  app.apiVersion = loader_version >= VK_API_VERSION_1_3 ? VK_API_VERSION_1_3 : VK_API_VERSION_1_2;
+
+  std::vector<const char*> layers, exts;
+  if (validation) {
+    if (!instance_has_layer(kValidationLayer))
+      throw Error("Validation was requested but VK_LAYER_KHRONOS_validation is not installed "
+                  "(apt-get install vulkan-validationlayers).");
+    layers.push_back(kValidationLayer);
+    exts.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+  }
+  portability = instance_has_extension(VK_KHR_PORTABILITY_ENUMERATION_EXTENSION_NAME);
+  if (portability) exts.push_back(VK_KHR_PORTABILITY_ENUMERATION_EXTENSION_NAME);
+
+  VkInstanceCreateInfo ci{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  ci.pApplicationInfo = &app;
+  ci.enabledLayerCount = uint32_t(layers.size());
+  ci.ppEnabledLayerNames = layers.data();
+  ci.enabledExtensionCount = uint32_t(exts.size());
+  ci.ppEnabledExtensionNames = exts.data();
+  if (portability) ci.flags |= VK_INSTANCE_CREATE_ENUMERATE_PORTABILITY_BIT_KHR;
+  VkInstance instance = VK_NULL_HANDLE;
+  VkResult r = vkCreateInstance(&ci, nullptr, &instance);
+  if (r == VK_ERROR_INCOMPATIBLE_DRIVER)
+    throw Error("No Vulkan driver is installed (vkCreateInstance: VK_ERROR_INCOMPATIBLE_DRIVER). For a CPU-only "
+                "machine: apt-get install mesa-vulkan-drivers.");
+  VK_CHECK(r);
+  return instance;
+}
+
+std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
+  uint32_t n = 0;
+  VK_CHECK(vkEnumeratePhysicalDevices(instance, &n, nullptr));
+  std::vector<VkPhysicalDevice> pds(n);
+  VK_CHECK(vkEnumeratePhysicalDevices(instance, &n, pds.data()));
+  return pds;
+}
+
+}  // namespace
+
+std::vector<DeviceCaps> list_devices() {
+  bool portability = false;
+  VkInstance instance = create_instance(false, portability);
+  std::vector<DeviceCaps> out;
+  try {
+    auto pds = physical_devices(instance);
+    for (uint32_t i = 0; i < pds.size(); ++i) out.push_back(query_device_caps(pds[i], i));
+  } catch (...) {
+    vkDestroyInstance(instance, nullptr);
+    throw;
+  }
+  vkDestroyInstance(instance, nullptr);
+  return out;
+}
+
+Context::Context(const ContextOptions& options) {
+  validation_ = options.validation || env_on("DVS_VALIDATION");
+  bool portability = false;
+  instance_ = create_instance(validation_, portability);
+  try {
+    if (validation_) {
+      auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+          vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
+      VkDebugUtilsMessengerCreateInfoEXT mci{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+      mci.messageSeverity =
+          VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+      mci.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
+      mci.pfnUserCallback = on_debug_message;
+      mci.pUserData = this;
+      if (create) VK_CHECK(create(instance_, &mci, nullptr, &messenger_));
+    }
+
+    auto pds = physical_devices(instance_);
+    std::vector<DeviceCaps> all;
+    for (uint32_t i = 0; i < pds.size(); ++i) all.push_back(query_device_caps(pds[i], i));
+    uint32_t chosen = select_device(all, options.device);
+    physical_ = pds[chosen];
+    caps_ = all[chosen];
+    if (caps_.api_version < VK_API_VERSION_1_2)
+      throw Error("Device '" + caps_.name + "' supports Vulkan " + version_string(caps_.api_version) +
+                  "; dvs needs 1.2. Choose another device with --device or update its driver.");
+
+    // A queue family with compute.
+    uint32_t nq = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &nq, nullptr);
+    std::vector<VkQueueFamilyProperties> qf(nq);
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &nq, qf.data());
+    bool found = false;
+    for (uint32_t i = 0; i < nq && !found; ++i)
+      if (qf[i].queueFlags & VK_QUEUE_COMPUTE_BIT) { queue_family_ = i; found = true; }
+    if (!found) throw Error("Device '" + caps_.name + "' has no compute queue.");
+    if (qf[queue_family_].timestampValidBits == 0) caps_.timestamps = false;
+
+    // Enable every optional feature the device has and dvs may use.
+    VkPhysicalDeviceVulkan11Features f11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
+    VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceSubgroupSizeControlFeatures fsg{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_SIZE_CONTROL_FEATURES};
+    VkPhysicalDeviceShaderAtomicFloatFeaturesEXT fat{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+    VkPhysicalDeviceFeatures2 feats{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    feats.pNext = &f11;
+    f11.pNext = &f12;
+    f11.storageBuffer16BitAccess = caps_.storage_16bit;
+    f11.uniformAndStorageBuffer16BitAccess = caps_.storage_16bit;
+    f12.storageBuffer8BitAccess = caps_.storage_8bit;
+    f12.uniformAndStorageBuffer8BitAccess = caps_.storage_8bit;
+    f12.shaderFloat16 = caps_.float16_arithmetic;
+    f12.shaderInt8 = caps_.int8_arithmetic;
+    void** tail = &f12.pNext;
+    std::vector<const char*> exts;
+    if (caps_.subgroup_size_control) {
+      fsg.subgroupSizeControl = VK_TRUE;
+      fsg.computeFullSubgroups = VK_TRUE;
+      *tail = &fsg;
+      tail = &fsg.pNext;
+      if (caps_.api_version < VK_API_VERSION_1_3) exts.push_back("VK_EXT_subgroup_size_control");
+    }
+    if (caps_.float32_atomic_add) {
+      fat.shaderBufferFloat32AtomicAdd = VK_TRUE;
+      *tail = &fat;
+      tail = &fat.pNext;
+      exts.push_back("VK_EXT_shader_atomic_float");
+    }
+    if (caps_.has_extension("VK_KHR_portability_subset")) exts.push_back("VK_KHR_portability_subset");
+    VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    vkGetPhysicalDeviceFeatures(physical_, &supported.features);
+    feats.features.shaderInt64 = supported.features.shaderInt64;
+    feats.features.shaderInt16 = supported.features.shaderInt16;
+    feats.features.shaderFloat64 = supported.features.shaderFloat64;
+
+    float priority = 1.0f;
+    VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    qci.queueFamilyIndex = queue_family_;
+    qci.queueCount = 1;
+    qci.pQueuePriorities = &priority;
+    VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    dci.pNext = &feats;
+    dci.queueCreateInfoCount = 1;
+    dci.pQueueCreateInfos = &qci;
+    dci.enabledExtensionCount = uint32_t(exts.size());
+    dci.ppEnabledExtensionNames = exts.data();
+    VK_CHECK(vkCreateDevice(physical_, &dci, nullptr, &device_));
+    vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+
+    VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    pci.queueFamilyIndex = queue_family_;
+    VK_CHECK(vkCreateCommandPool(device_, &pci, nullptr, &command_pool_));
+    VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VK_CHECK(vkCreateFence(device_, &fci, nullptr, &fence_));
+
+    allocator_ = std::make_unique<Allocator>(*this);
+    transfer_ = std::make_unique<Transfer>(*this);
+    pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file);
+    profiler_ = std::make_unique<Profiler>(env_on("DVS_PROFILE"));
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+Context::~Context() { release(); }
+
+void Context::release() {
+  if (device_) vkDeviceWaitIdle(device_);
+  if (profiler_) profiler_->print_if_enabled();
+  pipelines_.reset();
+  transfer_.reset();
+  allocator_.reset();
+  if (fence_) vkDestroyFence(device_, fence_, nullptr);
+  if (command_pool_) vkDestroyCommandPool(device_, command_pool_, nullptr);
+  if (device_) vkDestroyDevice(device_, nullptr);
+  if (messenger_) {
+    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
+    if (destroy) destroy(instance_, messenger_, nullptr);
+  }
+  if (instance_) vkDestroyInstance(instance_, nullptr);
+  fence_ = VK_NULL_HANDLE;
+  command_pool_ = VK_NULL_HANDLE;
+  device_ = VK_NULL_HANDLE;
+  messenger_ = VK_NULL_HANDLE;
+  instance_ = VK_NULL_HANDLE;
+}
+
+std::vector<std::string> Context::validation_messages() const {
+  std::lock_guard<std::mutex> lock(messages_mutex_);
+  return messages_;
+}
+
+void Context::clear_validation_messages() {
+  std::lock_guard<std::mutex> lock(messages_mutex_);
+  messages_.clear();
+}
+
+void Context::add_validation_message(std::string msg) {
+  std::lock_guard<std::mutex> lock(messages_mutex_);
+  messages_.push_back(std::move(msg));
+}
+
+void Context::submit_and_wait(VkCommandBuffer cmd) {
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence_));
+  VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+  VK_CHECK(vkResetFences(device_, 1, &fence_));
+}
+
+}  // namespace dvs::vk

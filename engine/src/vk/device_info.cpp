@@ -1,0 +1,196 @@
+#include "vk/device_info.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+
+#include "dvs/error.hpp"
+
+namespace dvs::vk {
+
+bool DeviceCaps::has_extension(const char* n) const {
+  return std::find(extensions.begin(), extensions.end(), n) != extensions.end();
+}
+
+const char* device_type_name(VkPhysicalDeviceType t) {
+  switch (t) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "CPU";
+    default: return "other";
+  }
+}
+
+std::string version_string(uint32_t v) {
+  return std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) + "." +
+         std::to_string(VK_API_VERSION_PATCH(v));
+}
+
+DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
+  DeviceCaps c;
+  c.index = index;
+
+  uint32_t n_ext = 0;
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n_ext, nullptr);
+  std::vector<VkExtensionProperties> exts(n_ext);
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n_ext, exts.data());
+  for (auto& e : exts) c.extensions.emplace_back(e.extensionName);
+
+  VkPhysicalDeviceProperties base{};
+  vkGetPhysicalDeviceProperties(pd, &base);
+  c.api_version = base.apiVersion;
+
+  // Properties chain (Vulkan 1.1+ core structures).
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceSubgroupSizeControlProperties sgctl{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_SIZE_CONTROL_PROPERTIES};
+  VkPhysicalDeviceMaintenance3Properties maint3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
+  VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props.pNext = &driver;
+  driver.pNext = &subgroup;
+  subgroup.pNext = &maint3;
+  bool has_sgctl = c.api_version >= VK_API_VERSION_1_3 || c.has_extension("VK_EXT_subgroup_size_control");
+  if (has_sgctl) maint3.pNext = &sgctl;
+  vkGetPhysicalDeviceProperties2(pd, &props);
+
+  c.name = base.deviceName;
+  c.type = base.deviceType;
+  c.driver_version = base.driverVersion;
+  c.vendor_id = base.vendorID;
+  c.device_id = base.deviceID;
+  std::memcpy(c.pipeline_cache_uuid, base.pipelineCacheUUID, VK_UUID_SIZE);
+  c.driver_name = driver.driverName;
+  c.driver_info = driver.driverInfo;
+  c.subgroup_size = subgroup.subgroupSize;
+  c.subgroup_arithmetic = subgroup.supportedOperations & VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
+  c.subgroup_shuffle = subgroup.supportedOperations & VK_SUBGROUP_FEATURE_SHUFFLE_BIT;
+  if (has_sgctl) {
+    c.min_subgroup_size = sgctl.minSubgroupSize;
+    c.max_subgroup_size = sgctl.maxSubgroupSize;
+  }
+  const VkPhysicalDeviceLimits& L = base.limits;
+  c.max_storage_buffer_range = L.maxStorageBufferRange;
+  c.max_memory_allocation_size = maint3.maxMemoryAllocationSize;
+  c.min_storage_buffer_offset_alignment = L.minStorageBufferOffsetAlignment;
+  c.max_texel_buffer_elements = L.maxTexelBufferElements;
+  c.max_compute_shared_memory = L.maxComputeSharedMemorySize;
+  c.max_workgroup_invocations = L.maxComputeWorkGroupInvocations;
+  for (int i = 0; i < 3; ++i) c.max_workgroup_count[i] = L.maxComputeWorkGroupCount[i];
+  c.max_push_constants = L.maxPushConstantsSize;
+  c.timestamp_period_ns = L.timestampPeriod;
+  c.timestamps = L.timestampComputeAndGraphics;
+
+  // Features chain.
+  VkPhysicalDeviceVulkan11Features f11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceSubgroupSizeControlFeatures fsg{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_SIZE_CONTROL_FEATURES};
+  VkPhysicalDeviceShaderAtomicFloatFeaturesEXT fat{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+  VkPhysicalDeviceFeatures2 feats{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  feats.pNext = &f11;
+  f11.pNext = &f12;
+  void** tail = &f12.pNext;
+  if (has_sgctl) { *tail = &fsg; tail = &fsg.pNext; }
+  bool has_atomic_float = c.has_extension("VK_EXT_shader_atomic_float");
+  if (has_atomic_float) { *tail = &fat; tail = &fat.pNext; }
+  vkGetPhysicalDeviceFeatures2(pd, &feats);
+  c.storage_16bit = f11.storageBuffer16BitAccess;
+  c.storage_8bit = f12.storageBuffer8BitAccess;
+  c.float16_arithmetic = f12.shaderFloat16;
+  c.int8_arithmetic = f12.shaderInt8;
+  c.subgroup_size_control = has_sgctl && fsg.subgroupSizeControl && fsg.computeFullSubgroups;
+  c.float32_atomic_add = has_atomic_float && fat.shaderBufferFloat32AtomicAdd;
+  c.cooperative_matrix = c.has_extension("VK_KHR_cooperative_matrix");
+  c.push_descriptor = c.has_extension("VK_KHR_push_descriptor");
+
+  VkPhysicalDeviceMemoryProperties mem{};
+  vkGetPhysicalDeviceMemoryProperties(pd, &mem);
+  c.heaps.resize(mem.memoryHeapCount);
+  for (uint32_t h = 0; h < mem.memoryHeapCount; ++h) {
+    c.heaps[h].size = mem.memoryHeaps[h].size;
+    c.heaps[h].device_local = mem.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT;
+  }
+  for (uint32_t t = 0; t < mem.memoryTypeCount; ++t)
+    if (mem.memoryTypes[t].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
+      c.heaps[mem.memoryTypes[t].heapIndex].host_visible = true;
+  return c;
+}
+
+static std::string lower(std::string s) {
+  for (char& ch : s) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  return s;
+}
+
+uint32_t select_device(const std::vector<DeviceCaps>& devices, const std::string& spec_in) {
+  if (devices.empty())
+    throw Error("No Vulkan device found. Install a Vulkan driver (for a CPU-only machine: apt-get install "
+                "mesa-vulkan-drivers, which provides lavapipe).");
+  std::string spec = spec_in;
+  if (spec.empty())
+    if (const char* env = std::getenv("DVS_DEVICE")) spec = env;
+  if (spec.empty()) {
+    for (VkPhysicalDeviceType want : {VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU, VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU,
+                                      VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU})
+      for (auto& d : devices)
+        if (d.type == want) return d.index;
+    return devices.front().index;
+  }
+  bool numeric = std::all_of(spec.begin(), spec.end(), [](char ch) { return std::isdigit(static_cast<unsigned char>(ch)); });
+  if (numeric) {
+    unsigned long idx = std::stoul(spec);
+    for (auto& d : devices)
+      if (d.index == idx) return d.index;
+  } else {
+    for (auto& d : devices)
+      if (lower(d.name).find(lower(spec)) != std::string::npos) return d.index;
+  }
+  std::string list;
+  for (auto& d : devices) list += "\n  " + std::to_string(d.index) + ": " + d.name + " (" + device_type_name(d.type) + ")";
+  throw Error("No Vulkan device matches '" + spec + "' (from --device or DVS_DEVICE). Available devices:" + list +
+              "\nGive an index or part of a name.");
+}
+
+static std::string bytes_str(uint64_t b) {
+  std::ostringstream o;
+  o.precision(3);
+  if (b >= (1ull << 30)) o << double(b) / double(1ull << 30) << " GiB";
+  else if (b >= (1ull << 20)) o << double(b) / double(1ull << 20) << " MiB";
+  else if (b >= 1024) o << double(b) / 1024.0 << " KiB";
+  else o << b << " B";
+  return o.str();
+}
+
+std::string describe_device(const DeviceCaps& c) {
+  std::ostringstream o;
+  auto yes = [](bool b) { return b ? "yes" : "no"; };
+  o << "Device " << c.index << ": " << c.name << "\n"
+    << "  type:                 " << device_type_name(c.type) << "\n"
+    << "  driver:               " << c.driver_name << " " << c.driver_info << "\n"
+    << "  Vulkan:               " << version_string(c.api_version) << "\n"
+    << "  subgroup size:        " << c.subgroup_size;
+  if (c.min_subgroup_size) o << " (size control " << c.min_subgroup_size << ".." << c.max_subgroup_size << ")";
+  o << "\n"
+    << "  16-bit storage:       " << yes(c.storage_16bit) << "\n"
+    << "  8-bit storage:        " << yes(c.storage_8bit) << "\n"
+    << "  fp16 arithmetic:      " << yes(c.float16_arithmetic) << "\n"
+    << "  int8 arithmetic:      " << yes(c.int8_arithmetic) << "\n"
+    << "  float32 atomic add:   " << yes(c.float32_atomic_add) << "\n"
+    << "  cooperative matrix:   " << yes(c.cooperative_matrix) << "\n"
+    << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
+    << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"
+    << "  maxStorageBufferRange:      " << bytes_str(c.max_storage_buffer_range) << "\n"
+    << "  maxMemoryAllocationSize:    " << bytes_str(c.max_memory_allocation_size) << "\n"
+    << "  maxComputeSharedMemorySize: " << bytes_str(c.max_compute_shared_memory) << "\n"
+    << "  maxComputeWorkGroupInvocations: " << c.max_workgroup_invocations << "\n"
+    << "  maxPushConstantsSize:       " << c.max_push_constants << " B\n"
+    << "  memory heaps:\n";
+  for (size_t h = 0; h < c.heaps.size(); ++h)
+    o << "    heap " << h << ": " << bytes_str(c.heaps[h].size) << (c.heaps[h].device_local ? ", device-local" : "")
+      << (c.heaps[h].host_visible ? ", host-visible" : "") << "\n";
+  return o.str();
+}
+
+}  // namespace dvs::vk

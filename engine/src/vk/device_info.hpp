@@ -1,0 +1,65 @@
+// What a physical device offers that dvs cares about: identity, the optional features it can use, the
+// limits that shape memory and kernels, and its memory heaps. Filled by query_device_caps().
+#pragma once
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace dvs::vk {
+
+struct MemoryHeapInfo {
+  uint64_t size = 0;
+  bool device_local = false;
+  bool host_visible = false;  // some memory type of this heap is host-visible
+};
+
+struct DeviceCaps {
+  uint32_t index = 0;
+  std::string name;
+  VkPhysicalDeviceType type = VK_PHYSICAL_DEVICE_TYPE_OTHER;
+  std::string driver_name, driver_info;
+  uint32_t api_version = 0, driver_version = 0, vendor_id = 0, device_id = 0;
+  uint8_t pipeline_cache_uuid[VK_UUID_SIZE] = {};
+
+  uint32_t subgroup_size = 0;
+  uint32_t min_subgroup_size = 0, max_subgroup_size = 0;  // 0 when size control is absent
+  bool subgroup_arithmetic = false, subgroup_shuffle = false, subgroup_size_control = false;
+  bool storage_16bit = false, storage_8bit = false;
+  bool float16_arithmetic = false, int8_arithmetic = false;
+  bool float32_atomic_add = false;   // VK_EXT_shader_atomic_float, buffer add
+  bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix
+  bool push_descriptor = false;
+
+  uint64_t max_storage_buffer_range = 0;
+  uint64_t max_memory_allocation_size = 0;
+  uint64_t min_storage_buffer_offset_alignment = 0;
+  uint64_t max_texel_buffer_elements = 0;
+  uint32_t max_compute_shared_memory = 0;
+  uint32_t max_workgroup_invocations = 0;
+  uint32_t max_workgroup_count[3] = {};
+  uint32_t max_push_constants = 0;
+  float timestamp_period_ns = 0;
+  bool timestamps = false;
+
+  std::vector<MemoryHeapInfo> heaps;
+  std::vector<std::string> extensions;
+
+  bool has_extension(const char* name) const;
+};
+
+const char* device_type_name(VkPhysicalDeviceType t);
+std::string version_string(uint32_t v);
+
+DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index);
+
+// Picks a device: `spec` is an index ("0") or a case-insensitive name substring ("llvmpipe"); empty means
+// the DVS_DEVICE environment variable, else the first discrete GPU, else integrated, else anything.
+// Throws dvs::Error listing the devices when nothing matches.
+uint32_t select_device(const std::vector<DeviceCaps>& devices, const std::string& spec);
+
+// Human-readable report of one device, as `dvs info` prints it.
+std::string describe_device(const DeviceCaps& caps);
+
+}  // namespace dvs::vk

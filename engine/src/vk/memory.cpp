@@ -1,0 +1,262 @@
+#include "vk/memory.hpp"
+
+#include <algorithm>
+#include <sstream>
+
+#include "vk/check.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::vk {
+
+std::string format_bytes(uint64_t b) {
+  std::ostringstream o;
+  o.setf(std::ios::fixed);
+  o.precision(1);
+  if (b >= (1ull << 30)) o << double(b) / double(1ull << 30) << " GiB";
+  else if (b >= (1ull << 20)) o << double(b) / double(1ull << 20) << " MiB";
+  else if (b >= 1024) o << double(b) / 1024.0 << " KiB";
+  else o << b << " B";
+  return o.str();
+}
+
+static VkDeviceSize align_up(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
+
+BufferView BufferView::sub(VkDeviceSize off, VkDeviceSize bytes) const {
+  if (off > size || bytes > size - off)
+    throw Error("internal: buffer sub-range [" + std::to_string(off) + ", +" + std::to_string(bytes) +
+                ") outside a view of " + std::to_string(size) + " bytes");
+  BufferView v = *this;
+  v.offset += off;
+  v.size = bytes;
+  if (mapped) v.mapped = mapped + off;
+  return v;
+}
+
+// ---- Buffer ------------------------------------------------------------------------------------------
+
+Buffer::~Buffer() {
+  if (owner_) owner_->release(*this);
+}
+
+Buffer::Buffer(Buffer&& o) noexcept
+    : owner_(o.owner_), block_(o.block_), reserved_(o.reserved_), view_(o.view_) {
+  o.owner_ = nullptr;
+  o.block_ = nullptr;
+  o.view_ = {};
+}
+
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+  if (this != &o) {
+    if (owner_) owner_->release(*this);
+    owner_ = o.owner_;
+    block_ = o.block_;
+    reserved_ = o.reserved_;
+    view_ = o.view_;
+    o.owner_ = nullptr;
+    o.block_ = nullptr;
+    o.view_ = {};
+  }
+  return *this;
+}
+
+// ---- Allocator ---------------------------------------------------------------------------------------
+
+Allocator::Allocator(Context& ctx) : ctx_(ctx) {
+  const DeviceCaps& c = ctx.caps();
+  VkPhysicalDeviceProperties p{};
+  vkGetPhysicalDeviceProperties(ctx.physical_device(), &p);
+  alignment_ = std::max<VkDeviceSize>({64, c.min_storage_buffer_offset_alignment, p.limits.minTexelBufferOffsetAlignment,
+                                       p.limits.nonCoherentAtomSize});
+  // Blocks big enough that weights and arenas rarely need their own, small enough to fit any limit.
+  block_size_ = std::min<VkDeviceSize>(256ull << 20, c.max_memory_allocation_size);
+}
+
+Allocator::~Allocator() {
+  VkDevice dev = ctx_.device();
+  for (auto& b : blocks_) {
+    if (b->buffer) vkDestroyBuffer(dev, b->buffer, nullptr);
+    if (b->memory) vkFreeMemory(dev, b->memory, nullptr);
+  }
+}
+
+VkDeviceSize Allocator::max_binding() const { return ctx_.caps().max_storage_buffer_range; }
+
+bool Allocator::device_memory_is_mapped() const {
+  VkPhysicalDeviceMemoryProperties mp{};
+  vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
+  uint32_t t = memory_type_for(MemoryUse::device, ~0u);
+  return mp.memoryTypes[t].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT;
+}
+
+uint32_t Allocator::memory_type_for(MemoryUse use, uint32_t type_bits) const {
+  VkPhysicalDeviceMemoryProperties mp{};
+  vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
+  const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  auto find = [&](VkMemoryPropertyFlags want, VkMemoryPropertyFlags avoid) -> int {
+    for (uint32_t t = 0; t < mp.memoryTypeCount; ++t) {
+      VkMemoryPropertyFlags f = mp.memoryTypes[t].propertyFlags;
+      if ((type_bits & (1u << t)) && (f & want) == want && !(f & avoid)) return int(t);
+    }
+    return -1;
+  };
+  int t = -1;
+  if (use == MemoryUse::device) {
+    // Unified memory: the largest device-local heap is also host-visible; map it and skip staging.
+    VkDeviceSize biggest = 0;
+    uint32_t big_heap = 0;
+    for (uint32_t h = 0; h < mp.memoryHeapCount; ++h)
+      if ((mp.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) && mp.memoryHeaps[h].size > biggest) {
+        biggest = mp.memoryHeaps[h].size;
+        big_heap = h;
+      }
+    for (uint32_t i = 0; i < mp.memoryTypeCount && t < 0; ++i) {
+      VkMemoryPropertyFlags f = mp.memoryTypes[i].propertyFlags;
+      if ((type_bits & (1u << i)) && mp.memoryTypes[i].heapIndex == big_heap &&
+          (f & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) && (f & host) == host)
+        t = int(i);
+    }
+    if (t < 0) t = find(VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0);
+    if (t < 0) t = find(0, 0);
+  } else if (use == MemoryUse::upload) {
+    t = find(host, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    if (t < 0) t = find(host, 0);
+  } else {
+    t = find(host | VK_MEMORY_PROPERTY_HOST_CACHED_BIT, 0);
+    if (t < 0) t = find(host, 0);
+  }
+  if (t < 0) throw Error("The Vulkan device offers no memory type usable for dvs buffers.");
+  return uint32_t(t);
+}
+
+MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::string& what) {
+  VkDevice dev = ctx_.device();
+  auto block = std::make_unique<MemoryBlock>();
+  block->size = size;
+  block->use = use;
+  VkBufferCreateInfo bci{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  bci.size = size;
+  bci.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT |
+              VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT |
+              VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  bci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  VK_CHECK(vkCreateBuffer(dev, &bci, nullptr, &block->buffer));
+  VkMemoryRequirements req{};
+  vkGetBufferMemoryRequirements(dev, block->buffer, &req);
+  VkMemoryAllocateInfo mai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  mai.allocationSize = req.size;
+  mai.memoryTypeIndex = memory_type_for(use, req.memoryTypeBits);
+  VkResult r = vkAllocateMemory(dev, &mai, nullptr, &block->memory);
+  if (r != VK_SUCCESS) {
+    vkDestroyBuffer(dev, block->buffer, nullptr);
+    if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
+      throw Error("Out of device memory: allocating " + format_bytes(req.size) + " for " + what + " failed (" +
+                  format_bytes(stats_.bytes_reserved) + " already held by dvs). Try --vae-tiling, a smaller "
+                  "--height/--width, fewer --frames, or a device with more memory (dvs plan shows the budget).");
+    VK_CHECK(r);
+  }
+  VK_CHECK(vkBindBufferMemory(dev, block->buffer, block->memory, 0));
+  VkPhysicalDeviceMemoryProperties mp{};
+  vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
+  if (mp.memoryTypes[mai.memoryTypeIndex].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
+    void* p = nullptr;
+    VK_CHECK(vkMapMemory(dev, block->memory, 0, VK_WHOLE_SIZE, 0, &p));
+    block->mapped = static_cast<uint8_t*>(p);
+  }
+  block->free_ranges[0] = size;
+  stats_.bytes_reserved += size;
+  stats_.blocks++;
+  blocks_.push_back(std::move(block));
+  return blocks_.back().get();
+}
+
+Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string& what, bool bindable) {
+  const DeviceCaps& c = ctx_.caps();
+  if (bytes == 0) bytes = 4;  // zero-size tensors still get a valid binding
+  if (bindable && bytes > c.max_storage_buffer_range)
+    throw Error("Buffer for " + what + " needs " + format_bytes(bytes) + " but this device binds at most " +
+                format_bytes(c.max_storage_buffer_range) + " (maxStorageBufferRange) per buffer. Use tiling, a smaller "
+                "size, or split the tensor.");
+  if (bytes > c.max_memory_allocation_size)
+    throw Error("Buffer for " + what + " needs " + format_bytes(bytes) + ", more than this device can allocate at "
+                "once (maxMemoryAllocationSize " + format_bytes(c.max_memory_allocation_size) + ").");
+  VkDeviceSize need = align_up(bytes, alignment_);
+
+  MemoryBlock* block = nullptr;
+  VkDeviceSize offset = 0;
+  for (auto& b : blocks_) {
+    if (b->use != use) continue;
+    for (auto& [off, size] : b->free_ranges)
+      if (size >= need) {  // offsets are always multiples of the alignment
+        block = b.get();
+        offset = off;
+        break;
+      }
+    if (block) break;
+  }
+  if (!block) {
+    block = new_block(std::max(need, block_size_), use, what);
+    offset = 0;
+  }
+  VkDeviceSize range = block->free_ranges[offset];
+  block->free_ranges.erase(offset);
+  if (range > need) block->free_ranges[offset + need] = range - need;
+
+  Buffer buf;
+  buf.owner_ = this;
+  buf.block_ = block;
+  buf.reserved_ = need;
+  buf.view_.buffer = block->buffer;
+  buf.view_.offset = offset;
+  buf.view_.size = bytes;
+  buf.view_.mapped = block->mapped ? block->mapped + offset : nullptr;
+  stats_.bytes_in_use += need;
+  stats_.peak_bytes_in_use = std::max(stats_.peak_bytes_in_use, stats_.bytes_in_use);
+  return buf;
+}
+
+void Allocator::release(Buffer& b) {
+  MemoryBlock* block = b.block_;
+  VkDeviceSize off = b.view_.offset, size = b.reserved_;
+  auto& fr = block->free_ranges;
+  auto next = fr.lower_bound(off);
+  if (next != fr.end() && off + size == next->first) {  // merge with the following range
+    size += next->second;
+    next = fr.erase(next);
+  }
+  if (next != fr.begin()) {  // merge with the preceding range
+    auto prev = std::prev(next);
+    if (prev->first + prev->second == off) {
+      prev->second += size;
+      size = 0;
+    }
+  }
+  if (size) fr[off] = size;
+  stats_.bytes_in_use -= b.reserved_;
+  b.owner_ = nullptr;
+  b.block_ = nullptr;
+  b.view_ = {};
+}
+
+// ---- Arena -------------------------------------------------------------------------------------------
+
+Arena::Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what)
+    : buffer_(alloc.allocate(capacity, MemoryUse::device, what, false)),
+      what_(what),
+      alignment_(alloc.alignment()),
+      max_binding_(alloc.max_binding()) {}
+
+BufferView Arena::alloc(VkDeviceSize bytes) {
+  VkDeviceSize need = align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
+  if (need > buffer_.size() - used_)
+    throw Error("The " + what_ + " of " + format_bytes(buffer_.size()) + " is full: " + format_bytes(used_) +
+                " used, " + format_bytes(bytes) + " more requested. Use a smaller size or tiling.");
+  if (bytes > max_binding_)
+    throw Error("A tensor in the " + what_ + " needs " + format_bytes(bytes) + ", more than one buffer binding holds (" +
+                format_bytes(max_binding_) + ", maxStorageBufferRange). Use tiling or a smaller size.");
+  BufferView v = buffer_.view().sub(used_, std::max<VkDeviceSize>(bytes, 4));
+  used_ += need;
+  peak_ = std::max(peak_, used_);
+  return v;
+}
+
+}  // namespace dvs::vk

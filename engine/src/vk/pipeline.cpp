@@ -1,0 +1,211 @@
+#include "vk/pipeline.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <unistd.h>
+
+#include "vk/check.hpp"
+#include "vk/context.hpp"
+#include "vk/shader_registry.hpp"
+
+namespace dvs::vk {
+namespace {
+
+constexpr char kMagic[8] = {'D', 'V', 'S', 'P', 'C', 'v', '1', 0};
+
+struct FileHeader {
+  char magic[8];
+  uint32_t vendor_id, device_id, driver_version, reserved;
+  uint8_t uuid[VK_UUID_SIZE];
+  uint64_t shaders_hash, data_size, data_hash;
+};
+
+uint64_t fnv1a(const uint8_t* p, size_t n) {
+  uint64_t h = 1469598103934665603ull;
+  for (size_t i = 0; i < n; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+FileHeader expected_header(const DeviceCaps& c) {
+  FileHeader h{};
+  std::memcpy(h.magic, kMagic, sizeof kMagic);
+  h.vendor_id = c.vendor_id;
+  h.device_id = c.device_id;
+  h.driver_version = c.driver_version;
+  std::memcpy(h.uuid, c.pipeline_cache_uuid, VK_UUID_SIZE);
+  h.shaders_hash = shaders_hash();
+  return h;
+}
+
+VkDescriptorType descriptor_type(BindingKind k) {
+  switch (k) {
+    case BindingKind::storage_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    case BindingKind::uniform_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    case BindingKind::uniform_texel_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+    case BindingKind::storage_texel_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
+  }
+  return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+}
+
+}  // namespace
+
+std::string PipelineCache::default_file(const Context& ctx) {
+  std::filesystem::path dir;
+  if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir = d;
+  else if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) dir = std::filesystem::path(x) / "dvs";
+  else if (const char* home = std::getenv("HOME"); home && *home) dir = std::filesystem::path(home) / ".cache" / "dvs";
+  else return "";
+  char name[64];
+  std::snprintf(name, sizeof name, "pipelines-%04x-%04x.bin", ctx.caps().vendor_id, ctx.caps().device_id);
+  return (dir / name).string();
+}
+
+PipelineCache::PipelineCache(Context& ctx, const std::string& file) : ctx_(ctx) {
+  file_ = file == "-" ? "" : (file.empty() ? default_file(ctx) : file);
+  load();
+}
+
+void PipelineCache::load() {
+  std::vector<uint8_t> data;
+  if (file_.empty()) {
+    load_state_ = CacheLoad::disabled;
+  } else {
+    std::ifstream in(file_, std::ios::binary);
+    if (!in) {
+      load_state_ = CacheLoad::absent;
+    } else {
+      std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
+      FileHeader want = expected_header(ctx_.caps()), got{};
+      if (bytes.size() < sizeof(FileHeader)) {
+        load_note_ = "file shorter than its header";
+      } else {
+        std::memcpy(&got, bytes.data(), sizeof got);
+        if (std::memcmp(got.magic, want.magic, 8) != 0) load_note_ = "not a dvs pipeline cache";
+        else if (got.vendor_id != want.vendor_id || got.device_id != want.device_id ||
+                 std::memcmp(got.uuid, want.uuid, VK_UUID_SIZE) != 0)
+          load_note_ = "written for another device";
+        else if (got.driver_version != want.driver_version) load_note_ = "written by another driver version";
+        else if (got.shaders_hash != want.shaders_hash) load_note_ = "written for other shaders";
+        else if (got.data_size != bytes.size() - sizeof(FileHeader)) load_note_ = "truncated or padded";
+        else if (got.data_hash != fnv1a(bytes.data() + sizeof(FileHeader), got.data_size)) load_note_ = "checksum mismatch";
+        else data.assign(bytes.begin() + sizeof(FileHeader), bytes.end());
+      }
+      load_state_ = load_note_.empty() ? CacheLoad::loaded : CacheLoad::rejected;
+    }
+  }
+  VkPipelineCacheCreateInfo ci{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
+  ci.initialDataSize = data.size();
+  ci.pInitialData = data.empty() ? nullptr : data.data();
+  VkResult r = vkCreatePipelineCache(ctx_.device(), &ci, nullptr, &cache_);
+  if (r != VK_SUCCESS && !data.empty()) {  // the driver refused it after all: start empty
+    load_state_ = CacheLoad::rejected;
+    load_note_ = "driver rejected the data";
+    ci.initialDataSize = 0;
+    ci.pInitialData = nullptr;
+    r = vkCreatePipelineCache(ctx_.device(), &ci, nullptr, &cache_);
+  }
+  VK_CHECK(r);
+}
+
+PipelineCache::~PipelineCache() {
+  try {
+    if (created_) save();
+  } catch (const std::exception& e) {
+    std::cerr << "dvs: warning: could not save the pipeline cache: " << e.what() << "\n";
+  }
+  VkDevice dev = ctx_.device();
+  for (auto& [key, p] : pipelines_) {
+    vkDestroyPipeline(dev, p->pipeline, nullptr);
+    vkDestroyPipelineLayout(dev, p->layout, nullptr);
+    vkDestroyDescriptorSetLayout(dev, p->set_layout, nullptr);
+  }
+  if (cache_) vkDestroyPipelineCache(dev, cache_, nullptr);
+}
+
+void PipelineCache::save() {
+  if (file_.empty()) return;
+  size_t size = 0;
+  VK_CHECK(vkGetPipelineCacheData(ctx_.device(), cache_, &size, nullptr));
+  std::vector<uint8_t> data(size);
+  VK_CHECK(vkGetPipelineCacheData(ctx_.device(), cache_, &size, data.data()));
+  data.resize(size);
+  FileHeader h = expected_header(ctx_.caps());
+  h.data_size = size;
+  h.data_hash = fnv1a(data.data(), size);
+  std::filesystem::path path(file_);
+  std::error_code ec;
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
+  std::string tmp = file_ + ".tmp" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) return;  // an unwritable cache directory only costs start-up time
+    out.write(reinterpret_cast<const char*>(&h), sizeof h);
+    out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(size));
+    if (!out) {
+      std::filesystem::remove(tmp, ec);
+      return;
+    }
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) std::filesystem::remove(tmp, ec);
+}
+
+const Pipeline& PipelineCache::get(const std::string& shader, std::span<const uint32_t> spec) {
+  auto key = std::make_pair(shader, std::vector<uint32_t>(spec.begin(), spec.end()));
+  if (auto it = pipelines_.find(key); it != pipelines_.end()) return *it->second;
+
+  std::span<const uint32_t> code = find_shader(shader);
+  auto p = std::make_unique<Pipeline>();
+  p->name = shader;
+  p->iface = reflect_shader(code);
+  VkDevice dev = ctx_.device();
+
+  std::vector<VkDescriptorSetLayoutBinding> lb;
+  for (const ShaderBinding& b : p->iface.bindings)
+    lb.push_back({b.binding, descriptor_type(b.kind), 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+  VkDescriptorSetLayoutCreateInfo dl{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  dl.bindingCount = uint32_t(lb.size());
+  dl.pBindings = lb.data();
+  VK_CHECK(vkCreateDescriptorSetLayout(dev, &dl, nullptr, &p->set_layout));
+
+  VkPushConstantRange pcr{VK_SHADER_STAGE_COMPUTE_BIT, 0, 128};
+  VkPipelineLayoutCreateInfo pl{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pl.setLayoutCount = 1;
+  pl.pSetLayouts = &p->set_layout;
+  pl.pushConstantRangeCount = p->iface.push_constant_bytes ? 1 : 0;
+  pl.pPushConstantRanges = &pcr;
+  VK_CHECK(vkCreatePipelineLayout(dev, &pl, nullptr, &p->layout));
+
+  VkShaderModuleCreateInfo smi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  smi.codeSize = code.size() * 4;
+  smi.pCode = code.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  VK_CHECK(vkCreateShaderModule(dev, &smi, nullptr, &module));
+
+  std::vector<VkSpecializationMapEntry> entries;
+  for (uint32_t i = 0; i < spec.size(); ++i) entries.push_back({i, i * 4, 4});
+  VkSpecializationInfo si{uint32_t(entries.size()), entries.data(), spec.size() * 4, spec.data()};
+  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  ci.stage.module = module;
+  ci.stage.pName = "main";
+  ci.stage.pSpecializationInfo = spec.empty() ? nullptr : &si;
+  ci.layout = p->layout;
+  VkResult r = vkCreateComputePipelines(dev, cache_, 1, &ci, nullptr, &p->pipeline);
+  vkDestroyShaderModule(dev, module, nullptr);
+  VK_CHECK(r);
+  created_++;
+  const Pipeline& ref = *p;
+  pipelines_.emplace(std::move(key), std::move(p));
+  return ref;
+}
+
+}  // namespace dvs::vk

@@ -1,0 +1,59 @@
+// Compute pipelines built from embedded SPIR-V plus specialization constants, memoised per (shader,
+// constants), and an on-disk VkPipelineCache. The cache file carries its own header (device identity,
+// driver version, a hash of every embedded shader, a checksum of the data) and is ignored whenever any
+// of that does not match, so a driver update, another GPU or a corrupt file can never reach the driver.
+#pragma once
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "vk/spirv_reflect.hpp"
+
+namespace dvs::vk {
+
+class Context;
+
+struct Pipeline {
+  std::string name;  // shader name, used for profiling labels and errors
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  ShaderInterface iface;
+};
+
+enum class CacheLoad { disabled, absent, loaded, rejected };
+
+class PipelineCache {
+ public:
+  // file: path of the cache file; "" = default location; "-" = no disk cache.
+  PipelineCache(Context& ctx, const std::string& file);
+  ~PipelineCache();
+
+  // Specialization constant i (constant_id = i) takes spec[i] (floats passed bit-cast).
+  const Pipeline& get(const std::string& shader, std::span<const uint32_t> spec = {});
+
+  void save();  // writes the file atomically (temp name + rename); a no-op without a file
+  CacheLoad load_state() const { return load_state_; }
+  const std::string& load_note() const { return load_note_; }  // why a file was rejected
+  const std::string& file() const { return file_; }
+  size_t pipelines_created() const { return created_; }
+
+  static std::string default_file(const Context& ctx);
+
+ private:
+  void load();
+  Context& ctx_;
+  std::string file_;
+  VkPipelineCache cache_ = VK_NULL_HANDLE;
+  std::map<std::pair<std::string, std::vector<uint32_t>>, std::unique_ptr<Pipeline>> pipelines_;
+  CacheLoad load_state_ = CacheLoad::disabled;
+  std::string load_note_;
+  size_t created_ = 0;
+};
+
+}  // namespace dvs::vk

@@ -1,0 +1,238 @@
+#include "vk/recorder.hpp"
+
+#include "vk/check.hpp"
+#include "vk/context.hpp"
+#include "vk/profiler.hpp"
+
+namespace dvs::vk {
+namespace {
+constexpr uint32_t kSetsPerPool = 512;
+constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
+
+VkDescriptorType descriptor_type(BindingKind k) {
+  switch (k) {
+    case BindingKind::storage_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    case BindingKind::uniform_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    case BindingKind::uniform_texel_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+    case BindingKind::storage_texel_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
+  }
+  return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+}
+}  // namespace
+
+Recorder::Recorder(Context& ctx) : ctx_(ctx) {
+  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  ai.commandPool = ctx.command_pool();
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  VK_CHECK(vkAllocateCommandBuffers(ctx.device(), &ai, &cmd_));
+}
+
+Recorder::~Recorder() {
+  release_resources();
+  VkDevice dev = ctx_.device();
+  for (VkDescriptorPool p : pools_) vkDestroyDescriptorPool(dev, p, nullptr);
+  for (VkQueryPool q : query_pools_) vkDestroyQueryPool(dev, q, nullptr);
+  if (cmd_) vkFreeCommandBuffers(dev, ctx_.command_pool(), 1, &cmd_);
+}
+
+void Recorder::release_resources() {
+  VkDevice dev = ctx_.device();
+  for (VkBufferView v : texel_views_) vkDestroyBufferView(dev, v, nullptr);
+  texel_views_.clear();
+  for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
+  pool_in_use_ = 0;
+}
+
+void Recorder::begin() {
+  if (recording_) throw Error("internal: Recorder::begin while recording");
+  release_resources();
+  reads_.clear();
+  writes_.clear();
+  query_labels_.clear();
+  dispatches_ = barriers_ = 0;
+  recorded_ = false;
+  VK_CHECK(vkResetCommandBuffer(cmd_, 0));
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  VK_CHECK(vkBeginCommandBuffer(cmd_, &bi));
+  recording_ = true;
+  // Host writes to parameter buffers and earlier submissions must be visible to this one.
+  barrier();
+  barriers_ = 0;
+}
+
+VkDescriptorSet Recorder::allocate_set(VkDescriptorSetLayout layout) {
+  VkDevice dev = ctx_.device();
+  while (true) {
+    if (pool_in_use_ == pools_.size()) {
+      VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kSetsPerPool * 8},
+                                      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, kSetsPerPool},
+                                      {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kSetsPerPool * 4},
+                                      {VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER, kSetsPerPool}};
+      VkDescriptorPoolCreateInfo pci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+      pci.maxSets = kSetsPerPool;
+      pci.poolSizeCount = 4;
+      pci.pPoolSizes = sizes;
+      VkDescriptorPool pool;
+      VK_CHECK(vkCreateDescriptorPool(dev, &pci, nullptr, &pool));
+      pools_.push_back(pool);
+    }
+    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    ai.descriptorPool = pools_[pool_in_use_];
+    ai.descriptorSetCount = 1;
+    ai.pSetLayouts = &layout;
+    VkDescriptorSet set;
+    VkResult r = vkAllocateDescriptorSets(dev, &ai, &set);
+    if (r == VK_SUCCESS) return set;
+    if (r != VK_ERROR_OUT_OF_POOL_MEMORY && r != VK_ERROR_FRAGMENTED_POOL) VK_CHECK(r);
+    pool_in_use_++;
+  }
+}
+
+void Recorder::track(const Range& r, bool writes) {
+  auto overlaps = [&r](const std::vector<Range>& v) {
+    for (const Range& o : v)
+      if (o.buffer == r.buffer && o.begin < r.end && r.begin < o.end) return true;
+    return false;
+  };
+  if (overlaps(writes_) || (writes && overlaps(reads_))) barrier();
+  (writes ? writes_ : reads_).push_back(r);
+}
+
+void Recorder::barrier() {
+  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
+                     VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_UNIFORM_READ_BIT;
+  vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_HOST_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0, nullptr, 0,
+                       nullptr);
+  reads_.clear();
+  writes_.clear();
+  barriers_++;
+}
+
+void Recorder::dispatch(const Pipeline& p, std::initializer_list<Binding> bindings, const void* push,
+                        uint32_t push_bytes, uint32_t gx, uint32_t gy, uint32_t gz, const std::string& label) {
+  dispatch(p, std::vector<Binding>(bindings), push, push_bytes, gx, gy, gz, label);
+}
+
+void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings, const void* push,
+                        uint32_t push_bytes, uint32_t gx, uint32_t gy, uint32_t gz, const std::string& label) {
+  if (!recording_) throw Error("internal: dispatch outside begin()/end()");
+  const auto& decl = p.iface.bindings;
+  if (bindings.size() != decl.size())
+    throw Error("internal: shader " + p.name + " declares " + std::to_string(decl.size()) + " bindings, " +
+                std::to_string(bindings.size()) + " given");
+  const DeviceCaps& caps = ctx_.caps();
+  if (gx == 0 || gy == 0 || gz == 0) return;  // nothing to do (empty tensor)
+  if (gx > caps.max_workgroup_count[0] || gy > caps.max_workgroup_count[1] || gz > caps.max_workgroup_count[2])
+    throw Error("internal: shader " + p.name + " dispatch of " + std::to_string(gx) + "x" + std::to_string(gy) + "x" +
+                std::to_string(gz) + " groups exceeds the device's maxComputeWorkGroupCount");
+  if (push_bytes > 128 || push_bytes % 4) throw Error("internal: push constants must be ≤ 128 bytes, multiple of 4");
+
+  VkDescriptorSet set = allocate_set(p.set_layout);
+  std::vector<VkWriteDescriptorSet> writes(decl.size());
+  std::vector<VkDescriptorBufferInfo> infos(decl.size());
+  std::vector<VkBufferView> views(decl.size());
+  for (size_t i = 0; i < decl.size(); ++i) {
+    const BufferView& v = bindings[i].view;
+    if (!v.valid()) throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " has no buffer");
+    VkWriteDescriptorSet& w = writes[i];
+    w = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set;
+    w.dstBinding = decl[i].binding;
+    w.descriptorCount = 1;
+    w.descriptorType = descriptor_type(decl[i].kind);
+    if (decl[i].kind == BindingKind::uniform_texel_buffer || decl[i].kind == BindingKind::storage_texel_buffer) {
+      if (bindings[i].texel_format == VK_FORMAT_UNDEFINED)
+        throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " is a texel buffer: give a format");
+      VkBufferViewCreateInfo bv{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+      bv.buffer = v.buffer;
+      bv.format = bindings[i].texel_format;
+      bv.offset = v.offset;
+      bv.range = v.size;
+      VK_CHECK(vkCreateBufferView(ctx_.device(), &bv, nullptr, &views[i]));
+      texel_views_.push_back(views[i]);
+      w.pTexelBufferView = &views[i];
+    } else {
+      infos[i] = {v.buffer, v.offset, v.size};
+      w.pBufferInfo = &infos[i];
+    }
+    track({v.buffer, v.offset, v.offset + v.size}, !decl[i].read_only);
+  }
+  vkUpdateDescriptorSets(ctx_.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+
+  bool timed = ctx_.profiler().enabled() && ctx_.caps().timestamps;
+  uint32_t q = 0;
+  if (timed) {
+    q = uint32_t(query_labels_.size()) * 2;
+    if (q / kQueriesPerPool >= query_pools_.size()) {
+      VkQueryPoolCreateInfo qci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+      qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
+      qci.queryCount = kQueriesPerPool;
+      VkQueryPool pool;
+      VK_CHECK(vkCreateQueryPool(ctx_.device(), &qci, nullptr, &pool));
+      query_pools_.push_back(pool);
+    }
+    if (q % kQueriesPerPool == 0) vkCmdResetQueryPool(cmd_, query_pools_[q / kQueriesPerPool], 0, kQueriesPerPool);
+    vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool], q % kQueriesPerPool);
+    query_labels_.push_back(label.empty() ? p.name : label);
+  }
+  vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline);
+  vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0, nullptr);
+  if (push_bytes) vkCmdPushConstants(cmd_, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
+  vkCmdDispatch(cmd_, gx, gy, gz);
+  if (timed)
+    vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool],
+                        q % kQueriesPerPool + 1);
+  dispatches_++;
+}
+
+void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize bytes) {
+  if (!recording_) throw Error("internal: copy outside begin()/end()");
+  if (bytes > src.size || bytes > dst.size) throw Error("internal: recorded copy larger than its buffers");
+  track({src.buffer, src.offset, src.offset + bytes}, false);
+  track({dst.buffer, dst.offset, dst.offset + bytes}, true);
+  VkBufferCopy region{src.offset, dst.offset, bytes};
+  vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, 1, &region);
+}
+
+void Recorder::fill_zero(const BufferView& dst) {
+  if (!recording_) throw Error("internal: fill outside begin()/end()");
+  track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
+  vkCmdFillBuffer(cmd_, dst.buffer, dst.offset, (dst.size + 3) / 4 * 4, 0);
+}
+
+void Recorder::end() {
+  if (!recording_) throw Error("internal: Recorder::end without begin");
+  // Results must be visible to the host and to later submissions.
+  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_HOST_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+  vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
+  VK_CHECK(vkEndCommandBuffer(cmd_));
+  recording_ = false;
+  recorded_ = true;
+}
+
+void Recorder::submit() {
+  if (recording_) end();
+  if (!recorded_) throw Error("internal: Recorder::submit with nothing recorded");
+  ctx_.submit_and_wait(cmd_);
+  if (!query_labels_.empty()) {
+    uint32_t total = uint32_t(query_labels_.size()) * 2;
+    std::vector<uint64_t> ts(total);
+    for (uint32_t first = 0; first < total; first += kQueriesPerPool) {
+      uint32_t n = std::min(kQueriesPerPool, total - first);
+      VK_CHECK(vkGetQueryPoolResults(ctx_.device(), query_pools_[first / kQueriesPerPool], 0, n, n * 8, &ts[first], 8,
+                                     VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+    }
+    double period = ctx_.caps().timestamp_period_ns;
+    for (size_t i = 0; i < query_labels_.size(); ++i)
+      ctx_.profiler().add(query_labels_[i], double(ts[2 * i + 1] - ts[2 * i]) * period);
+  }
+}
+
+}  // namespace dvs::vk

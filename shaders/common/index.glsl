@@ -1,0 +1,4 @@
+// Flat invocation index for grids that ops::grid_1d() split over x and y (x ≤ 65535 groups).
+uint flat_index() {
+  return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+}

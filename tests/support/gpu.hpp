@@ -1,0 +1,24 @@
+// Shared Vulkan context for tests: created once per test process with validation layers on, on the
+// device DVS_DEVICE names (CI: lavapipe). GpuTest fails any test during which a validation message
+// arrived.
+#pragma once
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "vk/context.hpp"
+
+namespace dvs::test {
+
+vk::Context& gpu();
+
+class GpuTest : public ::testing::Test {
+ protected:
+  void SetUp() override;
+  void TearDown() override;
+  vk::Context& ctx() { return gpu(); }
+};
+
+std::string golden_dir();  // DVS_GOLDEN_DIR or tests/golden/A
+
+}  // namespace dvs::test
