@@ -20,7 +20,7 @@ namespace {
 // first half counts up from start, the second half down from end (scalar path of ATen's linspace_kernel).
 template <class F>
 std::vector<F> torch_linspace(F start, F end, int steps) {
-  std::vector<F> out(size_t(steps));
+  std::vector<F> out(static_cast<size_t>(steps));
   if (steps == 1) {
     out[0] = start;
     return out;
@@ -140,7 +140,7 @@ std::vector<int> trailing_timesteps(int T, int S) {
   // np.arange(T, 0, -ratio) fills start + i·delta with delta = (start + step) − start.
   const double step = -double(T) / double(S);
   const double delta = (double(T) + step) - double(T);
-  std::vector<int> ts(size_t(S));
+  std::vector<int> ts(static_cast<size_t>(S));
   for (int i = 0; i < S; ++i) ts[size_t(i)] = int(std::nearbyint(double(T) + double(i) * delta)) - 1;
   return ts;
 }
@@ -150,7 +150,7 @@ namespace {
 std::vector<int> descending_timesteps(const SchedulerConfig& c, int S) {
   const int T = c.num_train_timesteps;
   check_steps(S, T);
-  std::vector<int> ts(size_t(S));
+  std::vector<int> ts(static_cast<size_t>(S));
   switch (c.timestep_spacing) {
     case TimestepSpacing::trailing:
       return trailing_timesteps(T, S);
@@ -194,7 +194,7 @@ CogVideoXSchedule::CogVideoXSchedule(const SchedulerConfig& config) : config_(co
   const int T = config_.num_train_timesteps;
   std::vector<double> betas = torch_linspace<double>(std::sqrt(config_.beta_start), std::sqrt(config_.beta_end), T);
   for (double& b : betas) b = b * b;
-  std::vector<double> alphas(size_t(T));
+  std::vector<double> alphas(static_cast<size_t>(T));
   for (int i = 0; i < T; ++i) alphas[size_t(i)] = 1.0 - betas[size_t(i)];
   alphas_cumprod_ = torch_cumprod(alphas);
   const double s = config_.snr_shift_scale;
@@ -275,7 +275,7 @@ std::vector<int> CogVideoXSchedule::paper_inversion_timesteps(int t0, int n) {
   if (t0 < 0) fail("t0 must be >= 0 (got " + std::to_string(t0) + ")");
   if (n > t0 + 1)
     fail(std::to_string(n) + " inversion steps do not fit below t0 = " + std::to_string(t0) + " (at most t0 + 1)");
-  std::vector<int> ts(size_t(n));
+  std::vector<int> ts(static_cast<size_t>(n));
   for (int j = 1; j <= n; ++j) ts[size_t(j - 1)] = int(std::nearbyint(double(j) * double(t0 + 1) / double(n))) - 1;
   return ts;
 }
