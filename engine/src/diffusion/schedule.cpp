@@ -16,8 +16,12 @@ namespace {
 
 [[noreturn]] void fail(const std::string& what) { throw Error("schedule: " + what); }
 
-// torch.linspace on the CPU for a floating dtype: step = (end − start)/(steps − 1) in that dtype; the
-// first half counts up from start, the second half down from end (scalar path of ATen's linspace_kernel).
+// torch.linspace on the CPU for a floating dtype, bit for bit as the x86-64 (AVX2) build computes it:
+// step = (end − start)/(steps − 1) in that dtype; the first half counts up from start, the second half
+// down from end (ATen linspace_kernel). Its vectorised loop fills two 256-bit vectors at a time: each
+// vector's first element comes from the formula above, the others are base + j·step (Vectorized::arange),
+// all with fused multiply-adds; the tail (< 2 vectors) takes the scalar formula. The pack's float32 and
+// float64 tables match this exactly (a plain per-element formula is off by an ulp in ~half the entries).
 template <class F>
 std::vector<F> torch_linspace(F start, F end, int steps) {
   std::vector<F> out(static_cast<size_t>(steps));
@@ -27,7 +31,13 @@ std::vector<F> torch_linspace(F start, F end, int steps) {
   }
   const F step = (end - start) / F(steps - 1);
   const int halfway = steps / 2;
-  for (int i = 0; i < steps; ++i) out[size_t(i)] = i < halfway ? F(start + step * F(i)) : F(end - step * F(steps - i - 1));
+  constexpr int lanes = int(32 / sizeof(F));
+  int i = 0;
+  for (; i <= steps - 2 * lanes; i += lanes) {
+    const F base = i < halfway ? std::fma(step, F(i), start) : std::fma(-step, F(steps - i - 1), end);
+    for (int j = 0; j < lanes; ++j) out[size_t(i + j)] = std::fma(F(j), step, base);
+  }
+  for (; i < steps; ++i) out[size_t(i)] = i < halfway ? F(start + step * F(i)) : F(end - step * F(steps - i - 1));
   return out;
 }
 
@@ -126,8 +136,8 @@ SchedulerConfig parse_scheduler_config(std::string_view json_text, const std::st
 
 SchedulerConfig load_scheduler_config(const fs::path& path) {
   fs::path file = path;
-  if (fs::is_directory(path)) file = fs::exists(path / "scheduler_config.json") ? path / "scheduler_config.json"
-                                                                              : path / "scheduler" / "scheduler_config.json";
+  if (path.extension() != ".json")  // a folder: the scheduler folder itself or a model folder
+    file = fs::exists(path / "scheduler_config.json") ? path / "scheduler_config.json" : path / "scheduler" / "scheduler_config.json";
   if (!fs::exists(file)) fail(file.string() + " not found");
   return parse_scheduler_config(read_text(file), file.string());
 }
