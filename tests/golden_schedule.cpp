@@ -2,7 +2,8 @@
 // sched_cogvideox_tables, sched_cogvideox_step, sched_inverse_official, sched_inverse_positive_snr, the
 // scheduler parts of e2e_inversion / e2e_sampling, e2e_krnr (official 3-round K-RNR) and
 // e2e_krnr_brief_variant (paper per-channel AdaIN). Tolerances are the cases.json ones
-// (|ours − golden| ≤ atol + rtol·|golden|); every test prints the max error it saw.
+// (|ours − golden| ≤ atol + rtol·|golden|); every test prints the max error it saw. Settings (step
+// counts, strength, k, δ, rounds, guidance) come from cases.json, so any pack of this format can be run.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +11,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -54,8 +58,39 @@ std::vector<double> load_f64(const std::string& rel) {
 struct Tol {
   double atol, rtol;
 };
-constexpr Tol kSchedTol{1e-6, 1e-6};
-constexpr Tol kE2eTol{1e-4, 1e-4};
+
+const nlohmann::json& cases() {
+  static const nlohmann::json j = [] {
+    std::ifstream f(pack() / "cases.json");
+    return nlohmann::json::parse(f);
+  }();
+  return j;
+}
+
+const nlohmann::json& case_of(const std::string& name) {
+  for (const auto& c : cases().at("cases"))
+    if (c.at("name") == name) return c;
+  throw std::runtime_error("cases.json has no case " + name);
+}
+
+Tol tol_of(const std::string& name) {
+  const auto& t = case_of(name).at("tolerance");
+  return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
+}
+
+const nlohmann::json& e2e() { return cases().at("e2e_settings"); }
+
+// The timesteps t of the files scheduler/<prefix>_t<t>_<suffix>.npy, ascending.
+std::vector<int> step_files(const std::string& prefix, const std::string& suffix) {
+  const std::regex re(prefix + "_t([0-9]+)_" + suffix + "\\.npy");
+  std::set<int> ts;
+  for (const auto& e : fs::directory_iterator(pack() / "scheduler")) {
+    std::smatch m;
+    const std::string name = e.path().filename().string();
+    if (std::regex_match(name, m, re)) ts.insert(std::stoi(m[1]));
+  }
+  return {ts.begin(), ts.end()};
+}
 
 // Max |a − g| and whether every element is within atol + rtol·|g|.
 struct Compare {
@@ -129,7 +164,8 @@ TEST(GoldenSchedule, CogVideoXAlphasCumprod) {
   const CogVideoXSchedule s(pack_config());
   EXPECT_CLOSE(s.alphas_cumprod(), load_f64("scheduler/cogvideox_alphas_cumprod_f64.npy"), (Tol{1e-12, 0}),
                "alphas_cumprod vs f64 file");
-  EXPECT_CLOSE(s.alphas_cumprod(), load("scheduler/cogvideox_alphas_cumprod.npy"), kSchedTol, "alphas_cumprod vs f32 file");
+  EXPECT_CLOSE(s.alphas_cumprod(), load("scheduler/cogvideox_alphas_cumprod.npy"), tol_of("sched_cogvideox_tables"),
+               "alphas_cumprod vs f32 file");
   EXPECT_EQ(s.alphas_cumprod().back(), 0.0) << "zero terminal SNR";
 }
 
@@ -140,12 +176,15 @@ TEST(GoldenSchedule, CogVideoXStep) {
   const CogVideoXSchedule s(pack_config());
   const auto v = load("scheduler/step_model_output.npy");
   const auto x = load("scheduler/step_sample.npy");
-  for (int t : {999, 519, 19}) {
-    const StepCoefficients c = s.step(t, 50);
+  const Tol tol = tol_of("sched_cogvideox_step");
+  const std::vector<int> ts = step_files("cogvideox_step", "prev_sample");
+  ASSERT_FALSE(ts.empty());
+  for (int t : ts) {
+    const StepCoefficients c = s.step(t, 50);  // the case's set_timesteps(50)
     EXPECT_EQ(c.to_t, t - 20 < 0 ? -1 : t - 20);
     const std::string stem = "scheduler/cogvideox_step_t" + std::to_string(t);
-    EXPECT_CLOSE(apply(c.next, x, v), load(stem + "_prev_sample.npy"), kSchedTol, "step t=" + std::to_string(t) + " prev_sample");
-    EXPECT_CLOSE(apply(c.pred_x0, x, v), load(stem + "_pred_x0.npy"), kSchedTol, "step t=" + std::to_string(t) + " pred_x0");
+    EXPECT_CLOSE(apply(c.next, x, v), load(stem + "_prev_sample.npy"), tol, "step t=" + std::to_string(t) + " prev_sample");
+    EXPECT_CLOSE(apply(c.pred_x0, x, v), load(stem + "_pred_x0.npy"), tol, "step t=" + std::to_string(t) + " pred_x0");
   }
 }
 
@@ -156,13 +195,16 @@ namespace {
 
 void check_inverse(const std::string& name, const SchedulerConfig& cfg) {
   const DDIMInverseSchedule s(cfg);
+  const Tol kSchedTol = tol_of("sched_" + name);
   EXPECT_CLOSE(s.alphas_cumprod(), load("scheduler/" + name + "_alphas_cumprod.npy"), kSchedTol, name + " alphas_cumprod");
   for (int n : {3, 30})
     EXPECT_EQ(s.timesteps(n), load_ints("scheduler/" + name + "_timesteps_" + std::to_string(n) + ".npy")) << name << " " << n;
   const auto v = load("scheduler/step_model_output.npy");
   const auto x = load("scheduler/step_sample.npy");
-  for (int t : {32, 499, 999}) {
-    const StepCoefficients c = s.step(t, 30);
+  const std::vector<int> ts = step_files(name + "_step", "next_sample");
+  ASSERT_FALSE(ts.empty());
+  for (int t : ts) {
+    const StepCoefficients c = s.step(t, 30);  // the case's set_timesteps(30)
     EXPECT_EQ(c.model_t, t);
     const std::string stem = "scheduler/" + name + "_step_t" + std::to_string(t);
     EXPECT_CLOSE(apply(c.next, x, v), load(stem + "_next_sample.npy"), kSchedTol, name + " t=" + std::to_string(t) + " next");
@@ -190,13 +232,15 @@ TEST(GoldenSchedule, InversePositiveSnr) {
 
 TEST(GoldenSchedule, E2eInversionSteps) {
   const DDIMInverseSchedule s(pack_config());
-  const int n = 3;
+  const Tol kE2eTol = tol_of("e2e_inversion");
+  const double g = e2e().at("guidance_scale").get<double>();
+  const int n = e2e().at("num_inversion_steps").get<int>();
   const auto ts = s.timesteps(n);
   EXPECT_EQ(ts, load_ints("e2e/inversion_timesteps.npy"));
   std::vector<float> x = load("e2e/inversion_x0.npy");
   for (int i = 0; i < n; ++i) {
     const std::string stem = "e2e/inversion_step" + std::to_string(i) + "_t" + std::to_string(ts[size_t(i)]);
-    const auto v = cfg(load(stem + "_model_uncond.npy"), load(stem + "_model_cond.npy"), 6.0);
+    const auto v = cfg(load(stem + "_model_uncond.npy"), load(stem + "_model_cond.npy"), g);
     x = apply(s.step(ts[size_t(i)], n).next, x, v);
     EXPECT_CLOSE(x, load(stem + "_latent.npy"), kE2eTol, stem + " (chained)");
   }
@@ -205,14 +249,15 @@ TEST(GoldenSchedule, E2eInversionSteps) {
 
 TEST(GoldenSchedule, E2eSamplingSteps) {
   const CogVideoXSchedule s(pack_config());
-  const SamplingPlan plan = s.plan(4, 0.95);
+  const Tol kE2eTol = tol_of("e2e_sampling");
+  const double g = e2e().at("guidance_scale").get<double>();
+  const SamplingPlan plan = s.plan(e2e().at("num_inference_steps").get<int>(), e2e().at("strength").get<double>());
   EXPECT_EQ(plan.timesteps, load_ints("e2e/sampling_timesteps.npy"));
-  EXPECT_EQ(plan.t0(), 749);
   std::vector<float> x = load("e2e/x_init.npy");
   for (int i = 0; i < plan.num_steps(); ++i) {
     const int t = plan.timesteps[size_t(i)];
     const std::string stem = "e2e/sampling_step" + std::to_string(i) + "_t" + std::to_string(t);
-    const auto v = cfg(load(stem + "_model_uncond.npy"), load(stem + "_model_cond.npy"), 6.0);
+    const auto v = cfg(load(stem + "_model_uncond.npy"), load(stem + "_model_cond.npy"), g);
     EXPECT_CLOSE(v, load(stem + "_guided.npy"), kE2eTol, stem + " guided");
     const StepCoefficients c = s.step(t, plan.num_inference_steps);
     EXPECT_CLOSE(apply(c.pred_x0, x, v), load(stem + "_pred_x0.npy"), kE2eTol, stem + " pred_x0 (chained)");
@@ -227,15 +272,18 @@ TEST(GoldenSchedule, E2eSamplingSteps) {
 
 TEST(GoldenKrnr, OfficialThreeRounds) {
   const CogVideoXSchedule s(pack_config());
-  const int t0 = s.plan(4, 0.95).t0();
-  ASSERT_EQ(t0, 749);
+  const auto& rec = case_of("e2e_krnr");
+  const Tol kE2eTol = tol_of("e2e_krnr");
+  const int t0 = s.plan(e2e().at("num_inference_steps").get<int>(), e2e().at("strength").get<double>()).t0();
+  ASSERT_EQ(t0, rec.at("t0").get<int>());
   const double abar = s.alpha_cumprod(t0);
-  EXPECT_NEAR(abar, 0.033171482831862664, 1e-15);
-  const auto c10 = ref::krnr_series(abar, 10), c2 = ref::krnr_series(abar, 2);
-  EXPECT_NEAR(c10.m, 1.6901616966387754, 1e-13);
-  EXPECT_NEAR(c10.n, 0.8447870707242577, 1e-13);
-  EXPECT_NEAR(c2.m, 0.3612145583794957, 1e-13);
-  EXPECT_NEAR(c2.n, 0.9668285171681372, 1e-13);
+  const int k = rec.at("k_order").get<int>(), delta = rec.at("delta").get<int>(), rounds = rec.at("rounds").get<int>();
+  EXPECT_NEAR(abar, rec.at("abar_t0").get<double>(), 1e-15);
+  const auto ck = ref::krnr_series(abar, k), cd = ref::krnr_series(abar, delta);
+  EXPECT_NEAR(ck.m, rec.at("m_k").get<double>(), 1e-13);
+  EXPECT_NEAR(ck.n, rec.at("n_k").get<double>(), 1e-13);
+  EXPECT_NEAR(cd.m, rec.at("m_delta").get<double>(), 1e-13);
+  EXPECT_NEAR(cd.n, rec.at("n_delta").get<double>(), 1e-13);
 
   const auto x0 = load("e2e/krnr_x0.npy");
   const auto mean_t = load_tensor("e2e/video_posterior_mean.npy");
@@ -249,34 +297,39 @@ TEST(GoldenKrnr, OfficialThreeRounds) {
   }
   std::vector<float> eps = load("e2e/eps_inv.npy");
   const std::vector<float> eps_inv = eps;
-  for (int r = 0; r < 3; ++r) {
+  for (int r = 0; r < rounds; ++r) {
     const std::string stem = "e2e/krnr_round" + std::to_string(r);
-    EXPECT_CLOSE(ref::combine(x0, eps, c10), load(stem + "_eps_k.npy"), kE2eTol, stem + "_eps_k");
-    EXPECT_CLOSE(ref::combine(x0, eps, c2), load(stem + "_eps_delta.npy"), kE2eTol, stem + "_eps_delta");
-    eps = ref::adaptive_krnr_official_round(x0, eps, mu, sigma, abar, 10, 2);
+    EXPECT_CLOSE(ref::combine(x0, eps, ck), load(stem + "_eps_k.npy"), kE2eTol, stem + "_eps_k");
+    EXPECT_CLOSE(ref::combine(x0, eps, cd), load(stem + "_eps_delta.npy"), kE2eTol, stem + "_eps_delta");
+    eps = ref::adaptive_krnr_official_round(x0, eps, mu, sigma, abar, k, delta);
     EXPECT_CLOSE(eps, load(stem + "_out.npy"), kE2eTol, stem + "_out (chained)");
   }
   EXPECT_CLOSE(eps, load("e2e/x_init.npy"), kE2eTol, "x_init (chained)");
-  EXPECT_CLOSE(ref::adaptive_krnr_official(x0, eps_inv, mu, sigma, abar, 10, 2, 3), load("e2e/x_init.npy"), kE2eTol,
+  EXPECT_CLOSE(ref::adaptive_krnr_official(x0, eps_inv, mu, sigma, abar, k, delta, rounds), load("e2e/x_init.npy"), kE2eTol,
                "x_init (adaptive_krnr_official)");
 }
 
 TEST(GoldenKrnr, PaperPerChannelAdain) {
   const CogVideoXSchedule s(pack_config());
-  const double abar = s.alpha_cumprod(s.plan(4, 0.95).t0());
-  const auto x0 = load("e2e/krnr_x0.npy");
+  const auto& rec = case_of("e2e_krnr_brief_variant");
+  const Tol kE2eTol = tol_of("e2e_krnr_brief_variant");
+  const double abar =
+      s.alpha_cumprod(s.plan(e2e().at("num_inference_steps").get<int>(), e2e().at("strength").get<double>()).t0());
+  const double k = e2e().at("k_order").get<double>(), delta = e2e().at("delta_paper").get<double>();
+  const dvs::HostTensor x0_t = load_tensor("e2e/krnr_x0.npy");
+  const auto x0 = x0_t.to_f32();
   const auto eps_inv = load("e2e/eps_inv.npy");
-  const auto ck = ref::krnr_closed_form(abar, 10), cd = ref::krnr_closed_form(abar, 3);
-  EXPECT_NEAR(ck.m, 1.690161696638775, 1e-13);
-  EXPECT_NEAR(ck.n, 0.8447870707242577, 1e-13);
-  EXPECT_NEAR(cd.m, 0.5373034235471079, 1e-13);
-  EXPECT_NEAR(cd.n, 0.9506577160963463, 1e-13);
-  const auto eps_k = ref::krnr(x0, eps_inv, abar, 10), eps_d = ref::krnr(x0, eps_inv, abar, 3);
+  const auto ck = ref::krnr_closed_form(abar, k), cd = ref::krnr_closed_form(abar, delta);
+  EXPECT_NEAR(ck.m, rec.at("c_k").get<double>(), 1e-13);
+  EXPECT_NEAR(ck.n, rec.at("r_k").get<double>(), 1e-13);
+  EXPECT_NEAR(cd.m, rec.at("c_delta").get<double>(), 1e-13);
+  EXPECT_NEAR(cd.n, rec.at("r_delta").get<double>(), 1e-13);
+  const auto eps_k = ref::krnr(x0, eps_inv, abar, k), eps_d = ref::krnr(x0, eps_inv, abar, delta);
   EXPECT_CLOSE(eps_k, load("e2e/brief_eps_k.npy"), kE2eTol, "brief_eps_k");
   EXPECT_CLOSE(eps_d, load("e2e/brief_eps_delta.npy"), kE2eTol, "brief_eps_delta");
-  const ref::LatentShape shape{3, 4, 8, 8};
-  ASSERT_EQ(size_t(shape.numel()), x0.size());
+  ASSERT_EQ(x0_t.shape.size(), 5u);  // B, F, C, H, W with B = 1 folded into F
+  const ref::LatentShape shape{x0_t.shape[0] * x0_t.shape[1], x0_t.shape[2], x0_t.shape[3], x0_t.shape[4]};
   EXPECT_CLOSE(ref::adain_per_channel(eps_k, eps_d, shape), load("e2e/brief_x_init.npy"), kE2eTol, "brief_x_init");
-  EXPECT_CLOSE(ref::adaptive_krnr_paper(x0, eps_inv, shape, abar, 10, 3), load("e2e/brief_x_init.npy"), kE2eTol,
+  EXPECT_CLOSE(ref::adaptive_krnr_paper(x0, eps_inv, shape, abar, k, delta), load("e2e/brief_x_init.npy"), kE2eTol,
                "brief_x_init (adaptive_krnr_paper)");
 }

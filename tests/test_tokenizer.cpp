@@ -1,5 +1,5 @@
 // T5 tokenizer unit tests: special-token handling, truncation and padding rules, and clear errors for a
-// missing or corrupt spiece.model. Uses the SentencePiece model of the golden pack's model folder.
+// missing or corrupt spiece.model. Uses the SentencePiece model of pack A (tests/golden/A/model).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -9,13 +9,13 @@
 
 #include "dvs/error.hpp"
 #include "models/tokenizer.hpp"
-#include "support/gpu.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path model_dir() { return fs::path(dvs::test::golden_dir()) / "model"; }
+// The in-repo pack A (not DVS_GOLDEN_DIR): these expectations are about its tiny vocabulary.
+fs::path model_dir() { return fs::path(DVS_DEFAULT_GOLDEN_DIR) / "model"; }
 
 // A fresh, empty temporary folder removed at the end of the test.
 struct TempDir {
