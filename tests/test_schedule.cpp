@@ -177,6 +177,29 @@ TEST(Schedule, InverseStepCoefficients) {
   EXPECT_NEAR(c.next.v, std::sqrt(as), 1e-7);
 }
 
+TEST(Schedule, SingleStep) {
+  // S = 1 both ways: sampling 999 → clean, inversion clean → 999 (ᾱ = 0: the output is the model output).
+  EXPECT_EQ(cog().timesteps(1), (std::vector<int>{999}));
+  const DDIMInverseSchedule inv{SchedulerConfig{}};
+  EXPECT_EQ(inv.timesteps(1), (std::vector<int>{999}));
+  const StepCoefficients c = inv.step(999, 1);
+  EXPECT_EQ(c.from_t, -1);
+  EXPECT_EQ(c.next.x, 0.0);
+  EXPECT_EQ(c.next.v, 1.0);
+  EXPECT_EQ(CogVideoXSchedule::paper_inversion_timesteps(966, 1), (std::vector<int>{966}));
+}
+
+TEST(Schedule, OtherSpacings) {
+  SchedulerConfig c;
+  c.timestep_spacing = TimestepSpacing::leading;
+  c.steps_offset = 1;
+  EXPECT_EQ(CogVideoXSchedule(c).timesteps(4), (std::vector<int>{751, 501, 251, 1}));
+  EXPECT_EQ(DDIMInverseSchedule(c).timesteps(4), (std::vector<int>{1, 251, 501, 751}));
+  c.timestep_spacing = TimestepSpacing::linspace;  // np.linspace(0, 999, 5).round()[::-1], half to even
+  EXPECT_EQ(CogVideoXSchedule(c).timesteps(5), (std::vector<int>{999, 749, 500, 250, 0}));
+  EXPECT_NE(error_of([&] { DDIMInverseSchedule(c).timesteps(5); }), "");
+}
+
 TEST(Schedule, PaperInversion) {
   const auto ts = CogVideoXSchedule::paper_inversion_timesteps(966, 30);
   ASSERT_EQ(ts.size(), 30u);
