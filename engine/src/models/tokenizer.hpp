@@ -10,6 +10,8 @@
 //  3. `</s>` is appended unless the ids already end with it (T5Tokenizer._add_eos_if_not_present).
 // Padded call (padding='max_length', truncation=True): the ids of step 2 are cut to max_length - 1
 // before `</s>`, then right-padded with <pad> to max_length.
+// CogVideoX's tokenizer_config.json says legacy=true; the non-legacy mode of newer transformers differs
+// only in how text right after an added token is prefixed, and is not modelled.
 #pragma once
 #include <cstdint>
 #include <filesystem>
