@@ -1,0 +1,275 @@
+// dvs-weights: look inside model weights. `inspect` lists components, tensors, dtypes, shapes and sizes and
+// checks them against the schema their config.json implies. make-tiny and merge-lora are placeholders.
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "dvs/error.hpp"
+#include "io/model_folder.hpp"
+#include "io/model_schema.hpp"
+#include "io/npy.hpp"
+#include "io/safetensors.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: dvs-weights <command> [options]
+
+commands:
+  inspect PATH [--summary]
+      PATH is a pipeline folder (with model_index.json), a component folder (config.json + weights),
+      a .safetensors file, a *.safetensors.index.json shard index, or a .npy file.
+      Prints every component with its library and class, every tensor with dtype, shape and bytes, totals
+      per component and overall, and checks the tensors against the schema of the component's class
+      (T5EncoderModel, CogVideoXTransformer3DModel, AutoencoderKLCogVideoX) built from its config.json.
+      --summary  totals and schema check only, no per-tensor lines.
+  make-tiny ...     write a tiny random-weight model folder (not implemented yet)
+  merge-lora ...    merge a LoRA into transformer weights (not implemented yet)
+
+options:
+  -h, --help        this text
+
+exit status: 0 all good; 1 a file is unreadable or corrupt, or weights do not match their schema;
+             2 usage error or command not implemented.
+)";
+
+std::string human_bytes(uint64_t n) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double v = double(n);
+  int u = 0;
+  while (v >= 1024.0 && u < 4) {
+    v /= 1024.0;
+    ++u;
+  }
+  char buf[64];
+  if (u == 0) std::snprintf(buf, sizeof buf, "%llu B", static_cast<unsigned long long>(n));
+  else std::snprintf(buf, sizeof buf, "%llu bytes, %.1f %s", static_cast<unsigned long long>(n), v, units[u]);
+  return buf;
+}
+
+std::string shape_list(const dvs::Shape& s) {
+  std::string out = "[";
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (i) out += ",";
+    out += std::to_string(s[i]);
+  }
+  return out + "]";
+}
+
+struct Totals {
+  uint64_t tensors = 0, bytes = 0;
+  std::map<std::string, uint64_t> per_dtype;  // dtype name -> tensor count
+};
+
+class Inspector {
+ public:
+  explicit Inspector(bool summary) : summary_(summary) {}
+
+  int failures() const { return failures_; }
+
+  void error(const std::string& msg) {
+    std::cout.flush();  // keep the listing and the error in order when both go to one terminal
+    std::cerr << "dvs-weights: error: " << msg << "\n";
+    ++failures_;
+  }
+
+  // Lists the tensors of one weight set and checks them against `cls`'s schema when one is known.
+  Totals weights(const dvs::WeightSet& w, const std::string& cls, const nlohmann::json* config,
+                 const std::string& config_origin) {
+    Totals t;
+    std::cout << "  weights: " << w.source().string();
+    if (w.sharded()) std::cout << " (" << w.files().size() << " shard" << (w.files().size() == 1 ? "" : "s") << ")";
+    std::cout << "\n";
+    size_t width = 0, shape_width = 0;
+    for (const auto& [name, r] : w.entries()) {
+      width = std::max(width, name.size());
+      shape_width = std::max(shape_width, shape_list(r.info->shape).size());
+    }
+    width = std::min<size_t>(width, 72);
+    for (const auto& [name, r] : w.entries()) {
+      t.tensors++;
+      t.bytes += r.info->nbytes();
+      t.per_dtype[r.info->dtype_name]++;
+      if (!summary_) {
+        std::string pad(name.size() < width ? width - name.size() : 0, ' ');
+        std::cout << "    " << name << pad << "  " << r.info->dtype_name
+                  << std::string(r.info->dtype_name.size() < 8 ? 8 - r.info->dtype_name.size() : 1, ' ')
+                  << shape_list(r.info->shape) << std::string(shape_width + 2 - shape_list(r.info->shape).size(), ' ')
+                  << r.info->nbytes() << "\n";
+      }
+    }
+    for (const auto& warn : w.warnings()) std::cout << "  warning: " << warn << "\n";
+    std::cout << "  total: " << t.tensors << " tensors, " << human_bytes(t.bytes) << ";";
+    for (const auto& [dt, n] : t.per_dtype) std::cout << " " << dt << " " << n;
+    std::cout << "\n";
+
+    if (cls.empty() || !config) {
+      std::cout << "  schema: not checked (no model class known for these weights)\n";
+    } else if (!dvs::has_schema(cls)) {
+      std::cout << "  schema: not checked (no schema for " << cls << ")\n";
+    } else {
+      try {
+        const dvs::Schema s = dvs::schema_for(cls, *config, config_origin);
+        const auto issues = dvs::check_schema(s, w);
+        if (issues.empty()) {
+          size_t optional_absent = 0;
+          for (const auto& spec : s.tensors)
+            if (spec.optional && !w.find(spec.name)) ++optional_absent;
+          std::cout << "  schema: OK, matches " << cls << " from " << config_origin;
+          if (optional_absent) std::cout << " (" << optional_absent << " optional tensor(s) absent, e.g. tied weights)";
+          std::cout << "\n";
+        } else {
+          std::cout << "  schema: " << issues.size() << " mismatch(es) against " << cls << " from " << config_origin << "\n";
+          for (const auto& i : issues) std::cout << "    " << i.message() << "\n";
+          error(w.source().string() + ": " + std::to_string(issues.size()) + " tensor(s) do not match the " + cls +
+                " schema (see above)");
+        }
+      } catch (const dvs::Error& e) {
+        error(e.what());
+      }
+    }
+    return t;
+  }
+
+  int pipeline(const fs::path& root) {
+    const dvs::ModelFolder m = dvs::ModelFolder::open(root);
+    std::cout << "pipeline " << (m.pipeline_class().empty() ? "(no _class_name)" : m.pipeline_class()) << " at "
+              << root.string() << "\n";
+    Totals all;
+    size_t with_weights = 0;
+    for (const auto& c : m.components()) {
+      std::cout << "\ncomponent " << c.name << ": " << c.library << " " << c.class_name << "\n";
+      try {
+        const dvs::Component comp = m.load(c.name);
+        std::cout << "  config: " << comp.config_path.string() << "\n";
+        if (!comp.weights) {
+          std::cout << "  no weights\n";
+          continue;
+        }
+        ++with_weights;
+        const Totals t = weights(*comp.weights, c.class_name, &comp.config, comp.config_path.string());
+        all.tensors += t.tensors;
+        all.bytes += t.bytes;
+        for (const auto& [dt, n] : t.per_dtype) all.per_dtype[dt] += n;
+      } catch (const dvs::Error& e) {
+        error(e.what());
+      }
+    }
+    std::cout << "\noverall: " << with_weights << " component(s) with weights, " << all.tensors << " tensors, "
+              << human_bytes(all.bytes) << ";";
+    for (const auto& [dt, n] : all.per_dtype) std::cout << " " << dt << " " << n;
+    std::cout << "\n";
+    return finish();
+  }
+
+  // A component folder, a .safetensors file or a shard index: the class comes from a config.json beside it.
+  int weight_source(const fs::path& p, bool is_dir) {
+    const fs::path dir = is_dir ? p : p.parent_path();
+    const dvs::WeightSet w = is_dir ? dvs::WeightSet::open_dir(p) : dvs::WeightSet::open_file(p);
+    nlohmann::json config;
+    std::string cls, origin;
+    std::error_code ec;
+    if (fs::is_regular_file(dir / "config.json", ec)) {
+      origin = (dir / "config.json").string();
+      config = dvs::read_json_file(dir / "config.json");
+      cls = dvs::config_class_name(config);
+    }
+    std::cout << (is_dir ? "component " : "file ") << p.string();
+    if (!cls.empty()) std::cout << ": " << cls;
+    std::cout << "\n";
+    weights(w, cls, cls.empty() ? nullptr : &config, origin);
+    return finish();
+  }
+
+  int npy(const fs::path& p) {
+    const dvs::HostTensor t = dvs::read_npy(p);
+    std::cout << "npy " << p.string() << ": " << dvs::dtype_name(t.dtype) << " " << shape_list(t.shape) << ", "
+              << human_bytes(t.bytes()) << "\n";
+    return 0;
+  }
+
+ private:
+  int finish() const {
+    if (failures_) std::cout << "\nFAILED: " << failures_ << " problem(s)\n";
+    return failures_ ? 1 : 0;
+  }
+
+  bool summary_;
+  int failures_ = 0;
+};
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+int inspect(const std::vector<std::string>& args) {
+  bool summary = false;
+  std::string path;
+  for (const auto& a : args) {
+    if (a == "--summary") summary = true;
+    else if (a == "-h" || a == "--help") {
+      std::cout << kUsage;
+      return 0;
+    } else if (!a.empty() && a[0] == '-') {
+      std::cerr << "dvs-weights: inspect: unknown option " << a << "\n" << kUsage;
+      return 2;
+    } else if (path.empty()) path = a;
+    else {
+      std::cerr << "dvs-weights: inspect takes one PATH\n" << kUsage;
+      return 2;
+    }
+  }
+  if (path.empty()) {
+    std::cerr << "dvs-weights: inspect needs a PATH\n" << kUsage;
+    return 2;
+  }
+  Inspector ins(summary);
+  try {
+    const fs::path p(path);
+    std::error_code ec;
+    if (fs::is_directory(p, ec)) {
+      if (fs::is_regular_file(p / "model_index.json", ec)) return ins.pipeline(p);
+      return ins.weight_source(p, true);
+    }
+    if (!fs::exists(p, ec)) throw dvs::Error(path + ": no such file or folder");
+    if (ends_with(path, ".npy")) return ins.npy(p);
+    if (ends_with(path, ".safetensors") || ends_with(path, ".json")) return ins.weight_source(p, false);
+    throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json or .npy");
+  } catch (const dvs::Error& e) {
+    std::cout.flush();
+    std::cerr << "dvs-weights: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cout.flush();
+    std::cerr << "dvs-weights: error: " << path << ": " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.empty()) {
+    std::cerr << kUsage;
+    return 2;
+  }
+  const std::string cmd = args[0];
+  args.erase(args.begin());
+  if (cmd == "-h" || cmd == "--help" || cmd == "help") {
+    std::cout << kUsage;
+    return 0;
+  }
+  if (cmd == "inspect") return inspect(args);
+  if (cmd == "make-tiny" || cmd == "merge-lora") {
+    std::cerr << "dvs-weights: " << cmd << ": not implemented yet\n";
+    return 2;
+  }
+  std::cerr << "dvs-weights: unknown command '" << cmd << "'\n" << kUsage;
+  return 2;
+}
