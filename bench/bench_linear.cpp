@@ -1,8 +1,12 @@
 // Linear / GEMM throughput: fp32, bf16 and f16 weights on square, model-class and GEMV shapes, with the
 // epilogue cost on one shape. FLOPs = 2·M·N·K. DVS_LINEAR_KERNEL=rows,cols,sg_m pins a kernel variant
 // (for tuning).
+#include <sys/resource.h>
+
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <random>
 #include <string>
 #include <vector>
@@ -11,6 +15,7 @@
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
+#include "vk/pipeline.hpp"
 #include "vk/recorder.hpp"
 
 namespace dvs::bench {
@@ -74,7 +79,86 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
   b.report({op, shape, ms, gflops, 0, note});
 }
 
+// CPU seconds (user + system) this process used so far: on a CPU device (lavapipe) FLOPs per CPU second
+// is a throughput measure that other processes' load does not distort much.
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// GFLOP per CPU second of `fn` doing `flops` per call, over at least `reps` calls.
+double gflops_per_cpu_second(const std::function<void()>& fn, double flops, int reps) {
+  fn();
+  double c0 = cpu_seconds();
+  for (int i = 0; i < reps; ++i) fn();
+  return flops * reps / ((cpu_seconds() - c0) * 1e9);
+}
+
+// DVS_LINEAR_TUNE="rows,cols,sg_m;..." times each listed variant on DVS_LINEAR_CASE (default 1024³), f32 and
+// bf16 weights, twice in turn so that load changes from other processes show up as spread.
+void tune(Bench& b, const char* list) {
+  const char* only = std::getenv("DVS_LINEAR_CASE");
+  int64_t m = 1024, n = 1024, k = 1024;
+  if (only) std::sscanf(only, "%lldx%lldx%lld", (long long*)&m, (long long*)&n, (long long*)&k);
+  std::vector<ops::LinearKernel> ks;
+  std::string l = list;
+  for (size_t pos = 0; pos < l.size();) {
+    size_t e = l.find(';', pos);
+    if (e == std::string::npos) e = l.size();
+    ops::LinearKernel kern;
+    if (std::sscanf(l.substr(pos, e - pos).c_str(), "%d,%d,%d", &kern.rows, &kern.cols, &kern.sg_m) == 3) ks.push_back(kern);
+    pos = e + 1;
+  }
+  vk::Context& ctx = b.ctx();
+  // The FMA-peak shader measured the same way (the harness's bench/fma_peak dispatch).
+  double peak_per_cpu = 0;
+  {
+    const uint32_t iters = 1024, groups = 512;
+    vk::Buffer out = ctx.allocator().allocate(groups * 64 * 4);
+    uint32_t spec[] = {iters};
+    const vk::Pipeline& p = ctx.pipelines().get("bench/fma_peak", spec);
+    vk::Recorder rec(ctx);
+    rec.begin();
+    float push[2] = {0.999f, 1e-3f};
+    rec.dispatch(p, {out.view()}, push, sizeof push, groups);
+    rec.end();
+    peak_per_cpu = gflops_per_cpu_second([&] { rec.submit(); }, double(groups) * 64 * 64 * iters * 2, 4);
+    std::printf("fma peak per cpu-second: %.2f GFLOP\n", peak_per_cpu);
+  }
+  for (DType wdt : {DType::f32, DType::bf16}) {
+    Tensor x = Tensor::upload(ctx, random_host({m, k}, DType::f32, 1));
+    Tensor w = Tensor::upload(ctx, random_host({n, k}, wdt, 2));
+    Tensor y = Tensor::empty(ctx, {m, n}, DType::f32);
+    ops::LinearShape s;
+    s.m = m;
+    s.n = n;
+    s.k = k;
+    const int rounds = std::getenv("DVS_LINEAR_ROUNDS") ? std::atoi(std::getenv("DVS_LINEAR_ROUNDS")) : 2;
+    for (int round = 0; round < rounds; ++round)
+      for (const ops::LinearKernel& kern : ks) {
+        vk::Recorder rec(ctx);
+        rec.begin();
+        ops::linear_batched_with(rec, x, w, y, s, {}, kern);
+        rec.end();
+        rec.submit();  // compile, first touch
+        double c0 = cpu_seconds();
+        auto t0 = std::chrono::steady_clock::now();
+        const int reps = 2;
+        for (int i = 0; i < reps; ++i) rec.submit();
+        double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / reps;
+        double per_cpu = 2.0 * m * n * k * reps / ((cpu_seconds() - c0) * 1e9);
+        char shape[64], note[96];
+        std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)m, (long long)n, (long long)k);
+        std::snprintf(note, sizeof note, "rows %d cols %d sg_m %d: %.2f GFLOP/cpu-s = %.3f of peak/cpu-s", kern.rows,
+                      kern.cols, kern.sg_m, per_cpu, per_cpu / peak_per_cpu);
+        b.report({std::string("tune_") + dtype_name(wdt), shape, ms, 2.0 * m * n * k / (ms * 1e6), 0, note});
+      }
+  }
+}
+
 void linear(Bench& b) {
+  if (const char* list = std::getenv("DVS_LINEAR_TUNE")) return tune(b, list);
   const Case cases[] = {
       {"square", 1024, 1024, 1024, true},
       {"CogVideoX attn proj class", 2048, 3072, 3072, false},

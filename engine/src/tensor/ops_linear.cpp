@@ -115,7 +115,7 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   else if (s.m <= 2) k.rows = 2;
   else if (s.m <= 4) k.rows = 4;
   else k.rows = 8;
-  k.cols = k.rows == 8 ? 3 : 4;
+  k.cols = k.rows == 8 ? 3 : (k.rows == 1 ? 2 : 4);
   k.sg_m = k.rows == 8 ? 2 : 1;
   // The 8-value K steps need K and every X/W offset and stride on 8-element (W) / 4-element (X) boundaries;
   // offsets are checked at dispatch, where the bound views are known.
