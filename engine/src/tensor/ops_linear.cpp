@@ -104,7 +104,7 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   const LinearShape s = normalized(shape_in);
   const vk::DeviceCaps& caps = ctx.caps();
   LinearKernel k;
-  if (caps.subgroup_size == 8)
+  if (caps.subgroup_shuffle && caps.subgroup_size == 8)
     k.lanes = 0;
   else if (caps.subgroup_shuffle && caps.subgroup_size >= 8 && caps.subgroup_size <= 64 && caps.subgroup_size % 8 == 0)
     k.lanes = 1;
@@ -218,7 +218,7 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     fail("bad kernel configuration");
   const uint32_t spec[] = {uint32_t(rows), uint32_t(cols), wcode, use_vec ? 1u : 0u, uint32_t(kernel.lanes),
                            uint32_t(sg_m)};
-  const vk::Pipeline& pipe = ctx.pipelines().get("linalg/linear", spec);
+  const vk::Pipeline& pipe = ctx.pipelines().get(kernel.lanes == 2 ? "linalg/linear_nosubgroup" : "linalg/linear", spec);
   const int64_t tile_m = int64_t(sg_m) * rows, tile_n = int64_t(8 / sg_m) * 8 * cols;
   const uint32_t gx = div_up(s.n, tile_n), gy = div_up(s.m, tile_m), gz = u32(s.batch, "batch");
   if (gy > 65535 || gz > 65535) fail("too many rows or batch items for one dispatch; split the call");
