@@ -270,6 +270,8 @@ TEST_F(LinearTest, BatchedStrided) {
   check(10, 13, 16, p);  // row strides larger than the rows
   p.x_pad = 1;           // odd X row stride: scalar path
   check(10, 13, 16, p);
+  p.kernel = LinearKernel{};  // even when a vectorised kernel is asked for
+  check(10, 13, 16, p);
 }
 
 TEST_F(LinearTest, UnalignedSlices) {
