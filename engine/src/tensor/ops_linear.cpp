@@ -116,11 +116,17 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   else if (s.m <= 4) k.rows = 4;
   else k.rows = 8;
   k.cols = k.rows == 8 ? 3 : (k.rows == 1 ? 2 : 4);
-  k.sg_m = k.rows == 8 ? 2 : 1;
+  // f32 weights cost two texel fetches per 8 K values: a 16x2 tile (16 FMAs per fetch instead of 12)
+  // measured ~10% faster on lavapipe; for 16-bit weights (one fetch per 8 values) 8x3 is as good and wastes
+  // fewer rows on small M.
+  if (w_dtype == DType::f32 && s.m >= 64) {
+    k.rows = 16;
+    k.cols = 2;
+  }
+  k.sg_m = k.rows >= 8 ? 2 : 1;
   // The 8-value K steps need K and every X/W offset and stride on 8-element (W) / 4-element (X) boundaries;
   // strides are checked here and again at dispatch, offsets at dispatch where the bound views are known.
   k.vectorized = s.k % 8 == 0 && s.x_row_stride % 4 == 0 && s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
-  (void)w_dtype;  // one tile shape serves every weight type (measured: 8x3 is as good as any for f32 and bf16)
   return k;
 }
 
