@@ -1,0 +1,239 @@
+// Linear / GEMM throughput: fp32, bf16 and f16 weights on square, model-class and GEMV shapes, with the
+// epilogue cost on one shape. FLOPs = 2·M·N·K. DVS_LINEAR_KERNEL=rows,cols,sg_m pins a kernel variant
+// (for tuning).
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <algorithm>
+#include <cstdlib>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "harness.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_linear.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/pipeline.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::bench {
+namespace {
+
+HostTensor random_host(Shape s, DType dt, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<float> v(size_t(shape_numel(s)));
+  for (float& f : v) f = u(rng);
+  HostTensor h = HostTensor::from_f32(s, v);
+  if (dt == DType::f32) return h;
+  HostTensor o(s, dt);
+  for (size_t i = 0; i < v.size(); ++i)
+    o.as<uint16_t>()[i] = dt == DType::bf16 ? f32_to_bf16(v[i]) : f32_to_f16(v[i]);
+  return o;
+}
+
+// CPU seconds (user + system) this process used so far: on a CPU device (lavapipe) FLOPs per CPU second
+// is a throughput measure that other processes' load does not distort much.
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// GFLOP per CPU second of `fn` doing `flops` per call, over at least `reps` calls.
+double gflops_per_cpu_second(const std::function<void()>& fn, double flops, int reps) {
+  fn();
+  double c0 = cpu_seconds();
+  for (int i = 0; i < reps; ++i) fn();
+  return flops * reps / ((cpu_seconds() - c0) * 1e9);
+}
+
+// The harness's FMA-peak shader measured per CPU second (once per run): the reference for the figures above
+// when other processes share the machine.
+double peak_per_cpu_second(Bench& b) {
+  static double cached = -1;
+  if (cached >= 0) return cached;
+  vk::Context& ctx = b.ctx();
+  const uint32_t iters = 1024, groups = 512;
+  vk::Buffer out = ctx.allocator().allocate(groups * 64 * 4);
+  uint32_t spec[] = {iters};
+  const vk::Pipeline& p = ctx.pipelines().get("bench/fma_peak", spec);
+  vk::Recorder rec(ctx);
+  rec.begin();
+  float push[2] = {0.999f, 1e-3f};
+  rec.dispatch(p, {out.view()}, push, sizeof push, groups);
+  rec.end();
+  cached = gflops_per_cpu_second([&] { rec.submit(); }, double(groups) * 64 * 64 * iters * 2, 4);
+  char note[128];
+  std::snprintf(note, sizeof note, "%.2f GFLOP per CPU-second: reference for the per-CPU-second ratios below", cached);
+  b.report({"fma_peak_per_cpu_second", "32768x64x1024", 0, 0, 0, note});
+  return cached;
+}
+
+struct Case {
+  const char* name;
+  int64_t m, n, k;
+  bool quick;  // also in --quick runs
+};
+
+void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
+  vk::Context& ctx = b.ctx();
+  Tensor x = Tensor::upload(ctx, random_host({c.m, c.k}, DType::f32, 1), "bench x");
+  ops::LinearEpilogue ep;
+  if (epilogue) {
+    ep.bias = Tensor::upload(ctx, random_host({c.n}, wdt, 3));
+    ep.activation = ops::Activation::gelu_tanh;
+    ep.gate = Tensor::upload(ctx, random_host({c.n}, DType::f32, 4));
+    ep.residual = Tensor::upload(ctx, random_host({c.m, c.n}, DType::f32, 5));
+  }
+  // A weight larger than one binding (f32 FFN weights on lavapipe: 144 MiB > 128 MiB) is split over N, as a
+  // model has to: one call per part, writing its columns of Y (row stride N).
+  const uint64_t max_bind = ctx.allocator().max_binding();
+  const int64_t parts = int64_t((uint64_t(c.n) * uint64_t(c.k) * dtype_size(wdt) + max_bind - 1) / max_bind);
+  const int64_t n_part = (c.n + parts - 1) / parts;
+  std::vector<Tensor> ws;
+  for (int64_t p0 = 0; p0 < c.n; p0 += n_part)
+    ws.push_back(Tensor::upload(ctx, random_host({std::min(n_part, c.n - p0), c.k}, wdt, uint32_t(2 + p0)), "bench w"));
+  const Tensor& w = ws[0];
+  Tensor y = Tensor::empty(ctx, {c.m, c.n}, DType::f32, "bench y");
+  auto record = [&](vk::Recorder& r, const ops::LinearShape& sh, const ops::LinearKernel& kern) {
+    for (size_t i = 0; i < ws.size(); ++i) {
+      int64_t col0 = int64_t(i) * n_part;
+      ops::LinearShape part = sh;
+      part.n = ws[i].dim(0);
+      part.y_row_stride = c.n;
+      Tensor yv = col0 ? Tensor::on(y.buffer().sub(VkDeviceSize(col0) * 4, y.bytes() - VkDeviceSize(col0) * 4),
+                                    {y.numel() - col0}, DType::f32)
+                       : y;
+      ops::linear_batched_with(r, x, ws[i], yv, part, ep, kern);
+    }
+  };
+  ops::LinearShape s;
+  s.m = c.m;
+  s.n = c.n;
+  s.k = c.k;
+  ops::LinearKernel kern = ops::choose_linear_kernel(ctx, s, wdt);
+  if (const char* env = std::getenv("DVS_LINEAR_KERNEL")) {
+    int r = 0, co = 0, sg = 0;
+    if (std::sscanf(env, "%d,%d,%d", &r, &co, &sg) == 3 && kern.rows >= 8) {
+      kern.rows = r;
+      kern.cols = co;
+      kern.sg_m = sg;
+    }
+  }
+  const double flops = 2.0 * double(c.m) * double(c.n) * double(c.k);
+  double ms = 0, per_cpu = 0;
+  if (flops < 5e10) {
+    vk::Recorder rec(ctx);
+    rec.begin();
+    record(rec, s, kern);
+    rec.end();
+    ms = Bench::time_ms([&] { rec.submit(); }, b.quick() ? 0.2 : 1.0);
+    per_cpu = gflops_per_cpu_second([&] { rec.submit(); }, flops, 2);
+  } else {
+    // Large shapes: compile the same pipeline on a few rows, then time single calls.
+    ops::LinearShape small = s;
+    small.m = std::min<int64_t>(s.m, 64);
+    ops::run_now(ctx, [&](vk::Recorder& r) { record(r, small, kern); });
+    vk::Recorder rec(ctx);
+    rec.begin();
+    record(rec, s, kern);
+    rec.end();
+    double c0 = cpu_seconds();
+    auto t0 = std::chrono::steady_clock::now();
+    rec.submit();
+    ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    per_cpu = flops / ((cpu_seconds() - c0) * 1e9);
+  }
+  double gflops = flops / (ms * 1e6);
+  std::string op = std::string("linear_") + dtype_name(wdt) + (epilogue ? "_bias_gelu_gated_res" : "");
+  char shape[64], note[200], wrate[64] = "";
+  if (c.m == 1)  // GEMV is bound by streaming the weight
+    std::snprintf(wrate, sizeof wrate, ", weight read %.2f GB/s", double(w.bytes()) / (ms * 1e6));
+  if (parts > 1) std::snprintf(wrate, sizeof wrate, ", weight split in %lld calls", (long long)parts);
+  std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
+  std::snprintf(note, sizeof note, "%s%s, tile %dx%d lanes %d %s; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second",
+                c.name, wrate, kern.rows, kern.cols, kern.lanes, kern.vectorized ? "vec8" : "scalar", per_cpu,
+                peak_per_cpu_second(b) > 0 ? per_cpu / peak_per_cpu_second(b) : 0.0);
+  b.report({op, shape, ms, gflops, 0, note});
+}
+
+// DVS_LINEAR_TUNE="rows,cols,sg_m;..." times each listed variant on DVS_LINEAR_CASE (default 1024³), f32 and
+// bf16 weights, twice in turn so that load changes from other processes show up as spread.
+void tune(Bench& b, const char* list) {
+  const char* only = std::getenv("DVS_LINEAR_CASE");
+  int64_t m = 1024, n = 1024, k = 1024;
+  if (only) std::sscanf(only, "%lldx%lldx%lld", (long long*)&m, (long long*)&n, (long long*)&k);
+  std::vector<ops::LinearKernel> ks;
+  std::string l = list;
+  for (size_t pos = 0; pos < l.size();) {
+    size_t e = l.find(';', pos);
+    if (e == std::string::npos) e = l.size();
+    ops::LinearKernel kern;
+    if (std::sscanf(l.substr(pos, e - pos).c_str(), "%d,%d,%d", &kern.rows, &kern.cols, &kern.sg_m) == 3) ks.push_back(kern);
+    pos = e + 1;
+  }
+  vk::Context& ctx = b.ctx();
+  const double peak_per_cpu = peak_per_cpu_second(b);
+  for (DType wdt : {DType::f32, DType::bf16}) {
+    Tensor x = Tensor::upload(ctx, random_host({m, k}, DType::f32, 1));
+    Tensor w = Tensor::upload(ctx, random_host({n, k}, wdt, 2));
+    Tensor y = Tensor::empty(ctx, {m, n}, DType::f32);
+    ops::LinearShape s;
+    s.m = m;
+    s.n = n;
+    s.k = k;
+    const int rounds = std::getenv("DVS_LINEAR_ROUNDS") ? std::atoi(std::getenv("DVS_LINEAR_ROUNDS")) : 2;
+    for (int round = 0; round < rounds; ++round)
+      for (const ops::LinearKernel& kern : ks) {
+        vk::Recorder rec(ctx);
+        rec.begin();
+        ops::linear_batched_with(rec, x, w, y, s, {}, kern);
+        rec.end();
+        rec.submit();  // compile, first touch
+        double c0 = cpu_seconds();
+        auto t0 = std::chrono::steady_clock::now();
+        const int reps = 2;
+        for (int i = 0; i < reps; ++i) rec.submit();
+        double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / reps;
+        double per_cpu = 2.0 * m * n * k * reps / ((cpu_seconds() - c0) * 1e9);
+        char shape[64], note[96];
+        std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)m, (long long)n, (long long)k);
+        std::snprintf(note, sizeof note, "rows %d cols %d sg_m %d: %.2f GFLOP/cpu-s = %.3f of peak/cpu-s", kern.rows,
+                      kern.cols, kern.sg_m, per_cpu, per_cpu / peak_per_cpu);
+        b.report({std::string("tune_") + dtype_name(wdt), shape, ms, 2.0 * m * n * k / (ms * 1e6), 0, note});
+      }
+  }
+}
+
+void linear(Bench& b) {
+  if (const char* list = std::getenv("DVS_LINEAR_TUNE")) return tune(b, list);
+  const Case cases[] = {
+      {"square", 1024, 1024, 1024, true},
+      {"CogVideoX attn proj class", 2048, 3072, 3072, false},
+      {"GEMV (M=1)", 1, 3072, 3072, true},
+      {"T5 FFN (M=226)", 226, 10240, 4096, false},
+      {"CogVideoX FFN up-proj, 2048-row chunk", 2048, 12288, 3072, false},
+  };
+  const char* only = std::getenv("DVS_LINEAR_CASE");  // substring of the shape, for tuning runs
+  for (DType wdt : {DType::f32, DType::bf16, DType::f16}) {
+    for (const Case& c : cases) {
+      if (b.quick() && !c.quick) continue;
+      if (wdt == DType::f16 && c.m * c.n * c.k > (int64_t(1) << 33)) continue;  // f16: skip the largest
+      char shape[64];
+      std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
+      if (only && std::string(shape).find(only) == std::string::npos) continue;
+      run_case(b, c, wdt, false);
+    }
+  }
+  if (!only || std::string("1024x1024x1024").find(only) != std::string::npos)
+    run_case(b, cases[0], DType::bf16, true);
+}
+
+Registration reg("linear", 10, linear);
+
+}  // namespace
+}  // namespace dvs::bench

@@ -1,0 +1,66 @@
+// Linear layers (GEMM with the weight in PyTorch nn.Linear layout) and their fused epilogues.
+//
+//   Y[b] = epilogue(X[b] · W[b]ᵀ)     X f32 [M,K], W [N,K] stored f32, f16 or bf16, Y f32 [M,N]
+//
+// Arithmetic and accumulation are fp32; 16-bit weights are widened in the shader. Any M, N, K work; the
+// fast path wants K and the element offsets/strides of X and W to be multiples of 8 (true for every model
+// shape) and silently uses a slower scalar path otherwise.
+#pragma once
+#include <cstdint>
+
+#include "tensor/tensor.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::ops {
+
+enum class Activation : uint32_t { none = 0, gelu_tanh = 1, silu = 2 };
+
+// Optional steps applied to f = X·Wᵀ, each only when its tensor is defined / its option set, in this order:
+//   1. f += bias[n]                         bias [N]: f32, f16 or bf16
+//   2. f = act(f)                           GELU (tanh approximation, as diffusers' "gelu-approximate") or SiLU
+//   3. f = f · (1 + scale[n]) + shift[n]    modulation; scale and shift f32 [N] or [batch, N] (both required)
+//   4. f = gate[n] · f                      gate f32 [N] or [batch, N]
+//   5. y = residual + f                     residual f32 with Y's shape and layout
+// So with gate and residual: y = r + gate ⊙ f (gated residual); with residual only: y = r + f.
+// The residual may be Y itself (in-place update): every element is read before it is written by the same
+// invocation. No other input may alias Y.
+struct LinearEpilogue {
+  Tensor bias;
+  Activation activation = Activation::none;
+  Tensor scale, shift;
+  Tensor gate;
+  Tensor residual;
+};
+
+// A batch of GEMMs over the same tensors with element strides. All sizes in elements.
+//   X[b][m][k] = x[b*x_batch_stride + m*x_row_stride + k]
+//   W[b][n][k] = w[b*w_batch_stride + n*K + k]           (w_batch_stride 0: one weight shared by the batch)
+//   Y[b][m][n] = y[b*y_batch_stride + m*y_row_stride + n]  (the residual uses the same layout)
+//   gate/scale/shift[b][n] = v[b*vec_batch_stride + n]     (0: shared by the batch)
+// Row strides of 0 mean contiguous rows (K for X, N for Y).
+struct LinearShape {
+  int64_t batch = 1, m = 0, n = 0, k = 0;
+  int64_t x_batch_stride = 0, w_batch_stride = 0, y_batch_stride = 0, vec_batch_stride = 0;
+  int64_t x_row_stride = 0, y_row_stride = 0;
+};
+
+// Y = epilogue(X·Wᵀ): x [..., K] (leading dimensions flattened into M), w [N, K], y [..., N].
+void linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearEpilogue& ep = {});
+
+// Batched / strided form. Tensors are taken as flat element ranges; the shape says how to walk them
+// (every element addressed must lie inside its tensor, checked).
+void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
+                    const LinearEpilogue& ep = {});
+
+// Kernel configuration, chosen per call from the shape and the device; exposed for tests and benchmarks
+// that pin a variant. rows/cols: tile of one 8-lane cluster; lanes: 0 subgroup broadcast (subgroup size 8),
+// 1 cluster shuffles (wider subgroups), 2 no subgroup operations.
+struct LinearKernel {
+  int rows = 8, cols = 3, lanes = 0, sg_m = 2;
+  bool vectorized = true;
+};
+LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape, DType w_dtype);
+void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y,
+                         const LinearShape& shape, const LinearEpilogue& ep, LinearKernel kernel);
+
+}  // namespace dvs::ops
