@@ -1,0 +1,88 @@
+#include "tensor/ops_reduce.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "vk/context.hpp"
+#include "vk/pipeline.hpp"
+
+namespace dvs::ops {
+namespace {
+
+// Elements per first-level block: 64 invocations x 64 items, grown so a segment needs <= 65535 blocks.
+int64_t block_len_for(int64_t seg_len) {
+  int64_t len = 4096;
+  int64_t need = (seg_len + 65534) / 65535;
+  if (need > len) len = (need + 63) / 64 * 64;
+  return len;
+}
+
+int64_t blocks_for(int64_t seg_len) { return std::max<int64_t>(1, (seg_len + block_len_for(seg_len) - 1) / block_len_for(seg_len)); }
+
+void check_f32(const char* op, const char* arg, const Tensor& t) { expect_dtype(op, arg, t, DType::f32); }
+
+}  // namespace
+
+int64_t reduce_scratch_elems(int64_t segments, int64_t seg_len) { return segments * blocks_for(seg_len) * 2; }
+int64_t reduce_scratch_elems(const Segments& segs) { return reduce_scratch_elems(segs.count, segs.seg_len); }
+
+void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, ReduceMode mode, const Tensor& out0,
+                     const Tensor& out1, const Tensor& scratch, int64_t out_offset) {
+  const char* op = "reduce_segments";
+  check_f32(op, "x", x);
+  check_f32(op, "out0", out0);
+  check_f32(op, "out1", out1);
+  check_f32(op, "scratch", scratch);
+  if (segs.count < 1 || segs.count > 65535 || segs.seg_len < 1 || segs.inner < 1)
+    throw Error("internal: reduce_segments: bad segments (count " + std::to_string(segs.count) + ", length " +
+                std::to_string(segs.seg_len) + ", inner " + std::to_string(segs.inner) + ")");
+  // Largest element index touched must lie inside x.
+  int64_t outer = (segs.seg_len + segs.inner - 1) / segs.inner;
+  int64_t last = (segs.count - 1) * segs.seg_stride + (outer - 1) * segs.outer_stride +
+                 std::min(segs.inner, segs.seg_len) - 1;
+  if (last >= x.numel() || x.numel() > int64_t(UINT32_MAX))
+    throw Error("internal: reduce_segments: segments reach element " + std::to_string(last) + " of " + x.describe());
+  if (scratch.numel() < reduce_scratch_elems(segs))
+    throw Error("internal: reduce_segments: scratch " + scratch.describe() + " smaller than " +
+                std::to_string(reduce_scratch_elems(segs)) + " elements");
+  if (out0.numel() < out_offset + segs.count || (mode == ReduceMode::mean_var && out1.numel() < out_offset + segs.count))
+    throw Error("internal: reduce_segments: outputs too small for " + std::to_string(segs.count) + " segments");
+
+  const int64_t block_len = block_len_for(segs.seg_len), blocks = blocks_for(segs.seg_len);
+  uint32_t spec[] = {uint32_t(mode)};
+  struct {
+    uint32_t seg_len, inner, seg_stride, outer_stride, block_len, blocks;
+  } p1{uint32_t(segs.seg_len), uint32_t(std::min(segs.inner, segs.seg_len)), uint32_t(segs.seg_stride),
+       uint32_t(segs.outer_stride), uint32_t(block_len), uint32_t(blocks)};
+  vk::PipelineCache& pipes = rec.context().pipelines();
+  rec.dispatch(pipes.get("nn/reduce_partials", spec), {x.buffer(), scratch.buffer()}, &p1, sizeof p1,
+               uint32_t(blocks), uint32_t(segs.count), 1, "reduce_partials");
+  struct {
+    uint32_t seg_len, block_len, blocks, out_offset;
+  } p2{uint32_t(segs.seg_len), uint32_t(block_len), uint32_t(blocks), uint32_t(out_offset)};
+  rec.dispatch(pipes.get("nn/reduce_merge", spec), {scratch.buffer(), out0.buffer(), out1.buffer()}, &p2, sizeof p2,
+               uint32_t(segs.count), 1, 1, "reduce_merge");
+}
+
+void channel_mean_var(vk::Recorder& rec, const Tensor& x, int64_t outer, int64_t channels, int64_t inner,
+                      const Tensor& mean, const Tensor& var, const Tensor& scratch) {
+  if (outer * channels * inner != x.numel())
+    throw Error("internal: channel_mean_var: " + x.describe() + " is not [" + std::to_string(outer) + ", " +
+                std::to_string(channels) + ", " + std::to_string(inner) + "]");
+  expect_shape("channel_mean_var", "mean", mean, {channels});
+  expect_shape("channel_mean_var", "var", var, {channels});
+  Segments s{channels, outer * inner, inner, inner, channels * inner};
+  reduce_segments(rec, x, s, ReduceMode::mean_var, mean, var, scratch);
+}
+
+void sum_all(vk::Recorder& rec, const Tensor& x, const Tensor& out, const Tensor& scratch) {
+  expect_shape("sum_all", "out", out, {1});
+  reduce_segments(rec, x, {1, x.numel(), x.numel(), 0, 0}, ReduceMode::sum, out, out, scratch);
+}
+
+void max_all(vk::Recorder& rec, const Tensor& x, const Tensor& out, const Tensor& scratch) {
+  expect_shape("max_all", "out", out, {1});
+  reduce_segments(rec, x, {1, x.numel(), x.numel(), 0, 0}, ReduceMode::max, out, out, scratch);
+}
+
+}  // namespace dvs::ops
