@@ -17,19 +17,45 @@ layout(push_constant) uniform Push { uint B, D, half_dim, flip; float freq_shift
 const float NEG_LN_1E4 = -9.21034049987793;  // float32(-log(10000))
 
 float exp_accurate(float v) {
-  // v = n*ln2 + r, |r| <= ln2/2; ln2 split so n*LN2_HI is exact.
+  // v = n*ln2 + r, with ln2 split so v - n*LN2_HI is exact; r and the sums 1 + r + r^2*poly(r) are carried
+  // as (value, rounding error) pairs so the result is correctly rounded in all but ~1% of cases.
   precise float n = floor(v * 1.44269504088896341 + 0.5);
-  precise float r = v - n * 0.693359375;
-  r = r - n * -2.12194440e-4;
-  float z = r * r;
+  precise float r_hi = v - n * 0.693359375;
+  precise float r_lo = n * 2.12194440e-4;
+  precise float r = r_hi + r_lo;
+  precise float r_err = r_lo - (r - r_hi);
   float y = 1.9875691500e-4;
   y = y * r + 1.3981999507e-3;
   y = y * r + 8.3334519073e-3;
   y = y * r + 4.1665795894e-2;
   y = y * r + 1.6666665459e-1;
   y = y * r + 5.0000001201e-1;
-  y = y * z + r + 1.0;
-  return ldexp(y, int(n));
+  precise float p = y * (r * r);
+  precise float s = r + p;
+  precise float s_err = p - (s - r);
+  precise float h = 1.0 + s;
+  precise float h_err = s - (h - 1.0);
+  precise float result = h + (h_err + s_err + r_err * h);
+  return ldexp(result, int(n));
+}
+
+// Veltkamp split of a into hi + lo with 12-bit halves, so hi*hi, hi*lo, lo*lo are exact in fp32.
+void split(float a, out float hi, out float lo) {
+  precise float c = 4097.0 * a;
+  precise float h = c - (c - a);
+  hi = h;
+  lo = a - h;
+}
+
+// num - a*b computed exactly when a*b is close to num (Dekker's two-product, no fma needed).
+float residual_of_product(float num, float a, float b) {
+  float ah, al, bh, bl;
+  split(a, ah, al);
+  split(b, bh, bl);
+  precise float prod = a * b;
+  precise float err = ((ah * bh - prod) + ah * bl + al * bh) + al * bl;  // a*b = prod + err exactly
+  precise float res = (num - prod) - err;
+  return res;
 }
 
 // sin and cos of a after reduction by pi/2 (pi/2 split in three so k*PIO2_1 and k*PIO2_2 are exact).
@@ -53,13 +79,14 @@ void main() {
   if (id >= p.B * p.half_dim) return;
   uint b = id / p.half_dim, k = id - b * p.half_dim;
 
-  // exponent = (-ln(1e4) * k) / (half - shift), division rounded correctly by one Newton step.
+  // exponent = (-ln(1e4) * k) / (half - shift), correctly rounded: q0 = num * (1/den), then one correction
+  // with the exact residual num - q0*den. The product is split exactly (Dekker) instead of using fma(),
+  // which some drivers (lavapipe) evaluate unfused.
   precise float num = NEG_LN_1E4 * float(k);
   float den = float(p.half_dim) - p.freq_shift;
   float inv = 1.0 / den;
   precise float q0 = num * inv;
-  precise float res = fma(-q0, den, num);
-  precise float expo = fma(res, inv, q0);
+  precise float expo = q0 + residual_of_product(num, q0, den) * inv;
   float freq = exp_accurate(expo);
   precise float arg = timesteps[b] * freq;
   arg = p.scale * arg;
