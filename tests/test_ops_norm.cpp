@@ -138,6 +138,7 @@ TEST_F(GpuTest, LayerNormOddShapes) {
     run_layernorm(ctx(), {1, 5, D, DType::f32, true, false, false, 0.0f});
   run_layernorm(ctx(), {3, 7, 64, DType::f32, false, false, false, 0.0f});
   run_layernorm(ctx(), {1, 1, 3072, DType::f32, true, false, false, 0.0f});
+  run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});  // beyond the register cache
 }
 
 TEST_F(GpuTest, LayerNormLargeOffsetIsTwoPass) {
@@ -147,6 +148,8 @@ TEST_F(GpuTest, LayerNormLargeOffsetIsTwoPass) {
 TEST_F(GpuTest, LayerNormHalfWeightsAndInPlace) {
   run_layernorm(ctx(), {1, 4, 33, DType::bf16, true, false, false, 0.5f});
   run_layernorm(ctx(), {1, 4, 33, DType::f16, true, false, true, 0.5f});
+  run_layernorm(ctx(), {1, 3, 72, DType::bf16, true, false, true, 0.5f});  // vec4 path, 16-bit weights
+  run_layernorm(ctx(), {1, 3, 72, DType::f16, true, false, false, 0.5f});
 }
 
 TEST_F(GpuTest, LayerNormZeroModulationTextVideoSplit) {
@@ -214,6 +217,7 @@ TEST_F(GpuTest, HeadLayerNormOnFusedQkvSlices) {
   run_head_layernorm(ctx(), 40, 2, 16, 96, 32, DType::bf16, true, true);
   // Odd everything, out of place, no affine, f16.
   run_head_layernorm(ctx(), 7, 3, 7, 3 * 3 * 7 + 5, 21 + 2, DType::f32, false, false);
+  run_head_layernorm(ctx(), 5, 2, 6, 2 * 6 * 3, 12, DType::bf16, true, true);  // scalar path with affine
   run_head_layernorm(ctx(), 33, 5, 64, 5 * 64 * 3, 5 * 64, DType::f16, true, false);
 }
 
@@ -242,6 +246,7 @@ TEST_F(GpuTest, RmsNorm) {
   for (int64_t D : {1, 7, 33, 129}) run_rmsnorm(ctx(), 3, D, DType::f32, false);
   run_rmsnorm(ctx(), 8, 32, DType::bf16, true);  // tiny T5: d_model 32
   run_rmsnorm(ctx(), 2, 4096, DType::f16, false);
+  run_rmsnorm(ctx(), 2, 4100, DType::f32, false);  // beyond the register cache
 }
 
 // ---------------------------------------------------------------- GroupNorm
@@ -289,6 +294,7 @@ TEST_F(GpuTest, GroupNormOddShapes) {
   run_groupnorm(ctx(), {1, 3, 1, 1, 1}, 3, DType::f32, true, true, 0.0f, false);  // one element per group
   run_groupnorm(ctx(), {1, 6, 2, 9, 11}, 2, DType::bf16, true, true, 0.0f, true);
   run_groupnorm(ctx(), {2, 4, 33, 7}, 1, DType::f16, false, true, 0.0f, false);  // 4-D input, no affine
+  run_groupnorm(ctx(), {2, 6, 2, 4, 6}, 3, DType::bf16, true, false, 1.0f, false);  // vec4 path (S = 48)
 }
 
 TEST_F(GpuTest, GroupNormLargeGroupWithOffset) {

@@ -1,6 +1,6 @@
 #version 450
 // GroupNorm, last step: y = (x - mean[g]) / sqrt(var[g] + eps) * gamma[c] + beta[c], optionally SiLU, on
-// x [B, C, S] (S = F*H*W). Workgroup y = plane (b, c), x = a run of 64*ITEMS elements of that plane, so the
+// x [B, C, S] (S = F*H*W). Workgroup y = plane (b, c), x = a run of 64*ITEMS elements (vec4s with VEC4) of that plane, so the
 // group statistics and the channel's affine are uniform per workgroup. Statistics come from
 // reduce_partials/reduce_merge (mean and population variance per (b, group)). y may alias x.
 #extension GL_GOOGLE_include_directive : require
@@ -10,9 +10,10 @@ const uint LOCAL = 64, ITEMS = 16;
 layout(constant_id = 0) const uint WDTYPE = 0;  // gamma/beta storage: 0 f32, 1 bf16, 2 f16
 layout(constant_id = 1) const bool AFFINE = true;
 layout(constant_id = 2) const bool SILU = false;
+layout(constant_id = 3) const bool VEC4 = false;  // S multiple of 4: a workgroup covers 4*64*ITEMS elements
 
-layout(std430, binding = 0) readonly buffer X { float x[]; };
-layout(std430, binding = 1) writeonly buffer Y { float y[]; };
+layout(std430, binding = 0) readonly buffer X { vec4 x4[]; };
+layout(std430, binding = 1) writeonly buffer Y { vec4 y4[]; };
 layout(std430, binding = 2) readonly buffer W { uint w[]; };
 layout(std430, binding = 3) readonly buffer Bb { uint b[]; };
 layout(std430, binding = 4) readonly buffer Mean { float mean[]; };
@@ -40,12 +41,24 @@ void main() {
     k = rstd * load_w(c);
     m = load_b(c);
   }
+  if (VEC4) {
+    uint base4 = (plane * p.S) >> 2, n4 = p.S >> 2;
+    uint begin = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x;
+    uint end = min(gl_WorkGroupID.x * (LOCAL * ITEMS) + LOCAL * ITEMS, n4);
+    for (uint i = begin; i < end; i += LOCAL) {
+      vec4 v = (x4[base4 + i] - mu) * k + m;
+      if (SILU) v = v / (1.0 + exp(-v));
+      y4[base4 + i] = v;
+    }
+    return;
+  }
   uint base = plane * p.S;
   uint begin = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x;
   uint end = min(gl_WorkGroupID.x * (LOCAL * ITEMS) + LOCAL * ITEMS, p.S);
   for (uint i = begin; i < end; i += LOCAL) {
-    float v = (x[base + i] - mu) * k + m;
+    uint e = base + i;
+    float v = (x4[e >> 2][e & 3u] - mu) * k + m;
     if (SILU) v = v / (1.0 + exp(-v));
-    y[base + i] = v;
+    y4[e >> 2][e & 3u] = v;
   }
 }

@@ -5,20 +5,28 @@
 // shift are column slices of a per-batch table [B, table_stride]; rows are [B, L] tokens and tokens
 // [0, split) use modulation set 0, tokens [split, L) set 1 (CogVideoXLayerNormZero: text, then video).
 // x and y may be the same buffer: every element is read by the invocation that later writes it.
+//
+// Speed (memory-bound): with VEC4 (D, table stride and column offsets multiples of 4) everything moves as
+// vec4, and each invocation keeps CACHE vec4 of its row in registers, so x is read from memory once.
+// Buffers are declared as vec4 arrays; the scalar path (any D) indexes components.
 #extension GL_GOOGLE_include_directive : require
-#include "bf16.glsl"
+#extension GL_EXT_control_flow_attributes : require
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 0) const uint LOCAL = 64;      // power of two
 layout(constant_id = 1) const uint WDTYPE = 0;      // weight/bias storage: 0 f32, 1 bf16, 2 f16
 layout(constant_id = 2) const bool AFFINE = false;
 layout(constant_id = 3) const bool MODULATE = false;
+layout(constant_id = 4) const bool VEC4 = false;
+// vec4 per invocation held in registers (host: ceil(D/4/LOCAL), at most 4): rows up to LOCAL*4*CACHE
+// floats are read from memory once; the loops over it unroll exactly.
+layout(constant_id = 5) const uint CACHE = 1;
 
-layout(std430, binding = 0) readonly buffer X { float x[]; };
-layout(std430, binding = 1) writeonly buffer Y { float y[]; };
-layout(std430, binding = 2) readonly buffer W { uint w[]; };
-layout(std430, binding = 3) readonly buffer B { uint b[]; };
-layout(std430, binding = 4) readonly buffer M { float table[]; };
+layout(std430, binding = 0) readonly buffer X { vec4 x4[]; };
+layout(std430, binding = 1) writeonly buffer Y { vec4 y4[]; };
+layout(std430, binding = 2) readonly buffer W { uvec4 w4[]; };
+layout(std430, binding = 3) readonly buffer B { uvec4 b4[]; };
+layout(std430, binding = 4) readonly buffer M { vec4 table4[]; };
 
 layout(push_constant) uniform Push {
   uint rows, D;
@@ -27,14 +35,27 @@ layout(push_constant) uniform Push {
   uint shift0, scale0, shift1, scale1;  // column offsets into a table row
 } p;
 
-float unpack_weight(uint word, uint i) {
-  if (WDTYPE == 0) return uintBitsToFloat(word);
-  uint half_bits = (i & 1u) != 0u ? (word >> 16) : (word & 0xffffu);
-  if (WDTYPE == 1) return uintBitsToFloat(half_bits << 16);
-  return unpackHalf2x16(half_bits).x;
-}
-float load_w(uint i) { return unpack_weight(w[WDTYPE == 0 ? i : i >> 1], i); }
-float load_b(uint i) { return unpack_weight(b[WDTYPE == 0 ? i : i >> 1], i); }
+// Weight element i, and weight elements 4j..4j+3, from packed storage.
+float half_bits_to_float(uint h) { return WDTYPE == 1 ? uintBitsToFloat(h << 16) : unpackHalf2x16(h).x; }
+#define WEIGHT_LOADERS(NAME, ARR)                                                              \
+  float NAME##1(uint i) {                                                                      \
+    if (WDTYPE == 0) return uintBitsToFloat(ARR[i >> 2][i & 3u]);                             \
+    uint word = ARR[i >> 3][(i >> 1) & 3u];                                                    \
+    return half_bits_to_float((i & 1u) != 0u ? word >> 16 : word & 0xffffu);                   \
+  }                                                                                            \
+  vec4 NAME##4(uint j) {                                                                       \
+    if (WDTYPE == 0) return uintBitsToFloat(ARR[j]);                                           \
+    uvec4 q = ARR[j >> 1];                                                                     \
+    uvec2 wd = (j & 1u) == 0u ? q.xy : q.zw;                                                   \
+    if (WDTYPE == 1)                                                                           \
+      return vec4(uintBitsToFloat(wd.x << 16), uintBitsToFloat(wd.x & 0xffff0000u),            \
+                  uintBitsToFloat(wd.y << 16), uintBitsToFloat(wd.y & 0xffff0000u));           \
+    return vec4(unpackHalf2x16(wd.x), unpackHalf2x16(wd.y));                                   \
+  }
+WEIGHT_LOADERS(load_w, w4)
+WEIGHT_LOADERS(load_b, b4)
+
+float table1(uint i) { return table4[i >> 2][i & 3u]; }
 
 shared float red[LOCAL];
 
@@ -51,21 +72,18 @@ float workgroup_sum(float v) {
   return r;
 }
 
+void store4(uint base4, uint j, vec4 xv, float mean, float rstd, uint scale_at, uint shift_at) {
+  vec4 v = (xv - mean) * rstd;
+  if (AFFINE) v = v * load_w4(j) + load_b4(j);
+  if (MODULATE) v = v * (1.0 + table4[(scale_at >> 2) + j]) + table4[(shift_at >> 2) + j];
+  y4[base4 + j] = v;
+}
+
 void main() {
   uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (row >= p.rows) return;  // uniform per workgroup
   uint t = gl_LocalInvocationID.x;
   uint base = row * p.D;
-
-  float s = 0.0;
-  for (uint i = t; i < p.D; i += LOCAL) s += x[base + i];
-  float mean = workgroup_sum(s) / float(p.D);
-  float q = 0.0;
-  for (uint i = t; i < p.D; i += LOCAL) {
-    float d = x[base + i] - mean;
-    q += d * d;
-  }
-  float rstd = inversesqrt(workgroup_sum(q) / float(p.D) + p.eps);
 
   uint scale_at = 0, shift_at = 0;
   if (MODULATE) {
@@ -74,10 +92,52 @@ void main() {
     scale_at = batch * p.table_stride + (first_set ? p.scale0 : p.scale1);
     shift_at = batch * p.table_stride + (first_set ? p.shift0 : p.shift1);
   }
+
+  if (VEC4) {
+    uint n4 = p.D >> 2, base4 = base >> 2;
+    vec4 cache[CACHE];
+    float s = 0.0;
+    [[unroll]] for (uint k = 0; k < CACHE; ++k) {
+      uint j = t + k * LOCAL;
+      cache[k] = j < n4 ? x4[base4 + j] : vec4(0.0);
+      s += (cache[k].x + cache[k].y) + (cache[k].z + cache[k].w);
+    }
+    for (uint j = t + CACHE * LOCAL; j < n4; j += LOCAL) {
+      vec4 v = x4[base4 + j];
+      s += (v.x + v.y) + (v.z + v.w);
+    }
+    float mean = workgroup_sum(s) / float(p.D);
+    float q = 0.0;
+    [[unroll]] for (uint k = 0; k < CACHE; ++k) {
+      vec4 d = cache[k] - mean;
+      if (t + k * LOCAL < n4) q += dot(d, d);
+    }
+    for (uint j = t + CACHE * LOCAL; j < n4; j += LOCAL) {
+      vec4 d = x4[base4 + j] - mean;
+      q += dot(d, d);
+    }
+    float rstd = inversesqrt(workgroup_sum(q) / float(p.D) + p.eps);
+    [[unroll]] for (uint k = 0; k < CACHE; ++k) {
+      uint j = t + k * LOCAL;
+      if (j < n4) store4(base4, j, cache[k], mean, rstd, scale_at, shift_at);
+    }
+    for (uint j = t + CACHE * LOCAL; j < n4; j += LOCAL) store4(base4, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
+    return;
+  }
+
+  float s = 0.0;
+  for (uint i = t; i < p.D; i += LOCAL) s += x4[(base + i) >> 2][(base + i) & 3u];
+  float mean = workgroup_sum(s) / float(p.D);
+  float q = 0.0;
   for (uint i = t; i < p.D; i += LOCAL) {
-    float v = (x[base + i] - mean) * rstd;
-    if (AFFINE) v = v * load_w(i) + load_b(i);
-    if (MODULATE) v = v * (1.0 + table[scale_at + i]) + table[shift_at + i];
-    y[base + i] = v;
+    float d = x4[(base + i) >> 2][(base + i) & 3u] - mean;
+    q += d * d;
+  }
+  float rstd = inversesqrt(workgroup_sum(q) / float(p.D) + p.eps);
+  for (uint i = t; i < p.D; i += LOCAL) {
+    float v = (x4[(base + i) >> 2][(base + i) & 3u] - mean) * rstd;
+    if (AFFINE) v = v * load_w1(i) + load_b1(i);
+    if (MODULATE) v = v * (1.0 + table1(scale_at + i)) + table1(shift_at + i);
+    y4[(base + i) >> 2][(base + i) & 3u] = v;
   }
 }

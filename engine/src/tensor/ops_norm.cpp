@@ -1,5 +1,6 @@
 #include "tensor/ops_norm.hpp"
 
+#include <algorithm>
 #include <string>
 
 #include "tensor/ops_reduce.hpp"
@@ -9,7 +10,16 @@
 namespace dvs::ops {
 namespace {
 
-constexpr uint32_t kRowLocal = 64;  // invocations per row for layernorm / rmsnorm
+constexpr uint32_t kRowLocal = 256;  // most invocations per row for layernorm / rmsnorm
+constexpr int64_t kRowCache = 4;    // most vec4 per invocation kept in registers (more would spill)
+
+// Invocations per row: a power of two from 8 to kRowLocal covering the row's n (vec4s or floats) in
+// kRowCache per invocation.
+uint32_t row_local(int64_t n) {
+  uint32_t local = 8;
+  while (local < kRowLocal && local * kRowCache < n) local *= 2;
+  return local;
+}
 
 // Storage code of a weight dtype in the shaders (WDTYPE), after checking size and dtype.
 uint32_t weight_code(const char* op, const char* arg, const Tensor& w, int64_t n) {
@@ -25,13 +35,15 @@ uint32_t weight_code(const char* op, const char* arg, const Tensor& w, int64_t n
   }
 }
 
-// 16-bit weights are read as packed uints: widen an odd-length view to whole words (suballocations are
-// 256-byte aligned, so the padding bytes belong to the same allocation).
-vk::BufferView word_view(const Tensor& w) {
-  vk::BufferView v = w.buffer();
-  v.size = (v.size + 3) / 4 * 4;
+// The shaders declare every buffer as an array of 16-byte vectors (vec4 / uvec4) and index components for
+// odd sizes, so each view is widened to whole 16-byte units. Suballocations and arena views are aligned to
+// at least 64 bytes, so the padding bytes belong to the same allocation and are never written.
+vk::BufferView vec4_view(const vk::BufferView& view) {
+  vk::BufferView v = view;
+  v.size = (v.size + 15) / 16 * 16;
   return v;
 }
+vk::BufferView vec4_view(const Tensor& t) { return vec4_view(t.buffer()); }
 
 // Affine pair: both defined (same dtype) or neither. Returns the WDTYPE code, or -1 without affine.
 int affine_code(const char* op, const Tensor& w, const Tensor& b, int64_t n) {
@@ -86,13 +98,19 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
     p.shift1 = uint32_t(mod->shift_col[1]);
     p.scale1 = uint32_t(mod->scale_col[1]);
   }
-  uint32_t spec[] = {kRowLocal, code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u};
+  bool vec4 = D % 4 == 0;
+  if (mod) vec4 = vec4 && p.table_stride % 4 == 0 && (p.shift0 | p.scale0 | p.shift1 | p.scale1) % 4 == 0;
+  // Invocations per row: a power of two up to 64 covering the row's vec4s; CACHE vec4 each in registers.
+  const int64_t n4 = vec4 ? D / 4 : D;
+  const uint32_t local = row_local(n4);
+  const uint32_t cache = vec4 ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
+  uint32_t spec[] = {local, code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u, vec4 ? 1u : 0u, cache};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/layernorm", spec);
   // Unused bindings get a harmless read-only view (x).
-  vk::BufferView wv = code >= 0 ? word_view(weight) : x.buffer(), bv = code >= 0 ? word_view(bias) : x.buffer();
-  vk::BufferView mv = mod ? mod->table.buffer() : x.buffer();
+  vk::BufferView xv = vec4_view(x), wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
+  vk::BufferView mv = mod ? vec4_view(mod->table) : xv;
   Grid g = grid_1d(rows, 1);
-  rec.dispatch(pipe, {x.buffer(), y.buffer(), wv, bv, mv}, &p, sizeof p, g.x, g.y, 1, "layernorm");
+  rec.dispatch(pipe, {xv, vec4_view(y), wv, bv, mv}, &p, sizeof p, g.x, g.y, 1, "layernorm");
 }
 
 void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads, int64_t head_dim,
@@ -109,11 +127,13 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
     uint32_t rows, H, Dh, row_stride, col_offset;
     float eps;
   } p{uint32_t(rows), uint32_t(heads), uint32_t(head_dim), uint32_t(stride), uint32_t(col_offset), eps};
-  uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u};
+  const bool vec4 = head_dim % 4 == 0 && head_dim <= 256 && stride % 4 == 0 && col_offset % 4 == 0;
+  uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, vec4 ? 1u : 0u,
+                     vec4 ? uint32_t(head_dim / 4) : 1u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/headnorm", spec);
-  vk::BufferView wv = code >= 0 ? word_view(weight) : x.buffer(), bv = code >= 0 ? word_view(bias) : x.buffer();
+  vk::BufferView xv = vec4_view(x), wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
   Grid g = grid_1d(rows * heads, 64);
-  rec.dispatch(pipe, {x.buffer(), y.buffer(), wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
+  rec.dispatch(pipe, {xv, vec4_view(y), wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
 }
 
 void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, float eps) {
@@ -125,9 +145,13 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
     uint32_t rows, D;
     float eps;
   } p{uint32_t(rows), uint32_t(D), eps};
-  uint32_t spec[] = {kRowLocal, code};
+  const bool vec4 = D % 4 == 0;
+  const int64_t n4 = vec4 ? D / 4 : D;
+  const uint32_t local = row_local(n4);
+  const uint32_t cache = vec4 ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
+  uint32_t spec[] = {local, code, vec4 ? 1u : 0u, cache};
   Grid g = grid_1d(rows, 1);
-  rec.dispatch(rec.context().pipelines().get("nn/rmsnorm", spec), {x.buffer(), y.buffer(), word_view(weight)}, &p,
+  rec.dispatch(rec.context().pipelines().get("nn/rmsnorm", spec), {vec4_view(x), vec4_view(y), vec4_view(weight)}, &p,
                sizeof p, g.x, g.y, 1, "rmsnorm");
 }
 
@@ -165,13 +189,14 @@ void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t grou
     uint32_t C, S, channels_per_group;
     float eps;
   } p{uint32_t(C), uint32_t(S), uint32_t(C / groups), eps};
-  uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, silu ? 1u : 0u};
-  vk::BufferView wv = code >= 0 ? word_view(gamma) : x.buffer(), bv = code >= 0 ? word_view(beta) : x.buffer();
-  const uint32_t per_group = 64 * 16;  // LOCAL * ITEMS of groupnorm_apply.comp
-  const uint32_t gx = div_up(S, per_group);
+  const bool vec4 = S % 4 == 0;
+  uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, silu ? 1u : 0u, vec4 ? 1u : 0u};
+  vk::BufferView wv = code >= 0 ? vec4_view(gamma) : x.buffer(), bv = code >= 0 ? vec4_view(beta) : x.buffer();
+  const uint32_t per_group = 64 * 16;  // LOCAL * ITEMS of groupnorm_apply.comp (vec4s with VEC4)
+  const uint32_t gx = div_up(vec4 ? S / 4 : S, per_group);
   if (gx > 65535) throw Error("internal: groupnorm: planes of " + std::to_string(S) + " elements are too large");
   rec.dispatch(rec.context().pipelines().get("nn/groupnorm_apply", spec),
-               {x.buffer(), y.buffer(), wv, bv, mean.buffer(), var.buffer()}, &p, sizeof p, gx, uint32_t(B * C), 1,
+               {vec4_view(x), vec4_view(y), wv, bv, mean.buffer(), var.buffer()}, &p, sizeof p, gx, uint32_t(B * C), 1,
                "groupnorm_apply");
 }
 

@@ -125,8 +125,16 @@ void rope(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t batch, in
     uint32_t B, L, first, n, H, Dh, row_stride, col_offset;
   } p{uint32_t(batch), uint32_t(seq_len), uint32_t(first), uint32_t(n), uint32_t(heads), uint32_t(head_dim),
       uint32_t(x.dim(1)), uint32_t(col_offset)};
-  Grid g = grid_1d(batch * n * heads * (head_dim / 2), 64);
-  rec.dispatch(rec.context().pipelines().get("nn/rope"), {x.buffer(), y.buffer(), cos.buffer(), sin.buffer()}, &p,
+  const bool vec4 = head_dim % 4 == 0 && x.dim(1) % 4 == 0 && col_offset % 4 == 0;
+  uint32_t spec[] = {vec4 ? 1u : 0u};
+  // Views are read as vec4 arrays: widen to whole 16-byte units (allocations are >= 64-byte aligned).
+  auto v4 = [](const Tensor& t) {
+    vk::BufferView v = t.buffer();
+    v.size = (v.size + 15) / 16 * 16;
+    return v;
+  };
+  Grid g = grid_1d(batch * n * (head_dim / (vec4 ? 4 : 2)), 64);
+  rec.dispatch(rec.context().pipelines().get("nn/rope", spec), {v4(x), v4(y), v4(cos), v4(sin)}, &p,
                sizeof p, g.x, g.y, 1, "rope");
 }
 

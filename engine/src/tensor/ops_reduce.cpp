@@ -9,9 +9,10 @@
 namespace dvs::ops {
 namespace {
 
-// Elements per first-level block: 64 invocations x 64 items, grown so a segment needs <= 65535 blocks.
+// Elements per first-level block: 64 invocations x 16 items (4 vec4 kept in registers by
+// reduce_partials.comp), grown so a segment needs <= 65535 blocks.
 int64_t block_len_for(int64_t seg_len) {
-  int64_t len = 4096;
+  int64_t len = 1024;
   int64_t need = (seg_len + 65534) / 65535;
   if (need > len) len = (need + 63) / 64 * 64;
   return len;
@@ -49,13 +50,20 @@ void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, R
     throw Error("internal: reduce_segments: outputs too small for " + std::to_string(segs.count) + " segments");
 
   const int64_t block_len = block_len_for(segs.seg_len), blocks = blocks_for(segs.seg_len);
+  // vec4 loads when every run of 4 consecutive j is 4 consecutive, 16-byte aligned elements.
+  const bool contiguous = segs.inner >= segs.seg_len;
+  const bool vec4 = segs.seg_len % 4 == 0 && block_len % 4 == 0 && (segs.count == 1 || segs.seg_stride % 4 == 0) &&
+                    (contiguous || (segs.inner % 4 == 0 && segs.outer_stride % 4 == 0));
+  uint32_t spec1[] = {uint32_t(mode), vec4 ? 1u : 0u};
   uint32_t spec[] = {uint32_t(mode)};
   struct {
     uint32_t seg_len, inner, seg_stride, outer_stride, block_len, blocks;
   } p1{uint32_t(segs.seg_len), uint32_t(std::min(segs.inner, segs.seg_len)), uint32_t(segs.seg_stride),
        uint32_t(segs.outer_stride), uint32_t(block_len), uint32_t(blocks)};
   vk::PipelineCache& pipes = rec.context().pipelines();
-  rec.dispatch(pipes.get("nn/reduce_partials", spec), {x.buffer(), scratch.buffer()}, &p1, sizeof p1,
+  vk::BufferView xv = x.buffer();
+  xv.size = (xv.size + 15) / 16 * 16;  // read as vec4s; views are >= 64-byte aligned, padding is in-allocation
+  rec.dispatch(pipes.get("nn/reduce_partials", spec1), {xv, scratch.buffer()}, &p1, sizeof p1,
                uint32_t(blocks), uint32_t(segs.count), 1, "reduce_partials");
   struct {
     uint32_t seg_len, block_len, blocks, out_offset;
