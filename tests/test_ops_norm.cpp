@@ -60,6 +60,8 @@ void expect_close(const std::vector<float>& got, const std::vector<double>& want
   EXPECT_TRUE(finite && worst <= 0.0) << what << ": element " << at << " is " << got[at] << ", expected " << want[at];
 }
 
+void run_rmsnorm(vk::Context& ctx, int64_t rows, int64_t D, DType wdt, bool in_place);
+
 // ---------------------------------------------------------------- LayerNorm
 struct LnCase {
   int64_t B, L, D;
@@ -157,6 +159,28 @@ TEST_F(GpuTest, LayerNormZeroModulationTextVideoSplit) {
   run_layernorm(ctx(), {2, 40, 32, DType::f32, true, true, false, 0.0f});
   run_layernorm(ctx(), {3, 7, 33, DType::bf16, true, true, true, 0.0f});
   run_layernorm(ctx(), {2, 5, 16, DType::f32, false, true, false, 0.0f});  // AdaLayerNorm-like, no affine
+}
+
+// The other row mapping (the default one depends on the device type): the same checks on a subset.
+class RowMappingTest : public GpuTest {
+ protected:
+  void TearDown() override {
+    ops::set_row_mapping(ops::RowMapping::automatic);
+    GpuTest::TearDown();
+  }
+};
+
+TEST_F(RowMappingTest, LayerNormAndRmsNormBothMappings) {
+  for (auto m : {ops::RowMapping::workgroup_per_row, ops::RowMapping::invocation_per_row}) {
+    ops::set_row_mapping(m);
+    run_layernorm(ctx(), {1, 5, 33, DType::f32, true, false, false, 0.0f});
+    run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});
+    run_layernorm(ctx(), {2, 9, 257, DType::f32, false, false, false, 1000.0f});
+    run_layernorm(ctx(), {2, 40, 32, DType::bf16, true, true, false, 0.0f});
+    run_layernorm(ctx(), {3, 7, 33, DType::f16, true, true, true, 0.0f});
+    run_rmsnorm(ctx(), 3, 33, DType::f32, false);
+    run_rmsnorm(ctx(), 2, 4100, DType::bf16, true);
+  }
 }
 
 TEST_F(GpuTest, LayerNormRejectsBadModulation) {

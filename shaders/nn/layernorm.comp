@@ -1,5 +1,5 @@
 #version 450
-// LayerNorm over the last dimension of x [rows, D], one workgroup per row, fp32 two-pass statistics
+// LayerNorm over the last dimension of x [rows, D], one workgroup (or invocation) per row, fp32 two-pass statistics
 // (mean, then mean of squared deviations) so large offsets do not cancel. Optional affine (weight, bias
 // stored f32/bf16/f16) and optional adaLN modulation y = norm(x) * (1 + scale) + shift, where scale and
 // shift are column slices of a per-batch table [B, table_stride]; rows are [B, L] tokens and tokens
@@ -21,6 +21,9 @@ layout(constant_id = 4) const bool VEC4 = false;
 // vec4 per invocation held in registers (host: ceil(D/4/LOCAL), at most 4): rows up to LOCAL*4*CACHE
 // floats are read from memory once; the loops over it unroll exactly.
 layout(constant_id = 5) const uint CACHE = 1;
+// One invocation per row instead of one workgroup (CPU drivers: barriers and shared memory cost more than
+// re-reading a cache-hot row; the row is read three times and never exchanged between invocations).
+layout(constant_id = 6) const bool PER_INVOCATION = false;
 
 layout(std430, binding = 0) readonly buffer X { vec4 x4[]; };
 layout(std430, binding = 1) writeonly buffer Y { vec4 y4[]; };
@@ -79,19 +82,77 @@ void store4(uint base4, uint j, vec4 xv, float mean, float rstd, uint scale_at, 
   y4[base4 + j] = v;
 }
 
-void main() {
-  uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-  if (row >= p.rows) return;  // uniform per workgroup
-  uint t = gl_LocalInvocationID.x;
-  uint base = row * p.D;
+float x1(uint i) { return x4[i >> 2][i & 3u]; }
 
-  uint scale_at = 0, shift_at = 0;
+void modulation_offsets(uint row, out uint scale_at, out uint shift_at) {
+  scale_at = 0;
+  shift_at = 0;
   if (MODULATE) {
     uint batch = row / p.L, token = row - batch * p.L;
     bool first_set = token < p.split;
     scale_at = batch * p.table_stride + (first_set ? p.scale0 : p.scale1);
     shift_at = batch * p.table_stride + (first_set ? p.shift0 : p.shift1);
   }
+}
+
+// Compensated (Kahan) accumulation: a row of thousands of values summed serially by one invocation keeps
+// O(1) rounding error instead of O(D), so large offsets stay exact as in the tree-reduced path.
+void kahan_add(inout vec4 sum, inout vec4 comp, vec4 v) {
+  precise vec4 y = v - comp;
+  precise vec4 t = sum + y;
+  comp = (t - sum) - y;
+  sum = t;
+}
+float hsum(vec4 v) { return (v.x + v.y) + (v.z + v.w); }
+
+void row_per_invocation(uint row) {
+  uint base = row * p.D, scale_at, shift_at;
+  modulation_offsets(row, scale_at, shift_at);
+  vec4 s = vec4(0.0), c = vec4(0.0);
+  if (VEC4) {
+    uint n4 = p.D >> 2, base4 = base >> 2;
+    for (uint j = 0; j < n4; ++j) kahan_add(s, c, x4[base4 + j]);
+    float mean = hsum(s) / float(p.D);
+    vec4 q = vec4(0.0);
+    c = vec4(0.0);
+    for (uint j = 0; j < n4; ++j) {
+      vec4 d = x4[base4 + j] - mean;
+      kahan_add(q, c, d * d);
+    }
+    float rstd = inversesqrt(hsum(q) / float(p.D) + p.eps);
+    for (uint j = 0; j < n4; ++j) store4(base4, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
+    return;
+  }
+  for (uint i = 0; i < p.D; ++i) kahan_add(s, c, vec4(x1(base + i), 0.0, 0.0, 0.0));
+  float mean = s.x / float(p.D);
+  vec4 q = vec4(0.0);
+  c = vec4(0.0);
+  for (uint i = 0; i < p.D; ++i) {
+    float d = x1(base + i) - mean;
+    kahan_add(q, c, vec4(d * d, 0.0, 0.0, 0.0));
+  }
+  float rstd = inversesqrt(q.x / float(p.D) + p.eps);
+  for (uint i = 0; i < p.D; ++i) {
+    float v = (x1(base + i) - mean) * rstd;
+    if (AFFINE) v = v * load_w1(i) + load_b1(i);
+    if (MODULATE) v = v * (1.0 + table1(scale_at + i)) + table1(shift_at + i);
+    y4[(base + i) >> 2][(base + i) & 3u] = v;
+  }
+}
+
+void main() {
+  if (PER_INVOCATION) {
+    uint r = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * LOCAL + gl_LocalInvocationID.x;
+    if (r < p.rows) row_per_invocation(r);
+    return;
+  }
+  uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  if (row >= p.rows) return;  // uniform per workgroup
+  uint t = gl_LocalInvocationID.x;
+  uint base = row * p.D;
+
+  uint scale_at, shift_at;
+  modulation_offsets(row, scale_at, shift_at);
 
   if (VEC4) {
     uint n4 = p.D >> 2, base4 = base >> 2;

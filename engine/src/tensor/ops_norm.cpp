@@ -13,6 +13,13 @@ namespace {
 constexpr uint32_t kRowLocal = 256;  // most invocations per row for layernorm / rmsnorm
 constexpr int64_t kRowCache = 4;    // most vec4 per invocation kept in registers (more would spill)
 
+RowMapping g_row_mapping = RowMapping::automatic;
+
+bool row_per_invocation(vk::Recorder& rec) {
+  if (g_row_mapping != RowMapping::automatic) return g_row_mapping == RowMapping::invocation_per_row;
+  return rec.context().caps().type == VK_PHYSICAL_DEVICE_TYPE_CPU;
+}
+
 // Invocations per row: a power of two from 8 to kRowLocal covering the row's n (vec4s or floats) in
 // kRowCache per invocation.
 uint32_t row_local(int64_t n) {
@@ -68,6 +75,8 @@ int64_t stats_span(int64_t n) { return (n + 63) / 64 * 64; }
 
 }  // namespace
 
+void set_row_mapping(RowMapping mapping) { g_row_mapping = mapping; }
+
 void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,
                float eps, const Modulation* mod) {
   const char* op = "layernorm";
@@ -100,16 +109,18 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   }
   bool vec4 = D % 4 == 0;
   if (mod) vec4 = vec4 && p.table_stride % 4 == 0 && (p.shift0 | p.scale0 | p.shift1 | p.scale1) % 4 == 0;
-  // Invocations per row: a power of two up to 64 covering the row's vec4s; CACHE vec4 each in registers.
   const int64_t n4 = vec4 ? D / 4 : D;
-  const uint32_t local = row_local(n4);
-  const uint32_t cache = vec4 ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
-  uint32_t spec[] = {local, code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u, vec4 ? 1u : 0u, cache};
+  const bool per_invocation = row_per_invocation(rec);
+  const uint32_t local = per_invocation ? 64u : row_local(n4);
+  const uint32_t cache =
+      vec4 && !per_invocation ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
+  uint32_t spec[] = {local,          code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u,
+                     vec4 ? 1u : 0u, cache,                          per_invocation ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/layernorm", spec);
   // Unused bindings get a harmless read-only view (x).
   vk::BufferView xv = vec4_view(x), wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
   vk::BufferView mv = mod ? vec4_view(mod->table) : xv;
-  Grid g = grid_1d(rows, 1);
+  Grid g = grid_1d(rows, per_invocation ? 64 : 1);
   rec.dispatch(pipe, {xv, vec4_view(y), wv, bv, mv}, &p, sizeof p, g.x, g.y, 1, "layernorm");
 }
 
@@ -147,10 +158,12 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   } p{uint32_t(rows), uint32_t(D), eps};
   const bool vec4 = D % 4 == 0;
   const int64_t n4 = vec4 ? D / 4 : D;
-  const uint32_t local = row_local(n4);
-  const uint32_t cache = vec4 ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
-  uint32_t spec[] = {local, code, vec4 ? 1u : 0u, cache};
-  Grid g = grid_1d(rows, 1);
+  const bool per_invocation = row_per_invocation(rec);
+  const uint32_t local = per_invocation ? 64u : row_local(n4);
+  const uint32_t cache =
+      vec4 && !per_invocation ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
+  uint32_t spec[] = {local, code, vec4 ? 1u : 0u, cache, per_invocation ? 1u : 0u};
+  Grid g = grid_1d(rows, per_invocation ? 64 : 1);
   rec.dispatch(rec.context().pipelines().get("nn/rmsnorm", spec), {vec4_view(x), vec4_view(y), vec4_view(weight)}, &p,
                sizeof p, g.x, g.y, 1, "rmsnorm");
 }

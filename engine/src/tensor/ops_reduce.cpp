@@ -9,22 +9,26 @@
 namespace dvs::ops {
 namespace {
 
-// Elements per first-level block: 64 invocations x 16 items (4 vec4 kept in registers by
-// reduce_partials.comp), grown so a segment needs <= 65535 blocks.
-int64_t block_len_for(int64_t seg_len) {
-  int64_t len = 1024;
-  int64_t need = (seg_len + 65534) / 65535;
-  if (need > len) len = (need + 63) / 64 * 64;
-  return len;
+// Elements per first-level partial (one invocation each): 64, grown so all segments together make at most
+// ~1M partials (8 MiB of scratch); always a multiple of 4 for the vec4 path.
+int64_t chunk_for(int64_t segments, int64_t seg_len) {
+  const int64_t total = segments * seg_len, max_partials = int64_t(1) << 20;
+  int64_t chunk = std::max<int64_t>(64, (total + max_partials - 1) / max_partials);
+  return (chunk + 3) / 4 * 4;
 }
 
-int64_t blocks_for(int64_t seg_len) { return std::max<int64_t>(1, (seg_len + block_len_for(seg_len) - 1) / block_len_for(seg_len)); }
+int64_t chunks_for(int64_t segments, int64_t seg_len) {
+  const int64_t chunk = chunk_for(segments, seg_len);
+  return std::max<int64_t>(1, (seg_len + chunk - 1) / chunk);
+}
 
 void check_f32(const char* op, const char* arg, const Tensor& t) { expect_dtype(op, arg, t, DType::f32); }
 
 }  // namespace
 
-int64_t reduce_scratch_elems(int64_t segments, int64_t seg_len) { return segments * blocks_for(seg_len) * 2; }
+int64_t reduce_scratch_elems(int64_t segments, int64_t seg_len) {
+  return segments * chunks_for(segments, seg_len) * 2;
+}
 int64_t reduce_scratch_elems(const Segments& segs) { return reduce_scratch_elems(segs.count, segs.seg_len); }
 
 void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, ReduceMode mode, const Tensor& out0,
@@ -49,7 +53,7 @@ void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, R
   if (out0.numel() < out_offset + segs.count || (mode == ReduceMode::mean_var && out1.numel() < out_offset + segs.count))
     throw Error("internal: reduce_segments: outputs too small for " + std::to_string(segs.count) + " segments");
 
-  const int64_t block_len = block_len_for(segs.seg_len), blocks = blocks_for(segs.seg_len);
+  const int64_t block_len = chunk_for(segs.count, segs.seg_len), blocks = chunks_for(segs.count, segs.seg_len);
   // vec4 loads when every run of 4 consecutive j is 4 consecutive, 16-byte aligned elements.
   const bool contiguous = segs.inner >= segs.seg_len;
   const bool vec4 = segs.seg_len % 4 == 0 && block_len % 4 == 0 && (segs.count == 1 || segs.seg_stride % 4 == 0) &&
@@ -60,11 +64,12 @@ void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, R
     uint32_t seg_len, inner, seg_stride, outer_stride, block_len, blocks;
   } p1{uint32_t(segs.seg_len), uint32_t(std::min(segs.inner, segs.seg_len)), uint32_t(segs.seg_stride),
        uint32_t(segs.outer_stride), uint32_t(block_len), uint32_t(blocks)};
+  if (div_up(blocks, 64) > 65535) throw Error("internal: reduce_segments: too many partials");
   vk::PipelineCache& pipes = rec.context().pipelines();
   vk::BufferView xv = x.buffer();
   xv.size = (xv.size + 15) / 16 * 16;  // read as vec4s; views are >= 64-byte aligned, padding is in-allocation
   rec.dispatch(pipes.get("nn/reduce_partials", spec1), {xv, scratch.buffer()}, &p1, sizeof p1,
-               uint32_t(blocks), uint32_t(segs.count), 1, "reduce_partials");
+               div_up(blocks, 64), uint32_t(segs.count), 1, "reduce_partials");
   struct {
     uint32_t seg_len, block_len, blocks, out_offset;
   } p2{uint32_t(segs.seg_len), uint32_t(block_len), uint32_t(blocks), uint32_t(out_offset)};
