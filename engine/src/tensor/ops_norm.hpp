@@ -1,0 +1,48 @@
+// Normalisations, all with fp32 statistics (two-pass: mean, then mean of squared deviations; two-level
+// block partials merged with Chan's formula for GroupNorm's large groups). Weights and biases may be
+// stored f32, bf16 or f16 (both of one layer in the same dtype); activations are f32. Outputs are
+// allocated by the caller and may be the input tensor itself (in place).
+#pragma once
+#include <cstdint>
+
+#include "tensor/dispatch.hpp"
+
+namespace dvs::ops {
+
+// adaLN modulation y = norm(x) * (1 + scale) + shift with per-batch vectors read from a table [B, W] (e.g.
+// the Linear(SiLU(temb)) output, chunks addressed by column offset). x rows are [B, seq_len] tokens;
+// tokens [0, split) use set 0 and tokens [split, seq_len) set 1. CogVideoXLayerNormZero on [text; video]:
+// split = text length, set 0 = (enc_shift, enc_scale), set 1 = (shift, scale). One set: split = 0.
+struct Modulation {
+  Tensor table;  // f32 [B, W]
+  int64_t seq_len = 0, split = 0;
+  int64_t shift_col[2] = {0, 0}, scale_col[2] = {0, 0};
+};
+
+// How layernorm and rmsnorm map rows to invocations. automatic: one invocation per row on CPU drivers
+// (lavapipe: barriers and shared memory cost more than re-reading a cache-hot row), one workgroup per row
+// elsewhere. Process-wide; tests and benchmarks force each mapping to cover both paths.
+enum class RowMapping { automatic, workgroup_per_row, invocation_per_row };
+void set_row_mapping(RowMapping mapping);
+
+// LayerNorm over the last dim D of x [..., D]. weight/bias [D] (both or neither: no affine); mod optional.
+void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,
+               float eps, const Modulation* mod = nullptr);
+
+// Per-head LayerNorm of q or k inside a fused buffer x [rows, row_stride] (f32): heads*head_dim columns from
+// col_offset, each head normalised over head_dim, affine [head_dim] shared by heads (or none). y has x's
+// shape and layout (columns outside the slice are not written); y may be x.
+void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads, int64_t head_dim,
+                    int64_t col_offset, const Tensor& weight, const Tensor& bias, float eps = 1e-6f);
+
+// RMSNorm (T5): y = weight * x / sqrt(mean(x^2) + eps) over the last dim D of x [..., D].
+void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, float eps = 1e-6f);
+
+// GroupNorm on x [B, C, ...] (VAE: [B, C, F, H, W]): statistics per (b, group of C/groups channels) over all
+// the group's elements; affine gamma/beta [C] (or none); optional SiLU after. scratch: f32 of
+// groupnorm_scratch_elems() elements.
+int64_t groupnorm_scratch_elems(const Shape& x_shape, int64_t groups);
+void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t groups, const Tensor& gamma,
+               const Tensor& beta, float eps, bool silu, const Tensor& scratch);
+
+}  // namespace dvs::ops

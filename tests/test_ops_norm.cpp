@@ -1,0 +1,330 @@
+// Norm ops (layernorm with adaLN modulation, per-head q/k layernorm, RMSNorm, GroupNorm) against plain C++
+// references in double on random data, with odd sizes, large mean offsets (two-pass statistics), 16-bit
+// weights and in-place use.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "support/gpu.hpp"
+#include "tensor/ops_norm.hpp"
+
+namespace dvs {
+namespace {
+
+using test::GpuTest;
+
+std::vector<float> random_values(size_t n, uint32_t seed, float offset = 0.0f, float spread = 1.0f) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> dist(0.0f, 1.0f);
+  std::vector<float> v(n);
+  for (float& x : v) x = offset + spread * dist(rng);
+  return v;
+}
+
+// Host tensor of the values stored as `dt`; `values` are replaced by what the device will actually read.
+HostTensor stored_as(std::vector<float>& values, Shape shape, DType dt) {
+  HostTensor h(std::move(shape), dt);
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (dt == DType::f32) {
+      h.as<float>()[i] = values[i];
+    } else if (dt == DType::bf16) {
+      h.as<uint16_t>()[i] = f32_to_bf16(values[i]);
+      values[i] = bf16_to_f32(h.as<uint16_t>()[i]);
+    } else {
+      h.as<uint16_t>()[i] = f32_to_f16(values[i]);
+      values[i] = f16_to_f32(h.as<uint16_t>()[i]);
+    }
+  }
+  return h;
+}
+
+Tensor upload_f32(vk::Context& ctx, const std::vector<float>& v, Shape shape) {
+  return Tensor::upload(ctx, HostTensor::from_f32(std::move(shape), v));
+}
+
+// |got - want| <= atol + rtol*|want| everywhere; reports the worst element.
+void expect_close(const std::vector<float>& got, const std::vector<double>& want, double atol, double rtol,
+                  const std::string& what) {
+  ASSERT_EQ(got.size(), want.size()) << what;
+  double worst = -1e300;
+  size_t at = 0;
+  bool finite = true;
+  for (size_t i = 0; i < got.size(); ++i) {
+    double excess = std::abs(double(got[i]) - want[i]) - (atol + rtol * std::abs(want[i]));
+    if (!std::isfinite(excess)) { finite = false; at = i; break; }
+    if (excess > worst) { worst = excess; at = i; }
+  }
+  EXPECT_TRUE(finite && worst <= 0.0) << what << ": element " << at << " is " << got[at] << ", expected " << want[at];
+}
+
+void run_rmsnorm(vk::Context& ctx, int64_t rows, int64_t D, DType wdt, bool in_place);
+
+// ---------------------------------------------------------------- LayerNorm
+struct LnCase {
+  int64_t B, L, D;
+  DType wdt;
+  bool affine, modulate, in_place;
+  float offset;
+};
+
+std::vector<double> layernorm_ref(const std::vector<float>& x, int64_t rows, int64_t D, const std::vector<float>* w,
+                                  const std::vector<float>* b, double eps) {
+  std::vector<double> y(x.size());
+  for (int64_t r = 0; r < rows; ++r) {
+    double m = 0, v = 0;
+    for (int64_t i = 0; i < D; ++i) m += x[size_t(r * D + i)];
+    m /= double(D);
+    for (int64_t i = 0; i < D; ++i) v += (x[size_t(r * D + i)] - m) * (x[size_t(r * D + i)] - m);
+    v /= double(D);
+    for (int64_t i = 0; i < D; ++i) {
+      double t = (x[size_t(r * D + i)] - m) / std::sqrt(v + eps);
+      if (w) t = t * (*w)[size_t(i)] + (*b)[size_t(i)];
+      y[size_t(r * D + i)] = t;
+    }
+  }
+  return y;
+}
+
+void run_layernorm(vk::Context& ctx, const LnCase& c) {
+  const int64_t rows = c.B * c.L, D = c.D;
+  const float eps = 1e-5f;
+  std::vector<float> x = random_values(size_t(rows * D), 11 + uint32_t(D), c.offset);
+  std::vector<float> w = random_values(size_t(D), 12, 1.0f, 0.3f), b = random_values(size_t(D), 13, 0.0f, 0.5f);
+  HostTensor wh = stored_as(w, {D}, c.wdt), bh = stored_as(b, {D}, c.wdt);
+  std::vector<double> want = layernorm_ref(x, rows, D, c.affine ? &w : nullptr, c.affine ? &b : nullptr, eps);
+
+  // Table [B, 6D] like CogVideoXLayerNormZero's chunks (shift, scale, gate, enc_shift, enc_scale, enc_gate).
+  const int64_t W = 6 * D, split = c.L / 3;
+  std::vector<float> table = random_values(size_t(c.B * W), 14, 0.0f, 0.5f);
+  ops::Modulation mod;
+  if (c.modulate) {
+    mod.seq_len = c.L;
+    mod.split = split;
+    mod.shift_col[0] = 3 * D;  // text: enc_shift, enc_scale
+    mod.scale_col[0] = 4 * D;
+    mod.shift_col[1] = 0;  // video: shift, scale
+    mod.scale_col[1] = D;
+    for (int64_t r = 0; r < rows; ++r) {
+      int64_t bt = r / c.L, set = (r % c.L) < split ? 0 : 1;
+      for (int64_t i = 0; i < D; ++i) {
+        double sc = table[size_t(bt * W + mod.scale_col[set] + i)], sh = table[size_t(bt * W + mod.shift_col[set] + i)];
+        double& v = want[size_t(r * D + i)];
+        v = v * (1.0 + sc) + sh;
+      }
+    }
+  }
+
+  Tensor xt = upload_f32(ctx, x, {c.B, c.L, D});
+  Tensor yt = c.in_place ? xt : Tensor::empty(ctx, {c.B, c.L, D}, DType::f32);
+  Tensor wt, bt;
+  if (c.affine) {
+    wt = Tensor::upload(ctx, wh);
+    bt = Tensor::upload(ctx, bh);
+  }
+  if (c.modulate) mod.table = upload_f32(ctx, table, {c.B, W});
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::layernorm(rec, xt, yt, wt, bt, eps, c.modulate ? &mod : nullptr); });
+  // Inputs with offset o carry rounding ulp(o)/2 that the normalisation scales by 1/std (std = 1 here).
+  const double atol = 2e-5 + 2e-7 * std::abs(c.offset);
+  expect_close(yt.download(ctx).to_f32(), want, atol, 1e-5,
+               "layernorm B=" + std::to_string(c.B) + " L=" + std::to_string(c.L) + " D=" + std::to_string(D) + " " +
+                   dtype_name(c.wdt) + (c.affine ? " affine" : "") + (c.modulate ? " modulated" : "") +
+                   (c.in_place ? " in-place" : ""));
+}
+
+// Tolerance: |err| <= 2e-5 + 2e-7*|offset| + 1e-5*|ref|.
+TEST_F(GpuTest, LayerNormOddShapes) {
+  for (int64_t D : {1, 7, 33, 129, 1000})
+    run_layernorm(ctx(), {1, 5, D, DType::f32, true, false, false, 0.0f});
+  run_layernorm(ctx(), {3, 7, 64, DType::f32, false, false, false, 0.0f});
+  run_layernorm(ctx(), {1, 1, 3072, DType::f32, true, false, false, 0.0f});
+  run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});  // beyond the register cache
+}
+
+TEST_F(GpuTest, LayerNormLargeOffsetIsTwoPass) {
+  run_layernorm(ctx(), {2, 9, 257, DType::f32, false, false, false, 1000.0f});
+}
+
+TEST_F(GpuTest, LayerNormHalfWeightsAndInPlace) {
+  run_layernorm(ctx(), {1, 4, 33, DType::bf16, true, false, false, 0.5f});
+  run_layernorm(ctx(), {1, 4, 33, DType::f16, true, false, true, 0.5f});
+  run_layernorm(ctx(), {1, 3, 72, DType::bf16, true, false, true, 0.5f});  // vec4 path, 16-bit weights
+  run_layernorm(ctx(), {1, 3, 72, DType::f16, true, false, false, 0.5f});
+}
+
+TEST_F(GpuTest, LayerNormZeroModulationTextVideoSplit) {
+  // Tiny model: 8 text + 32 video tokens, D = 32; split at L/3 of 40 = 13 here to exercise an odd split.
+  run_layernorm(ctx(), {2, 40, 32, DType::f32, true, true, false, 0.0f});
+  run_layernorm(ctx(), {3, 7, 33, DType::bf16, true, true, true, 0.0f});
+  run_layernorm(ctx(), {2, 5, 16, DType::f32, false, true, false, 0.0f});  // AdaLayerNorm-like, no affine
+}
+
+// The other row mapping (the default one depends on the device type): the same checks on a subset.
+class RowMappingTest : public GpuTest {
+ protected:
+  void TearDown() override {
+    ops::set_row_mapping(ops::RowMapping::automatic);
+    GpuTest::TearDown();
+  }
+};
+
+TEST_F(RowMappingTest, LayerNormAndRmsNormBothMappings) {
+  for (auto m : {ops::RowMapping::workgroup_per_row, ops::RowMapping::invocation_per_row}) {
+    ops::set_row_mapping(m);
+    run_layernorm(ctx(), {1, 5, 33, DType::f32, true, false, false, 0.0f});
+    run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});
+    run_layernorm(ctx(), {2, 9, 257, DType::f32, false, false, false, 1000.0f});
+    run_layernorm(ctx(), {2, 40, 32, DType::bf16, true, true, false, 0.0f});
+    run_layernorm(ctx(), {3, 7, 33, DType::f16, true, true, true, 0.0f});
+    run_rmsnorm(ctx(), 3, 33, DType::f32, false);
+    run_rmsnorm(ctx(), 2, 4100, DType::bf16, true);
+  }
+}
+
+TEST_F(GpuTest, LayerNormRejectsBadModulation) {
+  Tensor x = Tensor::zeros(ctx(), {2, 4, 8}, DType::f32), w, b;
+  ops::Modulation mod;
+  mod.table = Tensor::zeros(ctx(), {2, 16}, DType::f32);
+  mod.seq_len = 4;
+  mod.scale_col[1] = 12;  // 12 + 8 > 16
+  vk::Recorder rec(ctx());
+  rec.begin();
+  EXPECT_THROW(ops::layernorm(rec, x, x, w, b, 1e-5f, &mod), Error);
+  mod.scale_col[1] = 8;
+  mod.seq_len = 3;  // 8 rows are not [2, 3]
+  EXPECT_THROW(ops::layernorm(rec, x, x, w, b, 1e-5f, &mod), Error);
+}
+
+// ---------------------------------------------------------------- per-head LayerNorm
+void run_head_layernorm(vk::Context& ctx, int64_t rows, int64_t H, int64_t Dh, int64_t stride, int64_t col, DType wdt,
+                        bool affine, bool in_place) {
+  std::vector<float> x = random_values(size_t(rows * stride), 21 + uint32_t(Dh), 3.0f, 2.0f);
+  std::vector<float> w = random_values(size_t(Dh), 22, 1.0f, 0.3f), b = random_values(size_t(Dh), 23, 0.0f, 0.3f);
+  HostTensor wh = stored_as(w, {Dh}, wdt), bh = stored_as(b, {Dh}, wdt);
+  const double eps = 1e-6;
+  // Outside the slice: in place keeps x, out of place leaves y's initial content (zeros).
+  std::vector<double> want(x.size());
+  for (size_t i = 0; i < x.size(); ++i) want[i] = in_place ? x[i] : 0.0;
+  for (int64_t r = 0; r < rows; ++r)
+    for (int64_t h = 0; h < H; ++h) {
+      const float* s = &x[size_t(r * stride + col + h * Dh)];
+      double m = 0, v = 0;
+      for (int64_t i = 0; i < Dh; ++i) m += s[i];
+      m /= double(Dh);
+      for (int64_t i = 0; i < Dh; ++i) v += (s[i] - m) * (s[i] - m);
+      v /= double(Dh);
+      for (int64_t i = 0; i < Dh; ++i) {
+        double t = (s[i] - m) / std::sqrt(v + eps);
+        if (affine) t = t * w[size_t(i)] + b[size_t(i)];
+        want[size_t(r * stride + col + h * Dh + i)] = t;
+      }
+    }
+  Tensor xt = upload_f32(ctx, x, {rows, stride});
+  Tensor yt = in_place ? xt : Tensor::zeros(ctx, {rows, stride}, DType::f32);
+  Tensor wt, bt;
+  if (affine) {
+    wt = Tensor::upload(ctx, wh);
+    bt = Tensor::upload(ctx, bh);
+  }
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::head_layernorm(rec, xt, yt, H, Dh, col, wt, bt, 1e-6f); });
+  expect_close(yt.download(ctx).to_f32(), want, 1e-5, 1e-5,
+               "head_layernorm rows=" + std::to_string(rows) + " H=" + std::to_string(H) + " Dh=" + std::to_string(Dh));
+}
+
+// Tolerance: 1e-5 + 1e-5*|ref|.
+TEST_F(GpuTest, HeadLayerNormOnFusedQkvSlices) {
+  // Tiny model: 2 heads x 16, fused QKV [rows, 96]: q at column 0, k at column 32.
+  run_head_layernorm(ctx(), 70, 1, 16, 16, 0, DType::f32, false, false);  // several workgroups
+  run_head_layernorm(ctx(), 40, 2, 16, 96, 0, DType::f32, true, true);
+  run_head_layernorm(ctx(), 40, 2, 16, 96, 32, DType::bf16, true, true);
+  // Odd everything, out of place, no affine, f16.
+  run_head_layernorm(ctx(), 7, 3, 7, 3 * 3 * 7 + 5, 21 + 2, DType::f32, false, false);
+  run_head_layernorm(ctx(), 5, 2, 6, 2 * 6 * 3, 12, DType::bf16, true, true);  // scalar path with affine
+  run_head_layernorm(ctx(), 33, 5, 64, 5 * 64 * 3, 5 * 64, DType::f16, true, false);
+}
+
+// ---------------------------------------------------------------- RMSNorm
+void run_rmsnorm(vk::Context& ctx, int64_t rows, int64_t D, DType wdt, bool in_place) {
+  std::vector<float> x = random_values(size_t(rows * D), 31 + uint32_t(D), 0.7f, 3.0f);
+  std::vector<float> w = random_values(size_t(D), 32, 1.0f, 0.3f);
+  HostTensor wh = stored_as(w, {D}, wdt);
+  std::vector<double> want(x.size());
+  for (int64_t r = 0; r < rows; ++r) {
+    double s = 0;
+    for (int64_t i = 0; i < D; ++i) s += double(x[size_t(r * D + i)]) * x[size_t(r * D + i)];
+    double rs = 1.0 / std::sqrt(s / double(D) + 1e-6);
+    for (int64_t i = 0; i < D; ++i) want[size_t(r * D + i)] = w[size_t(i)] * (x[size_t(r * D + i)] * rs);
+  }
+  Tensor xt = upload_f32(ctx, x, {rows, D});
+  Tensor yt = in_place ? xt : Tensor::empty(ctx, {rows, D}, DType::f32);
+  Tensor wt = Tensor::upload(ctx, wh);
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::rmsnorm(rec, xt, yt, wt, 1e-6f); });
+  expect_close(yt.download(ctx).to_f32(), want, 1e-6, 1e-5,
+               "rmsnorm rows=" + std::to_string(rows) + " D=" + std::to_string(D) + " " + dtype_name(wdt));
+}
+
+// Tolerance: 1e-6 + 1e-5*|ref|.
+TEST_F(GpuTest, RmsNorm) {
+  for (int64_t D : {1, 7, 33, 129}) run_rmsnorm(ctx(), 3, D, DType::f32, false);
+  run_rmsnorm(ctx(), 8, 32, DType::bf16, true);  // tiny T5: d_model 32
+  run_rmsnorm(ctx(), 2, 4096, DType::f16, false);
+  run_rmsnorm(ctx(), 2, 4100, DType::f32, false);  // beyond the register cache
+}
+
+// ---------------------------------------------------------------- GroupNorm
+void run_groupnorm(vk::Context& ctx, Shape shape, int64_t G, DType wdt, bool affine, bool silu, float offset,
+                   bool in_place) {
+  const int64_t B = shape[0], C = shape[1], S = shape_numel(shape) / (B * C);
+  const double eps = 1e-6;
+  std::vector<float> x = random_values(size_t(shape_numel(shape)), 41 + uint32_t(C), offset, 1.5f);
+  std::vector<float> w = random_values(size_t(C), 42, 1.0f, 0.3f), b = random_values(size_t(C), 43, 0.0f, 0.3f);
+  HostTensor wh = stored_as(w, {C}, wdt), bh = stored_as(b, {C}, wdt);
+  std::vector<double> want(x.size());
+  const int64_t cg = C / G, len = cg * S;
+  for (int64_t bi = 0; bi < B; ++bi)
+    for (int64_t g = 0; g < G; ++g) {
+      const float* s = &x[size_t((bi * C + g * cg) * S)];
+      double m = 0, v = 0;
+      for (int64_t i = 0; i < len; ++i) m += s[i];
+      m /= double(len);
+      for (int64_t i = 0; i < len; ++i) v += (s[i] - m) * (s[i] - m);
+      v /= double(len);
+      for (int64_t i = 0; i < len; ++i) {
+        int64_t c = g * cg + i / S;
+        double t = (s[i] - m) / std::sqrt(v + eps);
+        if (affine) t = t * w[size_t(c)] + b[size_t(c)];
+        if (silu) t = t / (1.0 + std::exp(-t));
+        want[size_t((bi * C + g * cg) * S + i)] = t;
+      }
+    }
+  Tensor xt = upload_f32(ctx, x, shape);
+  Tensor yt = in_place ? xt : Tensor::empty(ctx, shape, DType::f32);
+  Tensor wt, bt;
+  if (affine) {
+    wt = Tensor::upload(ctx, wh);
+    bt = Tensor::upload(ctx, bh);
+  }
+  Tensor scratch = Tensor::empty(ctx, {ops::groupnorm_scratch_elems(shape, G)}, DType::f32);
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::groupnorm(rec, xt, yt, G, wt, bt, float(eps), silu, scratch); });
+  expect_close(yt.download(ctx).to_f32(), want, 2e-5 + 2e-7 * std::abs(offset), 2e-5,
+               "groupnorm [" + shape_str(shape) + "] G=" + std::to_string(G) + " " + dtype_name(wdt));
+}
+
+// Tolerance: 2e-5 + 2e-7*|offset| + 2e-5*|ref|.
+TEST_F(GpuTest, GroupNormOddShapes) {
+  run_groupnorm(ctx(), {2, 8, 3, 5, 7}, 4, DType::f32, true, false, 0.0f, false);
+  run_groupnorm(ctx(), {1, 3, 1, 1, 1}, 3, DType::f32, true, true, 0.0f, false);  // one element per group
+  run_groupnorm(ctx(), {1, 6, 2, 9, 11}, 2, DType::bf16, true, true, 0.0f, true);
+  run_groupnorm(ctx(), {2, 4, 33, 7}, 1, DType::f16, false, true, 0.0f, false);  // 4-D input, no affine
+  run_groupnorm(ctx(), {2, 6, 2, 4, 6}, 3, DType::bf16, true, false, 1.0f, false);  // vec4 path (S = 48)
+}
+
+TEST_F(GpuTest, GroupNormLargeGroupWithOffset) {
+  // Tiny-VAE-like: 32 channels / 8 groups, 9 frames of 60x90: 194,400 elements per group (48 blocks), mean 50.
+  run_groupnorm(ctx(), {1, 32, 9, 60, 90}, 8, DType::f32, true, true, 50.0f, false);
+}
+
+}  // namespace
+}  // namespace dvs
