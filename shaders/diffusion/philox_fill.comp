@@ -48,7 +48,8 @@ void main() {
       out_bits = floatBitsToUint(v);
     } else if (DIST == 1u) {
       vec4 g = vec4(philox_box_muller(r.x, r.y), philox_box_muller(r.z, r.w));
-      out_bits = floatBitsToUint(p.a + p.b * g);
+      precise vec4 v = p.a + p.b * g;  // no fused multiply-add: mean + std·z as on the host
+      out_bits = floatBitsToUint(v);
     } else {
       for (uint w = 0u; w < 4u; ++w) out_bits[w] = below(ctr, key, w, r[w]);
     }

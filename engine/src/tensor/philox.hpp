@@ -9,7 +9,7 @@
 // on (seed, stream, e): never on tensor shape, thread mapping or device. `stream` separates independent
 // draws under one seed; `retry` is 0 except for the rejection loop of uniform integers.
 #pragma once
-#include <cmath>
+#include <bit>
 #include <cstdint>
 
 namespace dvs::philox {
@@ -51,16 +51,109 @@ inline float uniform(uint64_t seed, uint32_t stream, uint64_t element) {
   return uniform_from_bits(raw_word(seed, stream, element));
 }
 
+// Deterministic float math for Box–Muller. Only +, -, × and exact conversions are used, each correctly
+// rounded in IEEE-754 and in Vulkan (SPIR-V OpFAdd/OpFSub/OpFMul), in a fixed order and never fused (the
+// shader marks every step `precise`; C++ contracts nothing under -std=c++20, and x86-64 SSE evaluates in
+// float). So the shader's normals equal these bit for bit on every conformant device, which the device's
+// log/sin/cos/sqrt (a few ulp, implementation-defined) would not give. No step meets a subnormal.
+namespace detail {
+inline float f32(uint32_t bits) { return std::bit_cast<float>(bits); }
+
+// 1/d for d in [1, 4): bit-trick guess, then 4 Newton steps y·(2 - d·y).
+inline float recip(float d) {
+  float y = f32(0x7EF311C7u - std::bit_cast<uint32_t>(d));
+  for (int i = 0; i < 4; ++i) {
+    const float dy = d * y;
+    const float corr = 2.0f - dy;
+    y = y * corr;
+  }
+  return y;
+}
+
+// ln x for a positive normal x: x = m·2^e with m in [√½, √2); ln m = 2·atanh(s), s = (m - 1)/(m + 1),
+// odd series to s^9 (|s| ≤ 0.172: truncation < 4e-10); ln 2 split in a 16-bit head and a tail.
+inline float log(float x) {
+  const uint32_t b = std::bit_cast<uint32_t>(x);
+  int e = int(b >> 23) - 127;
+  float m = f32((b & 0x7fffffu) | 0x3f800000u);
+  if (m > f32(0x3fb504f3u)) {  // √2
+    m = m * 0.5f;
+    e += 1;
+  }
+  const float f = m - 1.0f;
+  const float den = 2.0f + f;
+  const float s = f * recip(den);
+  const float s2 = s * s;
+  float p = f32(0x3de38e39u);           // 1/9
+  p = f32(0x3e124925u) + s2 * p;        // 1/7
+  p = f32(0x3e4ccccdu) + s2 * p;        // 1/5
+  p = f32(0x3eaaaaabu) + s2 * p;        // 1/3
+  const float s3 = s * s2;
+  const float series = s + s3 * p;
+  const float ef = float(e);
+  const float tail = ef * f32(0x35bfbe8eu) + 2.0f * series;  // ln2_lo
+  return ef * f32(0x3f317200u) + tail;                          // ln2_hi
+}
+
+// (cos 2πv, sin 2πv) for v in [0, 1) with at most 24 significant bits: exact quadrant reduction, then
+// Taylor polynomials on |x| ≤ π/4 (truncation < 3e-8).
+inline void sincos_2pi(float v, float& c, float& s) {
+  const float q = v * 4.0f;
+  int k = int(q);
+  float r = q - float(k);
+  if (r >= 0.5f) {
+    r = r - 1.0f;
+    k += 1;
+  }
+  const float x = r * f32(0x3fc90fdbu);  // π/2
+  const float x2 = x * x;
+  float ps = f32(0x3638ef1du);           // 1/9!
+  ps = f32(0xb9500d01u) + x2 * ps;       // -1/7!
+  ps = f32(0x3c088889u) + x2 * ps;       // 1/5!
+  ps = f32(0xbe2aaaabu) + x2 * ps;       // -1/3!
+  const float x3 = x * x2;
+  const float sn = x + x3 * ps;
+  float pc = f32(0x37d00d01u);           // 1/8!
+  pc = f32(0xbab60b61u) + x2 * pc;       // -1/6!
+  pc = f32(0x3d2aaaabu) + x2 * pc;       // 1/4!
+  pc = -0.5f + x2 * pc;
+  const float cs = 1.0f + x2 * pc;
+  switch (k & 3) {
+    case 0: c = cs; s = sn; break;
+    case 1: c = -sn; s = cs; break;
+    case 2: c = -cs; s = -sn; break;
+    default: c = sn; s = -cs; break;
+  }
+}
+
+// √t for t ≥ 0: inverse square root by the bit trick and 4 Newton steps y·(1.5 - ½t·y·y), times t.
+inline float sqrt(float t) {
+  if (!(t > 0.0f)) return 0.0f;
+  const float half_t = 0.5f * t;
+  float y = f32(0x5f3759dfu - (std::bit_cast<uint32_t>(t) >> 1));
+  for (int i = 0; i < 4; ++i) {
+    const float hy = half_t * y;
+    const float hyy = hy * y;
+    const float corr = 1.5f - hyy;
+    y = y * corr;
+  }
+  return t * y;
+}
+}  // namespace detail
+
 // Box–Muller on the word pairs (w0, w1) and (w2, w3) of a block: with u = uniform(w_even), v = uniform(w_odd),
 // r = sqrt(-2 ln(1 - u)) (1 - u is in [2^-24, 1], so the log is finite) and θ = 2π v,
-// element of word w_even gets r·cos θ and element of word w_odd gets r·sin θ.
-// The shaders use the device's log/sqrt/cos/sin, whose last bits may differ from libm's: normals agree with
-// this reference to ~1e-6 relative (bit-identical on the same device), uniforms and integers bit for bit.
+// the element of word w_even gets r·cos θ and the element of word w_odd gets r·sin θ.
+// log, sqrt, cos and sin are the deterministic ones above (accurate to ~1e-7 relative): the shader's values
+// equal these bit for bit.
 inline float normal_from_pair(uint32_t even, uint32_t odd, bool want_odd) {
   const float u = uniform_from_bits(even), v = uniform_from_bits(odd);
-  const float r = std::sqrt(-2.0f * std::log(1.0f - u));
-  const float theta = 6.2831853071795864769f * v;
-  return want_odd ? r * std::sin(theta) : r * std::cos(theta);
+  const float w = 1.0f - u;
+  const float t = -2.0f * detail::log(w);
+  const float r = detail::sqrt(t);
+  float c, s;
+  detail::sincos_2pi(v, c, s);
+  return want_odd ? r * s : r * c;
 }
 
 inline float normal(uint64_t seed, uint32_t stream, uint64_t element) {
