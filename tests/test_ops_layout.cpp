@@ -6,6 +6,7 @@
 #include <random>
 #include <vector>
 
+#include "io/npy.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_layout.hpp"
@@ -161,8 +162,12 @@ TEST_F(LayoutOps, Concat16BitAndI32) {
 }
 
 TEST_F(LayoutOps, PatchifyAndUnpatchifyFollowCogVideoX) {
-  for (int64_t C : {3, 16}) {
-    const int64_t B = 2, F = 3, H = 6, W = 10, p = 2, Hp = H / p, Wp = W / p;
+  struct Case {
+    int64_t C, H, W, p;
+  };
+  // p = 2 runs the vec4 shader, p = 1 and 3 the general one.
+  for (Case k : {Case{3, 6, 10, 2}, Case{16, 6, 10, 2}, Case{5, 9, 6, 3}, Case{2, 3, 5, 1}}) {
+    const int64_t B = 2, F = 3, C = k.C, H = k.H, W = k.W, p = k.p, Hp = H / p, Wp = W / p;
     Shape s = {B, F, C, H, W};
     auto in = iota_values(shape_numel(s));
     Tensor ti = upload(ctx(), s, in), tp = Tensor::empty(ctx(), {B, F * Hp * Wp, C * p * p}, DType::f32);
@@ -187,6 +192,17 @@ TEST_F(LayoutOps, PatchifyAndUnpatchifyFollowCogVideoX) {
     // unpatchify is the exact inverse (diffusers: reshape (B,F,Hp,Wp,C,p,p), permute (0,1,4,2,5,3,6)).
     EXPECT_EQ(back.download(ctx()).to_f32(), in);
   }
+}
+
+TEST_F(LayoutOps, UnpatchifyMatchesGoldenTransformerOutput) {
+  // The golden pack's proj_out [1, F·Hp·Wp, p·p·Cout] and the model output [1, F, Cout, H, W] that diffusers
+  // unpatchified from it: equal bit for bit.
+  const std::string dir = test::golden_dir() + "/transformer/";
+  HostTensor proj = read_npy(dir + "t999_proj_out.npy"), want = read_npy(dir + "output_t999.npy");
+  ASSERT_EQ(want.shape.size(), 5u);
+  Tensor tp = Tensor::upload(ctx(), proj), out = Tensor::empty(ctx(), want.shape, DType::f32);
+  ops::run_now(ctx(), [&](vk::Recorder& r) { ops::unpatchify(r, tp, out, 2); });
+  EXPECT_EQ(out.download(ctx()).to_f32(), want.to_f32());
 }
 
 TEST_F(LayoutOps, GatherScatterRows) {

@@ -134,6 +134,21 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   rec.dispatch(p, {in, out}, &push, sizeof push, groups_for(push.n), 1, 1, op);
 }
 
+// Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
+// whole patches (one vec4 per patch for p = 2) instead of decomposing six indices per element.
+void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::BufferView& in,
+                    const vk::BufferView& out, int64_t BF, int64_t C, int64_t Hp, int64_t Wp, int64_t p) {
+  const int64_t patches = BF * C * Hp * Wp;
+  if (patches == 0) return;
+  struct {
+    uint32_t n, C, Hp, Wp, p;
+  } push{uint32_t(patches), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
+  std::string shader = inverse ? "nn/patchify_inverse" : "nn/patchify";
+  if (p == 2) shader += "_p2";
+  const vk::Pipeline& pipe = rec.context().pipelines().get(shader);
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, groups_for(patches), 1, 1, op);
+}
+
 void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Tensor* src_idx, const Tensor* dst_idx,
                  const Tensor& dst) {
   check_words(op, src);
@@ -197,8 +212,7 @@ void patchify(vk::Recorder& rec, const Tensor& in, const Tensor& out, int p) {
     fail("patchify", in.describe() + " is not [B, F, C, H, W] with H and W multiples of " + std::to_string(p));
   const int64_t B = in.dim(0), F = in.dim(1), C = in.dim(2), Hp = in.dim(3) / p, Wp = in.dim(4) / p;
   expect_shape("patchify", "out", out, {B, F * Hp * Wp, C * p * p});
-  // [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p]
-  permute_words(rec, "patchify", in.buffer(), out.buffer(), {B * F, C, Hp, p, Wp, p}, {0, 2, 4, 1, 3, 5});
+  record_patches(rec, "patchify", false, in.buffer(), out.buffer(), B * F, C, Hp, Wp, p);
 }
 
 void unpatchify(vk::Recorder& rec, const Tensor& in, const Tensor& out, int p) {
@@ -208,8 +222,7 @@ void unpatchify(vk::Recorder& rec, const Tensor& in, const Tensor& out, int p) {
     fail("unpatchify", out.describe() + " is not [B, F, C, H, W] with H and W multiples of " + std::to_string(p));
   const int64_t B = out.dim(0), F = out.dim(1), C = out.dim(2), Hp = out.dim(3) / p, Wp = out.dim(4) / p;
   expect_shape("unpatchify", "in", in, {B, F * Hp * Wp, C * p * p});
-  // [BF, Hp, Wp, C, p, p] -> [BF, C, Hp, p, Wp, p]
-  permute_words(rec, "unpatchify", in.buffer(), out.buffer(), {B * F, Hp, Wp, C, p, p}, {0, 3, 1, 4, 2, 5});
+  record_patches(rec, "unpatchify", true, in.buffer(), out.buffer(), B * F, C, Hp, Wp, p);
 }
 
 void gather_rows(vk::Recorder& rec, const Tensor& src, const Tensor& idx, const Tensor& out) {
