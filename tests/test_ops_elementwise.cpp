@@ -157,7 +157,7 @@ TEST_F(ElementwiseOps, CastsRoundToNearestEven) {
                                 std::numeric_limits<float>::quiet_NaN(), 0x1p-14f, 0x1p-24f, 0x1p-25f,
                                 0x1.000002p-25f, 0x1.8p-24f, 0x1.4p-20f, 1.0f + 0x1p-11f, 1.0f + 0x3p-11f,
                                 1.0f + 0x1p-8f, 1.0f + 0x3p-8f, 3.4e38f, 1e-40f, 0x1.fffffep-15f, 6.1e-5f};
-  for (int64_t n : {1, 2, 7, 33, 130, 1001}) {
+  for (int64_t n : {1, 2, 7, 33, 130, 1001, 32, 1024}) {  // the last two: 8 per step
     std::vector<float> v = random_values(n, uint32_t(n), -1.0f, 1.0f);
     std::mt19937 rng(uint32_t(n) + 5);
     for (float& x : v) x = std::ldexp(x, int(rng() % 40) - 28);
@@ -201,17 +201,38 @@ TEST_F(ElementwiseOps, CastOddHalfKeepsNeighbour) {
 }
 
 TEST_F(ElementwiseOps, CastIntegers) {
-  std::vector<float> v = {0.0f, 1.9f, -1.9f, 1e10f, -1e10f, std::numeric_limits<float>::quiet_NaN(), 123456.0f};
-  Tensor f = upload(ctx(), {7}, v), i = Tensor::empty(ctx(), {7}, DType::i32), back = Tensor::empty(ctx(), {7}, DType::f32);
-  ops::run_now(ctx(), [&](vk::Recorder& r) {
-    ops::cast(r, f, i);
-    ops::cast(r, i, back);
-  });
-  HostTensor hi = i.download(ctx());
-  std::vector<int32_t> want = {0, 1, -1, INT32_MAX - 127, INT32_MIN, 0, 123456};
-  for (size_t k = 0; k < 7; ++k) EXPECT_EQ(hi.as<int32_t>()[k], want[k]) << k;
-  auto b = back.download(ctx()).to_f32();
-  for (size_t k = 0; k < 7; ++k) EXPECT_EQ(b[k], float(want[k])) << k;
+  // Saturation at the largest floats inside the int32 range; 7 elements run two per step, 8 eight per step.
+  std::vector<float> v8 = {0.0f, 1.9f, -1.9f, 1e10f, -1e10f, std::numeric_limits<float>::quiet_NaN(), 123456.0f, -7.5f};
+  std::vector<int32_t> want8 = {0, 1, -1, INT32_MAX - 127, INT32_MIN, 0, 123456, -7};
+  for (int64_t n : {7, 8}) {
+    std::vector<float> v(v8.begin(), v8.begin() + n);
+    Tensor f = upload(ctx(), {n}, v), i = Tensor::empty(ctx(), {n}, DType::i32), back = Tensor::empty(ctx(), {n}, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) {
+      ops::cast(r, f, i);
+      ops::cast(r, i, back);
+    });
+    HostTensor hi = i.download(ctx());
+    auto b = back.download(ctx()).to_f32();
+    for (size_t k = 0; k < size_t(n); ++k) {
+      EXPECT_EQ(hi.as<int32_t>()[k], want8[k]) << k;
+      EXPECT_EQ(b[k], float(want8[k])) << k;
+    }
+  }
+  // 16-bit to 16-bit goes through f32 exactly: bf16 -> f16 -> bf16 of small integers is the identity.
+  for (int64_t n : {5, 16}) {
+    HostTensor h({n}, DType::bf16);
+    for (int64_t k = 0; k < n; ++k) h.as<uint16_t>()[k] = f32_to_bf16(float(k) - 3.0f);
+    Tensor a = Tensor::upload(ctx(), h), m = Tensor::empty(ctx(), {n}, DType::f16), c = Tensor::empty(ctx(), {n}, DType::bf16);
+    ops::run_now(ctx(), [&](vk::Recorder& r) {
+      ops::cast(r, a, m);
+      ops::cast(r, m, c);
+    });
+    HostTensor hm = m.download(ctx()), hc = c.download(ctx());
+    for (int64_t k = 0; k < n; ++k) {
+      EXPECT_EQ(hm.as<uint16_t>()[k], f32_to_f16(float(k) - 3.0f));
+      EXPECT_EQ(hc.as<uint16_t>()[k], h.as<uint16_t>()[k]);
+    }
+  }
 }
 
 }  // namespace

@@ -155,9 +155,10 @@ void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
     return;
   }
   const uint32_t spec[] = {src, dst};
-  const vk::Pipeline& p = rec.context().pipelines().get("nn/cast", spec);
+  const bool x8 = n % 8 == 0;  // whole uvec4 loads and stores
+  const vk::Pipeline& p = rec.context().pipelines().get(x8 ? "nn/cast_x8" : "nn/cast", spec);
   const uint32_t push = uint32_t(n);
-  rec.dispatch(p, {word_view(x), word_view(y)}, &push, sizeof push, groups_for((n + 1) / 2), 1, 1, "cast");
+  rec.dispatch(p, {word_view(x), word_view(y)}, &push, sizeof push, groups_for(x8 ? n / 8 : (n + 1) / 2), 1, 1, "cast");
 }
 
 }  // namespace dvs::ops
