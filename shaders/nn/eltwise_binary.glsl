@@ -24,13 +24,16 @@ layout(push_constant) uniform Push {
   uint C;      // broadcast period of y, in elements
   uint inner;  // elements of x per y element
   float alpha, beta;
+  uint span;   // items per workgroup (a multiple of 64)
 } p;
 
 T load_y(uint i) {
 #if !defined(VEC4)
+  if (p.C == p.n) return y[i];  // same shape: no division
   return y[(i / p.inner) % p.C];
 #elif !defined(Y_SCALAR)
-  return y[(i * 4u) % p.C / 4u];  // C % 4 == 0, inner == 1
+  if (p.C == p.n * 4u) return y[i];  // same shape: no division
+  return y[(i * 4u) % p.C / 4u];     // rows: C % 4 == 0, inner == 1
 #else
   uint e = i * 4u;
   if (p.inner % 4u == 0u) return vec4(y[(e / p.inner) % p.C]);  // one y value per vec4
@@ -40,8 +43,10 @@ T load_y(uint i) {
 }
 
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) {
+  // Each workgroup streams one contiguous span, lanes interleaved inside it: coalesced on GPUs and
+  // sequential per workgroup on CPU drivers (a grid-stride loop would jump by MiBs every iteration there).
+  uint begin = gl_WorkGroupID.x * p.span, end = min(begin + p.span, p.n);
+  for (uint i = begin + gl_LocalInvocationID.x; i < end; i += gl_WorkGroupSize.x) {
     T a = x[i], b = load_y(i);
     z[i] = OP == 0u ? p.alpha * a + p.beta * b : p.alpha * a * b;
   }

@@ -14,6 +14,7 @@ layout(std430, binding = 1) writeonly buffer Y { T y[]; };
 layout(push_constant) uniform Push {
   uint n;  // in units of T
   float a, b;
+  uint span;  // items per workgroup (a multiple of 64)
 } p;
 
 // tanh from one exp of a non-positive argument: never overflows (inf/inf) for large |u|.
@@ -30,6 +31,7 @@ T apply(T v) {
 }
 
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) y[i] = apply(x[i]);
+  // One contiguous span per workgroup, lanes interleaved (see eltwise_binary.glsl).
+  uint begin = gl_WorkGroupID.x * p.span, end = min(begin + p.span, p.n);
+  for (uint i = begin + gl_LocalInvocationID.x; i < end; i += gl_WorkGroupSize.x) y[i] = apply(x[i]);
 }

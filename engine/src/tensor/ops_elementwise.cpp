@@ -13,6 +13,16 @@ constexpr uint32_t kLocal = 64, kMaxGroups = 4096;  // grid-stride loops: enough
 
 uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
 
+// Contiguous span per workgroup for shaders that stream one span each: ≤ kMaxGroups groups of a multiple of
+// kLocal items.
+struct Spans {
+  uint32_t span, groups;
+};
+Spans spans_for(int64_t items) {
+  const int64_t span = std::max<int64_t>(kLocal, int64_t(div_up(div_up(items, kMaxGroups), kLocal)) * kLocal);
+  return {uint32_t(span), uint32_t(std::max<int64_t>(1, div_up(items, span)))};
+}
+
 void check_count(const char* op, const Tensor& t) {
   if (t.numel() >= int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": " + t.describe() + " is too large");
 }
@@ -27,13 +37,16 @@ void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, con
   const int64_t n = x.numel();
   if (n == 0) return;
   const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const Spans sp = spans_for(units);
   struct {
     uint32_t n;
     float a, b;
-  } push{uint32_t(vec4 ? n / 4 : n), a, b};
+    uint32_t span;
+  } push{uint32_t(units), a, b, sp.span};
   const uint32_t spec[] = {uint32_t(kind)};
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_unary_vec4" : "nn/eltwise_unary", spec);
-  rec.dispatch(p, {x.buffer(), y.buffer()}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+  rec.dispatch(p, {x.buffer(), y.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
 }
 
 // y broadcast over x as y[(e / inner) % C]; see the header for the accepted shapes.
@@ -81,7 +94,8 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   expect_dtype(op, "z", z, DType::f32);
   expect_shape(op, "z", z, x.shape());
   check_count(op, x);
-  const Broadcast bc = broadcast_of(op, x.shape(), y.shape());
+  Broadcast bc = broadcast_of(op, x.shape(), y.shape());
+  if (bc.C == 1) bc.inner = x.numel();  // a scalar: one y value per vec4 in every variant
   const int64_t n = x.numel();
   if (n == 0) return;
   const char* shader = "nn/eltwise_binary";
@@ -90,13 +104,15 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
     units = n / 4;
     shader = bc.inner == 1 && bc.C % 4 == 0 ? "nn/eltwise_binary_vec4" : "nn/eltwise_binary_vec4_bcast";
   }
+  const Spans sp = spans_for(units);
   struct {
     uint32_t n, C, inner;
     float alpha, beta;
-  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), alpha, beta};
+    uint32_t span;
+  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), alpha, beta, sp.span};
   const uint32_t spec[] = {uint32_t(kind)};
   const vk::Pipeline& p = rec.context().pipelines().get(shader, spec);
-  rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
+  rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
 }
 
 uint32_t cast_code(const char* op, const Tensor& t) {
