@@ -133,6 +133,12 @@ void elementwise(Bench& b) {
   Tensor cvec = filled(ctx, {C, 1});
   measure(b, "add_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
           [&](vk::Recorder& r) { ops::add(r, chan_x, cvec, chan_z); });
+  Tensor cshift = filled(ctx, {C, 1});
+  measure(b, "scale_shift_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
+          [&](vk::Recorder& r) { ops::scale_shift(r, chan_x, cvec, cshift, chan_z); }, "AdaIN-style");
+  Tensor rshift = filled(ctx, {3072});
+  measure(b, "scale_shift_rows", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
+          [&](vk::Recorder& r) { ops::scale_shift(r, rows_x, vec, rshift, rows_z, 1.0f); }, "adaLN x(1+scale)+shift");
   Tensor odd_x = Tensor::on(x.buffer(), {n - 1}, DType::f32), odd_z = Tensor::on(z.buffer(), {n - 1}, DType::f32);
   measure(b, "silu_scalar_path", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
           "odd count: no vec4");

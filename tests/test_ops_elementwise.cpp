@@ -127,6 +127,37 @@ TEST_F(ElementwiseOps, BinaryOpsBroadcastMatchReference) {
   }
 }
 
+TEST_F(ElementwiseOps, ScaleShiftBroadcasts) {
+  // z = x·(s + offset) + t; tolerance 1e-6 absolute + 1e-6 relative (one rounding more or less: FMA or not).
+  struct Case {
+    Shape x, st;
+    std::function<size_t(size_t)> idx;
+    float offset;
+  };
+  std::vector<Case> cases = {
+      {{2, 16, 6, 10}, {16, 1, 1}, [](size_t e) { return (e / 60) % 16; }, 0.0f},   // AdaIN per channel
+      {{2, 3, 5, 7}, {3, 1, 1}, [](size_t e) { return (e / 35) % 3; }, 0.0f},       // odd sizes
+      {{35, 12}, {12}, [](size_t e) { return e % 12; }, 1.0f},                      // adaLN rows, 1 + scale
+      {{33, 7}, {7}, [](size_t e) { return e % 7; }, 1.0f},
+      {{129}, {129}, [](size_t e) { return e; }, 0.0f},                             // same shape
+      {{8}, {}, [](size_t) { return size_t(0); }, 0.5f},                            // scalar
+  };
+  uint32_t seed = 300;
+  for (const Case& c : cases) {
+    const int64_t n = shape_numel(c.x), m = shape_numel(c.st);
+    auto x = random_values(n, seed++), sv = random_values(m, seed++), tv = random_values(m, seed++);
+    Tensor tx = upload(ctx(), c.x, x), ts = upload(ctx(), c.st, sv), tt = upload(ctx(), c.st, tv);
+    Tensor tz = Tensor::empty(ctx(), c.x, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) { ops::scale_shift(r, tx, ts, tt, tz, c.offset); });
+    std::vector<double> want(static_cast<size_t>(n));
+    for (size_t e = 0; e < want.size(); ++e)
+      want[e] = double(x[e]) * (double(sv[c.idx(e)]) + c.offset) + double(tv[c.idx(e)]);
+    expect_close(tz.download(ctx()).to_f32(), want, 1e-6, 1e-6, "scale_shift [" + shape_str(c.x) + "]");
+    ops::run_now(ctx(), [&](vk::Recorder& r) { ops::scale_shift(r, tx, ts, tt, tx, c.offset); });  // in place
+    expect_close(tx.download(ctx()).to_f32(), want, 1e-6, 1e-6, "scale_shift in place");
+  }
+}
+
 TEST_F(ElementwiseOps, BinaryOpsInPlaceAndErrors) {
   auto x = random_values(129, 7), y = random_values(129, 8);
   Tensor tx = upload(ctx(), {129}, x), ty = upload(ctx(), {129}, y);

@@ -115,6 +115,31 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
 }
 
+void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t, const Tensor& z,
+            float s_offset) {
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "scale", s, DType::f32);
+  expect_dtype(op, "shift", t, DType::f32);
+  expect_dtype(op, "z", z, DType::f32);
+  expect_shape(op, "z", z, x.shape());
+  expect_shape(op, "shift", t, s.shape());
+  check_count(op, x);
+  Broadcast bc = broadcast_of(op, x.shape(), s.shape());
+  if (bc.C == 1) bc.inner = x.numel();
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const Spans sp = spans_for(units);
+  struct {
+    uint32_t n, C, inner;
+    float s_offset;
+    uint32_t span;
+  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), s_offset, sp.span};
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine");
+  rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+}
+
 uint32_t cast_code(const char* op, const Tensor& t) {
   switch (t.dtype()) {
     case DType::f32: return 0;
@@ -157,6 +182,11 @@ void mul(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z) {
 }
 void axpby(vk::Recorder& rec, float a, const Tensor& x, float b, const Tensor& y, const Tensor& z) {
   binary(rec, "axpby", BinaryOp::axpby, a, x, b, y, z);
+}
+
+void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const Tensor& shift, const Tensor& z,
+                 float scale_offset) {
+  affine(rec, "scale_shift", x, scale, shift, z, scale_offset);
 }
 
 void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y) {

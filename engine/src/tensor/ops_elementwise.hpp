@@ -23,6 +23,12 @@ void sub(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z); 
 void mul(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z);  // z = x · y
 void axpby(vk::Recorder& rec, float a, const Tensor& x, float b, const Tensor& y, const Tensor& z);  // z = a·x + b·y
 
+// Fused scale and shift: z = x·(scale + scale_offset) + shift, scale and shift of one shape broadcast over x
+// as above. Per-channel AdaIN with [C,1,1] statistics; adaLN modulation x·(1 + scale) + shift over [tokens, D]
+// with scale_offset = 1. Tolerance: one fp32 FMA or mul+add (the device may fuse).
+void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const Tensor& shift, const Tensor& z,
+                 float scale_offset = 0.0f);
+
 // Dtype conversion between f32, f16, bf16 and i32 (same element count; shapes may differ).
 // To f16/bf16: round to nearest even, NaN kept, overflow to ±Inf. f32 -> i32: truncation toward zero,
 // saturating, NaN -> 0. i32 -> f32: nearest float. A 16-bit tensor with an odd element count must have 2 bytes
