@@ -49,11 +49,6 @@ struct CopyRef {
   }
 };
 
-CopyRef& copy_ref(vk::Context& ctx) {
-  static CopyRef ref(ctx);
-  return ref;
-}
-
 double once_ms(vk::Recorder& rec) {
   auto a = std::chrono::steady_clock::now();
   rec.submit();
@@ -75,14 +70,13 @@ double cpu_ms_per_call(vk::Recorder& rec, int calls) {
   return (process_cpu_ms() - a) / calls;
 }
 
-void measure(Bench& b, const std::string& op, const std::string& shape, double bytes,
+void measure(Bench& b, CopyRef& copy, const std::string& op, const std::string& shape, double bytes,
              const std::function<void(vk::Recorder&)>& record, const std::string& note = {}) {
   vk::Recorder rec(b.ctx());
   rec.begin();
   record(rec);
   rec.end();
   const double ms = Bench::time_ms([&] { rec.submit(); }, b.quick() ? 0.2 : 0.5);
-  CopyRef& copy = copy_ref(b.ctx());
   double best_op = 1e30, best_copy = 1e30;
   for (int i = 0; i < (b.quick() ? 3 : 6); ++i) {
     best_op = std::min(best_op, once_ms(rec));
@@ -104,99 +98,102 @@ void measure(Bench& b, const std::string& op, const std::string& shape, double b
 
 void elementwise(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t n = b.quick() ? (4 << 20) : (16 << 20);  // f32 elements: 64 MiB, like the copy benchmark
   const double f = 4.0 * double(n);
   const std::string sn = std::to_string(n >> 20) + "M f32";
   Tensor x = filled(ctx, {n}), y = filled(ctx, {n}), z = filled(ctx, {n});
-  measure(b, "scale", sn, 2 * f, [&](vk::Recorder& r) { ops::scale(r, x, z, 0.7f, 0.1f); });
-  measure(b, "silu", sn, 2 * f, [&](vk::Recorder& r) { ops::silu(r, x, z); });
-  measure(b, "gelu_tanh", sn, 2 * f, [&](vk::Recorder& r) { ops::gelu_tanh(r, x, z); });
-  measure(b, "clamp", sn, 2 * f, [&](vk::Recorder& r) { ops::clamp(r, x, z, -1.0f, 1.0f); });
-  measure(b, "add", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
+  measure(b, copy, "scale", sn, 2 * f, [&](vk::Recorder& r) { ops::scale(r, x, z, 0.7f, 0.1f); });
+  measure(b, copy, "silu", sn, 2 * f, [&](vk::Recorder& r) { ops::silu(r, x, z); });
+  measure(b, copy, "gelu_tanh", sn, 2 * f, [&](vk::Recorder& r) { ops::gelu_tanh(r, x, z); });
+  measure(b, copy, "clamp", sn, 2 * f, [&](vk::Recorder& r) { ops::clamp(r, x, z, -1.0f, 1.0f); });
+  measure(b, copy, "add", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
   {
     // Same op with the three buffers at different offsets modulo 4 KiB (small pads between allocations):
     // shows whether 4K aliasing between the streams matters.
     Tensor pad0 = filled(ctx, {16}), ys = filled(ctx, {n}), pad1 = filled(ctx, {48}), zs = filled(ctx, {n});
-    measure(b, "add_staggered", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, ys, zs); },
+    measure(b, copy, "add_staggered", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, ys, zs); },
             "offsets " + std::to_string(x.buffer().offset % 4096) + "/" + std::to_string(ys.buffer().offset % 4096) + "/" +
                 std::to_string(zs.buffer().offset % 4096) + " mod 4K");
   }
-  measure(b, "axpby_inplace", sn, 3 * f, [&](vk::Recorder& r) { ops::axpby(r, 0.9f, x, 0.1f, y, x); });
+  measure(b, copy, "axpby_inplace", sn, 3 * f, [&](vk::Recorder& r) { ops::axpby(r, 0.9f, x, 0.1f, y, x); });
   // Broadcast second operands: a row vector [3072] (the transformer's modulation) and per-channel [C,1,1].
   const Shape rs = {n / 3072, 3072};
   Tensor rows_x = Tensor::on(x.buffer(), rs, DType::f32), rows_z = Tensor::on(z.buffer(), rs, DType::f32);
   Tensor vec = filled(ctx, {3072});
-  measure(b, "mul_rowvector", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
+  measure(b, copy, "mul_rowvector", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
           [&](vk::Recorder& r) { ops::mul(r, rows_x, vec, rows_z); });
   const int64_t C = 16, inner = n / C / 13;
   Tensor chan_x = Tensor::on(x.buffer(), {13, C, inner}, DType::f32), chan_z = Tensor::on(z.buffer(), {13, C, inner}, DType::f32);
   Tensor cvec = filled(ctx, {C, 1});
-  measure(b, "add_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
+  measure(b, copy, "add_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
           [&](vk::Recorder& r) { ops::add(r, chan_x, cvec, chan_z); });
   Tensor cshift = filled(ctx, {C, 1});
-  measure(b, "scale_shift_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
+  measure(b, copy, "scale_shift_perchannel", shape_str(chan_x.shape()), 2.0 * 4 * double(chan_x.numel()),
           [&](vk::Recorder& r) { ops::scale_shift(r, chan_x, cvec, cshift, chan_z); }, "AdaIN-style");
   Tensor rshift = filled(ctx, {3072});
-  measure(b, "scale_shift_rows", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
+  measure(b, copy, "scale_shift_rows", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
           [&](vk::Recorder& r) { ops::scale_shift(r, rows_x, vec, rshift, rows_z, 1.0f); }, "adaLN x(1+scale)+shift");
   Tensor odd_x = Tensor::on(x.buffer(), {n - 1}, DType::f32), odd_z = Tensor::on(z.buffer(), {n - 1}, DType::f32);
-  measure(b, "silu_scalar_path", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
+  measure(b, copy, "silu_scalar_path", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
           "odd count: no vec4");
   Tensor h = filled(ctx, {n}, DType::bf16);
-  measure(b, "cast_f32_bf16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, h); });
-  measure(b, "cast_bf16_f32", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, h, z); });
+  measure(b, copy, "cast_f32_bf16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, h); });
+  measure(b, copy, "cast_bf16_f32", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, h, z); });
   Tensor hf = Tensor::on(h.buffer(), {n}, DType::f16);
-  measure(b, "cast_f32_f16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, hf); });
+  measure(b, copy, "cast_f32_f16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, hf); });
 }
 
 void layout(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t q = b.quick() ? 4 : 1;
   // Concat of two latents on channels ([B, F, C, H, W], the I2V input) at 8x the real latent area.
   Shape half = {1, 13, 16, 120 / q, 360};
   Tensor a = filled(ctx, half), c = filled(ctx, half), cat = filled(ctx, {1, 13, 32, 120 / q, 360});
   const double cb = 2.0 * 4 * double(cat.numel());
-  measure(b, "concat_channels", "2x" + shape_str(half), cb, [&](vk::Recorder& r) { ops::concat(r, {a, c}, cat, 2); });
-  measure(b, "split_channels", shape_str(cat.shape()), cb, [&](vk::Recorder& r) { ops::split(r, cat, {a, c}, 2); });
+  measure(b, copy, "concat_channels", "2x" + shape_str(half), cb, [&](vk::Recorder& r) { ops::concat(r, {a, c}, cat, 2); });
+  measure(b, copy, "split_channels", shape_str(cat.shape()), cb, [&](vk::Recorder& r) { ops::split(r, cat, {a, c}, 2); });
   Tensor perm_out = filled(ctx, {1, 32, 13, 120 / q, 360});
-  measure(b, "permute_BFCHW_BCFHW", shape_str(cat.shape()), cb,
+  measure(b, copy, "permute_BFCHW_BCFHW", shape_str(cat.shape()), cb,
           [&](vk::Recorder& r) { ops::permute(r, cat, perm_out, {0, 2, 1, 3, 4}); });
   const int64_t t = 2048 / q;
   Tensor sq = filled(ctx, {t, t}), sqt = filled(ctx, {t, t});
-  measure(b, "permute_transpose2d", shape_str(sq.shape()), 2.0 * 4 * double(sq.numel()),
+  measure(b, copy, "permute_transpose2d", shape_str(sq.shape()), 2.0 * 4 * double(sq.numel()),
           [&](vk::Recorder& r) { ops::permute(r, sq, sqt, {1, 0}); }, "worst case: scattered reads");
   const int64_t H = 120 / q, W = 360, Hp = H / 2, Wp = W / 2;
   Tensor tokens = filled(ctx, {1, 13 * Hp * Wp, 32 * 4});
-  measure(b, "patchify_p2", shape_str(cat.shape()), cb, [&](vk::Recorder& r) { ops::patchify(r, cat, tokens, 2); });
-  measure(b, "unpatchify_p2", shape_str(tokens.shape()), cb, [&](vk::Recorder& r) { ops::unpatchify(r, tokens, cat, 2); });
+  measure(b, copy, "patchify_p2", shape_str(cat.shape()), cb, [&](vk::Recorder& r) { ops::patchify(r, cat, tokens, 2); });
+  measure(b, copy, "unpatchify_p2", shape_str(tokens.shape()), cb, [&](vk::Recorder& r) { ops::unpatchify(r, tokens, cat, 2); });
   // SLM-style element gather: m random indices into a latent-sized pool (rows of one element).
   const int64_t m = (4 << 20) / q;
   HostTensor idx({m}, DType::i32);
   uint32_t s = 1;
   for (int64_t i = 0; i < m; ++i) idx.as<int32_t>()[i] = int32_t((s = s * 1664525u + 1013904223u) % uint32_t(m));
   Tensor ti = Tensor::upload(ctx, idx), pool = filled(ctx, {m, 1}), g = filled(ctx, {m, 1});
-  measure(b, "gather_elements", std::to_string(m) + " idx", 3.0 * 4 * double(m),
+  measure(b, copy, "gather_elements", std::to_string(m) + " idx", 3.0 * 4 * double(m),
           [&](vk::Recorder& r) { ops::gather_rows(r, pool, ti, g); }, "random indices");
   Tensor rows = filled(ctx, {m / 32, 32}), grows = filled(ctx, {m / 32, 32});
   Tensor ti_rows = Tensor::on(ti.buffer(), {m / 32}, DType::i32);
   HostTensor idx_rows({m / 32}, DType::i32);
   for (int64_t i = 0; i < m / 32; ++i) idx_rows.as<int32_t>()[i] = int32_t(idx.as<int32_t>()[i] % (m / 32));
   ti_rows.write(ctx, idx_rows);
-  measure(b, "gather_rows_32", std::to_string(m / 32) + "x32", 2.0 * 4 * double(m) + 4.0 * double(m / 32),
+  measure(b, copy, "gather_rows_32", std::to_string(m / 32) + "x32", 2.0 * 4 * double(m) + 4.0 * double(m / 32),
           [&](vk::Recorder& r) { ops::gather_rows(r, rows, ti_rows, grows); });
 }
 
 void random(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t n = b.quick() ? (4 << 20) : (16 << 20);
   const std::string sn = std::to_string(n >> 20) + "M";
   Tensor x = filled(ctx, {n}), i = filled(ctx, {n}, DType::i32);
   const double bytes = 4.0 * double(n);
-  measure(b, "random_uniform", sn + " f32", bytes, [&](vk::Recorder& r) { ops::random_uniform(r, x, {1, 0, 0}); },
+  measure(b, copy, "random_uniform", sn + " f32", bytes, [&](vk::Recorder& r) { ops::random_uniform(r, x, {1, 0, 0}); },
           "bytes written");
-  measure(b, "random_normal", sn + " f32", bytes, [&](vk::Recorder& r) { ops::random_normal(r, x, {1, 0, 0}); },
+  measure(b, copy, "random_normal", sn + " f32", bytes, [&](vk::Recorder& r) { ops::random_normal(r, x, {1, 0, 0}); },
           "bytes written");
-  measure(b, "random_below", sn + " i32", bytes, [&](vk::Recorder& r) { ops::random_below(r, i, {1, 0, 0}, 1000003); },
+  measure(b, copy, "random_below", sn + " i32", bytes, [&](vk::Recorder& r) { ops::random_below(r, i, {1, 0, 0}, 1000003); },
           "bytes written");
 }
 
