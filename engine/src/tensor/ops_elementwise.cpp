@@ -1,0 +1,210 @@
+#include "tensor/ops_elementwise.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "tensor/dispatch.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::ops {
+namespace {
+
+constexpr uint32_t kLocal = 64, kMaxGroups = 4096;  // grid-stride loops: enough groups, few dispatch tasks
+
+uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
+
+// Contiguous span per workgroup for shaders that stream one span each: ≤ kMaxGroups groups of a multiple of
+// kLocal items.
+struct Spans {
+  uint32_t span, groups;
+};
+Spans spans_for(int64_t items) {
+  const int64_t span = std::max<int64_t>(kLocal, int64_t(div_up(div_up(items, kMaxGroups), kLocal)) * kLocal);
+  return {uint32_t(span), uint32_t(std::max<int64_t>(1, div_up(items, span)))};
+}
+
+void check_count(const char* op, const Tensor& t) {
+  if (t.numel() >= int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": " + t.describe() + " is too large");
+}
+
+enum class UnaryOp : uint32_t { affine = 0, silu = 1, gelu_tanh = 2, clamp = 3 };
+
+void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, const Tensor& y, float a, float b) {
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  expect_shape(op, "y", y, x.shape());
+  check_count(op, x);
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const Spans sp = spans_for(units);
+  struct {
+    uint32_t n;
+    float a, b;
+    uint32_t span;
+  } push{uint32_t(units), a, b, sp.span};
+  const uint32_t spec[] = {uint32_t(kind)};
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_unary_vec4" : "nn/eltwise_unary", spec);
+  rec.dispatch(p, {x.buffer(), y.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+}
+
+// y broadcast over x as y[(e / inner) % C]; see the header for the accepted shapes.
+struct Broadcast {
+  int64_t C = 1, inner = 1;
+};
+
+Broadcast broadcast_of(const char* op, const Shape& xs, const Shape& ys) {
+  auto fail = [&] {
+    throw Error(std::string("internal: ") + op + ": cannot broadcast [" + shape_str(ys) + "] over [" + shape_str(xs) +
+                "] (allowed: same shape, scalar, [D] over [.., D], [C,1,..] over [.., C, ..])");
+  };
+  if (ys.size() > xs.size()) {
+    // Leading 1s beyond x's rank are harmless.
+    for (size_t i = 0; i < ys.size() - xs.size(); ++i)
+      if (ys[i] != 1) fail();
+  }
+  const size_t r = xs.size();
+  Shape y(r, 1);
+  for (size_t i = 0; i < std::min(r, ys.size()); ++i) y[r - 1 - i] = ys[ys.size() - 1 - i];
+  int first = -1, last = -1;
+  for (size_t d = 0; d < r; ++d) {
+    if (y[d] != 1 && y[d] != xs[d]) fail();
+    if (y[d] != 1) {
+      if (first < 0) first = int(d);
+      last = int(d);
+    }
+  }
+  Broadcast b;
+  if (first < 0) return b;  // scalar
+  for (int d = first; d <= last; ++d) {
+    if (y[size_t(d)] != xs[size_t(d)]) fail();  // a 1 inside the run
+    b.C *= xs[size_t(d)];
+  }
+  for (size_t d = size_t(last) + 1; d < r; ++d) b.inner *= xs[d];
+  return b;
+}
+
+enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };
+
+void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const Tensor& x, float beta,
+            const Tensor& y, const Tensor& z) {
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  expect_dtype(op, "z", z, DType::f32);
+  expect_shape(op, "z", z, x.shape());
+  check_count(op, x);
+  Broadcast bc = broadcast_of(op, x.shape(), y.shape());
+  if (bc.C == 1) bc.inner = x.numel();  // a scalar: one y value per vec4 in every variant
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  const char* shader = "nn/eltwise_binary";
+  int64_t units = n;
+  if (n % 4 == 0) {
+    units = n / 4;
+    shader = bc.inner == 1 && bc.C % 4 == 0 ? "nn/eltwise_binary_vec4" : "nn/eltwise_binary_vec4_bcast";
+  }
+  const Spans sp = spans_for(units);
+  struct {
+    uint32_t n, C, inner;
+    float alpha, beta;
+    uint32_t span;
+  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), alpha, beta, sp.span};
+  const uint32_t spec[] = {uint32_t(kind)};
+  const vk::Pipeline& p = rec.context().pipelines().get(shader, spec);
+  rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+}
+
+void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t, const Tensor& z,
+            float s_offset) {
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "scale", s, DType::f32);
+  expect_dtype(op, "shift", t, DType::f32);
+  expect_dtype(op, "z", z, DType::f32);
+  expect_shape(op, "z", z, x.shape());
+  expect_shape(op, "shift", t, s.shape());
+  check_count(op, x);
+  Broadcast bc = broadcast_of(op, x.shape(), s.shape());
+  if (bc.C == 1) bc.inner = x.numel();
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const Spans sp = spans_for(units);
+  struct {
+    uint32_t n, C, inner;
+    float s_offset;
+    uint32_t span;
+  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), s_offset, sp.span};
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine");
+  rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+}
+
+uint32_t cast_code(const char* op, const Tensor& t) {
+  switch (t.dtype()) {
+    case DType::f32: return 0;
+    case DType::f16: return 1;
+    case DType::bf16: return 2;
+    case DType::i32: return 3;
+    default: throw Error(std::string("internal: ") + op + ": unsupported dtype in " + t.describe());
+  }
+}
+
+// 16-bit data is moved as whole 32-bit words: round the bound range up to a word.
+vk::BufferView word_view(const Tensor& t) {
+  vk::BufferView v = t.buffer();
+  v.size = (v.size + 3) & ~VkDeviceSize(3);
+  return v;
+}
+
+}  // namespace
+
+void scale(vk::Recorder& rec, const Tensor& x, const Tensor& y, float a, float b) {
+  unary(rec, "scale", UnaryOp::affine, x, y, a, b);
+}
+void silu(vk::Recorder& rec, const Tensor& x, const Tensor& y) { unary(rec, "silu", UnaryOp::silu, x, y, 0, 0); }
+void gelu_tanh(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
+  unary(rec, "gelu_tanh", UnaryOp::gelu_tanh, x, y, 0, 0);
+}
+void clamp(vk::Recorder& rec, const Tensor& x, const Tensor& y, float lo, float hi) {
+  if (!(lo <= hi)) throw Error("internal: clamp: lo " + std::to_string(lo) + " > hi " + std::to_string(hi));
+  unary(rec, "clamp", UnaryOp::clamp, x, y, lo, hi);
+}
+
+void add(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z) {
+  binary(rec, "add", BinaryOp::axpby, 1.0f, x, 1.0f, y, z);
+}
+void sub(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z) {
+  binary(rec, "sub", BinaryOp::axpby, 1.0f, x, -1.0f, y, z);
+}
+void mul(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z) {
+  binary(rec, "mul", BinaryOp::mul, 1.0f, x, 1.0f, y, z);
+}
+void axpby(vk::Recorder& rec, float a, const Tensor& x, float b, const Tensor& y, const Tensor& z) {
+  binary(rec, "axpby", BinaryOp::axpby, a, x, b, y, z);
+}
+
+void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const Tensor& shift, const Tensor& z,
+                 float scale_offset) {
+  affine(rec, "scale_shift", x, scale, shift, z, scale_offset);
+}
+
+void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
+  const uint32_t src = cast_code("cast", x), dst = cast_code("cast", y);
+  if (x.numel() != y.numel())
+    throw Error("internal: cast: " + x.describe() + " and " + y.describe() + " differ in element count");
+  check_count("cast", x);
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  if (src == dst) {
+    rec.copy(x.buffer(), y.buffer(), x.bytes());
+    return;
+  }
+  const uint32_t spec[] = {src, dst};
+  const bool x8 = n % 8 == 0;  // whole uvec4 loads and stores
+  const vk::Pipeline& p = rec.context().pipelines().get(x8 ? "nn/cast_x8" : "nn/cast", spec);
+  const uint32_t push = uint32_t(n);
+  rec.dispatch(p, {word_view(x), word_view(y)}, &push, sizeof push, groups_for(x8 ? n / 8 : (n + 1) / 2), 1, 1, "cast");
+}
+
+}  // namespace dvs::ops

@@ -1,0 +1,241 @@
+#include "tensor/ops_layout.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "tensor/dispatch.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::ops {
+namespace {
+
+constexpr uint32_t kLocal = 64, kMaxGroups = 4096;
+
+uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
+
+[[noreturn]] void fail(const char* op, const std::string& why) { throw Error(std::string("internal: ") + op + ": " + why); }
+
+void check_words(const char* op, const Tensor& t) {
+  if (dtype_size(t.dtype()) != 4) fail(op, t.describe() + ": only 4-byte element types (f32, i32) are supported");
+  if (t.numel() >= int64_t(UINT32_MAX) - 4) fail(op, t.describe() + " is too large");
+}
+
+int norm_axis(const char* op, int axis, size_t rank) {
+  int r = int(rank);
+  if (axis < 0) axis += r;
+  if (axis < 0 || axis >= r) fail(op, "axis out of range for rank " + std::to_string(rank));
+  return axis;
+}
+
+// One strided 2-D copy of words: dst[dst_off + r·dst_stride + k] = src[src_off + r·src_stride + k].
+struct Copy2d {
+  int64_t rows, len, src_stride, src_off, dst_stride, dst_off;
+};
+
+void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::BufferView& dst, Copy2d c, const char* label) {
+  if (c.rows == 0 || c.len == 0) return;
+  const bool vec4 = c.len % 4 == 0 && c.src_stride % 4 == 0 && c.src_off % 4 == 0 && c.dst_stride % 4 == 0 &&
+                    c.dst_off % 4 == 0;
+  const int64_t q = vec4 ? 4 : 1;
+  struct {
+    uint32_t n, len, src_stride, src_off, dst_stride, dst_off;
+  } push{uint32_t(c.rows * c.len / q), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
+         uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q)};
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
+  rec.dispatch(p, {src, dst}, &push, sizeof push, groups_for(push.n), 1, 1, label);
+}
+
+// Shared by concat and split: `whole` is cut along `axis` into `parts`.
+void bands(vk::Recorder& rec, const char* op, const Tensor& whole, const std::vector<Tensor>& parts, int axis,
+           bool into_whole) {
+  if (parts.empty()) fail(op, "no tensors");
+  const size_t rank = whole.rank();
+  axis = norm_axis(op, axis, rank);
+  const size_t es = dtype_size(whole.dtype());
+  if (es != 4 && es != 2) fail(op, whole.describe() + ": unsupported element type");
+  if (whole.numel() >= int64_t(UINT32_MAX) - 4) fail(op, whole.describe() + " is too large");
+  int64_t outer = 1, inner = 1, total = 0;
+  for (int d = 0; d < axis; ++d) outer *= whole.shape()[size_t(d)];
+  for (size_t d = size_t(axis) + 1; d < rank; ++d) inner *= whole.shape()[d];
+  for (const Tensor& t : parts) {
+    if (t.dtype() != whole.dtype() || t.rank() != rank) fail(op, t.describe() + " does not match " + whole.describe());
+    for (size_t d = 0; d < rank; ++d)
+      if (int(d) != axis && t.shape()[d] != whole.shape()[d])
+        fail(op, t.describe() + " differs from " + whole.describe() + " outside axis " + std::to_string(axis));
+    total += t.shape()[size_t(axis)];
+  }
+  if (total != whole.shape()[size_t(axis)])
+    fail(op, "sizes along axis " + std::to_string(axis) + " add up to " + std::to_string(total) + ", not " +
+                 std::to_string(whole.shape()[size_t(axis)]));
+  const int64_t row = total * inner;
+  int64_t offset = 0;
+  for (const Tensor& t : parts) {
+    const int64_t len = t.shape()[size_t(axis)] * inner;
+    Copy2d c = into_whole ? Copy2d{outer, len, len, 0, row, offset} : Copy2d{outer, len, row, offset, len, 0};
+    offset += len;
+    if (es == 2) {
+      if (c.len % 2 || c.src_stride % 2 || c.dst_stride % 2 || c.src_off % 2 || c.dst_off % 2)
+        fail(op, "16-bit tensors need every band to hold an even number of elements");
+      c = {c.rows, c.len / 2, c.src_stride / 2, c.src_off / 2, c.dst_stride / 2, c.dst_off / 2};
+    }
+    if (into_whole) record_copy2d(rec, t.buffer(), whole.buffer(), c, op);
+    else record_copy2d(rec, whole.buffer(), t.buffer(), c, op);
+  }
+}
+
+// Permute of 4-byte words given the input shape and perm; `out` already checked to hold the result.
+void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
+                   const Shape& shape, const std::vector<int>& perm) {
+  const size_t r = shape.size();
+  if (perm.size() != r) fail(op, "permutation of length " + std::to_string(perm.size()) + " for rank " + std::to_string(r));
+  std::vector<int64_t> in_stride(r, 1);
+  for (size_t d = r; d-- > 1;) in_stride[d - 1] = in_stride[d] * shape[d];
+  std::vector<bool> seen(r, false);
+  // Output axes as (size, input stride), size-1 axes dropped, then runs that stay contiguous merged.
+  std::vector<std::pair<int64_t, int64_t>> axes;
+  for (size_t d = 0; d < r; ++d) {
+    const int a = perm[d];
+    if (a < 0 || size_t(a) >= r || seen[size_t(a)]) fail(op, "invalid permutation");
+    seen[size_t(a)] = true;
+    if (shape[size_t(a)] == 1) continue;
+    if (!axes.empty() && axes.back().second == shape[size_t(a)] * in_stride[size_t(a)]) {
+      axes.back() = {axes.back().first * shape[size_t(a)], in_stride[size_t(a)]};
+    } else {
+      axes.push_back({shape[size_t(a)], in_stride[size_t(a)]});
+    }
+  }
+  const int64_t n = shape_numel(shape);
+  if (n == 0) return;
+  if (axes.empty()) axes.push_back({1, 1});
+  if (axes.size() > 6) fail(op, "more than 6 axes remain after merging adjacent ones");
+  if (axes.size() == 1) {  // nothing moves
+    rec.copy(in, out, VkDeviceSize(n) * 4);
+    return;
+  }
+  const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
+  struct {
+    uint32_t n, rank, dims[6], in_stride[6];
+  } push{};
+  push.n = uint32_t(vec4 ? n / 4 : n);
+  push.rank = uint32_t(axes.size());
+  for (size_t d = 0; d < 6; ++d) {
+    push.dims[d] = 1;
+    push.in_stride[d] = 0;
+  }
+  for (size_t d = 0; d < axes.size(); ++d) {
+    push.dims[d] = uint32_t(axes[d].first);
+    push.in_stride[d] = uint32_t(axes[d].second);
+  }
+  if (vec4) {
+    push.dims[axes.size() - 1] /= 4;
+    for (size_t d = 0; d < axes.size(); ++d) push.in_stride[d] = d + 1 == axes.size() ? 1 : push.in_stride[d] / 4;
+  }
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/permute_vec4" : "nn/permute");
+  rec.dispatch(p, {in, out}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+}
+
+// Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
+// whole patches (one vec4 per patch for p = 2) instead of decomposing six indices per element.
+void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::BufferView& in,
+                    const vk::BufferView& out, int64_t BF, int64_t C, int64_t Hp, int64_t Wp, int64_t p) {
+  const int64_t patches = BF * C * Hp * Wp;
+  if (patches == 0) return;
+  struct {
+    uint32_t n, C, Hp, Wp, p;
+  } push{uint32_t(patches), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
+  std::string shader = inverse ? "nn/patchify_inverse" : "nn/patchify";
+  if (p == 2) shader += "_p2";
+  const vk::Pipeline& pipe = rec.context().pipelines().get(shader);
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, groups_for(patches), 1, 1, op);
+}
+
+void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Tensor* src_idx, const Tensor* dst_idx,
+                 const Tensor& dst) {
+  check_words(op, src);
+  check_words(op, dst);
+  if (src.dtype() != dst.dtype()) fail(op, src.describe() + " and " + dst.describe() + " differ in dtype");
+  if (src.rank() == 0 || dst.rank() == 0) fail(op, "rows need a tensor of rank ≥ 1");
+  const int64_t src_rows = src.shape()[0], dst_rows = dst.shape()[0];
+  const int64_t len = src_rows ? src.numel() / src_rows : 0, dst_len = dst_rows ? dst.numel() / dst_rows : 0;
+  if (src_rows && dst_rows && len != dst_len)
+    fail(op, "rows of " + src.describe() + " and " + dst.describe() + " differ in length");
+  int64_t m = -1;
+  for (const Tensor* idx : {src_idx, dst_idx}) {
+    if (!idx) continue;
+    expect_dtype(op, "indices", *idx, DType::i32);
+    if (m >= 0 && idx->numel() != m) fail(op, "index lists differ in length");
+    m = idx->numel();
+  }
+  if (!src_idx && m != src_rows) fail(op, "source " + src.describe() + " must have one row per index");
+  if (!dst_idx && m != dst_rows) fail(op, "destination " + dst.describe() + " must have one row per index");
+  if (m == 0 || len == 0 || dst_rows == 0) return;
+  const bool vec4 = len % 4 == 0;
+  const int64_t q = vec4 ? 4 : 1;
+  struct {
+    uint32_t n, len, src_rows, dst_rows, use_src_idx, use_dst_idx;
+  } push{uint32_t(m * len / q), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
+         dst_idx != nullptr};
+  // An absent index list binds any readable buffer; the shader does not read it.
+  const vk::BufferView si = src_idx ? src_idx->buffer() : (dst_idx ? dst_idx->buffer() : src.buffer());
+  const vk::BufferView di = dst_idx ? dst_idx->buffer() : si;
+  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/gather_rows_vec4" : "nn/gather_rows");
+  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+}
+
+}  // namespace
+
+void concat(vk::Recorder& rec, const std::vector<Tensor>& inputs, const Tensor& out, int axis) {
+  bands(rec, "concat", out, inputs, axis, true);
+}
+
+void split(vk::Recorder& rec, const Tensor& in, const std::vector<Tensor>& outputs, int axis) {
+  bands(rec, "split", in, outputs, axis, false);
+}
+
+void permute(vk::Recorder& rec, const Tensor& in, const Tensor& out, const std::vector<int>& perm) {
+  check_words("permute", in);
+  expect_dtype("permute", "out", out, in.dtype());
+  if (perm.size() != in.rank()) fail("permute", "permutation length differs from rank of " + in.describe());
+  Shape want(in.rank());
+  for (size_t d = 0; d < in.rank(); ++d) {
+    if (perm[d] < 0 || size_t(perm[d]) >= in.rank()) fail("permute", "invalid permutation");
+    want[d] = in.shape()[size_t(perm[d])];
+  }
+  expect_shape("permute", "out", out, want);
+  permute_words(rec, "permute", in.buffer(), out.buffer(), in.shape(), perm);
+}
+
+void patchify(vk::Recorder& rec, const Tensor& in, const Tensor& out, int p) {
+  check_words("patchify", in);
+  expect_dtype("patchify", "out", out, in.dtype());
+  if (in.rank() != 5 || p < 1 || in.dim(3) % p || in.dim(4) % p)
+    fail("patchify", in.describe() + " is not [B, F, C, H, W] with H and W multiples of " + std::to_string(p));
+  const int64_t B = in.dim(0), F = in.dim(1), C = in.dim(2), Hp = in.dim(3) / p, Wp = in.dim(4) / p;
+  expect_shape("patchify", "out", out, {B, F * Hp * Wp, C * p * p});
+  record_patches(rec, "patchify", false, in.buffer(), out.buffer(), B * F, C, Hp, Wp, p);
+}
+
+void unpatchify(vk::Recorder& rec, const Tensor& in, const Tensor& out, int p) {
+  check_words("unpatchify", in);
+  expect_dtype("unpatchify", "out", out, in.dtype());
+  if (out.rank() != 5 || p < 1 || out.dim(3) % p || out.dim(4) % p)
+    fail("unpatchify", out.describe() + " is not [B, F, C, H, W] with H and W multiples of " + std::to_string(p));
+  const int64_t B = out.dim(0), F = out.dim(1), C = out.dim(2), Hp = out.dim(3) / p, Wp = out.dim(4) / p;
+  expect_shape("unpatchify", "in", in, {B, F * Hp * Wp, C * p * p});
+  record_patches(rec, "unpatchify", true, in.buffer(), out.buffer(), B * F, C, Hp, Wp, p);
+}
+
+void gather_rows(vk::Recorder& rec, const Tensor& src, const Tensor& idx, const Tensor& out) {
+  record_rows(rec, "gather_rows", src, &idx, nullptr, out);
+}
+
+void scatter_rows(vk::Recorder& rec, const Tensor& src, const Tensor& idx, const Tensor& dst) {
+  record_rows(rec, "scatter_rows", src, nullptr, &idx, dst);
+}
+
+void gather_scatter_rows(vk::Recorder& rec, const Tensor& src, const Tensor& src_idx, const Tensor& dst_idx,
+                         const Tensor& dst) {
+  record_rows(rec, "gather_scatter_rows", src, &src_idx, &dst_idx, dst);
+}
+
+}  // namespace dvs::ops

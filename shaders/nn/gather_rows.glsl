@@ -1,0 +1,32 @@
+// Body of nn/gather_rows and nn/gather_rows_vec4: moves m rows of `len` 32-bit words,
+// dst[dst_row(i)] = src[src_row(i)] with src_row(i) = src_idx[i] (or i) and dst_row(i) = dst_idx[i] (or i).
+// Gather: src_idx only; scatter: dst_idx only; both: SLM's target[t[i]] = source[s[i]] in one pass.
+// A source index outside [0, src_rows) reads zeros; a destination index outside [0, dst_rows) is skipped.
+// Duplicate destination indices: one of the writes wins (unspecified which).
+layout(local_size_x = 64) in;
+#ifdef VEC4
+#define T uvec4
+#else
+#define T uint
+#endif
+layout(std430, binding = 0) readonly buffer Src { T src[]; };
+layout(std430, binding = 1) readonly buffer SrcIdx { int src_idx[]; };
+layout(std430, binding = 2) readonly buffer DstIdx { int dst_idx[]; };
+layout(std430, binding = 3) writeonly buffer Dst { T dst[]; };
+layout(push_constant) uniform Push {
+  uint n;    // m · len
+  uint len;  // row length in units of T
+  uint src_rows, dst_rows;
+  uint use_src_idx, use_dst_idx;
+} p;
+
+void main() {
+  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) {
+    uint r = i / p.len, k = i - r * p.len;
+    uint s = p.use_src_idx != 0u ? uint(src_idx[r]) : r;  // negative -> huge -> out of range
+    uint d = p.use_dst_idx != 0u ? uint(dst_idx[r]) : r;
+    if (d >= p.dst_rows) continue;
+    dst[d * p.len + k] = s < p.src_rows ? src[s * p.len + k] : T(0u);
+  }
+}
