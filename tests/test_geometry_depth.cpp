@@ -1,0 +1,149 @@
+// Depth input: .npy (and .npz where built with libzip), disparity → depth exactly as the official code,
+// metric depth as is, and a clear error naming the file for every bad input.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "dvs/error.hpp"
+#include "io/depth.hpp"
+#include "io/npy.hpp"
+
+#ifdef DVS_HAVE_LIBZIP
+#include <zip.h>
+#endif
+
+namespace dvs {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path = fs::temp_directory_path() / ("dvs_depth_test_" + std::to_string(::getpid()));
+  TempDir() { fs::create_directories(path); }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+template <class F>
+void expect_error(F&& f, const std::vector<std::string>& parts) {
+  try {
+    f();
+    ADD_FAILURE() << "expected a dvs::Error";
+  } catch (const Error& e) {
+    for (const auto& p : parts) EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what() << " lacks " << p;
+  }
+}
+
+HostTensor ramp(Shape s, float lo, float step) {
+  HostTensor t(s, DType::f32);
+  for (int64_t i = 0; i < t.numel(); ++i) t.as<float>()[i] = lo + step * float(i);
+  return t;
+}
+
+TEST(GeometryDepth, DisparityToDepthAsOfficial) {
+  TempDir d;
+  HostTensor disp = ramp({3, 4, 5}, 0.25f, 0.5f);  // global min 0.25, max 0.25 + 59·0.5
+  write_npy(d.path / "disp.npy", disp);
+  HostTensor z = load_depth(d.path / "disp.npy");
+  ASSERT_EQ(z.shape, (Shape{3, 4, 5}));
+  const float lo = 0.25f, hi = 0.25f + 59 * 0.5f;
+  for (int64_t i = 0; i < z.numel(); ++i) {
+    float dn = (disp.as<float>()[i] - lo) / (hi - lo);
+    float want = std::clamp(10000.0f / std::max(3900.0f * dn, 1e-5f), 1e-4f, 1e4f);
+    EXPECT_EQ(z.as<float>()[i], want) << i;
+  }
+  EXPECT_EQ(z.as<float>()[0], 1e4f);                      // the farthest point saturates at 10000
+  EXPECT_NEAR(z.as<float>()[59], 10000.0 / 3900.0, 1e-6);  // the nearest is 2.5641
+  // Metric depth is used as is; [N,1,H,W] and float16 are accepted.
+  HostTensor metric = ramp({2, 1, 3, 3}, 1.0f, 0.25f);
+  write_npy(d.path / "metric.npy", metric);
+  DepthOptions o;
+  o.values = DepthValues::depth;
+  HostTensor m = load_depth(d.path / "metric.npy", o);
+  ASSERT_EQ(m.shape, (Shape{2, 3, 3}));
+  for (int64_t i = 0; i < m.numel(); ++i) EXPECT_EQ(m.as<float>()[i], metric.as<float>()[i]);
+  HostTensor h({1, 2, 2}, DType::f16);
+  for (int i = 0; i < 4; ++i) reinterpret_cast<uint16_t*>(h.data.data())[i] = f32_to_f16(1.5f + float(i));
+  write_npy(d.path / "half.npy", h);
+  HostTensor hz = load_depth(d.path / "half.npy", o);
+  EXPECT_EQ(hz.as<float>()[3], 4.5f);
+}
+
+TEST(GeometryDepth, BadInputsNameTheFile) {
+  TempDir d;
+  HostTensor nan = ramp({2, 3, 3}, 1, 1);
+  nan.as<float>()[9 + 4] = std::nanf("");
+  write_npy(d.path / "nan.npy", nan);
+  expect_error([&] { load_depth(d.path / "nan.npy"); }, {"nan.npy", "frame 1", "NaN", "row 1, column 1"});
+  HostTensor inf = ramp({1, 2, 2}, 1, 1);
+  inf.as<float>()[2] = INFINITY;
+  write_npy(d.path / "inf.npy", inf);
+  expect_error([&] { load_depth(d.path / "inf.npy"); }, {"inf.npy", "infinite"});
+  write_npy(d.path / "zero.npy", HostTensor({0, 4, 4}, DType::f32));
+  expect_error([&] { load_depth(d.path / "zero.npy"); }, {"zero.npy", "zero frames"});
+  write_npy(d.path / "rank2.npy", ramp({4, 4}, 1, 1));
+  expect_error([&] { load_depth(d.path / "rank2.npy"); }, {"rank2.npy", "[N,H,W]"});
+  write_npy(d.path / "int.npy", HostTensor({1, 2, 2}, DType::i32));
+  expect_error([&] { load_depth(d.path / "int.npy"); }, {"int.npy", "float32", "i32"});
+  HostTensor flat({2, 2, 2}, DType::f32);
+  for (int i = 0; i < 8; ++i) flat.as<float>()[i] = 3.f;
+  write_npy(d.path / "flat.npy", flat);
+  expect_error([&] { load_depth(d.path / "flat.npy"); }, {"flat.npy", "constant"});
+  HostTensor neg = ramp({1, 2, 2}, -1, 1);
+  write_npy(d.path / "neg.npy", neg);
+  DepthOptions metric;
+  metric.values = DepthValues::depth;
+  expect_error([&] { load_depth(d.path / "neg.npy", metric); }, {"neg.npy", "> 0"});
+  expect_error([&] { load_depth(d.path / "missing.npy"); }, {"missing.npy"});
+  {
+    std::ofstream f(d.path / "depth.exr");
+    f << "x";
+  }
+  expect_error([&] { load_depth(d.path / "depth.exr"); }, {"depth.exr", ".npy"});
+  // A truncated .npy.
+  {
+    std::vector<uint8_t> bytes = encode_npy(ramp({2, 8, 8}, 1, 1));
+    std::ofstream f(d.path / "trunc.npy", std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size() - 100));
+  }
+  expect_error([&] { load_depth(d.path / "trunc.npy"); }, {"trunc.npy"});
+  // A truncated / non-zip .npz.
+  {
+    std::ofstream f(d.path / "bad.npz", std::ios::binary);
+    f << "PK\x03\x04 truncated";
+  }
+  expect_error([&] { load_depth(d.path / "bad.npz"); }, {"bad.npz"});
+}
+
+#ifdef DVS_HAVE_LIBZIP
+TEST(GeometryDepth, NpzKeyDepths) {
+  TempDir d;
+  std::vector<uint8_t> a = encode_npy(ramp({2, 3, 4}, 1, 1)), b = encode_npy(ramp({1, 1, 1}, 0, 1));
+  int err = 0;
+  zip_t* z = zip_open((d.path / "clip.npz").c_str(), ZIP_CREATE | ZIP_TRUNCATE, &err);
+  ASSERT_NE(z, nullptr);
+  zip_file_add(z, "other.npy", zip_source_buffer(z, b.data(), b.size(), 0), 0);
+  zip_file_add(z, "depths.npy", zip_source_buffer(z, a.data(), a.size(), 0), 0);
+  ASSERT_EQ(zip_close(z), 0);
+  HostTensor t = read_depth_array(d.path / "clip.npz");
+  ASSERT_EQ(t.shape, (Shape{2, 3, 4}));
+  EXPECT_EQ(t.as<float>()[23], 24.f);
+}
+#endif
+
+TEST(GeometryDepth, Resize) {
+  HostTensor z = ramp({1, 2, 2}, 1, 1);  // [[1,2],[3,4]]
+  HostTensor r = resize_depth(z, 4, 4);
+  ASSERT_EQ(r.shape, (Shape{1, 4, 4}));
+  EXPECT_FLOAT_EQ(r.as<float>()[0], 1.f);
+  EXPECT_FLOAT_EQ(r.as<float>()[1], 1.25f);   // half-pixel centres: x = 0.25
+  EXPECT_FLOAT_EQ(r.as<float>()[15], 4.f);
+  HostTensor same = resize_depth(z, 2, 2);
+  EXPECT_EQ(same.data, z.data);
+}
+
+}  // namespace
+}  // namespace dvs
