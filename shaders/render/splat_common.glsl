@@ -1,27 +1,29 @@
 // Shared by the splat renderer's passes: push constants, unprojection/transform/projection of one source
 // pixel, and the official bilinear splat footprint (official-code.md §3.4–3.5).
 //
-// Bindings every pass declares the same way: depth [F,H,W] f32 and transforms [F,4,4] f32 row-major
-// (T_i: source-camera → target-camera coordinates, OpenCV axes).
+// The point passes run one frame per dispatch over a (W/64, H) grid, so the frame's transform lives in
+// push constants (uniform, no per-lane buffer loads) and no pixel index needs a division.
+// Every pass binds depth [F,H,W] f32 as binding 0.
 
 layout(push_constant) uniform Push {
   uint H, W;      // source and target image size
-  uint frames;    // frames in this dispatch
+  uint frame;     // the frame this dispatch renders
   uint flags;     // bit 0: keep points behind the camera (official behaviour)
   vec4 src_k;     // fx, fy, cx, cy of the source camera
   vec4 dst_k;     // fx, fy, cx, cy of the target camera
+  vec4 t0, t1, t2;  // rows 0..2 of T (source-camera → target-camera coordinates, OpenCV axes)
 } p;
 
 const uint FLAG_KEEP_BEHIND = 1u;
 
-// Target-camera point of source pixel (x, y) at depth z; T is frame f's matrix starting at word t0.
-vec3 transform_point(uint x, uint y, float z, uint t0) {
+// Target-camera point of source pixel (x, y) at depth z.
+vec3 transform_point(uint x, uint y, float z) {
   // X1 = z · K⁻¹ (x, y, 1)ᵀ with integer pixel coordinates (no +0.5), as the official code.
   vec3 X1 = z * vec3((float(x) - p.src_k.z) / p.src_k.x, (float(y) - p.src_k.w) / p.src_k.y, 1.0);
   vec3 X2;
-  X2.x = T[t0 + 0] * X1.x + T[t0 + 1] * X1.y + T[t0 + 2] * X1.z + T[t0 + 3];
-  X2.y = T[t0 + 4] * X1.x + T[t0 + 5] * X1.y + T[t0 + 6] * X1.z + T[t0 + 7];
-  X2.z = T[t0 + 8] * X1.x + T[t0 + 9] * X1.y + T[t0 + 10] * X1.z + T[t0 + 11];
+  X2.x = p.t0.x * X1.x + p.t0.y * X1.y + p.t0.z * X1.z + p.t0.w;
+  X2.y = p.t1.x * X1.x + p.t1.y * X1.y + p.t1.z * X1.z + p.t1.w;
+  X2.z = p.t2.x * X1.x + p.t2.y * X1.y + p.t2.z * X1.z + p.t2.w;
   return X2;
 }
 
@@ -65,7 +67,15 @@ bool footprint(vec2 uv, out ivec2 corner[4], out float w[4]) {
 
 // Flat index into the UNPADDED [F,H,W] accumulation buffers of a padded-buffer pixel, or -1 for the
 // one-pixel border ring that the official code crops (nothing written there can reach the output).
-int interior_index(uint f, ivec2 padded) {
+int interior_index(ivec2 padded) {
   if (padded.x < 1 || padded.y < 1 || padded.x > int(p.W) || padded.y > int(p.H)) return -1;
-  return int((f * p.H + uint(padded.y - 1)) * p.W + uint(padded.x - 1));
+  return int((p.frame * p.H + uint(padded.y - 1)) * p.W + uint(padded.x - 1));
+}
+
+// This invocation's source pixel; false past the right edge.
+bool source_pixel(out uint x, out uint y, out uint i) {
+  x = gl_GlobalInvocationID.x;
+  y = gl_WorkGroupID.y;
+  i = (p.frame * p.H + y) * p.W + x;
+  return x < p.W;
 }

@@ -8,27 +8,24 @@
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Depth { float depth[]; };
-layout(std430, binding = 1) readonly buffer Transforms { float T[]; };
-layout(std430, binding = 2) readonly buffer FrameMax { uint framemax[]; };
-layout(std430, binding = 3) buffer Keys { uint keys[]; };
+layout(std430, binding = 1) readonly buffer FrameMax { uint framemax[]; };
+layout(std430, binding = 2) buffer Keys { uint keys[]; };
 #include "splat_common.glsl"
 
 void main() {
-  const uint f = gl_WorkGroupID.y;
-  const uint HW = p.H * p.W;
-  const float max_l = uintBitsToFloat(framemax[f]);
-  for (uint i = gl_GlobalInvocationID.x; i < HW; i += gl_NumWorkGroups.x * 64u) {
-    vec3 X2 = transform_point(i % p.W, i / p.W, depth[f * HW + i], f * 16u);
-    if (!point_used(X2)) continue;
-    ivec2 corner[4];
-    float w[4];
-    if (!footprint(project_point(X2), corner, w)) continue;
-    float rho = max_l > 0.0 ? log_depth(X2.z) / max_l : 0.0;
-    for (int k = 0; k < 4; ++k) {
-      int q = interior_index(f, corner[k]);
-      if (q < 0 || !(w[k] > 0.0)) continue;
-      float s = max(50.0 * rho - log(w[k]), 0.0);
-      atomicMax(keys[q], 0xFFFFFFFFu - floatBitsToUint(s));
-    }
+  uint x, y, i;
+  if (!source_pixel(x, y, i)) return;
+  vec3 X2 = transform_point(x, y, depth[i]);
+  if (!point_used(X2)) return;
+  ivec2 corner[4];
+  float w[4];
+  if (!footprint(project_point(X2), corner, w)) return;
+  const float max_l = uintBitsToFloat(framemax[p.frame]);
+  float rho = max_l > 0.0 ? log_depth(X2.z) / max_l : 0.0;
+  for (int k = 0; k < 4; ++k) {
+    int q = interior_index(corner[k]);
+    if (q < 0 || !(w[k] > 0.0)) continue;
+    float s = max(50.0 * rho - log(w[k]), 0.0);
+    atomicMax(keys[q], 0xFFFFFFFFu - floatBitsToUint(s));
   }
 }

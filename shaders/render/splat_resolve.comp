@@ -11,8 +11,7 @@ layout(std430, binding = 1) readonly buffer Keys { uint keys[]; };
 layout(std430, binding = 2) writeonly buffer Render { float render[]; };
 layout(std430, binding = 3) writeonly buffer Mask { float mask[]; };
 layout(push_constant) uniform Push {
-  uint H, W, frames, flags;
-  vec4 src_k, dst_k;
+  uint H, W, frames;  // all frames of the chunk at once
 } p;
 #include "index.glsl"
 

@@ -13,12 +13,17 @@ namespace dvs::geometry {
 
 namespace {
 
-struct Push {
-  uint32_t H, W, frames, flags;
+struct Push {  // splat_common.glsl
+  uint32_t H, W, frame, flags;
   float src_k[4];
   float dst_k[4];
+  float t[12];  // rows 0..2 of T
 };
-static_assert(sizeof(Push) == 48);
+static_assert(sizeof(Push) == 96);
+
+struct ResolvePush {
+  uint32_t H, W, frames;
+};
 
 constexpr uint32_t kKeepBehind = 1;
 
@@ -60,30 +65,41 @@ SplatRenderer::SplatRenderer(vk::Context& ctx, int height, int width, int max_fr
   }
 }
 
-void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& depth, const Tensor& transforms,
+void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& depth, std::span<const glm::dmat4> transforms,
                            const Intrinsics& K_src, const Intrinsics& K_dst, const Tensor& render, const Tensor& mask) {
-  if (depth.rank() != 3) throw Error("internal: splat_render: depth must be [F,H,W], got " + depth.describe());
-  const int64_t F = depth.dim(0);
+  const int64_t F = int64_t(transforms.size());
   if (F < 1 || F > max_frames_)
     throw Error("internal: splat_render: " + std::to_string(F) + " frames, renderer built for " + std::to_string(max_frames_));
   expect("depth", depth, {F, H_, W_});
   expect("rgb", rgb, {F, 3, H_, W_});
-  expect("transforms", transforms, {F, 16});
   expect("render", render, {F, 3, H_, W_});
   expect("mask", mask, {F, H_, W_});
   K_src.validate();
   K_dst.validate();
 
-  Push push{uint32_t(H_), uint32_t(W_), uint32_t(F), 0,
-            {float(K_src.fx), float(K_src.fy), float(K_src.cx), float(K_src.cy)},
-            {float(K_dst.fx), float(K_dst.fy), float(K_dst.cx), float(K_dst.cy)}};
-  if (options_.keep_points_behind_camera) push.flags |= kKeepBehind;
+  std::vector<Push> push(static_cast<size_t>(F));
+  for (int64_t f = 0; f < F; ++f) {
+    Push& p = push[size_t(f)];
+    p = Push{uint32_t(H_), uint32_t(W_), uint32_t(f), 0,
+             {float(K_src.fx), float(K_src.fy), float(K_src.cx), float(K_src.cy)},
+             {float(K_dst.fx), float(K_dst.fy), float(K_dst.cx), float(K_dst.cy)},
+             {}};
+    if (options_.keep_points_behind_camera) p.flags |= kKeepBehind;
+    const glm::dmat4& T = transforms[size_t(f)];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) p.t[r * 4 + c] = float(T[c][r]);
+  }
+  const ResolvePush rpush{uint32_t(H_), uint32_t(W_), uint32_t(F)};
 
-  const uint64_t HW = uint64_t(H_) * uint64_t(W_), pixels = uint64_t(F) * HW;
-  const uint32_t gy = uint32_t(F);
-  const uint32_t gx64 = uint32_t(std::min<uint64_t>(ops::div_up(int64_t(HW), 64), 65535));
+  const uint64_t pixels = uint64_t(F) * uint64_t(H_) * uint64_t(W_);
+  const uint32_t gx = ops::div_up(W_, 64), gy = uint32_t(H_);  // one frame per dispatch: (W/64, H) groups
+  if (H_ > 65535 || gx > 65535) throw Error("splat renderer: image too large for one dispatch per frame");
   const ops::Grid g = ops::grid_1d(int64_t(pixels), 64);
   auto& pipes = rec.context().pipelines();
+  auto per_frame = [&](const vk::Pipeline& pipe, std::initializer_list<vk::Binding> b, const char* label,
+                       uint32_t groups_x) {
+    for (int64_t f = 0; f < F; ++f) rec.dispatch(pipe, b, &push[size_t(f)], sizeof(Push), groups_x, gy, 1, label);
+  };
 
   if (options_.mode == SplatMode::hard_point) {
     vk::BufferView zkey = accum_.view().sub(0, pixels * 4), idkey = keys_.view().sub(0, pixels * 4);
@@ -91,11 +107,11 @@ void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& d
     rec.fill_zero(idkey);
     for (uint32_t pass = 0; pass < 2; ++pass) {
       uint32_t spec[1] = {pass};
-      rec.dispatch(pipes.get("render/splat_point", spec), {depth.buffer(), transforms.buffer(), zkey, idkey}, &push,
-                   sizeof push, gx64, gy, 1, pass == 0 ? "splat_point_depth" : "splat_point_index");
+      per_frame(pipes.get("render/splat_point", spec), {depth.buffer(), zkey, idkey},
+                pass == 0 ? "splat_point_depth" : "splat_point_index", gx);
     }
-    rec.dispatch(pipes.get("render/splat_point_resolve"), {rgb.buffer(), idkey, render.buffer(), mask.buffer()}, &push,
-                 sizeof push, g.x, g.y, g.z, "splat_point_resolve");
+    rec.dispatch(pipes.get("render/splat_point_resolve"), {rgb.buffer(), idkey, render.buffer(), mask.buffer()}, &rpush,
+                 sizeof rpush, g.x, g.y, g.z, "splat_point_resolve");
     return;
   }
 
@@ -103,26 +119,21 @@ void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& d
   vk::BufferView accum = accum_.view().sub(0, pixels * 16);
   rec.fill_zero(fmax);
   rec.fill_zero(accum);
-  const uint32_t gx256 = uint32_t(std::min<uint64_t>(ops::div_up(int64_t(HW), 256), 1024));
-  rec.dispatch(pipes.get("render/splat_depth_max"), {depth.buffer(), transforms.buffer(), fmax}, &push, sizeof push,
-               gx256, gy, 1, "splat_depth_max");
+  per_frame(pipes.get("render/splat_depth_max"), {depth.buffer(), fmax}, "splat_depth_max", ops::div_up(W_, 64 * 16));
   if (float_atomics_) {
-    rec.dispatch(pipes.get("render/splat_forward_float"), {depth.buffer(), transforms.buffer(), fmax, rgb.buffer(), accum},
-                 &push, sizeof push, gx64, gy, 1, "splat_forward_float");
+    per_frame(pipes.get("render/splat_forward_float"), {depth.buffer(), fmax, rgb.buffer(), accum}, "splat_forward_float", gx);
     uint32_t spec[1] = {0};
-    rec.dispatch(pipes.get("render/splat_resolve", spec), {accum, accum, render.buffer(), mask.buffer()}, &push,
-                 sizeof push, g.x, g.y, g.z, "splat_resolve");
+    rec.dispatch(pipes.get("render/splat_resolve", spec), {accum, accum, render.buffer(), mask.buffer()}, &rpush,
+                 sizeof rpush, g.x, g.y, g.z, "splat_resolve");
   } else {
     vk::BufferView keys = keys_.view().sub(0, pixels * 4);
     rec.fill_zero(keys);
-    rec.dispatch(pipes.get("render/splat_min_cost"), {depth.buffer(), transforms.buffer(), fmax, keys}, &push,
-                 sizeof push, gx64, gy, 1, "splat_min_cost");
-    rec.dispatch(pipes.get("render/splat_forward_fixed"),
-                 {depth.buffer(), transforms.buffer(), fmax, rgb.buffer(), keys, accum}, &push, sizeof push, gx64, gy, 1,
-                 "splat_forward_fixed");
+    per_frame(pipes.get("render/splat_min_cost"), {depth.buffer(), fmax, keys}, "splat_min_cost", gx);
+    per_frame(pipes.get("render/splat_forward_fixed"), {depth.buffer(), fmax, rgb.buffer(), keys, accum},
+              "splat_forward_fixed", gx);
     uint32_t spec[1] = {1};
-    rec.dispatch(pipes.get("render/splat_resolve", spec), {accum, keys, render.buffer(), mask.buffer()}, &push,
-                 sizeof push, g.x, g.y, g.z, "splat_resolve");
+    rec.dispatch(pipes.get("render/splat_resolve", spec), {accum, keys, render.buffer(), mask.buffer()}, &rpush,
+                 sizeof rpush, g.x, g.y, g.z, "splat_resolve");
   }
 }
 
@@ -160,25 +171,24 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
 
   RenderedClip out{HostTensor({F, 3, H, W}, DType::f32), HostTensor({F, H, W}, DType::f32)};
   const size_t plane = size_t(H * W);
-  int recorded_for = 0;
-  Tensor t_rgb, t_depth, t_T, t_render, t_mask;
+  int allocated_for = 0;
+  Tensor t_rgb, t_depth, t_render, t_mask;
   vk::Recorder rec(ctx);
   for (int64_t first = 0; first < F; first += chunk) {
     int n = int(std::min<int64_t>(chunk, F - first));
-    if (n != recorded_for) {  // one recording per chunk size, replayed with new data
+    if (n != allocated_for) {
       t_rgb = Tensor::empty(ctx, {n, 3, H, W}, DType::f32, "render input video");
       t_depth = Tensor::empty(ctx, {n, H, W}, DType::f32, "render input depth");
-      t_T = Tensor::empty(ctx, {n, 16}, DType::f32, "render transforms");
       t_render = Tensor::empty(ctx, {n, 3, H, W}, DType::f32, "render output");
       t_mask = Tensor::empty(ctx, {n, H, W}, DType::f32, "render mask");
-      rec.begin();
-      renderer.record(rec, t_rgb, t_depth, t_T, K, K, t_render, t_mask);
-      rec.end();
-      recorded_for = n;
+      allocated_for = n;
     }
     ctx.transfer().upload(t_rgb.buffer(), rgb.data.data() + size_t(first) * 3 * plane * 4, size_t(n) * 3 * plane * 4);
     ctx.transfer().upload(t_depth.buffer(), depth.data.data() + size_t(first) * plane * 4, size_t(n) * plane * 4);
-    t_T.write(ctx, transforms_to_host(trajectory, int(first), n));
+    rec.begin();  // the transforms are push constants: one short recording per chunk
+    renderer.record(rec, t_rgb, t_depth, std::span<const glm::dmat4>(trajectory.transforms).subspan(size_t(first), size_t(n)),
+                    K, K, t_render, t_mask);
+    rec.end();
     rec.submit();
     ctx.transfer().download(t_render.buffer(), out.render.data.data() + size_t(first) * 3 * plane * 4, size_t(n) * 3 * plane * 4);
     ctx.transfer().download(t_mask.buffer(), out.mask.data.data() + size_t(first) * plane * 4, size_t(n) * plane * 4);

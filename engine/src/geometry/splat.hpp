@@ -12,9 +12,10 @@
 // Points behind the target camera are dropped unless keep_points_behind_camera asks for the official
 // behaviour (projected with flipped signs and the largest weight).
 //
-// Layouts (f32, contiguous): rgb [F,3,H,W] in [−1,1], depth [F,H,W] (metric, > 0), transforms [F,16]
-// (row-major 4×4 T_i), render [F,3,H,W], mask [F,H,W] in {0,1}. Target size = source size.
+// Layouts (f32, contiguous): rgb [F,3,H,W] in [−1,1], depth [F,H,W] (metric, > 0), render [F,3,H,W],
+// mask [F,H,W] in {0,1}; one 4×4 T_i per frame. Target size = source size.
 #pragma once
+#include <span>
 #include <vector>
 
 #include "geometry/camera.hpp"
@@ -40,8 +41,10 @@ class SplatRenderer {
  public:
   SplatRenderer(vk::Context& ctx, int height, int width, int max_frames, const SplatOptions& options = {});
 
-  // Records the render of F ≤ max_frames frames. K_src unprojects the input, K_dst projects into the target.
-  void record(vk::Recorder& rec, const Tensor& rgb, const Tensor& depth, const Tensor& transforms,
+  // Records the render of F ≤ max_frames frames (F = transforms.size()). K_src unprojects the input, K_dst
+  // projects into the target. The transforms go into push constants (one dispatch per frame and pass), so a
+  // recording is tied to them: record again for another trajectory.
+  void record(vk::Recorder& rec, const Tensor& rgb, const Tensor& depth, std::span<const glm::dmat4> transforms,
               const Intrinsics& K_src, const Intrinsics& K_dst, const Tensor& render, const Tensor& mask);
 
   bool uses_float_atomics() const { return float_atomics_; }
