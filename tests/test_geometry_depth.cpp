@@ -145,5 +145,18 @@ TEST(GeometryDepth, Resize) {
   EXPECT_EQ(same.data, z.data);
 }
 
+TEST(GeometryDepth, FitToVideoAndCentre) {
+  HostTensor z = ramp({3, 4, 6}, 1, 1);
+  EXPECT_EQ(centre_depth(z), 1.f + 2 * 6 + 3);  // row 2, column 3 of frame 0
+  HostTensor same = fit_depth_to_video(z, 3, 4, 6, false, "d.npz");
+  EXPECT_EQ(same.data, z.data);
+  HostTensor two = fit_depth_to_video(z, 2, 4, 6, true, "d.npz");
+  ASSERT_EQ(two.shape, (Shape{2, 4, 6}));
+  EXPECT_EQ(two.as<float>()[47], z.as<float>()[47]);
+  EXPECT_EQ(fit_depth_to_video(z, 3, 8, 12, false, "d.npz").shape, (Shape{3, 8, 12}));
+  expect_error([&] { fit_depth_to_video(z, 2, 4, 6, false, "d.npz"); }, {"d.npz", "3 depth frames", "trim"});
+  expect_error([&] { fit_depth_to_video(z, 5, 4, 6, true, "d.npz"); }, {"d.npz", "3 depth frames", "5"});
+}
+
 }  // namespace
 }  // namespace dvs

@@ -318,5 +318,43 @@ TEST(GeometryTrajectory, GltfRoundTripAndErrors) {
   fs::remove_all(d);
 }
 
+// A hand-written glTF like a DCC tool exports: the camera is the child of a rotated, translated rig and
+// moves along its own −Z (forward) with STEP or LINEAR keyframes at t = 0, 1, 2.
+std::string rig_gltf(const std::string& interpolation) {
+  return R"({"asset": {"version": "2.0"},
+    "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,AAAAAAAAgD8AAABAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAIC/AAAAAAAAAAAAAADA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 12}, {"buffer": 0, "byteOffset": 12, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "SCALAR", "min": [0], "max": [2]},
+                  {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}],
+    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+    "nodes": [{"name": "rig", "children": [1], "translation": [3, 1, 2], "rotation": [0, 0.7071068, 0, 0.7071068]},
+              {"name": "cam", "camera": 0}],
+    "scenes": [{"nodes": [0]}],
+    "animations": [{"samplers": [{"input": 0, "output": 1, "interpolation": ")" + interpolation + R"("}],
+                    "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}]}]})";
+}
+
+TEST(GeometryTrajectory, GltfStepLinearAndHierarchy) {
+  fs::path d = temp_dir();
+  GltfCameraOptions o;
+  o.frames = 5;  // t = 0, 0.5, 1, 1.5, 2
+  write_text(d / "step.gltf", rig_gltf("STEP"));
+  Trajectory step = read_gltf_trajectory(d / "step.gltf", o);
+  const double want_step[5] = {0, 0, 1, 1, 2};
+  for (int i = 0; i < 5; ++i)
+    EXPECT_LT(max_diff(step.transforms[size_t(i)], translation({0, 0, -want_step[i]})), 1e-6) << i;
+  write_text(d / "linear.gltf", rig_gltf("LINEAR"));
+  Trajectory lin = read_gltf_trajectory(d / "linear.gltf", o);
+  for (int i = 0; i < 5; ++i) EXPECT_LT(max_diff(lin.transforms[size_t(i)], translation({0, 0, -0.5 * i})), 1e-6) << i;
+  // fps sampling: frame i at i / fps seconds; past the last key the pose holds.
+  o.fps = 1;
+  Trajectory fps = read_gltf_trajectory(d / "linear.gltf", o);
+  EXPECT_LT(max_diff(fps.transforms[1], translation({0, 0, -1})), 1e-6);
+  EXPECT_LT(max_diff(fps.transforms[4], translation({0, 0, -2})), 1e-6);
+  write_text(d / "cubic.gltf", rig_gltf("CUBICSPLINE"));
+  expect_error([&] { read_gltf_trajectory(d / "cubic.gltf", o); }, {"cubic.gltf", "animations[0].channels[0]", "CUBICSPLINE"});
+  fs::remove_all(d);
+}
+
 }  // namespace
 }  // namespace dvs::geometry

@@ -179,4 +179,29 @@ HostTensor resize_depth(const HostTensor& depth, int height, int width) {
   return out;
 }
 
+HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, int width, bool allow_trim,
+                              const std::string& name) {
+  if (depth.shape.size() != 3 || depth.dtype != DType::f32) throw Error(name + ": depth must be f32 [N,H,W]");
+  if (frames < 1) throw Error(name + ": the video has no frames");
+  const int64_t N = depth.shape[0];
+  if (N < frames)
+    throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames));
+  HostTensor d = depth;
+  if (N > frames) {
+    if (!allow_trim)
+      throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames) +
+                  " (ask to trim the depth to use its first " + std::to_string(frames) + ")");
+    d.shape[0] = frames;
+    d.data.resize(size_t(frames) * size_t(depth.shape[1] * depth.shape[2]) * 4);
+  }
+  return resize_depth(d, height, width);
+}
+
+float centre_depth(const HostTensor& depth) {
+  if (depth.shape.size() != 3 || depth.dtype != DType::f32 || depth.numel() == 0)
+    throw Error("centre_depth: expected f32 [N,H,W] with at least one frame");
+  const int64_t H = depth.shape[1], W = depth.shape[2];
+  return depth.as<float>()[(H / 2) * W + W / 2];
+}
+
 }  // namespace dvs

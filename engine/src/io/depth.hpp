@@ -35,4 +35,15 @@ HostTensor load_depth(const std::filesystem::path& path, const DepthOptions& opt
 // F.interpolate(align_corners=False)); for depth of another size than the video.
 HostTensor resize_depth(const HostTensor& depth, int height, int width);
 
+// Fits converted depth [N,H,W] to a video of `frames` frames of height × width: another size is resampled
+// (resize_depth); more depth frames than video frames is an error unless allow_trim (then the first
+// `frames` are kept — after the disparity conversion, so the normalisation still spans the whole clip, as
+// in the official code); fewer is always an error. Errors name `name`.
+HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, int width, bool allow_trim,
+                              const std::string& name);
+
+// Depth at the centre pixel (row H/2, column W/2) of frame 0: the official orbit radius before the cap
+// (row 288, column 512 at 576×1024).
+float centre_depth(const HostTensor& depth);
+
 }  // namespace dvs
