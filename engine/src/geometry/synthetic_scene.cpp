@@ -9,7 +9,7 @@ namespace dvs::geometry {
 
 namespace {
 
-constexpr double kGroundY = 1.0, kWallZ = 6.0, kBoxZ = 3.0, kBoxHalf = 0.5;
+constexpr double kGroundY = 2.0, kWallZ = 6.0, kBoxZ = 3.0, kBoxHalf = 0.5, kBoxY = 0.5;
 
 double box_centre_x(int frame, int frames) { return frames == 1 ? 0.0 : -0.8 + 1.6 * double(frame) / double(frames - 1); }
 
@@ -34,7 +34,7 @@ int cast(const glm::dvec3& o, const glm::dvec3& d, double box_x, double& t_hit) 
       id = s;
     }
   };
-  if (d.y > 0) {  // ground plane y = 1, in front of the wall
+  if (d.y > 0) {  // ground plane y = 2, seen from above, in front of the wall
     double t = (kGroundY - o.y) / d.y;
     if ((o + t * d).z <= kWallZ) take(t, 0);
   }
@@ -43,7 +43,7 @@ int cast(const glm::dvec3& o, const glm::dvec3& d, double box_x, double& t_hit) 
     if ((o + t * d).y <= kGroundY) take(t, 1);
   }
   // Box: slabs.
-  glm::dvec3 lo(box_x - kBoxHalf, kGroundY - 2 * kBoxHalf, kBoxZ - kBoxHalf), hi(box_x + kBoxHalf, kGroundY, kBoxZ + kBoxHalf);
+  glm::dvec3 lo(box_x - kBoxHalf, kBoxY - kBoxHalf, kBoxZ - kBoxHalf), hi(box_x + kBoxHalf, kBoxY + kBoxHalf, kBoxZ + kBoxHalf);
   double t0 = -std::numeric_limits<double>::infinity(), t1 = std::numeric_limits<double>::infinity();
   bool miss = false;
   for (int a = 0; a < 3; ++a) {

@@ -1,9 +1,9 @@
 // A procedural RGB-D test scene with exact depth and exact novel views, for tests, benchmarks and demos.
 //
 // In the source camera's coordinates (OpenCV: x right, y down, z forward): a textured ground plane
-// y = +1 (one unit below the camera), a textured back wall z = 6, and a textured box (side 1, centre
-// height y = 0.5 so it stands on the ground, depth z = 3) that slides from x = −0.8 to x = +0.8 over the
-// clip. Frames are ray-cast analytically, so render_synthetic(spec, T) is the exact view of the camera
+// y = +2 (two units below the camera, so the official orbits, which move the camera by up to
+// 5·sin 20° ≈ 1.7 vertically, stay above it), a textured back wall z = 6, and a textured floating box
+// (side 1, centre y = 0.5, depth z = 3) that slides from x = −0.8 to x = +0.8 over the clip. Frames are ray-cast analytically, so render_synthetic(spec, T) is the exact view of the camera
 // C_i = T_i⁻¹ for every frame — the ground truth for the splat renderer. Textures are smooth sinusoids so
 // that resampling error stays small. Rays that hit nothing (only possible for cameras turned far away)
 // get colour −1 and depth 0, with valid = 0.
