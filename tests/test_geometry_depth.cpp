@@ -12,8 +12,19 @@
 #include "io/depth.hpp"
 #include "io/npy.hpp"
 
+#include "io/depth_images.hpp"
+
 #ifdef DVS_HAVE_LIBZIP
 #include <zip.h>
+#endif
+#ifdef DVS_HAVE_LIBPNG
+#include <png.h>
+#endif
+#ifdef DVS_HAVE_OPENEXR
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
 #endif
 
 namespace dvs {
@@ -131,6 +142,82 @@ TEST(GeometryDepth, NpzKeyDepths) {
   HostTensor t = read_depth_array(d.path / "clip.npz");
   ASSERT_EQ(t.shape, (Shape{2, 3, 4}));
   EXPECT_EQ(t.as<float>()[23], 24.f);
+}
+#endif
+
+TEST(GeometryDepth, ImageSequenceErrors) {
+  TempDir d;
+  expect_error([&] { load_depth(d.path); }, {d.path.string(), "zero frames"});
+  {
+    std::ofstream f(d.path / "0000.png", std::ios::binary);
+    f << "not a png";
+  }
+  expect_error([&] { load_depth(d.path); }, {"0000.png"});
+  {
+    std::ofstream f(d.path / "0001.exr", std::ios::binary);
+    f << "x";
+  }
+  expect_error([&] { load_depth(d.path); }, {d.path.string(), ".png and .exr"});
+}
+
+#ifdef DVS_HAVE_LIBPNG
+void write_png16(const fs::path& p, int w, int h, uint16_t base) {
+  FILE* fp = std::fopen(p.c_str(), "wb");
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png_create_info_struct(png);
+  png_init_io(png, fp);
+  png_set_IHDR(png, info, png_uint_32(w), png_uint_32(h), 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  std::vector<uint8_t> row(size_t(w) * 2);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      uint16_t v = uint16_t(base + y * w + x);
+      row[size_t(2 * x)] = uint8_t(v >> 8);  // big-endian
+      row[size_t(2 * x + 1)] = uint8_t(v & 255);
+    }
+    png_write_row(png, row.data());
+  }
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  std::fclose(fp);
+}
+
+TEST(GeometryDepth, Png16Sequence) {
+  TempDir d;
+  write_png16(d.path / "f001.png", 5, 3, 1000);
+  write_png16(d.path / "f000.png", 5, 3, 60000);
+  DepthOptions mm;
+  mm.values = DepthValues::depth;
+  mm.metric_scale = 0.001f;
+  HostTensor z = load_depth(d.path, mm);
+  ASSERT_EQ(z.shape, (Shape{2, 3, 5}));
+  EXPECT_FLOAT_EQ(z.as<float>()[0], 60.0f);       // f000 first: 60000 mm
+  EXPECT_FLOAT_EQ(z.as<float>()[15 + 14], 1.014f);
+  write_png16(d.path / "f002.png", 4, 3, 1);
+  expect_error([&] { load_depth(d.path, mm); }, {"f002.png", "4x3"});
+}
+#endif
+
+#ifdef DVS_HAVE_OPENEXR
+TEST(GeometryDepth, ExrSequence) {
+  TempDir d;
+  for (int f = 0; f < 2; ++f) {
+    std::vector<float> z(12);
+    for (int i = 0; i < 12; ++i) z[size_t(i)] = 0.5f + float(f * 12 + i);
+    Imf::Header h(4, 3);
+    h.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+    Imf::OutputFile out((d.path / ("d" + std::to_string(f) + ".exr")).c_str(), h);
+    Imf::FrameBuffer fb;
+    fb.insert("Z", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(z.data()), sizeof(float), 4 * sizeof(float)));
+    out.setFrameBuffer(fb);
+    out.writePixels(3);
+  }
+  DepthOptions metric;
+  metric.values = DepthValues::depth;
+  HostTensor z = load_depth(d.path, metric);
+  ASSERT_EQ(z.shape, (Shape{2, 3, 4}));
+  EXPECT_EQ(z.as<float>()[23], 23.5f);
 }
 #endif
 

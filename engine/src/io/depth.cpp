@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "io/depth_images.hpp"
 #include "io/npy.hpp"
 
 #ifdef DVS_HAVE_LIBZIP
@@ -79,7 +80,9 @@ HostTensor read_depth_array(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw Error(name + ": no such depth file");
   std::string ext = lower_ext(path);
   HostTensor t;
-  if (ext == ".npy") {
+  if (std::filesystem::is_directory(path)) {
+    t = read_depth_image_sequence(path);
+  } else if (ext == ".npy") {
     t = read_npy(path);
   } else if (ext == ".npz") {
 #ifdef DVS_HAVE_LIBZIP
@@ -91,7 +94,8 @@ HostTensor read_depth_array(const std::filesystem::path& path) {
                 "python3 -c \"import numpy as n; n.save('depth.npy', n.load('" + name + "')['depths'])\"");
 #endif
   } else {
-    throw Error(name + ": unsupported depth file type '" + ext + "' (expected .npy or .npz holding [N,H,W])");
+    throw Error(name + ": unsupported depth file type '" + ext +
+                "' (expected .npy or .npz holding [N,H,W], or a folder of .png / .exr frames)");
   }
   if (t.shape.size() == 4 && t.shape[1] == 1) t.shape = {t.shape[0], t.shape[2], t.shape[3]};
   if (t.shape.size() != 3)
@@ -131,7 +135,7 @@ HostTensor depth_from_array(const HostTensor& in, const std::string& name, const
       if (!(d[i] > 0))
         throw Error(name + ": metric depth must be > 0, found " + std::to_string(d[i]) + " in frame " +
                     std::to_string(i / plane) + " (is this disparity? then do not mark it as depth)");
-      z[i] = d[i];
+      z[i] = d[i] * o.metric_scale;
     }
     return out;
   }

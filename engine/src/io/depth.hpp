@@ -1,8 +1,9 @@
 // Per-frame depth input for the renderer: arrays [N,H,W] of disparity (the default, what
 // Video-Depth-Anything writes) or metric depth, turned into float32 depth [N,H,W].
 //
-// Files: .npy ([N,H,W] or [N,1,H,W]; f32, f16, or f64 narrowed to f32) and .npz (key "depths", else the only
-// array; needs libzip: compiled when DVS_HAVE_LIBZIP is defined, otherwise a clear error says so).
+// Files: .npy ([N,H,W] or [N,1,H,W]; f32, f16, or f64 narrowed to f32), .npz (key "depths", else the only
+// array; needs libzip: compiled when DVS_HAVE_LIBZIP is defined, otherwise a clear error says so), and a
+// folder of per-frame 16-bit PNG or EXR images (depth_images.hpp; libpng / OpenEXR).
 // Disparity → depth exactly as the official code (float32): dn = (d − min)/(max − min) over the WHOLE clip,
 // z = 10000 / max(3900·dn, 1e-5), clipped to [near, far] = [1e-4, 1e4]. Metric depth is used as is.
 // Errors name the file and the problem (wrong rank or dtype, zero frames, NaN/inf with its frame, a
@@ -20,6 +21,7 @@ enum class DepthValues { disparity, depth };
 struct DepthOptions {
   DepthValues values = DepthValues::disparity;
   float near_clip = 1e-4f, far_clip = 1e4f;  // disparity conversion only
+  float metric_scale = 1.0f;                 // metric depth is multiplied by this (0.001 for PNGs in mm)
 };
 
 // The stored array as f32 [N,H,W], validated (rank, dtype, N ≥ 1, finite).
