@@ -1,0 +1,211 @@
+#include "io/depth.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <vector>
+
+#include "dvs/error.hpp"
+#include "io/depth_images.hpp"
+#include "io/npy.hpp"
+
+#ifdef DVS_HAVE_LIBZIP
+#include <zip.h>
+#endif
+
+namespace dvs {
+
+namespace {
+
+std::string lower_ext(const std::filesystem::path& p) {
+  std::string e = p.extension().string();
+  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return e;
+}
+
+#ifdef DVS_HAVE_LIBZIP
+// The bytes of the .npy member `depths.npy` (or the only member) of a .npz archive.
+std::vector<uint8_t> read_npz_member(const std::filesystem::path& path, std::string& member) {
+  int code = 0;
+  zip_t* za = zip_open(path.string().c_str(), ZIP_RDONLY, &code);
+  if (!za) {
+    zip_error_t e;
+    zip_error_init_with_code(&e, code);
+    std::string msg = zip_error_strerror(&e);
+    zip_error_fini(&e);
+    throw Error(path.string() + ": not a readable .npz (zip) archive: " + msg);
+  }
+  struct Closer {
+    zip_t* z;
+    ~Closer() { zip_discard(z); }
+  } closer{za};
+  zip_int64_t n = zip_get_num_entries(za, 0);
+  std::vector<std::string> names;
+  for (zip_int64_t i = 0; i < n; ++i) {
+    const char* nm = zip_get_name(za, zip_uint64_t(i), 0);
+    if (nm) names.push_back(nm);
+  }
+  zip_int64_t index = zip_name_locate(za, "depths.npy", 0);
+  if (index < 0) {
+    if (names.size() != 1) {
+      std::string list;
+      for (auto& s : names) list += " " + s;
+      throw Error(path.string() + ": .npz has no array 'depths' and not exactly one array (members:" +
+                  (list.empty() ? std::string(" none") : list) + ")");
+    }
+    index = 0;
+  }
+  member = zip_get_name(za, zip_uint64_t(index), 0);
+  zip_stat_t st;
+  zip_stat_init(&st);
+  if (zip_stat_index(za, zip_uint64_t(index), 0, &st) != 0 || !(st.valid & ZIP_STAT_SIZE))
+    throw Error(path.string() + ": cannot read the size of member " + member);
+  if (st.size > (uint64_t(1) << 36)) throw Error(path.string() + ": member " + member + " claims an absurd size");
+  std::vector<uint8_t> bytes(size_t(st.size));
+  zip_file_t* f = zip_fopen_index(za, zip_uint64_t(index), 0);
+  if (!f) throw Error(path.string() + ": cannot open member " + member + ": " + zip_strerror(za));
+  zip_int64_t got = zip_fread(f, bytes.data(), bytes.size());
+  std::string ferr = got < 0 ? zip_file_strerror(f) : "";
+  zip_fclose(f);
+  if (got < 0 || zip_uint64_t(got) != st.size)
+    throw Error(path.string() + ": member " + member + " is truncated or corrupt" + (ferr.empty() ? "" : ": " + ferr));
+  return bytes;
+}
+#endif
+
+}  // namespace
+
+HostTensor read_depth_array(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  if (!std::filesystem::exists(path)) throw Error(name + ": no such depth file");
+  std::string ext = lower_ext(path);
+  HostTensor t;
+  if (std::filesystem::is_directory(path)) {
+    t = read_depth_image_sequence(path);
+  } else if (ext == ".npy") {
+    t = read_npy(path);
+  } else if (ext == ".npz") {
+#ifdef DVS_HAVE_LIBZIP
+    std::string member;
+    std::vector<uint8_t> bytes = read_npz_member(path, member);
+    t = parse_npy(bytes, name + ":" + member);
+#else
+    throw Error(name + ": this dvs was built without libzip, so .npz depth files cannot be read; convert it with "
+                "python3 -c \"import numpy as n; n.save('depth.npy', n.load('" + name + "')['depths'])\"");
+#endif
+  } else {
+    throw Error(name + ": unsupported depth file type '" + ext +
+                "' (expected .npy or .npz holding [N,H,W], or a folder of .png / .exr frames)");
+  }
+  if (t.shape.size() == 4 && t.shape[1] == 1) t.shape = {t.shape[0], t.shape[2], t.shape[3]};
+  if (t.shape.size() != 3)
+    throw Error(name + ": depth must be a [N,H,W] array (frames, rows, columns), got shape [" + shape_str(t.shape) + "]");
+  if (t.dtype != DType::f32 && t.dtype != DType::f16)
+    throw Error(name + ": depth must be float32 or float16, got " + std::string(dtype_name(t.dtype)));
+  if (t.shape[0] < 1) throw Error(name + ": the depth array has zero frames");
+  if (t.shape[1] < 1 || t.shape[2] < 1) throw Error(name + ": the depth frames are empty [" + shape_str(t.shape) + "]");
+  if (t.dtype == DType::f16) {
+    std::vector<float> v = t.to_f32();
+    t = HostTensor::from_f32(t.shape, v);
+  }
+  return t;
+}
+
+HostTensor depth_from_array(const HostTensor& in, const std::string& name, const DepthOptions& o) {
+  if (in.shape.size() != 3 || in.dtype != DType::f32)
+    throw Error(name + ": depth must be f32 [N,H,W], got " + std::string(dtype_name(in.dtype)) + "[" + shape_str(in.shape) + "]");
+  if (in.shape[0] < 1) throw Error(name + ": the depth array has zero frames");
+  const int64_t frames = in.shape[0], plane = in.shape[1] * in.shape[2];
+  const float* d = in.as<float>();
+  float lo = INFINITY, hi = -INFINITY;
+  for (int64_t f = 0; f < frames; ++f)
+    for (int64_t i = 0; i < plane; ++i) {
+      float v = d[f * plane + i];
+      if (!std::isfinite(v))
+        throw Error(name + ": frame " + std::to_string(f) + " contains " + (std::isnan(v) ? "NaN" : "an infinite value") +
+                    " at row " + std::to_string(i / in.shape[2]) + ", column " + std::to_string(i % in.shape[2]));
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+  HostTensor out(in.shape, DType::f32);
+  float* z = out.as<float>();
+  const int64_t n = frames * plane;
+  if (o.values == DepthValues::depth) {
+    for (int64_t i = 0; i < n; ++i) {
+      if (!(d[i] > 0))
+        throw Error(name + ": metric depth must be > 0, found " + std::to_string(d[i]) + " in frame " +
+                    std::to_string(i / plane) + " (is this disparity? then do not mark it as depth)");
+      z[i] = d[i] * o.metric_scale;
+    }
+    return out;
+  }
+  if (!(hi > lo))
+    throw Error(name + ": the disparity is constant over the whole clip (" + std::to_string(lo) +
+                "), so it cannot be normalised into depth");
+  // float32 throughout, in the order numpy evaluates it.
+  const float range = hi - lo;
+  for (int64_t i = 0; i < n; ++i) {
+    float dn = (d[i] - lo) / range;
+    float zz = 10000.0f / std::max(3900.0f * dn, 1e-5f);
+    z[i] = std::clamp(zz, o.near_clip, o.far_clip);
+  }
+  return out;
+}
+
+HostTensor load_depth(const std::filesystem::path& path, const DepthOptions& options) {
+  return depth_from_array(read_depth_array(path), path.string(), options);
+}
+
+HostTensor resize_depth(const HostTensor& depth, int height, int width) {
+  if (depth.shape.size() != 3 || depth.dtype != DType::f32) throw Error("resize_depth: expected f32 [N,H,W]");
+  if (height < 1 || width < 1) throw Error("resize_depth: the target size must be positive");
+  const int64_t N = depth.shape[0], H = depth.shape[1], W = depth.shape[2];
+  if (H == height && W == width) return depth;
+  HostTensor out({N, height, width}, DType::f32);
+  const float* s = depth.as<float>();
+  float* o = out.as<float>();
+  const double sy = double(H) / height, sx = double(W) / width;
+  for (int64_t f = 0; f < N; ++f)
+    for (int y = 0; y < height; ++y) {
+      double fy = std::max((y + 0.5) * sy - 0.5, 0.0);
+      int64_t y0 = std::min<int64_t>(int64_t(fy), H - 1), y1 = std::min<int64_t>(y0 + 1, H - 1);
+      double wy = fy - double(y0);
+      for (int x = 0; x < width; ++x) {
+        double fx = std::max((x + 0.5) * sx - 0.5, 0.0);
+        int64_t x0 = std::min<int64_t>(int64_t(fx), W - 1), x1 = std::min<int64_t>(x0 + 1, W - 1);
+        double wx = fx - double(x0);
+        const float* p = s + f * H * W;
+        double v = (1 - wy) * ((1 - wx) * p[y0 * W + x0] + wx * p[y0 * W + x1]) +
+                   wy * ((1 - wx) * p[y1 * W + x0] + wx * p[y1 * W + x1]);
+        o[(f * height + y) * width + x] = float(v);
+      }
+    }
+  return out;
+}
+
+HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, int width, bool allow_trim,
+                              const std::string& name) {
+  if (depth.shape.size() != 3 || depth.dtype != DType::f32) throw Error(name + ": depth must be f32 [N,H,W]");
+  if (frames < 1) throw Error(name + ": the video has no frames");
+  const int64_t N = depth.shape[0];
+  if (N < frames)
+    throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames));
+  HostTensor d = depth;
+  if (N > frames) {
+    if (!allow_trim)
+      throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames) +
+                  " (ask to trim the depth to use its first " + std::to_string(frames) + ")");
+    d.shape[0] = frames;
+    d.data.resize(size_t(frames) * size_t(depth.shape[1] * depth.shape[2]) * 4);
+  }
+  return resize_depth(d, height, width);
+}
+
+float centre_depth(const HostTensor& depth) {
+  if (depth.shape.size() != 3 || depth.dtype != DType::f32 || depth.numel() == 0)
+    throw Error("centre_depth: expected f32 [N,H,W] with at least one frame");
+  const int64_t H = depth.shape[1], W = depth.shape[2];
+  return depth.as<float>()[(H / 2) * W + W / 2];
+}
+
+}  // namespace dvs

@@ -1,0 +1,20 @@
+// Depth image sequences: a folder of single-channel 16-bit (or 8-bit) PNGs or float EXRs, one file per
+// frame, taken in lexicographic file-name order (name them with zero-padded numbers). PNG integer values
+// are returned as they are stored (use DepthOptions::metric_scale for millimetres); EXR reads the channel
+// "Z", else "Y", else "R", else the only channel, as float. Needs libpng (DVS_HAVE_LIBPNG) and OpenEXR
+// (DVS_HAVE_OPENEXR) at build time; without them a clear error names what is missing.
+#pragma once
+#include <filesystem>
+
+#include "io/host_tensor.hpp"
+
+namespace dvs {
+
+// [N,H,W] f32 from every .png or every .exr in `folder` (one kind only). Errors name the file.
+HostTensor read_depth_image_sequence(const std::filesystem::path& folder);
+
+// One frame: [H,W] f32.
+HostTensor read_depth_png(const std::filesystem::path& file);
+HostTensor read_depth_exr(const std::filesystem::path& file);
+
+}  // namespace dvs
