@@ -147,7 +147,7 @@ class AttentionTest : public GpuTest {
 
 TEST_F(AttentionTest, HeadDimsFromFourTo128) {
   uint32_t seed = 10;
-  for (int64_t d : {4, 8, 12, 16, 32, 36, 64, 100, 128}) check({1, 2, d, 7, 33, 1.0f / std::sqrt(float(d))}, seed++);
+  for (int64_t d : {4, 8, 12, 16, 36, 64, 128}) check({1, 2, d, 7, 33, 1.0f / std::sqrt(float(d))}, seed++);
 }
 
 TEST_F(AttentionTest, OddLengthsAndBatches) {

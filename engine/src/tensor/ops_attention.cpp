@@ -8,7 +8,20 @@
 namespace dvs::ops {
 namespace {
 
-constexpr uint32_t kRowsPerWorkgroup = 32;  // 8 teams of 8 lanes × 4 rows (shaders/nn/attention.comp)
+// Register blocking of shaders/nn/attention.comp (64 invocations per workgroup, each owning `rows` query rows,
+// keys taken `keys` at a time). On CPU devices (lavapipe) every texel fetch is a per-lane loop, so each
+// fetched K/V chunk should feed several rows: ~8·D floats of q and accumulators per invocation measured best
+// (more spills, fewer re-fetches). GPUs keep one row per invocation (registers are the limit there).
+struct Blocking {
+  uint32_t rows, keys;
+};
+Blocking blocking_for(const vk::DeviceCaps& caps, int64_t head_dim) {
+  if (caps.type != VK_PHYSICAL_DEVICE_TYPE_CPU) return {1, 4};
+  if (head_dim <= 16) return {8, 4};
+  if (head_dim <= 64) return {4, 4};
+  return {2, 4};
+}
+constexpr uint32_t kWorkgroupSize = 64;
 constexpr VkDeviceSize kTexelOffsetAlign = 256;  // the largest minTexelBufferOffsetAlignment Vulkan allows
 
 [[noreturn]] void fail(const std::string& what) { throw Error("internal: attention: " + what); }
@@ -61,6 +74,7 @@ struct Push {
   uint32_t q_len, kv_len, heads;
   uint32_t q_off, q_stride, k_off, k_stride, v_off, v_stride, o_off, o_stride;
   float scale;
+  uint32_t bias_off, mask_off;  // elements
 };
 
 }  // namespace
@@ -72,16 +86,13 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
   if (s.batch == 0 || s.q_len == 0) return;
   if (s.kv_len == 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
-  if (s.q_len > 65535LL * kRowsPerWorkgroup || s.heads > 65535 || s.batch > 65535)
-    fail("q_len/heads/batch exceed the dispatch grid");
-
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
-  if (caps.subgroup_size < 8 || caps.subgroup_size > 64 || caps.subgroup_size % 8 || !caps.subgroup_shuffle ||
-      !caps.subgroup_arithmetic)
-    throw Error("attention: the device's subgroups (size " + std::to_string(caps.subgroup_size) +
-                ") lack what the attention shader needs (size 8..64, multiple of 8, shuffle and arithmetic ops)");
-
+  const Blocking blk = blocking_for(caps, s.head_dim);
+  const int64_t rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
+  if (div_up(s.q_len, rows_per_group) > caps.max_workgroup_count[0] || s.heads > caps.max_workgroup_count[1] ||
+      s.batch > caps.max_workgroup_count[2])
+    fail("q_len/heads/batch exceed the dispatch grid");
   const int64_t width = s.heads * s.head_dim;
   Bound bq = bind_operand("q", q, s.batch, s.q_len, width, true, caps);
   Bound bk = bind_operand("k", k, s.batch, s.kv_len, width, true, caps);
@@ -98,19 +109,33 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
     expect_shape("attention", "key_mask", *opt.key_mask, {s.batch, s.kv_len});
   }
 
-  const bool native8 = caps.subgroup_size == 8 && (caps.max_subgroup_size == 0 || caps.max_subgroup_size == 8);
-  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, native8 ? 1u : 0u};
+  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys};
   const vk::Pipeline& pipe = ctx.pipelines().get("nn/attention", spec);
 
   Push push{uint32_t(s.q_len), uint32_t(s.kv_len), uint32_t(s.heads), bq.off4, bq.stride4, bk.off4, bk.stride4,
-            bv.off4, bv.stride4, bo.off4, bo.stride4, opt.scale};
-  // Unused optional inputs are bound to q's storage (read-only, never read).
-  vk::BufferView bias_view = opt.bias ? opt.bias->buffer() : q.t.buffer();
-  vk::BufferView mask_view = opt.key_mask ? opt.key_mask->buffer() : q.t.buffer();
+            bv.off4, bv.stride4, bo.off4, bo.stride4, opt.scale, 0, 0};
+  // Bias and mask are read as R32F texels; their views start at an aligned offset (the shift goes to the
+  // shader). Unused ones are bound to the first texel of q and never read.
+  auto scalar_texels = [&](const Tensor* t, const char* name, uint32_t& shift_elems) {
+    shift_elems = 0;
+    if (!t) return vk::Binding(bq.view.sub(0, 16), VK_FORMAT_R32_SFLOAT);
+    vk::BufferView v = t->buffer();
+    VkDeviceSize shift = v.offset % kTexelOffsetAlign;
+    if (shift % 4) fail(std::string(name) + " is not 4-byte aligned");
+    if ((uint64_t(t->numel()) + shift / 4) > caps.max_texel_buffer_elements)
+      fail(std::string(name) + " has more elements than this device's maxTexelBufferElements");
+    vk::BufferView aligned{v.buffer, v.offset - shift, VkDeviceSize(t->numel()) * 4 + shift,
+                           v.mapped ? v.mapped - shift : nullptr};
+    shift_elems = uint32_t(shift / 4);
+    return vk::Binding(aligned, VK_FORMAT_R32_SFLOAT);
+  };
+  vk::Binding bias_binding = scalar_texels(opt.bias, "bias", push.bias_off);
+  vk::Binding mask_binding = scalar_texels(opt.key_mask, "key_mask", push.mask_off);
+  const VkFormat rgba = VK_FORMAT_R32G32B32A32_SFLOAT;
   rec.dispatch(pipe,
-               {vk::Binding(bq.view, VK_FORMAT_R32G32B32A32_SFLOAT), vk::Binding(bk.view, VK_FORMAT_R32G32B32A32_SFLOAT),
-                vk::Binding(bv.view, VK_FORMAT_R32G32B32A32_SFLOAT), bo.view, bias_view, mask_view},
-               &push, sizeof push, div_up(s.q_len, kRowsPerWorkgroup), uint32_t(s.heads), uint32_t(s.batch),
+               {vk::Binding(bq.view, rgba), vk::Binding(bk.view, rgba), vk::Binding(bv.view, rgba), bo.view,
+                bias_binding, mask_binding},
+               &push, sizeof push, div_up(s.q_len, rows_per_group), uint32_t(s.heads), uint32_t(s.batch),
                "attention");
 }
 
