@@ -75,6 +75,7 @@ struct Case {
   bool fused = false;         // q, k, v as slices of one [B, L, 3·H·D] tensor (needs q_len == kv_len)
   int64_t pad_columns = 0;    // extra columns around each separate operand: offset pad, stride + 2·pad
   bool mask_whole_batch0 = false;  // every key of batch 0 masked
+  uint32_t rows_per_invocation = 0;  // 0: the device's default blocking
 };
 
 class AttentionTest : public GpuTest {
@@ -110,6 +111,7 @@ class AttentionTest : public GpuTest {
     Tensor tbias, tmask;
     AttentionOptions opt;
     opt.scale = c.scale;
+    opt.rows_per_invocation = c.rows_per_invocation;
     if (c.bias) {
       bias = random_values(size_t(c.heads * c.q_len * c.kv_len), seed + 3, 2.0f);
       tbias = Tensor::upload(ctx(), HostTensor::from_f32({c.heads, c.q_len, c.kv_len}, bias));
@@ -178,6 +180,15 @@ TEST_F(AttentionTest, FullyMaskedRowIsMeanOfValues) {
 TEST_F(AttentionTest, TinyTransformerShape) {
   // Tiny CogVideoX: head_dim 16, joint [text; video] tokens, fused QKV.
   check({2, 2, 16, 74, 74, 0.25f, false, false, true}, 70);
+}
+
+TEST_F(AttentionTest, OtherRegisterBlockings) {
+  // GPUs use one row per invocation; lavapipe 2, 4 or 8 by head_dim. Check the others here too.
+  for (uint32_t rows : {1u, 3u}) {
+    Case c{2, 2, 16, 70, 45, 0.25f, true, true};
+    c.rows_per_invocation = rows;
+    check(c, 80 + rows);
+  }
 }
 
 TEST_F(AttentionTest, RejectsBadLayouts) {

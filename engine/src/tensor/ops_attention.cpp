@@ -88,7 +88,11 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   if (s.kv_len == 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
-  const Blocking blk = blocking_for(caps, s.head_dim);
+  Blocking blk = blocking_for(caps, s.head_dim);
+  if (opt.rows_per_invocation) {
+    if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
+    blk.rows = opt.rows_per_invocation;
+  }
   const int64_t rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
   if (div_up(s.q_len, rows_per_group) > caps.max_workgroup_count[0] || s.heads > caps.max_workgroup_count[1] ||
       s.batch > caps.max_workgroup_count[2])

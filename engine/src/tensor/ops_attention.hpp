@@ -32,6 +32,7 @@ struct AttentionOptions {
   float scale = 1.0f;                // logits = q·k·scale (T5: 1, CogVideoX: 1/sqrt(D))
   const Tensor* bias = nullptr;      // f32 [H, Lq, Lk] added to the scaled logits, shared by the batch
   const Tensor* key_mask = nullptr;  // f32 [B, Lk]: 0 = masked key, anything else = attend
+  uint32_t rows_per_invocation = 0;  // register blocking; 0 = chosen per device (tests force other values)
 };
 
 // Records the attention of q [B, Lq, H·D], k and v [B, Lk, H·D] into out [B, Lq, H·D] (all f32, layouts as
