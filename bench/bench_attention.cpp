@@ -2,6 +2,7 @@
 // peak and OpenBLAS sgemm. Shapes: square self-attention at D = 64 over a range of heads and lengths, the
 // T5-like 226-token case with relative-position bias, a fused-QKV case, and the small head dims of the
 // tiny models.
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -49,8 +50,9 @@ void run_shape(Bench& b, const Shape& sh) {
   rec.end();
   double ms = Bench::time_ms([&] { rec.submit(); });
   double flops = 4.0 * sh.batch * sh.heads * double(sh.len) * sh.len * sh.head_dim;
-  std::string shape = "B" + std::to_string(sh.batch) + " H" + std::to_string(sh.heads) + " L" +
-                      std::to_string(sh.len) + " D" + std::to_string(sh.head_dim);
+  char shape[96];
+  std::snprintf(shape, sizeof shape, "B%lld H%lld L%lld D%lld", (long long)sh.batch, (long long)sh.heads,
+                (long long)sh.len, (long long)sh.head_dim);
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
   if (sh.fused) note += ", fused QKV";
   b.report({"attention_f32", shape, ms, flops / (ms * 1e6), 0, note});
