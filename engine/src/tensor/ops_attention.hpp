@@ -1,0 +1,52 @@
+// Attention: out = softmax(q·kᵀ·scale + bias + mask)·v per (batch, head), flash-style (online softmax in
+// fp32, keys streamed in blocks): memory is O(sequence), no Lq×Lk score matrix is ever stored.
+//
+// Layout: the models produce q, k, v from linear layers as [B, L, H·D] (token-major, heads interleaved):
+// element (b, l, h, d) lives at (b·L + l)·row_stride + column_offset + h·D + d. A fused QKV GEMM output
+// [B, L, 3·H·D] is used in place by giving q, k, v as column slices of it (offsets 0, H·D, 2·H·D, row
+// stride 3·H·D). The output is written in the same layout (usually a contiguous [B, Lq, H·D]).
+#pragma once
+#include <cstdint>
+
+#include "tensor/tensor.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::ops {
+
+// Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset.
+struct AttentionOperand {
+  Tensor t;
+  int64_t column_offset = 0;  // elements; multiple of 4
+  int64_t row_stride = 0;     // elements between consecutive tokens; 0 = H·D (contiguous); multiple of 4
+};
+
+struct AttentionShape {
+  int64_t batch = 1;
+  int64_t heads = 1;
+  int64_t head_dim = 64;  // any multiple of 4 from 4 to 128
+  int64_t q_len = 0;
+  int64_t kv_len = 0;
+};
+
+struct AttentionOptions {
+  float scale = 1.0f;                // logits = q·k·scale (T5: 1, CogVideoX: 1/sqrt(D))
+  const Tensor* bias = nullptr;      // f32 [H, Lq, Lk] added to the scaled logits, shared by the batch
+  const Tensor* key_mask = nullptr;  // f32 [B, Lk]: 0 = masked key, anything else = attend
+  uint32_t rows_per_invocation = 0;  // register blocking; 0 = chosen per device (tests force other values)
+};
+
+// Records the attention of q [B, Lq, H·D], k and v [B, Lk, H·D] into out [B, Lq, H·D] (all f32, layouts as
+// above). A masked key weighs 0; a row whose keys are ALL masked returns the mean of v over all Lk keys
+// (what transformers computes when it adds finfo(float32).min to every logit of the row). Lk = 0 is an
+// error; Lq = 0 or B = 0 records nothing.
+void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOperand& q, const AttentionOperand& k,
+               const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& options = {});
+
+// Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
+void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,
+               int64_t heads, const AttentionOptions& options = {});
+
+// q, k or v (which = 0, 1, 2) as a column slice of a fused projection [B, L, 3·H·D] laid out [q | k | v].
+AttentionOperand fused_qkv_operand(const Tensor& qkv, int which, int64_t heads, int64_t head_dim);
+
+}  // namespace dvs::ops

@@ -1,0 +1,126 @@
+#version 450
+#extension GL_EXT_control_flow_attributes : require
+// Flash attention: out = softmax(q·kᵀ·scale + bias + mask)·v, keys streamed in blocks with an online softmax
+// in fp32 (running max and sum per query row), so no Lq×Lk matrix ever exists.
+//
+// Work split: every invocation owns R whole query rows (its q rows, running max/sum and output accumulators
+// live in its registers) and all invocations of a workgroup walk the keys of one (batch, head) in lockstep.
+// K and V rows are read at the same address by every lane (texel fetches, RGBA32F), so nothing crosses
+// lanes: no shared memory and no subgroup operations. On lavapipe (DESIGN §9) this avoids the per-lane
+// shuffles and shared-memory loops that dominate otherwise; each fetched K/V chunk feeds R rows × 4 FMAs.
+//
+// Masked keys get the logit -FLT_MAX (what transformers' finfo.min mask amounts to in fp32): they weigh
+// exp(-huge) = 0 unless every key of a row is masked, in which case all logits are equal and the row is the
+// mean of v over all Lk keys, as in transformers.
+layout(local_size_x = 64) in;
+
+layout(constant_id = 0) const int D4 = 16;            // head_dim / 4
+layout(constant_id = 1) const bool HAS_BIAS = false;  // additive bias [H, Lq, Lk]
+layout(constant_id = 2) const bool HAS_MASK = false;  // key mask [B, Lk], 0 = masked
+layout(constant_id = 3) const int R = 4;              // query rows per invocation
+layout(constant_id = 4) const int KB = 8;             // keys per block of the online softmax
+
+const float LOG2E = 1.4426950408889634;
+const float MASKED = -3.4028234663852886e38;  // -FLT_MAX
+
+layout(binding = 0) uniform samplerBuffer Q;     // RGBA32F texels
+layout(binding = 1) uniform samplerBuffer K;     // RGBA32F
+layout(binding = 2) uniform samplerBuffer V;     // RGBA32F
+layout(std430, binding = 3) writeonly buffer Out { vec4 o[]; };
+layout(binding = 4) uniform samplerBuffer Bias;  // R32F [H, Lq, Lk]
+layout(binding = 5) uniform samplerBuffer Mask;  // R32F [B, Lk]
+
+// Offsets and strides of q, k, v, out in vec4 units.
+layout(push_constant) uniform Push {
+  uint q_len, kv_len, heads;
+  uint q_off, q_stride, k_off, k_stride, v_off, v_stride, o_off, o_stride;
+  float scale;
+  uint bias_off, mask_off;  // elements
+} p;
+
+void main() {
+  const uint h = gl_WorkGroupID.y, b = gl_WorkGroupID.z;
+  const uint row0 = gl_WorkGroupID.x * (gl_WorkGroupSize.x * R) + gl_LocalInvocationID.x;  // rows row0 + 64·r
+  const uint kv_row0 = b * p.kv_len;
+
+  // My q rows, pre-multiplied by scale·log2(e) so that scores are in the exp2 domain.
+  vec4 q[R][D4];
+  uint bias_row[R];
+  [[unroll]] for (int r = 0; r < R; ++r) {
+    uint row = min(row0 + r * gl_WorkGroupSize.x, p.q_len - 1);
+    uint base = (b * p.q_len + row) * p.q_stride + p.q_off + h * D4;
+    [[unroll]] for (int c = 0; c < D4; ++c) q[r][c] = texelFetch(Q, int(base + c)) * (p.scale * LOG2E);
+    bias_row[r] = (h * p.q_len + row) * p.kv_len + p.bias_off;
+  }
+
+  float m[R], l[R];
+  vec4 acc[R][D4];
+  [[unroll]] for (int r = 0; r < R; ++r) {
+    m[r] = MASKED;
+    l[r] = 0;
+    [[unroll]] for (int c = 0; c < D4; ++c) acc[r][c] = vec4(0);
+  }
+
+  for (uint key0 = 0; key0 < p.kv_len; key0 += KB) {
+    // ---- scores of the block's keys (the same keys for every lane) ----
+    float s[R][KB];
+    [[unroll]] for (int r = 0; r < R; ++r)
+      [[unroll]] for (int j = 0; j < KB; ++j) s[r][j] = 0;
+    [[unroll]] for (int j = 0; j < KB; ++j) {
+      uint kaddr = (kv_row0 + min(key0 + j, p.kv_len - 1)) * p.k_stride + p.k_off + h * D4;
+      [[unroll]] for (int c = 0; c < D4; ++c) {
+        vec4 kv = texelFetch(K, int(kaddr + c));
+        [[unroll]] for (int r = 0; r < R; ++r)
+          s[r][j] = fma(q[r][c].w, kv.w, fma(q[r][c].z, kv.z, fma(q[r][c].y, kv.y, fma(q[r][c].x, kv.x, s[r][j]))));
+      }
+    }
+    if (HAS_BIAS) {
+      [[unroll]] for (int j = 0; j < KB; ++j) {
+        uint key = min(key0 + j, p.kv_len - 1);
+        [[unroll]] for (int r = 0; r < R; ++r) s[r][j] += texelFetch(Bias, int(bias_row[r] + key)).x * LOG2E;
+      }
+    }
+    if (HAS_MASK) {
+      [[unroll]] for (int j = 0; j < KB; ++j) {
+        if (texelFetch(Mask, int(p.mask_off + kv_row0 + min(key0 + j, p.kv_len - 1))).x == 0.0) {
+          [[unroll]] for (int r = 0; r < R; ++r) s[r][j] = MASKED;
+        }
+      }
+    }
+
+    // ---- online softmax: new running max, rescale what was accumulated, probabilities ----
+    const bool full = key0 + KB <= p.kv_len;
+    [[unroll]] for (int r = 0; r < R; ++r) {
+      float mx = m[r];
+      [[unroll]] for (int j = 0; j < KB; ++j) mx = (full || key0 + j < p.kv_len) ? max(mx, s[r][j]) : mx;
+      float alpha = exp2(m[r] - mx);
+      m[r] = mx;
+      float sum = 0;
+      [[unroll]] for (int j = 0; j < KB; ++j) {
+        s[r][j] = (full || key0 + j < p.kv_len) ? exp2(s[r][j] - mx) : 0.0;
+        sum += s[r][j];
+      }
+      l[r] = l[r] * alpha + sum;
+      [[unroll]] for (int c = 0; c < D4; ++c) acc[r][c] *= alpha;
+    }
+
+    // ---- acc += p·v ----
+    [[unroll]] for (int j = 0; j < KB; ++j) {
+      uint vaddr = (kv_row0 + min(key0 + j, p.kv_len - 1)) * p.v_stride + p.v_off + h * D4;
+      [[unroll]] for (int c = 0; c < D4; ++c) {
+        vec4 vv = texelFetch(V, int(vaddr + c));
+        [[unroll]] for (int r = 0; r < R; ++r) acc[r][c] = fma(vec4(s[r][j]), vv, acc[r][c]);
+      }
+    }
+  }
+
+  // ---- normalise and store ----
+  [[unroll]] for (int r = 0; r < R; ++r) {
+    uint row = row0 + r * gl_WorkGroupSize.x;
+    if (row < p.q_len) {
+      float inv = 1.0 / l[r];
+      uint base = (b * p.q_len + row) * p.o_stride + p.o_off + h * D4;
+      [[unroll]] for (int c = 0; c < D4; ++c) o[base + c] = acc[r][c] * inv;
+    }
+  }
+}

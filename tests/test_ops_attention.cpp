@@ -1,0 +1,208 @@
+// Attention (shaders/nn/attention.comp) against a plain double-precision softmax(q·kᵀ·scale + bias + mask)·v.
+// Tolerance: |gpu − ref| ≤ 2e-5 + 2e-5·max|v| per element (fp32 accumulation over ≤ a few hundred keys,
+// lavapipe's exp2 approximation; the output is a convex combination of v rows).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "support/gpu.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_attention.hpp"
+
+namespace dvs::test {
+namespace {
+
+using ops::AttentionOperand;
+using ops::AttentionOptions;
+using ops::AttentionShape;
+
+std::vector<float> random_values(size_t n, uint32_t seed, float scale = 1.0f) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<float> dist(0.0f, scale);
+  std::vector<float> v(n);
+  for (float& x : v) x = dist(gen);
+  return v;
+}
+
+// Host copy of one operand: rows of `stride` floats, head h at column offset + h·D.
+struct HostOperand {
+  std::vector<float> data;
+  int64_t offset = 0, stride = 0;
+  float at(int64_t row, int64_t h, int64_t d, int64_t D) const { return data[row * stride + offset + h * D + d]; }
+};
+
+// Reference with transformers' masking: a masked key's logit is finfo(float32).min.
+std::vector<double> reference(const AttentionShape& s, const HostOperand& q, const HostOperand& k,
+                              const HostOperand& v, float scale, const std::vector<float>* bias,
+                              const std::vector<float>* mask) {
+  const int64_t D = s.head_dim, H = s.heads;
+  std::vector<double> out(size_t(s.batch * s.q_len * H * D));
+  std::vector<double> logit(size_t(s.kv_len));
+  for (int64_t b = 0; b < s.batch; ++b)
+    for (int64_t h = 0; h < H; ++h)
+      for (int64_t i = 0; i < s.q_len; ++i) {
+        double mx = -std::numeric_limits<double>::infinity();
+        for (int64_t j = 0; j < s.kv_len; ++j) {
+          double dot = 0;
+          for (int64_t d = 0; d < D; ++d) dot += double(q.at(b * s.q_len + i, h, d, D)) * k.at(b * s.kv_len + j, h, d, D);
+          double x = dot * scale;
+          if (bias) x += (*bias)[size_t((h * s.q_len + i) * s.kv_len + j)];
+          if (mask && (*mask)[size_t(b * s.kv_len + j)] == 0.0f) x = -double(std::numeric_limits<float>::max());
+          logit[size_t(j)] = x;
+          mx = std::max(mx, x);
+        }
+        double sum = 0;
+        for (int64_t j = 0; j < s.kv_len; ++j) sum += (logit[size_t(j)] = std::exp(logit[size_t(j)] - mx));
+        for (int64_t d = 0; d < D; ++d) {
+          double acc = 0;
+          for (int64_t j = 0; j < s.kv_len; ++j) acc += logit[size_t(j)] * v.at(b * s.kv_len + j, h, d, D);
+          out[size_t(((b * s.q_len + i) * H + h) * D + d)] = acc / sum;
+        }
+      }
+  return out;
+}
+
+struct Case {
+  int64_t batch, heads, head_dim, q_len, kv_len;
+  float scale = 1.0f;
+  bool bias = false, mask = false;
+  bool fused = false;         // q, k, v as slices of one [B, L, 3·H·D] tensor (needs q_len == kv_len)
+  int64_t pad_columns = 0;    // extra columns around each separate operand: offset pad, stride + 2·pad
+  bool mask_whole_batch0 = false;  // every key of batch 0 masked
+  uint32_t rows_per_invocation = 0;  // 0: the device's default blocking
+};
+
+class AttentionTest : public GpuTest {
+ protected:
+  void check(const Case& c, uint32_t seed) {
+    AttentionShape s{c.batch, c.heads, c.head_dim, c.q_len, c.kv_len};
+    const int64_t W = c.heads * c.head_dim;
+    HostOperand hq, hk, hv;
+    Tensor tq, tk, tv;
+    AttentionOperand q, k, v;
+    if (c.fused) {
+      ASSERT_EQ(c.q_len, c.kv_len);
+      std::vector<float> all = random_values(size_t(c.batch * c.q_len * 3 * W), seed);
+      hq = {all, 0, 3 * W};
+      hk = {all, W, 3 * W};
+      hv = {all, 2 * W, 3 * W};
+      Tensor qkv = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.q_len, 3 * W}, all));
+      q = ops::fused_qkv_operand(qkv, 0, c.heads, c.head_dim);
+      k = ops::fused_qkv_operand(qkv, 1, c.heads, c.head_dim);
+      v = ops::fused_qkv_operand(qkv, 2, c.heads, c.head_dim);
+    } else {
+      const int64_t pad = c.pad_columns, stride = W + 2 * pad;
+      auto make = [&](int64_t len, uint32_t sd, HostOperand& h, AttentionOperand& op) {
+        h = {random_values(size_t(c.batch * len * stride), sd), pad, stride};
+        Tensor t = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, len, stride}, h.data));
+        op = {t, pad, stride};
+      };
+      make(c.q_len, seed, hq, q);
+      make(c.kv_len, seed + 1, hk, k);
+      make(c.kv_len, seed + 2, hv, v);
+    }
+    std::vector<float> bias, mask;
+    Tensor tbias, tmask;
+    AttentionOptions opt;
+    opt.scale = c.scale;
+    opt.rows_per_invocation = c.rows_per_invocation;
+    if (c.bias) {
+      bias = random_values(size_t(c.heads * c.q_len * c.kv_len), seed + 3, 2.0f);
+      tbias = Tensor::upload(ctx(), HostTensor::from_f32({c.heads, c.q_len, c.kv_len}, bias));
+      opt.bias = &tbias;
+    }
+    if (c.mask) {
+      std::mt19937 gen(seed + 4);
+      mask.resize(size_t(c.batch * c.kv_len));
+      for (int64_t b = 0; b < c.batch; ++b)
+        for (int64_t j = 0; j < c.kv_len; ++j)
+          mask[size_t(b * c.kv_len + j)] = (c.mask_whole_batch0 && b == 0) ? 0.0f : float(gen() % 4 != 0);
+      tmask = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.kv_len}, mask));
+      opt.key_mask = &tmask;
+    }
+    Tensor out = Tensor::empty(ctx(), {c.batch, c.q_len, W}, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::attention(rec, s, q, k, v, {out}, opt); });
+    std::vector<float> got = out.download(ctx()).to_f32();
+    std::vector<double> ref = reference(s, hq, hk, hv, c.scale, c.bias ? &bias : nullptr, c.mask ? &mask : nullptr);
+    ASSERT_EQ(got.size(), ref.size());
+    double vmax = 0;
+    for (float x : hv.data) vmax = std::max(vmax, double(std::fabs(x)));
+    const double tol = 2e-5 + 2e-5 * vmax;
+    double worst = 0;
+    size_t bad = 0;
+    for (size_t i = 0; i < got.size(); ++i) {
+      double e = std::fabs(double(got[i]) - ref[i]);
+      if (!(e <= tol)) ++bad;
+      if (!(e <= worst)) worst = e;
+    }
+    if (getenv("ATTN_VERBOSE")) printf("worst %g tol %g\n", worst, tol);
+    EXPECT_EQ(bad, 0u) << "B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
+                       << c.kv_len << ": worst error " << worst << " (tolerance " << tol << ")";
+  }
+};
+
+TEST_F(AttentionTest, HeadDimsFromFourTo128) {
+  uint32_t seed = 10;
+  for (int64_t d : {4, 8, 12, 16, 36, 64, 128}) check({1, 2, d, 7, 33, 1.0f / std::sqrt(float(d))}, seed++);
+}
+
+TEST_F(AttentionTest, OddLengthsAndBatches) {
+  check({2, 3, 16, 33, 129, 0.25f}, 30);
+  check({1, 1, 64, 1, 1, 0.125f}, 31);
+  check({3, 2, 8, 129, 7, 0.5f}, 32);
+  check({1, 1, 32, 2, 65, 0.3f}, 33);
+}
+
+TEST_F(AttentionTest, StridedOperandsAndFusedQkv) {
+  check({2, 2, 16, 17, 40, 0.25f, false, false, false, 8}, 40);
+  check({2, 3, 64, 37, 37, 0.125f, false, false, true}, 41);
+}
+
+TEST_F(AttentionTest, T5RelativeBiasUnscaledAndKeyMask) {
+  // Tiny-model T5: d_kv 8, 4 heads, 8 tokens; real-like: 226 tokens.
+  check({1, 4, 8, 8, 8, 1.0f, true, false}, 50);
+  check({2, 4, 8, 8, 8, 1.0f, true, true}, 51);
+  check({1, 2, 64, 226, 226, 1.0f, true, false}, 52);
+  check({2, 2, 16, 35, 70, 0.25f, false, true}, 53);
+}
+
+TEST_F(AttentionTest, FullyMaskedRowIsMeanOfValues) {
+  // Batch 0 has every key masked (transformers then averages v over all keys); batch 1 is a normal mask.
+  check({2, 2, 16, 9, 41, 0.25f, true, true, false, 0, true}, 60);
+}
+
+TEST_F(AttentionTest, TinyTransformerShape) {
+  // Tiny CogVideoX: head_dim 16, joint [text; video] tokens, fused QKV.
+  check({2, 2, 16, 74, 74, 0.25f, false, false, true}, 70);
+}
+
+TEST_F(AttentionTest, OtherRegisterBlockings) {
+  // GPUs use one row per invocation; lavapipe 2, 4 or 8 by head_dim. Check the others here too.
+  for (uint32_t rows : {1u, 3u}) {
+    Case c{2, 2, 16, 70, 45, 0.25f, true, true};
+    c.rows_per_invocation = rows;
+    check(c, 80 + rows);
+  }
+}
+
+TEST_F(AttentionTest, RejectsBadLayouts) {
+  Tensor t = Tensor::zeros(ctx(), {1, 4, 32}, DType::f32);
+  AttentionShape s{1, 2, 16, 4, 4};
+  auto run = [&](AttentionShape sh, AttentionOperand a) {
+    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::attention(rec, sh, a, {t}, {t}, {t}); });
+  };
+  EXPECT_THROW(run(s, {t, 2, 32}), Error);                 // offset not a multiple of 4
+  EXPECT_THROW(run(s, {t, 16, 32}), Error);                // columns past the row
+  EXPECT_THROW(run({1, 2, 16, 5, 4}, {t}), Error);          // too few rows
+  EXPECT_THROW(run({1, 2, 6, 4, 4}, {t}), Error);           // head_dim not a multiple of 4
+  EXPECT_THROW(run({1, 2, 16, 4, 0}, {t}), Error);          // no keys
+}
+
+}  // namespace
+}  // namespace dvs::test
