@@ -1,0 +1,62 @@
+// Convolutions and resampling of the CogVideoX 3D VAE and of the transformer's patch embedding.
+// Video tensors are [B, C, F, H, W] (contiguous, f32). Weights are [Cout, Cin, kt, kh, kw] (3D) or
+// [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
+// has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
+// outputs are allocated by the caller with the shapes the *_shape() helpers give.
+#pragma once
+#include <cstdint>
+
+#include "tensor/tensor.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::ops {
+
+// Conv2d applied to every frame. Zero padding per side; output size (H + top + bottom - kh) / stride + 1.
+struct Conv2dParams {
+  int stride = 1;
+  int pad_top = 0, pad_bottom = 0, pad_left = 0, pad_right = 0;
+  // false: y is [B, Cout, F, Ho, Wo] (or [N, Cout, Ho, Wo] for 4-D x).
+  // true:  y is [B, F, Ho, Wo, Cout] (or [N, Ho, Wo, Cout]): the token layout of the patch embedding.
+  bool channels_last_out = false;
+
+  static Conv2dParams same3x3() { return {1, 1, 1, 1, 1, false}; }            // 3x3, stride 1, pad 1
+  static Conv2dParams patch(bool tokens = true) { return {2, 0, 0, 0, 0, tokens}; }  // 2x2 stride 2
+  // CogVideoXDownsample3D: F.pad(x, (0, 1, 0, 1)) then Conv2d(k=3, s=2, padding=0).
+  static Conv2dParams downsample3x3() { return {2, 0, 1, 0, 1, false}; }
+};
+
+// x: [B, Cin, F, H, W] or [N, Cin, H, W] (images); w: [Cout, Cin, kh, kw] or [Cout, Cin, 1, kh, kw].
+void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+            const Conv2dParams& params);
+Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
+
+// CogVideoXCausalConv3d (pad_mode "constant"): kernel [Cout, Cin, kt, kh, kw] with odd kh, kw; spatial zero
+// padding (kh-1)/2, (kw-1)/2; the time axis is preceded by P = kt-1 frames: `cache_in` [B, Cin, P, H, W]
+// when given (the previous frame batch), else P copies of frame 0. y: [B, Cout, F, H, W].
+// If `cache_out` is given it receives the next cache: the last P frames of the padded input [prefix ; x]
+// (what diffusers returns as conv_cache). cache_out may be the same tensor as cache_in (updated in place
+// after the convolution has read it). With kt = 1 this is the pointwise / per-frame conv and caches are
+// not allowed.
+void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+                   const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr);
+Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w);  // [B, Cin, kt-1, H, W]
+
+// 1x1x1 convolution (CogVideoXSafeConv3d k=1, conv_shortcut): x [B, Cin, F, H, W], w [Cout, Cin(,1,1,1)].
+void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y);
+
+// Temporal pair averaging of CogVideoXDownsample3D (compress_time): odd F keeps frame 0 and averages the
+// rest in pairs; even F averages all pairs. y: [B, C, downsample_time_frames(F), H, W].
+int64_t downsample_time_frames(int64_t frames);
+void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y);
+
+// Nearest-neighbour resize of x [B, C, F, H, W] to y's size [B, C, Fo, Ho, Wo] (PyTorch "nearest" index
+// rule). keep_first_frame: frame 0 maps alone to output frame 0 and frames 1.. are resized F-1 -> Fo-1
+// (CogVideoXUpsample3D with compress_time, CogVideoXSpatialNorm3D's zq resize).
+void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool keep_first_frame = false);
+
+// CogVideoXUpsample3D's nearest x2 (before its conv): spatial x2 always; with compress_time, frames are
+// doubled too except that for odd F > 1 frame 0 stays single; F = 1 stays 1. y: upsample2x_shape(x, ct).
+Shape upsample2x_shape(const Shape& x, bool compress_time);
+void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time);
+
+}  // namespace dvs::ops
