@@ -9,6 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
 #include "io/model_schema.hpp"
@@ -16,32 +17,11 @@
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using dvs::test::golden_path;
+using dvs::test::TempDir;
+using dvs::test::write_text;
+
 namespace {
-
-fs::path golden_dir() {
-  if (const char* e = std::getenv("DVS_GOLDEN_DIR"); e && *e) return e;
-  return DVS_DEFAULT_GOLDEN_DIR;
-}
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int n = 0;
-    path = fs::temp_directory_path() / ("dvs_mf_test_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  fs::path operator/(const std::string& name) const { return path / name; }
-};
-
-void put_text(const fs::path& p, const std::string& s) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p, std::ios::binary) << s;
-}
 
 json read_json(const fs::path& p) { return json::parse(std::ifstream(p)); }
 
@@ -56,7 +36,7 @@ void put_st(const fs::path& p, const std::vector<std::string>& names) {
   const std::string s = h.dump();
   std::string bytes(8, '\0');
   for (int i = 0; i < 8; ++i) bytes[size_t(i)] = char(uint8_t(s.size() >> (8 * i)));
-  put_text(p, bytes + s + std::string(size_t(off), '\0'));
+  write_text(p, bytes + s + std::string(size_t(off), '\0'));
 }
 
 template <class F>
@@ -100,7 +80,7 @@ RunResult run(const std::string& args) {
 // ---- the pack's folders -------------------------------------------------------------------------------------
 
 TEST(ModelFolder, ListsThePacksComponents) {
-  const dvs::ModelFolder m = dvs::ModelFolder::open(golden_dir() / "model");
+  const dvs::ModelFolder m = dvs::ModelFolder::open(golden_path() / "model");
   EXPECT_EQ(m.pipeline_class(), "CogVideoXImageToVideoPipeline");
   std::vector<std::string> names;
   for (const auto& c : m.components()) names.push_back(c.name);
@@ -120,8 +100,8 @@ TEST(ModelFolder, ListsThePacksComponents) {
 }
 
 TEST(ModelFolder, SingleFileAndShardedWeightSets) {
-  const auto single = dvs::ModelFolder::open(golden_dir() / "model").weights("text_encoder");
-  const auto sharded = dvs::ModelFolder::open(golden_dir() / "model_bf16").weights("text_encoder");
+  const auto single = dvs::ModelFolder::open(golden_path() / "model").weights("text_encoder");
+  const auto sharded = dvs::ModelFolder::open(golden_path() / "model_bf16").weights("text_encoder");
   EXPECT_FALSE(single.sharded());
   EXPECT_TRUE(sharded.sharded());
   EXPECT_EQ(sharded.files().size(), 2u);
@@ -135,7 +115,7 @@ TEST(ModelFolder, SingleFileAndShardedWeightSets) {
   EXPECT_EQ(sharded.bytes("shared.weight").size(), 128u * 32u * 2u);
   expect_error([&] { sharded.load("missing.weight"); }, "model.safetensors.index.json", "missing.weight");
   // Opening the index file directly gives the same set.
-  const auto direct = dvs::WeightSet::open_file(golden_dir() / "model_bf16/text_encoder/model.safetensors.index.json");
+  const auto direct = dvs::WeightSet::open_file(golden_path() / "model_bf16/text_encoder/model.safetensors.index.json");
   EXPECT_EQ(direct.size(), 21u);
 }
 
@@ -144,22 +124,22 @@ TEST(ModelFolder, SingleFileAndShardedWeightSets) {
 TEST(ModelFolderErrors, MissingOrBadModelIndex) {
   TempDir dir;
   expect_error([&] { dvs::ModelFolder::open(dir.path); }, "model_index.json", "not found");
-  put_text(dir / "model_index.json", "{\"vae\": [\"diffusers\", ");
+  write_text(dir / "model_index.json", "{\"vae\": [\"diffusers\", ");
   expect_error([&] { dvs::ModelFolder::open(dir.path); }, "model_index.json", "not valid JSON");
-  put_text(dir / "model_index.json", "{\"vae\": [\"diffusers\"]}");
+  write_text(dir / "model_index.json", "{\"vae\": [\"diffusers\"]}");
   expect_error([&] { dvs::ModelFolder::open(dir.path); }, "model_index.json", "[library, class]");
-  put_text(dir / "model_index.json", std::string(200, '[') + std::string(200, ']'));
+  write_text(dir / "model_index.json", std::string(200, '[') + std::string(200, ']'));
   expect_error([&] { dvs::ModelFolder::open(dir.path); }, "model_index.json", "nests deeper");
-  put_text(dir / "model_index.json", R"({"_class_name": "P", "vae": ["diffusers", "AutoencoderKLCogVideoX"],
+  write_text(dir / "model_index.json", R"({"_class_name": "P", "vae": ["diffusers", "AutoencoderKLCogVideoX"],
                                          "safety_checker": [null, null], "requires_safety_checker": false})");
   const auto m = dvs::ModelFolder::open(dir.path);
   ASSERT_EQ(m.components().size(), 1u);
   expect_error([&] { m.load("vae"); }, "vae", "component folder listed in model_index.json is missing");
   fs::create_directories(dir / "vae");
   expect_error([&] { m.load("vae"); }, "config.json", "not found");
-  put_text(dir / "vae/config.json", "{}");
+  write_text(dir / "vae/config.json", "{}");
   expect_error([&] { m.weights("vae"); }, "vae", "no weights");
-  put_text(dir / "vae/diffusion_pytorch_model.bin", "x");
+  write_text(dir / "vae/diffusion_pytorch_model.bin", "x");
   expect_error([&] { m.weights("vae"); }, "vae", ".bin");
   expect_error([&] { dvs::ModelFolder::open(dir / "nowhere"); }, "nowhere", "not a folder");
 }
@@ -170,33 +150,33 @@ TEST(ModelFolderErrors, ShardIndexProblems) {
   put_st(dir / "s1.safetensors", {"a", "b"});
   put_st(dir / "s2.safetensors", {"c"});
 
-  put_text(idx, R"({"weight_map": {"a": "s1.safetensors", "c": "s2.safetensors", "d": "s3.safetensors"}})");
+  write_text(idx, R"({"weight_map": {"a": "s1.safetensors", "c": "s2.safetensors", "d": "s3.safetensors"}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "shard 's3.safetensors'");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "missing");
 
-  put_text(idx, R"({"weight_map": {"a": "s1.safetensors", "z": "s2.safetensors"}})");
+  write_text(idx, R"({"weight_map": {"a": "s1.safetensors", "z": "s2.safetensors"}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "'z'");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "s2.safetensors", "does not contain it");
 
   put_st(dir / "s3.safetensors", {"b"});
-  put_text(idx, R"({"weight_map": {"a": "s1.safetensors", "b": "s3.safetensors"}})");
+  write_text(idx, R"({"weight_map": {"a": "s1.safetensors", "b": "s3.safetensors"}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "s1.safetensors", "present in two shards");
 
-  put_text(idx, R"({"weight_map": {"a": "../s1.safetensors"}})");
+  write_text(idx, R"({"weight_map": {"a": "../s1.safetensors"}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "plain file name");
-  put_text(idx, R"({"metadata": {}})");
+  write_text(idx, R"({"metadata": {}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "weight_map");
-  put_text(idx, R"({"weight_map": {"a": 3}})");
+  write_text(idx, R"({"weight_map": {"a": 3}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "model.safetensors.index.json", "'a'");
 
   // A corrupt shard is reported by its own name.
-  put_text(dir / "s2.safetensors", "garbage!");
-  put_text(idx, R"({"weight_map": {"a": "s1.safetensors", "c": "s2.safetensors"}})");
+  write_text(dir / "s2.safetensors", "garbage!");
+  write_text(idx, R"({"weight_map": {"a": "s1.safetensors", "c": "s2.safetensors"}})");
   expect_error([&] { dvs::WeightSet::open_dir(dir.path); }, "s2.safetensors", "header");
 
   // Valid, with an unlisted tensor and a wrong total_size: loads, with warnings.
   put_st(dir / "s2.safetensors", {"c"});
-  put_text(idx, R"({"metadata": {"total_size": 99}, "weight_map": {"a": "s1.safetensors", "c": "s2.safetensors"}})");
+  write_text(idx, R"({"metadata": {"total_size": 99}, "weight_map": {"a": "s1.safetensors", "c": "s2.safetensors"}})");
   const auto w = dvs::WeightSet::open_dir(dir.path);
   EXPECT_EQ(w.size(), 2u);
   EXPECT_EQ(w.warnings().size(), 2u);  // 'b' unlisted; total_size 99 != 16
@@ -215,7 +195,7 @@ TEST(ModelFolderErrors, AmbiguousWeightFiles) {
 // ---- schemas for other sizes ------------------------------------------------------------------------------------
 
 TEST(ModelFolderSchema, T5FollowsItsConfig) {
-  json c = read_json(golden_dir() / "model/text_encoder/config.json");
+  json c = read_json(golden_path() / "model/text_encoder/config.json");
   c["num_layers"] = 3;
   c["num_heads"] = 6;
   c["d_kv"] = 5;
@@ -239,7 +219,7 @@ TEST(ModelFolderSchema, T5FollowsItsConfig) {
 }
 
 TEST(ModelFolderSchema, TransformerFollowsItsConfig) {
-  json c = read_json(golden_dir() / "model/transformer/config.json");
+  json c = read_json(golden_path() / "model/transformer/config.json");
   c["num_attention_heads"] = 3;
   c["attention_head_dim"] = 8;
   c["num_layers"] = 4;
@@ -270,7 +250,7 @@ TEST(ModelFolderSchema, TransformerFollowsItsConfig) {
   expect_error([&] { dvs::cogvideox_transformer_schema(c, "tr/config.json"); }, "tr/config.json", "activation_fn");
 
   // The real CogVideoX-5B-I2V sizes.
-  json real = read_json(golden_dir() / "model/transformer/config.json");
+  json real = read_json(golden_path() / "model/transformer/config.json");
   real["num_attention_heads"] = 48;
   real["attention_head_dim"] = 64;
   real["num_layers"] = 42;
@@ -290,7 +270,7 @@ TEST(ModelFolderSchema, TransformerFollowsItsConfig) {
 }
 
 TEST(ModelFolderSchema, VaeFollowsItsConfig) {
-  json c = read_json(golden_dir() / "model/vae/config.json");
+  json c = read_json(golden_path() / "model/vae/config.json");
   c["block_out_channels"] = {4, 8, 12};
   c["down_block_types"] = json::array({"CogVideoXDownBlock3D", "CogVideoXDownBlock3D", "CogVideoXDownBlock3D"});
   c["up_block_types"] = json::array({"CogVideoXUpBlock3D", "CogVideoXUpBlock3D", "CogVideoXUpBlock3D"});
@@ -318,7 +298,7 @@ TEST(ModelFolderSchema, VaeFollowsItsConfig) {
 }
 
 TEST(ModelFolderSchema, ReportsEveryMismatch) {
-  const dvs::ModelFolder m = dvs::ModelFolder::open(golden_dir() / "model");
+  const dvs::ModelFolder m = dvs::ModelFolder::open(golden_path() / "model");
   const auto cfg = m.config("transformer");
   const auto s = dvs::schema_for("CogVideoXTransformer3DModel", cfg);
   std::vector<std::pair<std::string, dvs::Shape>> found;
@@ -349,7 +329,7 @@ TEST(ModelFolderSchema, ReportsEveryMismatch) {
 TEST(IoWeightsTool, InspectsThePackAndRejectsACorruptFile) {
   ASSERT_TRUE(fs::exists(fs::path(DVS_BIN_DIR) / "dvs-weights")) << "build the dvs-weights target first";
   for (const char* folder : {"model", "model_bf16"}) {
-    const auto r = run("inspect '" + (golden_dir() / folder).string() + "'");
+    const auto r = run("inspect '" + (golden_path() / folder).string() + "'");
     EXPECT_EQ(r.status, 0) << r.output;
     EXPECT_NE(r.output.find("patch_embed.pos_embedding"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("encoder.block.0.layer.0.SelfAttention.relative_attention_bias.weight"), std::string::npos);
@@ -357,23 +337,23 @@ TEST(IoWeightsTool, InspectsThePackAndRejectsACorruptFile) {
     EXPECT_EQ(r.output.find("mismatch"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("overall: 3 component(s) with weights, 326 tensors"), std::string::npos) << r.output;
   }
-  const auto one = run("inspect --summary '" + (golden_dir() / "model/vae/diffusion_pytorch_model.safetensors").string() + "'");
+  const auto one = run("inspect --summary '" + (golden_path() / "model/vae/diffusion_pytorch_model.safetensors").string() + "'");
   EXPECT_EQ(one.status, 0) << one.output;
   EXPECT_NE(one.output.find("240 tensors"), std::string::npos) << one.output;
 
   TempDir dir;
-  put_text(dir / "broken.safetensors", std::string("\x10\0\0\0\0\0\0\0{\"a\":", 13));
+  write_text(dir / "broken.safetensors", std::string("\x10\0\0\0\0\0\0\0{\"a\":", 13));
   const auto bad = run("inspect '" + (dir / "broken.safetensors").string() + "'");
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.output.find("broken.safetensors"), std::string::npos) << bad.output;
 
   // A component whose weights do not fit its config: non-zero, and the mismatch is printed.
   fs::create_directories(dir / "tr");
-  fs::copy_file(golden_dir() / "model/transformer/diffusion_pytorch_model.safetensors",
+  fs::copy_file(golden_path() / "model/transformer/diffusion_pytorch_model.safetensors",
                 dir / "tr/diffusion_pytorch_model.safetensors");
-  json cfg = read_json(golden_dir() / "model/transformer/config.json");
+  json cfg = read_json(golden_path() / "model/transformer/config.json");
   cfg["num_layers"] = 3;
-  put_text(dir / "tr/config.json", cfg.dump());
+  write_text(dir / "tr/config.json", cfg.dump());
   const auto mis = run("inspect '" + (dir / "tr").string() + "'");
   EXPECT_EQ(mis.status, 1) << mis.output;
   EXPECT_NE(mis.output.find("transformer_blocks.2.attn1.to_q.weight' is missing"), std::string::npos) << mis.output;

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/host_tensor.hpp"
 #include "io/npy.hpp"
@@ -19,28 +20,10 @@ namespace fs = std::filesystem;
 using dvs::DType;
 using dvs::HostTensor;
 
+using dvs::test::golden_path;
+using dvs::test::TempDir;
+
 namespace {
-
-fs::path golden_dir() {
-  if (const char* e = std::getenv("DVS_GOLDEN_DIR"); e && *e) return e;
-  return DVS_DEFAULT_GOLDEN_DIR;
-}
-
-// A fresh directory under the system temp dir, removed with everything in it.
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int n = 0;
-    path = fs::temp_directory_path() / ("dvs_npy_test_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  fs::path operator/(const std::string& name) const { return path / name; }
-};
 
 std::vector<uint8_t> file_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -245,7 +228,7 @@ TEST(IoNpy, HeaderMatchesNumpyByteForByte) {
   // The pack's files were written by numpy; re-encoding what we read must give the same bytes.
   for (const char* rel : {"t5/masked_last_hidden_state.npy", "transformer/rope_cos.npy", "e2e/sampling_timesteps.npy",
                           "transformer/timestep_999.npy"}) {
-    const fs::path p = golden_dir() / rel;
+    const fs::path p = golden_path() / rel;
     EXPECT_EQ(dvs::encode_npy(dvs::read_npy(p)), file_bytes(p)) << p;
   }
 }
@@ -353,7 +336,7 @@ TEST(IoNpy, FailedWritesLeaveNoFile) {
 // ---- the golden pack's files ----------------------------------------------------------------------------------
 
 TEST(IoNpy, ReadsEveryPackFileWithItsRecordedShapeAndStats) {
-  const fs::path root = golden_dir();
+  const fs::path root = golden_path();
   std::ifstream in(root / "cases.json");
   ASSERT_TRUE(in) << "golden pack not found at " << root << " (set DVS_GOLDEN_DIR)";
   const nlohmann::json cases = nlohmann::json::parse(in)["cases"];

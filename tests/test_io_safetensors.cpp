@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
 #include "io/model_schema.hpp"
@@ -19,27 +20,10 @@ namespace fs = std::filesystem;
 using dvs::DType;
 using nlohmann::json;
 
+using dvs::test::golden_path;
+using dvs::test::TempDir;
+
 namespace {
-
-fs::path golden_dir() {
-  if (const char* e = std::getenv("DVS_GOLDEN_DIR"); e && *e) return e;
-  return DVS_DEFAULT_GOLDEN_DIR;
-}
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int n = 0;
-    path = fs::temp_directory_path() / ("dvs_st_test_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  fs::path operator/(const std::string& name) const { return path / name; }
-};
 
 void put_bytes(const fs::path& p, const std::vector<uint8_t>& b) {
   std::ofstream out(p, std::ios::binary);
@@ -158,7 +142,7 @@ TEST(Safetensors, DtypeTables) {
 
 TEST(SafetensorsPack, EveryComponentMatchesItsSchemaF32AndBf16Sharded) {
   for (const char* folder : {"model", "model_bf16"}) {
-    const dvs::ModelFolder m = dvs::ModelFolder::open(golden_dir() / folder);
+    const dvs::ModelFolder m = dvs::ModelFolder::open(golden_path() / folder);
     for (const auto& [name, dir] : pack_components(m.root())) {
       SCOPED_TRACE(std::string(folder) + "/" + name);
       const dvs::Component c = m.load(name);
@@ -181,8 +165,8 @@ TEST(SafetensorsPack, EveryComponentMatchesItsSchemaF32AndBf16Sharded) {
 }
 
 TEST(SafetensorsPack, Bf16CopiesAreTheF32WeightsRounded) {
-  const dvs::ModelFolder f32 = dvs::ModelFolder::open(golden_dir() / "model");
-  const dvs::ModelFolder b16 = dvs::ModelFolder::open(golden_dir() / "model_bf16");
+  const dvs::ModelFolder f32 = dvs::ModelFolder::open(golden_path() / "model");
+  const dvs::ModelFolder b16 = dvs::ModelFolder::open(golden_path() / "model_bf16");
   for (const char* comp : {"text_encoder", "transformer"}) {
     const dvs::WeightSet a = f32.weights(comp), b = b16.weights(comp);
     ASSERT_EQ(a.size(), b.size()) << comp;
@@ -206,7 +190,7 @@ TEST(SafetensorsPack, Bf16CopiesAreTheF32WeightsRounded) {
 }
 
 TEST(SafetensorsPack, LoadsATensorFromEachShard) {
-  const dvs::WeightSet w = dvs::WeightSet::open_dir(golden_dir() / "model_bf16" / "transformer");
+  const dvs::WeightSet w = dvs::WeightSet::open_dir(golden_path() / "model_bf16" / "transformer");
   EXPECT_TRUE(w.sharded());
   EXPECT_EQ(w.files().size(), 3u);
   EXPECT_TRUE(w.warnings().empty());
@@ -296,7 +280,7 @@ TEST(SafetensorsCorrupt, EachIsRejectedWithTheFileAndTheProblem) {
 
 TEST(SafetensorsCorrupt, TruncatedPackFileIsRejected) {
   TempDir dir;
-  auto bytes = file_bytes(golden_dir() / "model" / "transformer" / "diffusion_pytorch_model.safetensors");
+  auto bytes = file_bytes(golden_path() / "model" / "transformer" / "diffusion_pytorch_model.safetensors");
   ASSERT_GT(bytes.size(), 1000u);
   bytes.resize(bytes.size() - 100);
   put_bytes(dir / "cut.safetensors", bytes);

@@ -7,27 +7,21 @@
 #include <string>
 #include <vector>
 
+#include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "models/tokenizer.hpp"
 
 namespace fs = std::filesystem;
 
+// A temporary model folder with an empty tokenizer/ inside.
+struct TokenizerDir : dvs::test::TempDir {
+  TokenizerDir() { std::filesystem::create_directories(path / "tokenizer"); }
+};
+
 namespace {
 
 // The in-repo pack A (not DVS_GOLDEN_DIR): these expectations are about its tiny vocabulary.
 fs::path model_dir() { return fs::path(DVS_DEFAULT_GOLDEN_DIR) / "model"; }
-
-// A fresh, empty temporary folder removed at the end of the test.
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("dvs_tok_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-                                        "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path);
-    fs::create_directories(path / "tokenizer");
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
 
 template <class F>
 std::string error_of(F&& f) {
@@ -113,14 +107,14 @@ TEST(T5Tokenizer, BadArguments) {
 }
 
 TEST(T5Tokenizer, MissingModelNamesTheFile) {
-  TempDir d;
+  TokenizerDir d;
   const std::string msg = error_of([&] { dvs::T5Tokenizer::load(d.path); });
   EXPECT_NE(msg.find("spiece.model"), std::string::npos) << msg;
   EXPECT_NE(msg.find("not found"), std::string::npos) << msg;
 }
 
 TEST(T5Tokenizer, CorruptModelNamesTheFile) {
-  TempDir d;
+  TokenizerDir d;
   const fs::path file = d.path / "tokenizer" / "spiece.model";
   {
     std::ofstream f(file, std::ios::binary);
@@ -145,7 +139,7 @@ TEST(T5Tokenizer, CorruptModelNamesTheFile) {
 }
 
 TEST(T5Tokenizer, CorruptConfigNamesTheFile) {
-  TempDir d;
+  TokenizerDir d;
   fs::copy_file(model_dir() / "tokenizer" / "spiece.model", d.path / "tokenizer" / "spiece.model");
   {
     std::ofstream f(d.path / "tokenizer" / "tokenizer_config.json");
@@ -156,7 +150,7 @@ TEST(T5Tokenizer, CorruptConfigNamesTheFile) {
 }
 
 TEST(T5Tokenizer, WithoutConfigUsesT5Defaults) {
-  TempDir d;
+  TokenizerDir d;
   fs::copy_file(model_dir() / "tokenizer" / "spiece.model", d.path / "tokenizer" / "spiece.model");
   const dvs::T5Tokenizer t = dvs::T5Tokenizer::load(d.path);
   EXPECT_EQ(t.eos_id(), 1);
@@ -166,7 +160,7 @@ TEST(T5Tokenizer, WithoutConfigUsesT5Defaults) {
 
 TEST(T5Tokenizer, MaxTextSeqLength) {
   EXPECT_EQ(dvs::max_text_seq_length(model_dir()), 8);
-  TempDir d;
+  TokenizerDir d;
   const std::string msg = error_of([&] { dvs::max_text_seq_length(d.path); });
   EXPECT_NE(msg.find("config.json"), std::string::npos) << msg;
 }

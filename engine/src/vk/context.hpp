@@ -55,6 +55,7 @@ class Context {
   // Submits one command buffer and waits for it (used by Transfer and Recorder).
   void submit_and_wait(VkCommandBuffer cmd);
   VkCommandPool command_pool() const { return command_pool_; }
+  VkCommandBuffer allocate_command_buffer();  // primary, from the context's pool
 
  private:
   void release();

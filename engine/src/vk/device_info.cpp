@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
+#include "vk/memory.hpp"
 
 namespace dvs::vk {
 
@@ -153,16 +154,6 @@ uint32_t select_device(const std::vector<DeviceCaps>& devices, const std::string
               "\nGive an index or part of a name.");
 }
 
-static std::string bytes_str(uint64_t b) {
-  std::ostringstream o;
-  o.precision(3);
-  if (b >= (1ull << 30)) o << double(b) / double(1ull << 30) << " GiB";
-  else if (b >= (1ull << 20)) o << double(b) / double(1ull << 20) << " MiB";
-  else if (b >= 1024) o << double(b) / 1024.0 << " KiB";
-  else o << b << " B";
-  return o.str();
-}
-
 std::string describe_device(const DeviceCaps& c) {
   std::ostringstream o;
   auto yes = [](bool b) { return b ? "yes" : "no"; };
@@ -181,14 +172,14 @@ std::string describe_device(const DeviceCaps& c) {
     << "  cooperative matrix:   " << yes(c.cooperative_matrix) << "\n"
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"
-    << "  maxStorageBufferRange:      " << bytes_str(c.max_storage_buffer_range) << "\n"
-    << "  maxMemoryAllocationSize:    " << bytes_str(c.max_memory_allocation_size) << "\n"
-    << "  maxComputeSharedMemorySize: " << bytes_str(c.max_compute_shared_memory) << "\n"
+    << "  maxStorageBufferRange:      " << format_bytes(c.max_storage_buffer_range) << "\n"
+    << "  maxMemoryAllocationSize:    " << format_bytes(c.max_memory_allocation_size) << "\n"
+    << "  maxComputeSharedMemorySize: " << format_bytes(c.max_compute_shared_memory) << "\n"
     << "  maxComputeWorkGroupInvocations: " << c.max_workgroup_invocations << "\n"
     << "  maxPushConstantsSize:       " << c.max_push_constants << " B\n"
     << "  memory heaps:\n";
   for (size_t h = 0; h < c.heaps.size(); ++h)
-    o << "    heap " << h << ": " << bytes_str(c.heaps[h].size) << (c.heaps[h].device_local ? ", device-local" : "")
+    o << "    heap " << h << ": " << format_bytes(c.heaps[h].size) << (c.heaps[h].device_local ? ", device-local" : "")
       << (c.heaps[h].host_visible ? ", host-visible" : "") << "\n";
   return o.str();
 }

@@ -9,24 +9,9 @@ namespace {
 constexpr uint32_t kSetsPerPool = 512;
 constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
 
-VkDescriptorType descriptor_type(BindingKind k) {
-  switch (k) {
-    case BindingKind::storage_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    case BindingKind::uniform_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-    case BindingKind::uniform_texel_buffer: return VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
-    case BindingKind::storage_texel_buffer: return VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
-  }
-  return VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-}
 }  // namespace
 
-Recorder::Recorder(Context& ctx) : ctx_(ctx) {
-  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-  ai.commandPool = ctx.command_pool();
-  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-  ai.commandBufferCount = 1;
-  VK_CHECK(vkAllocateCommandBuffers(ctx.device(), &ai, &cmd_));
-}
+Recorder::Recorder(Context& ctx) : ctx_(ctx) { cmd_ = ctx.allocate_command_buffer(); }
 
 Recorder::~Recorder() {
   release_resources();

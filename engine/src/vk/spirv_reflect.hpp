@@ -2,6 +2,8 @@
 // bindings (set 0) a compute shader uses, their kind, and whether the shader only reads them (so the
 // recorder knows which dispatches depend on which).
 #pragma once
+#include <vulkan/vulkan.h>
+
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -23,5 +25,7 @@ struct ShaderInterface {
 };
 
 ShaderInterface reflect_shader(std::span<const uint32_t> spirv);
+
+VkDescriptorType descriptor_type(BindingKind kind);
 
 }  // namespace dvs::vk

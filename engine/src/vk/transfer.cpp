@@ -8,13 +8,7 @@
 
 namespace dvs::vk {
 
-Transfer::Transfer(Context& ctx) : ctx_(ctx) {
-  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-  ai.commandPool = ctx.command_pool();
-  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-  ai.commandBufferCount = 1;
-  VK_CHECK(vkAllocateCommandBuffers(ctx.device(), &ai, &cmd_));
-}
+Transfer::Transfer(Context& ctx) : ctx_(ctx) { cmd_ = ctx.allocate_command_buffer(); }
 
 Transfer::~Transfer() {
   if (cmd_) vkFreeCommandBuffers(ctx_.device(), ctx_.command_pool(), 1, &cmd_);
