@@ -233,7 +233,7 @@ TEST_F(GpuTest, GeometrySplatMatchesOfficialReference) {
     RenderedClip r = render_clip(ctx(), rgb, depth, tr, K, o);
     Diff d = compare(r, ref);
     EXPECT_LE(d.mask_mismatch, 2) << "fixed=" << fixed;
-    EXPECT_LE(d.max_abs, fixed ? 2e-3 : 2e-4) << "fixed=" << fixed;
+    EXPECT_LE(d.max_abs, fixed ? 5e-4 : 5e-5) << "fixed=" << fixed;  // measured 6.6e-5 / 4.3e-6 on lavapipe
   }
 }
 
