@@ -34,6 +34,7 @@ struct SplatOptions {
   SplatMode mode = SplatMode::soft_bilinear;
   SplatAtomics atomics = SplatAtomics::automatic;  // fixed_point forces the portable path (tests)
   bool keep_points_behind_camera = false;          // official behaviour (soft mode only)
+  int max_chunk_frames = 0;                        // render_clip: frames per chunk (0 = as many as fit)
 };
 
 // Scratch buffers for up to max_frames frames of height × width, and the recording of one render.
