@@ -217,6 +217,7 @@ void linear(Bench& b) {
       {"GEMV (M=1)", 1, 3072, 3072, true},
       {"T5 FFN (M=226)", 226, 10240, 4096, false},
       {"CogVideoX FFN up-proj, 2048-row chunk", 2048, 12288, 3072, false},
+      {"CogVideoX FFN down-proj, 2048-row chunk", 2048, 3072, 12288, false},
   };
   const char* only = std::getenv("DVS_LINEAR_CASE");  // substring of the shape, for tuning runs
   for (DType wdt : {DType::f32, DType::bf16, DType::f16}) {

@@ -233,7 +233,7 @@ TEST_F(GpuTest, GeometrySplatMatchesOfficialReference) {
     RenderedClip r = render_clip(ctx(), rgb, depth, tr, K, o);
     Diff d = compare(r, ref);
     EXPECT_LE(d.mask_mismatch, 2) << "fixed=" << fixed;
-    EXPECT_LE(d.max_abs, fixed ? 2e-3 : 2e-4) << "fixed=" << fixed;
+    EXPECT_LE(d.max_abs, fixed ? 5e-4 : 5e-5) << "fixed=" << fixed;  // measured 6.6e-5 / 4.3e-6 on lavapipe
   }
 }
 
@@ -267,7 +267,26 @@ TEST_F(GpuTest, GeometrySplatClipValidation) {
   EXPECT_THROW(render_clip(ctx(), rgb, depth, constant(glm::dmat4(1.0), F), Intrinsics::official_default(16, 8)), Error);
   HostTensor bad_rgb = random_rgb(F, H, W + 1, 1);
   EXPECT_THROW(render_clip(ctx(), bad_rgb, depth, constant(glm::dmat4(1.0), F), K), Error);
-  EXPECT_GE(SplatRenderer::frames_per_binding(ctx(), 576, 1024), 1);
+  EXPECT_GE(SplatRenderer::frames_per_binding(ctx(), 576, 1024), 13);  // 128 MiB binding limit: ≥ 13 frames
+}
+
+// Chunked rendering (what a 49-frame 576×1024 clip needs) gives the same frames as one chunk.
+TEST_F(GpuTest, GeometrySplatChunksMatchOneChunk) {
+  const int F = 5, H = 24, W = 40;
+  Intrinsics K = Intrinsics::official_default(W, H);
+  HostTensor rgb = random_rgb(F, H, W, 21), depth({F, H, W}, DType::f32);
+  std::mt19937 g(22);
+  std::uniform_real_distribution<float> u(1.f, 9.f);
+  for (int64_t i = 0; i < depth.numel(); ++i) depth.as<float>()[i] = u(g);
+  Trajectory tr = load_trajectory("arc_left:10", F, 3.0);
+  for (SplatOptions o : {SplatOptions{}, fixed_point(), SplatOptions{SplatMode::hard_point}}) {
+    RenderedClip one = render_clip(ctx(), rgb, depth, tr, K, o);
+    o.max_chunk_frames = 2;  // chunks of 2, 2, 1
+    RenderedClip chunked = render_clip(ctx(), rgb, depth, tr, K, o);
+    EXPECT_EQ(chunked.mask.data, one.mask.data);
+    Diff d = compare(chunked, one);
+    EXPECT_LE(d.max_abs, 1e-6) << "mode " << int(o.mode);
+  }
 }
 
 }  // namespace

@@ -14,6 +14,12 @@
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
 
+// Declarations only (the implementation lives in trajectory_gltf.cpp), configured the same way.
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>
+
 namespace dvs::geometry {
 namespace {
 
@@ -298,6 +304,40 @@ TEST(GeometryTrajectory, GltfRoundTripAndErrors) {
   o.translation_scale = 2;
   Trajectory scaled = read_gltf_trajectory(d / "path.glb", o);
   EXPECT_NEAR(scaled.transforms[8][3][0], 2 * tr.transforms[8][3][0], 1e-5);
+
+  // The point cloud is in the file, upright for viewers: (x, −y, −z) of the OpenCV source-camera points.
+  {
+    tinygltf::Model m;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, (d / "path.glb").string())) << err;
+    ASSERT_FALSE(m.nodes.empty());
+    EXPECT_EQ(m.nodes[0].name, "point_cloud");
+    const auto& prim = m.meshes[size_t(m.nodes[0].mesh)].primitives[0];
+    EXPECT_EQ(prim.mode, TINYGLTF_MODE_POINTS);
+    const auto& acc = m.accessors[size_t(prim.attributes.at("POSITION"))];
+    ASSERT_EQ(acc.count, 3u);
+    const auto& bv = m.bufferViews[size_t(acc.bufferView)];
+    const float* p = reinterpret_cast<const float*>(m.buffers[size_t(bv.buffer)].data.data() + bv.byteOffset + acc.byteOffset);
+    EXPECT_EQ(p[3], 0.5f);
+    EXPECT_EQ(p[4], 0.2f);
+    EXPECT_EQ(p[5], -3.f);
+    EXPECT_EQ(m.animations.size(), 1u);
+  }
+  // point_cloud_from_rgbd lifts with X = z·K⁻¹(x, y, 1) and maps [−1, 1] colours to [0, 1].
+  {
+    const int H = 4, W = 6;
+    std::vector<float> rgb(3 * H * W, 0.5f), z(H * W, 2.f);
+    z[5] = 0.f;  // skipped
+    Intrinsics k = Intrinsics::official_default(W, H);
+    PointCloud c = point_cloud_from_rgbd(rgb.data(), z.data(), H, W, k, 1);
+    ASSERT_EQ(c.positions.size(), size_t(H * W - 1));
+    glm::dvec3 want = k.unproject(0, 0, 2.0);
+    EXPECT_NEAR(c.positions[0].x, want.x, 1e-6);
+    EXPECT_NEAR(c.positions[0].y, want.y, 1e-6);
+    EXPECT_FLOAT_EQ(c.colors[0].x, 0.75f);
+    EXPECT_EQ(point_cloud_from_rgbd(rgb.data(), z.data(), H, W, k, 2).positions.size(), 6u);  // rows 0, 2 × columns 0, 2, 4
+  }
 
   // Errors.
   expect_error([&] { read_gltf_trajectory(d / "missing.glb", o); }, {"missing.glb"});

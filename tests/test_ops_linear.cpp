@@ -183,13 +183,16 @@ TEST_F(LinearTest, OddShapesF32) {
 }
 
 TEST_F(LinearTest, SixteenBitWeights) {
+  // (Each weight type x tile is a pipeline LLVM compiles on first use: the f16 cases stay few.)
   for (DType dt : {DType::bf16, DType::f16}) {
     Options o;
     o.w_dtype = dt;
     check(33, 47, 64, o);   // vectorised K steps
     check(9, 17, 37, o);    // scalar path (K not a multiple of 8)
-    check(1, 70, 128, o);   // GEMV-like
-    check(3, 5, 24, o);
+    if (dt == DType::bf16) {
+      check(1, 70, 128, o);  // GEMV-like
+      check(3, 5, 24, o);
+    }
   }
 }
 
@@ -298,8 +301,10 @@ TEST_F(LinearTest, KernelVariants) {
     o.bias = true;
     o.w_dtype = DType::bf16;
     check(37, 45, 32, o);
-    o.kernel->vectorized = false;
-    check(37, 45, 19, o);
+    if (k.lanes == 2) {  // the portable path also in its scalar form
+      o.kernel->vectorized = false;
+      check(37, 45, 19, o);
+    }
   }
 }
 

@@ -167,6 +167,7 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
                 " but the frames are " + std::to_string(W) + "x" + std::to_string(H) + " (use Intrinsics::scaled_to)");
   // Tensors of rgb/render are 3 planes per frame: keep each within one binding too.
   int chunk = std::max(1, int(std::min<int64_t>(F, SplatRenderer::frames_per_binding(ctx, int(H), int(W)))));
+  if (options.max_chunk_frames > 0) chunk = std::min(chunk, options.max_chunk_frames);
   SplatRenderer renderer(ctx, int(H), int(W), chunk, options);
 
   RenderedClip out{HostTensor({F, 3, H, W}, DType::f32), HostTensor({F, H, W}, DType::f32)};

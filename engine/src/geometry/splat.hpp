@@ -14,6 +14,15 @@
 //
 // Layouts (f32, contiguous): rgb [F,3,H,W] in [−1,1], depth [F,H,W] (metric, > 0), render [F,3,H,W],
 // mask [F,H,W] in {0,1}; one 4×4 T_i per frame. Target size = source size.
+//
+// Typical use (what `dvs render` does; rgb is the decoded video as f32 [F,3,H,W] in [−1,1]):
+//   HostTensor z = fit_depth_to_video(load_depth(depth_path, {DepthValues::disparity}), F, H, W, trim, name);
+//   Intrinsics K = Intrinsics::official_default(W, H);                      // or the user's fx fy cx cy
+//   Trajectory t = load_trajectory(spec, F, official_radius(centre_depth(z)));
+//   RenderedClip r = render_clip(ctx, rgb, z, t, K);                        // render + mask
+//   write_npy(dir / "mask.npy", r.mask);  write_trajectory_json(dir / "poses.json", t);
+//   PointCloud pc = point_cloud_from_rgbd(rgb.as<float>(), z.as<float>(), H, W, K, 2);
+//   write_trajectory_glb(dir / "scene.glb", t, &pc);
 #pragma once
 #include <span>
 #include <vector>
@@ -34,6 +43,7 @@ struct SplatOptions {
   SplatMode mode = SplatMode::soft_bilinear;
   SplatAtomics atomics = SplatAtomics::automatic;  // fixed_point forces the portable path (tests)
   bool keep_points_behind_camera = false;          // official behaviour (soft mode only)
+  int max_chunk_frames = 0;                        // render_clip: frames per chunk (0 = as many as fit)
 };
 
 // Scratch buffers for up to max_frames frames of height × width, and the recording of one render.

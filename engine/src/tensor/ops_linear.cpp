@@ -111,8 +111,8 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   else
     k.lanes = 2;
   // Few rows: every lane fetches the rows itself (GEMV-like); otherwise broadcast 8-row groups.
+  // (Rows 2 also exists; M = 2..4 share the 4-row variant to keep the pipelines that LLVM compiles few.)
   if (s.m <= 1) k.rows = 1;
-  else if (s.m <= 2) k.rows = 2;
   else if (s.m <= 4) k.rows = 4;
   else k.rows = 8;
   k.cols = k.rows == 8 ? 3 : (k.rows == 1 ? 2 : 4);

@@ -52,9 +52,12 @@ void linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
                     const LinearEpilogue& ep = {});
 
-// Kernel configuration, chosen per call from the shape and the device; exposed for tests and benchmarks
-// that pin a variant. rows/cols: tile of one 8-lane cluster; lanes: 0 subgroup broadcast (subgroup size 8),
-// 1 cluster shuffles (wider subgroups), 2 no subgroup operations.
+// Kernel configuration, chosen per call from the shape, the weight type and the device; exposed for tests
+// and benchmarks that pin a variant. A cluster of 8 lanes computes rows x (8·cols) outputs of Y: rows 8 or
+// 16 share X rows by subgroup shuffles, rows 1, 2 or 4 (small M) are fetched by every lane; cols 1..8.
+// lanes: 0 subgroups of exactly 8 (lavapipe), 1 clusters of 8 inside wider subgroups (GPUs), 2 no subgroup
+// operations (shader linalg/linear_nosubgroup). sg_m: clusters of the 64-invocation workgroup along M.
+// vectorized: 8-value K steps through RGBA texels (falls back to scalar texels when the layout forbids).
 struct LinearKernel {
   int rows = 8, cols = 3, lanes = 0, sg_m = 2;
   bool vectorized = true;
