@@ -9,9 +9,7 @@
 #include "io/depth_images.hpp"
 #include "io/npy.hpp"
 
-#ifdef DVS_HAVE_LIBZIP
 #include <zip.h>
-#endif
 
 namespace dvs {
 
@@ -23,7 +21,6 @@ std::string lower_ext(const std::filesystem::path& p) {
   return e;
 }
 
-#ifdef DVS_HAVE_LIBZIP
 // The bytes of the .npy member `depths.npy` (or the only member) of a .npz archive.
 std::vector<uint8_t> read_npz_member(const std::filesystem::path& path, std::string& member) {
   int code = 0;
@@ -71,7 +68,6 @@ std::vector<uint8_t> read_npz_member(const std::filesystem::path& path, std::str
     throw Error(path.string() + ": member " + member + " is truncated or corrupt" + (ferr.empty() ? "" : ": " + ferr));
   return bytes;
 }
-#endif
 
 }  // namespace
 
@@ -85,14 +81,9 @@ HostTensor read_depth_array(const std::filesystem::path& path) {
   } else if (ext == ".npy") {
     t = read_npy(path);
   } else if (ext == ".npz") {
-#ifdef DVS_HAVE_LIBZIP
     std::string member;
     std::vector<uint8_t> bytes = read_npz_member(path, member);
     t = parse_npy(bytes, name + ":" + member);
-#else
-    throw Error(name + ": this dvs was built without libzip, so .npz depth files cannot be read; convert it with "
-                "python3 -c \"import numpy as n; n.save('depth.npy', n.load('" + name + "')['depths'])\"");
-#endif
   } else {
     throw Error(name + ": unsupported depth file type '" + ext +
                 "' (expected .npy or .npz holding [N,H,W], or a folder of .png / .exr frames)");

@@ -2,8 +2,7 @@
 // Video-Depth-Anything writes) or metric depth, turned into float32 depth [N,H,W].
 //
 // Files: .npy ([N,H,W] or [N,1,H,W]; f32, f16, or f64 narrowed to f32), .npz (key "depths", else the only
-// array; needs libzip: compiled when DVS_HAVE_LIBZIP is defined, otherwise a clear error says so), and a
-// folder of per-frame 16-bit PNG or EXR images (depth_images.hpp; libpng / OpenEXR).
+// array; read with libzip), and a folder of per-frame 16-bit PNG or EXR images (depth_images.hpp, OpenCV).
 // Disparity → depth exactly as the official code (float32): dn = (d − min)/(max − min) over the WHOLE clip,
 // z = 10000 / max(3900·dn, 1e-5), clipped to [near, far] = [1e-4, 1e4]. Metric depth is used as is.
 // Errors name the file and the problem (wrong rank or dtype, zero frames, NaN/inf with its frame, a

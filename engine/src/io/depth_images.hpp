@@ -1,8 +1,7 @@
 // Depth image sequences: a folder of single-channel 16-bit (or 8-bit) PNGs or float EXRs, one file per
 // frame, taken in lexicographic file-name order (name them with zero-padded numbers). PNG integer values
 // are returned as they are stored (use DepthOptions::metric_scale for millimetres); EXR reads the channel
-// "Z", else "Y", else "R", else the only channel, as float. Needs libpng (DVS_HAVE_LIBPNG) and OpenEXR
-// (DVS_HAVE_OPENEXR) at build time; without them a clear error names what is missing.
+// its single channel as float (OpenCV reads both).
 #pragma once
 #include <filesystem>
 
