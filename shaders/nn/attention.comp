@@ -6,8 +6,12 @@
 // Work split: every invocation owns R whole query rows (its q rows, running max/sum and output accumulators
 // live in its registers) and all invocations of a workgroup walk the keys of one (batch, head) in lockstep.
 // K and V rows are read at the same address by every lane (texel fetches, RGBA32F), so nothing crosses
-// lanes: no shared memory and no subgroup operations. On lavapipe (DESIGN §9) this avoids the per-lane
-// shuffles and shared-memory loops that dominate otherwise; each fetched K/V chunk feeds R rows × 4 FMAs.
+// lanes: no shared memory, no subgroup operations, no barriers. On lavapipe (DESIGN §9) a texel fetch is a
+// per-lane gather whatever the address and a subgroup broadcast costs about as much, so the measured best
+// is to have no cross-lane traffic at all and feed each fetched K/V chunk to R rows × 4 FMAs (a first
+// design with 8-lane teams sharing rows through broadcasts ran 2.5× slower; barriers that make the
+// workgroup's subgroups share key tiles in cache cost more than they save). On GPUs the same-address reads
+// are cache broadcasts.
 //
 // Masked keys get the logit -FLT_MAX (what transformers' finfo.min mask amounts to in fp32): they weigh
 // exp(-huge) = 0 unless every key of a row is masked, in which case all logits are equal and the row is the
