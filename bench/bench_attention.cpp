@@ -59,7 +59,7 @@ double peak_per_cpu_second(Bench& b) {
 
 struct Shape {
   int64_t batch, heads, len, head_dim;
-  bool bias = false, fused = false;
+  bool bias = false, fused = false, workspace = false;
 };
 
 void run_shape(Bench& b, const Shape& sh) {
@@ -88,6 +88,11 @@ void run_shape(Bench& b, const Shape& sh) {
     bias = Tensor::zeros(ctx, {sh.heads, sh.len, sh.len}, DType::f32);
     opt.bias = &bias;
   }
+  Tensor ws;
+  if (sh.workspace) {
+    ws = Tensor::empty(ctx, {ops::attention_workspace_elements(s)}, DType::f32);
+    opt.workspace = &ws;
+  }
   vk::Recorder rec(ctx);
   rec.begin();
   ops::attention(rec, s, oq, ok, ov, {out}, opt);
@@ -110,6 +115,7 @@ void run_shape(Bench& b, const Shape& sh) {
                 (long long)sh.len, (long long)sh.head_dim);
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
   if (sh.fused) note += ", fused QKV";
+  if (sh.workspace) note += ", K/V repacked head-major (workspace)";
   if (cpu_device) {
     double peak = peak_per_cpu_second(b);
     char extra[128];
@@ -125,8 +131,16 @@ void attention(Bench& b) {
   if (b.quick()) {
     shapes = {{1, 2, 1024, 64}, {1, 12, 226, 64, true}, {1, 4, 512, 16}};
   } else {
-    shapes = {{1, 2, 1024, 64},  {1, 8, 1024, 64}, {1, 2, 4096, 64}, {1, 4, 2048, 64, false, true},
-              {1, 12, 226, 64, true}, {1, 2, 1024, 128}, {1, 4, 1024, 16}, {1, 8, 256, 8, true},
+    shapes = {{1, 2, 1024, 64},
+              {1, 8, 1024, 64},
+              {1, 8, 1024, 64, false, false, true},
+              {1, 2, 4096, 64},
+              {1, 48, 2048, 64, false, true},        // the transformer's heads and fused QKV layout
+              {1, 48, 2048, 64, false, true, true},  // ... with the head-major workspace
+              {1, 12, 226, 64, true},                // T5-like: 226 tokens, relative bias, unscaled
+              {1, 2, 1024, 128},
+              {1, 4, 1024, 16},
+              {1, 8, 256, 8, true},
               {1, 1, 17776, 64}};  // the real video sequence length, one head: memory stays O(L)
   }
   for (const Shape& s : shapes) run_shape(b, s);
