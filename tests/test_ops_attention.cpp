@@ -5,8 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <random>
 #include <vector>
@@ -147,7 +145,6 @@ class AttentionTest : public GpuTest {
       if (!(e <= tol)) ++bad;
       if (!(e <= worst)) worst = e;
     }
-    if (getenv("ATTN_VERBOSE")) printf("worst %g tol %g\n", worst, tol);
     EXPECT_EQ(bad, 0u) << "B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
                        << c.kv_len << ": worst error " << worst << " (tolerance " << tol << ")";
   }

@@ -10,8 +10,9 @@ namespace {
 
 // Register blocking of shaders/nn/attention.comp (64 invocations per workgroup, each owning `rows` query rows,
 // keys taken `keys` at a time). On CPU devices (lavapipe) every texel fetch is a per-lane loop, so each
-// fetched K/V chunk should feed several rows: ~8·D floats of q and accumulators per invocation measured best
-// (more spills, fewer re-fetches). GPUs keep one row per invocation (registers are the limit there).
+// fetched K/V chunk should feed several rows: about 512 floats of q rows and accumulators per invocation
+// measured best (more rows spill more than they save; keys 4 and 8 per block run alike, 4 compiles faster).
+// GPUs keep one row per invocation (registers are the limit there).
 struct Blocking {
   uint32_t rows, keys;
 };
