@@ -111,8 +111,9 @@ void run_shape(Bench& b, const Shape& sh) {
     if (cpu_device) per_cpu = gflop_per_cpu_second(rec, flops);
   }
   char shape[96];
-  std::snprintf(shape, sizeof shape, "B%lld H%lld L%lld D%lld", (long long)sh.batch, (long long)sh.heads,
-                (long long)sh.len, (long long)sh.head_dim);
+  std::snprintf(shape, sizeof shape, "B%lld H%lld L%lld D%lld%s%s%s", (long long)sh.batch, (long long)sh.heads,
+                (long long)sh.len, (long long)sh.head_dim, sh.bias ? " bias" : "", sh.fused ? " fusedQKV" : "",
+                sh.workspace ? " workspace" : "");
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
   if (sh.fused) note += ", fused QKV";
   if (sh.workspace) note += ", K/V repacked head-major (workspace)";
