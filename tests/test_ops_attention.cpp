@@ -5,8 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <random>
 #include <vector>
@@ -76,6 +74,7 @@ struct Case {
   int64_t pad_columns = 0;    // extra columns around each separate operand: offset pad, stride + 2·pad
   bool mask_whole_batch0 = false;  // every key of batch 0 masked
   uint32_t rows_per_invocation = 0;  // 0: the device's default blocking
+  bool workspace = false;            // repack K/V head-major first
 };
 
 class AttentionTest : public GpuTest {
@@ -126,6 +125,11 @@ class AttentionTest : public GpuTest {
       tmask = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.kv_len}, mask));
       opt.key_mask = &tmask;
     }
+    Tensor ws;
+    if (c.workspace) {
+      ws = Tensor::empty(ctx(), {ops::attention_workspace_elements(s)}, DType::f32);
+      opt.workspace = &ws;
+    }
     Tensor out = Tensor::empty(ctx(), {c.batch, c.q_len, W}, DType::f32);
     ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::attention(rec, s, q, k, v, {out}, opt); });
     std::vector<float> got = out.download(ctx()).to_f32();
@@ -141,7 +145,6 @@ class AttentionTest : public GpuTest {
       if (!(e <= tol)) ++bad;
       if (!(e <= worst)) worst = e;
     }
-    if (getenv("ATTN_VERBOSE")) printf("worst %g tol %g\n", worst, tol);
     EXPECT_EQ(bad, 0u) << "B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
                        << c.kv_len << ": worst error " << worst << " (tolerance " << tol << ")";
   }
@@ -191,6 +194,18 @@ TEST_F(AttentionTest, OtherRegisterBlockings) {
   }
 }
 
+TEST_F(AttentionTest, HeadMajorWorkspace) {
+  Case fused{2, 3, 16, 37, 37, 0.25f, false, true, true};
+  fused.workspace = true;
+  check(fused, 90);
+  Case strided{2, 4, 8, 9, 21, 1.0f, true, false, false, 4};
+  strided.workspace = true;
+  check(strided, 91);
+  Case big{1, 2, 64, 5, 300, 0.125f};
+  big.workspace = true;
+  check(big, 92);
+}
+
 TEST_F(AttentionTest, RejectsBadLayouts) {
   Tensor t = Tensor::zeros(ctx(), {1, 4, 32}, DType::f32);
   AttentionShape s{1, 2, 16, 4, 4};
@@ -202,6 +217,11 @@ TEST_F(AttentionTest, RejectsBadLayouts) {
   EXPECT_THROW(run({1, 2, 16, 5, 4}, {t}), Error);          // too few rows
   EXPECT_THROW(run({1, 2, 6, 4, 4}, {t}), Error);           // head_dim not a multiple of 4
   EXPECT_THROW(run({1, 2, 16, 4, 0}, {t}), Error);          // no keys
+  Tensor small = Tensor::zeros(ctx(), {10}, DType::f32);
+  AttentionOptions opt;
+  opt.workspace = &small;
+  EXPECT_THROW(ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::attention(rec, s, {t}, {t}, {t}, {t}, opt); }),
+               Error);  // workspace too small
 }
 
 }  // namespace

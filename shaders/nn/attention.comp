@@ -6,8 +6,12 @@
 // Work split: every invocation owns R whole query rows (its q rows, running max/sum and output accumulators
 // live in its registers) and all invocations of a workgroup walk the keys of one (batch, head) in lockstep.
 // K and V rows are read at the same address by every lane (texel fetches, RGBA32F), so nothing crosses
-// lanes: no shared memory and no subgroup operations. On lavapipe (DESIGN §9) this avoids the per-lane
-// shuffles and shared-memory loops that dominate otherwise; each fetched K/V chunk feeds R rows × 4 FMAs.
+// lanes: no shared memory, no subgroup operations, no barriers. On lavapipe (DESIGN §9) a texel fetch is a
+// per-lane gather whatever the address and a subgroup broadcast costs about as much, so the measured best
+// is to have no cross-lane traffic at all and feed each fetched K/V chunk to R rows × 4 FMAs (a first
+// design with 8-lane teams sharing rows through broadcasts ran 2.5× slower; barriers that make the
+// workgroup's subgroups share key tiles in cache cost more than they save). On GPUs the same-address reads
+// are cache broadcasts.
 //
 // Masked keys get the logit -FLT_MAX (what transformers' finfo.min mask amounts to in fp32): they weigh
 // exp(-huge) = 0 unless every key of a row is masked, in which case all logits are equal and the row is the
@@ -30,10 +34,14 @@ layout(std430, binding = 3) writeonly buffer Out { vec4 o[]; };
 layout(binding = 4) uniform samplerBuffer Bias;  // R32F [H, Lq, Lk]
 layout(binding = 5) uniform samplerBuffer Mask;  // R32F [B, Lk]
 
-// Offsets and strides of q, k, v, out in vec4 units.
+// Offsets and strides in vec4 units. q and out: token-major rows [B, L, H·D]. k and v: row (token) stride
+// plus explicit batch and head strides, so they can be token-major like q or repacked head-major
+// [B, H, L, D] (attention_pack.comp).
 layout(push_constant) uniform Push {
   uint q_len, kv_len, heads;
-  uint q_off, q_stride, k_off, k_stride, v_off, v_stride, o_off, o_stride;
+  uint q_off, q_stride, o_off, o_stride;
+  uint k_off, k_stride, k_bstride, k_hstride;
+  uint v_off, v_stride, v_bstride, v_hstride;
   float scale;
   uint bias_off, mask_off;  // elements
 } p;
@@ -42,6 +50,8 @@ void main() {
   const uint h = gl_WorkGroupID.y, b = gl_WorkGroupID.z;
   const uint row0 = gl_WorkGroupID.x * (gl_WorkGroupSize.x * R) + gl_LocalInvocationID.x;  // rows row0 + 64·r
   const uint kv_row0 = b * p.kv_len;
+  const uint kbase = b * p.k_bstride + h * p.k_hstride + p.k_off;
+  const uint vbase = b * p.v_bstride + h * p.v_hstride + p.v_off;
 
   // My q rows, pre-multiplied by scale·log2(e) so that scores are in the exp2 domain.
   vec4 q[R][D4];
@@ -67,7 +77,7 @@ void main() {
     [[unroll]] for (int r = 0; r < R; ++r)
       [[unroll]] for (int j = 0; j < KB; ++j) s[r][j] = 0;
     [[unroll]] for (int j = 0; j < KB; ++j) {
-      uint kaddr = (kv_row0 + min(key0 + j, p.kv_len - 1)) * p.k_stride + p.k_off + h * D4;
+      uint kaddr = kbase + min(key0 + j, p.kv_len - 1) * p.k_stride;
       [[unroll]] for (int c = 0; c < D4; ++c) {
         vec4 kv = texelFetch(K, int(kaddr + c));
         [[unroll]] for (int r = 0; r < R; ++r)
@@ -106,7 +116,7 @@ void main() {
 
     // ---- acc += p·v ----
     [[unroll]] for (int j = 0; j < KB; ++j) {
-      uint vaddr = (kv_row0 + min(key0 + j, p.kv_len - 1)) * p.v_stride + p.v_off + h * D4;
+      uint vaddr = vbase + min(key0 + j, p.kv_len - 1) * p.v_stride;
       [[unroll]] for (int c = 0; c < D4; ++c) {
         vec4 vv = texelFetch(V, int(vaddr + c));
         [[unroll]] for (int r = 0; r < R; ++r) acc[r][c] = fma(vec4(s[r][j]), vv, acc[r][c]);
