@@ -38,3 +38,73 @@ TEST(Cli, UnknownCommandAndHelp) {
 }
 
 }  // namespace
+
+// `dvs render` on the synthetic scene, as a user runs it.
+#include <filesystem>
+
+#include "geometry/synthetic_scene.hpp"
+#include "io/npy.hpp"
+#include "io/video.hpp"
+#include "support/files.hpp"
+
+namespace {
+
+struct SceneFiles {
+  dvs::test::TempDir dir;
+  std::filesystem::path video, depth;
+  SceneFiles() {
+    dvs::geometry::SyntheticSceneSpec spec;
+    spec.frames = 5;
+    spec.height = 48;
+    spec.width = 64;
+    spec.K = dvs::geometry::Intrinsics::official_default(64, 48);
+    auto clip = dvs::geometry::render_synthetic(spec);
+    video = dir / "scene.mp4";
+    depth = dir / "depth.npy";
+    dvs::write_video(video, clip.rgb, 12.0);
+    dvs::write_npy(depth, clip.depth);
+  }
+};
+
+TEST(CliRender, WritesEveryOutput) {
+  SceneFiles s;
+  auto out = s.dir / "out";
+  auto r = dvs::test::run_command(kDvs + " render --video " + s.video.string() + " --depth " + s.depth.string() +
+                                  " --metric-depth --trajectory pan_left:5 --size 48x64 --frames 5 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"render.mp4", "mask.mp4", "mask.npy", "poses.json", "scene.glb"})
+    EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
+  dvs::HostTensor mask = dvs::read_npy(out / "mask.npy");
+  EXPECT_EQ(mask.shape, (dvs::Shape{5, 48, 64}));
+  dvs::VideoInfo info;
+  dvs::HostTensor render = dvs::read_video(out / "render.mp4", {}, &info);
+  EXPECT_EQ(render.shape, (dvs::Shape{5, 3, 48, 64}));
+  EXPECT_NEAR(info.fps, 12.0, 1e-3);  // output keeps the input fps
+}
+
+TEST(CliRender, BadInputsFailClearlyAndWriteNothing) {
+  SceneFiles s;
+  auto out = s.dir / "out";
+  std::string base = kDvs + " render --video " + s.video.string() + " --size 48x64 --frames 5 --out " + out.string();
+  struct Case {
+    std::string args, expect;
+  } cases[] = {
+      {" --depth " + (s.dir / "nope.npy").string(), "nope.npy"},
+      {" --depth " + s.depth.string() + " --trajectory no_such_path", "no_such_path"},
+      {" --depth " + s.depth.string() + " --frames -3", "--frames"},
+      {" --depth " + s.depth.string() + " --size 47x64", "multiples of 8"},
+      {" --depth " + s.depth.string() + " --bogus 1", "unknown option --bogus"},
+  };
+  for (const Case& c : cases) {
+    auto r = dvs::test::run_command(base + c.args);
+    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out / "render.mp4")) << c.args;
+  }
+  auto missing_video = dvs::test::run_command(kDvs + " render --video " + (s.dir / "none.mp4").string() + " --depth " +
+                                              s.depth.string() + " --out " + out.string());
+  EXPECT_NE(missing_video.exit_code, 0);
+  EXPECT_NE(missing_video.output.find("none.mp4"), std::string::npos) << missing_video.output;
+}
+
+}  // namespace

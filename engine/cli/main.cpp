@@ -7,6 +7,8 @@
 
 #include "dvs/error.hpp"
 #include "dvs/info.hpp"
+#include "args.hpp"
+#include "commands.hpp"
 
 namespace {
 
@@ -17,30 +19,29 @@ const char* kUsage =
     "\n"
     "commands:\n"
     "  info            list the Vulkan devices, their features, memory and limits\n"
+    "  render          geometry only: a video seen along a new camera path, plus its visibility mask\n"
     "\n"
     "common options:\n"
     "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
     "  -h, --help       this help\n"
     "  --version        print the version\n";
 
-int run_info(const std::vector<std::string>& args) {
-  std::string device;
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--device") {
-      if (i + 1 >= args.size()) throw dvs::Error("--device needs a value: an index (0) or part of a device name");
-      device = args[++i];
-    } else if (args[i] == "-h" || args[i] == "--help") {
-      std::cout << "usage: dvs info [--device I|NAME]\n";
-      return 0;
-    } else {
-      throw dvs::Error("dvs info: unknown option '" + args[i] + "' (see dvs info --help)");
-    }
+
+}  // namespace
+
+namespace dvs::cli {
+
+int run_info(const std::vector<std::string>& argv) {
+  Args a("info", argv, {"device"}, {});
+  if (a.help()) {
+    std::cout << "usage: dvs info [--device I|NAME]\n";
+    return 0;
   }
-  std::cout << dvs::device_report(device);
+  std::cout << dvs::device_report(a.str("device"));
   return 0;
 }
 
-}  // namespace
+}  // namespace dvs::cli
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -55,7 +56,8 @@ int main(int argc, char** argv) {
     }
     std::string cmd = args[0];
     std::vector<std::string> rest(args.begin() + 1, args.end());
-    if (cmd == "info") return run_info(rest);
+    if (cmd == "info") return dvs::cli::run_info(rest);
+    if (cmd == "render") return dvs::cli::run_render(rest);
     std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
     return 2;
   } catch (const dvs::Error& e) {

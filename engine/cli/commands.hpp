@@ -1,0 +1,11 @@
+// The dvs sub-commands; each returns the process exit code and throws dvs::Error for user errors.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace dvs::cli {
+
+int run_info(const std::vector<std::string>& args);
+int run_render(const std::vector<std::string>& args);
+
+}  // namespace dvs::cli

@@ -1,0 +1,136 @@
+#include "io/video.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "dvs/error.hpp"
+
+namespace dvs {
+namespace {
+
+// Resizes one BGR frame to (w, h) by the chosen rule. Shrinking uses area averaging (no aliasing),
+// enlarging bilinear.
+cv::Mat fit_frame(const cv::Mat& in, int w, int h, ResizeMode mode) {
+  if (w <= 0 || h <= 0 || (in.cols == w && in.rows == h)) return in;
+  cv::Mat src = in;
+  if (mode == ResizeMode::crop) {
+    double s = std::max(double(w) / in.cols, double(h) / in.rows);
+    int cw = std::min(in.cols, int(std::lround(w / s))), ch = std::min(in.rows, int(std::lround(h / s)));
+    src = in(cv::Rect((in.cols - cw) / 2, (in.rows - ch) / 2, cw, ch));
+  }
+  cv::Mat out;
+  bool shrink = src.cols >= w && src.rows >= h;
+  cv::resize(src, out, cv::Size(w, h), 0, 0, shrink ? cv::INTER_AREA : cv::INTER_LINEAR);
+  return out;
+}
+
+}  // namespace
+
+HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& o, VideoInfo* info) {
+  const std::string name = path.string();
+  if (!std::filesystem::is_regular_file(path)) throw Error(name + ": no such video file");
+  cv::VideoCapture cap(name, cv::CAP_FFMPEG);
+  if (!cap.isOpened())
+    throw Error(name + ": cannot open the video (unknown container or codec; re-encode it to H.264 .mp4, e.g. "
+                "ffmpeg -i IN -c:v libx264 OUT.mp4)");
+  VideoInfo vi;
+  vi.width = int(cap.get(cv::CAP_PROP_FRAME_WIDTH));
+  vi.height = int(cap.get(cv::CAP_PROP_FRAME_HEIGHT));
+  vi.fps = cap.get(cv::CAP_PROP_FPS);
+  if (!(vi.fps > 0 && vi.fps < 1000)) vi.fps = 30;
+  const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
+  std::vector<cv::Mat> frames;
+  cv::Mat bgr;
+  while ((o.max_frames <= 0 || int(frames.size()) < o.max_frames) && cap.read(bgr)) {
+    if (bgr.empty()) break;
+    if (bgr.channels() == 1) cv::cvtColor(bgr, bgr, cv::COLOR_GRAY2BGR);
+    frames.push_back(fit_frame(bgr, w, h, o.resize).clone());
+  }
+  if (frames.empty()) throw Error(name + ": the video has no decodable frames");
+  vi.frames = int(frames.size());
+  if (info) *info = vi;
+
+  HostTensor out({int64_t(frames.size()), 3, h, w}, DType::f32);
+  float* dst = out.as<float>();
+  const size_t plane = size_t(h) * w;
+  for (size_t f = 0; f < frames.size(); ++f) {
+    const cv::Mat& m = frames[f];
+    for (int y = 0; y < h; ++y) {
+      const uint8_t* row = m.ptr<uint8_t>(y);
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c)  // BGR -> RGB planes
+          dst[(f * 3 + size_t(c)) * plane + size_t(y) * w + x] = float(row[3 * x + (2 - c)]) / 127.5f - 1.0f;
+    }
+  }
+  return out;
+}
+
+void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps) {
+  const std::string name = path.string();
+  const Shape& s = frames.shape;
+  int64_t F = 0, C = 0, H = 0, W = 0;
+  if (s.size() == 4 && (s[1] == 3 || s[1] == 1)) F = s[0], C = s[1], H = s[2], W = s[3];
+  else if (s.size() == 3) F = s[0], C = 1, H = s[1], W = s[2];
+  else throw Error("internal: write_video expects [F,3,H,W], [F,1,H,W] or [F,H,W], got [" + shape_str(s) + "]");
+  if (F == 0) throw Error(name + ": no frames to write");
+  std::vector<float> v = frames.to_f32();
+
+  std::filesystem::path tmp = path.parent_path() / (path.stem().string() + ".partial-" + std::to_string(::getpid()) + path.extension().string());
+  cv::VideoWriter writer;
+  for (const char* codec : {"avc1", "mp4v"}) {
+    writer.open(tmp.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc(codec[0], codec[1], codec[2], codec[3]), fps,
+                cv::Size(int(W), int(H)));
+    if (writer.isOpened()) break;
+  }
+  if (!writer.isOpened())
+    throw Error(name + ": cannot create the video (is the folder writable? does this OpenCV have an MP4 encoder?)");
+  const size_t plane = size_t(H) * W;
+  cv::Mat bgr(int(H), int(W), CV_8UC3);
+  for (int64_t f = 0; f < F; ++f) {
+    for (int64_t y = 0; y < H; ++y) {
+      uint8_t* row = bgr.ptr<uint8_t>(int(y));
+      for (int64_t x = 0; x < W; ++x)
+        for (int c = 0; c < 3; ++c) {
+          float val = v[(size_t(f) * C + size_t(C == 3 ? c : 0)) * plane + size_t(y) * W + x];
+          float u = std::clamp((val + 1.0f) * 127.5f, 0.0f, 255.0f);
+          row[3 * x + (2 - c)] = uint8_t(std::lround(u));
+        }
+    }
+    writer.write(bgr);
+  }
+  writer.release();
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw Error(name + ": cannot move the finished video into place (" + ec.message() + ")");
+  }
+}
+
+HostTensor hstack_videos(const std::vector<const HostTensor*>& videos) {
+  if (videos.empty()) throw Error("internal: hstack_videos of nothing");
+  const int64_t F = videos[0]->shape[0], H = videos[0]->shape[2];
+  int64_t W = 0;
+  for (const HostTensor* v : videos) {
+    if (v->shape.size() != 4 || v->shape[0] != F || v->shape[1] != 3 || v->shape[2] != H || v->dtype != DType::f32)
+      throw Error("internal: hstack_videos needs f32 [F,3,H,W] inputs of equal F and H");
+    W += v->shape[3];
+  }
+  HostTensor out({F, 3, H, W}, DType::f32);
+  int64_t x0 = 0;
+  for (const HostTensor* v : videos) {
+    const int64_t w = v->shape[3];
+    for (int64_t fc = 0; fc < F * 3; ++fc)
+      for (int64_t y = 0; y < H; ++y)
+        std::memcpy(out.as<float>() + (fc * H + y) * W + x0, v->as<float>() + (fc * H + y) * w, size_t(w) * 4);
+    x0 += w;
+  }
+  return out;
+}
+
+}  // namespace dvs

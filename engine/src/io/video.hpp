@@ -1,0 +1,39 @@
+// Video files through OpenCV (FFmpeg backend): decode to f32 RGB frames [F,3,H,W] in [−1,1] at a working
+// size, and encode such frames to .mp4. Writes go to a temporary name and are renamed when complete, so
+// an interrupted run never leaves a file that looks finished.
+#pragma once
+#include <filesystem>
+
+#include "io/host_tensor.hpp"
+
+namespace dvs {
+
+enum class ResizeMode {
+  crop,    // keep the aspect ratio, scale to cover the working size, cut the centre (default)
+  squash,  // scale each axis independently (the official code's behaviour)
+};
+
+struct VideoReadOptions {
+  int max_frames = 0;  // 0 = all frames
+  int height = 0, width = 0;  // 0 = keep the file's size
+  ResizeMode resize = ResizeMode::crop;
+};
+
+struct VideoInfo {
+  int width = 0, height = 0;  // of the file
+  int frames = 0;             // decoded (after max_frames)
+  double fps = 0;
+};
+
+// [F,3,H,W] f32 RGB in [−1,1]. Throws dvs::Error naming the file when it cannot be opened or holds no
+// frames.
+HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& options = {}, VideoInfo* info = nullptr);
+
+// Frames [F,3,H,W] (RGB) or [F,1,H,W] / [F,H,W] (gray, written as RGB) in [−1,1] (values are clamped).
+// H.264 when the FFmpeg build has an encoder for it, else MPEG-4 part 2.
+void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps);
+
+// Side by side: each input [F,3,H,W] with the same F and H (widths may differ).
+HostTensor hstack_videos(const std::vector<const HostTensor*>& videos);
+
+}  // namespace dvs
