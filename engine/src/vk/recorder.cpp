@@ -11,7 +11,12 @@ constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
 
 }  // namespace
 
-Recorder::Recorder(Context& ctx) : ctx_(ctx) { cmd_ = ctx.allocate_command_buffer(); }
+Recorder::Recorder(Context& ctx) : ctx_(ctx) {
+  cmd_ = ctx.allocate_command_buffer();
+  VkPhysicalDeviceProperties p{};
+  vkGetPhysicalDeviceProperties(ctx.physical_device(), &p);
+  texel_alignment_ = p.limits.minTexelBufferOffsetAlignment;
+}
 
 Recorder::~Recorder() {
   release_resources();
@@ -123,6 +128,12 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
   for (size_t i = 0; i < decl.size(); ++i) {
     const BufferView& v = bindings[i].view;
     if (!v.valid()) throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " has no buffer");
+    const bool texel = decl[i].kind == BindingKind::uniform_texel_buffer || decl[i].kind == BindingKind::storage_texel_buffer;
+    const VkDeviceSize align = texel ? texel_alignment_ : caps.min_storage_buffer_offset_alignment;
+    if (align && v.offset % align)
+      throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " starts at offset " +
+                  std::to_string(v.offset) + ", not a multiple of the device's " + std::to_string(align) +
+                  "-byte binding alignment (bind the whole tensor and pass an element offset)");
     VkWriteDescriptorSet& w = writes[i];
     w = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = set;

@@ -65,6 +65,7 @@ class Recorder {
   std::vector<VkBufferView> texel_views_;
   std::vector<Range> reads_, writes_;  // since the last barrier
   uint32_t dispatches_ = 0, barriers_ = 0;
+  VkDeviceSize texel_alignment_ = 1;
 
   std::vector<VkQueryPool> query_pools_;
   std::vector<std::string> query_labels_;  // one per timestamp pair

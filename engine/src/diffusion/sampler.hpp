@@ -1,0 +1,58 @@
+// The two diffusion loops on the GPU: DDIM inversion of x0 up to t0 and guided DDIM sampling from t0
+// (DESIGN §5). Both take the model as a callback, so this folder never includes the models: the pipeline
+// binds the transformer (with its image latent and text embeddings) into a Denoiser. Every step is
+// v = model(x, τ), classifier-free guidance ĝ = u + g·(c − u), then x ← c_x·x + c_v·ĝ with the schedule's
+// coefficients (schedule.hpp), all as axpby on whole latents.
+#pragma once
+#include <functional>
+#include <vector>
+
+#include "diffusion/schedule.hpp"
+#include "dvs/error.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::diffusion {
+
+// Records the model output for latent x (shape [F,C,H,W]) at `model_timestep` into v: [2,F,C,H,W] rows
+// (uncond, cond) when guidance is on, else [1,F,C,H,W].
+using Denoiser = std::function<void(vk::Recorder& rec, const Tensor& x, int model_timestep, const Tensor& v)>;
+
+struct Guidance {
+  bool enabled = true;  // false: one model row, used as is
+  double scale = 6.0;
+};
+
+struct LoopCallbacks {
+  std::function<void(int step, int total, int timestep)> progress;          // after each step
+  std::function<bool()> cancelled;                                          // checked before each step
+  std::function<void(int step, int timestep, const Tensor& latent)> latent;  // intermediates (optional)
+};
+
+class Cancelled : public Error {
+ public:
+  Cancelled() : Error("cancelled") {}
+};
+
+// Paper preset: levels t_j = round(j·(t0+1)/S_inv) − 1, from clean to t0, on the float64 schedule; the
+// model sees the source level (DDIM-inversion approximation) or, with model_at_target, the target level.
+std::vector<StepCoefficients> inversion_steps_paper(const CogVideoXSchedule& s, int t0, int num_steps,
+                                                    bool model_at_target = false);
+// Official preset: diffusers' DDIMInverseScheduler steps (float32 tables) for S steps, ascending, up to
+// and including `up_to_t` (999 = the whole schedule, as the official code does).
+std::vector<StepCoefficients> inversion_steps_official(const DDIMInverseSchedule& s, int num_steps, int up_to_t = 999);
+
+// Runs the inversion steps from x0; returns the latent at the last level (ε_inv).
+Tensor invert(vk::Context& ctx, const Tensor& x0, const std::vector<StepCoefficients>& steps, const Denoiser& model,
+              const Guidance& guidance, const LoopCallbacks& callbacks = {});
+
+struct SampleResult {
+  Tensor latent;   // after the last step
+  Tensor pred_x0;  // the last step's x̂0 (what is decoded)
+};
+
+// Guided DDIM sampling over plan.timesteps (CogVideoXDDIMScheduler.step semantics).
+SampleResult sample(vk::Context& ctx, const Tensor& x_init, const CogVideoXSchedule& s, const SamplingPlan& plan,
+                    const Denoiser& model, const Guidance& guidance, const LoopCallbacks& callbacks = {});
+
+}  // namespace dvs::diffusion
