@@ -35,4 +35,8 @@ void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const 
 // of slack after it (every Allocator/Arena allocation has); their contents are preserved.
 void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y);
 
+// f32 ops whose element count is a multiple of 4 read their inputs through texel buffers when the views
+// allow (faster on lavapipe); this switch forces the storage-buffer path everywhere (tests, benchmarks).
+void use_texel_inputs(bool on);
+
 }  // namespace dvs::ops
