@@ -174,6 +174,39 @@ TEST_P(ElementwiseOpsPaths, ScaleShiftBroadcasts) {
   }
 }
 
+TEST_P(ElementwiseOpsPaths, BroadcastAcrossGridStrides) {
+  // > 4096·64 vec4s, so every invocation loops and the incremental (channel, inner) counters advance: one
+  // case per broadcast mode of shaders/nn/eltwise_broadcast.glsl. Tolerance 1e-6 abs + 1e-6 rel.
+  std::vector<BroadcastCase> cases = {
+      {{1200012}, {1200012}, [](size_t e) { return e; }},                          // same shape
+      {{1100, 1024}, {1024}, [](size_t e) { return e % 1024; }},                    // rows, C % 4 == 0
+      {{3, 16, 25000}, {16, 1}, [](size_t e) { return (e / 25000) % 16; }},         // channels, inner % 4 == 0
+      {{4, 3, 100001}, {3, 1}, [](size_t e) { return (e / 100001) % 3; }},          // channels, odd inner
+      {{171432, 7}, {7}, [](size_t e) { return e % 7; }},                           // rows, C % 4 != 0
+      {{200002, 3, 2}, {3, 1}, [](size_t e) { return (e / 2) % 3; }},               // inner 2: general
+  };
+  uint32_t seed = 500;
+  for (const BroadcastCase& c : cases) {
+    const int64_t n = shape_numel(c.x), m = shape_numel(c.y);
+    auto x = random_values(n, seed++), y = random_values(m, seed++), t = random_values(m, seed++);
+    Tensor tx = upload(ctx(), c.x, x), ty = upload(ctx(), c.y, y), tt = upload(ctx(), c.y, t);
+    Tensor tz = Tensor::empty(ctx(), c.x, DType::f32), tw = Tensor::empty(ctx(), c.x, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) {
+      ops::axpby(r, 0.5f, tx, 2.0f, ty, tz);
+      ops::scale_shift(r, tx, ty, tt, tw, 1.0f);
+    });
+    std::vector<double> want(static_cast<size_t>(n)), want2(static_cast<size_t>(n));
+    for (size_t e = 0; e < want.size(); ++e) {
+      const size_t j = c.y_index(e);
+      want[e] = 0.5 * x[e] + 2.0 * y[j];
+      want2[e] = double(x[e]) * (double(y[j]) + 1.0) + double(t[j]);
+    }
+    const std::string where = "[" + shape_str(c.x) + "] by [" + shape_str(c.y) + "]";
+    expect_close(tz.download(ctx()).to_f32(), want, 1e-6, 1e-6, "axpby " + where);
+    expect_close(tw.download(ctx()).to_f32(), want2, 1e-6, 1e-6, "scale_shift " + where);
+  }
+}
+
 TEST_P(ElementwiseOpsPaths, BinaryOpsInPlaceAndErrors) {
   auto x = random_values(129, 7), y = random_values(129, 8);
   Tensor tx = upload(ctx(), {129}, x), ty = upload(ctx(), {129}, y);

@@ -98,6 +98,33 @@ Broadcast broadcast_of(const char* op, const Shape& xs, const Shape& ys) {
   return b;
 }
 
+// Which broadcast indexing a shader runs (MODE in shaders/nn/eltwise_broadcast.glsl) and the per-stride
+// advance of its (channel, inner) counters.
+struct BcastPlan {
+  uint32_t mode = 5, C = 1, inner = 1, step_c = 0, step_r = 0;
+};
+
+BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool vec4, uint32_t groups) {
+  BcastPlan pl;
+  if (!vec4) {
+    pl.mode = bc.inner == 1 && bc.C == n ? 0 : 5;
+  } else {
+    if (bc.C == 1) bc.inner = n;  // a scalar: one value for every vec4
+    if (bc.inner == 1 && bc.C == n) pl.mode = 0;
+    else if (bc.inner == 1 && bc.C % 4 == 0) pl.mode = 1;
+    else if (bc.inner % 4 == 0) pl.mode = 2;
+    else if (bc.inner >= 4) pl.mode = 3;
+    else if (bc.inner == 1 && bc.C >= 4) pl.mode = 4;
+    else pl.mode = 5;
+    const int64_t per_stride = int64_t(groups) * kLocal * 4;  // elements a grid stride advances
+    pl.step_r = uint32_t(per_stride % bc.inner);
+    pl.step_c = uint32_t((per_stride / bc.inner) % bc.C);
+  }
+  pl.C = uint32_t(bc.C);
+  pl.inner = uint32_t(bc.inner);
+  return pl;
+}
+
 enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };
 
 void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const Tensor& x, float beta,
@@ -107,31 +134,31 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   expect_dtype(op, "z", z, DType::f32);
   expect_shape(op, "z", z, x.shape());
   check_count(op, x);
-  Broadcast bc = broadcast_of(op, x.shape(), y.shape());
-  if (bc.C == 1) bc.inner = x.numel();  // a scalar: one y value per vec4 in every variant
+  const Broadcast bc = broadcast_of(op, x.shape(), y.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
   vk::Context& ctx = rec.context();
-  const char* shader = "nn/eltwise_binary";
-  int64_t units = n;
-  const bool y_vec4 = bc.inner == 1 && bc.C % 4 == 0;  // y read as whole vec4s (same shape, rows)
-  bool texel = false;
-  if (n % 4 == 0) {
-    units = n / 4;
-    texel = g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
-    shader = texel ? "nn/eltwise_binary_tex4" : y_vec4 ? "nn/eltwise_binary_vec4" : "nn/eltwise_binary_vec4_bcast";
-  }
+  const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const uint32_t groups = groups_for(units);
+  const BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
+  const bool y_vec4 = pl.mode <= 1;  // y read as whole vec4s
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) &&
+                     texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
+  const char* shader = !vec4 ? "nn/eltwise_binary"
+                       : texel ? "nn/eltwise_binary_tex4"
+                       : y_vec4 ? "nn/eltwise_binary_vec4"
+                                : "nn/eltwise_binary_vec4_bcast";
   struct {
-    uint32_t n, C, inner;
+    uint32_t n, C, inner, step_c, step_r;
     float alpha, beta;
-    uint32_t y_vec4;
-  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), alpha, beta, y_vec4};
-  const uint32_t spec[] = {uint32_t(kind)};
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, alpha, beta};
+  const uint32_t spec[] = {uint32_t(kind), pl.mode};
   const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
   if (texel)
-    rec.dispatch(p, {rgba(x), y_vec4 ? rgba(y) : r32(y), z.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
+    rec.dispatch(p, {rgba(x), y_vec4 ? rgba(y) : r32(y), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
   else
-    rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
+    rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
 }
 
 void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t, const Tensor& z,
@@ -143,25 +170,32 @@ void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s,
   expect_shape(op, "z", z, x.shape());
   expect_shape(op, "shift", t, s.shape());
   check_count(op, x);
-  Broadcast bc = broadcast_of(op, x.shape(), s.shape());
-  if (bc.C == 1) bc.inner = x.numel();
+  const Broadcast bc = broadcast_of(op, x.shape(), s.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
   vk::Context& ctx = rec.context();
   const bool vec4 = n % 4 == 0;
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, s.numel()) &&
-                     texel_ok(ctx, t, t.numel());
   const int64_t units = vec4 ? n / 4 : n;
+  const uint32_t groups = groups_for(units);
+  BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
+  if (vec4 && pl.mode == 0) pl.mode = 1;  // same shape runs as rows of length n
+  const bool st_vec4 = vec4 && pl.mode == 1;
+  const int64_t st_texels = st_vec4 ? s.numel() / 4 : s.numel();
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
+                     texel_ok(ctx, t, st_texels);
   struct {
-    uint32_t n, C, inner;
+    uint32_t n, C, inner, step_c, step_r;
     float s_offset;
-  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), s_offset};
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, s_offset};
   const char* shader = texel ? "nn/eltwise_affine_tex4" : vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine";
-  const vk::Pipeline& p = ctx.pipelines().get(shader);
-  if (texel)
-    rec.dispatch(p, {rgba(x), r32(s), r32(t), z.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
-  else
-    rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
+  const uint32_t spec[] = {0, pl.mode};
+  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
+  if (texel) {
+    auto st = [&](const Tensor& v) { return st_vec4 ? rgba(v) : r32(v); };
+    rec.dispatch(p, {rgba(x), st(s), st(t), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  } else {
+    rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  }
 }
 
 uint32_t cast_code(const char* op, const Tensor& t) {
