@@ -137,6 +137,15 @@ TEST_F(LayoutOps, ConcatAndSplitOnEveryAxis) {
         float want = c < 16 ? x[size_t((f * 16 + c) * 60 + p)] : img[size_t((f * 16 + c - 16) * 60 + p)];
         ASSERT_EQ(got[size_t((f * 32 + c) * 60 + p)], want);
       }
+  // Many short rows: more rows than the grid has in y, so workgroups loop over rows.
+  {
+    auto va = iota_values(9000 * 3), vb = iota_values(9000, 1e6f);
+    Tensor ta = upload(ctx(), {9000, 3}, va), tb = upload(ctx(), {9000, 1}, vb), to = Tensor::empty(ctx(), {9000, 4}, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) { ops::concat(r, {ta, tb}, to, 1); });
+    auto got = to.download(ctx()).to_f32();
+    for (size_t r = 0; r < 9000; ++r)
+      for (size_t c = 0; c < 4; ++c) ASSERT_EQ(got[r * 4 + c], c < 3 ? va[r * 3 + c] : vb[r]) << r << "," << c;
+  }
   // Mismatched shapes are refused.
   Tensor bad = Tensor::empty(ctx(), {1, 13, 16, 6, 11}, DType::f32);
   EXPECT_THROW(ops::run_now(ctx(), [&](vk::Recorder& r) { ops::concat(r, {tx, bad}, cat, 2); }), Error);

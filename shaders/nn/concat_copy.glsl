@@ -2,6 +2,8 @@
 // dst[dst_off + r·dst_stride + k] = src[src_off + r·src_stride + k] for r < rows, k < len.
 // Concat copies each input into its column band of the output (viewed as [outer, axis·inner]); split does
 // the reverse. VEC4: every size, stride and offset is in units of 4 words.
+// Rows loop over the y grid and columns over the x grid (grid-stride both), so no index needs a division
+// (a run-time division is scalarised and slow on CPU drivers).
 layout(local_size_x = 64) in;
 #ifdef VEC4
 #define T uvec4
@@ -11,14 +13,13 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Src { T src[]; };
 layout(std430, binding = 1) writeonly buffer Dst { T dst[]; };
 layout(push_constant) uniform Push {
-  uint n;  // rows · len
-  uint len, src_stride, src_off, dst_stride, dst_off;
+  uint rows, len, src_stride, src_off, dst_stride, dst_off;
 } p;
 
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) {
-    uint r = i / p.len, k = i - r * p.len;
-    dst[p.dst_off + r * p.dst_stride + k] = src[p.src_off + r * p.src_stride + k];
+  uint stride_x = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  for (uint r = gl_WorkGroupID.y; r < p.rows; r += gl_NumWorkGroups.y) {
+    uint s = p.src_off + r * p.src_stride, d = p.dst_off + r * p.dst_stride;
+    for (uint k = gl_GlobalInvocationID.x; k < p.len; k += stride_x) dst[d + k] = src[s + k];
   }
 }

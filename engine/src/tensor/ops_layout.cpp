@@ -38,11 +38,14 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
                     c.dst_off % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
   struct {
-    uint32_t n, len, src_stride, src_off, dst_stride, dst_off;
-  } push{uint32_t(c.rows * c.len / q), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
+    uint32_t rows, len, src_stride, src_off, dst_stride, dst_off;
+  } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
          uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q)};
+  // x covers a row, y the rows; about kMaxGroups groups in all.
+  const uint32_t gx = groups_for(push.len);
+  const uint32_t gy = uint32_t(std::clamp<int64_t>(c.rows, 1, std::max<int64_t>(1, kMaxGroups / gx)));
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
-  rec.dispatch(p, {src, dst}, &push, sizeof push, groups_for(push.n), 1, 1, label);
+  rec.dispatch(p, {src, dst}, &push, sizeof push, gx, std::min<uint32_t>(gy, 65535), 1, label);
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
