@@ -73,6 +73,8 @@ TEST_F(LayoutOps, PermuteMatchesReference) {
       {{2, 1, 3, 1, 5}, {4, 3, 2, 1, 0}},   // size-1 axes dropped
       {{4, 8, 3}, {0, 1, 2}},               // identity: a plain copy
       {{3, 4, 8}, {1, 0, 2}},               // contiguous inner run of 8 (vec4)
+      {{3, 5000, 2}, {1, 0, 2}},            // more output rows than the grid has in y (scalar)
+      {{9000, 2, 4}, {1, 0, 2}},            // the same with vec4 rows
   };
   for (const Case& c : cases) {
     auto in = iota_values(shape_numel(c.s));
@@ -247,6 +249,18 @@ TEST_F(LayoutOps, GatherScatterRows) {
       for (int64_t k = 0; k < len; ++k) want[size_t(didx[size_t(i)] * len + k)] = src[size_t(i * len + k)];
     EXPECT_EQ(td.download(ctx()).to_f32(), want) << "scatter len " << len;
   }
+}
+
+TEST_F(LayoutOps, GatherManyIndices) {
+  // More index rows than the grid has in y: workgroups loop over rows.
+  const int64_t R = 1000, m = 20000;
+  auto src = iota_values(R);
+  std::vector<int32_t> idx(static_cast<size_t>(m));
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = int32_t((i * 7919) % R);
+  Tensor ts = upload(ctx(), {R}, src), ti = upload_i32(ctx(), idx), tg = Tensor::empty(ctx(), {m}, DType::f32);
+  ops::run_now(ctx(), [&](vk::Recorder& r) { ops::gather_rows(r, ts, ti, tg); });
+  auto g = tg.download(ctx()).to_f32();
+  for (size_t i = 0; i < idx.size(); ++i) ASSERT_EQ(g[i], src[size_t(idx[i])]) << i;
 }
 
 TEST_F(LayoutOps, StochasticLatentModulationInPlace) {

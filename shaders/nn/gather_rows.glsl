@@ -3,6 +3,7 @@
 // Gather: src_idx only; scatter: dst_idx only; both: SLM's target[t[i]] = source[s[i]] in one pass.
 // A source index outside [0, src_rows) reads zeros; a destination index outside [0, dst_rows) is skipped.
 // Duplicate destination indices: one of the writes wins (unspecified which).
+// Index rows over the y grid, words of a row over x (grid-stride both): no per-element division.
 layout(local_size_x = 64) in;
 #ifdef VEC4
 #define T uvec4
@@ -14,19 +15,19 @@ layout(std430, binding = 1) readonly buffer SrcIdx { int src_idx[]; };
 layout(std430, binding = 2) readonly buffer DstIdx { int dst_idx[]; };
 layout(std430, binding = 3) writeonly buffer Dst { T dst[]; };
 layout(push_constant) uniform Push {
-  uint n;    // m · len
+  uint m;    // index rows
   uint len;  // row length in units of T
   uint src_rows, dst_rows;
   uint use_src_idx, use_dst_idx;
 } p;
 
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) {
-    uint r = i / p.len, k = i - r * p.len;
+  uint stride_x = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  for (uint r = gl_WorkGroupID.y; r < p.m; r += gl_NumWorkGroups.y) {
     uint s = p.use_src_idx != 0u ? uint(src_idx[r]) : r;  // negative -> huge -> out of range
     uint d = p.use_dst_idx != 0u ? uint(dst_idx[r]) : r;
     if (d >= p.dst_rows) continue;
-    dst[d * p.len + k] = s < p.src_rows ? src[s * p.len + k] : T(0u);
+    for (uint k = gl_GlobalInvocationID.x; k < p.len; k += stride_x)
+      dst[d * p.len + k] = s < p.src_rows ? src[s * p.len + k] : T(0u);
   }
 }

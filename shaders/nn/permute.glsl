@@ -1,6 +1,8 @@
 // Body of nn/permute and nn/permute_vec4: out[c0..c5] = in[Σ c_d · in_stride[d]] for 32-bit words, rank ≤ 6
 // after the host merged axes that stay adjacent (so [B,F,C,H,W] -> [B,C,F,H,W] runs as [B,F,C,HW] ->
-// [B,C,F,HW]). VEC4: the innermost axis is contiguous in both tensors and counted in units of 4 words.
+// [B,C,F,HW]). One output row (the last axis) per y step, its elements over x: the coordinates are decomposed
+// (run-time divisions, slow on CPU drivers) once per row, not per element.
+// VEC4: the innermost axis is contiguous in both tensors and counted in units of 4 words.
 layout(local_size_x = 64) in;
 #ifdef VEC4
 #define T uvec4
@@ -10,20 +12,21 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer In { T x[]; };
 layout(std430, binding = 1) writeonly buffer Out { T y[]; };
 layout(push_constant) uniform Push {
-  uint n, rank;
+  uint rows, rank;     // rows = product of all output dims but the last
   uint dims[6];        // output dims, outermost first (unused trailing entries 1)
   uint in_stride[6];   // input stride of the axis that lands on output axis d
 } p;
 
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) {
-    uint rest = i, off = 0u;
-    for (int d = int(p.rank) - 1; d >= 0; --d) {
+  uint last = p.dims[p.rank - 1u], last_stride = p.in_stride[p.rank - 1u];
+  uint stride_x = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  for (uint row = gl_WorkGroupID.y; row < p.rows; row += gl_NumWorkGroups.y) {
+    uint rest = row, base = 0u;
+    for (int d = int(p.rank) - 2; d >= 0; --d) {
       uint c = rest % p.dims[d];
       rest /= p.dims[d];
-      off += c * p.in_stride[d];
+      base += c * p.in_stride[d];
     }
-    y[i] = x[off];
+    for (uint k = gl_GlobalInvocationID.x; k < last; k += stride_x) y[row * last + k] = x[base + k * last_stride];
   }
 }

@@ -13,6 +13,17 @@ constexpr uint32_t kLocal = 64, kMaxGroups = 4096;
 
 uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
 
+// Grid for shaders that loop rows over y and a row's items over x (grid-stride both): x covers a row,
+// y as many rows as keep the total near kMaxGroups groups.
+struct Grid2 {
+  uint32_t x, y;
+};
+Grid2 grid_rows(int64_t rows, int64_t row_items) {
+  const uint32_t gx = groups_for(row_items);
+  const int64_t gy = std::clamp<int64_t>(rows, 1, std::max<int64_t>(1, kMaxGroups / gx));
+  return {gx, uint32_t(std::min<int64_t>(gy, 65535))};
+}
+
 [[noreturn]] void fail(const char* op, const std::string& why) { throw Error(std::string("internal: ") + op + ": " + why); }
 
 void check_words(const char* op, const Tensor& t) {
@@ -41,11 +52,9 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
     uint32_t rows, len, src_stride, src_off, dst_stride, dst_off;
   } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
          uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q)};
-  // x covers a row, y the rows; about kMaxGroups groups in all.
-  const uint32_t gx = groups_for(push.len);
-  const uint32_t gy = uint32_t(std::clamp<int64_t>(c.rows, 1, std::max<int64_t>(1, kMaxGroups / gx)));
+  const Grid2 g = grid_rows(c.rows, push.len);
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
-  rec.dispatch(p, {src, dst}, &push, sizeof push, gx, std::min<uint32_t>(gy, 65535), 1, label);
+  rec.dispatch(p, {src, dst}, &push, sizeof push, g.x, g.y, 1, label);
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
@@ -117,9 +126,8 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   }
   const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
   struct {
-    uint32_t n, rank, dims[6], in_stride[6];
+    uint32_t rows, rank, dims[6], in_stride[6];
   } push{};
-  push.n = uint32_t(vec4 ? n / 4 : n);
   push.rank = uint32_t(axes.size());
   for (size_t d = 0; d < 6; ++d) {
     push.dims[d] = 1;
@@ -133,8 +141,11 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
     push.dims[axes.size() - 1] /= 4;
     for (size_t d = 0; d < axes.size(); ++d) push.in_stride[d] = d + 1 == axes.size() ? 1 : push.in_stride[d] / 4;
   }
+  const uint32_t last = push.dims[axes.size() - 1];
+  push.rows = uint32_t(n / axes.back().first);
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/permute_vec4" : "nn/permute");
-  rec.dispatch(p, {in, out}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+  const Grid2 g = grid_rows(push.rows, last);
+  rec.dispatch(p, {in, out}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
 // Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
@@ -175,14 +186,15 @@ void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Ten
   const bool vec4 = len % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
   struct {
-    uint32_t n, len, src_rows, dst_rows, use_src_idx, use_dst_idx;
-  } push{uint32_t(m * len / q), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
+    uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx;
+  } push{uint32_t(m), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
          dst_idx != nullptr};
   // An absent index list binds any readable buffer; the shader does not read it.
   const vk::BufferView si = src_idx ? src_idx->buffer() : (dst_idx ? dst_idx->buffer() : src.buffer());
   const vk::BufferView di = dst_idx ? dst_idx->buffer() : si;
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/gather_rows_vec4" : "nn/gather_rows");
-  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+  const Grid2 g = grid_rows(m, push.len);
+  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
 }  // namespace
