@@ -177,7 +177,8 @@ TEST_F(LayoutOps, PatchifyAndUnpatchifyFollowCogVideoX) {
     int64_t C, H, W, p;
   };
   // p = 2 runs the vec4 shader, p = 1 and 3 the general one.
-  for (Case k : {Case{3, 6, 10, 2}, Case{16, 6, 10, 2}, Case{5, 9, 6, 3}, Case{2, 3, 5, 1}}) {
+  // The last case has more (frame, patch row) pairs than the grid has in y.
+  for (Case k : {Case{3, 6, 10, 2}, Case{16, 6, 10, 2}, Case{5, 9, 6, 3}, Case{2, 3, 5, 1}, Case{1, 2000, 6, 2}}) {
     const int64_t B = 2, F = 3, C = k.C, H = k.H, W = k.W, p = k.p, Hp = H / p, Wp = W / p;
     Shape s = {B, F, C, H, W};
     auto in = iota_values(shape_numel(s));

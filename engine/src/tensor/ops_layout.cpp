@@ -155,12 +155,15 @@ void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::B
   const int64_t patches = BF * C * Hp * Wp;
   if (patches == 0) return;
   struct {
-    uint32_t n, C, Hp, Wp, p;
-  } push{uint32_t(patches), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
+    uint32_t rows, C, Hp, Wp, p;
+  } push{uint32_t(BF * Hp), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
   std::string shader = inverse ? "nn/patchify_inverse" : "nn/patchify";
   if (p == 2) shader += "_p2";
   const vk::Pipeline& pipe = rec.context().pipelines().get(shader);
-  rec.dispatch(pipe, {in, out}, &push, sizeof push, groups_for(patches), 1, 1, op);
+  // 32 invocations per group over wp; about kMaxGroups groups in all.
+  const uint32_t gx = div_up(Wp, 32);
+  const int64_t gy = std::clamp<int64_t>(BF * Hp, 1, std::max<int64_t>(1, kMaxGroups / gx));
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, 65535)), 1, op);
 }
 
 void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Tensor* src_idx, const Tensor* dst_idx,
