@@ -75,6 +75,7 @@ TEST_F(LayoutOps, PermuteMatchesReference) {
       {{3, 4, 8}, {1, 0, 2}},               // contiguous inner run of 8 (vec4)
       {{3, 5000, 2}, {1, 0, 2}},            // more output rows than the grid has in y (scalar)
       {{9000, 2, 4}, {1, 0, 2}},            // the same with vec4 rows
+      {{4500, 2, 128}, {1, 0, 2}},          // long rows (one row per y step), more rows than the grid
   };
   for (const Case& c : cases) {
     auto in = iota_values(shape_numel(c.s));
@@ -219,7 +220,7 @@ TEST_F(LayoutOps, UnpatchifyMatchesGoldenTransformerOutput) {
 
 TEST_F(LayoutOps, GatherScatterRows) {
   std::mt19937 rng(5);
-  for (int64_t len : {1, 7, 8}) {  // single elements, odd rows, vec4 rows
+  for (int64_t len : {1, 7, 8, 131, 256}) {  // single elements, odd rows, vec4 rows, long rows (y grid)
     const int64_t R = 37, m = 50;
     auto src = iota_values(R * len);
     std::vector<int32_t> idx(static_cast<size_t>(m));

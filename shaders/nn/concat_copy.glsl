@@ -3,7 +3,8 @@
 // Concat copies each input into its column band of the output (viewed as [outer, axis·inner]); split does
 // the reverse. VEC4: every size, stride and offset is in units of 4 words.
 // Rows loop over the y grid and columns over the x grid (grid-stride both), so no index needs a division
-// (a run-time division is scalarised and slow on CPU drivers).
+// (a run-time division is scalarised and slow on CPU drivers); short rows (lane_rows) go one whole row per
+// invocation over the x grid instead, so lanes are not left idle.
 layout(local_size_x = 64) in;
 #ifdef VEC4
 #define T uvec4
@@ -14,12 +15,19 @@ layout(std430, binding = 0) readonly buffer Src { T src[]; };
 layout(std430, binding = 1) writeonly buffer Dst { T dst[]; };
 layout(push_constant) uniform Push {
   uint rows, len, src_stride, src_off, dst_stride, dst_off;
+  uint lane_rows;
 } p;
+
+void row(uint r, uint k0, uint step) {
+  uint s = p.src_off + r * p.src_stride, d = p.dst_off + r * p.dst_stride;
+  for (uint k = k0; k < p.len; k += step) dst[d + k] = src[s + k];
+}
 
 void main() {
   uint stride_x = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint r = gl_WorkGroupID.y; r < p.rows; r += gl_NumWorkGroups.y) {
-    uint s = p.src_off + r * p.src_stride, d = p.dst_off + r * p.dst_stride;
-    for (uint k = gl_GlobalInvocationID.x; k < p.len; k += stride_x) dst[d + k] = src[s + k];
+  if (p.lane_rows != 0u) {
+    for (uint r = gl_GlobalInvocationID.x; r < p.rows; r += stride_x) row(r, 0u, 1u);
+  } else {
+    for (uint r = gl_WorkGroupID.y; r < p.rows; r += gl_NumWorkGroups.y) row(r, gl_GlobalInvocationID.x, stride_x);
   }
 }

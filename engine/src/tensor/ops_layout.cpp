@@ -15,13 +15,17 @@ uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, k
 
 // Grid for shaders that loop rows over y and a row's items over x (grid-stride both): x covers a row,
 // y as many rows as keep the total near kMaxGroups groups.
+// Rows shorter than kLaneRows items go one whole row per invocation over x instead (lane_rows), so that a
+// 64-wide group is not spent on a row of 1 to 31 items.
+constexpr int64_t kLaneRows = 32;
 struct Grid2 {
-  uint32_t x, y;
+  uint32_t x, y, lane_rows;
 };
 Grid2 grid_rows(int64_t rows, int64_t row_items) {
+  if (row_items < kLaneRows) return {groups_for(rows), 1, 1};
   const uint32_t gx = groups_for(row_items);
   const int64_t gy = std::clamp<int64_t>(rows, 1, std::max<int64_t>(1, kMaxGroups / gx));
-  return {gx, uint32_t(std::min<int64_t>(gy, 65535))};
+  return {gx, uint32_t(std::min<int64_t>(gy, 65535)), 0};
 }
 
 [[noreturn]] void fail(const char* op, const std::string& why) { throw Error(std::string("internal: ") + op + ": " + why); }
@@ -48,11 +52,11 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
   const bool vec4 = c.len % 4 == 0 && c.src_stride % 4 == 0 && c.src_off % 4 == 0 && c.dst_stride % 4 == 0 &&
                     c.dst_off % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
+  const Grid2 g = grid_rows(c.rows, c.len / q);
   struct {
-    uint32_t rows, len, src_stride, src_off, dst_stride, dst_off;
+    uint32_t rows, len, src_stride, src_off, dst_stride, dst_off, lane_rows;
   } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
-         uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q)};
-  const Grid2 g = grid_rows(c.rows, push.len);
+         uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q), g.lane_rows};
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
   rec.dispatch(p, {src, dst}, &push, sizeof push, g.x, g.y, 1, label);
 }
@@ -126,7 +130,7 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   }
   const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
   struct {
-    uint32_t rows, rank, dims[6], in_stride[6];
+    uint32_t rows, rank, dims[6], in_stride[6], lane_rows;
   } push{};
   push.rank = uint32_t(axes.size());
   for (size_t d = 0; d < 6; ++d) {
@@ -145,6 +149,7 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   push.rows = uint32_t(n / axes.back().first);
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/permute_vec4" : "nn/permute");
   const Grid2 g = grid_rows(push.rows, last);
+  push.lane_rows = g.lane_rows;
   rec.dispatch(p, {in, out}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
@@ -188,15 +193,15 @@ void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Ten
   if (m == 0 || len == 0 || dst_rows == 0) return;
   const bool vec4 = len % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
+  const Grid2 g = grid_rows(m, len / q);
   struct {
-    uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx;
+    uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx, lane_rows;
   } push{uint32_t(m), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
-         dst_idx != nullptr};
+         dst_idx != nullptr, g.lane_rows};
   // An absent index list binds any readable buffer; the shader does not read it.
   const vk::BufferView si = src_idx ? src_idx->buffer() : (dst_idx ? dst_idx->buffer() : src.buffer());
   const vk::BufferView di = dst_idx ? dst_idx->buffer() : si;
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/gather_rows_vec4" : "nn/gather_rows");
-  const Grid2 g = grid_rows(m, push.len);
   rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
