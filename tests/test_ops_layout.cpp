@@ -9,12 +9,28 @@
 #include "io/npy.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
 
 namespace dvs {
 namespace {
 
 class LayoutOps : public test::GpuTest {};
+
+// Permute and concat/split run twice: texel-buffer inputs (default) and forced storage buffers.
+class LayoutOpsPaths : public test::GpuTest, public ::testing::WithParamInterface<bool> {
+ protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    ops::use_texel_inputs(GetParam());
+  }
+  void TearDown() override {
+    ops::use_texel_inputs(true);
+    test::GpuTest::TearDown();
+  }
+};
+INSTANTIATE_TEST_SUITE_P(LayoutOps, LayoutOpsPaths, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
 
 // Distinct values so any misplaced element shows.
 std::vector<float> iota_values(int64_t n, float start = 0.5f) {
@@ -59,7 +75,7 @@ std::vector<float> host_permute(const std::vector<float>& in, const Shape& s, co
   return out;
 }
 
-TEST_F(LayoutOps, PermuteMatchesReference) {
+TEST_P(LayoutOpsPaths, PermuteMatchesReference) {
   struct Case {
     Shape s;
     std::vector<int> perm;
@@ -92,7 +108,7 @@ TEST_F(LayoutOps, PermuteMatchesReference) {
   EXPECT_THROW(ops::run_now(ctx(), [&](vk::Recorder& r) { ops::permute(r, big, big2, {6, 5, 4, 3, 2, 1, 0}); }), Error);
 }
 
-TEST_F(LayoutOps, ConcatAndSplitOnEveryAxis) {
+TEST_P(LayoutOpsPaths, ConcatAndSplitOnEveryAxis) {
   const Shape base = {2, 3, 5, 4};
   for (int axis = 0; axis < 4; ++axis) {
     for (int64_t extra : {1, 4}) {  // widths that break and keep 16-byte alignment of the bands

@@ -36,6 +36,15 @@ bool texel_ok(vk::Context& ctx, const Tensor& t, int64_t texels) {
   return t.buffer().offset % texel_offset_alignment(ctx) == 0 && uint64_t(texels) <= ctx.caps().max_texel_buffer_elements;
 }
 
+}  // namespace
+
+bool texel_view_ok(vk::Context& ctx, const vk::BufferView& v, uint32_t texel_bytes) {
+  return v.offset % texel_offset_alignment(ctx) == 0 && v.size % texel_bytes == 0 &&
+         v.size / texel_bytes <= ctx.caps().max_texel_buffer_elements;
+}
+
+namespace {
+
 vk::Binding rgba(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32G32B32A32_SFLOAT); }
 vk::Binding r32(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32_SFLOAT); }
 
@@ -218,6 +227,7 @@ vk::BufferView word_view(const Tensor& t) {
 }  // namespace
 
 void use_texel_inputs(bool on) { g_texel_inputs = on; }
+bool texel_inputs_enabled() { return g_texel_inputs; }
 
 void scale(vk::Recorder& rec, const Tensor& x, const Tensor& y, float a, float b) {
   unary(rec, "scale", UnaryOp::affine, x, y, a, b);

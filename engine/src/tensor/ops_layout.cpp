@@ -4,6 +4,7 @@
 #include <string>
 
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -53,12 +54,16 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
                     c.dst_off % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
   const Grid2 g = grid_rows(c.rows, c.len / q);
+  vk::Context& ctx = rec.context();
+  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, src, 16);
   struct {
     uint32_t rows, len, src_stride, src_off, dst_stride, dst_off, lane_rows;
   } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
          uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q), g.lane_rows};
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
-  rec.dispatch(p, {src, dst}, &push, sizeof push, g.x, g.y, 1, label);
+  const char* shader = texel ? "nn/concat_copy_tex4" : vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy";
+  const vk::Pipeline& p = ctx.pipelines().get(shader);
+  const vk::Binding in = texel ? vk::Binding(src, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(src);
+  rec.dispatch(p, {in, dst}, &push, sizeof push, g.x, g.y, 1, label);
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
@@ -147,10 +152,14 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   }
   const uint32_t last = push.dims[axes.size() - 1];
   push.rows = uint32_t(n / axes.back().first);
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/permute_vec4" : "nn/permute");
+  vk::Context& ctx = rec.context();
+  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, in, 16);
+  const char* shader = texel ? "nn/permute_tex4" : vec4 ? "nn/permute_vec4" : "nn/permute";
+  const vk::Pipeline& p = ctx.pipelines().get(shader);
   const Grid2 g = grid_rows(push.rows, last);
   push.lane_rows = g.lane_rows;
-  rec.dispatch(p, {in, out}, &push, sizeof push, g.x, g.y, 1, op);
+  const vk::Binding src = texel ? vk::Binding(in, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(in);
+  rec.dispatch(p, {src, out}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
 // Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
