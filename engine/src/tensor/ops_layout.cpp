@@ -24,7 +24,8 @@ struct Grid2 {
 };
 Grid2 grid_rows(int64_t rows, int64_t row_items) {
   if (row_items < kLaneRows) return {groups_for(rows), 1, 1};
-  const uint32_t gx = groups_for(row_items);
+  // Up to 16 items per invocation and row: per-row set-up (permute's index decomposition) is amortised.
+  const uint32_t gx = groups_for(div_up(row_items, 16));
   const int64_t gy = std::clamp<int64_t>(rows, 1, std::max<int64_t>(1, kMaxGroups / gx));
   return {gx, uint32_t(std::min<int64_t>(gy, 65535)), 0};
 }
