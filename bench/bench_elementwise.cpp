@@ -108,14 +108,8 @@ void elementwise(Bench& b) {
   measure(b, copy, "gelu_tanh", sn, 2 * f, [&](vk::Recorder& r) { ops::gelu_tanh(r, x, z); });
   measure(b, copy, "clamp", sn, 2 * f, [&](vk::Recorder& r) { ops::clamp(r, x, z, -1.0f, 1.0f); });
   measure(b, copy, "add", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
-  {
-    // Same op with the three buffers at different offsets modulo 4 KiB (small pads between allocations):
-    // shows whether 4K aliasing between the streams matters.
-    Tensor pad0 = filled(ctx, {16}), ys = filled(ctx, {n}), pad1 = filled(ctx, {48}), zs = filled(ctx, {n});
-    measure(b, copy, "add_staggered", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, ys, zs); },
-            "offsets " + std::to_string(x.buffer().offset % 4096) + "/" + std::to_string(ys.buffer().offset % 4096) + "/" +
-                std::to_string(zs.buffer().offset % 4096) + " mod 4K");
-  }
+  Tensor one = filled(ctx, {1});
+  measure(b, copy, "mul_scalar_tensor", sn, 2 * f, [&](vk::Recorder& r) { ops::mul(r, x, one, z); });
   measure(b, copy, "axpby_inplace", sn, 3 * f, [&](vk::Recorder& r) { ops::axpby(r, 0.9f, x, 0.1f, y, x); });
   // Broadcast second operands: a row vector [3072] (the transformer's modulation) and per-channel [C,1,1].
   const Shape rs = {n / 3072, 3072};

@@ -1,7 +1,9 @@
 // Norm, positional and reduction ops as memory-bound kernels: GB/s of useful traffic (each input read once,
 // each output written once) next to the device's shader copy bandwidth measured in the same run.
 // Shapes are CogVideoX-5B-like, cut to stay under lavapipe's 128 MiB binding limit; --quick shrinks them.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <random>
 #include <string>
@@ -11,6 +13,8 @@
 #include "tensor/ops_norm.hpp"
 #include "tensor/ops_position.hpp"
 #include "tensor/ops_reduce.hpp"
+#include "vk/memory.hpp"
+#include "vk/pipeline.hpp"
 #include "vk/recorder.hpp"
 
 namespace dvs::bench {
@@ -32,6 +36,24 @@ Tensor random_tensor(vk::Context& ctx, Shape shape, float offset = 0.0f, DType d
   return Tensor::upload(ctx, h);
 }
 
+// The shader copy bandwidth measured right before an op: on a machine shared with other jobs the load
+// changes within a run, so each op also gets a ratio to a copy timed next to it (in the note).
+double adjacent_copy_gbps(vk::Context& ctx) {
+  static vk::Buffer src, dst;
+  const uint64_t bytes = 64ull << 20;
+  if (!src.valid()) {
+    src = ctx.allocator().allocate(bytes);
+    dst = ctx.allocator().allocate(bytes);
+  }
+  vk::Recorder rec(ctx);
+  rec.begin();
+  uint32_t n4 = uint32_t(bytes / 16);
+  rec.dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
+  rec.end();
+  double ms = Bench::time_ms([&] { rec.submit(); }, 0.3);
+  return 2.0 * double(bytes) / (ms * 1e6);
+}
+
 // Records `op` kRepeats times, times the submission, reports ms per op and GB/s for `bytes` per op.
 void measure(Bench& b, const std::string& op, const std::string& shape, double bytes, const std::string& note,
              const std::function<void(vk::Recorder&)>& record) {
@@ -39,8 +61,12 @@ void measure(Bench& b, const std::string& op, const std::string& shape, double b
   rec.begin();
   for (int i = 0; i < kRepeats; ++i) record(rec);
   rec.end();
+  const double copy = adjacent_copy_gbps(b.ctx());
   double ms = Bench::time_ms([&] { rec.submit(); }) / kRepeats;
-  b.report({op, shape, ms, 0, bytes / (ms * 1e6), note});
+  const double gbps = bytes / (ms * 1e6);
+  char ratio[64];
+  std::snprintf(ratio, sizeof ratio, "%.2fx adjacent copy (%.2f GB/s)", gbps / copy, copy);
+  b.report({op, shape, ms, 0, gbps, note.empty() ? std::string(ratio) : note + "; " + ratio});
 }
 
 void norms(Bench& b) {
@@ -86,6 +112,18 @@ void norms(Bench& b) {
     Tensor x = random_tensor(ctx, s, 2.0f), y = Tensor::empty(ctx, s, DType::f32);
     Tensor g = random_tensor(ctx, {128}, 1.0f, DType::bf16), be = random_tensor(ctx, {128}, 0.0f, DType::bf16);
     Tensor scratch = Tensor::empty(ctx, {ops::groupnorm_scratch_elems(s, 32)}, DType::f32);
+    {
+      // The statistics half alone (reduce_partials + reduce_merge), to split the cost.
+      const int64_t n_groups = 32, len = x.numel() / n_groups;
+      Tensor m = Tensor::empty(ctx, {n_groups}, DType::f32), v = Tensor::empty(ctx, {n_groups}, DType::f32);
+      measure(b, "groupnorm_stats_only", "1x128x" + std::to_string(F) + "x120x180 G32", double(x.bytes()), "bytes read",
+              [&](vk::Recorder& r) {
+                ops::reduce_segments(r, x, {n_groups, len, len, len, 0}, ops::ReduceMode::mean_var, m, v, scratch);
+              });
+    }
+    measure(b, "groupnorm", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
+            "stats pass reads x once more (3 dispatches)",
+            [&](vk::Recorder& r) { ops::groupnorm(r, x, y, 32, g, be, 1e-6f, false, scratch); });
     measure(b, "groupnorm_silu", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
             "stats pass reads x once more (3 dispatches)",
             [&](vk::Recorder& r) { ops::groupnorm(r, x, y, 32, g, be, 1e-6f, true, scratch); });

@@ -18,6 +18,22 @@ namespace {
 
 class ElementwiseOps : public test::GpuTest {};
 
+// The f32 ops run twice: with texel-buffer inputs (the default where views allow) and forced onto the
+// storage-buffer shaders, so both variants of every op are checked.
+class ElementwiseOpsPaths : public test::GpuTest, public ::testing::WithParamInterface<bool> {
+ protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    ops::use_texel_inputs(GetParam());
+  }
+  void TearDown() override {
+    ops::use_texel_inputs(true);
+    test::GpuTest::TearDown();
+  }
+};
+INSTANTIATE_TEST_SUITE_P(ElementwiseOps, ElementwiseOpsPaths, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+
 std::vector<float> random_values(int64_t n, uint32_t seed, float lo = -4.0f, float hi = 4.0f) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> d(lo, hi);
@@ -47,7 +63,7 @@ struct UnaryCase {
   double atol, rtol;
 };
 
-TEST_F(ElementwiseOps, UnaryOpsMatchReference) {
+TEST_P(ElementwiseOpsPaths, UnaryOpsMatchReference) {
   const double k = std::sqrt(2.0 / M_PI);
   // Tolerances: affine/clamp are one fp32 rounding (or exact); SiLU and GELU go through the device's exp
   // (a few ulp) and, for GELU, a division: 2e-6 absolute + 1e-5 relative.
@@ -88,7 +104,7 @@ struct BroadcastCase {
   std::function<size_t(size_t)> y_index;  // element of y used for element e of x
 };
 
-TEST_F(ElementwiseOps, BinaryOpsBroadcastMatchReference) {
+TEST_P(ElementwiseOpsPaths, BinaryOpsBroadcastMatchReference) {
   std::vector<BroadcastCase> cases = {
       {{7}, {7}, [](size_t e) { return e; }},
       {{3, 5, 7}, {3, 5, 7}, [](size_t e) { return e; }},
@@ -127,7 +143,7 @@ TEST_F(ElementwiseOps, BinaryOpsBroadcastMatchReference) {
   }
 }
 
-TEST_F(ElementwiseOps, ScaleShiftBroadcasts) {
+TEST_P(ElementwiseOpsPaths, ScaleShiftBroadcasts) {
   // z = x·(s + offset) + t; tolerance 1e-6 absolute + 1e-6 relative (one rounding more or less: FMA or not).
   struct Case {
     Shape x, st;
@@ -158,7 +174,40 @@ TEST_F(ElementwiseOps, ScaleShiftBroadcasts) {
   }
 }
 
-TEST_F(ElementwiseOps, BinaryOpsInPlaceAndErrors) {
+TEST_P(ElementwiseOpsPaths, BroadcastAcrossGridStrides) {
+  // > 4096·64 vec4s, so every invocation loops and the incremental (channel, inner) counters advance: one
+  // case per broadcast mode of shaders/nn/eltwise_broadcast.glsl. Tolerance 1e-6 abs + 1e-6 rel.
+  std::vector<BroadcastCase> cases = {
+      {{1200012}, {1200012}, [](size_t e) { return e; }},                          // same shape
+      {{1100, 1024}, {1024}, [](size_t e) { return e % 1024; }},                    // rows, C % 4 == 0
+      {{3, 16, 25000}, {16, 1}, [](size_t e) { return (e / 25000) % 16; }},         // channels, inner % 4 == 0
+      {{4, 3, 100001}, {3, 1}, [](size_t e) { return (e / 100001) % 3; }},          // channels, odd inner
+      {{171432, 7}, {7}, [](size_t e) { return e % 7; }},                           // rows, C % 4 != 0
+      {{200002, 3, 2}, {3, 1}, [](size_t e) { return (e / 2) % 3; }},               // inner 2: general
+  };
+  uint32_t seed = 500;
+  for (const BroadcastCase& c : cases) {
+    const int64_t n = shape_numel(c.x), m = shape_numel(c.y);
+    auto x = random_values(n, seed++), y = random_values(m, seed++), t = random_values(m, seed++);
+    Tensor tx = upload(ctx(), c.x, x), ty = upload(ctx(), c.y, y), tt = upload(ctx(), c.y, t);
+    Tensor tz = Tensor::empty(ctx(), c.x, DType::f32), tw = Tensor::empty(ctx(), c.x, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) {
+      ops::axpby(r, 0.5f, tx, 2.0f, ty, tz);
+      ops::scale_shift(r, tx, ty, tt, tw, 1.0f);
+    });
+    std::vector<double> want(static_cast<size_t>(n)), want2(static_cast<size_t>(n));
+    for (size_t e = 0; e < want.size(); ++e) {
+      const size_t j = c.y_index(e);
+      want[e] = 0.5 * x[e] + 2.0 * y[j];
+      want2[e] = double(x[e]) * (double(y[j]) + 1.0) + double(t[j]);
+    }
+    const std::string where = "[" + shape_str(c.x) + "] by [" + shape_str(c.y) + "]";
+    expect_close(tz.download(ctx()).to_f32(), want, 1e-6, 1e-6, "axpby " + where);
+    expect_close(tw.download(ctx()).to_f32(), want2, 1e-6, 1e-6, "scale_shift " + where);
+  }
+}
+
+TEST_P(ElementwiseOpsPaths, BinaryOpsInPlaceAndErrors) {
   auto x = random_values(129, 7), y = random_values(129, 8);
   Tensor tx = upload(ctx(), {129}, x), ty = upload(ctx(), {129}, y);
   ops::run_now(ctx(), [&](vk::Recorder& r) { ops::axpby(r, 2.0f, tx, 3.0f, ty, tx); });  // x = 2x + 3y

@@ -9,12 +9,28 @@
 #include "io/npy.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
 
 namespace dvs {
 namespace {
 
 class LayoutOps : public test::GpuTest {};
+
+// Permute and concat/split run twice: texel-buffer inputs (default) and forced storage buffers.
+class LayoutOpsPaths : public test::GpuTest, public ::testing::WithParamInterface<bool> {
+ protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    ops::use_texel_inputs(GetParam());
+  }
+  void TearDown() override {
+    ops::use_texel_inputs(true);
+    test::GpuTest::TearDown();
+  }
+};
+INSTANTIATE_TEST_SUITE_P(LayoutOps, LayoutOpsPaths, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
 
 // Distinct values so any misplaced element shows.
 std::vector<float> iota_values(int64_t n, float start = 0.5f) {
@@ -59,7 +75,7 @@ std::vector<float> host_permute(const std::vector<float>& in, const Shape& s, co
   return out;
 }
 
-TEST_F(LayoutOps, PermuteMatchesReference) {
+TEST_P(LayoutOpsPaths, PermuteMatchesReference) {
   struct Case {
     Shape s;
     std::vector<int> perm;
@@ -73,6 +89,9 @@ TEST_F(LayoutOps, PermuteMatchesReference) {
       {{2, 1, 3, 1, 5}, {4, 3, 2, 1, 0}},   // size-1 axes dropped
       {{4, 8, 3}, {0, 1, 2}},               // identity: a plain copy
       {{3, 4, 8}, {1, 0, 2}},               // contiguous inner run of 8 (vec4)
+      {{3, 5000, 2}, {1, 0, 2}},            // more output rows than the grid has in y (scalar)
+      {{9000, 2, 4}, {1, 0, 2}},            // the same with vec4 rows
+      {{4500, 2, 128}, {1, 0, 2}},          // long rows (one row per y step), more rows than the grid
   };
   for (const Case& c : cases) {
     auto in = iota_values(shape_numel(c.s));
@@ -89,7 +108,7 @@ TEST_F(LayoutOps, PermuteMatchesReference) {
   EXPECT_THROW(ops::run_now(ctx(), [&](vk::Recorder& r) { ops::permute(r, big, big2, {6, 5, 4, 3, 2, 1, 0}); }), Error);
 }
 
-TEST_F(LayoutOps, ConcatAndSplitOnEveryAxis) {
+TEST_P(LayoutOpsPaths, ConcatAndSplitOnEveryAxis) {
   const Shape base = {2, 3, 5, 4};
   for (int axis = 0; axis < 4; ++axis) {
     for (int64_t extra : {1, 4}) {  // widths that break and keep 16-byte alignment of the bands
@@ -137,6 +156,15 @@ TEST_F(LayoutOps, ConcatAndSplitOnEveryAxis) {
         float want = c < 16 ? x[size_t((f * 16 + c) * 60 + p)] : img[size_t((f * 16 + c - 16) * 60 + p)];
         ASSERT_EQ(got[size_t((f * 32 + c) * 60 + p)], want);
       }
+  // Many short rows: more rows than the grid has in y, so workgroups loop over rows.
+  {
+    auto va = iota_values(9000 * 3), vb = iota_values(9000, 1e6f);
+    Tensor ta = upload(ctx(), {9000, 3}, va), tb = upload(ctx(), {9000, 1}, vb), to = Tensor::empty(ctx(), {9000, 4}, DType::f32);
+    ops::run_now(ctx(), [&](vk::Recorder& r) { ops::concat(r, {ta, tb}, to, 1); });
+    auto got = to.download(ctx()).to_f32();
+    for (size_t r = 0; r < 9000; ++r)
+      for (size_t c = 0; c < 4; ++c) ASSERT_EQ(got[r * 4 + c], c < 3 ? va[r * 3 + c] : vb[r]) << r << "," << c;
+  }
   // Mismatched shapes are refused.
   Tensor bad = Tensor::empty(ctx(), {1, 13, 16, 6, 11}, DType::f32);
   EXPECT_THROW(ops::run_now(ctx(), [&](vk::Recorder& r) { ops::concat(r, {tx, bad}, cat, 2); }), Error);
@@ -166,7 +194,8 @@ TEST_F(LayoutOps, PatchifyAndUnpatchifyFollowCogVideoX) {
     int64_t C, H, W, p;
   };
   // p = 2 runs the vec4 shader, p = 1 and 3 the general one.
-  for (Case k : {Case{3, 6, 10, 2}, Case{16, 6, 10, 2}, Case{5, 9, 6, 3}, Case{2, 3, 5, 1}}) {
+  // The last case has more (frame, patch row) pairs than the grid has in y.
+  for (Case k : {Case{3, 6, 10, 2}, Case{16, 6, 10, 2}, Case{5, 9, 6, 3}, Case{2, 3, 5, 1}, Case{1, 2000, 6, 2}}) {
     const int64_t B = 2, F = 3, C = k.C, H = k.H, W = k.W, p = k.p, Hp = H / p, Wp = W / p;
     Shape s = {B, F, C, H, W};
     auto in = iota_values(shape_numel(s));
@@ -207,7 +236,7 @@ TEST_F(LayoutOps, UnpatchifyMatchesGoldenTransformerOutput) {
 
 TEST_F(LayoutOps, GatherScatterRows) {
   std::mt19937 rng(5);
-  for (int64_t len : {1, 7, 8}) {  // single elements, odd rows, vec4 rows
+  for (int64_t len : {1, 7, 8, 131, 256}) {  // single elements, odd rows, vec4 rows, long rows (y grid)
     const int64_t R = 37, m = 50;
     auto src = iota_values(R * len);
     std::vector<int32_t> idx(static_cast<size_t>(m));
@@ -238,6 +267,18 @@ TEST_F(LayoutOps, GatherScatterRows) {
       for (int64_t k = 0; k < len; ++k) want[size_t(didx[size_t(i)] * len + k)] = src[size_t(i * len + k)];
     EXPECT_EQ(td.download(ctx()).to_f32(), want) << "scatter len " << len;
   }
+}
+
+TEST_F(LayoutOps, GatherManyIndices) {
+  // More index rows than the grid has in y: workgroups loop over rows.
+  const int64_t R = 1000, m = 20000;
+  auto src = iota_values(R);
+  std::vector<int32_t> idx(static_cast<size_t>(m));
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = int32_t((i * 7919) % R);
+  Tensor ts = upload(ctx(), {R}, src), ti = upload_i32(ctx(), idx), tg = Tensor::empty(ctx(), {m}, DType::f32);
+  ops::run_now(ctx(), [&](vk::Recorder& r) { ops::gather_rows(r, ts, ti, tg); });
+  auto g = tg.download(ctx()).to_f32();
+  for (size_t i = 0; i < idx.size(); ++i) ASSERT_EQ(g[i], src[size_t(idx[i])]) << i;
 }
 
 TEST_F(LayoutOps, StochasticLatentModulationInPlace) {

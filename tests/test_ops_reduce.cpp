@@ -103,7 +103,7 @@ TEST_F(GpuTest, SumAndMax) {
 
 TEST_F(GpuTest, ReduceRejectsSmallScratch) {
   Tensor x = Tensor::zeros(ctx(), {10000}, DType::f32), out = Tensor::zeros(ctx(), {1}, DType::f32);
-  Tensor scratch = Tensor::zeros(ctx(), {2}, DType::f32);  // needs 157 partials x 2
+  Tensor scratch = Tensor::zeros(ctx(), {2}, DType::f32);  // needs 10 partials x 2
   vk::Recorder rec(ctx());
   rec.begin();
   EXPECT_THROW(ops::sum_all(rec, x, out, scratch), Error);

@@ -1,44 +1,71 @@
-// Body of nn/eltwise_affine and nn/eltwise_affine_vec4: z = x·(s + s_offset) + t, with s and t broadcast
-// over x alike as s[(e / inner) % C] (same rule as eltwise_binary.glsl): per-channel AdaIN-style
-// normalisation, adaLN modulation x·(1 + scale) + shift over rows, or plain same-shape FMA. z may alias x.
-// VEC4: x and z as vec4 (count a multiple of 4), s and t read per component (one value when inner % 4 == 0).
+// Body of nn/eltwise_affine, nn/eltwise_affine_vec4 and nn/eltwise_affine_tex4: z = x·(s + s_offset) + t,
+// with s and t broadcast over x alike (eltwise_broadcast.glsl): per-channel AdaIN-style normalisation, adaLN
+// modulation x·(1 + scale) + shift over rows, or a plain same-shape FMA. z may alias x.
+// (none): one element per step, MODE 0 or 5. VEC4: x and z as vec4, s and t read per element, MODE 1..5 (0 is
+// run as 1 with C = n). TEXEL: as VEC4 with x (RGBA32F), s and t read through texel buffers (RGBA32F for
+// MODE 1, R32F otherwise).
 layout(local_size_x = 64) in;
-#ifdef VEC4
+#if defined(VEC4) || defined(TEXEL)
 #define T vec4
 #else
 #define T float
 #endif
+#ifdef TEXEL
+layout(binding = 0) uniform samplerBuffer x_tex;
+layout(binding = 1) uniform samplerBuffer s_tex;
+layout(binding = 2) uniform samplerBuffer t_tex;
+#define LOAD_X(i) texelFetch(x_tex, int(i))
+#define S1(j) texelFetch(s_tex, int(j)).x
+#define T1(j) texelFetch(t_tex, int(j)).x
+#else
 layout(std430, binding = 0) readonly buffer X { T x[]; };
 layout(std430, binding = 1) readonly buffer S { float s[]; };
 layout(std430, binding = 2) readonly buffer Tb { float t[]; };
+#define LOAD_X(i) x[i]
+#define S1(j) s[j]
+#define T1(j) t[j]
+#endif
 layout(std430, binding = 3) writeonly buffer Z { T z[]; };
 layout(push_constant) uniform Push {
   uint n;      // in units of T
   uint C;      // broadcast period of s and t, in elements
   uint inner;  // elements of x per s/t element
+  uint step_c, step_r;
   float s_offset;
-  uint span;   // items per workgroup (a multiple of 64)
 } p;
 
+#include "eltwise_broadcast.glsl"
+
 void main() {
-  uint begin = gl_WorkGroupID.x * p.span, end = min(begin + p.span, p.n);
-  for (uint i = begin + gl_LocalInvocationID.x; i < end; i += gl_WorkGroupSize.x) {
-#ifdef VEC4
-    uint e = i * 4u;
+  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  uint i = gl_GlobalInvocationID.x;
+#if defined(VEC4) || defined(TEXEL)
+  Bcast b = bcast_start(i * 4u);
+  for (; i < p.n; i += stride) {
     vec4 sv, tv;
-    if (p.inner % 4u == 0u) {
-      uint j = (e / p.inner) % p.C;
-      sv = vec4(s[j]);
-      tv = vec4(t[j]);
-    } else {
-      uvec4 j = ((uvec4(e) + uvec4(0u, 1u, 2u, 3u)) / p.inner) % p.C;
-      sv = vec4(s[j.x], s[j.y], s[j.z], s[j.w]);
-      tv = vec4(t[j.x], t[j.y], t[j.z], t[j.w]);
-    }
-    z[i] = x[i] * (sv + p.s_offset) + tv;
+    if (MODE == 1u) {
+#ifdef TEXEL
+      sv = texelFetch(s_tex, int(b.c / 4u));
+      tv = texelFetch(t_tex, int(b.c / 4u));
 #else
-    uint j = (i / p.inner) % p.C;
-    z[i] = x[i] * (s[j] + p.s_offset) + t[j];
+      sv = vec4(s[b.c], s[b.c + 1u], s[b.c + 2u], s[b.c + 3u]);
+      tv = vec4(t[b.c], t[b.c + 1u], t[b.c + 2u], t[b.c + 3u]);
 #endif
+    } else if (MODE == 2u) {
+      sv = vec4(S1(b.c));
+      tv = vec4(T1(b.c));
+    } else {
+      uvec4 j = bcast_index4(b, i * 4u);
+      sv = vec4(S1(j.x), S1(j.y), S1(j.z), S1(j.w));
+      tv = vec4(T1(j.x), T1(j.y), T1(j.z), T1(j.w));
+    }
+    z[i] = LOAD_X(i) * (sv + p.s_offset) + tv;
+    bcast_step(b);
   }
+#else
+  for (; i < p.n; i += stride) {
+    uint j = MODE == 0u ? i : (i / p.inner) % p.C;
+    z[i] = LOAD_X(i) * (S1(j) + p.s_offset) + T1(j);
+  }
+#endif
 }

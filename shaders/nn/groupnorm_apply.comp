@@ -41,11 +41,13 @@ void main() {
     k = rstd * load_w(c);
     m = load_b(c);
   }
+  // Each invocation takes ITEMS consecutive units (vec4s with VEC4): contiguous per invocation is what CPU
+  // drivers load fastest, and GPUs still see each workgroup cover one contiguous range.
+  uint first = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x * ITEMS;
   if (VEC4) {
     uint base4 = (plane * p.S) >> 2, n4 = p.S >> 2;
-    uint begin = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x;
-    uint end = min(gl_WorkGroupID.x * (LOCAL * ITEMS) + LOCAL * ITEMS, n4);
-    for (uint i = begin; i < end; i += LOCAL) {
+    uint end = min(first + ITEMS, n4);
+    for (uint i = first; i < end; ++i) {
       vec4 v = (x4[base4 + i] - mu) * k + m;
       if (SILU) v = v / (1.0 + exp(-v));
       y4[base4 + i] = v;
@@ -53,9 +55,8 @@ void main() {
     return;
   }
   uint base = plane * p.S;
-  uint begin = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x;
-  uint end = min(gl_WorkGroupID.x * (LOCAL * ITEMS) + LOCAL * ITEMS, p.S);
-  for (uint i = begin; i < end; i += LOCAL) {
+  uint end = min(first + ITEMS, p.S);
+  for (uint i = first; i < end; ++i) {
     uint e = base + i;
     float v = (x4[e >> 2][e & 3u] - mu) * k + m;
     if (SILU) v = v / (1.0 + exp(-v));

@@ -7,7 +7,8 @@
 // x and y may be the same buffer: every element is read by the invocation that later writes it.
 //
 // Speed (memory-bound): with VEC4 (D, table stride and column offsets multiples of 4) everything moves as
-// vec4, and each invocation keeps CACHE vec4 of its row in registers, so x is read from memory once.
+// vec4; in the workgroup-per-row mapping each invocation keeps CACHE vec4 of its row in registers, so x is
+// read from memory once.
 // Buffers are declared as vec4 arrays; the scalar path (any D) indexes components.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require

@@ -1,11 +1,11 @@
-// Body of the patchify shaders. One invocation moves one p×p patch of one channel between
+// Body of the patchify shaders. One invocation moves the C p×p patches of one token between
 //   image [BF, C, H, W]                 (H = Hp·p, W = Wp·p)
 //   tokens [BF, Hp, Wp, C, p, p]        (= [B, F·Hp·Wp, C·p·p], features in (c, i, j) order)
 // pixel (hp·p + i, wp·p + j) of channel c <-> feature (c, i, j) of token (hp, wp).
 // INVERSE: tokens -> image (CogVideoX unpatchify); otherwise image -> tokens (input of the patch conv).
 // P2: p = 2 with vec2 rows on the image side and one vec4 per patch on the token side; otherwise p from push
-// constants and single floats. Invocations run in token order, so token-side accesses are contiguous.
-layout(local_size_x = 64) in;
+// constants and single floats.
+layout(local_size_x = 32) in;
 #ifdef P2
 #define TI vec2
 #define TT vec4
@@ -21,38 +21,44 @@ layout(std430, binding = 0) readonly buffer Img { TI img[]; };
 layout(std430, binding = 1) writeonly buffer Tok { TT tok[]; };
 #endif
 layout(push_constant) uniform Push {
-  uint n;  // BF · Hp · Wp · C patches
+  uint rows;  // BF · Hp: one (frame, patch row) per y step
   uint C, Hp, Wp, p;
 } u;
 
+// y steps over (bf, hp), x over wp, and each invocation walks the C channels of its token: the index
+// arithmetic inside the loops is adds and multiplies only (run-time divisions are slow on CPU drivers).
 void main() {
-  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint t = gl_GlobalInvocationID.x; t < u.n; t += stride) {
-    uint c = t % u.C, q = t / u.C;
-    uint wp = q % u.Wp;
-    q /= u.Wp;
+  uint stride_x = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  for (uint q = gl_WorkGroupID.y; q < u.rows; q += gl_NumWorkGroups.y) {
     uint hp = q % u.Hp, bf = q / u.Hp;
+    for (uint wp = gl_GlobalInvocationID.x; wp < u.Wp; wp += stride_x) {
+      uint t0 = (q * u.Wp + wp) * u.C;  // patch (token (bf, hp, wp), channel 0)
 #ifdef P2
-    // Image rows of 2 floats at (bf, c, 2hp + i, 2wp): vec2 index = ((bf·C + c)·H + 2hp + i)·Wp + wp.
-    uint row0 = ((bf * u.C + c) * u.Hp * 2u + hp * 2u) * u.Wp + wp;
+      // Image rows of 2 floats: vec2 index ((bf·C + c)·H + 2hp + i)·Wp + wp; one channel plane = 2·Hp·Wp.
+      uint plane = 2u * u.Hp * u.Wp, img0 = (bf * u.C * 2u * u.Hp + hp * 2u) * u.Wp + wp;
+      for (uint c = 0u; c < u.C; ++c) {
+        uint r0 = img0 + c * plane;
 #ifdef INVERSE
-    vec4 v = tok[t];
-    img[row0] = v.xy;
-    img[row0 + u.Wp] = v.zw;
+        vec4 v = tok[t0 + c];
+        img[r0] = v.xy;
+        img[r0 + u.Wp] = v.zw;
 #else
-    tok[t] = vec4(img[row0], img[row0 + u.Wp]);
-#endif
-#else
-    uint W = u.Wp * u.p;
-    uint base = ((bf * u.C + c) * u.Hp * u.p + hp * u.p) * W + wp * u.p;
-    for (uint i = 0u; i < u.p; ++i)
-      for (uint j = 0u; j < u.p; ++j) {
-#ifdef INVERSE
-        img[base + i * W + j] = tok[(t * u.p + i) * u.p + j];
-#else
-        tok[(t * u.p + i) * u.p + j] = img[base + i * W + j];
+        tok[t0 + c] = vec4(img[r0], img[r0 + u.Wp]);
 #endif
       }
+#else
+      uint W = u.Wp * u.p, plane = u.Hp * u.p * W, img0 = bf * u.C * plane + hp * u.p * W + wp * u.p;
+      for (uint c = 0u; c < u.C; ++c)
+        for (uint i = 0u; i < u.p; ++i)
+          for (uint j = 0u; j < u.p; ++j) {
+            uint ti = ((t0 + c) * u.p + i) * u.p + j, ii = img0 + c * plane + i * W + j;
+#ifdef INVERSE
+            img[ii] = tok[ti];
+#else
+            tok[ti] = img[ii];
 #endif
+          }
+#endif
+    }
   }
 }

@@ -1,6 +1,7 @@
 #include "tensor/ops_elementwise.hpp"
 
 #include <algorithm>
+#include <map>
 #include <string>
 
 #include "tensor/dispatch.hpp"
@@ -13,19 +14,39 @@ constexpr uint32_t kLocal = 64, kMaxGroups = 4096;  // grid-stride loops: enough
 
 uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
 
-// Contiguous span per workgroup for shaders that stream one span each: ≤ kMaxGroups groups of a multiple of
-// kLocal items.
-struct Spans {
-  uint32_t span, groups;
-};
-Spans spans_for(int64_t items) {
-  const int64_t span = std::max<int64_t>(kLocal, int64_t(div_up(div_up(items, kMaxGroups), kLocal)) * kLocal);
-  return {uint32_t(span), uint32_t(std::max<int64_t>(1, div_up(items, span)))};
-}
-
 void check_count(const char* op, const Tensor& t) {
   if (t.numel() >= int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": " + t.describe() + " is too large");
 }
+
+// Texel-buffer inputs: texelFetch is ~2-3x cheaper than a storage-buffer load on lavapipe (DESIGN §9), so
+// vec4-sized work reads x (and y, s, t) through uniform texel buffers whenever the views allow it: offset
+// aligned to minTexelBufferOffsetAlignment and few enough texels for maxTexelBufferElements.
+bool g_texel_inputs = true;
+
+VkDeviceSize texel_offset_alignment(vk::Context& ctx) {
+  static std::map<VkPhysicalDevice, VkDeviceSize> cache;
+  auto it = cache.find(ctx.physical_device());
+  if (it != cache.end()) return it->second;
+  VkPhysicalDeviceProperties props{};
+  vkGetPhysicalDeviceProperties(ctx.physical_device(), &props);
+  return cache[ctx.physical_device()] = std::max<VkDeviceSize>(1, props.limits.minTexelBufferOffsetAlignment);
+}
+
+bool texel_ok(vk::Context& ctx, const Tensor& t, int64_t texels) {
+  return t.buffer().offset % texel_offset_alignment(ctx) == 0 && uint64_t(texels) <= ctx.caps().max_texel_buffer_elements;
+}
+
+}  // namespace
+
+bool texel_view_ok(vk::Context& ctx, const vk::BufferView& v, uint32_t texel_bytes) {
+  return v.offset % texel_offset_alignment(ctx) == 0 && v.size % texel_bytes == 0 &&
+         v.size / texel_bytes <= ctx.caps().max_texel_buffer_elements;
+}
+
+namespace {
+
+vk::Binding rgba(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32G32B32A32_SFLOAT); }
+vk::Binding r32(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32_SFLOAT); }
 
 enum class UnaryOp : uint32_t { affine = 0, silu = 1, gelu_tanh = 2, clamp = 3 };
 
@@ -36,17 +57,18 @@ void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, con
   check_count(op, x);
   const int64_t n = x.numel();
   if (n == 0) return;
+  vk::Context& ctx = rec.context();
   const bool vec4 = n % 4 == 0;
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4);
   const int64_t units = vec4 ? n / 4 : n;
-  const Spans sp = spans_for(units);
   struct {
     uint32_t n;
     float a, b;
-    uint32_t span;
-  } push{uint32_t(units), a, b, sp.span};
+  } push{uint32_t(units), a, b};
   const uint32_t spec[] = {uint32_t(kind)};
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_unary_vec4" : "nn/eltwise_unary", spec);
-  rec.dispatch(p, {x.buffer(), y.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+  const char* shader = texel ? "nn/eltwise_unary_tex4" : vec4 ? "nn/eltwise_unary_vec4" : "nn/eltwise_unary";
+  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
+  rec.dispatch(p, {texel ? rgba(x) : vk::Binding(x.buffer()), y.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
 }
 
 // y broadcast over x as y[(e / inner) % C]; see the header for the accepted shapes.
@@ -85,6 +107,33 @@ Broadcast broadcast_of(const char* op, const Shape& xs, const Shape& ys) {
   return b;
 }
 
+// Which broadcast indexing a shader runs (MODE in shaders/nn/eltwise_broadcast.glsl) and the per-stride
+// advance of its (channel, inner) counters.
+struct BcastPlan {
+  uint32_t mode = 5, C = 1, inner = 1, step_c = 0, step_r = 0;
+};
+
+BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool vec4, uint32_t groups) {
+  BcastPlan pl;
+  if (!vec4) {
+    pl.mode = bc.inner == 1 && bc.C == n ? 0 : 5;
+  } else {
+    if (bc.C == 1) bc.inner = n;  // a scalar: one value for every vec4
+    if (bc.inner == 1 && bc.C == n) pl.mode = 0;
+    else if (bc.inner == 1 && bc.C % 4 == 0) pl.mode = 1;
+    else if (bc.inner % 4 == 0) pl.mode = 2;
+    else if (bc.inner >= 4) pl.mode = 3;
+    else if (bc.inner == 1 && bc.C >= 4) pl.mode = 4;
+    else pl.mode = 5;
+    const int64_t per_stride = int64_t(groups) * kLocal * 4;  // elements a grid stride advances
+    pl.step_r = uint32_t(per_stride % bc.inner);
+    pl.step_c = uint32_t((per_stride / bc.inner) % bc.C);
+  }
+  pl.C = uint32_t(bc.C);
+  pl.inner = uint32_t(bc.inner);
+  return pl;
+}
+
 enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };
 
 void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const Tensor& x, float beta,
@@ -94,25 +143,31 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   expect_dtype(op, "z", z, DType::f32);
   expect_shape(op, "z", z, x.shape());
   check_count(op, x);
-  Broadcast bc = broadcast_of(op, x.shape(), y.shape());
-  if (bc.C == 1) bc.inner = x.numel();  // a scalar: one y value per vec4 in every variant
+  const Broadcast bc = broadcast_of(op, x.shape(), y.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
-  const char* shader = "nn/eltwise_binary";
-  int64_t units = n;
-  if (n % 4 == 0) {
-    units = n / 4;
-    shader = bc.inner == 1 && bc.C % 4 == 0 ? "nn/eltwise_binary_vec4" : "nn/eltwise_binary_vec4_bcast";
-  }
-  const Spans sp = spans_for(units);
+  vk::Context& ctx = rec.context();
+  const bool vec4 = n % 4 == 0;
+  const int64_t units = vec4 ? n / 4 : n;
+  const uint32_t groups = groups_for(units);
+  const BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
+  const bool y_vec4 = pl.mode <= 1;  // y read as whole vec4s
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) &&
+                     texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
+  const char* shader = !vec4 ? "nn/eltwise_binary"
+                       : texel ? "nn/eltwise_binary_tex4"
+                       : y_vec4 ? "nn/eltwise_binary_vec4"
+                                : "nn/eltwise_binary_vec4_bcast";
   struct {
-    uint32_t n, C, inner;
+    uint32_t n, C, inner, step_c, step_r;
     float alpha, beta;
-    uint32_t span;
-  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), alpha, beta, sp.span};
-  const uint32_t spec[] = {uint32_t(kind)};
-  const vk::Pipeline& p = rec.context().pipelines().get(shader, spec);
-  rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, alpha, beta};
+  const uint32_t spec[] = {uint32_t(kind), pl.mode};
+  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
+  if (texel)
+    rec.dispatch(p, {rgba(x), y_vec4 ? rgba(y) : r32(y), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  else
+    rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
 }
 
 void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t, const Tensor& z,
@@ -124,20 +179,32 @@ void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s,
   expect_shape(op, "z", z, x.shape());
   expect_shape(op, "shift", t, s.shape());
   check_count(op, x);
-  Broadcast bc = broadcast_of(op, x.shape(), s.shape());
-  if (bc.C == 1) bc.inner = x.numel();
+  const Broadcast bc = broadcast_of(op, x.shape(), s.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
+  vk::Context& ctx = rec.context();
   const bool vec4 = n % 4 == 0;
   const int64_t units = vec4 ? n / 4 : n;
-  const Spans sp = spans_for(units);
+  const uint32_t groups = groups_for(units);
+  BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
+  if (vec4 && pl.mode == 0) pl.mode = 1;  // same shape runs as rows of length n
+  const bool st_vec4 = vec4 && pl.mode == 1;
+  const int64_t st_texels = st_vec4 ? s.numel() / 4 : s.numel();
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
+                     texel_ok(ctx, t, st_texels);
   struct {
-    uint32_t n, C, inner;
+    uint32_t n, C, inner, step_c, step_r;
     float s_offset;
-    uint32_t span;
-  } push{uint32_t(units), uint32_t(bc.C), uint32_t(bc.inner), s_offset, sp.span};
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine");
-  rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, sp.groups, 1, 1, op);
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, s_offset};
+  const char* shader = texel ? "nn/eltwise_affine_tex4" : vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine";
+  const uint32_t spec[] = {0, pl.mode};
+  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
+  if (texel) {
+    auto st = [&](const Tensor& v) { return st_vec4 ? rgba(v) : r32(v); };
+    rec.dispatch(p, {rgba(x), st(s), st(t), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  } else {
+    rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  }
 }
 
 uint32_t cast_code(const char* op, const Tensor& t) {
@@ -158,6 +225,9 @@ vk::BufferView word_view(const Tensor& t) {
 }
 
 }  // namespace
+
+void use_texel_inputs(bool on) { g_texel_inputs = on; }
+bool texel_inputs_enabled() { return g_texel_inputs; }
 
 void scale(vk::Recorder& rec, const Tensor& x, const Tensor& y, float a, float b) {
   unary(rec, "scale", UnaryOp::affine, x, y, a, b);

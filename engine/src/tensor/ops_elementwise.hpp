@@ -7,6 +7,7 @@
 // and a per-channel vector [C, 1, 1] over [.., C, H, W] (reshape a [C] tensor to [C, 1, 1] first).
 #pragma once
 #include "tensor/tensor.hpp"
+#include "vk/context.hpp"
 #include "vk/recorder.hpp"
 
 namespace dvs::ops {
@@ -34,5 +35,14 @@ void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const 
 // saturating, NaN -> 0. i32 -> f32: nearest float. A 16-bit tensor with an odd element count must have 2 bytes
 // of slack after it (every Allocator/Arena allocation has); their contents are preserved.
 void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y);
+
+// Ops with vec4-sized work (elementwise, concat/split, permute) read their inputs through texel buffers when
+// the views allow (faster on lavapipe); this switch forces the storage-buffer path everywhere (tests,
+// benchmarks).
+void use_texel_inputs(bool on);
+bool texel_inputs_enabled();
+// For op implementations: whether `v` can be bound as a uniform texel buffer of `texel_bytes`-sized texels
+// (offset alignment, whole texels, maxTexelBufferElements).
+bool texel_view_ok(vk::Context& ctx, const vk::BufferView& v, uint32_t texel_bytes);
 
 }  // namespace dvs::ops

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -12,6 +13,22 @@ namespace {
 constexpr uint32_t kLocal = 64, kMaxGroups = 4096;
 
 uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
+
+// Grid for shaders that loop rows over y and a row's items over x (grid-stride both): x covers a row,
+// y as many rows as keep the total near kMaxGroups groups.
+// Rows shorter than kLaneRows items go one whole row per invocation over x instead (lane_rows), so that a
+// 64-wide group is not spent on a row of 1 to 31 items.
+constexpr int64_t kLaneRows = 32;
+struct Grid2 {
+  uint32_t x, y, lane_rows;
+};
+Grid2 grid_rows(int64_t rows, int64_t row_items) {
+  if (row_items < kLaneRows) return {groups_for(rows), 1, 1};
+  // Up to 16 items per invocation and row: per-row set-up (permute's index decomposition) is amortised.
+  const uint32_t gx = groups_for(div_up(row_items, 16));
+  const int64_t gy = std::clamp<int64_t>(rows, 1, std::max<int64_t>(1, kMaxGroups / gx));
+  return {gx, uint32_t(std::min<int64_t>(gy, 65535)), 0};
+}
 
 [[noreturn]] void fail(const char* op, const std::string& why) { throw Error(std::string("internal: ") + op + ": " + why); }
 
@@ -37,12 +54,17 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
   const bool vec4 = c.len % 4 == 0 && c.src_stride % 4 == 0 && c.src_off % 4 == 0 && c.dst_stride % 4 == 0 &&
                     c.dst_off % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
+  const Grid2 g = grid_rows(c.rows, c.len / q);
+  vk::Context& ctx = rec.context();
+  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, src, 16);
   struct {
-    uint32_t n, len, src_stride, src_off, dst_stride, dst_off;
-  } push{uint32_t(c.rows * c.len / q), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
-         uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q)};
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy");
-  rec.dispatch(p, {src, dst}, &push, sizeof push, groups_for(push.n), 1, 1, label);
+    uint32_t rows, len, src_stride, src_off, dst_stride, dst_off, lane_rows;
+  } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
+         uint32_t(c.dst_stride / q), uint32_t(c.dst_off / q), g.lane_rows};
+  const char* shader = texel ? "nn/concat_copy_tex4" : vec4 ? "nn/concat_copy_vec4" : "nn/concat_copy";
+  const vk::Pipeline& p = ctx.pipelines().get(shader);
+  const vk::Binding in = texel ? vk::Binding(src, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(src);
+  rec.dispatch(p, {in, dst}, &push, sizeof push, g.x, g.y, 1, label);
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
@@ -114,9 +136,8 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   }
   const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
   struct {
-    uint32_t n, rank, dims[6], in_stride[6];
+    uint32_t rows, rank, dims[6], in_stride[6], lane_rows;
   } push{};
-  push.n = uint32_t(vec4 ? n / 4 : n);
   push.rank = uint32_t(axes.size());
   for (size_t d = 0; d < 6; ++d) {
     push.dims[d] = 1;
@@ -130,8 +151,16 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
     push.dims[axes.size() - 1] /= 4;
     for (size_t d = 0; d < axes.size(); ++d) push.in_stride[d] = d + 1 == axes.size() ? 1 : push.in_stride[d] / 4;
   }
-  const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/permute_vec4" : "nn/permute");
-  rec.dispatch(p, {in, out}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+  const uint32_t last = push.dims[axes.size() - 1];
+  push.rows = uint32_t(n / axes.back().first);
+  vk::Context& ctx = rec.context();
+  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, in, 16);
+  const char* shader = texel ? "nn/permute_tex4" : vec4 ? "nn/permute_vec4" : "nn/permute";
+  const vk::Pipeline& p = ctx.pipelines().get(shader);
+  const Grid2 g = grid_rows(push.rows, last);
+  push.lane_rows = g.lane_rows;
+  const vk::Binding src = texel ? vk::Binding(in, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(in);
+  rec.dispatch(p, {src, out}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
 // Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
@@ -141,12 +170,15 @@ void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::B
   const int64_t patches = BF * C * Hp * Wp;
   if (patches == 0) return;
   struct {
-    uint32_t n, C, Hp, Wp, p;
-  } push{uint32_t(patches), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
+    uint32_t rows, C, Hp, Wp, p;
+  } push{uint32_t(BF * Hp), uint32_t(C), uint32_t(Hp), uint32_t(Wp), uint32_t(p)};
   std::string shader = inverse ? "nn/patchify_inverse" : "nn/patchify";
   if (p == 2) shader += "_p2";
   const vk::Pipeline& pipe = rec.context().pipelines().get(shader);
-  rec.dispatch(pipe, {in, out}, &push, sizeof push, groups_for(patches), 1, 1, op);
+  // 32 invocations per group over wp; about kMaxGroups groups in all.
+  const uint32_t gx = div_up(Wp, 32);
+  const int64_t gy = std::clamp<int64_t>(BF * Hp, 1, std::max<int64_t>(1, kMaxGroups / gx));
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, 65535)), 1, op);
 }
 
 void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Tensor* src_idx, const Tensor* dst_idx,
@@ -171,15 +203,16 @@ void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Ten
   if (m == 0 || len == 0 || dst_rows == 0) return;
   const bool vec4 = len % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
+  const Grid2 g = grid_rows(m, len / q);
   struct {
-    uint32_t n, len, src_rows, dst_rows, use_src_idx, use_dst_idx;
-  } push{uint32_t(m * len / q), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
-         dst_idx != nullptr};
+    uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx, lane_rows;
+  } push{uint32_t(m), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
+         dst_idx != nullptr, g.lane_rows};
   // An absent index list binds any readable buffer; the shader does not read it.
   const vk::BufferView si = src_idx ? src_idx->buffer() : (dst_idx ? dst_idx->buffer() : src.buffer());
   const vk::BufferView di = dst_idx ? dst_idx->buffer() : si;
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/gather_rows_vec4" : "nn/gather_rows");
-  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, groups_for(push.n), 1, 1, op);
+  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, g.x, g.y, 1, op);
 }
 
 }  // namespace
