@@ -1,0 +1,418 @@
+#include "models/cogvideox_vae.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <utility>
+
+#include "dvs/error.hpp"
+#include "models/vae_tiling.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_conv.hpp"
+#include "tensor/ops_elementwise.hpp"
+#include "tensor/ops_layout.hpp"
+#include "tensor/ops_norm.hpp"
+#include "tensor/ops_vae_extra.hpp"
+#include "vk/context.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::models {
+
+// ---- config -------------------------------------------------------------------------------------------------
+
+VaeConfig VaeConfig::from_json(const nlohmann::json& j) {
+  VaeConfig c;
+  auto integer = [&](const char* key, int64_t def) {
+    return j.contains(key) && !j[key].is_null() ? int64_t(std::llround(j[key].get<double>())) : def;
+  };
+  c.in_channels = integer("in_channels", 3);
+  c.out_channels = integer("out_channels", 3);
+  c.latent_channels = integer("latent_channels", 16);
+  c.block_out_channels = {128, 256, 256, 512};
+  if (j.contains("block_out_channels")) c.block_out_channels = j["block_out_channels"].get<std::vector<int64_t>>();
+  c.layers_per_block = integer("layers_per_block", 3);
+  c.norm_num_groups = integer("norm_num_groups", 32);
+  if (j.contains("norm_eps")) c.norm_eps = j["norm_eps"].get<float>();
+  c.temporal_compression_ratio = integer("temporal_compression_ratio", 4);
+  if (j.contains("scaling_factor") && !j["scaling_factor"].is_null()) c.scaling_factor = j["scaling_factor"].get<double>();
+  c.sample_height = integer("sample_height", 480);
+  c.sample_width = integer("sample_width", 720);
+  if (j.contains("use_quant_conv")) c.use_quant_conv = j["use_quant_conv"].get<bool>();
+  if (j.contains("use_post_quant_conv")) c.use_post_quant_conv = j["use_post_quant_conv"].get<bool>();
+  if (c.block_out_channels.empty()) throw Error("vae config: block_out_channels is empty");
+  return c;
+}
+
+int64_t VaeConfig::temporal_levels() const {
+  // int(np.log2(temporal_compression_ratio))
+  return int64_t(std::floor(std::log2(double(temporal_compression_ratio)) + 1e-9));
+}
+
+// ---- per-call state -----------------------------------------------------------------------------------------
+
+// Buffers of one call. Intermediates come from a pool keyed by element count; a buffer returned with put() may
+// be reused by a later dispatch of the same recording (the recorder orders the write after earlier reads).
+// Everything allocated stays referenced until release_batch(), which runs after the batch's submit.
+struct CogVideoXVae::Run {
+  vk::Context& ctx;
+  std::multimap<int64_t, Tensor> free;
+  std::vector<Tensor> keep;
+  std::map<std::string, Tensor> cache;  // conv caches, carried across frame batches
+  std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
+  Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
+
+  explicit Run(vk::Context& c) : ctx(c) {}
+
+  Tensor get(const Shape& s) {
+    const int64_t n = shape_numel(s);
+    if (auto it = free.find(n); it != free.end()) {
+      Tensor t = it->second.reshape(s);
+      free.erase(it);
+      return t;
+    }
+    Tensor t = Tensor::empty(ctx, s, DType::f32, "vae activation");
+    keep.push_back(t);
+    return t;
+  }
+  void put(const Tensor& t) { free.emplace(t.numel(), t); }
+  void release_batch() {
+    free.clear();
+    keep.clear();
+    zq.clear();
+    z = Tensor();
+  }
+};
+
+namespace {
+
+Shape with_channels(const Shape& s, int64_t c) {
+  Shape r = s;
+  r[1] = c;
+  return r;
+}
+
+}  // namespace
+
+// ---- layers ---------------------------------------------------------------------------------------------------
+
+namespace {
+
+struct Layers {
+  vk::Context& ctx;
+  ComponentWeights& w;
+  const VaeConfig& cfg;
+
+  const Tensor& W(const std::string& n) { return w.get(n); }
+  const Tensor* Bias(const std::string& n) { return w.has(n) ? &w.get(n) : nullptr; }
+
+  // CogVideoXCausalConv3d (kt = 3 here) with its cache under `prefix`.
+  template <class RunT>
+  Tensor causal_conv(RunT& run, vk::Recorder& rec, const Tensor& x, const std::string& prefix) {
+    const Tensor& wt = W(prefix + ".conv.weight");
+    const Tensor* b = Bias(prefix + ".conv.bias");
+    Tensor y = run.get({x.dim(0), wt.dim(0), x.dim(2), x.dim(3), x.dim(4)});
+    if (wt.dim(2) == 1) {
+      ops::causal_conv3d(rec, x, wt, b, y);
+      return y;
+    }
+    auto it = run.cache.find(prefix);
+    if (it == run.cache.end()) {
+      Tensor c = Tensor::empty(ctx, ops::causal_conv3d_cache_shape(x.shape(), wt.shape()), DType::f32, prefix + " cache");
+      run.cache.emplace(prefix, c);
+      ops::causal_conv3d(rec, x, wt, b, y, nullptr, &c);
+    } else {
+      ops::causal_conv3d(rec, x, wt, b, y, &it->second, &it->second);
+    }
+    return y;
+  }
+
+  template <class RunT>
+  void group_norm(RunT& run, vk::Recorder& rec, const Tensor& x, const Tensor& y, const std::string& prefix, float eps,
+                  bool silu) {
+    Tensor scratch = run.get({ops::groupnorm_scratch_elems(x.shape(), cfg.norm_num_groups)});
+    ops::groupnorm(rec, x, y, cfg.norm_num_groups, W(prefix + ".weight"), W(prefix + ".bias"), eps, silu, scratch);
+    run.put(scratch);
+  }
+
+  // CogVideoXSpatialNorm3D: GroupNorm(f) * conv_y(zq) + conv_b(zq), zq = the latent batch resized to f's
+  // (F, H, W) by nearest, frame 0 alone when F is odd and > 1. Returns a new tensor.
+  template <class RunT>
+  Tensor spatial_norm(RunT& run, vk::Recorder& rec, const Tensor& f, const std::string& prefix) {
+    const Shape zs = {run.z.dim(0), run.z.dim(1), f.dim(2), f.dim(3), f.dim(4)};
+    auto it = run.zq.find(zs);
+    if (it == run.zq.end()) {
+      Tensor zq = run.get(zs);
+      const int64_t frames = f.dim(2);
+      ops::upsample_nearest(rec, run.z, zq, frames > 1 && frames % 2 == 1);
+      it = run.zq.emplace(zs, zq).first;
+    }
+    const Tensor& zq = it->second;
+    Tensor cy = run.get(f.shape()), cb = run.get(f.shape()), y = run.get(f.shape());
+    ops::conv1x1(rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy);
+    ops::conv1x1(rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb);
+    group_norm(run, rec, f, y, prefix + ".norm_layer", 1e-6f, false);
+    ops::scale_shift(rec, y, cy, cb, y);
+    run.put(cy);
+    run.put(cb);
+    return y;
+  }
+
+  // CogVideoXResnetBlock3D (no temb, 1x1x1 shortcut when the channel count changes). Returns a new tensor.
+  template <class RunT>
+  Tensor resnet(RunT& run, vk::Recorder& rec, const Tensor& x, const std::string& p, bool spatial) {
+    const int64_t cin = x.dim(1);
+    Tensor h;
+    if (spatial) {
+      h = spatial_norm(run, rec, x, p + ".norm1");
+      ops::silu(rec, h, h);
+    } else {
+      h = run.get(x.shape());
+      group_norm(run, rec, x, h, p + ".norm1", cfg.norm_eps, true);
+    }
+    Tensor h2 = causal_conv(run, rec, h, p + ".conv1");
+    run.put(h);
+    if (spatial) {
+      Tensor n2 = spatial_norm(run, rec, h2, p + ".norm2");
+      ops::silu(rec, n2, n2);
+      run.put(h2);
+      h2 = n2;
+    } else {
+      group_norm(run, rec, h2, h2, p + ".norm2", cfg.norm_eps, true);
+    }
+    Tensor out = causal_conv(run, rec, h2, p + ".conv2");
+    run.put(h2);
+    if (cin != out.dim(1)) {
+      Tensor s = run.get(out.shape());
+      ops::conv1x1(rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s);
+      ops::add(rec, out, s, out);
+      run.put(s);
+    } else {
+      ops::add(rec, out, x, out);
+    }
+    return out;
+  }
+};
+
+}  // namespace
+
+// ---- model ----------------------------------------------------------------------------------------------------
+
+CogVideoXVae::CogVideoXVae(vk::Context& ctx, const std::filesystem::path& vae_dir)
+    : ctx_(ctx), weights_(ctx, vae_dir), cfg_(VaeConfig::from_json(weights_.config())) {}
+
+CogVideoXVae::~CogVideoXVae() = default;
+
+std::vector<std::pair<int64_t, int64_t>> CogVideoXVae::frame_batches(int64_t frames, int64_t batch) {
+  // diffusers: num_batches = max(F // b, 1); batch i = [b*i + (0 if i == 0 else r), b*(i+1) + r), r = F % b.
+  std::vector<std::pair<int64_t, int64_t>> out;
+  const int64_t n = std::max<int64_t>(frames / batch, 1), r = frames % batch;
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t start = batch * i + (i == 0 ? 0 : r);
+    const int64_t end = std::min(batch * (i + 1) + r, frames);
+    if (end > start) out.emplace_back(start, end);
+  }
+  return out;
+}
+
+Tensor CogVideoXVae::encode_batch(Run& run, vk::Recorder& rec, const Tensor& x) {
+  Layers L{ctx_, weights_, cfg_};
+  const size_t n = cfg_.block_out_channels.size();
+  Tensor h = L.causal_conv(run, rec, x, "encoder.conv_in");
+  for (size_t i = 0; i < n; ++i) {
+    const std::string p = "encoder.down_blocks." + std::to_string(i);
+    for (int64_t j = 0; j < cfg_.layers_per_block; ++j) {
+      Tensor next = L.resnet(run, rec, h, p + ".resnets." + std::to_string(j), false);
+      run.put(h);
+      h = next;
+    }
+    if (i + 1 < n) {
+      if (int64_t(i) < cfg_.temporal_levels()) {
+        Shape ts = h.shape();
+        ts[2] = ops::downsample_time_frames(ts[2]);
+        Tensor t = run.get(ts);
+        ops::avgpool_time_pairs(rec, h, t);
+        run.put(h);
+        h = t;
+      }
+      const Tensor& wt = L.W(p + ".downsamplers.0.conv.weight");
+      const auto params = ops::Conv2dParams::downsample3x3();
+      Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
+      ops::conv2d(rec, h, wt, L.Bias(p + ".downsamplers.0.conv.bias"), y, params);
+      run.put(h);
+      h = y;
+    }
+  }
+  for (int j = 0; j < 2; ++j) {
+    Tensor next = L.resnet(run, rec, h, "encoder.mid_block.resnets." + std::to_string(j), false);
+    run.put(h);
+    h = next;
+  }
+  L.group_norm(run, rec, h, h, "encoder.norm_out", 1e-6f, true);
+  Tensor out = L.causal_conv(run, rec, h, "encoder.conv_out");
+  run.put(h);
+  if (cfg_.use_quant_conv) {
+    Tensor q = run.get(out.shape());
+    ops::conv1x1(rec, out, L.W("quant_conv.weight"), L.Bias("quant_conv.bias"), q);
+    out = q;
+  }
+  return out;
+}
+
+Tensor CogVideoXVae::decode_batch(Run& run, vk::Recorder& rec, const Tensor& z_in) {
+  Layers L{ctx_, weights_, cfg_};
+  const size_t n = cfg_.block_out_channels.size();
+  Tensor z = z_in;
+  if (cfg_.use_post_quant_conv) {
+    z = run.get(z_in.shape());
+    ops::conv1x1(rec, z_in, L.W("post_quant_conv.weight"), L.Bias("post_quant_conv.bias"), z);
+  }
+  run.z = z;
+  Tensor h = L.causal_conv(run, rec, z, "decoder.conv_in");
+  for (int j = 0; j < 2; ++j) {
+    Tensor next = L.resnet(run, rec, h, "decoder.mid_block.resnets." + std::to_string(j), true);
+    run.put(h);
+    h = next;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const std::string p = "decoder.up_blocks." + std::to_string(i);
+    for (int64_t j = 0; j <= cfg_.layers_per_block; ++j) {
+      Tensor next = L.resnet(run, rec, h, p + ".resnets." + std::to_string(j), true);
+      run.put(h);
+      h = next;
+    }
+    if (i + 1 < n) {
+      const bool compress_time = int64_t(i) < cfg_.temporal_levels();
+      Tensor u = run.get(ops::upsample2x_shape(h.shape(), compress_time));
+      ops::upsample2x(rec, h, u, compress_time);
+      run.put(h);
+      const Tensor& wt = L.W(p + ".upsamplers.0.conv.weight");
+      const auto params = ops::Conv2dParams::same3x3();
+      Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
+      ops::conv2d(rec, u, wt, L.Bias(p + ".upsamplers.0.conv.bias"), y, params);
+      run.put(u);
+      h = y;
+    }
+  }
+  Tensor nrm = L.spatial_norm(run, rec, h, "decoder.norm_out");
+  run.put(h);
+  ops::silu(rec, nrm, nrm);
+  Tensor out = L.causal_conv(run, rec, nrm, "decoder.conv_out");
+  run.put(nrm);
+  return out;
+}
+
+namespace {
+
+// Splits x [B, C, F, H, W] into the given frame ranges (one copy per band; x itself when there is one band).
+std::vector<Tensor> split_frames(vk::Context& ctx, const Tensor& x,
+                                 const std::vector<std::pair<int64_t, int64_t>>& ranges) {
+  if (ranges.size() == 1 && ranges[0].first == 0 && ranges[0].second == x.dim(2)) return {x};
+  std::vector<Tensor> bands;
+  for (auto [s, e] : ranges) {
+    Shape sh = x.shape();
+    sh[2] = e - s;
+    bands.push_back(Tensor::empty(ctx, sh, DType::f32, "vae frame batch"));
+  }
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::split(rec, x, bands, 2); });
+  return bands;
+}
+
+Tensor concat_frames(vk::Context& ctx, const std::vector<Tensor>& parts, const std::string& what) {
+  if (parts.size() == 1) return parts[0];
+  Shape sh = parts[0].shape();
+  sh[2] = 0;
+  for (const Tensor& t : parts) sh[2] += t.dim(2);
+  Tensor out = Tensor::empty(ctx, sh, DType::f32, what);
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::concat(rec, parts, out, 2); });
+  return out;
+}
+
+void check_video(const char* what, const Tensor& t, int64_t channels) {
+  if (t.rank() != 5 || t.dtype() != DType::f32 || t.dim(1) != channels)
+    throw Error(std::string("CogVideoX VAE ") + what + ": expected f32 [B, " + std::to_string(channels) +
+                ", F, H, W], got " + t.describe());
+}
+
+}  // namespace
+
+Tensor CogVideoXVae::encode_moments(const Tensor& video) {
+  check_video("encode", video, cfg_.in_channels);
+  const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
+  std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
+  Run run(ctx_);
+  std::vector<Tensor> outs;
+  for (const Tensor& x : inputs) {
+    Tensor out;
+    ops::run_now(ctx_, [&](vk::Recorder& rec) { out = encode_batch(run, rec, x); });
+    outs.push_back(out);
+    run.release_batch();
+  }
+  return concat_frames(ctx_, outs, "vae moments");
+}
+
+VaePosterior CogVideoXVae::posterior_of(const Tensor& moments) {
+  VaePosterior p;
+  p.moments = moments;
+  const Shape half = with_channels(moments.shape(), moments.dim(1) / 2);
+  p.mean = Tensor::empty(ctx_, half, DType::f32, "vae posterior mean");
+  p.std = Tensor::empty(ctx_, half, DType::f32, "vae posterior std");
+  ops::run_now(ctx_, [&](vk::Recorder& rec) { ops::vae_posterior(rec, moments, p.mean, p.std); });
+  return p;
+}
+
+VaePosterior CogVideoXVae::encode(const Tensor& video) { return posterior_of(encode_moments(video)); }
+
+Tensor CogVideoXVae::decode(const Tensor& z) {
+  check_video("decode", z, cfg_.latent_channels);
+  const auto ranges = frame_batches(z.dim(2), latent_frames_batch);
+  std::vector<Tensor> inputs = split_frames(ctx_, z, ranges);
+  Run run(ctx_);
+  std::vector<Tensor> outs;
+  for (const Tensor& x : inputs) {
+    Tensor out;
+    ops::run_now(ctx_, [&](vk::Recorder& rec) { out = decode_batch(run, rec, x); });
+    outs.push_back(out);
+    run.release_batch();
+  }
+  return concat_frames(ctx_, outs, "vae frames");
+}
+
+// ---- tiling ---------------------------------------------------------------------------------------------------
+
+VaePosterior CogVideoXVae::encode_tiled(const Tensor& video, const VaeTiling& tiling) {
+  check_video("encode_tiled", video, cfg_.in_channels);
+  const TilePlan plan = TilePlan::for_encode(cfg_, tiling);
+  const int64_t H = video.dim(3), W = video.dim(4);
+  if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return encode(video);
+  HostTensor host = video.download(ctx_);
+  HostTensor moments = run_tiled(plan, host, [&](const HostTensor& tile) {
+    return encode_moments(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);
+  });
+  return posterior_of(Tensor::upload(ctx_, moments, "vae moments"));
+}
+
+Tensor CogVideoXVae::decode_tiled(const Tensor& z, const VaeTiling& tiling) {
+  check_video("decode_tiled", z, cfg_.latent_channels);
+  const TilePlan plan = TilePlan::for_decode(cfg_, tiling);
+  const int64_t H = z.dim(3), W = z.dim(4);
+  if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return decode(z);
+  HostTensor host = z.download(ctx_);
+  HostTensor frames = run_tiled(plan, host, [&](const HostTensor& tile) {
+    return decode(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);
+  });
+  return Tensor::upload(ctx_, frames, "vae frames");
+}
+
+// ---- scaling --------------------------------------------------------------------------------------------------
+
+void CogVideoXVae::to_diffusion_latent(vk::Recorder& rec, const Tensor& z, const Tensor& y) const {
+  ops::scale(rec, z, y, float(cfg_.scaling_factor));
+}
+
+void CogVideoXVae::from_diffusion_latent(vk::Recorder& rec, const Tensor& x, const Tensor& z) const {
+  // diffusers divides (latents / scaling_factor); multiplying by the reciprocal can differ by 1 ulp.
+  ops::scale(rec, x, z, float(1.0 / cfg_.scaling_factor));
+}
+
+}  // namespace dvs::models
