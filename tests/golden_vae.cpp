@@ -206,3 +206,4 @@ TEST_F(VaeGolden, Tiled) {
   std::printf("[ golden ] vae tiled decode: %.3f s\n", seconds_since(t0));
   expect_close("vae_tiled decode", dl(frames), load("vae/tiled_decode_frames.npy"), tol_of(c["tolerance"]["decode"]));
 }
+

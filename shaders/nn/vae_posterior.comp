@@ -1,9 +1,9 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-#include "index.glsl"
 // DiagonalGaussianDistribution of the CogVideoX VAE: moments [B, 2*Cl, S] (S = F*H*W) is chunked on channels
 // into mean and logvar; std = exp(0.5 * clamp(logvar, -30, 20)). One invocation per output element.
 layout(local_size_x = 64) in;
+#include "index.glsl"  // after local_size: flat_index() reads gl_WorkGroupSize
 layout(std430, binding = 0) readonly buffer Moments { float moments[]; };
 layout(std430, binding = 1) writeonly buffer Mean { float mean_out[]; };
 layout(std430, binding = 2) writeonly buffer Std { float std_out[]; };
