@@ -207,3 +207,43 @@ TEST_F(VaeGolden, Tiled) {
   expect_close("vae_tiled decode", dl(frames), load("vae/tiled_decode_frames.npy"), tol_of(c["tolerance"]["decode"]));
 }
 
+
+// Diagnostic of vae_frame_batching: with frame batching off (one batch for the whole clip) the result must
+// move away from the golden by the recorded whole_clip_max_abs_diff, proving the batches matter and that the
+// whole-clip path is the one diffusers would take (encode of the video; decode of the golden mean).
+TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
+  const auto& rec = case_of("vae_frame_batching")["whole_clip_max_abs_diff"];
+  auto max_diff = [](const HostTensor& a, const HostTensor& b) {
+    const auto x = a.to_f32(), y = b.to_f32();
+    double m = 0;
+    for (size_t i = 0; i < x.size(); ++i) m = std::max(m, std::fabs(double(x[i]) - double(y[i])));
+    return m;
+  };
+  CogVideoXVae& v = vae();
+  v.sample_frames_batch = 1 << 20;
+  v.latent_frames_batch = 1 << 20;
+  const auto post = v.encode(up(load("vae/chunk17_video.npy")));
+  const double enc = max_diff(dl(post.mean), load("vae/chunk17_encode_mean.npy"));
+  const Tensor z = up(load("vae/chunk17_encode_mean.npy"));
+  const double dec = max_diff(dl(v.decode(z)), load("vae/chunk17_decode_frames.npy"));
+  std::printf("[ golden ] whole clip: encode_mean diff %.6g (recorded %.6g), decode diff %.6g (recorded %.6g)\n", enc,
+              rec["encode_mean"].get<double>(), dec, rec["decode"].get<double>());
+  EXPECT_NEAR(enc, rec["encode_mean"].get<double>(), 1e-3 * rec["encode_mean"].get<double>() + 1e-4);
+  EXPECT_NEAR(dec, rec["decode"].get<double>(), 1e-3 * rec["decode"].get<double>() + 1e-3);
+}
+
+// Timing on a mid size with the pack's weights (not part of the suite: run with
+// --gtest_also_run_disabled_tests --gtest_filter='*VaeTiming*').
+TEST_F(VaeGolden, DISABLED_VaeTimingMidSize) {
+  const int64_t F = 17, H = 128, W = 192;
+  std::vector<float> v(size_t(3 * F * H * W));
+  for (size_t i = 0; i < v.size(); ++i) v[i] = float(std::sin(0.001 * double(i)));
+  const Tensor video = up(HostTensor::from_f32({1, 3, F, H, W}, v));
+  auto t0 = std::chrono::steady_clock::now();
+  const auto post = vae().encode(video);
+  std::printf("[ timing ] encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
+  t0 = std::chrono::steady_clock::now();
+  const Tensor frames = vae().decode(post.mean);
+  std::printf("[ timing ] decode %s: %.3f s\n", dvs::shape_str(post.mean.shape()).c_str(), seconds_since(t0));
+  EXPECT_EQ(frames.dim(2), F);
+}

@@ -415,4 +415,9 @@ void CogVideoXVae::from_diffusion_latent(vk::Recorder& rec, const Tensor& x, con
   ops::scale(rec, x, z, float(1.0 / cfg_.scaling_factor));
 }
 
+void CogVideoXVae::sample(vk::Recorder& rec, const VaePosterior& p, const Tensor& noise, const Tensor& out) {
+  ops::mul(rec, p.std, noise, out);  // torch: mean + std * sample, the product rounded first
+  ops::add(rec, out, p.mean, out);
+}
+
 }  // namespace dvs::models

@@ -76,6 +76,9 @@ class CogVideoXVae {
   // Scaling between VAE units and the diffusion latent (y may be x).
   void to_diffusion_latent(vk::Recorder& rec, const Tensor& z, const Tensor& y) const;    // y = s·z
   void from_diffusion_latent(vk::Recorder& rec, const Tensor& x, const Tensor& z) const;  // z = x / s
+  // A posterior sample in VAE units, as DiagonalGaussianDistribution.sample: out = mean + std·noise (noise
+  // standard normal, caller-drawn, of mean's shape; out may be noise).
+  static void sample(vk::Recorder& rec, const VaePosterior& p, const Tensor& noise, const Tensor& out);
 
   // Frame ranges [start, end) of the batches diffusers uses for `frames` frames and batch size `batch`.
   static std::vector<std::pair<int64_t, int64_t>> frame_batches(int64_t frames, int64_t batch);
