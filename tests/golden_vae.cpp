@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +20,7 @@
 #include "models/vae_tiling.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "vk/profiler.hpp"
 
 namespace fs = std::filesystem;
 using dvs::HostTensor;
@@ -239,6 +241,8 @@ TEST_F(VaeGolden, DISABLED_VaeTimingMidSize) {
   std::vector<float> v(size_t(3 * F * H * W));
   for (size_t i = 0; i < v.size(); ++i) v[i] = float(std::sin(0.001 * double(i)));
   const Tensor video = up(HostTensor::from_f32({1, 3, F, H, W}, v));
+  const bool profile = std::getenv("DVS_VAE_PROFILE") != nullptr;
+  ctx().profiler().set_enabled(profile);
   auto t0 = std::chrono::steady_clock::now();
   const auto post = vae().encode(video);
   std::printf("[ timing ] encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
@@ -246,4 +250,6 @@ TEST_F(VaeGolden, DISABLED_VaeTimingMidSize) {
   const Tensor frames = vae().decode(post.mean);
   std::printf("[ timing ] decode %s: %.3f s\n", dvs::shape_str(post.mean.shape()).c_str(), seconds_since(t0));
   EXPECT_EQ(frames.dim(2), F);
+  if (profile) std::printf("%s\n", ctx().profiler().report().c_str());
+  ctx().profiler().set_enabled(false);
 }
