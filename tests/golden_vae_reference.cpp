@@ -376,6 +376,9 @@ TEST_F(VaeReference, NonSquare17Frames) { check_clip(ctx(), vae_dir(), 1, 17, 16
 // Batch 2 (GroupNorm statistics per sample), a single frame (image encode, F = 1 through every time rule).
 TEST_F(VaeReference, Batch2SingleFrame) { check_clip(ctx(), vae_dir(), 2, 1, 24, 16, 11); }
 
+// Batch 2 through two frame batches (the conv cache holds both samples).
+TEST_F(VaeReference, Batch2TwoFrameBatches) { check_clip(ctx(), vae_dir(), 2, 17, 8, 16, 3); }
+
 // 24 frames: even batches [0:8],[8:16],[16:24] (no odd first frame); 6 latent frames decode as [0:2],[2:4],[4:6].
 TEST_F(VaeReference, EvenFrames) { check_clip(ctx(), vae_dir(), 1, 24, 8, 8, 5); }
 
