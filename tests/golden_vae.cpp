@@ -135,6 +135,28 @@ TEST(VaeTilePlan, MatchesDiffusersArithmetic) {
   EXPECT_EQ(d.limit_w, 288);
 }
 
+// Working-set plan of the real CogVideoX-5B-I2V VAE (its config values) at 49 x 480 x 720, whole frame and
+// with diffusers' default 240 x 360 tiles: printed for the memory plan; a dry run, no device work.
+TEST(VaeMemoryPlan, Real5BSizes) {
+  const nlohmann::json real = {{"_class_name", "AutoencoderKLCogVideoX"},
+                               {"block_out_channels", {128, 256, 256, 512}},
+                               {"latent_channels", 16},
+                               {"layers_per_block", 3},
+                               {"norm_num_groups", 32},
+                               {"temporal_compression_ratio", 4},
+                               {"scaling_factor", 0.7}};
+  const double gib = 1024.0 * 1024.0 * 1024.0;
+  const uint64_t enc = CogVideoXVae::encode_working_bytes(real, {1, 3, 49, 480, 720});
+  const uint64_t dec = CogVideoXVae::decode_working_bytes(real, {1, 16, 13, 60, 90});
+  const uint64_t enc_tile = CogVideoXVae::encode_working_bytes(real, {1, 3, 49, 240, 360});
+  const uint64_t dec_tile = CogVideoXVae::decode_working_bytes(real, {1, 16, 13, 30, 45});
+  std::printf("[ plan   ] real VAE working set: encode 49x480x720 %.2f GiB (tile 240x360: %.2f GiB), decode 13x60x90 "
+              "%.2f GiB (tile 30x45: %.2f GiB)\n",
+              enc / gib, enc_tile / gib, dec / gib, dec_tile / gib);
+  EXPECT_GT(enc, enc_tile);
+  EXPECT_GT(dec, dec_tile);
+}
+
 TEST_F(VaeGolden, Encode) {
   const Tol tol = tol_of(case_of("vae_encode")["tolerance"]);
   const Tensor video = up(load("vae/video.npy"));
@@ -180,12 +202,15 @@ TEST_F(VaeGolden, FrameBatching17) {
   std::printf("[ golden ] vae encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
   expect_close("vae_frame_batching mean", dl(post.mean), load("vae/chunk17_encode_mean.npy"), tol_of(tc["encode"]));
   expect_close("vae_frame_batching std", dl(post.std), load("vae/chunk17_encode_std.npy"), tol_of(tc["encode"]));
+  // The dry-run memory plan is exactly what the live call allocated.
+  EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::encode_working_bytes(vae().weights().config(), video.shape()));
   // Decode the golden mean (not ours) so the decoder is judged on its own.
   const Tensor z = up(load("vae/chunk17_encode_mean.npy"));
   t0 = std::chrono::steady_clock::now();
   const Tensor frames = vae().decode(z);
   std::printf("[ golden ] vae decode %s: %.3f s\n", dvs::shape_str(z.shape()).c_str(), seconds_since(t0));
   expect_close("vae_frame_batching decode", dl(frames), load("vae/chunk17_decode_frames.npy"), tol_of(tc["decode"]));
+  EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::decode_working_bytes(vae().weights().config(), z.shape()));
 }
 
 TEST_F(VaeGolden, Tiled) {

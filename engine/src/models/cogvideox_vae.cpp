@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "dvs/error.hpp"
+#include "io/model_schema.hpp"
 #include "models/vae_tiling.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_conv.hpp"
@@ -51,18 +52,29 @@ int64_t VaeConfig::temporal_levels() const {
 
 // ---- per-call state -----------------------------------------------------------------------------------------
 
+namespace {
+
+// A tensor with a shape and no memory, for dry runs (memory planning from the config alone).
+Tensor shape_only(const Shape& s) {
+  vk::BufferView none;
+  none.size = VkDeviceSize(std::max<int64_t>(shape_numel(s), 1)) * 4;
+  return Tensor::on(none, s, DType::f32);
+}
+
 // Buffers of one call. Intermediates come from a pool keyed by element count; a buffer returned with put() may
 // be reused by a later dispatch of the same recording (the recorder orders the write after earlier reads).
-// Everything allocated stays referenced until release_batch(), which runs after the batch's submit.
-struct CogVideoXVae::Run {
-  vk::Context& ctx;
+// Everything allocated stays referenced until release_batch(), which runs after the batch's submit. A dry run
+// (no context) allocates nothing and only counts bytes.
+struct Run {
+  vk::Context* ctx = nullptr;  // null: dry run
   std::multimap<int64_t, Tensor> free;
   std::vector<Tensor> keep;
   std::map<std::string, Tensor> cache;  // conv caches, carried across frame batches
   std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
   Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
+  uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0;
 
-  explicit Run(vk::Context& c) : ctx(c) {}
+  explicit Run(vk::Context* c) : ctx(c) {}
 
   Tensor get(const Shape& s) {
     const int64_t n = shape_numel(s);
@@ -71,20 +83,27 @@ struct CogVideoXVae::Run {
       free.erase(it);
       return t;
     }
-    Tensor t = Tensor::empty(ctx, s, DType::f32, "vae activation");
+    batch_bytes += uint64_t(n) * 4;
+    Tensor t = ctx ? Tensor::empty(*ctx, s, DType::f32, "vae activation") : shape_only(s);
     keep.push_back(t);
     return t;
   }
   void put(const Tensor& t) { free.emplace(t.numel(), t); }
+  Tensor new_cache(const std::string& name, const Shape& s) {
+    cache_bytes += uint64_t(shape_numel(s)) * 4;
+    Tensor c = ctx ? Tensor::empty(*ctx, s, DType::f32, name + " cache") : shape_only(s);
+    cache.emplace(name, c);
+    return c;
+  }
   void release_batch() {
+    peak_bytes = std::max(peak_bytes, batch_bytes + cache_bytes);
+    batch_bytes = 0;
     free.clear();
     keep.clear();
     zq.clear();
     z = Tensor();
   }
 };
-
-namespace {
 
 Shape with_channels(const Shape& s, int64_t c) {
   Shape r = s;
@@ -98,98 +117,202 @@ Shape with_channels(const Shape& s, int64_t c) {
 
 namespace {
 
+// The model's layers over one frame batch. rec == nullptr: dry run (weights are shape-only tensors made from
+// the config's schema, nothing is recorded).
 struct Layers {
-  vk::Context& ctx;
-  ComponentWeights& w;
   const VaeConfig& cfg;
+  vk::Recorder* rec;
+  ComponentWeights* weights;                          // live run
+  const std::map<std::string, Shape>* weight_shapes;  // dry run
+  std::map<std::string, Tensor> dry_weights;
 
-  const Tensor& W(const std::string& n) { return w.get(n); }
-  const Tensor* Bias(const std::string& n) { return w.has(n) ? &w.get(n) : nullptr; }
+  const Tensor& W(const std::string& n) {
+    if (weights) return weights->get(n);
+    auto it = dry_weights.find(n);
+    if (it != dry_weights.end()) return it->second;
+    auto s = weight_shapes->find(n);
+    if (s == weight_shapes->end()) throw Error("internal: VAE dry run: no tensor " + n + " in the schema");
+    return dry_weights.emplace(n, shape_only(s->second)).first->second;
+  }
+  const Tensor* Bias(const std::string& n) {
+    const bool present = weights ? weights->has(n) : weight_shapes->count(n) > 0;
+    return present ? &W(n) : nullptr;
+  }
 
   // CogVideoXCausalConv3d (kt = 3 here) with its cache under `prefix`.
-  template <class RunT>
-  Tensor causal_conv(RunT& run, vk::Recorder& rec, const Tensor& x, const std::string& prefix) {
+  Tensor causal_conv(Run& run, const Tensor& x, const std::string& prefix) {
     const Tensor& wt = W(prefix + ".conv.weight");
     const Tensor* b = Bias(prefix + ".conv.bias");
     Tensor y = run.get({x.dim(0), wt.dim(0), x.dim(2), x.dim(3), x.dim(4)});
     if (wt.dim(2) == 1) {
-      ops::causal_conv3d(rec, x, wt, b, y);
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y);
       return y;
     }
     auto it = run.cache.find(prefix);
     if (it == run.cache.end()) {
-      Tensor c = Tensor::empty(ctx, ops::causal_conv3d_cache_shape(x.shape(), wt.shape()), DType::f32, prefix + " cache");
-      run.cache.emplace(prefix, c);
-      ops::causal_conv3d(rec, x, wt, b, y, nullptr, &c);
+      Tensor c = run.new_cache(prefix, ops::causal_conv3d_cache_shape(x.shape(), wt.shape()));
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, nullptr, &c);
     } else {
-      ops::causal_conv3d(rec, x, wt, b, y, &it->second, &it->second);
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, &it->second, &it->second);
     }
     return y;
   }
 
-  template <class RunT>
-  void group_norm(RunT& run, vk::Recorder& rec, const Tensor& x, const Tensor& y, const std::string& prefix, float eps,
-                  bool silu) {
+  void group_norm(Run& run, const Tensor& x, const Tensor& y, const std::string& prefix, float eps, bool silu) {
     Tensor scratch = run.get({ops::groupnorm_scratch_elems(x.shape(), cfg.norm_num_groups)});
-    ops::groupnorm(rec, x, y, cfg.norm_num_groups, W(prefix + ".weight"), W(prefix + ".bias"), eps, silu, scratch);
+    if (rec)
+      ops::groupnorm(*rec, x, y, cfg.norm_num_groups, W(prefix + ".weight"), W(prefix + ".bias"), eps, silu, scratch);
     run.put(scratch);
   }
 
   // CogVideoXSpatialNorm3D: GroupNorm(f) * conv_y(zq) + conv_b(zq), zq = the latent batch resized to f's
   // (F, H, W) by nearest, frame 0 alone when F is odd and > 1. Returns a new tensor.
-  template <class RunT>
-  Tensor spatial_norm(RunT& run, vk::Recorder& rec, const Tensor& f, const std::string& prefix) {
+  Tensor spatial_norm(Run& run, const Tensor& f, const std::string& prefix) {
     const Shape zs = {run.z.dim(0), run.z.dim(1), f.dim(2), f.dim(3), f.dim(4)};
     auto it = run.zq.find(zs);
     if (it == run.zq.end()) {
       Tensor zq = run.get(zs);
       const int64_t frames = f.dim(2);
-      ops::upsample_nearest(rec, run.z, zq, frames > 1 && frames % 2 == 1);
+      if (rec) ops::upsample_nearest(*rec, run.z, zq, frames > 1 && frames % 2 == 1);
       it = run.zq.emplace(zs, zq).first;
     }
     const Tensor& zq = it->second;
     Tensor cy = run.get(f.shape()), cb = run.get(f.shape()), y = run.get(f.shape());
-    ops::conv1x1(rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy);
-    ops::conv1x1(rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb);
-    group_norm(run, rec, f, y, prefix + ".norm_layer", 1e-6f, false);
-    ops::scale_shift(rec, y, cy, cb, y);
+    if (rec) {
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy);
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb);
+    }
+    group_norm(run, f, y, prefix + ".norm_layer", 1e-6f, false);
+    if (rec) ops::scale_shift(*rec, y, cy, cb, y);
     run.put(cy);
     run.put(cb);
     return y;
   }
 
+  void silu(const Tensor& x) {
+    if (rec) ops::silu(*rec, x, x);
+  }
+
   // CogVideoXResnetBlock3D (no temb, 1x1x1 shortcut when the channel count changes). Returns a new tensor.
-  template <class RunT>
-  Tensor resnet(RunT& run, vk::Recorder& rec, const Tensor& x, const std::string& p, bool spatial) {
+  Tensor resnet(Run& run, const Tensor& x, const std::string& p, bool spatial) {
     const int64_t cin = x.dim(1);
     Tensor h;
     if (spatial) {
-      h = spatial_norm(run, rec, x, p + ".norm1");
-      ops::silu(rec, h, h);
+      h = spatial_norm(run, x, p + ".norm1");
+      silu(h);
     } else {
       h = run.get(x.shape());
-      group_norm(run, rec, x, h, p + ".norm1", cfg.norm_eps, true);
+      group_norm(run, x, h, p + ".norm1", cfg.norm_eps, true);
     }
-    Tensor h2 = causal_conv(run, rec, h, p + ".conv1");
+    Tensor h2 = causal_conv(run, h, p + ".conv1");
     run.put(h);
     if (spatial) {
-      Tensor n2 = spatial_norm(run, rec, h2, p + ".norm2");
-      ops::silu(rec, n2, n2);
+      Tensor n2 = spatial_norm(run, h2, p + ".norm2");
+      silu(n2);
       run.put(h2);
       h2 = n2;
     } else {
-      group_norm(run, rec, h2, h2, p + ".norm2", cfg.norm_eps, true);
+      group_norm(run, h2, h2, p + ".norm2", cfg.norm_eps, true);
     }
-    Tensor out = causal_conv(run, rec, h2, p + ".conv2");
+    Tensor out = causal_conv(run, h2, p + ".conv2");
     run.put(h2);
     if (cin != out.dim(1)) {
       Tensor s = run.get(out.shape());
-      ops::conv1x1(rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s);
-      ops::add(rec, out, s, out);
+      if (rec) {
+        ops::conv1x1(*rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s);
+        ops::add(*rec, out, s, out);
+      }
       run.put(s);
-    } else {
-      ops::add(rec, out, x, out);
+    } else if (rec) {
+      ops::add(*rec, out, x, out);
     }
+    return out;
+  }
+
+  // CogVideoXEncoder3D on one frame batch -> moments [B, 2*Cl, Fb', Hl, Wl].
+  Tensor encoder(Run& run, const Tensor& x) {
+    const size_t n = cfg.block_out_channels.size();
+    Tensor h = causal_conv(run, x, "encoder.conv_in");
+    for (size_t i = 0; i < n; ++i) {
+      const std::string p = "encoder.down_blocks." + std::to_string(i);
+      for (int64_t j = 0; j < cfg.layers_per_block; ++j) {
+        Tensor next = resnet(run, h, p + ".resnets." + std::to_string(j), false);
+        run.put(h);
+        h = next;
+      }
+      if (i + 1 < n) {
+        if (int64_t(i) < cfg.temporal_levels()) {
+          Shape ts = h.shape();
+          ts[2] = ops::downsample_time_frames(ts[2]);
+          Tensor t = run.get(ts);
+          if (rec) ops::avgpool_time_pairs(*rec, h, t);
+          run.put(h);
+          h = t;
+        }
+        const Tensor& wt = W(p + ".downsamplers.0.conv.weight");
+        const auto params = ops::Conv2dParams::downsample3x3();
+        Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
+        if (rec) ops::conv2d(*rec, h, wt, Bias(p + ".downsamplers.0.conv.bias"), y, params);
+        run.put(h);
+        h = y;
+      }
+    }
+    for (int j = 0; j < 2; ++j) {
+      Tensor next = resnet(run, h, "encoder.mid_block.resnets." + std::to_string(j), false);
+      run.put(h);
+      h = next;
+    }
+    group_norm(run, h, h, "encoder.norm_out", 1e-6f, true);
+    Tensor out = causal_conv(run, h, "encoder.conv_out");
+    run.put(h);
+    if (cfg.use_quant_conv) {
+      Tensor q = run.get(out.shape());
+      if (rec) ops::conv1x1(*rec, out, W("quant_conv.weight"), Bias("quant_conv.bias"), q);
+      out = q;
+    }
+    return out;
+  }
+
+  // CogVideoXDecoder3D on one latent batch -> frames.
+  Tensor decoder(Run& run, const Tensor& z_in) {
+    const size_t n = cfg.block_out_channels.size();
+    Tensor z = z_in;
+    if (cfg.use_post_quant_conv) {
+      z = run.get(z_in.shape());
+      if (rec) ops::conv1x1(*rec, z_in, W("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z);
+    }
+    run.z = z;
+    Tensor h = causal_conv(run, z, "decoder.conv_in");
+    for (int j = 0; j < 2; ++j) {
+      Tensor next = resnet(run, h, "decoder.mid_block.resnets." + std::to_string(j), true);
+      run.put(h);
+      h = next;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const std::string p = "decoder.up_blocks." + std::to_string(i);
+      for (int64_t j = 0; j <= cfg.layers_per_block; ++j) {
+        Tensor next = resnet(run, h, p + ".resnets." + std::to_string(j), true);
+        run.put(h);
+        h = next;
+      }
+      if (i + 1 < n) {
+        const bool compress_time = int64_t(i) < cfg.temporal_levels();
+        Tensor u = run.get(ops::upsample2x_shape(h.shape(), compress_time));
+        if (rec) ops::upsample2x(*rec, h, u, compress_time);
+        run.put(h);
+        const Tensor& wt = W(p + ".upsamplers.0.conv.weight");
+        const auto params = ops::Conv2dParams::same3x3();
+        Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
+        if (rec) ops::conv2d(*rec, u, wt, Bias(p + ".upsamplers.0.conv.bias"), y, params);
+        run.put(u);
+        h = y;
+      }
+    }
+    Tensor nrm = spatial_norm(run, h, "decoder.norm_out");
+    run.put(h);
+    silu(nrm);
+    Tensor out = causal_conv(run, nrm, "decoder.conv_out");
+    run.put(nrm);
     return out;
   }
 };
@@ -212,93 +335,6 @@ std::vector<std::pair<int64_t, int64_t>> CogVideoXVae::frame_batches(int64_t fra
     const int64_t end = std::min(batch * (i + 1) + r, frames);
     if (end > start) out.emplace_back(start, end);
   }
-  return out;
-}
-
-Tensor CogVideoXVae::encode_batch(Run& run, vk::Recorder& rec, const Tensor& x) {
-  Layers L{ctx_, weights_, cfg_};
-  const size_t n = cfg_.block_out_channels.size();
-  Tensor h = L.causal_conv(run, rec, x, "encoder.conv_in");
-  for (size_t i = 0; i < n; ++i) {
-    const std::string p = "encoder.down_blocks." + std::to_string(i);
-    for (int64_t j = 0; j < cfg_.layers_per_block; ++j) {
-      Tensor next = L.resnet(run, rec, h, p + ".resnets." + std::to_string(j), false);
-      run.put(h);
-      h = next;
-    }
-    if (i + 1 < n) {
-      if (int64_t(i) < cfg_.temporal_levels()) {
-        Shape ts = h.shape();
-        ts[2] = ops::downsample_time_frames(ts[2]);
-        Tensor t = run.get(ts);
-        ops::avgpool_time_pairs(rec, h, t);
-        run.put(h);
-        h = t;
-      }
-      const Tensor& wt = L.W(p + ".downsamplers.0.conv.weight");
-      const auto params = ops::Conv2dParams::downsample3x3();
-      Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
-      ops::conv2d(rec, h, wt, L.Bias(p + ".downsamplers.0.conv.bias"), y, params);
-      run.put(h);
-      h = y;
-    }
-  }
-  for (int j = 0; j < 2; ++j) {
-    Tensor next = L.resnet(run, rec, h, "encoder.mid_block.resnets." + std::to_string(j), false);
-    run.put(h);
-    h = next;
-  }
-  L.group_norm(run, rec, h, h, "encoder.norm_out", 1e-6f, true);
-  Tensor out = L.causal_conv(run, rec, h, "encoder.conv_out");
-  run.put(h);
-  if (cfg_.use_quant_conv) {
-    Tensor q = run.get(out.shape());
-    ops::conv1x1(rec, out, L.W("quant_conv.weight"), L.Bias("quant_conv.bias"), q);
-    out = q;
-  }
-  return out;
-}
-
-Tensor CogVideoXVae::decode_batch(Run& run, vk::Recorder& rec, const Tensor& z_in) {
-  Layers L{ctx_, weights_, cfg_};
-  const size_t n = cfg_.block_out_channels.size();
-  Tensor z = z_in;
-  if (cfg_.use_post_quant_conv) {
-    z = run.get(z_in.shape());
-    ops::conv1x1(rec, z_in, L.W("post_quant_conv.weight"), L.Bias("post_quant_conv.bias"), z);
-  }
-  run.z = z;
-  Tensor h = L.causal_conv(run, rec, z, "decoder.conv_in");
-  for (int j = 0; j < 2; ++j) {
-    Tensor next = L.resnet(run, rec, h, "decoder.mid_block.resnets." + std::to_string(j), true);
-    run.put(h);
-    h = next;
-  }
-  for (size_t i = 0; i < n; ++i) {
-    const std::string p = "decoder.up_blocks." + std::to_string(i);
-    for (int64_t j = 0; j <= cfg_.layers_per_block; ++j) {
-      Tensor next = L.resnet(run, rec, h, p + ".resnets." + std::to_string(j), true);
-      run.put(h);
-      h = next;
-    }
-    if (i + 1 < n) {
-      const bool compress_time = int64_t(i) < cfg_.temporal_levels();
-      Tensor u = run.get(ops::upsample2x_shape(h.shape(), compress_time));
-      ops::upsample2x(rec, h, u, compress_time);
-      run.put(h);
-      const Tensor& wt = L.W(p + ".upsamplers.0.conv.weight");
-      const auto params = ops::Conv2dParams::same3x3();
-      Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
-      ops::conv2d(rec, u, wt, L.Bias(p + ".upsamplers.0.conv.bias"), y, params);
-      run.put(u);
-      h = y;
-    }
-  }
-  Tensor nrm = L.spatial_norm(run, rec, h, "decoder.norm_out");
-  run.put(h);
-  ops::silu(rec, nrm, nrm);
-  Tensor out = L.causal_conv(run, rec, nrm, "decoder.conv_out");
-  run.put(nrm);
   return out;
 }
 
@@ -340,14 +376,18 @@ Tensor CogVideoXVae::encode_moments(const Tensor& video) {
   check_video("encode", video, cfg_.in_channels);
   const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
   std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
-  Run run(ctx_);
+  Run run(&ctx_);
   std::vector<Tensor> outs;
   for (const Tensor& x : inputs) {
     Tensor out;
-    ops::run_now(ctx_, [&](vk::Recorder& rec) { out = encode_batch(run, rec, x); });
+    ops::run_now(ctx_, [&](vk::Recorder& rec) {
+      Layers L{cfg_, &rec, &weights_, nullptr, {}};
+      out = L.encoder(run, x);
+    });
     outs.push_back(out);
     run.release_batch();
   }
+  last_peak_bytes_ = run.peak_bytes;
   return concat_frames(ctx_, outs, "vae moments");
 }
 
@@ -367,15 +407,54 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
   check_video("decode", z, cfg_.latent_channels);
   const auto ranges = frame_batches(z.dim(2), latent_frames_batch);
   std::vector<Tensor> inputs = split_frames(ctx_, z, ranges);
-  Run run(ctx_);
+  Run run(&ctx_);
   std::vector<Tensor> outs;
   for (const Tensor& x : inputs) {
     Tensor out;
-    ops::run_now(ctx_, [&](vk::Recorder& rec) { out = decode_batch(run, rec, x); });
+    ops::run_now(ctx_, [&](vk::Recorder& rec) {
+      Layers L{cfg_, &rec, &weights_, nullptr, {}};
+      out = L.decoder(run, x);
+    });
     outs.push_back(out);
     run.release_batch();
   }
+  last_peak_bytes_ = run.peak_bytes;
   return concat_frames(ctx_, outs, "vae frames");
+}
+
+// ---- memory planning ------------------------------------------------------------------------------------------
+
+namespace {
+
+// The same layer code on shape-only tensors: the working set of every frame batch, from the config alone.
+uint64_t dry_run_peak(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
+  const VaeConfig cfg = VaeConfig::from_json(config);
+  std::map<std::string, Shape> shapes;
+  for (const auto& t : schema_for("AutoencoderKLCogVideoX", config, "vae config").tensors) shapes[t.name] = t.shape;
+  if (input.size() != 5 || input[1] != (encode ? cfg.in_channels : cfg.latent_channels))
+    throw Error("VAE memory plan: the input must be [B, " + std::to_string(encode ? cfg.in_channels : cfg.latent_channels) +
+                ", F, H, W], got [" + shape_str(input) + "]");
+  Run run(nullptr);
+  for (auto [s, e] : CogVideoXVae::frame_batches(input[2], batch)) {
+    Shape b = input;
+    b[2] = e - s;
+    Layers L{cfg, nullptr, nullptr, &shapes, {}};
+    const Tensor x = shape_only(b);
+    if (encode) L.encoder(run, x);
+    else L.decoder(run, x);
+    run.release_batch();
+  }
+  return run.peak_bytes;
+}
+
+}  // namespace
+
+uint64_t CogVideoXVae::encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
+  return dry_run_peak(config, video, true, frames_batch);
+}
+
+uint64_t CogVideoXVae::decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
+  return dry_run_peak(config, z, false, latent_batch);
 }
 
 // ---- tiling ---------------------------------------------------------------------------------------------------

@@ -83,16 +83,23 @@ class CogVideoXVae {
   // Frame ranges [start, end) of the batches diffusers uses for `frames` frames and batch size `batch`.
   static std::vector<std::pair<int64_t, int64_t>> frame_batches(int64_t frames, int64_t batch);
 
+  // Memory planning from config.json alone (no weights, no device): the largest working set of one frame
+  // batch — every intermediate buffer of that batch plus the conv caches, in bytes — of encode(video shape)
+  // or decode(z shape). Not counted: weights, the call's input and its result (moments / frames), and the
+  // posterior. For a tiled call pass the tile's shape. It is exactly what a live call allocates
+  // (last_working_bytes() after it).
+  static uint64_t encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8);
+  static uint64_t decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch = 2);
+  uint64_t last_working_bytes() const { return last_peak_bytes_; }
+
  private:
-  struct Run;  // per-call state: buffer pool, conv caches, keep-alive list
   Tensor encode_moments(const Tensor& video);
-  Tensor encode_batch(Run& run, vk::Recorder& rec, const Tensor& x);
-  Tensor decode_batch(Run& run, vk::Recorder& rec, const Tensor& z);
   VaePosterior posterior_of(const Tensor& moments);
 
   vk::Context& ctx_;
   ComponentWeights weights_;
   VaeConfig cfg_;
+  uint64_t last_peak_bytes_ = 0;
 };
 
 }  // namespace dvs::models
