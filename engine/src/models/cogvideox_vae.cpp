@@ -54,41 +54,64 @@ int64_t VaeConfig::temporal_levels() const {
 
 namespace {
 
-// A tensor with a shape and no memory, for dry runs (memory planning from the config alone).
-Tensor shape_only(const Shape& s) {
+// A tensor with a shape and no memory, for dry runs (memory planning from the config alone). `id` becomes the
+// view's offset so that pooled shape-only buffers stay distinguishable.
+Tensor shape_only(const Shape& s, VkDeviceSize id = 0) {
   vk::BufferView none;
+  none.offset = id;
   none.size = VkDeviceSize(std::max<int64_t>(shape_numel(s), 1)) * 4;
   return Tensor::on(none, s, DType::f32);
 }
 
-// Buffers of one call. Intermediates come from a pool keyed by element count; a buffer returned with put() may
-// be reused by a later dispatch of the same recording (the recorder orders the write after earlier reads).
-// Everything allocated stays referenced until release_batch(), which runs after the batch's submit. A dry run
-// (no context) allocates nothing and only counts bytes.
+// Buffers of one call. Intermediates come from a best-fit pool (a free buffer of at least the size and at most
+// twice it, else a new one); a buffer returned with put() may be reused by a later dispatch of the same
+// recording (the recorder orders the write after earlier reads of the range). Everything allocated stays
+// referenced until release_batch(), which runs after the batch's submit. A dry run (no context) allocates
+// nothing and only counts bytes.
 struct Run {
+  using Key = std::pair<VkBuffer, VkDeviceSize>;
+  struct Slot {
+    Tensor owner;
+    uint64_t capacity;
+  };
   vk::Context* ctx = nullptr;  // null: dry run
-  std::multimap<int64_t, Tensor> free;
-  std::vector<Tensor> keep;
+  std::map<Key, Slot> slots;   // every buffer of this batch
+  std::multimap<uint64_t, Key> free;
   std::map<std::string, Tensor> cache;  // conv caches, carried across frame batches
   std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
   Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
-  uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0;
+  uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0, dry_ids = 0;
 
   explicit Run(vk::Context* c) : ctx(c) {}
 
+  static Key key_of(const Tensor& t) { return {t.buffer().buffer, t.buffer().offset}; }
+
   Tensor get(const Shape& s) {
-    const int64_t n = shape_numel(s);
-    if (auto it = free.find(n); it != free.end()) {
-      Tensor t = it->second.reshape(s);
+    const uint64_t need = uint64_t(std::max<int64_t>(shape_numel(s), 1)) * 4;
+    if (auto it = free.lower_bound(need); it != free.end() && it->first <= 2 * need) {
+      const Key k = it->second;
       free.erase(it);
-      return t;
+      return Tensor::on(slots.at(k).owner.buffer(), s, DType::f32);
     }
-    batch_bytes += uint64_t(n) * 4;
-    Tensor t = ctx ? Tensor::empty(*ctx, s, DType::f32, "vae activation") : shape_only(s);
-    keep.push_back(t);
-    return t;
+    batch_bytes += need;
+    Tensor owner = ctx ? Tensor::empty(*ctx, {int64_t(need / 4)}, DType::f32, "vae activation")
+                       : shape_only({int64_t(need / 4)}, ++dry_ids);
+    slots.emplace(key_of(owner), Slot{owner, need});
+    return Tensor::on(owner.buffer(), s, DType::f32);
   }
-  void put(const Tensor& t) { free.emplace(t.numel(), t); }
+  void put(const Tensor& t) {
+    const Key k = key_of(t);
+    free.emplace(slots.at(k).capacity, k);
+  }
+  // An owning tensor with t's contents (a batch result outlives release_batch(); t is a view into the pool):
+  // t's buffer itself when it fits exactly, else a copy. Live runs only, after the batch's submit.
+  Tensor owned(const Tensor& t) {
+    const Tensor& owner = slots.at(key_of(t)).owner;
+    if (owner.numel() == t.numel()) return owner.reshape(t.shape());
+    Tensor c = Tensor::empty(*ctx, t.shape(), DType::f32, "vae result");
+    ops::run_now(*ctx, [&](vk::Recorder& rec) { rec.copy(t.buffer(), c.buffer(), t.bytes()); });
+    return c;
+  }
   Tensor new_cache(const std::string& name, const Shape& s) {
     cache_bytes += uint64_t(shape_numel(s)) * 4;
     Tensor c = ctx ? Tensor::empty(*ctx, s, DType::f32, name + " cache") : shape_only(s);
@@ -99,7 +122,7 @@ struct Run {
     peak_bytes = std::max(peak_bytes, batch_bytes + cache_bytes);
     batch_bytes = 0;
     free.clear();
-    keep.clear();
+    slots.clear();
     zq.clear();
     z = Tensor();
   }
@@ -384,7 +407,7 @@ Tensor CogVideoXVae::encode_moments(const Tensor& video) {
       Layers L{cfg_, &rec, &weights_, nullptr, {}};
       out = L.encoder(run, x);
     });
-    outs.push_back(out);
+    outs.push_back(run.owned(out));
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
@@ -415,7 +438,7 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
       Layers L{cfg_, &rec, &weights_, nullptr, {}};
       out = L.decoder(run, x);
     });
-    outs.push_back(out);
+    outs.push_back(run.owned(out));
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
