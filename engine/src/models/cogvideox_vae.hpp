@@ -63,7 +63,8 @@ class CogVideoXVae {
   // Frame batch sizes (diffusers' num_sample_frames_batch_size / num_latent_frames_batch_size).
   int64_t sample_frames_batch = 8, latent_frames_batch = 2;
 
-  // video [B, in_channels, F, H, W] f32 in [-1, 1]; H, W multiples of spatial_ratio(). Not tiled.
+  // video [B, in_channels, F, H, W] f32 in [-1, 1] -> posterior [B, Cl, Fl, ceil-halved H, W per down block].
+  // Any F (diffusers expects 1, 8k or 8k+1) and any H, W; not tiled.
   VaePosterior encode(const Tensor& video);
   // z [B, latent_channels, Fl, Hl, Wl] f32 in VAE units -> frames [B, out_channels, F, H, W]. Not tiled.
   Tensor decode(const Tensor& z);
