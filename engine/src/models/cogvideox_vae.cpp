@@ -1,0 +1,525 @@
+#include "models/cogvideox_vae.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <utility>
+
+#include "dvs/error.hpp"
+#include "io/model_schema.hpp"
+#include "models/vae_tiling.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_conv.hpp"
+#include "tensor/ops_elementwise.hpp"
+#include "tensor/ops_layout.hpp"
+#include "tensor/ops_norm.hpp"
+#include "tensor/ops_vae_extra.hpp"
+#include "vk/context.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::models {
+
+// ---- config -------------------------------------------------------------------------------------------------
+
+VaeConfig VaeConfig::from_json(const nlohmann::json& j) {
+  VaeConfig c;
+  auto integer = [&](const char* key, int64_t def) {
+    return j.contains(key) && !j[key].is_null() ? int64_t(std::llround(j[key].get<double>())) : def;
+  };
+  c.in_channels = integer("in_channels", 3);
+  c.out_channels = integer("out_channels", 3);
+  c.latent_channels = integer("latent_channels", 16);
+  c.block_out_channels = {128, 256, 256, 512};
+  if (j.contains("block_out_channels")) c.block_out_channels = j["block_out_channels"].get<std::vector<int64_t>>();
+  c.layers_per_block = integer("layers_per_block", 3);
+  c.norm_num_groups = integer("norm_num_groups", 32);
+  if (j.contains("norm_eps")) c.norm_eps = j["norm_eps"].get<float>();
+  c.temporal_compression_ratio = integer("temporal_compression_ratio", 4);
+  if (j.contains("scaling_factor") && !j["scaling_factor"].is_null()) c.scaling_factor = j["scaling_factor"].get<double>();
+  c.sample_height = integer("sample_height", 480);
+  c.sample_width = integer("sample_width", 720);
+  if (j.contains("use_quant_conv")) c.use_quant_conv = j["use_quant_conv"].get<bool>();
+  if (j.contains("use_post_quant_conv")) c.use_post_quant_conv = j["use_post_quant_conv"].get<bool>();
+  if (c.block_out_channels.empty()) throw Error("vae config: block_out_channels is empty");
+  return c;
+}
+
+int64_t VaeConfig::temporal_levels() const {
+  // int(np.log2(temporal_compression_ratio))
+  return int64_t(std::floor(std::log2(double(temporal_compression_ratio)) + 1e-9));
+}
+
+// ---- per-call state -----------------------------------------------------------------------------------------
+
+namespace {
+
+// A tensor with a shape and no memory, for dry runs (memory planning from the config alone). `id` becomes the
+// view's offset so that pooled shape-only buffers stay distinguishable.
+Tensor shape_only(const Shape& s, VkDeviceSize id = 0) {
+  vk::BufferView none;
+  none.offset = id;
+  none.size = VkDeviceSize(std::max<int64_t>(shape_numel(s), 1)) * 4;
+  return Tensor::on(none, s, DType::f32);
+}
+
+// Buffers of one call. Intermediates come from a best-fit pool (a free buffer of at least the size and at most
+// twice it, else a new one); a buffer returned with put() may be reused by a later dispatch of the same
+// recording (the recorder orders the write after earlier reads of the range). Everything allocated stays
+// referenced until release_batch(), which runs after the batch's submit. A dry run (no context) allocates
+// nothing and only counts bytes.
+struct Run {
+  using Key = std::pair<VkBuffer, VkDeviceSize>;
+  struct Slot {
+    Tensor owner;
+    uint64_t capacity;
+  };
+  vk::Context* ctx = nullptr;  // null: dry run
+  std::map<Key, Slot> slots;   // every buffer of this batch
+  std::multimap<uint64_t, Key> free;
+  std::map<std::string, Tensor> cache;  // conv caches, carried across frame batches
+  std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
+  Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
+  uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0, dry_ids = 0;
+
+  explicit Run(vk::Context* c) : ctx(c) {}
+
+  static Key key_of(const Tensor& t) { return {t.buffer().buffer, t.buffer().offset}; }
+
+  Tensor get(const Shape& s) {
+    const uint64_t need = uint64_t(std::max<int64_t>(shape_numel(s), 1)) * 4;
+    if (auto it = free.lower_bound(need); it != free.end() && it->first <= 2 * need) {
+      const Key k = it->second;
+      free.erase(it);
+      return Tensor::on(slots.at(k).owner.buffer(), s, DType::f32);
+    }
+    batch_bytes += need;
+    Tensor owner = ctx ? Tensor::empty(*ctx, {int64_t(need / 4)}, DType::f32, "vae activation")
+                       : shape_only({int64_t(need / 4)}, ++dry_ids);
+    slots.emplace(key_of(owner), Slot{owner, need});
+    return Tensor::on(owner.buffer(), s, DType::f32);
+  }
+  void put(const Tensor& t) {
+    const Key k = key_of(t);
+    free.emplace(slots.at(k).capacity, k);
+  }
+  // An owning tensor with t's contents (a batch result outlives release_batch(); t is a view into the pool):
+  // t's buffer itself when it fits exactly, else a copy. Live runs only, after the batch's submit.
+  Tensor owned(const Tensor& t) {
+    const Tensor& owner = slots.at(key_of(t)).owner;
+    if (owner.numel() == t.numel()) return owner.reshape(t.shape());
+    Tensor c = Tensor::empty(*ctx, t.shape(), DType::f32, "vae result");
+    ops::run_now(*ctx, [&](vk::Recorder& rec) { rec.copy(t.buffer(), c.buffer(), t.bytes()); });
+    return c;
+  }
+  Tensor new_cache(const std::string& name, const Shape& s) {
+    cache_bytes += uint64_t(shape_numel(s)) * 4;
+    Tensor c = ctx ? Tensor::empty(*ctx, s, DType::f32, name + " cache") : shape_only(s);
+    cache.emplace(name, c);
+    return c;
+  }
+  void release_batch() {
+    peak_bytes = std::max(peak_bytes, batch_bytes + cache_bytes);
+    batch_bytes = 0;
+    free.clear();
+    slots.clear();
+    zq.clear();
+    z = Tensor();
+  }
+};
+
+Shape with_channels(const Shape& s, int64_t c) {
+  Shape r = s;
+  r[1] = c;
+  return r;
+}
+
+}  // namespace
+
+// ---- layers ---------------------------------------------------------------------------------------------------
+
+namespace {
+
+// The model's layers over one frame batch. rec == nullptr: dry run (weights are shape-only tensors made from
+// the config's schema, nothing is recorded).
+struct Layers {
+  const VaeConfig& cfg;
+  vk::Recorder* rec;
+  ComponentWeights* weights;                          // live run
+  const std::map<std::string, Shape>* weight_shapes;  // dry run
+  std::map<std::string, Tensor> dry_weights;
+
+  const Tensor& W(const std::string& n) {
+    if (weights) return weights->get(n);
+    auto it = dry_weights.find(n);
+    if (it != dry_weights.end()) return it->second;
+    auto s = weight_shapes->find(n);
+    if (s == weight_shapes->end()) throw Error("internal: VAE dry run: no tensor " + n + " in the schema");
+    return dry_weights.emplace(n, shape_only(s->second)).first->second;
+  }
+  const Tensor* Bias(const std::string& n) {
+    const bool present = weights ? weights->has(n) : weight_shapes->count(n) > 0;
+    return present ? &W(n) : nullptr;
+  }
+
+  // CogVideoXCausalConv3d (kt = 3 here) with its cache under `prefix`.
+  Tensor causal_conv(Run& run, const Tensor& x, const std::string& prefix) {
+    const Tensor& wt = W(prefix + ".conv.weight");
+    const Tensor* b = Bias(prefix + ".conv.bias");
+    Tensor y = run.get({x.dim(0), wt.dim(0), x.dim(2), x.dim(3), x.dim(4)});
+    if (wt.dim(2) == 1) {
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y);
+      return y;
+    }
+    auto it = run.cache.find(prefix);
+    if (it == run.cache.end()) {
+      Tensor c = run.new_cache(prefix, ops::causal_conv3d_cache_shape(x.shape(), wt.shape()));
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, nullptr, &c);
+    } else {
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, &it->second, &it->second);
+    }
+    return y;
+  }
+
+  void group_norm(Run& run, const Tensor& x, const Tensor& y, const std::string& prefix, float eps, bool silu) {
+    Tensor scratch = run.get({ops::groupnorm_scratch_elems(x.shape(), cfg.norm_num_groups)});
+    if (rec)
+      ops::groupnorm(*rec, x, y, cfg.norm_num_groups, W(prefix + ".weight"), W(prefix + ".bias"), eps, silu, scratch);
+    run.put(scratch);
+  }
+
+  // CogVideoXSpatialNorm3D: GroupNorm(f) * conv_y(zq) + conv_b(zq), zq = the latent batch resized to f's
+  // (F, H, W) by nearest, frame 0 alone when F is odd and > 1. Returns a new tensor.
+  Tensor spatial_norm(Run& run, const Tensor& f, const std::string& prefix) {
+    const Shape zs = {run.z.dim(0), run.z.dim(1), f.dim(2), f.dim(3), f.dim(4)};
+    auto it = run.zq.find(zs);
+    if (it == run.zq.end()) {
+      Tensor zq = run.get(zs);
+      const int64_t frames = f.dim(2);
+      if (rec) ops::upsample_nearest(*rec, run.z, zq, frames > 1 && frames % 2 == 1);
+      it = run.zq.emplace(zs, zq).first;
+    }
+    const Tensor& zq = it->second;
+    Tensor cy = run.get(f.shape()), cb = run.get(f.shape()), y = run.get(f.shape());
+    if (rec) {
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy);
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb);
+    }
+    group_norm(run, f, y, prefix + ".norm_layer", 1e-6f, false);
+    if (rec) ops::scale_shift(*rec, y, cy, cb, y);
+    run.put(cy);
+    run.put(cb);
+    return y;
+  }
+
+  void silu(const Tensor& x) {
+    if (rec) ops::silu(*rec, x, x);
+  }
+
+  // CogVideoXResnetBlock3D (no temb, 1x1x1 shortcut when the channel count changes). Returns a new tensor.
+  Tensor resnet(Run& run, const Tensor& x, const std::string& p, bool spatial) {
+    const int64_t cin = x.dim(1);
+    Tensor h;
+    if (spatial) {
+      h = spatial_norm(run, x, p + ".norm1");
+      silu(h);
+    } else {
+      h = run.get(x.shape());
+      group_norm(run, x, h, p + ".norm1", cfg.norm_eps, true);
+    }
+    Tensor h2 = causal_conv(run, h, p + ".conv1");
+    run.put(h);
+    if (spatial) {
+      Tensor n2 = spatial_norm(run, h2, p + ".norm2");
+      silu(n2);
+      run.put(h2);
+      h2 = n2;
+    } else {
+      group_norm(run, h2, h2, p + ".norm2", cfg.norm_eps, true);
+    }
+    Tensor out = causal_conv(run, h2, p + ".conv2");
+    run.put(h2);
+    if (cin != out.dim(1)) {
+      Tensor s = run.get(out.shape());
+      if (rec) {
+        ops::conv1x1(*rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s);
+        ops::add(*rec, out, s, out);
+      }
+      run.put(s);
+    } else if (rec) {
+      ops::add(*rec, out, x, out);
+    }
+    return out;
+  }
+
+  // CogVideoXEncoder3D on one frame batch -> moments [B, 2*Cl, Fb', Hl, Wl].
+  Tensor encoder(Run& run, const Tensor& x) {
+    const size_t n = cfg.block_out_channels.size();
+    Tensor h = causal_conv(run, x, "encoder.conv_in");
+    for (size_t i = 0; i < n; ++i) {
+      const std::string p = "encoder.down_blocks." + std::to_string(i);
+      for (int64_t j = 0; j < cfg.layers_per_block; ++j) {
+        Tensor next = resnet(run, h, p + ".resnets." + std::to_string(j), false);
+        run.put(h);
+        h = next;
+      }
+      if (i + 1 < n) {
+        if (int64_t(i) < cfg.temporal_levels()) {
+          Shape ts = h.shape();
+          ts[2] = ops::downsample_time_frames(ts[2]);
+          Tensor t = run.get(ts);
+          if (rec) ops::avgpool_time_pairs(*rec, h, t);
+          run.put(h);
+          h = t;
+        }
+        const Tensor& wt = W(p + ".downsamplers.0.conv.weight");
+        const auto params = ops::Conv2dParams::downsample3x3();
+        Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
+        if (rec) ops::conv2d(*rec, h, wt, Bias(p + ".downsamplers.0.conv.bias"), y, params);
+        run.put(h);
+        h = y;
+      }
+    }
+    for (int j = 0; j < 2; ++j) {
+      Tensor next = resnet(run, h, "encoder.mid_block.resnets." + std::to_string(j), false);
+      run.put(h);
+      h = next;
+    }
+    group_norm(run, h, h, "encoder.norm_out", 1e-6f, true);
+    Tensor out = causal_conv(run, h, "encoder.conv_out");
+    run.put(h);
+    if (cfg.use_quant_conv) {
+      Tensor q = run.get(out.shape());
+      if (rec) ops::conv1x1(*rec, out, W("quant_conv.weight"), Bias("quant_conv.bias"), q);
+      out = q;
+    }
+    return out;
+  }
+
+  // CogVideoXDecoder3D on one latent batch -> frames.
+  Tensor decoder(Run& run, const Tensor& z_in) {
+    const size_t n = cfg.block_out_channels.size();
+    Tensor z = z_in;
+    if (cfg.use_post_quant_conv) {
+      z = run.get(z_in.shape());
+      if (rec) ops::conv1x1(*rec, z_in, W("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z);
+    }
+    run.z = z;
+    Tensor h = causal_conv(run, z, "decoder.conv_in");
+    for (int j = 0; j < 2; ++j) {
+      Tensor next = resnet(run, h, "decoder.mid_block.resnets." + std::to_string(j), true);
+      run.put(h);
+      h = next;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const std::string p = "decoder.up_blocks." + std::to_string(i);
+      for (int64_t j = 0; j <= cfg.layers_per_block; ++j) {
+        Tensor next = resnet(run, h, p + ".resnets." + std::to_string(j), true);
+        run.put(h);
+        h = next;
+      }
+      if (i + 1 < n) {
+        const bool compress_time = int64_t(i) < cfg.temporal_levels();
+        Tensor u = run.get(ops::upsample2x_shape(h.shape(), compress_time));
+        if (rec) ops::upsample2x(*rec, h, u, compress_time);
+        run.put(h);
+        const Tensor& wt = W(p + ".upsamplers.0.conv.weight");
+        const auto params = ops::Conv2dParams::same3x3();
+        Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
+        if (rec) ops::conv2d(*rec, u, wt, Bias(p + ".upsamplers.0.conv.bias"), y, params);
+        run.put(u);
+        h = y;
+      }
+    }
+    Tensor nrm = spatial_norm(run, h, "decoder.norm_out");
+    run.put(h);
+    silu(nrm);
+    Tensor out = causal_conv(run, nrm, "decoder.conv_out");
+    run.put(nrm);
+    return out;
+  }
+};
+
+}  // namespace
+
+// ---- model ----------------------------------------------------------------------------------------------------
+
+CogVideoXVae::CogVideoXVae(vk::Context& ctx, const std::filesystem::path& vae_dir)
+    : ctx_(ctx), weights_(ctx, vae_dir), cfg_(VaeConfig::from_json(weights_.config())) {}
+
+CogVideoXVae::~CogVideoXVae() = default;
+
+std::vector<std::pair<int64_t, int64_t>> CogVideoXVae::frame_batches(int64_t frames, int64_t batch) {
+  // diffusers: num_batches = max(F // b, 1); batch i = [b*i + (0 if i == 0 else r), b*(i+1) + r), r = F % b.
+  std::vector<std::pair<int64_t, int64_t>> out;
+  const int64_t n = std::max<int64_t>(frames / batch, 1), r = frames % batch;
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t start = batch * i + (i == 0 ? 0 : r);
+    const int64_t end = std::min(batch * (i + 1) + r, frames);
+    if (end > start) out.emplace_back(start, end);
+  }
+  return out;
+}
+
+namespace {
+
+// Splits x [B, C, F, H, W] into the given frame ranges (one copy per band; x itself when there is one band).
+std::vector<Tensor> split_frames(vk::Context& ctx, const Tensor& x,
+                                 const std::vector<std::pair<int64_t, int64_t>>& ranges) {
+  if (ranges.size() == 1 && ranges[0].first == 0 && ranges[0].second == x.dim(2)) return {x};
+  std::vector<Tensor> bands;
+  for (auto [s, e] : ranges) {
+    Shape sh = x.shape();
+    sh[2] = e - s;
+    bands.push_back(Tensor::empty(ctx, sh, DType::f32, "vae frame batch"));
+  }
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::split(rec, x, bands, 2); });
+  return bands;
+}
+
+Tensor concat_frames(vk::Context& ctx, const std::vector<Tensor>& parts, const std::string& what) {
+  if (parts.size() == 1) return parts[0];
+  Shape sh = parts[0].shape();
+  sh[2] = 0;
+  for (const Tensor& t : parts) sh[2] += t.dim(2);
+  Tensor out = Tensor::empty(ctx, sh, DType::f32, what);
+  ops::run_now(ctx, [&](vk::Recorder& rec) { ops::concat(rec, parts, out, 2); });
+  return out;
+}
+
+void check_video(const char* what, const Tensor& t, int64_t channels) {
+  if (t.rank() != 5 || t.dtype() != DType::f32 || t.dim(1) != channels)
+    throw Error(std::string("CogVideoX VAE ") + what + ": expected f32 [B, " + std::to_string(channels) +
+                ", F, H, W], got " + t.describe());
+}
+
+}  // namespace
+
+Tensor CogVideoXVae::encode_moments(const Tensor& video) {
+  check_video("encode", video, cfg_.in_channels);
+  const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
+  std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
+  Run run(&ctx_);
+  std::vector<Tensor> outs;
+  for (const Tensor& x : inputs) {
+    Tensor out;
+    ops::run_now(ctx_, [&](vk::Recorder& rec) {
+      Layers L{cfg_, &rec, &weights_, nullptr, {}};
+      out = L.encoder(run, x);
+    });
+    outs.push_back(run.owned(out));
+    run.release_batch();
+  }
+  last_peak_bytes_ = run.peak_bytes;
+  return concat_frames(ctx_, outs, "vae moments");
+}
+
+VaePosterior CogVideoXVae::posterior_of(const Tensor& moments) {
+  VaePosterior p;
+  p.moments = moments;
+  const Shape half = with_channels(moments.shape(), moments.dim(1) / 2);
+  p.mean = Tensor::empty(ctx_, half, DType::f32, "vae posterior mean");
+  p.std = Tensor::empty(ctx_, half, DType::f32, "vae posterior std");
+  ops::run_now(ctx_, [&](vk::Recorder& rec) { ops::vae_posterior(rec, moments, p.mean, p.std); });
+  return p;
+}
+
+VaePosterior CogVideoXVae::encode(const Tensor& video) { return posterior_of(encode_moments(video)); }
+
+Tensor CogVideoXVae::decode(const Tensor& z) {
+  check_video("decode", z, cfg_.latent_channels);
+  const auto ranges = frame_batches(z.dim(2), latent_frames_batch);
+  std::vector<Tensor> inputs = split_frames(ctx_, z, ranges);
+  Run run(&ctx_);
+  std::vector<Tensor> outs;
+  for (const Tensor& x : inputs) {
+    Tensor out;
+    ops::run_now(ctx_, [&](vk::Recorder& rec) {
+      Layers L{cfg_, &rec, &weights_, nullptr, {}};
+      out = L.decoder(run, x);
+    });
+    outs.push_back(run.owned(out));
+    run.release_batch();
+  }
+  last_peak_bytes_ = run.peak_bytes;
+  return concat_frames(ctx_, outs, "vae frames");
+}
+
+// ---- memory planning ------------------------------------------------------------------------------------------
+
+namespace {
+
+// The same layer code on shape-only tensors: the working set of every frame batch, from the config alone.
+uint64_t dry_run_peak(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
+  const VaeConfig cfg = VaeConfig::from_json(config);
+  std::map<std::string, Shape> shapes;
+  for (const auto& t : schema_for("AutoencoderKLCogVideoX", config, "vae config").tensors) shapes[t.name] = t.shape;
+  if (input.size() != 5 || input[1] != (encode ? cfg.in_channels : cfg.latent_channels))
+    throw Error("VAE memory plan: the input must be [B, " + std::to_string(encode ? cfg.in_channels : cfg.latent_channels) +
+                ", F, H, W], got [" + shape_str(input) + "]");
+  Run run(nullptr);
+  for (auto [s, e] : CogVideoXVae::frame_batches(input[2], batch)) {
+    Shape b = input;
+    b[2] = e - s;
+    Layers L{cfg, nullptr, nullptr, &shapes, {}};
+    const Tensor x = shape_only(b);
+    if (encode) L.encoder(run, x);
+    else L.decoder(run, x);
+    run.release_batch();
+  }
+  return run.peak_bytes;
+}
+
+}  // namespace
+
+uint64_t CogVideoXVae::encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
+  return dry_run_peak(config, video, true, frames_batch);
+}
+
+uint64_t CogVideoXVae::decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
+  return dry_run_peak(config, z, false, latent_batch);
+}
+
+// ---- tiling ---------------------------------------------------------------------------------------------------
+
+VaePosterior CogVideoXVae::encode_tiled(const Tensor& video, const VaeTiling& tiling) {
+  check_video("encode_tiled", video, cfg_.in_channels);
+  const TilePlan plan = TilePlan::for_encode(cfg_, tiling);
+  const int64_t H = video.dim(3), W = video.dim(4);
+  if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return encode(video);
+  HostTensor host = video.download(ctx_);
+  HostTensor moments = run_tiled(plan, host, [&](const HostTensor& tile) {
+    return encode_moments(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);
+  });
+  return posterior_of(Tensor::upload(ctx_, moments, "vae moments"));
+}
+
+Tensor CogVideoXVae::decode_tiled(const Tensor& z, const VaeTiling& tiling) {
+  check_video("decode_tiled", z, cfg_.latent_channels);
+  const TilePlan plan = TilePlan::for_decode(cfg_, tiling);
+  const int64_t H = z.dim(3), W = z.dim(4);
+  if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return decode(z);
+  HostTensor host = z.download(ctx_);
+  HostTensor frames = run_tiled(plan, host, [&](const HostTensor& tile) {
+    return decode(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);
+  });
+  return Tensor::upload(ctx_, frames, "vae frames");
+}
+
+// ---- scaling --------------------------------------------------------------------------------------------------
+
+void CogVideoXVae::to_diffusion_latent(vk::Recorder& rec, const Tensor& z, const Tensor& y) const {
+  ops::scale(rec, z, y, float(cfg_.scaling_factor));
+}
+
+void CogVideoXVae::from_diffusion_latent(vk::Recorder& rec, const Tensor& x, const Tensor& z) const {
+  // diffusers divides (latents / scaling_factor); multiplying by the reciprocal can differ by 1 ulp.
+  ops::scale(rec, x, z, float(1.0 / cfg_.scaling_factor));
+}
+
+void CogVideoXVae::sample(vk::Recorder& rec, const VaePosterior& p, const Tensor& noise, const Tensor& out) {
+  ops::mul(rec, p.std, noise, out);  // torch: mean + std * sample, the product rounded first
+  ops::add(rec, out, p.mean, out);
+}
+
+}  // namespace dvs::models

@@ -1,0 +1,280 @@
+// Golden checks of the CogVideoX 3D causal VAE against the pack (DVS_GOLDEN_DIR): cases vae_encode,
+// vae_decode, vae_tiling_disabled_explicit, vae_frame_batching (17 frames: two encode and two decode
+// batches with the conv cache) and vae_tiled. Tolerances are the cases.json ones (|ours − golden| ≤
+// atol + rtol·|golden|); every check prints the max error it saw. Sizes come from the pack's vae/config.json
+// and tiling settings from cases.json, so any pack of this format can be run.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "io/npy.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "models/vae_tiling.hpp"
+#include "support/gpu.hpp"
+#include "tensor/dispatch.hpp"
+#include "vk/profiler.hpp"
+
+namespace fs = std::filesystem;
+using dvs::HostTensor;
+using dvs::Tensor;
+using dvs::models::CogVideoXVae;
+
+namespace {
+
+fs::path pack() { return fs::path(dvs::test::golden_dir()); }
+
+HostTensor load(const std::string& rel) { return dvs::read_npy(pack() / rel); }
+
+const nlohmann::json& cases() {
+  static const nlohmann::json j = [] {
+    std::ifstream f(pack() / "cases.json");
+    return nlohmann::json::parse(f);
+  }();
+  return j;
+}
+
+const nlohmann::json& case_of(const std::string& name) {
+  for (const auto& c : cases()["cases"])
+    if (c["name"] == name) return c;
+  throw std::runtime_error("cases.json has no case " + name);
+}
+
+struct Tol {
+  double atol, rtol;
+};
+Tol tol_of(const nlohmann::json& t) { return {t["atol"].get<double>(), t["rtol"].get<double>()}; }
+
+// Expects |got - want| <= atol + rtol·|want| everywhere; prints the max error.
+void expect_close(const std::string& what, const HostTensor& got, const HostTensor& want, Tol tol) {
+  ASSERT_EQ(got.shape, want.shape) << what;
+  const std::vector<float> g = got.to_f32(), w = want.to_f32();
+  double max_err = 0, worst_excess = -1;
+  size_t bad = 0, worst = 0;
+  for (size_t i = 0; i < g.size(); ++i) {
+    const double e = std::fabs(double(g[i]) - double(w[i]));
+    const double lim = tol.atol + tol.rtol * std::fabs(double(w[i]));
+    max_err = std::max(max_err, e);
+    if (!(e <= lim)) {
+      ++bad;
+      if (e - lim > worst_excess) worst_excess = e - lim, worst = i;
+    }
+  }
+  std::printf("[ golden ] %-28s max |err| = %.3g (atol %.1g, rtol %.1g, %zu elements)\n", what.c_str(), max_err,
+              tol.atol, tol.rtol, g.size());
+  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << g.size() << " elements outside tolerance; worst at " << worst
+                     << ": got " << g[worst] << ", want " << w[worst];
+}
+
+HostTensor divided(const HostTensor& x, float s) {
+  std::vector<float> v = x.to_f32();
+  for (float& f : v) f = f / s;
+  return HostTensor::from_f32(x.shape, v);
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+class VaeGolden : public dvs::test::GpuTest {
+ protected:
+  CogVideoXVae& vae() {
+    if (!vae_) vae_ = std::make_unique<CogVideoXVae>(ctx(), pack() / "model" / "vae");
+    return *vae_;
+  }
+  HostTensor dl(const Tensor& t) { return t.download(ctx()); }
+  Tensor up(const HostTensor& h) { return Tensor::upload(ctx(), h, "golden input"); }
+  float scaling() { return float(vae().config().scaling_factor); }
+
+ private:
+  std::unique_ptr<CogVideoXVae> vae_;
+};
+
+}  // namespace
+
+TEST(VaeFrameBatches, MatchDiffusersRule) {
+  using P = std::vector<std::pair<int64_t, int64_t>>;
+  EXPECT_EQ(CogVideoXVae::frame_batches(9, 8), (P{{0, 9}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(17, 8), (P{{0, 9}, {9, 17}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(49, 8), (P{{0, 9}, {9, 17}, {17, 25}, {25, 33}, {33, 41}, {41, 49}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(1, 8), (P{{0, 1}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(3, 2), (P{{0, 3}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(5, 2), (P{{0, 3}, {3, 5}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(13, 2), (P{{0, 3}, {3, 5}, {5, 7}, {7, 9}, {9, 11}, {11, 13}}));
+  EXPECT_EQ(CogVideoXVae::frame_batches(16, 8), (P{{0, 8}, {8, 16}}));
+}
+
+TEST(VaeTilePlan, MatchesDiffusersArithmetic) {
+  dvs::models::VaeConfig cfg;
+  cfg.block_out_channels = {128, 256, 256, 512};
+  const dvs::models::VaeTiling real{};  // 480x720 config: 240x360 tiles, overlap 1/6, 1/5
+  auto e = dvs::models::TilePlan::for_encode(cfg, real);
+  EXPECT_EQ(e.tile_in_h, 240);
+  EXPECT_EQ(e.tile_in_w, 360);
+  EXPECT_EQ(e.stride_h, 200);
+  EXPECT_EQ(e.stride_w, 288);
+  EXPECT_EQ(e.blend_h, 5);
+  EXPECT_EQ(e.blend_w, 9);
+  EXPECT_EQ(e.limit_h, 25);
+  EXPECT_EQ(e.limit_w, 36);
+  auto d = dvs::models::TilePlan::for_decode(cfg, real);
+  EXPECT_EQ(d.tile_in_h, 30);
+  EXPECT_EQ(d.tile_in_w, 45);
+  EXPECT_EQ(d.stride_h, 25);
+  EXPECT_EQ(d.stride_w, 36);
+  EXPECT_EQ(d.blend_h, 40);
+  EXPECT_EQ(d.blend_w, 72);
+  EXPECT_EQ(d.limit_h, 200);
+  EXPECT_EQ(d.limit_w, 288);
+}
+
+// Working-set plan of the real CogVideoX-5B-I2V VAE (its config values) at 49 x 480 x 720, whole frame and
+// with diffusers' default 240 x 360 tiles: printed for the memory plan; a dry run, no device work.
+TEST(VaeMemoryPlan, Real5BSizes) {
+  const nlohmann::json real = {{"_class_name", "AutoencoderKLCogVideoX"},
+                               {"block_out_channels", {128, 256, 256, 512}},
+                               {"latent_channels", 16},
+                               {"layers_per_block", 3},
+                               {"norm_num_groups", 32},
+                               {"temporal_compression_ratio", 4},
+                               {"scaling_factor", 0.7}};
+  const double gib = 1024.0 * 1024.0 * 1024.0;
+  const uint64_t enc = CogVideoXVae::encode_working_bytes(real, {1, 3, 49, 480, 720});
+  const uint64_t dec = CogVideoXVae::decode_working_bytes(real, {1, 16, 13, 60, 90});
+  const uint64_t enc_tile = CogVideoXVae::encode_working_bytes(real, {1, 3, 49, 240, 360});
+  const uint64_t dec_tile = CogVideoXVae::decode_working_bytes(real, {1, 16, 13, 30, 45});
+  std::printf("[ plan   ] real VAE working set: encode 49x480x720 %.2f GiB (tile 240x360: %.2f GiB), decode 13x60x90 "
+              "%.2f GiB (tile 30x45: %.2f GiB)\n",
+              enc / gib, enc_tile / gib, dec / gib, dec_tile / gib);
+  EXPECT_GT(enc, enc_tile);
+  EXPECT_GT(dec, dec_tile);
+}
+
+TEST_F(VaeGolden, Encode) {
+  const Tol tol = tol_of(case_of("vae_encode")["tolerance"]);
+  const Tensor video = up(load("vae/video.npy"));
+  auto t0 = std::chrono::steady_clock::now();
+  const auto post = vae().encode(video);
+  std::printf("[ golden ] vae encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
+  expect_close("vae_encode moments", dl(post.moments), load("vae/encode_moments.npy"), tol);
+  expect_close("vae_encode mean", dl(post.mean), load("vae/encode_mean.npy"), tol);
+  expect_close("vae_encode std", dl(post.std), load("vae/encode_std.npy"), tol);
+  Tensor scaled = Tensor::empty(ctx(), post.mean.shape(), dvs::DType::f32);
+  dvs::ops::run_now(ctx(), [&](dvs::vk::Recorder& rec) { vae().to_diffusion_latent(rec, post.mean, scaled); });
+  expect_close("vae_encode scaled latent", dl(scaled), load("vae/encode_scaled_latent.npy"), tol);
+}
+
+TEST_F(VaeGolden, Decode) {
+  const Tol tol = tol_of(case_of("vae_decode")["tolerance"]);
+  const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
+  auto t0 = std::chrono::steady_clock::now();
+  const Tensor frames = vae().decode(z);
+  std::printf("[ golden ] vae decode %s: %.3f s\n", dvs::shape_str(z.shape()).c_str(), seconds_since(t0));
+  expect_close("vae_decode frames", dl(frames), load("vae/decode_frames.npy"), tol);
+}
+
+// Tiling off (the tile is at least the input): encode_tiled / decode_tiled must give the untiled result.
+TEST_F(VaeGolden, TilingDisabledExplicit) {
+  const auto& tc = case_of("vae_tiling_disabled_explicit")["tolerance"];
+  const HostTensor video = load("vae/video.npy");
+  dvs::models::VaeTiling off;
+  off.tile_sample_min_height = video.shape[3];
+  off.tile_sample_min_width = video.shape[4];
+  const auto post = vae().encode_tiled(up(video), off);
+  expect_close("vae_tiling_disabled mean", dl(post.mean), load("vae/encode_mean.npy"), tol_of(tc["encode"]));
+  const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
+  expect_close("vae_tiling_disabled decode", dl(vae().decode_tiled(z, off)), load("vae/decode_frames.npy"),
+               tol_of(tc["decode"]));
+}
+
+TEST_F(VaeGolden, FrameBatching17) {
+  const auto& tc = case_of("vae_frame_batching")["tolerance"];
+  const Tensor video = up(load("vae/chunk17_video.npy"));
+  auto t0 = std::chrono::steady_clock::now();
+  const auto post = vae().encode(video);
+  std::printf("[ golden ] vae encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
+  expect_close("vae_frame_batching mean", dl(post.mean), load("vae/chunk17_encode_mean.npy"), tol_of(tc["encode"]));
+  expect_close("vae_frame_batching std", dl(post.std), load("vae/chunk17_encode_std.npy"), tol_of(tc["encode"]));
+  // The dry-run memory plan is exactly what the live call allocated.
+  EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::encode_working_bytes(vae().weights().config(), video.shape()));
+  // Decode the golden mean (not ours) so the decoder is judged on its own.
+  const Tensor z = up(load("vae/chunk17_encode_mean.npy"));
+  t0 = std::chrono::steady_clock::now();
+  const Tensor frames = vae().decode(z);
+  std::printf("[ golden ] vae decode %s: %.3f s\n", dvs::shape_str(z.shape()).c_str(), seconds_since(t0));
+  expect_close("vae_frame_batching decode", dl(frames), load("vae/chunk17_decode_frames.npy"), tol_of(tc["decode"]));
+  EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::decode_working_bytes(vae().weights().config(), z.shape()));
+}
+
+TEST_F(VaeGolden, Tiled) {
+  const auto& c = case_of("vae_tiled");
+  const auto& t = c["tiling"];
+  dvs::models::VaeTiling tiling;
+  tiling.tile_sample_min_height = t["tile_sample_min_height"].get<int64_t>();
+  tiling.tile_sample_min_width = t["tile_sample_min_width"].get<int64_t>();
+  tiling.tile_overlap_factor_height = t["tile_overlap_factor_height"].get<double>();
+  tiling.tile_overlap_factor_width = t["tile_overlap_factor_width"].get<double>();
+  const Tensor video = up(load("vae/video.npy"));
+  auto t0 = std::chrono::steady_clock::now();
+  const auto post = vae().encode_tiled(video, tiling);
+  std::printf("[ golden ] vae tiled encode: %.3f s\n", seconds_since(t0));
+  expect_close("vae_tiled mean", dl(post.mean), load("vae/tiled_encode_mean.npy"), tol_of(c["tolerance"]["encode"]));
+  expect_close("vae_tiled std", dl(post.std), load("vae/tiled_encode_std.npy"), tol_of(c["tolerance"]["encode"]));
+  const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
+  t0 = std::chrono::steady_clock::now();
+  const Tensor frames = vae().decode_tiled(z, tiling);
+  std::printf("[ golden ] vae tiled decode: %.3f s\n", seconds_since(t0));
+  expect_close("vae_tiled decode", dl(frames), load("vae/tiled_decode_frames.npy"), tol_of(c["tolerance"]["decode"]));
+}
+
+
+// Diagnostic of vae_frame_batching: with frame batching off (one batch for the whole clip) the result must
+// move away from the golden by the recorded whole_clip_max_abs_diff, proving the batches matter and that the
+// whole-clip path is the one diffusers would take (encode of the video; decode of the golden mean).
+TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
+  const auto& rec = case_of("vae_frame_batching")["whole_clip_max_abs_diff"];
+  auto max_diff = [](const HostTensor& a, const HostTensor& b) {
+    const auto x = a.to_f32(), y = b.to_f32();
+    double m = 0;
+    for (size_t i = 0; i < x.size(); ++i) m = std::max(m, std::fabs(double(x[i]) - double(y[i])));
+    return m;
+  };
+  CogVideoXVae& v = vae();
+  v.sample_frames_batch = 1 << 20;
+  v.latent_frames_batch = 1 << 20;
+  const auto post = v.encode(up(load("vae/chunk17_video.npy")));
+  const double enc = max_diff(dl(post.mean), load("vae/chunk17_encode_mean.npy"));
+  const Tensor z = up(load("vae/chunk17_encode_mean.npy"));
+  const double dec = max_diff(dl(v.decode(z)), load("vae/chunk17_decode_frames.npy"));
+  std::printf("[ golden ] whole clip: encode_mean diff %.6g (recorded %.6g), decode diff %.6g (recorded %.6g)\n", enc,
+              rec["encode_mean"].get<double>(), dec, rec["decode"].get<double>());
+  EXPECT_NEAR(enc, rec["encode_mean"].get<double>(), 1e-3 * rec["encode_mean"].get<double>() + 1e-4);
+  EXPECT_NEAR(dec, rec["decode"].get<double>(), 1e-3 * rec["decode"].get<double>() + 1e-3);
+}
+
+// Timing on a mid size with the pack's weights (not part of the suite: run with
+// --gtest_also_run_disabled_tests --gtest_filter='*VaeTiming*').
+TEST_F(VaeGolden, DISABLED_VaeTimingMidSize) {
+  const int64_t F = 17, H = 128, W = 192;
+  std::vector<float> v(size_t(3 * F * H * W));
+  for (size_t i = 0; i < v.size(); ++i) v[i] = float(std::sin(0.001 * double(i)));
+  const Tensor video = up(HostTensor::from_f32({1, 3, F, H, W}, v));
+  const bool profile = std::getenv("DVS_VAE_PROFILE") != nullptr;
+  ctx().profiler().set_enabled(profile);
+  auto t0 = std::chrono::steady_clock::now();
+  const auto post = vae().encode(video);
+  std::printf("[ timing ] encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
+  t0 = std::chrono::steady_clock::now();
+  const Tensor frames = vae().decode(post.mean);
+  std::printf("[ timing ] decode %s: %.3f s\n", dvs::shape_str(post.mean.shape()).c_str(), seconds_since(t0));
+  EXPECT_EQ(frames.dim(2), F);
+  if (profile) std::printf("%s\n", ctx().profiler().report().c_str());
+  ctx().profiler().set_enabled(false);
+}
