@@ -59,4 +59,11 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
 Shape upsample2x_shape(const Shape& x, bool compress_time);
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time);
 
+// Tuning / testing knob for the convolution shader: output channels x output pixels computed per
+// invocation (each 0 = automatic: chosen from the device and the size of the convolution).
+struct ConvRegisterBlock {
+  uint32_t channels = 0, pixels = 0;
+};
+void set_conv_register_block(const ConvRegisterBlock& block);
+
 }  // namespace dvs::ops
