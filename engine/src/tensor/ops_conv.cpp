@@ -55,7 +55,7 @@ ConvRegisterBlock g_block_override;
 ConvBlock conv_block(const vk::Context& ctx, double macs) {
   const auto& caps = ctx.caps();
   bool cpu_like = caps.subgroup_size >= 8 && caps.subgroup_size <= 16;
-  ConvBlock b = cpu_like ? (macs >= double(1u << 30) ? ConvBlock{16, 16, true} : ConvBlock{8, 8, true})
+  ConvBlock b = cpu_like ? (macs >= double(1u << 27) ? ConvBlock{16, 16, true} : ConvBlock{8, 8, true})
                          : ConvBlock{8, 4, false};
   if (g_block_override.channels) b.co = g_block_override.channels;
   if (g_block_override.pixels) b.px = g_block_override.pixels;
@@ -278,12 +278,17 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   int64_t fo = downsample_time_frames(x.dim(2));
   expect_shape(op, "y", y, {x.dim(0), x.dim(1), fo, x.dim(3), x.dim(4)});
   struct {
-    uint32_t total, hw, frames, frames_out;
-  } pc{u32(op, y.numel()), u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo)};
-  if (pc.total == 0) return;
-  Grid g = grid_1d(pc.total, 64);
-  rec.dispatch(rec.context().pipelines().get("nn/avgpool_time"), {x.buffer(), y.buffer()}, &pc, sizeof pc, g.x, g.y, 1,
-               op);
+    uint32_t hw, frames, frames_out, bc_begin;
+  } pc{u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo), 0};
+  int64_t bc = x.dim(0) * x.dim(1);
+  if (y.numel() == 0) return;
+  expect(fo <= 65535 && div_up(pc.hw, 64) <= 65535, op, "frame count or plane too large: " + x.describe());
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/avgpool_time");
+  for (int64_t first = 0; first < bc; first += 65535) {
+    pc.bc_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.hw, 64), uint32_t(fo),
+                 uint32_t(std::min<int64_t>(65535, bc - first)), op);
+  }
 }
 
 void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool keep_first_frame) {
@@ -297,13 +302,18 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
            "keep_first_frame needs at least 2 frames on both sides: " + x.describe() + " -> " + y.describe());
   expect(y.numel() == 0 || x.numel() > 0, op, "empty input");
   struct {
-    uint32_t total, frames, h, w, frames_out, ho, wo, keep_first;
-  } pc{u32(op, y.numel()), u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)),
-       u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)), keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u};
-  if (pc.total == 0) return;
-  Grid g = grid_1d(pc.total, 64);
-  rec.dispatch(rec.context().pipelines().get("nn/upsample_nearest"), {x.buffer(), y.buffer()}, &pc, sizeof pc, g.x, g.y,
-               1, op);
+    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin;
+  } pc{u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)),
+       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0};
+  if (y.numel() == 0) return;
+  expect(pc.ho <= 65535 && div_up(pc.wo, 64) <= 65535, op, "output too large: " + y.describe());
+  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample_nearest");
+  for (int64_t first = 0; first < zs; first += 65535) {
+    pc.z_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.wo, 64), pc.ho,
+                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
+  }
 }
 
 Shape upsample2x_shape(const Shape& x, bool compress_time) {
