@@ -332,16 +332,20 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
   }
 }
 
-// The register block is a specialization constant: another block size (and its partial blocks in both
-// channels and pixels) must give the same results. Tests otherwise run the small default block, whose
-// pipelines compile fastest; dvs-bench runs the large one.
-TEST_F(ConvOps, OtherRegisterBlock) {
-  ops::set_conv_register_block({16, 8});
-  try {
-    run_conv2d(ctx(), {1, 9, 21, 2, 9, 19, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, 100);
-  } catch (...) {
-    ops::set_conv_register_block({});
-    throw;
+// The register block and the weight sharing are specialization constants: other choices (with partial
+// blocks in both channels and pixels) must give the same results. {8, 4, direct loads} is what GPUs with
+// wide subgroups run, so this covers their pipeline on lavapipe. Other tests run the small default block,
+// whose pipelines compile fastest; dvs-bench runs the large one.
+TEST_F(ConvOps, OtherRegisterBlocks) {
+  uint32_t seed = 100;
+  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{8, 4, 0}, ops::ConvRegisterBlock{16, 8, 1}}) {
+    ops::set_conv_register_block(blk);
+    try {
+      run_conv2d(ctx(), {1, 9, 21, 2, 9, 19, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, seed++);
+    } catch (...) {
+      ops::set_conv_register_block({});
+      throw;
+    }
   }
   ops::set_conv_register_block({});
 }

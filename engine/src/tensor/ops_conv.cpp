@@ -59,6 +59,8 @@ ConvBlock conv_block(const vk::Context& ctx, double macs) {
                          : ConvBlock{8, 4, false};
   if (g_block_override.channels) b.co = g_block_override.channels;
   if (g_block_override.pixels) b.px = g_block_override.pixels;
+  if (g_block_override.share_weights >= 0) b.bcast = g_block_override.share_weights == 1;
+  if (caps.subgroup_size < 8) b.bcast = false;  // the broadcast scheme needs 8 lanes per subgroup
   return b;
 }
 

@@ -60,9 +60,11 @@ Shape upsample2x_shape(const Shape& x, bool compress_time);
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time);
 
 // Tuning / testing knob for the convolution shader: output channels x output pixels computed per
-// invocation (each 0 = automatic: chosen from the device and the size of the convolution).
+// invocation (each 0 = automatic: chosen from the device and the size of the convolution), and how the
+// weights reach the lanes (-1 automatic, 0 every lane loads them, 1 subgroup broadcasts: CPU drivers).
 struct ConvRegisterBlock {
   uint32_t channels = 0, pixels = 0;
+  int share_weights = -1;
 };
 void set_conv_register_block(const ConvRegisterBlock& block);
 
