@@ -370,25 +370,27 @@ TEST_F(ConvOps, Conv1x1) {
 
 TEST_F(ConvOps, AvgPoolTimePairs) {
   vk::Context& c = ctx();
-  for (int64_t f : {1, 2, 3, 4, 5, 9}) {
-    Vid x = random_vid(2, 3, f, 7, 9, uint32_t(130 + f));
-    int64_t fo = ops::downsample_time_frames(f);
-    EXPECT_EQ(fo, f % 2 ? (f + 1) / 2 : f / 2);
-    Vid want(2, 3, fo, 7, 9);
-    for (int64_t b = 0; b < 2; ++b)
-      for (int64_t ch = 0; ch < 3; ++ch)
-        for (int64_t t = 0; t < fo; ++t)
-          for (int64_t i = 0; i < 7; ++i)
-            for (int64_t j = 0; j < 9; ++j) {
-              // diffusers: odd -> [x0, avg_pool1d(x[1:])], even -> avg_pool1d(x)
-              int64_t first = f % 2 ? 2 * t - 1 : 2 * t;
-              want.at(b, ch, t, i, j) = (f % 2 && t == 0) ? x.at(b, ch, 0, i, j)
-                                                          : (x.at(b, ch, first, i, j) + x.at(b, ch, first + 1, i, j)) / 2.f;
-            }
-    Tensor xt = up(c, x), yt = Tensor::empty(c, want.shape(), DType::f32);
-    ops::run_now(c, [&](vk::Recorder& rec) { ops::avgpool_time_pairs(rec, xt, yt); });
-    expect_equal(down(c, yt), want, "avgpool_time F=" + std::to_string(f));
-  }
+  // 7x9 planes take the scalar kernel, 4x6 planes (a multiple of 4) the vec4 one.
+  for (auto [h, w] : std::vector<std::pair<int64_t, int64_t>>{{7, 9}, {4, 6}})
+    for (int64_t f : {1, 2, 3, 4, 5, 9}) {
+      Vid x = random_vid(2, 3, f, h, w, uint32_t(130 + f));
+      int64_t fo = ops::downsample_time_frames(f);
+      EXPECT_EQ(fo, f % 2 ? (f + 1) / 2 : f / 2);
+      Vid want(2, 3, fo, h, w);
+      for (int64_t b = 0; b < 2; ++b)
+        for (int64_t ch = 0; ch < 3; ++ch)
+          for (int64_t t = 0; t < fo; ++t)
+            for (int64_t i = 0; i < h; ++i)
+              for (int64_t j = 0; j < w; ++j) {
+                // diffusers: odd -> [x0, avg_pool1d(x[1:])], even -> avg_pool1d(x)
+                int64_t first = f % 2 ? 2 * t - 1 : 2 * t;
+                want.at(b, ch, t, i, j) = (f % 2 && t == 0) ? x.at(b, ch, 0, i, j)
+                                                            : (x.at(b, ch, first, i, j) + x.at(b, ch, first + 1, i, j)) / 2.f;
+              }
+      Tensor xt = up(c, x), yt = Tensor::empty(c, want.shape(), DType::f32);
+      ops::run_now(c, [&](vk::Recorder& rec) { ops::avgpool_time_pairs(rec, xt, yt); });
+      expect_equal(down(c, yt), want, "avgpool_time F=" + std::to_string(f) + " plane " + std::to_string(h * w));
+    }
 }
 
 // PyTorch's nearest index: floor(dst * (in / out)) in fp32, clamped.

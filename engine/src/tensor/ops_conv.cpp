@@ -135,6 +135,13 @@ void record_conv_pass(vk::Recorder& rec, const char* op, const ConvJob& j, const
                  " exceeds 65535 workgroups per dimension; tile the input");
   if (gx == 0 || gy == 0) return;
 
+  // Input and weights are read through texel buffers, whose size limit (2^27 elements on lavapipe and
+  // on NVIDIA) can be below the storage-buffer range.
+  uint64_t max_texels = rec.context().caps().max_texel_buffer_elements;
+  for (const Tensor* t : {pass.src, &w})
+    if (max_texels && uint64_t(t->numel()) > max_texels)
+      fail(op, t->describe() + " exceeds the device's texel-buffer limit of " + std::to_string(max_texels) +
+                   " elements; split the convolution (spatial tiles or fewer frames per batch)");
   VkFormat wfmt = wdt == 0 ? VK_FORMAT_R32_UINT : VK_FORMAT_R16_UINT;
   vk::BufferView bv = bias ? word_view(*bias) : word_view(w);
   rec.dispatch(pipe, {vk::Binding(pass.src->buffer(), VK_FORMAT_R32_SFLOAT), vk::Binding(w.buffer(), wfmt), bv, y.buffer()},
@@ -284,8 +291,10 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   } pc{u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo), 0};
   int64_t bc = x.dim(0) * x.dim(1);
   if (y.numel() == 0) return;
+  bool vec4 = pc.hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
+  if (vec4) pc.hw /= 4;
   expect(fo <= 65535 && div_up(pc.hw, 64) <= 65535, op, "frame count or plane too large: " + x.describe());
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/avgpool_time");
+  const vk::Pipeline& pipe = rec.context().pipelines().get(vec4 ? "nn/avgpool_time_vec4" : "nn/avgpool_time");
   for (int64_t first = 0; first < bc; first += 65535) {
     pc.bc_begin = uint32_t(first);
     rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.hw, 64), uint32_t(fo),
@@ -326,9 +335,24 @@ Shape upsample2x_shape(const Shape& x, bool compress_time) {
 }
 
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time) {
-  expect_shape("upsample2x", "y", y, upsample2x_shape(x.shape(), compress_time));
-  bool keep_first = compress_time && x.dim(2) > 1 && x.dim(2) % 2 == 1;
-  upsample_nearest(rec, x, y, keep_first);
+  const char* op = "upsample2x";
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  expect_shape(op, "y", y, upsample2x_shape(x.shape(), compress_time));
+  int64_t f = x.dim(2);
+  uint32_t time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
+  struct {
+    uint32_t frames, h, w, frames_out, time_mode, z_begin;
+  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0};
+  if (y.numel() == 0) return;
+  expect(pc.h <= 65535 && div_up(pc.w, 64) <= 65535, op, "input too large: " + x.describe());
+  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample2x");
+  for (int64_t first = 0; first < zs; first += 65535) {
+    pc.z_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.w, 64), pc.h,
+                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
+  }
 }
 
 }  // namespace dvs::ops
