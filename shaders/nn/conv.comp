@@ -87,10 +87,13 @@ void main() {
   uint ybase = b * p.ys_b + fo * p.ys_f + oh * p.ys_h;
   bool store = tile_raw < tiles;
 
-  [[unroll]] for (uint c = 0; c < CO_R; ++c) {
-    uint yc = ybase + min(co0 + c, p.cout - 1) * p.ys_c;
-    [[unroll]] for (uint q = 0; q < PX_R; ++q)
-      acc[c][q] = p.tap_mode == 2 && store ? y[yc + min(ow0 + q, p.wo - 1) * p.ys_w] : 0.0;
+  [[unroll]] for (uint c = 0; c < CO_R; ++c)
+    [[unroll]] for (uint q = 0; q < PX_R; ++q) acc[c][q] = 0.0;
+  if (p.tap_mode == 2) {  // resume from the partial sums of the cache pass (uniform branch)
+    [[unroll]] for (uint c = 0; c < CO_R; ++c) {
+      uint yc = ybase + min(co0 + c, p.cout - 1) * p.ys_c;
+      [[unroll]] for (uint q = 0; q < PX_R; ++q) acc[c][q] = y[yc + min(ow0 + q, p.wo - 1) * p.ys_w];
+    }
   }
 
   // With BCAST, lane l fetches weight n = 8g + l of each step: channel n / KW, tap n % KW. Without it,
