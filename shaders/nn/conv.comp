@@ -123,8 +123,8 @@ void main() {
     for (uint ci = 0; ci < p.cin; ++ci) {
       uint plane = ((b * p.cin + ci) * p.src_frames + frame) * hw;
       uint wk = ci * taps + kt * KH * KW;
-      // KH stays a loop (not unrolled): it keeps the pipeline's compile time down on lavapipe.
-      [[dont_unroll]] for (uint kh = 0; kh < KH; ++kh) {
+      // Plain loop: drivers unroll it (on lavapipe that is ~1.5x faster than keeping the loop).
+      for (uint kh = 0; kh < KH; ++kh) {
         int ih = int(oh * STRIDE) - p.pad_top + int(kh);
         bool row_ok = ih >= 0 && ih < int(p.h);
         int row = int(plane) + clamp(ih, 0, int(p.h) - 1) * int(p.w);
