@@ -2,7 +2,10 @@
 // Video tensors are [B, C, F, H, W] (contiguous, f32). Weights are [Cout, Cin, kt, kh, kw] (3D) or
 // [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
 // has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
-// outputs are allocated by the caller with the shapes the *_shape() helpers give.
+// outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
+// the inputs. The convolutions read inputs and weights through texel buffers: each must start at an
+// allocation-aligned offset (whole tensors and arena views do) and hold at most maxTexelBufferElements
+// (2^27 on lavapipe and NVIDIA); larger activations must be split (spatial tiles, frame batches).
 #pragma once
 #include <cstdint>
 
