@@ -289,27 +289,29 @@ TEST_F(ConvOps, CausalConv3dFirstBatch) {
 // Running a clip in frame batches with the cache equals running it whole (and the diffusers reference).
 TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
   vk::Context& c = ctx();
-  const int64_t cin = 6, cout = 7, h = 7, w = 9, frames = 5;
-  Vid x = random_vid(1, cin, frames, h, w, 90);
+  const int64_t bs = 2, cin = 6, cout = 7, h = 7, w = 9, frames = 5;
+  Vid x = random_vid(bs, cin, frames, h, w, 90);
   Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 91);
-  Tensor xt = up(c, x), whole = Tensor::empty(c, {1, cout, frames, h, w}, DType::f32);
+  Tensor xt = up(c, x), whole = Tensor::empty(c, {bs, cout, frames, h, w}, DType::f32);
   ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, whole, nullptr, nullptr); });
   Vid whole_h = down(c, whole);
   expect_close(whole_h, causal_ref(x, nullptr, cw, cout, 3, nullptr), "whole clip");
 
+  // The encoder's 9-then-8 batching in miniature: uneven splits, single frames, one at a time.
   for (std::vector<int64_t> split : {std::vector<int64_t>{3, 2}, {1, 4}, {1, 1, 1, 1, 1}, {2, 3}}) {
     for (bool in_place : {false, true}) {
-      Tensor cache_a = Tensor::empty(c, {1, cin, 2, h, w}, DType::f32);
-      Tensor cache_b = Tensor::empty(c, {1, cin, 2, h, w}, DType::f32);
+      Tensor cache_a = Tensor::empty(c, {bs, cin, 2, h, w}, DType::f32);
+      Tensor cache_b = Tensor::empty(c, {bs, cin, 2, h, w}, DType::f32);
       int64_t first = 0, batch = 0;
       Vid ref_cache;
       for (int64_t n : split) {
-        Vid part(1, cin, n, h, w);
-        for (int64_t ci = 0; ci < cin; ++ci)
-          for (int64_t t = 0; t < n; ++t)
-            for (int64_t i = 0; i < h; ++i)
-              for (int64_t j = 0; j < w; ++j) part.at(0, ci, t, i, j) = x.at(0, ci, first + t, i, j);
-        Tensor pt = up(c, part), yt = Tensor::empty(c, {1, cout, n, h, w}, DType::f32);
+        Vid part(bs, cin, n, h, w);
+        for (int64_t bi = 0; bi < bs; ++bi)
+          for (int64_t ci = 0; ci < cin; ++ci)
+            for (int64_t t = 0; t < n; ++t)
+              for (int64_t i = 0; i < h; ++i)
+                for (int64_t j = 0; j < w; ++j) part.at(bi, ci, t, i, j) = x.at(bi, ci, first + t, i, j);
+        Tensor pt = up(c, part), yt = Tensor::empty(c, {bs, cout, n, h, w}, DType::f32);
         // Ping-pong between two caches, or update one in place.
         const Tensor* cin_t = batch == 0 ? nullptr : (in_place || batch % 2 == 1 ? &cache_a : &cache_b);
         const Tensor* cout_t = in_place || batch % 2 == 0 ? &cache_a : &cache_b;
@@ -319,12 +321,13 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
         ref_cache = next;
         expect_equal(down(c, *cout_t), ref_cache, "cache after batch " + std::to_string(batch));
         Vid got = down(c, yt);
-        for (int64_t o = 0; o < cout; ++o)
-          for (int64_t t = 0; t < n; ++t)
-            for (int64_t i = 0; i < h; ++i)
-              for (int64_t j = 0; j < w; ++j)
-                ASSERT_EQ(got.at(0, o, t, i, j), whole_h.at(0, o, first + t, i, j))
-                    << "batch " << batch << " frame " << t << (in_place ? " in place" : " ping-pong");
+        for (int64_t bi = 0; bi < bs; ++bi)
+          for (int64_t o = 0; o < cout; ++o)
+            for (int64_t t = 0; t < n; ++t)
+              for (int64_t i = 0; i < h; ++i)
+                for (int64_t j = 0; j < w; ++j)
+                  ASSERT_EQ(got.at(bi, o, t, i, j), whole_h.at(bi, o, first + t, i, j))
+                      << "batch " << batch << " frame " << t << (in_place ? " in place" : " ping-pong");
         first += n;
         ++batch;
       }
