@@ -78,6 +78,28 @@ void conv1x1(Bench& b, int64_t cin, int64_t cout, int64_t f, int64_t h, int64_t 
             ms, flops / (ms * 1e6), 0, ""});
 }
 
+// CogVideoXUpsample3D (compress_time): upsample2x + conv 3x3 fused, next to the two ops run separately.
+void upsample_conv(Bench& b, int64_t c, int64_t f, int64_t h, int64_t w) {
+  vk::Context& ctx = b.ctx();
+  Tensor x = filled(ctx, {1, c, f, h, w}, DType::f32, 1.f);
+  Tensor wt = filled(ctx, {c, c, 3, 3}, DType::bf16, 0.05f);
+  Tensor bias = filled(ctx, {c}, DType::bf16, 0.1f);
+  Shape us = ops::upsample2x_shape(x.shape(), true);
+  Tensor u = Tensor::empty(ctx, us, DType::f32);
+  Tensor y = Tensor::empty(ctx, {us[0], c, us[2], us[3], us[4]}, DType::f32);
+  double flops = 2.0 * double(c) * double(c * 9) * double(us[2] * us[3] * us[4]);
+  std::string shape = std::to_string(c) + "->" + std::to_string(c) + " " + std::to_string(f) + "x" + std::to_string(h) +
+                      "x" + std::to_string(w) + " -> " + std::to_string(us[2]) + "x" + std::to_string(us[3]) + "x" +
+                      std::to_string(us[4]);
+  double fused = time_recording(b, [&](vk::Recorder& rec) { ops::upsample2x_conv3x3(rec, x, wt, &bias, y, true); }, 0.2);
+  b.report({"upsample2x_conv3x3_fused_bf16", shape, fused, flops / (fused * 1e6), 0, "CogVideoXUpsample3D"});
+  double split = time_recording(b, [&](vk::Recorder& rec) {
+    ops::upsample2x(rec, x, u, true);
+    ops::conv2d(rec, u, wt, &bias, y, ops::Conv2dParams::same3x3());
+  }, 0.2);
+  b.report({"upsample2x_then_conv3x3_bf16", shape, split, flops / (split * 1e6), 0, "two ops, upsampled tensor stored"});
+}
+
 void resampling(Bench& b, int64_t c, int64_t f, int64_t h, int64_t w) {
   vk::Context& ctx = b.ctx();
   std::string dims = std::to_string(c) + "x" + std::to_string(f) + "x" + std::to_string(h) + "x" + std::to_string(w);
@@ -108,6 +130,7 @@ void conv_group(Bench& b) {
   conv2d(b, "conv2d_3x3_s2_down", 128, 128, 1, 120, 180, 3, ops::Conv2dParams::downsample3x3(), DType::bf16);
   conv2d(b, "conv2d_patch_2x2", 32, 3072, 1, 60, 90, 2, ops::Conv2dParams::patch(true), DType::bf16);
   conv1x1(b, 128, 256, 3, 60, 90);
+  upsample_conv(b, 128, 3, 30, 45);
   resampling(b, 128, 9, 120, 180);
 }
 

@@ -439,6 +439,30 @@ TEST_F(ConvOps, Upsample2xSpatialAndTemporal) {
     }
 }
 
+// CogVideoXUpsample3D fused: equal (bitwise: same values, same summation order) to upsample2x followed
+// by conv2d 3x3 pad 1, which the tests above check against the references.
+TEST_F(ConvOps, Upsample2xConv3x3Fused) {
+  vk::Context& c = ctx();
+  std::vector<float> wr, br;
+  Tensor wt = Tensor::upload(c, make_weights({7, 5, 3, 3}, DType::bf16, 190, 0.2f, wr));
+  Tensor bt = Tensor::upload(c, make_weights({7}, DType::bf16, 191, 0.2f, br));
+  for (bool ct : {false, true})
+    for (int64_t f : {1, 2, 3}) {
+      Vid x = random_vid(2, 5, f, 7, 9, uint32_t(192 + f));
+      Tensor xt = up(c, x);
+      Shape us = ops::upsample2x_shape(xt.shape(), ct);
+      Tensor u = Tensor::empty(c, us, DType::f32);
+      Tensor y1 = Tensor::empty(c, {us[0], 7, us[2], us[3], us[4]}, DType::f32);
+      Tensor y2 = Tensor::empty(c, y1.shape(), DType::f32);
+      ops::run_now(c, [&](vk::Recorder& rec) {
+        ops::upsample2x(rec, xt, u, ct);
+        ops::conv2d(rec, u, wt, &bt, y1, ops::Conv2dParams::same3x3());
+        ops::upsample2x_conv3x3(rec, xt, wt, &bt, y2, ct);
+      });
+      expect_equal(down(c, y2), down(c, y1), std::string("upsample2x_conv3x3 F=") + std::to_string(f) + (ct ? " compress_time" : ""));
+    }
+}
+
 TEST_F(ConvOps, UpsampleNearestAnySize) {
   // SpatialNorm-style resize of zq to a feature map (first frame separate) and non-integer ratios.
   vk::Context& c = ctx();

@@ -33,6 +33,10 @@ layout(constant_id = 4) const uint WDT = 0;      // weight storage: 0 f32, 1 f16
 layout(constant_id = 5) const bool BCAST = true;
 layout(constant_id = 6) const uint CO_R = 16;    // output channels per invocation
 layout(constant_id = 7) const uint PX_R = 16;    // output pixels (one row) per invocation
+// UPSAMPLE: the convolution reads the nearest x2 spatial upsampling of src (CogVideoXUpsample3D fused:
+// the 4x larger upsampled tensor is never stored); the frame map of its time upsampling is `time_map`.
+layout(constant_id = 8) const bool UPSAMPLE = false;
+const uint UP = UPSAMPLE ? 2 : 1;
 
 const uint SPAN = (PX_R - 1) * STRIDE + KW;  // input columns one row of the block touches
 const uint NW = CO_R * KW;                   // weights per (ci, kt, kh) step
@@ -54,6 +58,7 @@ layout(push_constant) uniform Push {
   uint frames;      // output frames in this dispatch, from fo_begin
   uint fo_begin;
   uint ys_b, ys_c, ys_f, ys_h, ys_w;  // output strides (elements)
+  uint time_map;    // KT = 1 only: output frame -> src frame. 0: same; 1: 0 | 1+(t-1)/2; 2: t/2
 } p;
 
 float load_w(uint e) {
@@ -112,22 +117,24 @@ void main() {
   bool col_ok[SPAN];
   [[unroll]] for (uint j = 0; j < SPAN; ++j) {
     int iw = int(ow0 * STRIDE) - p.pad_left + int(j);
-    col_ok[j] = iw >= 0 && iw < int(p.w);
-    col[j] = clamp(iw, 0, int(p.w) - 1);
+    col_ok[j] = iw >= 0 && iw < int(UP * p.w);
+    col[j] = clamp(iw, 0, int(UP * p.w) - 1) / int(UP);
   }
 
   for (uint kt = 0; kt < KT; ++kt) {
     uint tp = fo + kt;  // frame index on the padded time axis (uniform over the workgroup)
     if ((p.tap_mode == 1 && tp >= p.prefix) || (p.tap_mode == 2 && tp < p.prefix)) continue;
     uint frame = uint(max(int(tp) - int(p.src_shift), 0));
+    if (p.time_map == 1) frame = tp == 0 ? 0 : 1 + (tp - 1) / 2;
+    else if (p.time_map == 2) frame = tp / 2;
     for (uint ci = 0; ci < p.cin; ++ci) {
       uint plane = ((b * p.cin + ci) * p.src_frames + frame) * hw;
       uint wk = ci * taps + kt * KH * KW;
       // Plain loop: drivers unroll it (on lavapipe that is ~1.5x faster than keeping the loop).
       for (uint kh = 0; kh < KH; ++kh) {
         int ih = int(oh * STRIDE) - p.pad_top + int(kh);
-        bool row_ok = ih >= 0 && ih < int(p.h);
-        int row = int(plane) + clamp(ih, 0, int(p.h) - 1) * int(p.w);
+        bool row_ok = ih >= 0 && ih < int(UP * p.h);
+        int row = int(plane) + clamp(ih, 0, int(UP * p.h) - 1) / int(UP) * int(p.w);
         float xv[SPAN];
         [[unroll]] for (uint j = 0; j < SPAN; ++j) {
           float v = texelFetch(src, row + col[j]).x;

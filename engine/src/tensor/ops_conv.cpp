@@ -70,6 +70,8 @@ struct ConvJob {
   int64_t cout = 1, kt = 1, kh = 1, kw = 1, stride = 1;
   int64_t pad_top = 0, pad_left = 0, ho = 1, wo = 1, frames_out = 1, prefix = 0;
   int64_t ys_b = 0, ys_c = 0, ys_f = 0, ys_h = 0, ys_w = 0;
+  bool upsample = false;   // read the nearest x2 spatial upsampling of the input (h, w: input sizes)
+  uint32_t time_map = 0;   // output frame -> input frame for kt = 1 (see conv.comp)
 };
 
 struct ConvPush {
@@ -77,6 +79,7 @@ struct ConvPush {
   int32_t pad_top, pad_left;
   uint32_t prefix, src_shift, tap_mode, has_bias, tiles_w, frames, fo_begin;
   uint32_t ys_b, ys_c, ys_f, ys_h, ys_w;
+  uint32_t time_map;
 };
 static_assert(sizeof(ConvPush) <= 128);
 
@@ -100,8 +103,8 @@ void record_conv_pass(vk::Recorder& rec, const char* op, const ConvJob& j, const
   uint32_t wdt = weight_code(op, w.dtype());
   double macs = double(j.b * pass.frames * j.ho * j.wo) * double(j.cout) * double(j.cin * j.kt * j.kh * j.kw);
   ConvBlock blk = conv_block(rec.context(), macs);
-  std::array<uint32_t, 8> spec = {u32(op, j.kt), u32(op, j.kh), u32(op, j.kw), u32(op, j.stride), wdt,
-                                  blk.bcast ? 1u : 0u, blk.co, blk.px};
+  std::array<uint32_t, 9> spec = {u32(op, j.kt), u32(op, j.kh), u32(op, j.kw), u32(op, j.stride), wdt,
+                                  blk.bcast ? 1u : 0u, blk.co, blk.px, j.upsample ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv", spec);
 
   ConvPush pc{};
@@ -126,6 +129,7 @@ void record_conv_pass(vk::Recorder& rec, const char* op, const ConvJob& j, const
   pc.ys_f = u32(op, j.ys_f);
   pc.ys_h = u32(op, j.ys_h);
   pc.ys_w = u32(op, j.ys_w);
+  pc.time_map = j.time_map;
 
   int64_t gx = div_up(j.ho * int64_t(pc.tiles_w), kConvLocal);
   int64_t gy = div_up(j.cout, blk.co);
@@ -353,6 +357,29 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
     rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.w, 64), pc.h,
                  uint32_t(std::min<int64_t>(65535, zs - first)), op);
   }
+}
+
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+                        bool compress_time) {
+  const char* op = "upsample2x_conv3x3";
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  Shape up = upsample2x_shape(x.shape(), compress_time);
+  auto k = kernel_dims(op, w);
+  expect(k[2] == 1 && k[3] == 3 && k[4] == 3 && k[1] == x.dim(1), op,
+         "weights " + w.describe() + " must be [Cout, " + std::to_string(x.dim(1)) + ", 3, 3]");
+  expect_shape(op, "y", y, {up[0], k[0], up[2], up[3], up[4]});
+  ConvJob j;
+  j.b = x.dim(0), j.cin = x.dim(1), j.frames = x.dim(2), j.h = x.dim(3), j.w = x.dim(4);
+  j.cout = k[0], j.kt = 1, j.kh = 3, j.kw = 3, j.stride = 1, j.pad_top = 1, j.pad_left = 1;
+  j.ho = up[3], j.wo = up[4], j.frames_out = up[2], j.prefix = 0;
+  j.upsample = true;
+  int64_t f = x.dim(2);
+  j.time_map = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
+  int64_t plane = j.ho * j.wo;
+  j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames_out * plane, j.ys_b = j.cout * j.frames_out * plane;
+  check_bias(op, w, bias, j.cout);
+  record_conv_pass(rec, op, j, {&x, j.frames, 0, 0, j.frames_out, 0, true}, w, bias, y);
 }
 
 }  // namespace dvs::ops

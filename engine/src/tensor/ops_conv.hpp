@@ -62,6 +62,12 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
 Shape upsample2x_shape(const Shape& x, bool compress_time);
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time);
 
+// CogVideoXUpsample3D whole: upsample2x followed by its Conv2d(3x3, stride 1, pad 1) per frame, fused so
+// the 4x larger upsampled tensor is never stored. w: [Cout, Cin, 3, 3]. y: [B, Cout, Fo, 2H, 2W] with Fo
+// from upsample2x_shape. Results are bit-identical to upsample2x then conv2d(same3x3).
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+                        bool compress_time);
+
 // Tuning / testing knob for the convolution shader: output channels x output pixels computed per
 // invocation (each 0 = automatic: chosen from the device and the size of the convolution), and how the
 // weights reach the lanes (-1 automatic, 0 every lane loads them, 1 subgroup broadcasts: CPU drivers).
