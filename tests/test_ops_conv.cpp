@@ -1,6 +1,9 @@
 // Convolutions and resampling (engine/src/tensor/ops_conv.*) against plain C++ references that follow
 // diffusers step by step (pad the input explicitly, then a valid convolution in double).
 //
+// Weight dtypes f32/f16/bf16 are all exercised on the causal conv; the other kernels use bf16 (the real
+// model's dtype) to keep the number of pipelines (seconds of LLVM compile each on lavapipe) down.
+//
 // Tolerances:
 //  - convolutions: |gpu - ref| <= 1e-5 * sum_k |w_k x_k| + 1e-6 per output (fp32 accumulation of K terms;
 //    weights stored f16/bf16 are widened exactly, so the reference uses the same rounded weights).
@@ -187,7 +190,7 @@ void run_conv2d(vk::Context& ctx, const Conv2dCase& c, uint32_t seed) {
 
 TEST_F(ConvOps, Conv2dSame3x3) {
   uint32_t seed = 10;
-  for (DType dt : {DType::f32, DType::f16, DType::bf16})
+  for (DType dt : {DType::f32, DType::bf16})
     run_conv2d(ctx(), {1, 3, 5, 2, 7, 9, 3, ops::Conv2dParams::same3x3(), dt, true}, seed++);
   run_conv2d(ctx(), {1, 1, 1, 1, 1, 1, 3, ops::Conv2dParams::same3x3(), DType::f32, false}, seed++);
   run_conv2d(ctx(), {2, 33, 9, 3, 17, 7, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, seed++);
@@ -197,9 +200,9 @@ TEST_F(ConvOps, Conv2dSame3x3) {
 TEST_F(ConvOps, Conv2dPatchEmbedding) {
   uint32_t seed = 30;
   // [B, C, F, H, W] with channel-first output, and [N, C, H, W] (B*F frames) with token output.
-  run_conv2d(ctx(), {1, 7, 9, 3, 8, 10, 2, ops::Conv2dParams::patch(false), DType::f32, true}, seed++);
+  run_conv2d(ctx(), {1, 7, 9, 3, 8, 10, 2, ops::Conv2dParams::patch(false), DType::bf16, true}, seed++);
   run_conv2d(ctx(), {2, 32, 33, 2, 6, 10, 2, ops::Conv2dParams::patch(true), DType::bf16, true}, seed++);
-  run_conv2d(ctx(), {1, 5, 3, 1, 7, 9, 2, ops::Conv2dParams::patch(true), DType::f16, false}, seed++);  // odd sizes floor
+  run_conv2d(ctx(), {1, 5, 3, 1, 7, 9, 2, ops::Conv2dParams::patch(true), DType::bf16, false}, seed++);  // odd sizes floor
 }
 
 TEST_F(ConvOps, Conv2dPatchEmbeddingOnImages) {
@@ -225,9 +228,9 @@ TEST_F(ConvOps, Conv2dPatchEmbeddingOnImages) {
 TEST_F(ConvOps, Conv2dDownsample3x3Stride2) {
   uint32_t seed = 50;
   for (int64_t hw : {7, 8, 9, 17})
-    run_conv2d(ctx(), {1, 4, 6, 2, hw, hw + 1, 3, ops::Conv2dParams::downsample3x3(), DType::f32, true}, seed++);
+    run_conv2d(ctx(), {1, 4, 6, 2, hw, hw + 1, 3, ops::Conv2dParams::downsample3x3(), DType::bf16, true}, seed++);
   run_conv2d(ctx(), {1, 33, 17, 3, 9, 7, 3, ops::Conv2dParams::downsample3x3(), DType::bf16, true}, seed++);
-  run_conv2d(ctx(), {1, 2, 3, 1, 2, 2, 3, ops::Conv2dParams::downsample3x3(), DType::f16, false}, seed++);
+  run_conv2d(ctx(), {1, 2, 3, 1, 2, 2, 3, ops::Conv2dParams::downsample3x3(), DType::bf16, false}, seed++);
 }
 
 // ---- Causal Conv3d --------------------------------------------------------------------------------------
@@ -286,27 +289,29 @@ TEST_F(ConvOps, CausalConv3dFirstBatch) {
 // Running a clip in frame batches with the cache equals running it whole (and the diffusers reference).
 TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
   vk::Context& c = ctx();
-  const int64_t cin = 6, cout = 7, h = 7, w = 9, frames = 5;
-  Vid x = random_vid(1, cin, frames, h, w, 90);
+  const int64_t bs = 2, cin = 6, cout = 7, h = 7, w = 9, frames = 5;
+  Vid x = random_vid(bs, cin, frames, h, w, 90);
   Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 91);
-  Tensor xt = up(c, x), whole = Tensor::empty(c, {1, cout, frames, h, w}, DType::f32);
+  Tensor xt = up(c, x), whole = Tensor::empty(c, {bs, cout, frames, h, w}, DType::f32);
   ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, whole, nullptr, nullptr); });
   Vid whole_h = down(c, whole);
   expect_close(whole_h, causal_ref(x, nullptr, cw, cout, 3, nullptr), "whole clip");
 
+  // The encoder's 9-then-8 batching in miniature: uneven splits, single frames, one at a time.
   for (std::vector<int64_t> split : {std::vector<int64_t>{3, 2}, {1, 4}, {1, 1, 1, 1, 1}, {2, 3}}) {
     for (bool in_place : {false, true}) {
-      Tensor cache_a = Tensor::empty(c, {1, cin, 2, h, w}, DType::f32);
-      Tensor cache_b = Tensor::empty(c, {1, cin, 2, h, w}, DType::f32);
+      Tensor cache_a = Tensor::empty(c, {bs, cin, 2, h, w}, DType::f32);
+      Tensor cache_b = Tensor::empty(c, {bs, cin, 2, h, w}, DType::f32);
       int64_t first = 0, batch = 0;
       Vid ref_cache;
       for (int64_t n : split) {
-        Vid part(1, cin, n, h, w);
-        for (int64_t ci = 0; ci < cin; ++ci)
-          for (int64_t t = 0; t < n; ++t)
-            for (int64_t i = 0; i < h; ++i)
-              for (int64_t j = 0; j < w; ++j) part.at(0, ci, t, i, j) = x.at(0, ci, first + t, i, j);
-        Tensor pt = up(c, part), yt = Tensor::empty(c, {1, cout, n, h, w}, DType::f32);
+        Vid part(bs, cin, n, h, w);
+        for (int64_t bi = 0; bi < bs; ++bi)
+          for (int64_t ci = 0; ci < cin; ++ci)
+            for (int64_t t = 0; t < n; ++t)
+              for (int64_t i = 0; i < h; ++i)
+                for (int64_t j = 0; j < w; ++j) part.at(bi, ci, t, i, j) = x.at(bi, ci, first + t, i, j);
+        Tensor pt = up(c, part), yt = Tensor::empty(c, {bs, cout, n, h, w}, DType::f32);
         // Ping-pong between two caches, or update one in place.
         const Tensor* cin_t = batch == 0 ? nullptr : (in_place || batch % 2 == 1 ? &cache_a : &cache_b);
         const Tensor* cout_t = in_place || batch % 2 == 0 ? &cache_a : &cache_b;
@@ -316,12 +321,13 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
         ref_cache = next;
         expect_equal(down(c, *cout_t), ref_cache, "cache after batch " + std::to_string(batch));
         Vid got = down(c, yt);
-        for (int64_t o = 0; o < cout; ++o)
-          for (int64_t t = 0; t < n; ++t)
-            for (int64_t i = 0; i < h; ++i)
-              for (int64_t j = 0; j < w; ++j)
-                ASSERT_EQ(got.at(0, o, t, i, j), whole_h.at(0, o, first + t, i, j))
-                    << "batch " << batch << " frame " << t << (in_place ? " in place" : " ping-pong");
+        for (int64_t bi = 0; bi < bs; ++bi)
+          for (int64_t o = 0; o < cout; ++o)
+            for (int64_t t = 0; t < n; ++t)
+              for (int64_t i = 0; i < h; ++i)
+                for (int64_t j = 0; j < w; ++j)
+                  ASSERT_EQ(got.at(bi, o, t, i, j), whole_h.at(bi, o, first + t, i, j))
+                      << "batch " << batch << " frame " << t << (in_place ? " in place" : " ping-pong");
         first += n;
         ++batch;
       }
@@ -329,11 +335,29 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
   }
 }
 
+// The register block and the weight sharing are specialization constants: other choices (with partial
+// blocks in both channels and pixels) must give the same results. {8, 4, direct loads} is what GPUs with
+// wide subgroups run, so this covers their pipeline on lavapipe. Other tests run the small default block,
+// whose pipelines compile fastest; dvs-bench runs the large one.
+TEST_F(ConvOps, OtherRegisterBlocks) {
+  uint32_t seed = 100;
+  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{8, 4, 0}, ops::ConvRegisterBlock{16, 8, 1}}) {
+    ops::set_conv_register_block(blk);
+    try {
+      run_conv2d(ctx(), {1, 9, 21, 2, 9, 19, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, seed++);
+    } catch (...) {
+      ops::set_conv_register_block({});
+      throw;
+    }
+  }
+  ops::set_conv_register_block({});
+}
+
 TEST_F(ConvOps, Conv1x1) {
   vk::Context& c = ctx();
   uint32_t seed = 110;
   for (auto [cin, cout, f, h, w] : std::vector<std::array<int64_t, 5>>{{1, 1, 1, 1, 1}, {7, 33, 3, 7, 9}, {33, 5, 2, 9, 17}}) {
-    for (DType dt : {DType::f32, DType::bf16}) {
+    for (DType dt : {DType::bf16}) {
       Vid x = random_vid(1, cin, f, h, w, seed++);
       std::vector<float> wr, br;
       Tensor wt = Tensor::upload(c, make_weights({cout, cin, 1, 1, 1}, dt, seed++, 0.5f, wr));
@@ -349,25 +373,27 @@ TEST_F(ConvOps, Conv1x1) {
 
 TEST_F(ConvOps, AvgPoolTimePairs) {
   vk::Context& c = ctx();
-  for (int64_t f : {1, 2, 3, 4, 5, 9}) {
-    Vid x = random_vid(2, 3, f, 7, 9, uint32_t(130 + f));
-    int64_t fo = ops::downsample_time_frames(f);
-    EXPECT_EQ(fo, f % 2 ? (f + 1) / 2 : f / 2);
-    Vid want(2, 3, fo, 7, 9);
-    for (int64_t b = 0; b < 2; ++b)
-      for (int64_t ch = 0; ch < 3; ++ch)
-        for (int64_t t = 0; t < fo; ++t)
-          for (int64_t i = 0; i < 7; ++i)
-            for (int64_t j = 0; j < 9; ++j) {
-              // diffusers: odd -> [x0, avg_pool1d(x[1:])], even -> avg_pool1d(x)
-              int64_t first = f % 2 ? 2 * t - 1 : 2 * t;
-              want.at(b, ch, t, i, j) = (f % 2 && t == 0) ? x.at(b, ch, 0, i, j)
-                                                          : (x.at(b, ch, first, i, j) + x.at(b, ch, first + 1, i, j)) / 2.f;
-            }
-    Tensor xt = up(c, x), yt = Tensor::empty(c, want.shape(), DType::f32);
-    ops::run_now(c, [&](vk::Recorder& rec) { ops::avgpool_time_pairs(rec, xt, yt); });
-    expect_equal(down(c, yt), want, "avgpool_time F=" + std::to_string(f));
-  }
+  // 7x9 planes take the scalar kernel, 4x6 planes (a multiple of 4) the vec4 one.
+  for (auto [h, w] : std::vector<std::pair<int64_t, int64_t>>{{7, 9}, {4, 6}})
+    for (int64_t f : {1, 2, 3, 4, 5, 9}) {
+      Vid x = random_vid(2, 3, f, h, w, uint32_t(130 + f));
+      int64_t fo = ops::downsample_time_frames(f);
+      EXPECT_EQ(fo, f % 2 ? (f + 1) / 2 : f / 2);
+      Vid want(2, 3, fo, h, w);
+      for (int64_t b = 0; b < 2; ++b)
+        for (int64_t ch = 0; ch < 3; ++ch)
+          for (int64_t t = 0; t < fo; ++t)
+            for (int64_t i = 0; i < h; ++i)
+              for (int64_t j = 0; j < w; ++j) {
+                // diffusers: odd -> [x0, avg_pool1d(x[1:])], even -> avg_pool1d(x)
+                int64_t first = f % 2 ? 2 * t - 1 : 2 * t;
+                want.at(b, ch, t, i, j) = (f % 2 && t == 0) ? x.at(b, ch, 0, i, j)
+                                                            : (x.at(b, ch, first, i, j) + x.at(b, ch, first + 1, i, j)) / 2.f;
+              }
+      Tensor xt = up(c, x), yt = Tensor::empty(c, want.shape(), DType::f32);
+      ops::run_now(c, [&](vk::Recorder& rec) { ops::avgpool_time_pairs(rec, xt, yt); });
+      expect_equal(down(c, yt), want, "avgpool_time F=" + std::to_string(f) + " plane " + std::to_string(h * w));
+    }
 }
 
 // PyTorch's nearest index: floor(dst * (in / out)) in fp32, clamped.
@@ -410,6 +436,30 @@ TEST_F(ConvOps, Upsample2xSpatialAndTemporal) {
       Tensor xt = up(c, x), yt = Tensor::empty(c, ys, DType::f32);
       ops::run_now(c, [&](vk::Recorder& rec) { ops::upsample2x(rec, xt, yt, ct); });
       expect_equal(down(c, yt), want, std::string("upsample2x F=") + std::to_string(f) + (ct ? " compress_time" : ""));
+    }
+}
+
+// CogVideoXUpsample3D fused: equal (bitwise: same values, same summation order) to upsample2x followed
+// by conv2d 3x3 pad 1, which the tests above check against the references.
+TEST_F(ConvOps, Upsample2xConv3x3Fused) {
+  vk::Context& c = ctx();
+  std::vector<float> wr, br;
+  Tensor wt = Tensor::upload(c, make_weights({7, 5, 3, 3}, DType::bf16, 190, 0.2f, wr));
+  Tensor bt = Tensor::upload(c, make_weights({7}, DType::bf16, 191, 0.2f, br));
+  for (bool ct : {false, true})
+    for (int64_t f : {1, 2, 3}) {
+      Vid x = random_vid(2, 5, f, 7, 9, uint32_t(192 + f));
+      Tensor xt = up(c, x);
+      Shape us = ops::upsample2x_shape(xt.shape(), ct);
+      Tensor u = Tensor::empty(c, us, DType::f32);
+      Tensor y1 = Tensor::empty(c, {us[0], 7, us[2], us[3], us[4]}, DType::f32);
+      Tensor y2 = Tensor::empty(c, y1.shape(), DType::f32);
+      ops::run_now(c, [&](vk::Recorder& rec) {
+        ops::upsample2x(rec, xt, u, ct);
+        ops::conv2d(rec, u, wt, &bt, y1, ops::Conv2dParams::same3x3());
+        ops::upsample2x_conv3x3(rec, xt, wt, &bt, y2, ct);
+      });
+      expect_equal(down(c, y2), down(c, y1), std::string("upsample2x_conv3x3 F=") + std::to_string(f) + (ct ? " compress_time" : ""));
     }
 }
 

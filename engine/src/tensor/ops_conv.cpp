@@ -1,5 +1,6 @@
 #include "tensor/ops_conv.hpp"
 
+#include <algorithm>
 #include <array>
 #include <string>
 
@@ -10,10 +11,8 @@
 namespace dvs::ops {
 namespace {
 
-constexpr uint32_t kConvLocal = 64;     // shaders/nn/conv.comp local_size_x
-constexpr uint32_t kConvCoBlock = 8;    // CO_R
-constexpr uint32_t kConvPxBlock = 4;    // PX_R
-constexpr uint32_t kMaxCachePrefix = 4; // shaders/nn/conv3d_cache.comp MAXP
+constexpr uint32_t kConvLocal = 64;      // shaders/nn/conv.comp local_size_x
+constexpr uint32_t kMaxCachePrefix = 4;  // shaders/nn/conv3d_cache.comp MAXP
 
 [[noreturn]] void fail(const char* op, const std::string& what) { throw Error(std::string("internal: ") + op + ": " + what); }
 
@@ -42,35 +41,76 @@ uint32_t u32(const char* op, int64_t v) {
   return uint32_t(v);
 }
 
-// Everything one conv.comp dispatch needs; sizes of a [B, Cin, F, H, W] input.
+// Register block per invocation (output channels x output pixels of a row). CPU drivers (narrow
+// subgroups, loads executed per lane: lavapipe) want tall blocks that reuse every load many times and
+// share weights through subgroup broadcasts; GPUs want few registers per thread and load the uniform
+// weights directly. On lavapipe the 16x16 block runs ~1.3x faster than 8x8 but its pipeline takes ~8x
+// longer to compile (seconds), so small convolutions (tests, tiny models) use 8x8.
+struct ConvBlock {
+  uint32_t co = 8, px = 8;
+  bool bcast = true;
+};
+ConvRegisterBlock g_block_override;
+
+ConvBlock conv_block(const vk::Context& ctx, double macs) {
+  const auto& caps = ctx.caps();
+  bool cpu_like = caps.subgroup_size >= 8 && caps.subgroup_size <= 16;
+  ConvBlock b = cpu_like ? (macs >= double(1u << 27) ? ConvBlock{16, 16, true} : ConvBlock{8, 8, true})
+                         : ConvBlock{8, 4, false};
+  if (g_block_override.channels) b.co = g_block_override.channels;
+  if (g_block_override.pixels) b.px = g_block_override.pixels;
+  if (g_block_override.share_weights >= 0) b.bcast = g_block_override.share_weights == 1;
+  if (caps.subgroup_size < 8) b.bcast = false;  // the broadcast scheme needs 8 lanes per subgroup
+  return b;
+}
+
+// Everything conv.comp needs for a [B, Cin, F, H, W] input.
 struct ConvJob {
   int64_t b = 1, cin = 1, frames = 1, h = 1, w = 1;
   int64_t cout = 1, kt = 1, kh = 1, kw = 1, stride = 1;
   int64_t pad_top = 0, pad_left = 0, ho = 1, wo = 1, frames_out = 1, prefix = 0;
   int64_t ys_b = 0, ys_c = 0, ys_f = 0, ys_h = 0, ys_w = 0;
+  bool upsample = false;   // read the nearest x2 spatial upsampling of the input (h, w: input sizes)
+  uint32_t time_map = 0;   // output frame -> input frame for kt = 1 (see conv.comp)
 };
 
 struct ConvPush {
-  uint32_t cin, cout, frames, h, w, ho, wo;
+  uint32_t cin, cout, src_frames, h, w, ho, wo;
   int32_t pad_top, pad_left;
-  uint32_t prefix, use_cache, has_bias, tiles_w, frames_out;
+  uint32_t prefix, src_shift, tap_mode, has_bias, tiles_w, frames, fo_begin;
   uint32_t ys_b, ys_c, ys_f, ys_h, ys_w;
+  uint32_t time_map;
+};
+static_assert(sizeof(ConvPush) <= 128);
+
+// One pass of conv.comp over output frames [fo_begin, fo_begin + frames) reading `src`.
+struct ConvPass {
+  const Tensor* src;
+  int64_t src_frames, src_shift, fo_begin, frames;
+  uint32_t tap_mode;  // 0 all taps, 1 taps on the prefix only, 2 taps on the input only (resumes from y)
+  bool add_bias;
 };
 
-void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const Tensor& w,
-                 const Tensor* bias, const Tensor& y, const Tensor* cache) {
+void check_bias(const char* op, const Tensor& w, const Tensor* bias, int64_t cout) {
+  if (!bias) return;
+  expect(bias->dtype() == w.dtype(), op, "bias " + bias->describe() + " must have the weights' dtype " + dtype_name(w.dtype()));
+  expect(bias->numel() == cout, op, "bias " + bias->describe() + " must hold Cout = " + std::to_string(cout) + " values");
+}
+
+void record_conv_pass(vk::Recorder& rec, const char* op, const ConvJob& j, const ConvPass& pass, const Tensor& w,
+                      const Tensor* bias, const Tensor& y) {
+  if (pass.frames <= 0) return;
   uint32_t wdt = weight_code(op, w.dtype());
-  if (bias) {
-    expect(bias->dtype() == w.dtype(), op, "bias " + bias->describe() + " must have the weights' dtype " + dtype_name(w.dtype()));
-    expect(bias->numel() == j.cout, op, "bias " + bias->describe() + " must hold Cout = " + std::to_string(j.cout) + " values");
-  }
-  std::array<uint32_t, 5> spec = {u32(op, j.kt), u32(op, j.kh), u32(op, j.kw), u32(op, j.stride), wdt};
+  double macs = double(j.b * pass.frames * j.ho * j.wo) * double(j.cout) * double(j.cin * j.kt * j.kh * j.kw);
+  ConvBlock blk = conv_block(rec.context(), macs);
+  std::array<uint32_t, 9> spec = {u32(op, j.kt), u32(op, j.kh), u32(op, j.kw), u32(op, j.stride), wdt,
+                                  blk.bcast ? 1u : 0u, blk.co, blk.px, j.upsample ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv", spec);
 
   ConvPush pc{};
   pc.cin = u32(op, j.cin);
   pc.cout = u32(op, j.cout);
-  pc.frames = u32(op, j.frames);
+  pc.src_frames = u32(op, pass.src_frames);
   pc.h = u32(op, j.h);
   pc.w = u32(op, j.w);
   pc.ho = u32(op, j.ho);
@@ -78,29 +118,38 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   pc.pad_top = int32_t(j.pad_top);
   pc.pad_left = int32_t(j.pad_left);
   pc.prefix = u32(op, j.prefix);
-  pc.use_cache = cache ? 1 : 0;
-  pc.has_bias = bias ? 1 : 0;
-  pc.tiles_w = div_up(j.wo, kConvPxBlock);
-  pc.frames_out = u32(op, j.frames_out);
+  pc.src_shift = u32(op, pass.src_shift);
+  pc.tap_mode = pass.tap_mode;
+  pc.has_bias = bias && pass.add_bias ? 1 : 0;
+  pc.tiles_w = div_up(j.wo, blk.px);
+  pc.frames = u32(op, pass.frames);
+  pc.fo_begin = u32(op, pass.fo_begin);
   pc.ys_b = u32(op, j.ys_b);
   pc.ys_c = u32(op, j.ys_c);
   pc.ys_f = u32(op, j.ys_f);
   pc.ys_h = u32(op, j.ys_h);
   pc.ys_w = u32(op, j.ys_w);
+  pc.time_map = j.time_map;
 
   int64_t gx = div_up(j.ho * int64_t(pc.tiles_w), kConvLocal);
-  int64_t gy = div_up(j.cout, kConvCoBlock);
-  int64_t gz = j.b * j.frames_out;
+  int64_t gy = div_up(j.cout, blk.co);
+  int64_t gz = j.b * pass.frames;
   if (gx > 65535 || gy > 65535 || gz > 65535)
     fail(op, "grid " + std::to_string(gx) + "x" + std::to_string(gy) + "x" + std::to_string(gz) +
                  " exceeds 65535 workgroups per dimension; tile the input");
-  if (gx == 0 || gz == 0 || gy == 0) return;
+  if (gx == 0 || gy == 0) return;
 
-  vk::BufferView wv = word_view(w);
-  vk::BufferView bv = bias ? word_view(*bias) : wv;
-  vk::BufferView cv = cache ? cache->buffer() : x.buffer();
-  rec.dispatch(pipe, {x.buffer(), cv, wv, bv, y.buffer()}, &pc, sizeof pc, uint32_t(gx), uint32_t(gy), uint32_t(gz),
-               op);
+  // Input and weights are read through texel buffers, whose size limit (2^27 elements on lavapipe and
+  // on NVIDIA) can be below the storage-buffer range.
+  uint64_t max_texels = rec.context().caps().max_texel_buffer_elements;
+  for (const Tensor* t : {pass.src, &w})
+    if (max_texels && uint64_t(t->numel()) > max_texels)
+      fail(op, t->describe() + " exceeds the device's texel-buffer limit of " + std::to_string(max_texels) +
+                   " elements; split the convolution (spatial tiles or fewer frames per batch)");
+  VkFormat wfmt = wdt == 0 ? VK_FORMAT_R32_UINT : VK_FORMAT_R16_UINT;
+  vk::BufferView bv = bias ? word_view(*bias) : word_view(w);
+  rec.dispatch(pipe, {vk::Binding(pass.src->buffer(), VK_FORMAT_R32_SFLOAT), vk::Binding(w.buffer(), wfmt), bv, y.buffer()},
+               &pc, sizeof pc, uint32_t(gx), uint32_t(gy), uint32_t(gz), op);
 }
 
 // Weight shape as (Cout, Cin, kt, kh, kw) from a 4-D or 5-D tensor.
@@ -113,6 +162,11 @@ std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
 }
 
 }  // namespace
+
+void set_conv_register_block(const ConvRegisterBlock& block) {
+  if (block.channels > 64 || block.pixels > 64) fail("set_conv_register_block", "block too large");
+  g_block_override = block;
+}
 
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
   const char* op = "conv2d";
@@ -155,7 +209,8 @@ void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* b
   } else {
     j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
   }
-  record_conv(rec, op, j, x, w, bias, y, nullptr);
+  check_bias(op, w, bias, j.cout);
+  record_conv_pass(rec, op, j, {&x, j.frames, 0, 0, j.frames, 0, true}, w, bias, y);
 }
 
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
@@ -191,7 +246,18 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   }
   int64_t plane = j.h * j.w;
   j.ys_w = 1, j.ys_h = j.w, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
-  record_conv(rec, op, j, x, w, bias, y, cache_in);
+  check_bias(op, w, bias, j.cout);
+  if (!cache_in) {
+    // First frame batch: the prefix replicates frame 0 (src frame = max(tp - prefix, 0)).
+    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, 0, j.frames, 0, true}, w, bias, y);
+  } else {
+    // Frames whose taps all lie on the input, then the first `prefix` frames in two passes: the cache
+    // taps (partial sum into y) and the input taps resuming from it.
+    int64_t head = std::min(j.prefix, j.frames);
+    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, head, j.frames - head, 0, true}, w, bias, y);
+    record_conv_pass(rec, op, j, {cache_in, j.prefix, 0, 0, head, 1, false}, w, bias, y);
+    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, 0, head, 2, true}, w, bias, y);
+  }
 
   if (cache_out && j.frames > 0) {
     struct {
@@ -225,12 +291,19 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   int64_t fo = downsample_time_frames(x.dim(2));
   expect_shape(op, "y", y, {x.dim(0), x.dim(1), fo, x.dim(3), x.dim(4)});
   struct {
-    uint32_t total, hw, frames, frames_out;
-  } pc{u32(op, y.numel()), u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo)};
-  if (pc.total == 0) return;
-  Grid g = grid_1d(pc.total, 64);
-  rec.dispatch(rec.context().pipelines().get("nn/avgpool_time"), {x.buffer(), y.buffer()}, &pc, sizeof pc, g.x, g.y, 1,
-               op);
+    uint32_t hw, frames, frames_out, bc_begin;
+  } pc{u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo), 0};
+  int64_t bc = x.dim(0) * x.dim(1);
+  if (y.numel() == 0) return;
+  bool vec4 = pc.hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
+  if (vec4) pc.hw /= 4;
+  expect(fo <= 65535 && div_up(pc.hw, 64) <= 65535, op, "frame count or plane too large: " + x.describe());
+  const vk::Pipeline& pipe = rec.context().pipelines().get(vec4 ? "nn/avgpool_time_vec4" : "nn/avgpool_time");
+  for (int64_t first = 0; first < bc; first += 65535) {
+    pc.bc_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.hw, 64), uint32_t(fo),
+                 uint32_t(std::min<int64_t>(65535, bc - first)), op);
+  }
 }
 
 void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool keep_first_frame) {
@@ -244,13 +317,18 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
            "keep_first_frame needs at least 2 frames on both sides: " + x.describe() + " -> " + y.describe());
   expect(y.numel() == 0 || x.numel() > 0, op, "empty input");
   struct {
-    uint32_t total, frames, h, w, frames_out, ho, wo, keep_first;
-  } pc{u32(op, y.numel()), u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)),
-       u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)), keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u};
-  if (pc.total == 0) return;
-  Grid g = grid_1d(pc.total, 64);
-  rec.dispatch(rec.context().pipelines().get("nn/upsample_nearest"), {x.buffer(), y.buffer()}, &pc, sizeof pc, g.x, g.y,
-               1, op);
+    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin;
+  } pc{u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)),
+       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0};
+  if (y.numel() == 0) return;
+  expect(pc.ho <= 65535 && div_up(pc.wo, 64) <= 65535, op, "output too large: " + y.describe());
+  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample_nearest");
+  for (int64_t first = 0; first < zs; first += 65535) {
+    pc.z_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.wo, 64), pc.ho,
+                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
+  }
 }
 
 Shape upsample2x_shape(const Shape& x, bool compress_time) {
@@ -261,9 +339,47 @@ Shape upsample2x_shape(const Shape& x, bool compress_time) {
 }
 
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time) {
-  expect_shape("upsample2x", "y", y, upsample2x_shape(x.shape(), compress_time));
-  bool keep_first = compress_time && x.dim(2) > 1 && x.dim(2) % 2 == 1;
-  upsample_nearest(rec, x, y, keep_first);
+  const char* op = "upsample2x";
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  expect_shape(op, "y", y, upsample2x_shape(x.shape(), compress_time));
+  int64_t f = x.dim(2);
+  uint32_t time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
+  struct {
+    uint32_t frames, h, w, frames_out, time_mode, z_begin;
+  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0};
+  if (y.numel() == 0) return;
+  expect(pc.h <= 65535 && div_up(pc.w, 64) <= 65535, op, "input too large: " + x.describe());
+  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample2x");
+  for (int64_t first = 0; first < zs; first += 65535) {
+    pc.z_begin = uint32_t(first);
+    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.w, 64), pc.h,
+                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
+  }
+}
+
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+                        bool compress_time) {
+  const char* op = "upsample2x_conv3x3";
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  Shape up = upsample2x_shape(x.shape(), compress_time);
+  auto k = kernel_dims(op, w);
+  expect(k[2] == 1 && k[3] == 3 && k[4] == 3 && k[1] == x.dim(1), op,
+         "weights " + w.describe() + " must be [Cout, " + std::to_string(x.dim(1)) + ", 3, 3]");
+  expect_shape(op, "y", y, {up[0], k[0], up[2], up[3], up[4]});
+  ConvJob j;
+  j.b = x.dim(0), j.cin = x.dim(1), j.frames = x.dim(2), j.h = x.dim(3), j.w = x.dim(4);
+  j.cout = k[0], j.kt = 1, j.kh = 3, j.kw = 3, j.stride = 1, j.pad_top = 1, j.pad_left = 1;
+  j.ho = up[3], j.wo = up[4], j.frames_out = up[2], j.prefix = 0;
+  j.upsample = true;
+  int64_t f = x.dim(2);
+  j.time_map = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
+  int64_t plane = j.ho * j.wo;
+  j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames_out * plane, j.ys_b = j.cout * j.frames_out * plane;
+  check_bias(op, w, bias, j.cout);
+  record_conv_pass(rec, op, j, {&x, j.frames, 0, 0, j.frames_out, 0, true}, w, bias, y);
 }
 
 }  // namespace dvs::ops

@@ -2,7 +2,10 @@
 // Video tensors are [B, C, F, H, W] (contiguous, f32). Weights are [Cout, Cin, kt, kh, kw] (3D) or
 // [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
 // has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
-// outputs are allocated by the caller with the shapes the *_shape() helpers give.
+// outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
+// the inputs. The convolutions read inputs and weights through texel buffers: each must start at an
+// allocation-aligned offset (whole tensors and arena views do) and hold at most maxTexelBufferElements
+// (2^27 on lavapipe and NVIDIA); larger activations must be split (spatial tiles, frame batches).
 #pragma once
 #include <cstdint>
 
@@ -58,5 +61,20 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
 // doubled too except that for odd F > 1 frame 0 stays single; F = 1 stays 1. y: upsample2x_shape(x, ct).
 Shape upsample2x_shape(const Shape& x, bool compress_time);
 void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compress_time);
+
+// CogVideoXUpsample3D whole: upsample2x followed by its Conv2d(3x3, stride 1, pad 1) per frame, fused so
+// the 4x larger upsampled tensor is never stored. w: [Cout, Cin, 3, 3]. y: [B, Cout, Fo, 2H, 2W] with Fo
+// from upsample2x_shape. Results are bit-identical to upsample2x then conv2d(same3x3).
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+                        bool compress_time);
+
+// Tuning / testing knob for the convolution shader: output channels x output pixels computed per
+// invocation (each 0 = automatic: chosen from the device and the size of the convolution), and how the
+// weights reach the lanes (-1 automatic, 0 every lane loads them, 1 subgroup broadcasts: CPU drivers).
+struct ConvRegisterBlock {
+  uint32_t channels = 0, pixels = 0;
+  int share_weights = -1;
+};
+void set_conv_register_block(const ConvRegisterBlock& block);
 
 }  // namespace dvs::ops
