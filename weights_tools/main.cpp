@@ -7,9 +7,12 @@
 #include <map>
 #include <string>
 #include <vector>
+#include <sstream>
+#include <algorithm>
 
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
+#include "models/tiny_model.hpp"
 #include "io/model_schema.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
@@ -28,7 +31,11 @@ commands:
       per component and overall, and checks the tensors against the schema of the component's class
       (T5EncoderModel, CogVideoXTransformer3DModel, AutoencoderKLCogVideoX) built from its config.json.
       --summary  totals and schema check only, no per-tensor lines.
-  make-tiny ...     write a tiny random-weight model folder (not implemented yet)
+  make-tiny --out DIR [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
+            [--t5-layers N] [--t5-d-model N] [--vocab N] [--text-len N] [--sample HxWxF]
+            [--vae-channels a,b,c,d] [--latent-channels N]
+                    write a random-weight CogVideoX-5B-I2V folder of tiny (or any) size that dvs loads;
+                    defaults are the conformance pack's sizes
   merge-lora ...    merge a LoRA into transformer weights (not implemented yet)
 
 options:
@@ -253,6 +260,61 @@ int inspect(const std::vector<std::string>& args) {
 
 }  // namespace
 
+// `make-tiny`: every option has the pack's value as default.
+int make_tiny(const std::vector<std::string>& args) {
+  dvs::models::TinyModelSpec spec;
+  std::string out;
+  auto value = [&](size_t& i) -> const std::string& {
+    if (i + 1 >= args.size()) throw dvs::Error("make-tiny: " + args[i] + " needs a value");
+    return args[++i];
+  };
+  auto integer = [&](size_t& i, int lo, int hi) {
+    const std::string name = args[i], v = value(i);
+    try {
+      size_t used = 0;
+      int x = std::stoi(v, &used);
+      if (used == v.size() && x >= lo && x <= hi) return x;
+    } catch (const std::exception&) {
+    }
+    throw dvs::Error("make-tiny: " + name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                     "], got '" + v + "'");
+  };
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--out") out = value(i);
+    else if (a == "--seed") spec.seed = uint64_t(integer(i, 0, 1 << 30));
+    else if (a == "--dtype") {
+      const std::string& d = value(i);
+      if (d == "f32") spec.dtype = dvs::DType::f32;
+      else if (d == "bf16") spec.dtype = dvs::DType::bf16;
+      else throw dvs::Error("make-tiny: --dtype must be f32 or bf16");
+    } else if (a == "--layers") spec.layers = integer(i, 1, 64);
+    else if (a == "--heads") spec.heads = integer(i, 1, 64);
+    else if (a == "--head-dim") spec.head_dim = integer(i, 16, 256);
+    else if (a == "--t5-layers") spec.t5_layers = integer(i, 1, 48);
+    else if (a == "--t5-d-model") spec.t5_d_model = integer(i, 8, 4096);
+    else if (a == "--vocab") spec.vocab = integer(i, 16, 32128);
+    else if (a == "--text-len") spec.text_len = integer(i, 2, 512);
+    else if (a == "--latent-channels") spec.latent_channels = integer(i, 1, 64);
+    else if (a == "--sample") {
+      const std::string v = value(i);
+      if (std::sscanf(v.c_str(), "%dx%dx%d", &spec.sample_height, &spec.sample_width, &spec.sample_frames) != 3)
+        throw dvs::Error("make-tiny: --sample must be LATENT_HxLATENT_WxFRAMES, e.g. 8x8x9");
+    } else if (a == "--vae-channels") {
+      spec.vae_channels.clear();
+      std::stringstream ss(value(i));
+      for (std::string part; std::getline(ss, part, ',');) spec.vae_channels.push_back(std::stoi(part));
+    } else throw dvs::Error("make-tiny: unknown option " + a + " (see dvs-weights --help)");
+  }
+  if (out.empty()) throw dvs::Error("make-tiny: --out DIR is required");
+  spec.t5_d_kv = std::max(1, spec.t5_d_model / spec.t5_heads);
+  spec.t5_d_ff = 2 * spec.t5_d_model;
+  spec.time_embed_dim = spec.heads * spec.head_dim;
+  dvs::models::write_tiny_model(out, spec);
+  std::cout << "wrote a random-weight model to " << out << " (seed " << spec.seed << ")\n";
+  return 0;
+}
+
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty()) {
@@ -266,7 +328,15 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (cmd == "inspect") return inspect(args);
-  if (cmd == "make-tiny" || cmd == "merge-lora") {
+  if (cmd == "make-tiny") {
+    try {
+      return make_tiny(args);
+    } catch (const dvs::Error& e) {
+      std::cerr << "dvs-weights: error: " << e.what() << "\n";
+      return 1;
+    }
+  }
+  if (cmd == "merge-lora") {
     std::cerr << "dvs-weights: " << cmd << ": not implemented yet\n";
     return 2;
   }
