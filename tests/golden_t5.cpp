@@ -3,6 +3,7 @@
 // (|ours - golden| <= atol + rtol·|golden|, 1e-5 + 1e-4 for pack A); each check prints its max error.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -154,4 +155,17 @@ TEST_F(GoldenT5, Bf16Sharded) {
   const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
   expect_close("bf16_sharded t5", values(ctx(), out), npy("bf16_sharded/t5_nomask_last_hidden_state.npy"),
                case_tolerance("bf16_sharded", "t5"));
+}
+
+// Not asserted: encode time at the pack's size (recording included, as a caller sees it).
+TEST_F(GoldenT5, EncodeTimeAtPackSize) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
+  const auto ids = id_rows(npy("t5/masked_input_ids.npy"));
+  t5.encode(ids);  // warm-up
+  const int reps = 3;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < reps; ++i) t5.encode(ids);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / reps;
+  std::cout << "[timing] T5 encode " << ids.size() << "x" << ids[0].size() << " tokens: " << ms << " ms per call ("
+            << ctx().caps().name << ")\n";
 }

@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -424,4 +426,58 @@ TEST_F(ModelsText, TransformerRejectsSizesDiffusersRejects) {
   EXPECT_THROW(tr.positional_embedding(2, 8, 8, 8), dvs::Error);   // other frame count (sincos there)
   EXPECT_THROW(tr.positional_embedding(3, 8, 8, 7), dvs::Error);   // text shorter than max_text_seq_length
   EXPECT_NO_THROW(tr.positional_embedding(3, 8, 8, 8));
+}
+
+// Measurement, not a check (skipped unless DVS_MEASURE_MODELS=1): forward time of both models at a mid size
+// with random weights. Transformer: 4 layers, 4 heads x 64, I2V channels 32 -> 16, latent 13 x 30 x 44,
+// text 226 x 4096, time_embed 512. T5: 4 layers, 8 heads x 64, d_model 512, d_ff 1024, 226 tokens.
+TEST_F(ModelsText, MidSizeForwardTime) {
+  if (!std::getenv("DVS_MEASURE_MODELS")) GTEST_SKIP() << "set DVS_MEASURE_MODELS=1 to measure";
+  using clock = std::chrono::steady_clock;
+  auto ms_since = [](clock::time_point t0) { return std::chrono::duration<double, std::milli>(clock::now() - t0).count(); };
+  {
+    const int64_t F = 13, C = 32, Hh = 30, Ww = 44, L = 226, Tx = 4096;
+    const json config = {{"_class_name", "CogVideoXTransformer3DModel"}, {"num_attention_heads", 4},
+                         {"attention_head_dim", 64}, {"in_channels", C}, {"out_channels", 16}, {"time_embed_dim", 512},
+                         {"text_embed_dim", Tx}, {"num_layers", 4}, {"sample_width", Ww}, {"sample_height", Hh},
+                         {"sample_frames", 49}, {"patch_size", 2}, {"patch_size_t", nullptr},
+                         {"temporal_compression_ratio", 4}, {"max_text_seq_length", L},
+                         {"activation_fn", "gelu-approximate"}, {"timestep_activation_fn", "silu"},
+                         {"norm_elementwise_affine", true}, {"norm_eps", 1e-5}, {"flip_sin_to_cos", true},
+                         {"freq_shift", 0}, {"attention_bias", true}, {"use_rotary_positional_embeddings", true},
+                         {"use_learned_positional_embeddings", true}, {"patch_bias", true}, {"ofs_embed_dim", nullptr}};
+    const dvs::Schema schema = dvs::cogvideox_transformer_schema(config);
+    const fs::path dir = tmp_dir("mid_transformer");
+    write_component(dir, config, random_weights(schema, 5), schema);
+    dvs::models::CogVideoXTransformer tr(ctx(), dir);
+    for (int64_t B : {int64_t(1), int64_t(2)}) {
+      const dvs::Tensor lat = dvs::Tensor::upload(ctx(), host_f32({B, F, C, Hh, Ww}, normals(size_t(B * F * C * Hh * Ww), 1)));
+      const dvs::Tensor txt = dvs::Tensor::upload(ctx(), host_f32({B, L, Tx}, normals(size_t(B * L * Tx), 2)));
+      const float t = 500.0f;
+      if (B == 1) tr.forward(lat, txt, std::span<const float>(&t, 1));  // warm-up (pipelines, tables, arena)
+      const auto t0 = clock::now();
+      tr.forward(lat, txt, std::span<const float>(&t, 1));
+      std::cout << "[timing] transformer mid size B=" << B << " latent " << lat.describe() << ": " << ms_since(t0)
+                << " ms per forward, arena " << tr.arena_bytes(B, F, Hh, Ww, L) / 1048576.0 << " MiB ("
+                << ctx().caps().name << ")\n";
+    }
+    fs::remove_all(dir);
+  }
+  {
+    const json config = {{"architectures", {"T5EncoderModel"}}, {"d_model", 512}, {"d_kv", 64}, {"d_ff", 1024},
+                         {"num_heads", 8}, {"num_layers", 4}, {"vocab_size", 1000},
+                         {"relative_attention_num_buckets", 32}, {"relative_attention_max_distance", 128},
+                         {"feed_forward_proj", "gated-gelu"}, {"layer_norm_epsilon", 1e-6}};
+    const dvs::Schema schema = dvs::t5_encoder_schema(config);
+    const fs::path dir = tmp_dir("mid_t5");
+    write_component(dir, config, random_weights(schema, 6), schema);
+    dvs::models::T5Encoder t5(ctx(), dir);
+    std::vector<std::vector<int32_t>> ids(2, std::vector<int32_t>(226, 0));
+    for (size_t i = 0; i < 226; ++i) ids[0][i] = ids[1][i] = int32_t((i * 37) % 1000);
+    t5.encode(ids);  // warm-up
+    const auto t0 = clock::now();
+    t5.encode(ids);
+    std::cout << "[timing] T5 mid size B=2 L=226 d_model 512 x 4 layers: " << ms_since(t0) << " ms per encode\n";
+    fs::remove_all(dir);
+  }
 }
