@@ -127,9 +127,8 @@ TEST_F(GoldenT5, TextToEmbeddings) {
   const dvs::T5Tokenizer tok = dvs::T5Tokenizer::load(model);
   std::ifstream f(pack() / "tokenizer" / "prompts.json");
   const auto prompts = nlohmann::json::parse(f).get<std::vector<std::string>>();
-  const auto ids = tok.encode_padded(prompts.at(0), dvs::max_text_seq_length(model));
   dvs::models::T5Encoder t5(ctx(), model / "text_encoder");
-  const dvs::Tensor out = t5.encode({ids});
+  const dvs::Tensor out = t5.encode_prompts(tok, {prompts.at(0)}, dvs::max_text_seq_length(model));
   expect_close("t5_text_to_embeddings", values(ctx(), out), npy("t5/text_embeds.npy"),
                case_tolerance("t5_text_to_embeddings"));
 }

@@ -1,5 +1,6 @@
 #include "models/cogvideox_transformer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -72,7 +73,7 @@ CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann:
 }
 
 struct CogVideoXTransformer::Activations {
-  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, qkv, attn, ff, proj;
+  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj;
   std::vector<Tensor> mod1, mod2;
 };
 
@@ -179,9 +180,17 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(ActivationPlan& p, 
   a.patches = p.make({B, N, cfg_.in_channels * ps * ps});
   a.h = p.make({B, S, D});
   a.xn = p.make({B, S, D});
-  a.qkv = p.make({B * S, 3 * D});
-  a.attn = p.make({B, S, D});
-  a.ff = p.make({B, S, 4 * D});
+  // q|k|v and the attention output are dead while the FFN runs: they share one region with its hidden
+  // activations ([B, S, 4D]), the attention output starting on an aligned byte offset.
+  const VkDeviceSize qkv_bytes = VkDeviceSize(B * S * 3 * D) * 4, attn_bytes = VkDeviceSize(B * S * D) * 4;
+  const VkDeviceSize attn_off = (qkv_bytes + 255) / 256 * 256;
+  const int64_t work_elems = std::max<int64_t>(B * S * 4 * D, int64_t((attn_off + attn_bytes) / 4));
+  a.work = p.make({work_elems});
+  if (!p.counting()) {
+    a.qkv = Tensor::on(a.work.buffer().sub(0, qkv_bytes), {B * S, 3 * D}, DType::f32);
+    a.attn = Tensor::on(a.work.buffer().sub(attn_off, attn_bytes), {B, S, D}, DType::f32);
+    a.ff = Tensor::on(a.work.buffer(), {B, S, 4 * D}, DType::f32);
+  }
   a.proj = p.make({B, N, ps * ps * cfg_.out_channels});
   return a;
 }

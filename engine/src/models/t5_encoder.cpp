@@ -5,6 +5,7 @@
 
 #include "dvs/error.hpp"
 #include "models/activation_plan.hpp"
+#include "models/tokenizer.hpp"
 #include "tensor/ops_attention.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
@@ -264,6 +265,13 @@ Tensor T5Encoder::encode(const std::vector<std::vector<int32_t>>& ids, const std
     for (const Tensor& t : taps) hidden_states->push_back(t.download(ctx_));
   }
   return out;
+}
+
+Tensor T5Encoder::encode_prompts(const T5Tokenizer& tokenizer, const std::vector<std::string>& prompts,
+                                 int max_length) {
+  std::vector<std::vector<int32_t>> ids;
+  for (const std::string& p : prompts) ids.push_back(tokenizer.encode_padded(p, max_length));
+  return encode(ids);
 }
 
 }  // namespace dvs::models

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -20,6 +21,10 @@
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"
 #include "vk/recorder.hpp"
+
+namespace dvs {
+class T5Tokenizer;
+}
 
 namespace dvs::models {
 
@@ -55,6 +60,10 @@ class T5Encoder {
   // block i-1 for 1 <= i < num_layers, [num_layers] = last_hidden_state (each f32 [B, L, d_model]).
   Tensor encode(const std::vector<std::vector<int32_t>>& ids, const std::vector<std::vector<float>>& key_mask = {},
                 std::vector<HostTensor>* hidden_states = nullptr);
+
+  // CogVideoX's _get_t5_prompt_embeds: every prompt tokenized with padding to max_length (ids end with </s>,
+  // then <pad>) and encoded WITHOUT a mask, all prompts in one batch. Returns f32 [prompts, max_length, d_model].
+  Tensor encode_prompts(const T5Tokenizer& tokenizer, const std::vector<std::string>& prompts, int max_length);
 
   // Records the forward into `rec` with activations from `arena` (at least arena_bytes(B, L)): ids i32 [B, L],
   // key_mask f32 [B, L] or null, out f32 [B, L, d_model]. taps (optional): num_layers + 1 tensors of out's
