@@ -481,3 +481,26 @@ TEST_F(ModelsText, MidSizeForwardTime) {
     fs::remove_all(dir);
   }
 }
+
+// Memory plan from the configs alone (printed, not asserted beyond sanity): activation arenas of the real
+// CogVideoX-5B-I2V transformer at 480x720x49 (latent 13x60x90, CFG batch 2, 226 text tokens) and of T5-XXL.
+TEST(ModelsTextPlan, RealSizeActivationArenas) {
+  const json tr_cfg = {{"num_attention_heads", 48}, {"attention_head_dim", 64}, {"in_channels", 32},
+                       {"out_channels", 16}, {"time_embed_dim", 512}, {"text_embed_dim", 4096}, {"num_layers", 42},
+                       {"sample_width", 90}, {"sample_height", 60}, {"sample_frames", 49}, {"patch_size", 2},
+                       {"max_text_seq_length", 226}, {"use_rotary_positional_embeddings", true},
+                       {"use_learned_positional_embeddings", true}};
+  const auto tc = dvs::models::CogVideoXTransformerConfig::from_json(tr_cfg);
+  const uint64_t tr_bytes = dvs::models::CogVideoXTransformer::arena_bytes(tc, 256, 2, 13, 60, 90, 226);
+  const json t5_cfg = {{"d_model", 4096}, {"d_kv", 64}, {"d_ff", 10240}, {"num_heads", 64}, {"num_layers", 24},
+                       {"vocab_size", 32128}, {"feed_forward_proj", "gated-gelu"}};
+  const auto c5 = dvs::models::T5EncoderConfig::from_json(t5_cfg);
+  const uint64_t t5_bytes = dvs::models::T5Encoder::arena_bytes(c5, true, 256, 2, 226);
+  std::cout << "[plan] CogVideoX-5B-I2V transformer activations, B=2 x (226 + 17550) tokens: " << tr_bytes / 1048576.0
+            << " MiB\n[plan] T5-XXL encoder activations, B=2 x 226 tokens: " << t5_bytes / 1048576.0 << " MiB\n";
+  // Sequence [B, S, D] x 2 + shared q|k|v / attention / FFN region [B, S, 4D] dominate: ~6·B·S·D·4 bytes.
+  const double seq = 2.0 * (226 + 13 * 30 * 45) * 3072 * 4;
+  EXPECT_GT(double(tr_bytes), 6 * seq);
+  EXPECT_LT(double(tr_bytes), 6.2 * seq);
+  EXPECT_GT(t5_bytes, 0u);
+}

@@ -163,21 +163,21 @@ const Tensor& CogVideoXTransformer::positional_embedding(int64_t F, int64_t H, i
   return pos_.emplace(key, t).first->second;
 }
 
-CogVideoXTransformer::Activations CogVideoXTransformer::plan(ActivationPlan& p, int64_t B, int64_t F, int64_t H,
-                                                             int64_t W, int64_t L) const {
-  const int64_t D = cfg_.dim(), T = cfg_.time_embed_dim, ps = cfg_.patch_size;
+CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p,
+                                                             int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) {
+  const int64_t D = cfg.dim(), T = cfg.time_embed_dim, ps = cfg.patch_size;
   const int64_t N = F * (H / ps) * (W / ps), S = L + N;
   Activations a;
   a.tproj = p.make({B, D});
   a.t1 = p.make({B, T});
   a.emb = p.make({B, T});
   a.semb = p.make({B, T});
-  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+  for (int64_t i = 0; i < cfg.num_layers; ++i) {
     a.mod1.push_back(p.make({B, 6 * D}));
     a.mod2.push_back(p.make({B, 6 * D}));
   }
   a.out_mod = p.make({B, 2 * D});
-  a.patches = p.make({B, N, cfg_.in_channels * ps * ps});
+  a.patches = p.make({B, N, cfg.in_channels * ps * ps});
   a.h = p.make({B, S, D});
   a.xn = p.make({B, S, D});
   // q|k|v and the attention output are dead while the FFN runs: they share one region with its hidden
@@ -191,14 +191,19 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(ActivationPlan& p, 
     a.attn = Tensor::on(a.work.buffer().sub(attn_off, attn_bytes), {B, S, D}, DType::f32);
     a.ff = Tensor::on(a.work.buffer(), {B, S, 4 * D}, DType::f32);
   }
-  a.proj = p.make({B, N, ps * ps * cfg_.out_channels});
+  a.proj = p.make({B, N, ps * ps * cfg.out_channels});
   return a;
 }
 
-uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
-  ActivationPlan p(ctx_.allocator().alignment());
-  plan(p, B, F, H, W, L);
+uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
+                                           int64_t F, int64_t H, int64_t W, int64_t L) {
+  ActivationPlan p(alignment);
+  plan(config, p, B, F, H, W, L);
   return p.bytes();
+}
+
+uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
+  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L);
 }
 
 void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text,
@@ -229,7 +234,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   const Tensor& pos = pos_it->second;
 
   ActivationPlan plan_(arena);
-  Activations a = plan(plan_, B, F, H, W, L);
+  Activations a = plan(cfg_, plan_, B, F, H, W, L);
   size_t tap_i = 0;
   auto tap = [&](const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[tap_i].buffer(), t.bytes());

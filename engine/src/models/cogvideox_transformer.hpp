@@ -81,6 +81,9 @@ class CogVideoXTransformer {
   void record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text, const Tensor& timesteps,
               const Tensor& out, const std::vector<Tensor>* taps = nullptr);
   uint64_t arena_bytes(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
+  // The same from a config alone (memory planning without weights); `alignment`: the allocator's.
+  static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
+                              int64_t frames, int64_t height, int64_t width, int64_t text_len);
 
   // Device RoPE tables (cos, sin) f32 [F*Hp*Wp, head_dim] for a latent F×H×W (cached).
   const std::pair<Tensor, Tensor>& rope_tables(int64_t frames, int64_t height, int64_t width);
@@ -91,7 +94,8 @@ class CogVideoXTransformer {
 
  private:
   struct Activations;
-  Activations plan(ActivationPlan& p, int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const;
+  static Activations plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p, int64_t B, int64_t F, int64_t H,
+                          int64_t W, int64_t L);
   void check_weights();
 
   vk::Context& ctx_;

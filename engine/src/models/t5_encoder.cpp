@@ -129,23 +129,29 @@ const Tensor& T5Encoder::position_bias(int64_t len) {
   return position_bias_.emplace(len, Tensor::upload(ctx_, bias, "T5 position bias")).first->second;
 }
 
-T5Encoder::Activations T5Encoder::plan(ActivationPlan& p, int64_t B, int64_t L) const {
-  const int64_t D = cfg_.d_model, I = cfg_.inner(), F = cfg_.d_ff;
+T5Encoder::Activations T5Encoder::plan(const T5EncoderConfig& cfg, bool embedding_16bit, ActivationPlan& p, int64_t B,
+                                       int64_t L) {
+  const int64_t D = cfg.d_model, I = cfg.inner(), F = cfg.d_ff;
   Activations a;
   a.h = p.make({B, L, D});
   a.xn = p.make({B, L, D});
   a.qkv = p.make({B, L, 3 * I});
   a.attn = p.make({B, L, I});
   a.ff_a = p.make({B, L, F});
-  if (cfg_.gated) a.ff_b = p.make({B, L, F});
-  if (embedding_.dtype() != DType::f32) a.words = p.make({B * L, D / 2}, DType::i32);
+  if (cfg.gated) a.ff_b = p.make({B, L, F});
+  if (embedding_16bit) a.words = p.make({B * L, D / 2}, DType::i32);
   return a;
 }
 
-uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const {
-  ActivationPlan p(ctx_.allocator().alignment());
-  plan(p, batch, len);
+uint64_t T5Encoder::arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
+                                int64_t len) {
+  ActivationPlan p(alignment);
+  plan(config, embedding_16bit, p, batch, len);
   return p.bytes();
+}
+
+uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const {
+  return arena_bytes(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len);
 }
 
 void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask,
@@ -162,7 +168,7 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
   const Tensor& bias = it->second;
 
   ActivationPlan p(arena);
-  Activations a = plan(p, B, L);
+  Activations a = plan(cfg_, embedding_.dtype() != DType::f32, p, B, L);
   auto tap = [&](size_t i, const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[i].buffer(), t.bytes());
   };

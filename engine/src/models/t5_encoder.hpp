@@ -72,13 +72,17 @@ class T5Encoder {
   void record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask, const Tensor& out,
               const std::vector<Tensor>* taps = nullptr);
   uint64_t arena_bytes(int64_t batch, int64_t len) const;
+  // The same from a config alone (memory planning without weights); embedding_16bit: shared.weight is bf16/f16.
+  static uint64_t arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
+                              int64_t len);
 
   // f32 [heads, L, L]: bias[h][i][j] = relative_attention_bias[bucket(j - i)][h] (cached per L).
   const Tensor& position_bias(int64_t len);
 
  private:
   struct Activations;
-  Activations plan(ActivationPlan& p, int64_t batch, int64_t len) const;
+  static Activations plan(const T5EncoderConfig& cfg, bool embedding_16bit, ActivationPlan& p, int64_t batch,
+                          int64_t len);
 
   vk::Context& ctx_;
   ComponentWeights weights_;
