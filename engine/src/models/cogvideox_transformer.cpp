@@ -1,0 +1,453 @@
+#include "models/cogvideox_transformer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "dvs/error.hpp"
+#include "models/activation_plan.hpp"
+#include "tensor/ops_attention.hpp"
+#include "tensor/ops_elementwise.hpp"
+#include "tensor/ops_layout.hpp"
+#include "tensor/ops_linear.hpp"
+#include "tensor/ops_norm.hpp"
+#include "tensor/ops_position.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::models {
+
+namespace {
+
+int64_t cfg_int(const nlohmann::json& c, const char* key, int64_t def, int64_t min, std::string_view origin) {
+  if (!c.contains(key) || c[key].is_null()) return def;
+  if (!c[key].is_number_integer() || c[key].get<int64_t>() < min)
+    throw Error(std::string(origin) + ": '" + key + "' must be an integer >= " + std::to_string(min));
+  return c[key].get<int64_t>();
+}
+
+bool cfg_bool(const nlohmann::json& c, const char* key, bool def, std::string_view origin) {
+  if (!c.contains(key) || c[key].is_null()) return def;
+  if (!c[key].is_boolean()) throw Error(std::string(origin) + ": '" + key + "' must be true or false");
+  return c[key].get<bool>();
+}
+
+std::string blk(int64_t i) { return "transformer_blocks." + std::to_string(i) + "."; }
+
+}  // namespace
+
+CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann::json& c, std::string_view origin) {
+  CogVideoXTransformerConfig r;
+  r.heads = cfg_int(c, "num_attention_heads", 30, 1, origin);
+  r.head_dim = cfg_int(c, "attention_head_dim", 64, 1, origin);
+  r.in_channels = cfg_int(c, "in_channels", 16, 1, origin);
+  r.out_channels = cfg_int(c, "out_channels", 16, 1, origin);
+  r.time_embed_dim = cfg_int(c, "time_embed_dim", 512, 1, origin);
+  r.text_embed_dim = cfg_int(c, "text_embed_dim", 4096, 1, origin);
+  r.num_layers = cfg_int(c, "num_layers", 30, 0, origin);
+  r.patch_size = cfg_int(c, "patch_size", 2, 1, origin);
+  r.max_text_seq_length = cfg_int(c, "max_text_seq_length", 226, 0, origin);
+  r.sample_width = cfg_int(c, "sample_width", 90, 1, origin);
+  r.sample_height = cfg_int(c, "sample_height", 60, 1, origin);
+  r.sample_frames = cfg_int(c, "sample_frames", 49, 1, origin);
+  r.temporal_compression_ratio = cfg_int(c, "temporal_compression_ratio", 4, 1, origin);
+  r.flip_sin_to_cos = cfg_bool(c, "flip_sin_to_cos", true, origin);
+  if (c.contains("freq_shift") && c["freq_shift"].is_number()) r.freq_shift = c["freq_shift"].get<float>();
+  if (c.contains("norm_eps") && c["norm_eps"].is_number()) r.norm_eps = c["norm_eps"].get<float>();
+  r.norm_affine = cfg_bool(c, "norm_elementwise_affine", true, origin);
+  r.attention_bias = cfg_bool(c, "attention_bias", true, origin);
+  r.rotary = cfg_bool(c, "use_rotary_positional_embeddings", false, origin);
+  r.learned_pos = cfg_bool(c, "use_learned_positional_embeddings", false, origin);
+  const auto unsupported = [&](const std::string& what) {
+    throw Error(std::string(origin) + ": " + what + " is not supported by this port (CogVideoX 1.0 5B/5B-I2V layout)");
+  };
+  if (c.contains("patch_size_t") && !c["patch_size_t"].is_null()) unsupported("patch_size_t (CogVideoX 1.5)");
+  if (c.contains("ofs_embed_dim") && !c["ofs_embed_dim"].is_null() && c["ofs_embed_dim"] != 0)
+    unsupported("ofs_embed_dim (CogVideoX 1.5)");
+  if (!r.rotary) unsupported("use_rotary_positional_embeddings = false (CogVideoX-2B sincos embedding)");
+  if (c.value("activation_fn", std::string("gelu-approximate")) != "gelu-approximate")
+    unsupported("activation_fn other than gelu-approximate");
+  if (c.value("timestep_activation_fn", std::string("silu")) != "silu") unsupported("timestep_activation_fn other than silu");
+  if (r.head_dim % 16 != 0) unsupported("attention_head_dim not a multiple of 16 (3D RoPE split)");
+  return r;
+}
+
+struct CogVideoXTransformer::Activations {
+  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj;
+  std::vector<Tensor> mod1, mod2;
+};
+
+CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& dir)
+    : ctx_(ctx),
+      weights_(ctx, dir),
+      cfg_(CogVideoXTransformerConfig::from_json(weights_.config(), (dir / "config.json").string())) {
+  check_weights();
+}
+
+void CogVideoXTransformer::check_weights() {
+  // Upload (and shape-check) everything at load so a bad checkpoint fails here, not mid-recording.
+  const int64_t D = cfg_.dim(), T = cfg_.time_embed_dim, p = cfg_.patch_size, Dh = cfg_.head_dim;
+  auto lin = [&](const std::string& name, int64_t in, int64_t out, bool bias) {
+    weights_.get(name + ".weight", {out, in});
+    if (bias) weights_.get(name + ".bias", {out});
+  };
+  auto ln = [&](const std::string& name, int64_t n, bool affine) {
+    if (!affine) return;
+    weights_.get(name + ".weight", {n});
+    weights_.get(name + ".bias", {n});
+  };
+  weights_.get("patch_embed.proj.weight", {D, cfg_.in_channels, p, p});
+  if (weights_.has("patch_embed.proj.bias")) weights_.get("patch_embed.proj.bias", {D});
+  lin("patch_embed.text_proj", cfg_.text_embed_dim, D, true);
+  lin("time_embedding.linear_1", D, T, true);
+  lin("time_embedding.linear_2", T, T, true);
+  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    const std::string b = blk(i);
+    lin(b + "norm1.linear", T, 6 * D, true);
+    ln(b + "norm1.norm", D, cfg_.norm_affine);
+    ln(b + "attn1.norm_q", Dh, true);
+    ln(b + "attn1.norm_k", Dh, true);
+    for (const char* n : {"to_q", "to_k", "to_v"}) lin(b + "attn1." + n, D, D, cfg_.attention_bias);
+    lin(b + "attn1.to_out.0", D, D, true);
+    lin(b + "norm2.linear", T, 6 * D, true);
+    ln(b + "norm2.norm", D, cfg_.norm_affine);
+    lin(b + "ff.net.0.proj", D, 4 * D, true);
+    lin(b + "ff.net.2", 4 * D, D, true);
+  }
+  ln("norm_final", D, cfg_.norm_affine);
+  lin("norm_out.linear", T, 2 * D, true);
+  ln("norm_out.norm", D, cfg_.norm_affine);
+  lin("proj_out", D, p * p * cfg_.out_channels, true);
+}
+
+const std::pair<Tensor, Tensor>& CogVideoXTransformer::rope_tables(int64_t F, int64_t H, int64_t W) {
+  const auto key = std::make_tuple(F, H, W);
+  if (auto it = rope_.find(key); it != rope_.end()) return it->second;
+  const int64_t p = cfg_.patch_size;
+  ops::RopeTables t = ops::cogvideox_rope_tables(cfg_.head_dim, F, H / p, W / p, cfg_.sample_height / p,
+                                                 cfg_.sample_width / p);
+  return rope_
+      .emplace(key, std::make_pair(Tensor::upload(ctx_, t.cos, "RoPE cos"), Tensor::upload(ctx_, t.sin, "RoPE sin")))
+      .first->second;
+}
+
+const Tensor& CogVideoXTransformer::positional_embedding(int64_t F, int64_t H, int64_t W, int64_t L) {
+  const auto key = std::make_tuple(F, H, W, L);
+  if (auto it = pos_.find(key); it != pos_.end()) return it->second;
+  Tensor t;
+  if (cfg_.learned_pos) {
+    // diffusers CogVideoXPatchEmbed: the learned table needs the config's spatial size; it is used as-is when
+    // (F - 1) * temporal_compression + 1 == sample_frames, and the whole [1, L_max + N, D] table is added, so
+    // the text must be max_text_seq_length long. Other frame counts switch to a 3D sincos table there.
+    if (H != cfg_.sample_height || W != cfg_.sample_width)
+      throw Error("CogVideoX transformer: latent " + std::to_string(H) + "x" + std::to_string(W) +
+                  " differs from the learned positional embedding's " + std::to_string(cfg_.sample_height) + "x" +
+                  std::to_string(cfg_.sample_width) + " (diffusers rejects other resolutions for this model)");
+    if ((F - 1) * cfg_.temporal_compression_ratio + 1 != cfg_.sample_frames)
+      throw Error("CogVideoX transformer: " + std::to_string(F) + " latent frames differ from the config's sample_frames " +
+                  std::to_string(cfg_.sample_frames) +
+                  " (diffusers then replaces the learned table by a 3D sincos one, which this port does not implement)");
+    if (L != cfg_.max_text_seq_length)
+      throw Error("CogVideoX transformer: text length " + std::to_string(L) + " must equal max_text_seq_length " +
+                  std::to_string(cfg_.max_text_seq_length) + " (the learned positional embedding covers exactly it)");
+    const int64_t p = cfg_.patch_size, S = L + F * (H / p) * (W / p);
+    const Tensor& stored = weights_.get("patch_embed.pos_embedding", {1, S, cfg_.dim()});
+    t = Tensor::empty(ctx_, {S, cfg_.dim()}, DType::f32, "positional embedding");
+    ops::run_now(ctx_, [&](vk::Recorder& rec) {
+      if (stored.dtype() == DType::f32)
+        rec.copy(stored.buffer(), t.buffer(), t.bytes());
+      else
+        ops::cast(rec, stored, t);
+    });
+  }
+  return pos_.emplace(key, t).first->second;
+}
+
+CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p,
+                                                             int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) {
+  const int64_t D = cfg.dim(), T = cfg.time_embed_dim, ps = cfg.patch_size;
+  const int64_t N = F * (H / ps) * (W / ps), S = L + N;
+  Activations a;
+  a.tproj = p.make({B, D});
+  a.t1 = p.make({B, T});
+  a.emb = p.make({B, T});
+  a.semb = p.make({B, T});
+  for (int64_t i = 0; i < cfg.num_layers; ++i) {
+    a.mod1.push_back(p.make({B, 6 * D}));
+    a.mod2.push_back(p.make({B, 6 * D}));
+  }
+  a.out_mod = p.make({B, 2 * D});
+  a.patches = p.make({B, N, cfg.in_channels * ps * ps});
+  a.h = p.make({B, S, D});
+  a.xn = p.make({B, S, D});
+  // q|k|v and the attention output are dead while the FFN runs: they share one region with its hidden
+  // activations ([B, S, 4D]), the attention output starting on an aligned byte offset.
+  const VkDeviceSize qkv_bytes = VkDeviceSize(B * S * 3 * D) * 4, attn_bytes = VkDeviceSize(B * S * D) * 4;
+  const VkDeviceSize attn_off = (qkv_bytes + 255) / 256 * 256;
+  const int64_t work_elems = std::max<int64_t>(B * S * 4 * D, int64_t((attn_off + attn_bytes) / 4));
+  a.work = p.make({work_elems});
+  if (!p.counting()) {
+    a.qkv = Tensor::on(a.work.buffer().sub(0, qkv_bytes), {B * S, 3 * D}, DType::f32);
+    a.attn = Tensor::on(a.work.buffer().sub(attn_off, attn_bytes), {B, S, D}, DType::f32);
+    a.ff = Tensor::on(a.work.buffer(), {B, S, 4 * D}, DType::f32);
+  }
+  a.proj = p.make({B, N, ps * ps * cfg.out_channels});
+  return a;
+}
+
+uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
+                                           int64_t F, int64_t H, int64_t W, int64_t L) {
+  ActivationPlan p(alignment);
+  plan(config, p, B, F, H, W, L);
+  return p.bytes();
+}
+
+uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
+  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L);
+}
+
+void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text,
+                                  const Tensor& timesteps, const Tensor& out, const std::vector<Tensor>* taps) {
+  if (latent.rank() != 5 || latent.dtype() != DType::f32 || latent.dim(2) != cfg_.in_channels)
+    throw Error("CogVideoX transformer: the latent must be f32 [B, F, " + std::to_string(cfg_.in_channels) +
+                ", H, W], got " + latent.describe());
+  const int64_t B = latent.dim(0), F = latent.dim(1), H = latent.dim(3), W = latent.dim(4);
+  const int64_t ps = cfg_.patch_size;
+  if (H % ps != 0 || W % ps != 0)
+    throw Error("CogVideoX transformer: latent height and width must be multiples of the patch size");
+  if (text.rank() != 3 || text.dim(0) != B || text.dim(2) != cfg_.text_embed_dim || text.dtype() != DType::f32)
+    throw Error("CogVideoX transformer: the text embeddings must be f32 [" + std::to_string(B) + ", L, " +
+                std::to_string(cfg_.text_embed_dim) + "], got " + text.describe());
+  const int64_t L = text.dim(1), N = F * (H / ps) * (W / ps), S = L + N;
+  const int64_t D = cfg_.dim(), Dh = cfg_.head_dim, nh = cfg_.heads, Cpp = cfg_.in_channels * ps * ps;
+  const int64_t P = ps * ps * cfg_.out_channels;
+  ops::expect_shape("CogVideoXTransformer", "timesteps", timesteps, {B});
+  ops::expect_shape("CogVideoXTransformer", "out", out, {B, F, cfg_.out_channels, H, W});
+  const size_t n_taps = 2 + size_t(cfg_.num_layers) + 2;
+  if (taps && taps->size() != n_taps) throw Error("internal: CogVideoXTransformer: wrong number of taps");
+  const auto rope_it = rope_.find(std::make_tuple(F, H, W));
+  const auto pos_it = pos_.find(std::make_tuple(F, H, W, L));
+  if (rope_it == rope_.end() || pos_it == pos_.end())
+    throw Error("internal: CogVideoXTransformer: rope_tables / positional_embedding not created before recording");
+  const Tensor& cos = rope_it->second.first;
+  const Tensor& sin = rope_it->second.second;
+  const Tensor& pos = pos_it->second;
+
+  ActivationPlan plan_(arena);
+  Activations a = plan(cfg_, plan_, B, F, H, W, L);
+  size_t tap_i = 0;
+  auto tap = [&](const Tensor& t) {
+    if (taps) rec.copy(t.buffer(), (*taps)[tap_i].buffer(), t.bytes());
+    ++tap_i;
+  };
+  auto w = [&](const std::string& name) -> const Tensor& { return weights_.get(name); };
+  auto bias_of = [&](const std::string& name) { return weights_.has(name) ? weights_.get(name) : Tensor(); };
+  auto ln_w = [&](const std::string& name) { return cfg_.norm_affine ? w(name + ".weight") : Tensor(); };
+  auto ln_b = [&](const std::string& name) { return cfg_.norm_affine ? w(name + ".bias") : Tensor(); };
+
+  // Timestep embedding and every adaLN table (they only depend on emb).
+  ops::timestep_embedding(rec, timesteps, a.tproj, cfg_.flip_sin_to_cos, cfg_.freq_shift);
+  {
+    ops::LinearEpilogue e1;
+    e1.bias = w("time_embedding.linear_1.bias");
+    e1.activation = ops::Activation::silu;
+    ops::linear(rec, a.tproj, w("time_embedding.linear_1.weight"), a.t1, e1);
+    ops::LinearEpilogue e2;
+    e2.bias = w("time_embedding.linear_2.bias");
+    ops::linear(rec, a.t1, w("time_embedding.linear_2.weight"), a.emb, e2);
+  }
+  tap(a.emb);
+  ops::silu(rec, a.emb, a.semb);
+  auto modulation_table = [&](const std::string& name, const Tensor& table) {
+    ops::LinearEpilogue e;
+    e.bias = w(name + ".bias");
+    ops::linear(rec, a.semb, w(name + ".weight"), table, e);
+  };
+  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    modulation_table(blk(i) + "norm1.linear", a.mod1[size_t(i)]);
+    modulation_table(blk(i) + "norm2.linear", a.mod2[size_t(i)]);
+  }
+  modulation_table("norm_out.linear", a.out_mod);
+
+  // Patch embedding: [text_proj(text) ; conv(latent)] written into the rows of one [B, S, D] sequence.
+  ops::patchify(rec, latent, a.patches, int(ps));
+  {
+    ops::LinearShape s;
+    s.batch = B;
+    s.m = N;
+    s.n = D;
+    s.k = Cpp;
+    s.x_batch_stride = N * Cpp;
+    s.y_batch_stride = S * D;
+    ops::LinearEpilogue e;
+    e.bias = bias_of("patch_embed.proj.bias");
+    ops::linear_batched(rec, a.patches, w("patch_embed.proj.weight").reshape({D, Cpp}),
+                        element_range(a.h, L * D, B * S * D - L * D), s, e);
+    ops::LinearShape t;
+    t.batch = B;
+    t.m = L;
+    t.n = D;
+    t.k = cfg_.text_embed_dim;
+    t.x_batch_stride = L * cfg_.text_embed_dim;
+    t.y_batch_stride = S * D;
+    ops::LinearEpilogue et;
+    et.bias = w("patch_embed.text_proj.bias");
+    if (L > 0) ops::linear_batched(rec, text, w("patch_embed.text_proj.weight"), a.h, t, et);
+  }
+  if (pos.defined()) ops::add(rec, a.h, pos, a.h);
+  tap(a.h);
+
+  const Tensor h_video = element_range(a.h, L * D, B * S * D - L * D);
+  // y += gate ⊙ (x·Wᵀ + b) per row set: text rows gate from column 5D (enc_gate), video rows from 2D (gate).
+  auto gated_residual = [&](const Tensor& x, int64_t k, const std::string& lin, const Tensor& table) {
+    const int64_t xn = B * S * k;
+    for (int set = 0; set < 2; ++set) {
+      const int64_t first = set == 0 ? 0 : L, rows = set == 0 ? L : N;
+      if (rows == 0) continue;
+      ops::LinearShape s;
+      s.batch = B;
+      s.m = rows;
+      s.n = D;
+      s.k = k;
+      s.x_batch_stride = S * k;
+      s.y_batch_stride = S * D;
+      s.vec_batch_stride = 6 * D;
+      const int64_t gate_col = set == 0 ? 5 * D : 2 * D;
+      const Tensor y = set == 0 ? a.h : h_video;
+      ops::LinearEpilogue e;
+      e.bias = w(lin + ".bias");
+      e.gate = element_range(table, gate_col, B * 6 * D - gate_col);
+      e.residual = y;
+      ops::linear_batched(rec, element_range(x, first * k, xn - first * k), w(lin + ".weight"), y, s, e);
+    }
+  };
+  auto adaln = [&](const std::string& norm, const Tensor& table) {
+    ops::Modulation m;
+    m.table = table;
+    m.seq_len = S;
+    m.split = L;
+    m.shift_col[0] = 3 * D;  // text rows: enc_shift, enc_scale
+    m.scale_col[0] = 4 * D;
+    m.shift_col[1] = 0;  // video rows: shift, scale
+    m.scale_col[1] = D;
+    ops::layernorm(rec, a.h, a.xn, ln_w(norm), ln_b(norm), cfg_.norm_eps, &m);
+  };
+
+  ops::AttentionShape ashape{B, nh, Dh, S, S};
+  ops::AttentionOptions aopt;
+  aopt.scale = float(1.0 / std::sqrt(double(Dh)));
+  const Tensor xn2d = a.xn.reshape({B * S, D});
+  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    const std::string b = blk(i);
+    const Tensor& mod1 = a.mod1[size_t(i)];
+    const Tensor& mod2 = a.mod2[size_t(i)];
+    adaln(b + "norm1.norm", mod1);
+    const char* proj[3] = {"to_q", "to_k", "to_v"};
+    for (int j = 0; j < 3; ++j) {
+      ops::LinearShape s;
+      s.m = B * S;
+      s.n = D;
+      s.k = D;
+      s.y_row_stride = 3 * D;
+      ops::LinearEpilogue e;
+      e.bias = bias_of(b + "attn1." + proj[j] + ".bias");
+      ops::linear_batched(rec, xn2d, w(b + "attn1." + proj[j] + ".weight"),
+                          element_range(a.qkv, j * D, a.qkv.numel() - j * D), s, e);
+    }
+    ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, 0, w(b + "attn1.norm_q.weight"), w(b + "attn1.norm_q.bias"), 1e-6f);
+    ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, D, w(b + "attn1.norm_k.weight"), w(b + "attn1.norm_k.bias"), 1e-6f);
+    // q and k are adjacent: rotate both as 2·heads heads, video tokens only.
+    if (N > 0) ops::rope(rec, a.qkv, a.qkv, B, S, L, 2 * nh, Dh, 0, cos, sin);
+    const Tensor qkv3 = a.qkv.reshape({B, S, 3 * D});
+    ops::attention(rec, ashape, ops::fused_qkv_operand(qkv3, 0, nh, Dh), ops::fused_qkv_operand(qkv3, 1, nh, Dh),
+                   ops::fused_qkv_operand(qkv3, 2, nh, Dh), ops::AttentionOperand{a.attn}, aopt);
+    gated_residual(a.attn, D, b + "attn1.to_out.0", mod1);
+
+    adaln(b + "norm2.norm", mod2);
+    ops::LinearEpilogue e;
+    e.bias = w(b + "ff.net.0.proj.bias");
+    e.activation = ops::Activation::gelu_tanh;
+    ops::linear(rec, a.xn, w(b + "ff.net.0.proj.weight"), a.ff, e);
+    gated_residual(a.ff, 4 * D, b + "ff.net.2", mod2);
+    tap(a.h);
+  }
+
+  // norm_final and norm_out are per-token: run them on the whole sequence, keep the video rows.
+  ops::layernorm(rec, a.h, a.xn, ln_w("norm_final"), ln_b("norm_final"), cfg_.norm_eps);
+  tap(a.xn);
+  {
+    ops::Modulation m;
+    m.table = a.out_mod;  // AdaLayerNorm(chunk_dim=1): (shift, scale)
+    m.seq_len = S;
+    m.split = 0;
+    m.shift_col[0] = m.shift_col[1] = 0;
+    m.scale_col[0] = m.scale_col[1] = D;
+    ops::layernorm(rec, a.xn, a.xn, ln_w("norm_out.norm"), ln_b("norm_out.norm"), cfg_.norm_eps, &m);
+  }
+  {
+    ops::LinearShape s;
+    s.batch = B;
+    s.m = N;
+    s.n = P;
+    s.k = D;
+    s.x_batch_stride = S * D;
+    s.y_batch_stride = N * P;
+    ops::LinearEpilogue e;
+    e.bias = w("proj_out.bias");
+    ops::linear_batched(rec, element_range(a.xn, L * D, B * S * D - L * D), w("proj_out.weight"), a.proj, s, e);
+  }
+  tap(a.proj);
+  ops::unpatchify(rec, a.proj, out, int(ps));
+}
+
+Tensor CogVideoXTransformer::forward(const Tensor& latent, const Tensor& text, std::span<const float> timesteps,
+                                     CogVideoXTaps* taps) {
+  if (latent.rank() != 5 || text.rank() != 3)
+    throw Error("CogVideoX transformer: latent must be [B, F, C, H, W] and text [B, L, D], got " + latent.describe() +
+                " and " + text.describe());
+  const int64_t B = latent.dim(0), F = latent.dim(1), H = latent.dim(3), W = latent.dim(4), L = text.dim(1);
+  const int64_t ps = cfg_.patch_size, D = cfg_.dim(), N = F * (H / ps) * (W / ps), S = L + N;
+  if (timesteps.size() != 1 && int64_t(timesteps.size()) != B)
+    throw Error("CogVideoX transformer: give 1 timestep or one per batch row (" + std::to_string(B) + ")");
+  HostTensor ht({B}, DType::f32);
+  for (int64_t b = 0; b < B; ++b) ht.as<float>()[b] = timesteps[timesteps.size() == 1 ? 0 : size_t(b)];
+  const Tensor dev_t = Tensor::upload(ctx_, ht, "timesteps");
+  rope_tables(F, H, W);
+  positional_embedding(F, H, W, L);
+  Tensor out = Tensor::empty(ctx_, {B, F, cfg_.out_channels, H, W}, DType::f32, "transformer output");
+  std::vector<Tensor> tap_t;
+  if (taps) {
+    tap_t.push_back(Tensor::empty(ctx_, {B, cfg_.time_embed_dim}, DType::f32, "tap"));
+    for (int64_t i = 0; i < cfg_.num_layers + 2; ++i) tap_t.push_back(Tensor::empty(ctx_, {B, S, D}, DType::f32, "tap"));
+    tap_t.push_back(Tensor::empty(ctx_, {B, N, ps * ps * cfg_.out_channels}, DType::f32, "tap"));
+  }
+  vk::Arena& arena = arena_for(ctx_, arena_, arena_bytes(B, F, H, W, L), "transformer activation arena");
+  vk::Recorder rec(ctx_);
+  rec.begin();
+  record(rec, arena, latent, text, dev_t, out, taps ? &tap_t : nullptr);
+  rec.end();
+  rec.submit();
+  if (taps) {
+    // Split [B, S, D] sequences into text rows [B, L, D] and video rows [B, N, D] on the host.
+    auto rows = [&](const HostTensor& seq, int64_t first, int64_t count) {
+      HostTensor r({B, count, D}, DType::f32);
+      for (int64_t b = 0; b < B; ++b)
+        std::memcpy(r.as<float>() + b * count * D, seq.as<float>() + (b * S + first) * D, size_t(count * D) * 4);
+      return r;
+    };
+    taps->time_embedding = tap_t[0].download(ctx_);
+    taps->patch_embed = tap_t[1].download(ctx_);
+    taps->block_hidden.clear();
+    taps->block_encoder.clear();
+    for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+      const HostTensor seq = tap_t[size_t(2 + i)].download(ctx_);
+      taps->block_encoder.push_back(rows(seq, 0, L));
+      taps->block_hidden.push_back(rows(seq, L, N));
+    }
+    taps->norm_final = rows(tap_t[size_t(2 + cfg_.num_layers)].download(ctx_), L, N);
+    taps->proj_out = tap_t.back().download(ctx_);
+  }
+  return out;
+}
+
+}  // namespace dvs::models

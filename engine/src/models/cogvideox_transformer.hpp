@@ -1,0 +1,109 @@
+// CogVideoX transformer (diffusers CogVideoXTransformer3DModel, CogVideoX 1.0 layout as in 5B-I2V: Conv2d
+// patch embedding, RoPE + optional learned positional embedding). One call records the whole forward into
+// one vk::Recorder; activations live in one vk::Arena sized from the shapes.
+//
+//   emb    = linear_2(silu(linear_1(sinusoid(t))))                        [B, time_embed_dim]
+//   x      = [text_proj(text) ; proj(patchify(latent))] + pos_embedding   [B, L + N, D], text rows first
+//   block  : (shift, scale, gate, enc_shift, enc_scale, enc_gate) = norm1.linear(silu(emb))
+//            n = LN(x)·(1 + scale) + shift (video rows) / enc_ variants (text rows)
+//            q, k, v = to_q/k/v(n); per-head LayerNorm on q, k; RoPE on the video rows of q, k
+//            x += gate · to_out(attention(q, k, v) / sqrt(Dh))  (enc_gate on text rows)
+//            same adaLN with norm2; x += gate · ff.net.2(gelu_tanh(ff.net.0.proj(n)))
+//   out    = unpatchify(proj_out(LN_out(norm_final(x_video))·(1 + scale) + shift)), (shift, scale) from
+//            norm_out.linear(silu(emb)).                                [B, F, out_channels, H, W]
+// The sequence is kept as one [B, L + N, D] buffer: the per-token ops are the same for text and video rows,
+// only the modulation vectors differ.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <tuple>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "models/weights.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/memory.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs::models {
+
+class ActivationPlan;
+
+struct CogVideoXTransformerConfig {
+  int64_t heads = 0, head_dim = 0, in_channels = 0, out_channels = 0, time_embed_dim = 0, text_embed_dim = 0;
+  int64_t num_layers = 0, patch_size = 2, max_text_seq_length = 0;
+  int64_t sample_width = 0, sample_height = 0, sample_frames = 0, temporal_compression_ratio = 4;
+  bool flip_sin_to_cos = true;
+  float freq_shift = 0.0f;
+  float norm_eps = 1e-5f;
+  bool norm_affine = true;
+  bool attention_bias = true;
+  bool rotary = true, learned_pos = false;
+
+  int64_t dim() const { return heads * head_dim; }
+  static CogVideoXTransformerConfig from_json(const nlohmann::json& config, std::string_view origin = "config.json");
+};
+
+// Intermediate results of one forward (debug aid; host copies of the first ones the pack records).
+struct CogVideoXTaps {
+  HostTensor time_embedding;              // [B, time_embed_dim]
+  HostTensor patch_embed;                 // [B, L + N, D]
+  std::vector<HostTensor> block_hidden;   // per block, [B, N, D] video rows
+  std::vector<HostTensor> block_encoder;  // per block, [B, L, D] text rows
+  HostTensor norm_final;                  // [B, N, D]
+  HostTensor proj_out;                    // [B, N, p*p*out_channels]
+};
+
+class CogVideoXTransformer {
+ public:
+  // `transformer_dir`: <model>/transformer (config.json + single or sharded safetensors).
+  CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& transformer_dir);
+
+  const CogVideoXTransformerConfig& config() const { return cfg_; }
+  ComponentWeights& weights() { return weights_; }
+
+  // latent f32 [B, F, in_channels, H, W] (H, W multiples of patch_size); text f32 [B, L, text_embed_dim];
+  // timesteps: B values, or 1 value used for every row. RoPE tables come from the ops_position builder for
+  // this F×H×W. Returns f32 [B, F, out_channels, H, W] (an owning tensor).
+  Tensor forward(const Tensor& latent, const Tensor& text, std::span<const float> timesteps,
+                 CogVideoXTaps* taps = nullptr);
+
+  // Records the forward: timesteps f32 [B], out f32 [B, F, out_channels, H, W], activations from `arena`
+  // (at least arena_bytes(...)). rope_tables() / positional_embedding() for this size must exist already
+  // (forward() creates them). `taps` (optional): device tensors receiving copies, in CogVideoXTaps order
+  // (time embedding [B,T], sequence after patch_embed [B,S,D], after each block [B,S,D], after norm_final
+  // [B,S,D], proj_out [B,N,p*p*Cout]).
+  void record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text, const Tensor& timesteps,
+              const Tensor& out, const std::vector<Tensor>* taps = nullptr);
+  uint64_t arena_bytes(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
+  // The same from a config alone (memory planning without weights); `alignment`: the allocator's.
+  static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
+                              int64_t frames, int64_t height, int64_t width, int64_t text_len);
+
+  // Device RoPE tables (cos, sin) f32 [F*Hp*Wp, head_dim] for a latent F×H×W (cached).
+  const std::pair<Tensor, Tensor>& rope_tables(int64_t frames, int64_t height, int64_t width);
+  // The f32 positional embedding [L + N, D] added after the patch embedding for latent F×H×W, as diffusers'
+  // CogVideoXPatchEmbed chooses it (the learned table at the config's sample size). Undefined tensor when the
+  // model uses none. Throws for sizes diffusers rejects or that this port does not support.
+  const Tensor& positional_embedding(int64_t frames, int64_t height, int64_t width, int64_t text_len);
+
+ private:
+  struct Activations;
+  static Activations plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p, int64_t B, int64_t F, int64_t H,
+                          int64_t W, int64_t L);
+  void check_weights();
+
+  vk::Context& ctx_;
+  ComponentWeights weights_;
+  CogVideoXTransformerConfig cfg_;
+  std::map<std::tuple<int64_t, int64_t, int64_t>, std::pair<Tensor, Tensor>> rope_;
+  std::map<std::tuple<int64_t, int64_t, int64_t, int64_t>, Tensor> pos_;
+  std::unique_ptr<vk::Arena> arena_;
+};
+
+}  // namespace dvs::models

@@ -1,0 +1,283 @@
+#include "models/t5_encoder.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "dvs/error.hpp"
+#include "models/activation_plan.hpp"
+#include "models/tokenizer.hpp"
+#include "tensor/ops_attention.hpp"
+#include "tensor/ops_elementwise.hpp"
+#include "tensor/ops_layout.hpp"
+#include "tensor/ops_norm.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::models {
+
+namespace {
+
+int64_t cfg_int(const nlohmann::json& c, const char* key, int64_t def, int64_t min, std::string_view origin) {
+  if (!c.contains(key) || c[key].is_null()) return def;
+  if (!c[key].is_number_integer() || c[key].get<int64_t>() < min)
+    throw Error(std::string(origin) + ": '" + key + "' must be an integer >= " + std::to_string(min));
+  return c[key].get<int64_t>();
+}
+
+ops::Activation activation_named(const std::string& name, std::string_view origin) {
+  // transformers ACT2FN: gelu_new / gelu_pytorch_tanh are the tanh approximation; silu == swish.
+  if (name == "gelu_new" || name == "gelu_pytorch_tanh") return ops::Activation::gelu_tanh;
+  if (name == "silu" || name == "swish") return ops::Activation::silu;
+  throw Error(std::string(origin) + ": T5 activation '" + name +
+              "' is not supported (gelu_new / gelu_pytorch_tanh / silu are)");
+}
+
+std::string block(int64_t i) { return "encoder.block." + std::to_string(i) + "."; }
+
+}  // namespace
+
+T5EncoderConfig T5EncoderConfig::from_json(const nlohmann::json& c, std::string_view origin) {
+  T5EncoderConfig r;
+  r.vocab_size = cfg_int(c, "vocab_size", 32128, 1, origin);
+  r.d_model = cfg_int(c, "d_model", 512, 1, origin);
+  r.d_kv = cfg_int(c, "d_kv", 64, 1, origin);
+  r.d_ff = cfg_int(c, "d_ff", 2048, 1, origin);
+  r.num_layers = cfg_int(c, "num_layers", 6, 0, origin);
+  r.num_heads = cfg_int(c, "num_heads", 8, 1, origin);
+  r.num_buckets = cfg_int(c, "relative_attention_num_buckets", 32, 2, origin);
+  r.max_distance = cfg_int(c, "relative_attention_max_distance", 128, 1, origin);
+  if (c.contains("layer_norm_epsilon") && c["layer_norm_epsilon"].is_number())
+    r.eps = c["layer_norm_epsilon"].get<float>();
+  // T5Config: feed_forward_proj "gated-ACT" or "ACT"; "gated-gelu" means dense_act_fn = gelu_new.
+  const std::string ffp = c.value("feed_forward_proj", std::string("relu"));
+  r.gated = ffp.rfind("gated-", 0) == 0;
+  // T5Config derives dense_act_fn from feed_forward_proj (the stored dense_act_fn is recomputed).
+  std::string act = r.gated ? ffp.substr(6) : ffp;
+  if (ffp == "gated-gelu") act = "gelu_new";
+  r.activation = activation_named(act, origin);
+  return r;
+}
+
+int64_t t5_relative_position_bucket(int64_t relative_position, bool bidirectional, int64_t num_buckets,
+                                    int64_t max_distance) {
+  int64_t bucket = 0;
+  int64_t n = relative_position;
+  if (bidirectional) {
+    num_buckets /= 2;
+    if (n > 0) bucket += num_buckets;
+    n = n < 0 ? -n : n;
+  } else {
+    n = n < 0 ? -n : 0;  // -min(n, 0)
+  }
+  const int64_t max_exact = num_buckets / 2;
+  if (n < max_exact) return bucket + n;
+  // torch: max_exact + (log(n.float() / max_exact) / math.log(max_distance / max_exact) * (nb - max_exact)).long()
+  // in float32 (the python scalars are converted to the tensor's dtype).
+  const float ratio = float(n) / float(max_exact);
+  const float denom = float(std::log(double(max_distance) / double(max_exact)));
+  const float v = std::log(ratio) / denom * float(num_buckets - max_exact);
+  int64_t large = max_exact + int64_t(v);
+  if (large > num_buckets - 1) large = num_buckets - 1;
+  return bucket + large;
+}
+
+struct T5Encoder::Activations {
+  Tensor h, xn, qkv, attn, ff_a, ff_b, words;
+};
+
+T5Encoder::T5Encoder(vk::Context& ctx, const std::filesystem::path& dir)
+    : ctx_(ctx), weights_(ctx, dir), cfg_(T5EncoderConfig::from_json(weights_.config(), (dir / "config.json").string())) {
+  embedding_ = weights_.get("shared.weight", {cfg_.vocab_size, cfg_.d_model});
+  if (embedding_.dtype() != DType::f32 && embedding_.dtype() != DType::bf16 && embedding_.dtype() != DType::f16)
+    throw Error(dir.string() + ": shared.weight must be f32, bf16 or f16, got " + embedding_.describe());
+  if (embedding_.dtype() != DType::f32 && cfg_.d_model % 2 != 0)
+    throw Error(dir.string() + ": 16-bit token embeddings need an even d_model");
+  const int64_t D = cfg_.d_model, I = cfg_.inner(), F = cfg_.d_ff;
+  // Upload (and shape-check) every tensor now, so a bad checkpoint fails at load and not mid-recording.
+  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    const std::string b = block(i);
+    for (const char* p : {"q", "k", "v"}) weights_.get(b + "layer.0.SelfAttention." + p + ".weight", {I, D});
+    weights_.get(b + "layer.0.SelfAttention.o.weight", {D, I});
+    weights_.get(b + "layer.0.layer_norm.weight", {D});
+    if (cfg_.gated) {
+      weights_.get(b + "layer.1.DenseReluDense.wi_0.weight", {F, D});
+      weights_.get(b + "layer.1.DenseReluDense.wi_1.weight", {F, D});
+    } else {
+      weights_.get(b + "layer.1.DenseReluDense.wi.weight", {F, D});
+    }
+    weights_.get(b + "layer.1.DenseReluDense.wo.weight", {D, F});
+    weights_.get(b + "layer.1.layer_norm.weight", {D});
+  }
+  weights_.get("encoder.final_layer_norm.weight", {D});
+  if (cfg_.num_layers > 0)
+    weights_.get(block(0) + "layer.0.SelfAttention.relative_attention_bias.weight", {cfg_.num_buckets, cfg_.num_heads});
+}
+
+const Tensor& T5Encoder::position_bias(int64_t len) {
+  if (auto it = position_bias_.find(len); it != position_bias_.end()) return it->second;
+  const int64_t H = cfg_.num_heads;
+  HostTensor bias({H, len, len}, DType::f32);
+  float* b = bias.as<float>();
+  if (cfg_.num_layers > 0) {
+    const std::vector<float> table =
+        weights_.get(block(0) + "layer.0.SelfAttention.relative_attention_bias.weight").download(ctx_).to_f32();
+    for (int64_t i = 0; i < len; ++i)
+      for (int64_t j = 0; j < len; ++j) {
+        const int64_t bucket = t5_relative_position_bucket(j - i, true, cfg_.num_buckets, cfg_.max_distance);
+        for (int64_t h = 0; h < H; ++h) b[(h * len + i) * len + j] = table[size_t(bucket * H + h)];
+      }
+  }
+  return position_bias_.emplace(len, Tensor::upload(ctx_, bias, "T5 position bias")).first->second;
+}
+
+T5Encoder::Activations T5Encoder::plan(const T5EncoderConfig& cfg, bool embedding_16bit, ActivationPlan& p, int64_t B,
+                                       int64_t L) {
+  const int64_t D = cfg.d_model, I = cfg.inner(), F = cfg.d_ff;
+  Activations a;
+  a.h = p.make({B, L, D});
+  a.xn = p.make({B, L, D});
+  a.qkv = p.make({B, L, 3 * I});
+  a.attn = p.make({B, L, I});
+  a.ff_a = p.make({B, L, F});
+  if (cfg.gated) a.ff_b = p.make({B, L, F});
+  if (embedding_16bit) a.words = p.make({B * L, D / 2}, DType::i32);
+  return a;
+}
+
+uint64_t T5Encoder::arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
+                                int64_t len) {
+  ActivationPlan p(alignment);
+  plan(config, embedding_16bit, p, batch, len);
+  return p.bytes();
+}
+
+uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const {
+  return arena_bytes(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len);
+}
+
+void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask,
+                       const Tensor& out, const std::vector<Tensor>* taps) {
+  if (ids.rank() != 2 || ids.dtype() != DType::i32) throw Error("internal: T5Encoder: ids must be i32 [B, L], got " + ids.describe());
+  const int64_t B = ids.dim(0), L = ids.dim(1);
+  const int64_t D = cfg_.d_model, I = cfg_.inner(), H = cfg_.num_heads, Dh = cfg_.d_kv;
+  ops::expect_shape("T5Encoder", "out", out, {B, L, D});
+  if (key_mask) ops::expect_shape("T5Encoder", "key_mask", *key_mask, {B, L});
+  if (taps && int64_t(taps->size()) != cfg_.num_layers + 1)
+    throw Error("internal: T5Encoder: taps must hold num_layers + 1 tensors");
+  auto it = position_bias_.find(L);
+  if (it == position_bias_.end()) throw Error("internal: T5Encoder: position_bias(L) not created before recording");
+  const Tensor& bias = it->second;
+
+  ActivationPlan p(arena);
+  Activations a = plan(cfg_, embedding_.dtype() != DType::f32, p, B, L);
+  auto tap = [&](size_t i, const Tensor& t) {
+    if (taps) rec.copy(t.buffer(), (*taps)[i].buffer(), t.bytes());
+  };
+
+  // Token embedding: row gather; 16-bit tables are gathered as pairs of values (one i32 each) and widened.
+  const Tensor flat_ids = ids.reshape({B * L});
+  if (embedding_.dtype() == DType::f32) {
+    ops::gather_rows(rec, embedding_, flat_ids, a.h.reshape({B * L, D}));
+  } else {
+    const Tensor table = Tensor::on(embedding_.buffer(), {cfg_.vocab_size, D / 2}, DType::i32);
+    ops::gather_rows(rec, table, flat_ids, a.words);
+    ops::cast(rec, Tensor::on(a.words.buffer(), {B * L * D}, embedding_.dtype()), a.h.reshape({B * L * D}));
+  }
+  tap(0, a.h);
+
+  ops::AttentionShape ashape{B, H, Dh, L, L};
+  ops::AttentionOptions aopt;
+  aopt.scale = 1.0f;  // T5 does not scale its logits
+  aopt.bias = &bias;
+  aopt.key_mask = key_mask;
+  const int64_t rows = B * L;
+  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    const std::string b = block(i);
+    const std::string att = b + "layer.0.SelfAttention.";
+    ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.0.layer_norm.weight"), cfg_.eps);
+    // q, k, v into column slices of one [B*L, 3I] buffer.
+    const char* names[3] = {"q", "k", "v"};
+    for (int w = 0; w < 3; ++w) {
+      ops::LinearShape s;
+      s.m = rows;
+      s.n = I;
+      s.k = D;
+      s.y_row_stride = 3 * I;
+      ops::linear_batched(rec, a.xn, weights_.get(att + names[w] + ".weight"),
+                          element_range(a.qkv, w * I, a.qkv.numel() - w * I), s);
+    }
+    ops::attention(rec, ashape, ops::fused_qkv_operand(a.qkv, 0, H, Dh), ops::fused_qkv_operand(a.qkv, 1, H, Dh),
+                   ops::fused_qkv_operand(a.qkv, 2, H, Dh), ops::AttentionOperand{a.attn}, aopt);
+    ops::LinearEpilogue res;
+    res.residual = a.h;
+    ops::linear(rec, a.attn, weights_.get(att + "o.weight"), a.h, res);
+
+    const std::string ff = b + "layer.1.DenseReluDense.";
+    ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.1.layer_norm.weight"), cfg_.eps);
+    ops::LinearEpilogue act;
+    act.activation = cfg_.activation;
+    if (cfg_.gated) {
+      ops::linear(rec, a.xn, weights_.get(ff + "wi_0.weight"), a.ff_a, act);
+      ops::linear(rec, a.xn, weights_.get(ff + "wi_1.weight"), a.ff_b);
+      ops::mul(rec, a.ff_a, a.ff_b, a.ff_a);
+    } else {
+      ops::linear(rec, a.xn, weights_.get(ff + "wi.weight"), a.ff_a, act);
+    }
+    ops::linear(rec, a.ff_a, weights_.get(ff + "wo.weight"), a.h, res);
+    if (i + 1 < cfg_.num_layers) tap(size_t(i + 1), a.h);
+  }
+  ops::rmsnorm(rec, a.h, out, weights_.get("encoder.final_layer_norm.weight"), cfg_.eps);
+  tap(size_t(cfg_.num_layers), out);
+}
+
+Tensor T5Encoder::encode(const std::vector<std::vector<int32_t>>& ids, const std::vector<std::vector<float>>& key_mask,
+                         std::vector<HostTensor>* hidden_states) {
+  if (ids.empty() || ids[0].empty()) throw Error("T5Encoder::encode: no tokens");
+  const int64_t B = int64_t(ids.size()), L = int64_t(ids[0].size()), D = cfg_.d_model;
+  HostTensor hid({B, L}, DType::i32);
+  for (int64_t b = 0; b < B; ++b) {
+    if (int64_t(ids[size_t(b)].size()) != L) throw Error("T5Encoder::encode: token rows must have the same length");
+    for (int64_t l = 0; l < L; ++l) {
+      const int32_t id = ids[size_t(b)][size_t(l)];
+      if (id < 0 || id >= cfg_.vocab_size)
+        throw Error("T5Encoder::encode: token id " + std::to_string(id) + " outside the vocabulary of " +
+                    std::to_string(cfg_.vocab_size));
+      hid.as<int32_t>()[b * L + l] = id;
+    }
+  }
+  const Tensor dev_ids = Tensor::upload(ctx_, hid, "T5 token ids");
+  Tensor dev_mask;
+  if (!key_mask.empty()) {
+    if (int64_t(key_mask.size()) != B) throw Error("T5Encoder::encode: the mask must have one row per prompt");
+    HostTensor hm({B, L}, DType::f32);
+    for (int64_t b = 0; b < B; ++b) {
+      if (int64_t(key_mask[size_t(b)].size()) != L) throw Error("T5Encoder::encode: mask rows must have L values");
+      for (int64_t l = 0; l < L; ++l) hm.as<float>()[b * L + l] = key_mask[size_t(b)][size_t(l)];
+    }
+    dev_mask = Tensor::upload(ctx_, hm, "T5 attention mask");
+  }
+  position_bias(L);
+  Tensor out = Tensor::empty(ctx_, {B, L, D}, DType::f32, "T5 last_hidden_state");
+  std::vector<Tensor> taps;
+  if (hidden_states)
+    for (int64_t i = 0; i <= cfg_.num_layers; ++i) taps.push_back(Tensor::empty(ctx_, {B, L, D}, DType::f32, "T5 hidden state"));
+  vk::Arena& arena = arena_for(ctx_, arena_, arena_bytes(B, L), "T5 activation arena");
+  vk::Recorder rec(ctx_);
+  rec.begin();
+  record(rec, arena, dev_ids, dev_mask.defined() ? &dev_mask : nullptr, out, hidden_states ? &taps : nullptr);
+  rec.end();
+  rec.submit();
+  if (hidden_states) {
+    hidden_states->clear();
+    for (const Tensor& t : taps) hidden_states->push_back(t.download(ctx_));
+  }
+  return out;
+}
+
+Tensor T5Encoder::encode_prompts(const T5Tokenizer& tokenizer, const std::vector<std::string>& prompts,
+                                 int max_length) {
+  std::vector<std::vector<int32_t>> ids;
+  for (const std::string& p : prompts) ids.push_back(tokenizer.encode_padded(p, max_length));
+  return encode(ids);
+}
+
+}  // namespace dvs::models

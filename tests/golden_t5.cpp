@@ -1,0 +1,170 @@
+// Golden checks of the T5 v1.1 encoder against the pack's cases t5_masked, t5_nomask, t5_masked_layers,
+// t5_text_to_embeddings, t5_e2e_prompts and bf16_sharded (T5 half). Tolerances are read from cases.json
+// (|ours - golden| <= atol + rtol·|golden|, 1e-5 + 1e-4 for pack A); each check prints its max error.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "io/npy.hpp"
+#include "models/t5_encoder.hpp"
+#include "models/tokenizer.hpp"
+#include "support/gpu.hpp"
+
+namespace fs = std::filesystem;
+using dvs::HostTensor;
+
+namespace {
+
+fs::path pack() { return fs::path(dvs::test::golden_dir()); }
+
+struct Tol {
+  double atol = 1e-5, rtol = 1e-4;
+};
+
+// Tolerance of case `name` in cases.json; `part` selects a sub-entry (bf16_sharded: "t5", "transformer").
+Tol case_tolerance(const std::string& name, const std::string& part = {}) {
+  std::ifstream f(pack() / "cases.json");
+  const auto j = nlohmann::json::parse(f);
+  for (const auto& c : j.at("cases"))
+    if (c.at("name") == name) {
+      const auto& t = part.empty() ? c.at("tolerance") : c.at("tolerance").at(part);
+      return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
+    }
+  ADD_FAILURE() << "case " << name << " not in cases.json";
+  return {};
+}
+
+HostTensor npy(const std::string& rel) { return dvs::read_npy(pack() / rel); }
+
+std::vector<std::vector<int32_t>> id_rows(const HostTensor& t) {
+  const auto v = t.to_f32();
+  const int64_t L = t.shape.back(), B = t.numel() / L;
+  std::vector<std::vector<int32_t>> rows;
+  rows.resize(size_t(B));
+  for (int64_t b = 0; b < B; ++b)
+    for (int64_t l = 0; l < L; ++l) rows[size_t(b)].push_back(int32_t(v[size_t(b * L + l)]));
+  return rows;
+}
+
+// Compares `ours` (starting at element `offset`) with the whole golden tensor; returns the max |error|.
+double expect_close(const std::string& what, const std::vector<float>& ours, const HostTensor& golden, Tol tol,
+                    size_t offset = 0) {
+  const auto g = golden.to_f32();
+  EXPECT_LE(offset + g.size(), ours.size()) << what << ": size";
+  if (offset + g.size() > ours.size()) return INFINITY;
+  double max_err = 0;
+  size_t bad = 0, first_bad = 0;
+  for (size_t i = 0; i < g.size(); ++i) {
+    const double e = std::fabs(double(ours[offset + i]) - double(g[i]));
+    max_err = std::max(max_err, std::isnan(e) ? INFINITY : e);
+    if (!(e <= tol.atol + tol.rtol * std::fabs(double(g[i])))) {
+      if (bad++ == 0) first_bad = i;
+    }
+  }
+  std::cout << "[golden] " << what << ": max |err| " << max_err << " (atol " << tol.atol << ", rtol " << tol.rtol
+            << ")\n";
+  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << g.size() << " elements outside tolerance, first at " << first_bad
+                     << " (ours " << ours[offset + first_bad] << ", golden " << g[first_bad] << "), max |err| " << max_err;
+  return max_err;
+}
+
+std::vector<float> values(dvs::vk::Context& ctx, const dvs::Tensor& t) { return t.download(ctx).to_f32(); }
+
+}  // namespace
+
+class GoldenT5 : public dvs::test::GpuTest {};
+
+TEST(GoldenT5Buckets, RelativePositionBucketsMatchTransformers) {
+  // Values of transformers' _relative_position_bucket(bidirectional=True, 32 buckets, max_distance 128).
+  using dvs::models::t5_relative_position_bucket;
+  EXPECT_EQ(t5_relative_position_bucket(0, true, 32, 128), 0);
+  EXPECT_EQ(t5_relative_position_bucket(1, true, 32, 128), 17);
+  EXPECT_EQ(t5_relative_position_bucket(-1, true, 32, 128), 1);
+  EXPECT_EQ(t5_relative_position_bucket(-7, true, 32, 128), 7);
+  EXPECT_EQ(t5_relative_position_bucket(-8, true, 32, 128), 8);    // first log bucket: 8 + int(0)
+  EXPECT_EQ(t5_relative_position_bucket(-16, true, 32, 128), 10);  // 8 + log(2)/log(16)*8 = 10
+  EXPECT_EQ(t5_relative_position_bucket(-127, true, 32, 128), 15);
+  EXPECT_EQ(t5_relative_position_bucket(-500, true, 32, 128), 15);  // clamped
+  EXPECT_EQ(t5_relative_position_bucket(225, true, 32, 128), 31);
+  EXPECT_EQ(t5_relative_position_bucket(20, true, 32, 128), 16 + 8 + 2);  // log(2.5)/log(16)*8 = 2.64
+}
+
+TEST_F(GoldenT5, MaskedWithPerLayerHiddenStates) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
+  const auto ids = id_rows(npy("t5/masked_input_ids.npy"));
+  const auto mask_t = npy("t5/masked_attention_mask.npy").to_f32();
+  std::vector<std::vector<float>> mask(ids.size());
+  for (size_t b = 0; b < ids.size(); ++b)
+    mask[b].assign(mask_t.begin() + long(b * ids[b].size()), mask_t.begin() + long((b + 1) * ids[b].size()));
+  std::vector<HostTensor> hidden;
+  const dvs::Tensor out = t5.encode(ids, mask, &hidden);
+  expect_close("t5_masked last_hidden_state", values(ctx(), out), npy("t5/masked_last_hidden_state.npy"),
+               case_tolerance("t5_masked"));
+  const Tol layers = case_tolerance("t5_masked_layers");
+  ASSERT_EQ(int64_t(hidden.size()), t5.config().num_layers + 1);
+  for (size_t i = 0; i < hidden.size(); ++i) {
+    const fs::path f = pack() / "t5" / ("masked_hidden_state_" + std::to_string(i) + ".npy");
+    if (!fs::exists(f)) continue;
+    expect_close("t5_masked_layers hidden_states[" + std::to_string(i) + "]", hidden[i].to_f32(), dvs::read_npy(f), layers);
+  }
+}
+
+TEST_F(GoldenT5, NoMask) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
+  const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
+  expect_close("t5_nomask", values(ctx(), out), npy("t5/nomask_last_hidden_state.npy"), case_tolerance("t5_nomask"));
+}
+
+TEST_F(GoldenT5, TextToEmbeddings) {
+  const fs::path model = pack() / "model";
+  const dvs::T5Tokenizer tok = dvs::T5Tokenizer::load(model);
+  std::ifstream f(pack() / "tokenizer" / "prompts.json");
+  const auto prompts = nlohmann::json::parse(f).get<std::vector<std::string>>();
+  dvs::models::T5Encoder t5(ctx(), model / "text_encoder");
+  const dvs::Tensor out = t5.encode_prompts(tok, {prompts.at(0)}, dvs::max_text_seq_length(model));
+  expect_close("t5_text_to_embeddings", values(ctx(), out), npy("t5/text_embeds.npy"),
+               case_tolerance("t5_text_to_embeddings"));
+}
+
+// The three e2e prompts in ONE batch of 3 rows (batching must not mix rows).
+TEST_F(GoldenT5, E2EPromptsAsOneBatch) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
+  const char* names[3] = {"prompt", "negative", "empty"};
+  std::vector<std::vector<int32_t>> ids;
+  for (const char* n : names) ids.push_back(id_rows(npy(std::string("e2e/") + n + "_input_ids.npy")).at(0));
+  const dvs::Tensor out = t5.encode(ids);
+  const auto v = values(ctx(), out);
+  const Tol tol = case_tolerance("t5_e2e_prompts");
+  const size_t per_row = size_t(out.numel() / 3);
+  for (size_t i = 0; i < 3; ++i)
+    expect_close(std::string("t5_e2e_prompts ") + names[i], v,
+                 npy(std::string("e2e/") + names[i] + "_embeds.npy"), tol, i * per_row);
+}
+
+TEST_F(GoldenT5, Bf16Sharded) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model_bf16" / "text_encoder");
+  EXPECT_EQ(t5.weights().get("shared.weight").dtype(), dvs::DType::bf16);
+  const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
+  expect_close("bf16_sharded t5", values(ctx(), out), npy("bf16_sharded/t5_nomask_last_hidden_state.npy"),
+               case_tolerance("bf16_sharded", "t5"));
+}
+
+// Not asserted: encode time at the pack's size (recording included, as a caller sees it).
+TEST_F(GoldenT5, EncodeTimeAtPackSize) {
+  dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
+  const auto ids = id_rows(npy("t5/masked_input_ids.npy"));
+  t5.encode(ids);  // warm-up
+  const int reps = 3;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < reps; ++i) t5.encode(ids);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / reps;
+  std::cout << "[timing] T5 encode " << ids.size() << "x" << ids[0].size() << " tokens: " << ms << " ms per call ("
+            << ctx().caps().name << ")\n";
+}
