@@ -5,9 +5,9 @@
 //   fraction); out[1] = mean of disparity / frame_max over the same pixels (0 where the frame max is 0), or 0
 //   without depth.
 // MODE 1 (official downsize_mask): temporal mean of the frames by pairs, then three times "zero-pad right and
-//   bottom by 1, 3x3 average pool with stride 2". All stages are linear, so each latent cell is the sum of the
-//   mask over a 15x15 pixel window weighted by integer multiplicities (product of a row and a column count)
-//   divided by 9^3; padded zeros simply contribute nothing. out[0] = V.
+//   bottom by 1, 3x3 average pool with stride 2". All stages are linear, so each latent cell is the sum over
+//   the 27x27 (row path, column path) combinations of the pixel they reach, divided by 9^3; paths through
+//   the zero padding contribute nothing. With masks in {0, 1/4, ..., 1} the sum is exact. out[0] = V.
 // One invocation per latent cell; out is [2, Fl, Hl, Wl] (MODE 1 writes the first plane only).
 #extension GL_GOOGLE_include_directive : require
 
@@ -30,23 +30,17 @@ float disparity(float x) {
   return x > 0.0 ? x : 0.0;
 }
 
-// Multiplicity of pixel index 8i + k (k < 15) in latent index i after three pad-1 / k3 / s2 stages of a
-// dimension of `n` pixels.
-void multiplicity(uint i, uint n, out uint m[15]) {
-  for (uint k = 0u; k < 15u; ++k) m[k] = 0u;
-  uint n1 = n / 2u, n2 = n / 4u;
-  for (uint a = 0u; a < 3u; ++a) {
-    uint j2 = 2u * i + a;
-    if (j2 >= n2) continue;
-    for (uint b = 0u; b < 3u; ++b) {
-      uint j1 = 2u * j2 + b;
-      if (j1 >= n1) continue;
-      for (uint c = 0u; c < 3u; ++c) {
-        uint r = 2u * j1 + c;
-        if (r < n) m[r - 8u * i] += 1u;
-      }
-    }
-  }
+// Pixel index reached by path t (0..26 = three base-3 digits a, b, c) from latent index i through the three
+// pad-1 / k3 / s2 stages of a dimension of n pixels: r = 2(2(2i + a) + b) + c, or ~0u when a stage's
+// index falls into its zero padding. Summing over all 27 paths counts each pixel with its multiplicity.
+uint path_pixel(uint i, uint t, uint n) {
+  uint a = t / 9u, b = (t / 3u) % 3u, c = t % 3u;
+  uint j2 = 2u * i + a;
+  if (j2 >= n / 4u) return ~0u;
+  uint j1 = 2u * j2 + b;
+  if (j1 >= n / 2u) return ~0u;
+  uint r = 2u * j1 + c;
+  return r < n ? r : ~0u;
 }
 
 void main() {
@@ -75,16 +69,14 @@ void main() {
     out_[cell] = holes / n;
     out_[cells + cell] = disp / n;
   } else {
-    uint mr[15], mc[15];
-    multiplicity(h, p.height, mr);
-    multiplicity(w, p.width, mc);
+    // Loops over paths, not unrolled pixel windows: keeps the shader small for lavapipe's LLVM.
     float acc = 0.0;
-    for (uint ky = 0u; ky < 15u; ++ky) {
-      if (mr[ky] == 0u) continue;
-      uint y = 8u * h + ky;
-      for (uint kx = 0u; kx < 15u; ++kx) {
-        if (mc[kx] == 0u) continue;
-        uint x = 8u * w + kx;
+    for (uint ty = 0u; ty < 27u; ++ty) {
+      uint y = path_pixel(h, ty, p.height);
+      if (y == ~0u) continue;
+      for (uint tx = 0u; tx < 27u; ++tx) {
+        uint x = path_pixel(w, tx, p.width);
+        if (x == ~0u) continue;
         uint o = y * p.width + x;
         float m;
         if (f == 0u) {
@@ -93,7 +85,7 @@ void main() {
           uint b = first * plane + o;
           m = ((mask[b] + mask[b + plane]) * 0.5 + (mask[b + 2u * plane] + mask[b + 3u * plane]) * 0.5) * 0.5;
         }
-        acc += float(mr[ky] * mc[kx]) * m;
+        acc += m;
       }
     }
     out_[cell] = acc / 729.0;
