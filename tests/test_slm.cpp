@@ -203,6 +203,13 @@ TEST_F(Slm, PaperMasksFromDisparityAndWithoutDepth) {
       EXPECT_EQ(m.x0_source[c], r.source[c]) << "cell " << c;
     }
   }
+  // The device-tensor entry point (renderer outputs) gives the same masks.
+  const Tensor mask_dev = Tensor::upload(ctx(), mt), disp_dev = Tensor::upload(ctx(), dt);
+  const auto d = diffusion::compute_slm_masks(ctx(), mask_dev, &disp_dev, false, kFl, o);
+  EXPECT_EQ(d.hole_fraction, m.hole_fraction);
+  EXPECT_EQ(d.background_mean, m.background_mean);
+  EXPECT_EQ(d.x0_target, m.x0_target);
+  EXPECT_EQ(d.x0_source, m.x0_source);
   // Without depth D = 1: the source is every visible cell.
   const auto n = diffusion::compute_slm_masks(ctx(), mt, nullptr, false, kFl, o);
   for (int c = 0; c < kCells; ++c) EXPECT_EQ(n.x0_source[c], 1 - n.x0_target[c]);

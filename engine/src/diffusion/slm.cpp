@@ -47,6 +47,22 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const HostTensor& pixel_mask, const
                            bool depth_is_metric, int latent_frames, const SlmOptions& options) {
   int64_t fp = 0, h = 0, w = 0;
   pixel_dims("pixel mask", pixel_mask, fp, h, w);
+  const Tensor mask_t = Tensor::upload(ctx, pixel_mask, "slm pixel mask").reshape({fp, h, w});
+  const bool with_depth = options.preset == SlmOptions::Preset::paper && options.use_background && depth != nullptr;
+  Tensor depth_t;
+  if (with_depth) {
+    int64_t dfp = 0, dh = 0, dw = 0;
+    pixel_dims("depth", *depth, dfp, dh, dw);
+    depth_t = Tensor::upload(ctx, *depth, "slm depth").reshape({dfp, dh, dw});
+  }
+  return compute_slm_masks(ctx, mask_t, with_depth ? &depth_t : nullptr, depth_is_metric, latent_frames, options);
+}
+
+SlmMasks compute_slm_masks(vk::Context& ctx, const Tensor& pixel_mask, const Tensor* depth, bool depth_is_metric,
+                           int latent_frames, const SlmOptions& options) {
+  if (pixel_mask.dtype() != DType::f32 || pixel_mask.rank() != 3)
+    throw Error("SLM: the pixel mask must be f32 [frames, height, width], got " + pixel_mask.describe());
+  const int64_t fp = pixel_mask.shape()[0], h = pixel_mask.shape()[1], w = pixel_mask.shape()[2];
   if (latent_frames < 1 || fp != 4 * int64_t(latent_frames - 1) + 1)
     throw Error("SLM: a pixel mask of " + std::to_string(fp) + " frames does not give " +
                 std::to_string(latent_frames) + " latent frames (needs 4·(F - 1) + 1 pixel frames)");
@@ -55,13 +71,8 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const HostTensor& pixel_mask, const
                 " must be a multiple of 8 (the VAE's spatial factor)");
   const bool paper = options.preset == SlmOptions::Preset::paper;
   const bool with_depth = paper && options.use_background && depth != nullptr;
-  if (with_depth) {
-    int64_t dfp = 0, dh = 0, dw = 0;
-    pixel_dims("depth", *depth, dfp, dh, dw);
-    if (dfp != fp || dh != h || dw != w)
-      throw Error("SLM: depth " + shape_str(depth->shape) + " does not match the pixel mask " +
-                  shape_str(pixel_mask.shape));
-  }
+  if (with_depth && (depth->dtype() != DType::f32 || depth->shape() != pixel_mask.shape()))
+    throw Error("SLM: depth " + depth->describe() + " does not match the pixel mask " + pixel_mask.describe());
 
   SlmMasks m;
   m.frames = latent_frames;
@@ -70,8 +81,8 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const HostTensor& pixel_mask, const
   const int64_t cells = m.cells();
 
   // GPU: per-frame disparity maxima (paper with depth), then the footprint reductions.
-  const Tensor mask_t = Tensor::upload(ctx, pixel_mask, "slm pixel mask");
-  const Tensor depth_t = with_depth ? Tensor::upload(ctx, *depth, "slm depth") : mask_t;
+  const Tensor& mask_t = pixel_mask;
+  const Tensor& depth_t = with_depth ? *depth : pixel_mask;  // unread without depth
   const Tensor frame_max = Tensor::zeros(ctx, {fp}, DType::f32, "slm frame max");
   const Tensor stats = Tensor::empty(ctx, {2, cells}, DType::f32, "slm footprint stats");
   ops::run_now(ctx, [&](vk::Recorder& rec) {

@@ -75,6 +75,9 @@ struct SlmMasks {
 // is visible (nothing to sample from) or when τ's index is out of range.
 SlmMasks compute_slm_masks(vk::Context& ctx, const HostTensor& pixel_mask, const HostTensor* depth,
                            bool depth_is_metric, int latent_frames, const SlmOptions& options);
+// The same from device tensors (the renderer's outputs, [Fp, H, W] f32), without a host round trip.
+SlmMasks compute_slm_masks(vk::Context& ctx, const Tensor& pixel_mask, const Tensor* depth, bool depth_is_metric,
+                           int latent_frames, const SlmOptions& options);
 
 // Index lists of one (target, source) pair for a latent [F, C, H, W]. Empty `targets` (no target cell):
 // apply_slm records nothing.
