@@ -361,8 +361,8 @@ TEST(IoWeightsTool, InspectsThePackAndRejectsACorruptFile) {
   EXPECT_EQ(run("--help").status, 0);
   EXPECT_NE(run("--help").output.find("inspect PATH"), std::string::npos);
   const auto tiny = run("make-tiny");
-  EXPECT_EQ(tiny.status, 2);
-  EXPECT_NE(tiny.output.find("not implemented yet"), std::string::npos);
+  EXPECT_NE(tiny.status, 0);
+  EXPECT_NE(tiny.output.find("--out"), std::string::npos) << tiny.output;
   EXPECT_EQ(run("merge-lora x y").status, 2);
   EXPECT_EQ(run("frobnicate").status, 2);
   EXPECT_EQ(run("inspect").status, 2);
