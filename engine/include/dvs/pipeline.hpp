@@ -1,0 +1,53 @@
+// The whole dynamic-view-synthesis job (DESIGN §1): render the input along a new camera path, encode the
+// render, invert it, initialise the noise (SLM + adaptive K-RNR) and sample the new view. What `dvs run`
+// and `dvs demo` execute.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "dvs/render.hpp"
+
+namespace dvs {
+
+struct RunOptions {
+  RenderJob render;                 // video, depth, trajectory, frames, size, out_dir, device, ...
+  std::filesystem::path model;      // Hugging Face folder laid out like THUDM/CogVideoX-5b-I2V
+  std::string prompt;
+  std::string negative_prompt;      // empty: "" (paper) / the official fixed text (official preset)
+  std::string preset = "paper";     // "paper" or "official": the defaults below follow it unless set
+  int steps = 0;                    // 0 = preset default (paper 50, official 30)
+  double strength = 0;              // 0 = preset default (paper 0.95, official 0.98)
+  int inversion_steps = 0;          // 0 = preset default (30)
+  double k = 10;
+  double delta = 0;                 // 0 = preset default (paper 3, official 2)
+  double guidance = 6.0;
+  uint64_t seed = 42;
+  std::filesystem::path cache_dir;  // inversion cache; empty = $DVS_CACHE_DIR or ~/.cache/dvs
+  bool use_cache = true;
+};
+
+struct StageTime {
+  std::string stage;
+  double seconds = 0;
+};
+
+struct RunReport {
+  std::vector<StageTime> stages;
+  bool inversion_from_cache = false;
+  std::filesystem::path output_mp4, render_mp4, mask_mp4, comparison_mp4, run_json;
+  uint64_t peak_device_bytes = 0;
+};
+
+// Progress events: stage name, step (1-based) and total steps of that stage (0 when not stepped).
+using ProgressFn = std::function<void(const std::string& stage, int step, int total, const std::string& note)>;
+
+RunReport run_pipeline(const RunOptions& options, const ProgressFn& progress = {});
+
+// Writes a synthetic RGB-D clip (video + exact metric depth) and a tiny random model into `dir`, and
+// returns options that run the whole pipeline on them in a few minutes on a CPU (lavapipe).
+RunOptions prepare_demo(const std::filesystem::path& dir);
+
+}  // namespace dvs

@@ -1,0 +1,35 @@
+// Stage 1–2 of the pipeline, shared by `dvs render` and `dvs run`: decode the video at the working size,
+// load and fit the depth, build the camera path and splat every frame into its new view.
+#pragma once
+#include <functional>
+#include <string>
+
+#include "dvs/render.hpp"
+#include "geometry/camera.hpp"
+#include "geometry/trajectory.hpp"
+#include "io/host_tensor.hpp"
+#include "vk/context.hpp"
+
+namespace dvs {
+
+struct RenderedInput {
+  HostTensor rgb;     // [F,3,H,W] in [−1,1], the input at the working size
+  HostTensor depth;   // [F,H,W] metric depth (after the disparity conversion)
+  HostTensor render;  // [F,3,H,W] in [−1,1], holes −1
+  HostTensor mask;    // [F,H,W], 1 = visible
+  geometry::Trajectory trajectory;
+  geometry::Intrinsics K;
+  double fps = 30;
+  double seconds_decode = 0, seconds_render = 0;
+};
+
+// Checks the job's numbers and files, creates out_dir, then decodes and renders.
+RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::function<void(const std::string&)>& say);
+
+// Validates and creates the output folder (clear error when it cannot be written).
+void prepare_out_dir(const std::filesystem::path& dir);
+
+// A {0,1} mask [F,H,W] as a black/white video in [−1,1].
+HostTensor mask_as_video(const HostTensor& mask);
+
+}  // namespace dvs
