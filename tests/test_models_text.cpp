@@ -423,7 +423,6 @@ TEST_F(ModelsText, TransformerRejectsSizesDiffusersRejects) {
   if (!fs::exists(dir)) GTEST_SKIP() << "no golden pack";
   dvs::models::CogVideoXTransformer tr(ctx(), dir);
   EXPECT_THROW(tr.positional_embedding(3, 8, 10, 8), dvs::Error);  // other resolution
-  EXPECT_THROW(tr.positional_embedding(2, 8, 8, 8), dvs::Error);   // other frame count (sincos there)
   EXPECT_THROW(tr.positional_embedding(3, 8, 8, 7), dvs::Error);   // text shorter than max_text_seq_length
   EXPECT_NO_THROW(tr.positional_embedding(3, 8, 8, 8));
 }
@@ -503,4 +502,36 @@ TEST(ModelsTextPlan, RealSizeActivationArenas) {
   EXPECT_GT(double(tr_bytes), 6 * seq);
   EXPECT_LT(double(tr_bytes), 6.2 * seq);
   EXPECT_GT(t5_bytes, 0u);
+}
+
+// Another frame count than sample_frames: diffusers replaces the learned table by a 3D sincos one.
+TEST_F(ModelsText, SincosPositionalEmbeddingForOtherFrameCounts) {
+  const fs::path dir = fs::path(dvs::test::golden_dir()) / "model" / "transformer";
+  if (!fs::exists(dir)) GTEST_SKIP() << "no golden pack";
+  dvs::models::CogVideoXTransformer tr(ctx(), dir);
+  const auto& cfg = tr.config();
+  const int64_t D = cfg.dim(), L = cfg.max_text_seq_length, F = 2, Hp = cfg.sample_height / 2, Wp = cfg.sample_width / 2;
+  const auto v = tr.positional_embedding(F, cfg.sample_height, cfg.sample_width, L).download(ctx()).to_f32();
+  ASSERT_EQ(int64_t(v.size()), (L + F * Hp * Wp) * D);
+  for (int64_t i = 0; i < L * D; ++i) ASSERT_EQ(v[size_t(i)], 0.0f) << "text rows are zero";
+  // Token (f, i, j) = (1, 2, 3): [t | w | h] parts, each [sin | cos] with omega_k = 10000^(-k / (e/2)).
+  const int64_t f = 1, i = 2, j = 3, Dt = D / 4, Ds = 3 * D / 8;
+  const float* row = v.data() + (L + (f * Hp + i) * Wp + j) * D;
+  auto check = [&](const float* part, int64_t e, double pos, const char* what) {
+    for (int64_t k = 0; k < e / 2; ++k) {
+      const double a = pos * std::pow(10000.0, -double(k) / (double(e) / 2.0));
+      EXPECT_NEAR(part[k], std::sin(a), 1e-6) << what << " sin " << k;
+      EXPECT_NEAR(part[e / 2 + k], std::cos(a), 1e-6) << what << " cos " << k;
+    }
+  };
+  check(row, Dt, double(f) / cfg.temporal_interpolation_scale, "t");
+  check(row + Dt, Ds, double(float(j) / cfg.spatial_interpolation_scale), "w");
+  check(row + Dt + Ds, Ds, double(float(i) / cfg.spatial_interpolation_scale), "h");
+  // The forward runs with it (2 latent frames instead of 3).
+  const dvs::Tensor lat = dvs::Tensor::upload(ctx(), host_f32({1, F, cfg.in_channels, cfg.sample_height, cfg.sample_width},
+                                                              normals(size_t(F * cfg.in_channels * Hp * Wp * 4), 9)));
+  const dvs::Tensor txt = dvs::Tensor::upload(ctx(), host_f32({1, L, cfg.text_embed_dim}, normals(size_t(L * cfg.text_embed_dim), 10)));
+  const float t = 500.0f;
+  const auto out = tr.forward(lat, txt, std::span<const float>(&t, 1)).download(ctx()).to_f32();
+  for (float x : out) ASSERT_TRUE(std::isfinite(x));
 }

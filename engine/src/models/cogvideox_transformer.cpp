@@ -54,6 +54,10 @@ CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann:
   r.flip_sin_to_cos = cfg_bool(c, "flip_sin_to_cos", true, origin);
   if (c.contains("freq_shift") && c["freq_shift"].is_number()) r.freq_shift = c["freq_shift"].get<float>();
   if (c.contains("norm_eps") && c["norm_eps"].is_number()) r.norm_eps = c["norm_eps"].get<float>();
+  if (c.contains("spatial_interpolation_scale") && c["spatial_interpolation_scale"].is_number())
+    r.spatial_interpolation_scale = c["spatial_interpolation_scale"].get<float>();
+  if (c.contains("temporal_interpolation_scale") && c["temporal_interpolation_scale"].is_number())
+    r.temporal_interpolation_scale = c["temporal_interpolation_scale"].get<float>();
   r.norm_affine = cfg_bool(c, "norm_elementwise_affine", true, origin);
   r.attention_bias = cfg_bool(c, "attention_bias", true, origin);
   r.rotary = cfg_bool(c, "use_rotary_positional_embeddings", false, origin);
@@ -131,34 +135,63 @@ const std::pair<Tensor, Tensor>& CogVideoXTransformer::rope_tables(int64_t F, in
       .first->second;
 }
 
+HostTensor cogvideox_sincos_pos_embedding(const CogVideoXTransformerConfig& cfg, int64_t F, int64_t H, int64_t W) {
+  const int64_t D = cfg.dim(), p = cfg.patch_size, Hp = H / p, Wp = W / p, L = cfg.max_text_seq_length;
+  if (D % 16 != 0) throw Error("CogVideoX sincos positional embedding: the width " + std::to_string(D) + " must be a multiple of 16");
+  const int64_t Dt = D / 4, Dh = 3 * D / 8;  // temporal part, and each of the two spatial halves
+  HostTensor out({L + F * Hp * Wp, D}, DType::f32);
+  float* o = out.as<float>();
+  std::fill(o, o + out.numel(), 0.0f);
+  // get_1d_sincos_pos_embed_from_grid: omega = 1 / 10000^(k / (e/2)) in fp64, [sin(pos·omega) | cos(pos·omega)].
+  auto put_1d = [](float* dst, int64_t e, float pos) {
+    const int64_t half = e / 2;
+    for (int64_t k = 0; k < half; ++k) {
+      const double omega = 1.0 / std::pow(10000.0, double(k) / (double(e) / 2.0));
+      const double a = double(pos) * omega;
+      dst[k] = float(std::sin(a));
+      dst[half + k] = float(std::cos(a));
+    }
+  };
+  for (int64_t f = 0; f < F; ++f)
+    for (int64_t i = 0; i < Hp; ++i)
+      for (int64_t j = 0; j < Wp; ++j) {
+        float* row = o + (L + (f * Hp + i) * Wp + j) * D;
+        // Grids are fp32 aranges divided by the interpolation scales; the spatial grid's first plane is w.
+        put_1d(row, Dt, float(f) / cfg.temporal_interpolation_scale);
+        put_1d(row + Dt, Dh, float(j) / cfg.spatial_interpolation_scale);
+        put_1d(row + Dt + Dh, Dh, float(i) / cfg.spatial_interpolation_scale);
+      }
+  return out;
+}
+
 const Tensor& CogVideoXTransformer::positional_embedding(int64_t F, int64_t H, int64_t W, int64_t L) {
   const auto key = std::make_tuple(F, H, W, L);
   if (auto it = pos_.find(key); it != pos_.end()) return it->second;
   Tensor t;
   if (cfg_.learned_pos) {
-    // diffusers CogVideoXPatchEmbed: the learned table needs the config's spatial size; it is used as-is when
-    // (F - 1) * temporal_compression + 1 == sample_frames, and the whole [1, L_max + N, D] table is added, so
-    // the text must be max_text_seq_length long. Other frame counts switch to a 3D sincos table there.
+    // diffusers CogVideoXPatchEmbed: a learned table needs the config's spatial size; the whole
+    // [1, L_max + N, D] table is added, so the text must be max_text_seq_length long.
     if (H != cfg_.sample_height || W != cfg_.sample_width)
       throw Error("CogVideoX transformer: latent " + std::to_string(H) + "x" + std::to_string(W) +
                   " differs from the learned positional embedding's " + std::to_string(cfg_.sample_height) + "x" +
                   std::to_string(cfg_.sample_width) + " (diffusers rejects other resolutions for this model)");
-    if ((F - 1) * cfg_.temporal_compression_ratio + 1 != cfg_.sample_frames)
-      throw Error("CogVideoX transformer: " + std::to_string(F) + " latent frames differ from the config's sample_frames " +
-                  std::to_string(cfg_.sample_frames) +
-                  " (diffusers then replaces the learned table by a 3D sincos one, which this port does not implement)");
     if (L != cfg_.max_text_seq_length)
       throw Error("CogVideoX transformer: text length " + std::to_string(L) + " must equal max_text_seq_length " +
-                  std::to_string(cfg_.max_text_seq_length) + " (the learned positional embedding covers exactly it)");
+                  std::to_string(cfg_.max_text_seq_length) + " (the positional embedding covers exactly it)");
     const int64_t p = cfg_.patch_size, S = L + F * (H / p) * (W / p);
-    const Tensor& stored = weights_.get("patch_embed.pos_embedding", {1, S, cfg_.dim()});
     t = Tensor::empty(ctx_, {S, cfg_.dim()}, DType::f32, "positional embedding");
-    ops::run_now(ctx_, [&](vk::Recorder& rec) {
-      if (stored.dtype() == DType::f32)
-        rec.copy(stored.buffer(), t.buffer(), t.bytes());
-      else
-        ops::cast(rec, stored, t);
-    });
+    if ((F - 1) * cfg_.temporal_compression_ratio + 1 == cfg_.sample_frames) {
+      const Tensor& stored = weights_.get("patch_embed.pos_embedding", {1, S, cfg_.dim()});
+      ops::run_now(ctx_, [&](vk::Recorder& rec) {
+        if (stored.dtype() == DType::f32)
+          rec.copy(stored.buffer(), t.buffer(), t.bytes());
+        else
+          ops::cast(rec, stored, t);
+      });
+    } else {
+      // Another frame count: diffusers recomputes the table as 3D sincos (learned values unused).
+      t.write(ctx_, cogvideox_sincos_pos_embedding(cfg_, F, H, W));
+    }
   }
   return pos_.emplace(key, t).first->second;
 }
