@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "models/lora.hpp"
 #include "models/weights.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"
@@ -91,7 +92,13 @@ class CogVideoXTransformer {
   uint64_t arena_bytes(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
   // The same from a config alone (memory planning without weights); `alignment`: the allocator's.
   static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
-                              int64_t frames, int64_t height, int64_t width, int64_t text_len);
+                              int64_t frames, int64_t height, int64_t width, int64_t text_len, int64_t lora_rank = 0);
+
+  // LoRA on the attention projections (transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}), applied as two
+  // extra GEMMs per adapted projection (see models/lora.hpp). Replaces any previous set; an adapter on another
+  // module or with mismatched shapes is an error naming it.
+  void set_lora(std::map<std::string, LoraAdapter> adapters);
+  void clear_lora();
 
   // Device RoPE tables (cos, sin) f32 [F*Hp*Wp, head_dim] for a latent F×H×W (cached).
   const std::pair<Tensor, Tensor>& rope_tables(int64_t frames, int64_t height, int64_t width);
@@ -104,7 +111,8 @@ class CogVideoXTransformer {
  private:
   struct Activations;
   static Activations plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p, int64_t B, int64_t F, int64_t H,
-                          int64_t W, int64_t L);
+                          int64_t W, int64_t L, int64_t lora_rank);
+  const LoraAdapter* lora(const std::string& module) const;
   void check_weights();
 
   vk::Context& ctx_;
@@ -112,6 +120,8 @@ class CogVideoXTransformer {
   CogVideoXTransformerConfig cfg_;
   std::map<std::tuple<int64_t, int64_t, int64_t>, std::pair<Tensor, Tensor>> rope_;
   std::map<std::tuple<int64_t, int64_t, int64_t, int64_t>, Tensor> pos_;
+  std::map<std::string, LoraAdapter> lora_;
+  int64_t lora_rank_ = 0;  // largest rank in lora_
   std::unique_ptr<vk::Arena> arena_;
 };
 
