@@ -34,11 +34,10 @@ std::map<std::string, LoraAdapter> load_lora(vk::Context& ctx, const std::filesy
                   "]; expected A [rank, in] and B [out, rank]");
     const int64_t rank = a.shape[0];
     double s = scale;
-    if (const WeightRef* alpha = set.find(module + ".alpha")) {
+    if (set.find(module + ".alpha")) {
       const std::vector<float> v = set.load(module + ".alpha").to_f32();
       if (v.size() != 1) throw Error(where + ": '" + module + ".alpha' must hold one value");
       s *= double(v[0]) / double(rank);
-      (void)alpha;
     }
     std::vector<float> up = b.to_f32();
     for (float& x : up) x = float(double(x) * s);
