@@ -22,7 +22,10 @@
 
 #include "dvs/error.hpp"
 #include "io/model_schema.hpp"
+#include "io/model_folder.hpp"
+#include "io/npy.hpp"
 #include "models/cogvideox_transformer.hpp"
+#include "models/lora.hpp"
 #include "models/t5_encoder.hpp"
 #include "support/gpu.hpp"
 #include "tensor/ops_position.hpp"
@@ -62,6 +65,34 @@ Weights random_weights(const dvs::Schema& schema, uint32_t seed) {
     w.emplace(t.name, std::move(v));
   }
   return w;
+}
+
+struct NamedTensor {
+  std::string name;
+  Shape shape;
+  std::vector<double> values;
+};
+
+// A single-file F32 safetensors with the tensors in the given order.
+void write_safetensors(const fs::path& file, const std::vector<NamedTensor>& tensors) {
+  json header;
+  uint64_t off = 0;
+  for (const auto& t : tensors) {
+    const uint64_t bytes = uint64_t(t.values.size()) * 4;
+    header[t.name] = {{"dtype", "F32"}, {"shape", t.shape}, {"data_offsets", {off, off + bytes}}};
+    off += bytes;
+  }
+  std::string h = header.dump();
+  while (h.size() % 8) h += ' ';
+  std::ofstream f(file, std::ios::binary);
+  const uint64_t n = h.size();
+  f.write(reinterpret_cast<const char*>(&n), 8);
+  f.write(h.data(), std::streamsize(h.size()));
+  for (const auto& t : tensors)
+    for (double x : t.values) {
+      const float v = float(x);
+      f.write(reinterpret_cast<const char*>(&v), 4);
+    }
 }
 
 void write_component(const fs::path& dir, const json& config, const Weights& w, const dvs::Schema& schema) {
@@ -423,7 +454,6 @@ TEST_F(ModelsText, TransformerRejectsSizesDiffusersRejects) {
   if (!fs::exists(dir)) GTEST_SKIP() << "no golden pack";
   dvs::models::CogVideoXTransformer tr(ctx(), dir);
   EXPECT_THROW(tr.positional_embedding(3, 8, 10, 8), dvs::Error);  // other resolution
-  EXPECT_THROW(tr.positional_embedding(2, 8, 8, 8), dvs::Error);   // other frame count (sincos there)
   EXPECT_THROW(tr.positional_embedding(3, 8, 8, 7), dvs::Error);   // text shorter than max_text_seq_length
   EXPECT_NO_THROW(tr.positional_embedding(3, 8, 8, 8));
 }
@@ -503,4 +533,122 @@ TEST(ModelsTextPlan, RealSizeActivationArenas) {
   EXPECT_GT(double(tr_bytes), 6 * seq);
   EXPECT_LT(double(tr_bytes), 6.2 * seq);
   EXPECT_GT(t5_bytes, 0u);
+}
+
+// Another frame count than sample_frames: diffusers replaces the learned table by a 3D sincos one.
+TEST_F(ModelsText, SincosPositionalEmbeddingForOtherFrameCounts) {
+  const fs::path dir = fs::path(dvs::test::golden_dir()) / "model" / "transformer";
+  if (!fs::exists(dir)) GTEST_SKIP() << "no golden pack";
+  dvs::models::CogVideoXTransformer tr(ctx(), dir);
+  const auto& cfg = tr.config();
+  const int64_t D = cfg.dim(), L = cfg.max_text_seq_length, F = 2, Hp = cfg.sample_height / 2, Wp = cfg.sample_width / 2;
+  const auto v = tr.positional_embedding(F, cfg.sample_height, cfg.sample_width, L).download(ctx()).to_f32();
+  ASSERT_EQ(int64_t(v.size()), (L + F * Hp * Wp) * D);
+  for (int64_t i = 0; i < L * D; ++i) ASSERT_EQ(v[size_t(i)], 0.0f) << "text rows are zero";
+  // Token (f, i, j) = (1, 2, 3): [t | w | h] parts, each [sin | cos] with omega_k = 10000^(-k / (e/2)).
+  const int64_t f = 1, i = 2, j = 3, Dt = D / 4, Ds = 3 * D / 8;
+  const float* row = v.data() + (L + (f * Hp + i) * Wp + j) * D;
+  auto check = [&](const float* part, int64_t e, double pos, const char* what) {
+    for (int64_t k = 0; k < e / 2; ++k) {
+      const double a = pos * std::pow(10000.0, -double(k) / (double(e) / 2.0));
+      EXPECT_NEAR(part[k], std::sin(a), 1e-6) << what << " sin " << k;
+      EXPECT_NEAR(part[e / 2 + k], std::cos(a), 1e-6) << what << " cos " << k;
+    }
+  };
+  check(row, Dt, double(f) / cfg.temporal_interpolation_scale, "t");
+  check(row + Dt, Ds, double(float(j) / cfg.spatial_interpolation_scale), "w");
+  check(row + Dt + Ds, Ds, double(float(i) / cfg.spatial_interpolation_scale), "h");
+  // The forward runs with it (2 latent frames instead of 3).
+  const dvs::Tensor lat = dvs::Tensor::upload(ctx(), host_f32({1, F, cfg.in_channels, cfg.sample_height, cfg.sample_width},
+                                                              normals(size_t(F * cfg.in_channels * Hp * Wp * 4), 9)));
+  const dvs::Tensor txt = dvs::Tensor::upload(ctx(), host_f32({1, L, cfg.text_embed_dim}, normals(size_t(L * cfg.text_embed_dim), 10)));
+  const float t = 500.0f;
+  const auto out = tr.forward(lat, txt, std::span<const float>(&t, 1)).download(ctx()).to_f32();
+  for (float x : out) ASSERT_TRUE(std::isfinite(x));
+}
+
+// LoRA applied unmerged (two extra GEMMs per projection) equals the same model with W + scale·(alpha/r)·B·A
+// merged by hand into its weights. The pack's tiny transformer; adapters on q and v of block 0, k and out of
+// block 1 (the latter with an alpha entry).
+TEST_F(ModelsText, LoraUnmergedEqualsWeightsMergedByHand) {
+  const fs::path pack = fs::path(dvs::test::golden_dir());
+  const fs::path dir = pack / "model" / "transformer";
+  if (!fs::exists(dir)) GTEST_SKIP() << "no golden pack";
+  const dvs::WeightSet ws = dvs::WeightSet::open_dir(dir);
+  std::ifstream cf(dir / "config.json");
+  const json config = json::parse(cf);
+  const int64_t D = config.at("num_attention_heads").get<int64_t>() * config.at("attention_head_dim").get<int64_t>();
+  const int64_t r = 4;
+  const float user_scale = 0.7f;
+  struct Target {
+    std::string module;
+    double alpha;  // 0: no alpha entry
+  };
+  const std::vector<Target> targets = {{"transformer_blocks.0.attn1.to_q", 0},
+                                       {"transformer_blocks.0.attn1.to_v", 0},
+                                       {"transformer_blocks.1.attn1.to_k", 0},
+                                       {"transformer_blocks.1.attn1.to_out.0", 8}};
+  std::vector<NamedTensor> lora;
+  std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> ab;
+  uint32_t seed = 100;
+  for (const auto& t : targets) {
+    auto a = normals(size_t(r * D), seed++, 1.0 / std::sqrt(double(D)));
+    auto b = normals(size_t(D * r), seed++, 0.5);
+    lora.push_back({"transformer." + t.module + ".lora_A.weight", {r, D}, a});
+    lora.push_back({"transformer." + t.module + ".lora_B.weight", {D, r}, b});
+    if (t.alpha > 0) lora.push_back({"transformer." + t.module + ".alpha", {}, {t.alpha}});
+    ab[t.module] = {a, b};
+  }
+  const fs::path tmp = tmp_dir("lora");
+  fs::create_directories(tmp / "merged");
+  write_safetensors(tmp / "lora.safetensors", lora);
+  std::ofstream(tmp / "merged" / "config.json") << config.dump(2);
+  std::vector<NamedTensor> merged;
+  for (const auto& [name, ref] : ws.entries()) {
+    const HostTensor h = ws.load(name);
+    const auto f = h.to_f32();
+    NamedTensor t{name, h.shape, std::vector<double>(f.begin(), f.end())};
+    for (const auto& tg : targets)
+      if (name == tg.module + ".weight") {
+        const double s = user_scale * (tg.alpha > 0 ? tg.alpha / double(r) : 1.0);
+        const auto& [a, b] = ab[tg.module];
+        for (int64_t o = 0; o < D; ++o)
+          for (int64_t i = 0; i < D; ++i) {
+            double d = 0;
+            for (int64_t k = 0; k < r; ++k) d += b[size_t(o * r + k)] * a[size_t(k * D + i)];
+            t.values[size_t(o * D + i)] += s * d;
+          }
+      }
+    merged.push_back(std::move(t));
+  }
+  write_safetensors(tmp / "merged" / "diffusion_pytorch_model.safetensors", merged);
+
+  const HostTensor lat = dvs::read_npy(pack / "transformer" / "hidden_states.npy");
+  const HostTensor txt = dvs::read_npy(pack / "transformer" / "encoder_hidden_states.npy");
+  const float t = 999.0f;
+  auto run = [&](dvs::models::CogVideoXTransformer& tr) {
+    return tr.forward(dvs::Tensor::upload(ctx(), lat), dvs::Tensor::upload(ctx(), txt), std::span<const float>(&t, 1))
+        .download(ctx())
+        .to_f32();
+  };
+  dvs::models::CogVideoXTransformer with_lora(ctx(), dir);
+  const auto base = run(with_lora);
+  with_lora.set_lora(dvs::models::load_lora(ctx(), tmp / "lora.safetensors", user_scale));
+  const auto ours = run(with_lora);
+  dvs::models::CogVideoXTransformer by_hand(ctx(), tmp / "merged");
+  const auto ref = run(by_hand);
+  double max_err = 0, max_effect = 0;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    max_err = std::max(max_err, std::fabs(double(ours[i]) - double(ref[i])));
+    max_effect = std::max(max_effect, std::fabs(double(ref[i]) - double(base[i])));
+    EXPECT_LE(std::fabs(double(ours[i]) - double(ref[i])), 1e-5 + 1e-4 * std::fabs(double(ref[i]))) << i;
+  }
+  std::cout << "[lora] unmerged vs merged by hand: max |err| " << max_err << "; LoRA moves the output by up to "
+            << max_effect << "\n";
+  EXPECT_GT(max_effect, 1e-2) << "the LoRA must change the output";
+  with_lora.clear_lora();
+  const auto again = run(with_lora);
+  for (size_t i = 0; i < base.size(); ++i) ASSERT_EQ(again[i], base[i]);
+  EXPECT_THROW(with_lora.set_lora({{"transformer_blocks.0.ff.net.2", dvs::models::LoraAdapter{}}}), dvs::Error);
+  fs::remove_all(tmp);
 }

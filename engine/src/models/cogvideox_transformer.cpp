@@ -54,6 +54,10 @@ CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann:
   r.flip_sin_to_cos = cfg_bool(c, "flip_sin_to_cos", true, origin);
   if (c.contains("freq_shift") && c["freq_shift"].is_number()) r.freq_shift = c["freq_shift"].get<float>();
   if (c.contains("norm_eps") && c["norm_eps"].is_number()) r.norm_eps = c["norm_eps"].get<float>();
+  if (c.contains("spatial_interpolation_scale") && c["spatial_interpolation_scale"].is_number())
+    r.spatial_interpolation_scale = c["spatial_interpolation_scale"].get<float>();
+  if (c.contains("temporal_interpolation_scale") && c["temporal_interpolation_scale"].is_number())
+    r.temporal_interpolation_scale = c["temporal_interpolation_scale"].get<float>();
   r.norm_affine = cfg_bool(c, "norm_elementwise_affine", true, origin);
   r.attention_bias = cfg_bool(c, "attention_bias", true, origin);
   r.rotary = cfg_bool(c, "use_rotary_positional_embeddings", false, origin);
@@ -73,7 +77,7 @@ CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann:
 }
 
 struct CogVideoXTransformer::Activations {
-  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj;
+  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj, lora_tmp;
   std::vector<Tensor> mod1, mod2;
 };
 
@@ -131,40 +135,70 @@ const std::pair<Tensor, Tensor>& CogVideoXTransformer::rope_tables(int64_t F, in
       .first->second;
 }
 
+HostTensor cogvideox_sincos_pos_embedding(const CogVideoXTransformerConfig& cfg, int64_t F, int64_t H, int64_t W) {
+  const int64_t D = cfg.dim(), p = cfg.patch_size, Hp = H / p, Wp = W / p, L = cfg.max_text_seq_length;
+  if (D % 16 != 0) throw Error("CogVideoX sincos positional embedding: the width " + std::to_string(D) + " must be a multiple of 16");
+  const int64_t Dt = D / 4, Dh = 3 * D / 8;  // temporal part, and each of the two spatial halves
+  HostTensor out({L + F * Hp * Wp, D}, DType::f32);
+  float* o = out.as<float>();
+  std::fill(o, o + out.numel(), 0.0f);
+  // get_1d_sincos_pos_embed_from_grid: omega = 1 / 10000^(k / (e/2)) in fp64, [sin(pos·omega) | cos(pos·omega)].
+  auto put_1d = [](float* dst, int64_t e, float pos) {
+    const int64_t half = e / 2;
+    for (int64_t k = 0; k < half; ++k) {
+      const double omega = 1.0 / std::pow(10000.0, double(k) / (double(e) / 2.0));
+      const double a = double(pos) * omega;
+      dst[k] = float(std::sin(a));
+      dst[half + k] = float(std::cos(a));
+    }
+  };
+  for (int64_t f = 0; f < F; ++f)
+    for (int64_t i = 0; i < Hp; ++i)
+      for (int64_t j = 0; j < Wp; ++j) {
+        float* row = o + (L + (f * Hp + i) * Wp + j) * D;
+        // Grids are fp32 aranges divided by the interpolation scales; the spatial grid's first plane is w.
+        put_1d(row, Dt, float(f) / cfg.temporal_interpolation_scale);
+        put_1d(row + Dt, Dh, float(j) / cfg.spatial_interpolation_scale);
+        put_1d(row + Dt + Dh, Dh, float(i) / cfg.spatial_interpolation_scale);
+      }
+  return out;
+}
+
 const Tensor& CogVideoXTransformer::positional_embedding(int64_t F, int64_t H, int64_t W, int64_t L) {
   const auto key = std::make_tuple(F, H, W, L);
   if (auto it = pos_.find(key); it != pos_.end()) return it->second;
   Tensor t;
   if (cfg_.learned_pos) {
-    // diffusers CogVideoXPatchEmbed: the learned table needs the config's spatial size; it is used as-is when
-    // (F - 1) * temporal_compression + 1 == sample_frames, and the whole [1, L_max + N, D] table is added, so
-    // the text must be max_text_seq_length long. Other frame counts switch to a 3D sincos table there.
+    // diffusers CogVideoXPatchEmbed: a learned table needs the config's spatial size; the whole
+    // [1, L_max + N, D] table is added, so the text must be max_text_seq_length long.
     if (H != cfg_.sample_height || W != cfg_.sample_width)
       throw Error("CogVideoX transformer: latent " + std::to_string(H) + "x" + std::to_string(W) +
                   " differs from the learned positional embedding's " + std::to_string(cfg_.sample_height) + "x" +
                   std::to_string(cfg_.sample_width) + " (diffusers rejects other resolutions for this model)");
-    if ((F - 1) * cfg_.temporal_compression_ratio + 1 != cfg_.sample_frames)
-      throw Error("CogVideoX transformer: " + std::to_string(F) + " latent frames differ from the config's sample_frames " +
-                  std::to_string(cfg_.sample_frames) +
-                  " (diffusers then replaces the learned table by a 3D sincos one, which this port does not implement)");
     if (L != cfg_.max_text_seq_length)
       throw Error("CogVideoX transformer: text length " + std::to_string(L) + " must equal max_text_seq_length " +
-                  std::to_string(cfg_.max_text_seq_length) + " (the learned positional embedding covers exactly it)");
+                  std::to_string(cfg_.max_text_seq_length) + " (the positional embedding covers exactly it)");
     const int64_t p = cfg_.patch_size, S = L + F * (H / p) * (W / p);
-    const Tensor& stored = weights_.get("patch_embed.pos_embedding", {1, S, cfg_.dim()});
     t = Tensor::empty(ctx_, {S, cfg_.dim()}, DType::f32, "positional embedding");
-    ops::run_now(ctx_, [&](vk::Recorder& rec) {
-      if (stored.dtype() == DType::f32)
-        rec.copy(stored.buffer(), t.buffer(), t.bytes());
-      else
-        ops::cast(rec, stored, t);
-    });
+    if ((F - 1) * cfg_.temporal_compression_ratio + 1 == cfg_.sample_frames) {
+      const Tensor& stored = weights_.get("patch_embed.pos_embedding", {1, S, cfg_.dim()});
+      ops::run_now(ctx_, [&](vk::Recorder& rec) {
+        if (stored.dtype() == DType::f32)
+          rec.copy(stored.buffer(), t.buffer(), t.bytes());
+        else
+          ops::cast(rec, stored, t);
+      });
+    } else {
+      // Another frame count: diffusers recomputes the table as 3D sincos (learned values unused).
+      t.write(ctx_, cogvideox_sincos_pos_embedding(cfg_, F, H, W));
+    }
   }
   return pos_.emplace(key, t).first->second;
 }
 
 CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p,
-                                                             int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) {
+                                                             int64_t B, int64_t F, int64_t H, int64_t W, int64_t L,
+                                                             int64_t lora_rank) {
   const int64_t D = cfg.dim(), T = cfg.time_embed_dim, ps = cfg.patch_size;
   const int64_t N = F * (H / ps) * (W / ps), S = L + N;
   Activations a;
@@ -192,18 +226,49 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTran
     a.ff = Tensor::on(a.work.buffer(), {B, S, 4 * D}, DType::f32);
   }
   a.proj = p.make({B, N, ps * ps * cfg.out_channels});
+  if (lora_rank > 0) a.lora_tmp = p.make({B * S, lora_rank});
   return a;
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
-                                           int64_t F, int64_t H, int64_t W, int64_t L) {
+                                           int64_t F, int64_t H, int64_t W, int64_t L, int64_t lora_rank) {
   ActivationPlan p(alignment);
-  plan(config, p, B, F, H, W, L);
+  plan(config, p, B, F, H, W, L, lora_rank);
   return p.bytes();
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
-  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L);
+  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_);
+}
+
+void CogVideoXTransformer::set_lora(std::map<std::string, LoraAdapter> adapters) {
+  const int64_t D = cfg_.dim();
+  int64_t rank = 0;
+  for (const auto& [name, ad] : adapters) {
+    bool known = false;
+    for (int64_t i = 0; i < cfg_.num_layers && !known; ++i)
+      for (const char* m : {"attn1.to_q", "attn1.to_k", "attn1.to_v", "attn1.to_out.0"})
+        if (name == blk(i) + m) known = true;
+    if (!known)
+      throw Error("LoRA: module '" + name + "' is not an attention projection of this transformer (supported: " +
+                  "transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}, i < " + std::to_string(cfg_.num_layers) + ")");
+    if (ad.down.shape() != Shape{ad.rank, D} || ad.up.shape() != Shape{D, ad.rank} || ad.up.dtype() != DType::f32)
+      throw Error("LoRA: module '" + name + "' has A " + ad.down.describe() + " and B " + ad.up.describe() +
+                  ", expected A [rank, " + std::to_string(D) + "] and f32 B [" + std::to_string(D) + ", rank]");
+    rank = std::max(rank, ad.rank);
+  }
+  lora_ = std::move(adapters);
+  lora_rank_ = rank;
+}
+
+void CogVideoXTransformer::clear_lora() {
+  lora_.clear();
+  lora_rank_ = 0;
+}
+
+const LoraAdapter* CogVideoXTransformer::lora(const std::string& module) const {
+  auto it = lora_.find(module);
+  return it == lora_.end() ? nullptr : &it->second;
 }
 
 void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text,
@@ -234,7 +299,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   const Tensor& pos = pos_it->second;
 
   ActivationPlan plan_(arena);
-  Activations a = plan(cfg_, plan_, B, F, H, W, L);
+  Activations a = plan(cfg_, plan_, B, F, H, W, L, lora_rank_);
   size_t tap_i = 0;
   auto tap = [&](const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[tap_i].buffer(), t.bytes());
@@ -299,7 +364,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
 
   const Tensor h_video = element_range(a.h, L * D, B * S * D - L * D);
   // y += gate ⊙ (x·Wᵀ + b) per row set: text rows gate from column 5D (enc_gate), video rows from 2D (gate).
-  auto gated_residual = [&](const Tensor& x, int64_t k, const std::string& lin, const Tensor& table) {
+  auto gated_residual_with = [&](const Tensor& x, int64_t k, const Tensor& weight, const Tensor& bias, const Tensor& table) {
     const int64_t xn = B * S * k;
     for (int set = 0; set < 2; ++set) {
       const int64_t first = set == 0 ? 0 : L, rows = set == 0 ? L : N;
@@ -315,12 +380,22 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
       const int64_t gate_col = set == 0 ? 5 * D : 2 * D;
       const Tensor y = set == 0 ? a.h : h_video;
       ops::LinearEpilogue e;
-      e.bias = w(lin + ".bias");
+      e.bias = bias;
       e.gate = element_range(table, gate_col, B * 6 * D - gate_col);
       e.residual = y;
-      ops::linear_batched(rec, element_range(x, first * k, xn - first * k), w(lin + ".weight"), y, s, e);
+      ops::linear_batched(rec, element_range(x, first * k, xn - first * k), weight, y, s, e);
     }
   };
+  auto gated_residual = [&](const Tensor& x, int64_t k, const std::string& lin, const Tensor& table) {
+    gated_residual_with(x, k, w(lin + ".weight"), w(lin + ".bias"), table);
+  };
+  // LoRA down projection t = x·Aᵀ into the scratch [B·S, rank] (as a contiguous [B·S, r] view).
+  auto lora_down = [&](const Tensor& x2d, const LoraAdapter& ad) {
+    const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * S, ad.rank}, DType::f32);
+    ops::linear(rec, x2d, ad.down, t);
+    return t;
+  };
+
   auto adaln = [&](const std::string& norm, const Tensor& table) {
     ops::Modulation m;
     m.table = table;
@@ -351,8 +426,17 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
       s.y_row_stride = 3 * D;
       ops::LinearEpilogue e;
       e.bias = bias_of(b + "attn1." + proj[j] + ".bias");
-      ops::linear_batched(rec, xn2d, w(b + "attn1." + proj[j] + ".weight"),
-                          element_range(a.qkv, j * D, a.qkv.numel() - j * D), s, e);
+      const Tensor y = element_range(a.qkv, j * D, a.qkv.numel() - j * D);
+      ops::linear_batched(rec, xn2d, w(b + "attn1." + proj[j] + ".weight"), y, s, e);
+      if (const LoraAdapter* ad = lora(b + "attn1." + proj[j])) {
+        // y += (x·Aᵀ)·(scale·B)ᵀ, before the q/k norms as in diffusers' LoRA-wrapped Linear.
+        const Tensor t = lora_down(xn2d, *ad);
+        ops::LinearShape ls = s;
+        ls.k = ad->rank;
+        ops::LinearEpilogue le;
+        le.residual = y;
+        ops::linear_batched(rec, t, ad->up, y, ls, le);
+      }
     }
     ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, 0, w(b + "attn1.norm_q.weight"), w(b + "attn1.norm_q.bias"), 1e-6f);
     ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, D, w(b + "attn1.norm_k.weight"), w(b + "attn1.norm_k.bias"), 1e-6f);
@@ -362,6 +446,8 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     ops::attention(rec, ashape, ops::fused_qkv_operand(qkv3, 0, nh, Dh), ops::fused_qkv_operand(qkv3, 1, nh, Dh),
                    ops::fused_qkv_operand(qkv3, 2, nh, Dh), ops::AttentionOperand{a.attn}, aopt);
     gated_residual(a.attn, D, b + "attn1.to_out.0", mod1);
+    if (const LoraAdapter* ad = lora(b + "attn1.to_out.0"))  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
+      gated_residual_with(lora_down(a.attn.reshape({B * S, D}), *ad), ad->rank, ad->up, Tensor(), mod1);
 
     adaln(b + "norm2.norm", mod2);
     ops::LinearEpilogue e;

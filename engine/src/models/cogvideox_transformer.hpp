@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "models/lora.hpp"
 #include "models/weights.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"
@@ -41,6 +42,7 @@ struct CogVideoXTransformerConfig {
   bool flip_sin_to_cos = true;
   float freq_shift = 0.0f;
   float norm_eps = 1e-5f;
+  float spatial_interpolation_scale = 1.875f, temporal_interpolation_scale = 1.0f;
   bool norm_affine = true;
   bool attention_bias = true;
   bool rotary = true, learned_pos = false;
@@ -58,6 +60,13 @@ struct CogVideoXTaps {
   HostTensor norm_final;                  // [B, N, D]
   HostTensor proj_out;                    // [B, N, p*p*out_channels]
 };
+
+// diffusers CogVideoXPatchEmbed._get_positional_embeddings: the 3D sincos table [max_text_seq_length + N, D]
+// (text rows zero) for a latent of `frames` x `height` x `width`, as get_3d_sincos_pos_embed(output_type="pt")
+// computes it (grids in fp32, frequencies and sin/cos in fp64, rounded to fp32): per video token
+// [temporal (D/4) | w (3D/8) | h (3D/8)], each part [sin | cos]. D must be a multiple of 16.
+HostTensor cogvideox_sincos_pos_embedding(const CogVideoXTransformerConfig& config, int64_t frames, int64_t height,
+                                          int64_t width);
 
 class CogVideoXTransformer {
  public:
@@ -83,19 +92,27 @@ class CogVideoXTransformer {
   uint64_t arena_bytes(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
   // The same from a config alone (memory planning without weights); `alignment`: the allocator's.
   static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
-                              int64_t frames, int64_t height, int64_t width, int64_t text_len);
+                              int64_t frames, int64_t height, int64_t width, int64_t text_len, int64_t lora_rank = 0);
+
+  // LoRA on the attention projections (transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}), applied as two
+  // extra GEMMs per adapted projection (see models/lora.hpp). Replaces any previous set; an adapter on another
+  // module or with mismatched shapes is an error naming it.
+  void set_lora(std::map<std::string, LoraAdapter> adapters);
+  void clear_lora();
 
   // Device RoPE tables (cos, sin) f32 [F*Hp*Wp, head_dim] for a latent F×H×W (cached).
   const std::pair<Tensor, Tensor>& rope_tables(int64_t frames, int64_t height, int64_t width);
   // The f32 positional embedding [L + N, D] added after the patch embedding for latent F×H×W, as diffusers'
-  // CogVideoXPatchEmbed chooses it (the learned table at the config's sample size). Undefined tensor when the
-  // model uses none. Throws for sizes diffusers rejects or that this port does not support.
+  // CogVideoXPatchEmbed chooses it: the learned table when (F - 1)·temporal_compression + 1 == sample_frames,
+  // else the 3D sincos table of that size. Undefined tensor when the model uses none (5B T2V). Throws for
+  // sizes diffusers rejects (H, W other than the config's; text length other than max_text_seq_length).
   const Tensor& positional_embedding(int64_t frames, int64_t height, int64_t width, int64_t text_len);
 
  private:
   struct Activations;
   static Activations plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p, int64_t B, int64_t F, int64_t H,
-                          int64_t W, int64_t L);
+                          int64_t W, int64_t L, int64_t lora_rank);
+  const LoraAdapter* lora(const std::string& module) const;
   void check_weights();
 
   vk::Context& ctx_;
@@ -103,6 +120,8 @@ class CogVideoXTransformer {
   CogVideoXTransformerConfig cfg_;
   std::map<std::tuple<int64_t, int64_t, int64_t>, std::pair<Tensor, Tensor>> rope_;
   std::map<std::tuple<int64_t, int64_t, int64_t, int64_t>, Tensor> pos_;
+  std::map<std::string, LoraAdapter> lora_;
+  int64_t lora_rank_ = 0;  // largest rank in lora_
   std::unique_ptr<vk::Arena> arena_;
 };
 
