@@ -7,5 +7,7 @@ namespace dvs::cli {
 
 int run_info(const std::vector<std::string>& args);
 int run_render(const std::vector<std::string>& args);
+int run_run(const std::vector<std::string>& args);
+int run_demo(const std::vector<std::string>& args);
 
 }  // namespace dvs::cli

@@ -18,6 +18,8 @@ const char* kUsage =
     "usage: dvs <command> [options]\n"
     "\n"
     "commands:\n"
+    "  demo            run the whole pipeline on a generated scene with a tiny random model\n"
+    "  run             re-render a video along a new camera path (the whole pipeline)\n"
     "  info            list the Vulkan devices, their features, memory and limits\n"
     "  render          geometry only: a video seen along a new camera path, plus its visibility mask\n"
     "\n"
@@ -58,6 +60,8 @@ int main(int argc, char** argv) {
     std::vector<std::string> rest(args.begin() + 1, args.end());
     if (cmd == "info") return dvs::cli::run_info(rest);
     if (cmd == "render") return dvs::cli::run_render(rest);
+    if (cmd == "run") return dvs::cli::run_run(rest);
+    if (cmd == "demo") return dvs::cli::run_demo(rest);
     std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
     return 2;
   } catch (const dvs::Error& e) {

@@ -1,0 +1,63 @@
+#include "progress.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "dvs/error.hpp"
+
+namespace dvs::cli {
+
+ProgressMode parse_progress_mode(const std::string& value, bool quiet) {
+  if (quiet) return ProgressMode::quiet;
+  if (value.empty() || value == "bar") return ProgressMode::bar;
+  if (value == "json") return ProgressMode::json;
+  if (value == "none") return ProgressMode::quiet;
+  throw Error("--progress must be bar, json or none");
+}
+
+Progress::Progress(ProgressMode mode) : mode_(mode), tty_(isatty(fileno(stderr))) {}
+
+void Progress::operator()(const std::string& stage, int step, int total, const std::string& note) {
+  auto now = std::chrono::steady_clock::now();
+  if (stage != stage_) {
+    finish();
+    stage_ = stage;
+    stage_start_ = now;
+  }
+  double elapsed = std::chrono::duration<double>(now - stage_start_).count();
+  if (mode_ == ProgressMode::quiet) return;
+  if (mode_ == ProgressMode::json) {
+    nlohmann::json j{{"stage", stage}, {"step", step}, {"total", total}, {"elapsed_s", elapsed}, {"note", note}};
+    std::fprintf(stdout, "%s\n", j.dump().c_str());
+    std::fflush(stdout);
+    return;
+  }
+  std::string line;
+  char buf[256];
+  if (total > 0) {
+    const int width = 24, filled = width * step / total;
+    double eta = step > 0 ? elapsed / step * (total - step) : 0;
+    std::snprintf(buf, sizeof buf, "%-10s [%s%s] %d/%d  %.1fs, ETA %.1fs  %s", stage.c_str(),
+                  std::string(size_t(filled), '#').c_str(), std::string(size_t(width - filled), '.').c_str(), step, total,
+                  elapsed, eta, note.c_str());
+  } else {
+    std::snprintf(buf, sizeof buf, "%-10s %s", stage.c_str(), note.c_str());
+  }
+  line = buf;
+  if (tty_) {
+    std::fprintf(stderr, "\r\033[K%s", line.c_str());
+    open_line_ = true;
+  } else {
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+  std::fflush(stderr);
+}
+
+void Progress::finish() {
+  if (open_line_) std::fprintf(stderr, "\n");
+  open_line_ = false;
+}
+
+}  // namespace dvs::cli

@@ -1,0 +1,103 @@
+#include "pipeline/inversion_cache.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+
+#include "dvs/error.hpp"
+#include "io/npy.hpp"
+
+namespace dvs {
+namespace {
+
+struct Fnv {
+  uint64_t h = 1469598103934665603ull;
+  void add(const void* p, size_t n) {
+    const auto* b = static_cast<const uint8_t*>(p);
+    for (size_t i = 0; i < n; ++i) {
+      h ^= b[i];
+      h *= 1099511628211ull;
+    }
+  }
+  void add(const std::string& s) {
+    add(s.data(), s.size());
+    add("\0", 1);
+  }
+  std::string hex() const {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+  }
+};
+
+}  // namespace
+
+InversionCache::InversionCache(std::filesystem::path dir) : dir_(std::move(dir)) {
+  if (dir_.empty()) {
+    if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir_ = d;
+    else if (const char* home = std::getenv("HOME"); home && *home) dir_ = std::filesystem::path(home) / ".cache" / "dvs";
+    else dir_ = std::filesystem::temp_directory_path() / "dvs-cache";
+    dir_ /= "inversions";
+  }
+}
+
+std::string InversionCache::key(const std::vector<std::string>& parts) {
+  Fnv f;
+  for (const auto& p : parts) f.add(p);
+  return f.hex();
+}
+
+std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / ("eps_inv-" + key + ".npy"); }
+
+Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape) const {
+  std::error_code ec;
+  if (!std::filesystem::exists(file(key), ec)) return {};
+  try {
+    HostTensor h = read_npy(file(key));
+    if (h.shape != shape || h.dtype != DType::f32) return {};
+    return Tensor::upload(ctx, h, "cached inversion");
+  } catch (const Error&) {
+    return {};  // a damaged cache file is as good as none
+  }
+}
+
+void InversionCache::store(vk::Context& ctx, const std::string& key, const Tensor& latent) const {
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  try {
+    write_npy(file(key), latent.download(ctx));
+  } catch (const Error&) {
+    // An unwritable cache only costs time on the next run.
+  }
+}
+
+std::string model_fingerprint(const std::filesystem::path& model) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(model))
+    if (e.is_regular_file()) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  Fnv f;
+  for (const auto& p : files) {
+    const std::string ext = p.extension().string();
+    if (ext != ".json" && ext != ".safetensors" && ext != ".model") continue;
+    f.add(std::filesystem::relative(p, model).string());
+    std::ifstream in(p, std::ios::binary);
+    const uint64_t size = std::filesystem::file_size(p);
+    f.add(&size, sizeof size);
+    std::string head(size_t(std::min<uint64_t>(size, ext == ".safetensors" ? 1u << 20 : 16u << 20)), '\0');
+    in.read(head.data(), std::streamsize(head.size()));
+    f.add(head.data(), size_t(in.gcount()));
+  }
+  return f.hex();
+}
+
+std::string tensor_fingerprint(vk::Context& ctx, const Tensor& t) {
+  HostTensor h = t.download(ctx);
+  Fnv f;
+  f.add(shape_str(h.shape));
+  f.add(h.data.data(), h.data.size());
+  return f.hex();
+}
+
+}  // namespace dvs

@@ -1,0 +1,60 @@
+#include "pipeline/run_record.hpp"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "dvs/error.hpp"
+#include "dvs/info.hpp"
+
+namespace dvs {
+
+void write_run_record(const std::filesystem::path& path, const RunOptions& o, const RunReport& r, const RunRecordExtras& x) {
+  nlohmann::ordered_json j;
+  j["dvs_version"] = version();
+  j["device"] = x.device;
+  j["driver"] = x.driver;
+  j["inputs"] = {{"video", o.render.video.string()}, {"depth", o.render.depth.string()},
+                 {"depth_values", o.render.metric_depth ? "depth" : "disparity"}, {"trajectory", o.render.trajectory},
+                 {"model", o.model.string()}, {"model_hash", x.model_hash}};
+  j["settings"] = {{"preset", o.preset},
+                   {"prompt", o.prompt},
+                   {"negative_prompt", x.negative_prompt},
+                   {"frames", o.render.frames},
+                   {"height", o.render.height},
+                   {"width", o.render.width},
+                   {"resize", o.render.squash ? "squash" : "crop"},
+                   {"steps", x.steps},
+                   {"strength", x.strength},
+                   {"t0", x.t0},
+                   {"sampling_steps_run", x.sampling_steps},
+                   {"inversion_steps", x.inversion_steps},
+                   {"k", o.k},
+                   {"delta", x.delta},
+                   {"guidance", o.guidance},
+                   {"seed", o.seed},
+                   {"cache", o.use_cache}};
+  j["slm_source_fell_back_to_visible"] = x.slm_source_fell_back;
+  j["inversion_from_cache"] = r.inversion_from_cache;
+  nlohmann::ordered_json stages = nlohmann::ordered_json::object();
+  double total = 0;
+  for (const auto& s : r.stages) {
+    stages[s.stage] = s.seconds;
+    total += s.seconds;
+  }
+  j["seconds"] = stages;
+  j["seconds_total"] = total;
+  j["peak_device_bytes"] = r.peak_device_bytes;
+  j["outputs"] = {{"output", r.output_mp4.filename().string()}, {"render", r.render_mp4.filename().string()},
+                  {"mask", r.mask_mp4.filename().string()}, {"comparison", r.comparison_mp4.filename().string()}};
+  const auto tmp = path.string() + ".partial-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp);
+    out << j.dump(2) << "\n";
+    if (!out) throw Error(path.string() + ": cannot write run.json");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+}  // namespace dvs
