@@ -92,11 +92,25 @@ std::string model_fingerprint(const std::filesystem::path& model) {
   return f.hex();
 }
 
-std::string tensor_fingerprint(vk::Context& ctx, const Tensor& t) {
-  HostTensor h = t.download(ctx);
+std::string file_fingerprint(const std::filesystem::path& path) {
+  std::vector<std::filesystem::path> files;
+  if (std::filesystem::is_directory(path)) {
+    for (const auto& e : std::filesystem::recursive_directory_iterator(path))
+      if (e.is_regular_file()) files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+  } else {
+    files.push_back(path);
+  }
   Fnv f;
-  f.add(shape_str(h.shape));
-  f.add(h.data.data(), h.data.size());
+  std::vector<char> buf(1 << 20);
+  for (const auto& p : files) {
+    f.add(p.filename().string());
+    std::ifstream in(p, std::ios::binary);
+    while (in) {
+      in.read(buf.data(), std::streamsize(buf.size()));
+      f.add(buf.data(), size_t(in.gcount()));
+    }
+  }
   return f.hex();
 }
 

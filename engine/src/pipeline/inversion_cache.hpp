@@ -24,7 +24,7 @@ class InversionCache {
 
 // A stable fingerprint of a model folder: every JSON config and every weight file's size and header.
 std::string model_fingerprint(const std::filesystem::path& model);
-// A fingerprint of a tensor's bytes (downloads it).
-std::string tensor_fingerprint(vk::Context& ctx, const Tensor& t);
+// A fingerprint of a file's bytes, or of every file below a folder (depth image sequences).
+std::string file_fingerprint(const std::filesystem::path& path);
 
 }  // namespace dvs

@@ -206,9 +206,15 @@ RunReport run_pipeline(const RunOptions& o, const ProgressFn& progress) {
       st.official ? diffusion::inversion_steps_official(diffusion::DDIMInverseSchedule(schedule.config()), st.inversion_steps)
                   : diffusion::inversion_steps_paper(schedule, t0, st.inversion_steps);
   InversionCache cache(o.cache_dir);
-  const std::string key = InversionCache::key({model_fingerprint(o.model), tensor_fingerprint(ctx, x0_mean),
-                                               tensor_fingerprint(ctx, image_latent), o.preset,
-                                               std::to_string(st.inversion_steps), std::to_string(t0)});
+  // Keyed by what determines x0 and the image latent (the splat's float atomics may reorder sums, so the
+  // rendered bytes themselves are not a stable key).
+  const RenderJob& j = o.render;
+  const std::string key = InversionCache::key(
+      {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
+       std::to_string(F) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
+       j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft",
+       std::to_string(j.fx) + "," + std::to_string(j.fy) + "," + std::to_string(j.cx) + "," + std::to_string(j.cy),
+       o.preset, std::to_string(st.inversion_steps), std::to_string(t0)});
   Tensor eps_inv;
   if (o.use_cache) eps_inv = cache.load(ctx, key, lat);
   report.inversion_from_cache = eps_inv.defined();
