@@ -92,6 +92,14 @@ std::pair<int, int> Args::size(const std::string& name, std::pair<int, int> fall
   return {h, w};
 }
 
+std::pair<int, int> Args::working_size(std::pair<int, int> fallback) const {
+  const bool dims = has("height") || has("width");
+  if (has("size") && dims) fail("give either --size HxW or --height H --width W, not both");
+  if (!dims) return size("size", fallback);
+  if (!has("height") || !has("width")) fail("--height and --width go together (or use --size HxW)");
+  return {integer("height", 0, 8, 1 << 16), integer("width", 0, 8, 1 << 16)};
+}
+
 std::vector<double> Args::numbers(const std::string& name, size_t count) const {
   std::vector<double> out;
   std::string s = str(name);

@@ -23,9 +23,11 @@ class Args {
   // "480x720" -> (480, 720)
   std::pair<int, int> size(const std::string& name, std::pair<int, int> fallback) const;
   std::vector<double> numbers(const std::string& name, size_t count) const;  // "a,b,c,d"
+  // The working size from --size HxW or from --height H --width W (both, and not with --size).
+  std::pair<int, int> working_size(std::pair<int, int> fallback) const;
+  [[noreturn]] void fail(const std::string& what) const;  // "dvs <command>: <what> (see dvs <command> --help)"
 
  private:
-  [[noreturn]] void fail(const std::string& what) const;
   std::string command_;
   bool help_ = false;
   std::map<std::string, std::string> values_;

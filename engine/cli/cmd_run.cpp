@@ -1,15 +1,18 @@
 // `dvs run` (the whole pipeline on the user's video) and `dvs demo` (the same on a generated scene and a
 // tiny random model).
+#include <cmath>
 #include <iostream>
+#include <tuple>
 
 #include "args.hpp"
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
+#include "interrupt.hpp"
 #include "progress.hpp"
+#include "run_command.hpp"
 
 namespace dvs::cli {
-namespace {
 
 const char* kRunHelp =
     "usage: dvs run --video V --depth D --model DIR --prompt TEXT --out DIR [options]\n"
@@ -19,7 +22,8 @@ const char* kRunHelp =
     "new view. Writes DIR/output.mp4, render.mp4, mask.mp4, comparison.mp4 (input | render | output) and run.json.\n"
     "\n"
     "inputs (as dvs render): --video --depth --metric-depth --trim-depth --trajectory --frames (4k+1, default 49)\n"
-    "  --size HxW (default 480x720; a model with learned positional embeddings needs its own size)\n"
+    "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
+    "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
     "  --resize crop|squash  --intrinsics fx,fy,cx,cy  --points\n"
     "  --model DIR           model folder laid out like THUDM/CogVideoX-5b-I2V\n"
     "  --prompt TEXT         what the scene shows\n"
@@ -33,20 +37,48 @@ const char* kRunHelp =
     "  --delta D             AdaIN target order (paper 3, official 2)\n"
     "  --guidance G          classifier-free guidance scale (6)\n"
     "  --seed N              seed of every random draw (42)\n"
+    "  --lora FILE[:SCALE]   a LoRA adapter (.safetensors, diffusers/PEFT layout) on the transformer, for the\n"
+    "                        inversion and the sampling (scale 1 when not given)\n"
     "  --cache-dir DIR       inversion cache (default $DVS_CACHE_DIR or ~/.cache/dvs); --no-cache disables it\n"
+    "memory:\n"
+    "  --vae-tiling          encode and decode in overlapping spatial tiles (diffusers' enable_tiling): far less\n"
+    "                        device memory at 480x720; use it when a run stops out of device memory\n"
+    "  --vae-tile HxW        tile size in pixels (implies --vae-tiling; default half the VAE's sample size, 240x360)\n"
     "other:\n"
     "  --device I|NAME       Vulkan device\n"
-    "  --progress bar|json|none   progress output (default bar); --quiet = none\n";
+    "  --progress bar|json|none   progress output (default bar); --quiet = none\n"
+    "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n";
 
 const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out", "frames", "size", "resize",
                                            "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
                                            "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
-                                           "cache-dir", "progress"};
-const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet"};
+                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile"};
+const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
 
-int execute(const RunOptions& o, ProgressMode mode) {
+namespace {
+
+// "FILE" or "FILE:SCALE" (the last ':' followed by a number; a path may hold ':' itself).
+std::pair<std::filesystem::path, double> parse_lora(const Args& a) {
+  const std::string v = a.str("lora");
+  if (const auto colon = v.rfind(':'); colon != std::string::npos) {
+    const std::string tail = v.substr(colon + 1);
+    try {
+      size_t used = 0;
+      const double scale = std::stod(tail, &used);
+      if (used == tail.size() && std::isfinite(scale)) return {v.substr(0, colon), scale};
+    } catch (const std::logic_error&) {
+    }
+  }
+  return {v, 1.0};
+}
+
+}  // namespace
+
+ProgressMode progress_mode(const Args& a) { return parse_progress_mode(a.str("progress"), a.has("quiet")); }
+
+int execute_run(const RunOptions& o, ProgressMode mode) {
   Progress progress(mode);
-  RunReport r = run_pipeline(o, std::ref(progress));
+  RunReport r = run_pipeline(o, std::ref(progress), interrupted);
   progress.finish();
   if (mode != ProgressMode::quiet) {
     std::cerr << "stage times:";
@@ -58,23 +90,16 @@ int execute(const RunOptions& o, ProgressMode mode) {
   return 0;
 }
 
-}  // namespace
-
-int run_run(const std::vector<std::string>& argv) {
-  Args a("run", argv, kRunOptions, kRunFlags);
-  if (a.help()) {
-    std::cout << kRunHelp;
-    return 0;
-  }
+RunOptions parse_run_options(const Args& a) {
   RunOptions o;
   o.render.video = a.required("video");
   o.render.depth = a.required("depth");
   o.render.out_dir = a.required("out");
   o.model = a.required("model");
-  o.prompt = a.required("prompt");
+  o.prompt = a.str("prompt");
   o.render.trajectory = a.str("trajectory", o.render.trajectory);
   o.render.frames = a.integer("frames", 49, 1, 100000);
-  auto [h, w] = a.size("size", {480, 720});
+  auto [h, w] = a.working_size({480, 720});
   o.render.height = h;
   o.render.width = w;
   std::string resize = a.str("resize", "crop");
@@ -100,7 +125,20 @@ int run_run(const std::vector<std::string>& argv) {
   o.seed = uint64_t(a.integer("seed", 42, 0, 2147483647));
   o.cache_dir = a.str("cache-dir");
   o.use_cache = !a.has("no-cache");
-  return execute(o, parse_progress_mode(a.str("progress"), a.has("quiet")));
+  if (a.has("lora")) std::tie(o.lora, o.lora_scale) = parse_lora(a);
+  o.vae_tiling = a.has("vae-tiling") || a.has("vae-tile");
+  if (a.has("vae-tile")) std::tie(o.vae_tile_height, o.vae_tile_width) = a.size("vae-tile", {0, 0});
+  return o;
+}
+
+int run_run(const std::vector<std::string>& argv) {
+  Args a("run", argv, kRunOptions, kRunFlags);
+  if (a.help()) {
+    std::cout << kRunHelp;
+    return 0;
+  }
+  a.required("prompt");
+  return execute_run(parse_run_options(a), progress_mode(a));
 }
 
 int run_demo(const std::vector<std::string>& argv) {
@@ -113,11 +151,11 @@ int run_demo(const std::vector<std::string>& argv) {
     return 0;
   }
   std::filesystem::path dir = a.required("out");
-  ProgressMode mode = parse_progress_mode(a.str("progress"), a.has("quiet"));
+  ProgressMode mode = progress_mode(a);
   if (mode != ProgressMode::quiet) std::cerr << "dvs demo: writing the synthetic scene and a tiny model to " << dir.string() << "\n";
   RunOptions o = prepare_demo(dir);
   o.render.device = a.str("device");
-  return execute(o, mode);
+  return execute_run(o, mode);
 }
 
 }  // namespace dvs::cli

@@ -11,6 +11,9 @@ enum class ProgressMode { bar, json, quiet };
 class Progress {
  public:
   explicit Progress(ProgressMode mode);
+  ~Progress() { finish(); }  // ends an open bar line when a job stops early
+  Progress(const Progress&) = delete;
+  Progress& operator=(const Progress&) = delete;
   void operator()(const std::string& stage, int step, int total, const std::string& note);
   void finish();
 

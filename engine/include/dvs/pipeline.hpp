@@ -27,6 +27,10 @@ struct RunOptions {
   uint64_t seed = 42;
   std::filesystem::path cache_dir;  // inversion cache; empty = $DVS_CACHE_DIR or ~/.cache/dvs
   bool use_cache = true;
+  std::filesystem::path lora;       // LoRA adapter (.safetensors, diffusers/PEFT layout) on the transformer; empty: none
+  double lora_scale = 1.0;
+  bool vae_tiling = false;          // tiled VAE encode/decode (diffusers' enable_tiling): less device memory
+  int vae_tile_height = 0, vae_tile_width = 0;  // tile in pixels; 0 = half the VAE's sample size (diffusers)
 };
 
 struct StageTime {
@@ -43,8 +47,29 @@ struct RunReport {
 
 // Progress events: stage name, step (1-based) and total steps of that stage (0 when not stepped).
 using ProgressFn = std::function<void(const std::string& stage, int step, int total, const std::string& note)>;
+// Polled at stage boundaries and before every diffusion step; true stops the job with dvs::Cancelled.
+using CancelFn = std::function<bool()>;
 
-RunReport run_pipeline(const RunOptions& options, const ProgressFn& progress = {});
+// Any failure (dvs::Error naming the stage, or dvs::Cancelled) leaves no output of this run in out_dir.
+RunReport run_pipeline(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+
+struct InversionReport {
+  std::vector<StageTime> stages;
+  bool from_cache = false;
+  std::filesystem::path eps_inv_npy;  // out_dir/eps_inv.npy: ε_inv [latent frames, C, h, w] f32
+  std::filesystem::path cache_file;   // where `dvs run` finds it (empty with use_cache = false)
+  std::vector<int64_t> shape;
+  int t0 = 0;
+};
+
+// Stages 1–5 of run_pipeline (render, VAE encode, DDIM inversion up to t0) with the same options, so a
+// later run_pipeline with those options (any prompt, guidance, k or seed) takes ε_inv from the cache.
+InversionReport run_inversion(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+
+// T5 embeddings of `prompt` exactly as the pipeline computes them ([1, max_text_seq_length, d_model] f32),
+// written to `out_npy`; returns the shape.
+std::vector<int64_t> encode_prompt(const std::filesystem::path& model, const std::string& prompt,
+                                   const std::filesystem::path& out_npy, const std::string& device = "");
 
 // Writes a synthetic RGB-D clip (video + exact metric depth) and a tiny random model into `dir`, and
 // returns options that run the whole pipeline on them in a few minutes on a CPU (lavapipe).

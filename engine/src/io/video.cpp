@@ -133,4 +133,6 @@ HostTensor hstack_videos(const std::vector<const HostTensor*>& videos) {
   return out;
 }
 
+std::string video_library_version() { return "OpenCV " + cv::getVersionString(); }
+
 }  // namespace dvs

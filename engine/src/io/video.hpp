@@ -3,6 +3,7 @@
 // an interrupted run never leaves a file that looks finished.
 #pragma once
 #include <filesystem>
+#include <string>
 
 #include "io/host_tensor.hpp"
 
@@ -32,6 +33,9 @@ HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions&
 // Frames [F,3,H,W] (RGB) or [F,1,H,W] / [F,H,W] (gray, written as RGB) in [−1,1] (values are clamped).
 // H.264 when the FFmpeg build has an encoder for it, else MPEG-4 part 2.
 void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps);
+
+// The version of the OpenCV library that reads and writes videos (for run records).
+std::string video_library_version();
 
 // Side by side: each input [F,3,H,W] with the same F and H (widths may differ).
 HostTensor hstack_videos(const std::vector<const HostTensor*>& videos);

@@ -1,5 +1,5 @@
 // run.json: everything needed to understand or repeat a run — every setting (the resolved preset values),
-// the seed, the model's fingerprint, per-stage times, peak device memory, device and versions.
+// the seed, the model's fingerprint, the LoRA, per-stage times, peak device and host memory, device and versions.
 #pragma once
 #include <filesystem>
 #include <string>
@@ -17,6 +17,7 @@ struct RunRecordExtras {
   int t0 = 0, sampling_steps = 0;
   std::string device, driver, model_hash;
   bool slm_source_fell_back = false;
+  std::string vulkan_api, opencv;  // the device's Vulkan API version, OpenCV's version
 };
 
 void write_run_record(const std::filesystem::path& path, const RunOptions& o, const RunReport& r, const RunRecordExtras& x);

@@ -1,0 +1,155 @@
+// `dvs batch`: many runs from a JSON-lines file, one process per shard, so a Slurm job array or a Kubernetes
+// indexed job spreads a data set over machines with no coordinator: shard i of n takes the jobs whose index
+// ≡ i (mod n); a job whose output.mp4 and run.json exist is skipped, so a re-run resumes.
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "args.hpp"
+#include "commands.hpp"
+#include "dvs/error.hpp"
+#include "dvs/pipeline.hpp"
+#include "run_command.hpp"
+
+namespace dvs::cli {
+namespace {
+
+const char* kBatchHelp =
+    "usage: dvs batch JOBS.jsonl [--shard I/N] [dvs run options as defaults]\n"
+    "\n"
+    "Runs every job of JOBS.jsonl: one JSON object per line whose keys are dvs run's options without the dashes,\n"
+    "e.g. {\"video\": \"a.mp4\", \"depth\": \"a_depth.npz\", \"trajectory\": \"pan_left\", \"prompt\": \"...\", \"out\": \"out/a\"}.\n"
+    "Values are strings or numbers; a flag is true/false (\"vae-tiling\": true); intrinsics may be an array.\n"
+    "dvs run options given on this command line (e.g. --model DIR --steps 30) are defaults every job can override.\n"
+    "Relative paths are relative to the current folder. Blank lines and lines starting with # are not jobs.\n"
+    "\n"
+    "  --shard I/N   run only the jobs whose index (0-based, in file order) is I modulo N (default 0/1)\n"
+    "\n"
+    "A job whose out folder holds output.mp4 and run.json is skipped. A failing job is reported and the batch goes\n"
+    "on; the exit code is 1 when any job failed. Ctrl-C stops the current job cleanly and exits with 130.\n";
+
+struct Shard {
+  int index = 0, count = 1;
+};
+
+Shard parse_shard(const std::string& v) {
+  Shard s;
+  char slash = 0, extra = 0;
+  std::istringstream in(v);
+  if (!(in >> s.index >> slash >> s.count) || slash != '/' || (in >> extra) || s.count < 1 || s.index < 0 ||
+      s.index >= s.count)
+    throw Error("dvs batch: --shard must be I/N with 0 ≤ I < N, e.g. 0/4, got '" + v + "'");
+  return s;
+}
+
+struct Job {
+  int index = 0, line = 0;  // index among jobs (what shards split), 1-based line in the file
+  nlohmann::json spec;
+};
+
+std::vector<Job> read_jobs(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw Error(file.string() + ": cannot read the jobs file");
+  std::vector<Job> jobs;
+  std::string text;
+  for (int line = 1; std::getline(in, text); ++line) {
+    const auto first = text.find_first_not_of(" \t\r");
+    if (first == std::string::npos || text[first] == '#') continue;
+    nlohmann::json spec;
+    try {
+      spec = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+      throw Error(file.string() + ":" + std::to_string(line) + ": not a JSON object (" + e.what() + ")");
+    }
+    if (!spec.is_object()) throw Error(file.string() + ":" + std::to_string(line) + ": a job must be a JSON object");
+    jobs.push_back({int(jobs.size()), line, std::move(spec)});
+  }
+  return jobs;
+}
+
+// A job's JSON object as dvs run arguments.
+std::vector<std::string> job_arguments(const nlohmann::json& spec) {
+  std::vector<std::string> args;
+  for (const auto& [key, value] : spec.items()) {
+    const std::string opt = "--" + key;
+    if (value.is_boolean()) {
+      if (value.get<bool>()) args.push_back(opt);
+    } else if (value.is_string()) {
+      args.insert(args.end(), {opt, value.get<std::string>()});
+    } else if (value.is_number()) {
+      args.insert(args.end(), {opt, value.dump()});
+    } else if (value.is_array()) {
+      std::string joined;
+      for (const auto& v : value) joined += (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>() : v.dump());
+      args.insert(args.end(), {opt, joined});
+    } else if (!value.is_null()) {
+      throw Error("\"" + key + "\" must be a string, number, boolean or array");
+    }
+  }
+  return args;
+}
+
+bool finished(const std::filesystem::path& out) {
+  return std::filesystem::exists(out / "output.mp4") && std::filesystem::exists(out / "run.json");
+}
+
+}  // namespace
+
+int run_batch(const std::vector<std::string>& argv) {
+  if (argv.empty() || argv[0] == "-h" || argv[0] == "--help") {
+    std::cout << kBatchHelp;
+    return argv.empty() ? 2 : 0;
+  }
+  const std::filesystem::path jobs_file = argv[0];
+  if (jobs_file.string().rfind("--", 0) == 0) throw Error("dvs batch: the jobs file comes first: dvs batch JOBS.jsonl [options]");
+  // The rest are defaults for every job, checked now; --shard is the batch's own.
+  std::vector<std::string> defaults;
+  std::string shard_text = "0/1";
+  for (size_t i = 1; i < argv.size(); ++i) {
+    if (argv[i] == "--shard" && i + 1 < argv.size()) shard_text = argv[++i];
+    else if (argv[i].rfind("--shard=", 0) == 0) shard_text = argv[i].substr(8);
+    else defaults.push_back(argv[i]);
+  }
+  const Shard shard = parse_shard(shard_text);
+  Args checked("batch", defaults, kRunOptions, kRunFlags);
+  if (checked.help()) {
+    std::cout << kBatchHelp;
+    return 0;
+  }
+  const std::vector<Job> jobs = read_jobs(jobs_file);
+
+  int done = 0, skipped = 0, failed = 0, mine = 0;
+  for (const Job& job : jobs) {
+    if (job.index % shard.count != shard.index) continue;
+    ++mine;
+    const std::string where = "job " + std::to_string(job.index) + " (" + jobs_file.filename().string() + ":" +
+                              std::to_string(job.line) + ")";
+    try {
+      std::vector<std::string> args = defaults;  // later values win: the job's own over the defaults
+      const auto own = job_arguments(job.spec);
+      args.insert(args.end(), own.begin(), own.end());
+      Args a("batch", args, kRunOptions, kRunFlags);
+      a.required("prompt");
+      const RunOptions o = parse_run_options(a);
+      if (finished(o.render.out_dir)) {
+        std::cout << "dvs batch: " << where << ": skipped, " << o.render.out_dir.string() << " is already done\n";
+        ++skipped;
+        continue;
+      }
+      std::cout << "dvs batch: " << where << ": running -> " << o.render.out_dir.string() << "\n" << std::flush;
+      execute_run(o, progress_mode(a));
+      ++done;
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error& e) {
+      std::cerr << "dvs batch: " << where << " failed: " << e.what() << "\n";
+      ++failed;
+    }
+  }
+  std::cout << "dvs batch: shard " << shard.index << "/" << shard.count << ": " << mine << " of " << jobs.size()
+            << " jobs: " << done << " done, " << skipped << " skipped (already done), " << failed << " failed\n";
+  return failed ? 1 : 0;
+}
+
+}  // namespace dvs::cli

@@ -1,0 +1,28 @@
+// `dvs encode-prompt`: T5 embeddings of one prompt, exactly as the pipeline computes them.
+#include <iostream>
+
+#include "args.hpp"
+#include "commands.hpp"
+#include "dvs/pipeline.hpp"
+
+namespace dvs::cli {
+
+int run_encode_prompt(const std::vector<std::string>& argv) {
+  Args a("encode-prompt", argv, {"model", "prompt", "out", "device"}, {});
+  if (a.help()) {
+    std::cout << "usage: dvs encode-prompt --model DIR --prompt TEXT --out FILE.npy [--device I|NAME]\n\n"
+                 "Tokenizes TEXT (padded to the transformer's max_text_seq_length, 226 for CogVideoX-5B-I2V) and runs\n"
+                 "the model's T5 encoder as dvs run does (no attention mask). Writes [1, L, D] float32 (.npy).\n"
+                 "--prompt \"\" gives the embedding the inversion uses.\n";
+    return 0;
+  }
+  const std::filesystem::path model = a.required("model"), out = a.required("out");
+  if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed)");
+  const auto shape = encode_prompt(model, a.str("prompt"), out, a.str("device"));
+  std::cout << "wrote " << out.string() << " [";
+  for (size_t i = 0; i < shape.size(); ++i) std::cout << (i ? "," : "") << shape[i];
+  std::cout << "]\n";
+  return 0;
+}
+
+}  // namespace dvs::cli

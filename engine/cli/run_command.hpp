@@ -1,0 +1,25 @@
+// What `dvs run`, `dvs invert` and `dvs batch` share: the run options (one parser for the command line and
+// for batch jobs) and executing one run with progress output and Ctrl-C handling.
+#pragma once
+#include <set>
+#include <string>
+
+#include "args.hpp"
+#include "dvs/pipeline.hpp"
+#include "progress.hpp"
+
+namespace dvs::cli {
+
+extern const std::set<std::string> kRunOptions;  // every --option of `dvs run` that takes a value
+extern const std::set<std::string> kRunFlags;    // and every flag
+extern const char* kRunHelp;
+
+// RunOptions from parsed arguments. --video, --depth, --model and --out are required; --prompt is read when
+// present (the caller requires it where it matters).
+RunOptions parse_run_options(const Args& a);
+ProgressMode progress_mode(const Args& a);
+
+// Runs the whole pipeline, printing progress, stage times and the files written.
+int execute_run(const RunOptions& o, ProgressMode mode);
+
+}  // namespace dvs::cli

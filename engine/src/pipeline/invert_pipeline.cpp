@@ -1,0 +1,73 @@
+// `dvs invert`: stages 1–5 of the pipeline alone, writing ε_inv and filling the cache that `dvs run` reads.
+#include "dvs/error.hpp"
+#include "dvs/pipeline.hpp"
+#include "io/npy.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "models/t5_encoder.hpp"
+#include "pipeline/job_stages.hpp"
+#include "pipeline/render_stage.hpp"
+#include "pipeline/run_outputs.hpp"
+#include "pipeline/stage_tracker.hpp"
+#include "vk/context.hpp"
+
+namespace dvs {
+namespace {
+
+InversionReport invert_stages(const RunOptions& o, StageTracker& stages) {
+  JobPlan jp = plan_job(o);
+  vk::ContextOptions copt;
+  copt.device = o.render.device;
+  vk::Context ctx(copt);
+
+  stages.begin("render", "decoding and rendering");
+  RenderedInput in = render_stage(ctx, o.render, [&](const std::string& s) { stages.say(0, 0, s); });
+  const int F = int(in.rgb.shape[0]);
+  if ((F - 1) % 4 != 0)
+    throw Error(o.render.video.string() + ": " + std::to_string(F) + " frames were decoded; the model needs 4k+1 — pass --frames");
+  stages.end();
+
+  stages.begin("encode", "VAE-encoding the render");
+  EncodedRender enc;
+  {
+    models::CogVideoXVae vae(ctx, o.model / "vae");  // freed before the transformer loads
+    enc = encode_render(ctx, vae, o, jp.settings, in);
+  }
+  stages.end();
+
+  stages.begin("text", "encoding the empty prompt");
+  Tensor text_empty;
+  {
+    models::T5Encoder t5(ctx, o.model / "text_encoder");
+    text_empty = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);
+  }
+  stages.end();
+
+  stages.begin("invert", "DDIM inversion");
+  auto transformer = load_transformer(ctx, o);
+  InversionResult inv = invert_render(ctx, *transformer, o, jp, F, enc, text_empty, stages);
+  stages.end();
+
+  stages.begin("write", "writing eps_inv.npy");
+  RunOutputs files(o.render.out_dir);
+  InversionReport report;
+  report.eps_inv_npy = files.add("eps_inv.npy");
+  write_npy(report.eps_inv_npy, inv.eps.download(ctx));
+  stages.end();
+  stages.check_cancelled();
+  files.commit();
+  report.stages = stages.times();
+  report.from_cache = inv.from_cache;
+  report.cache_file = inv.cache_file;
+  report.shape = inv.eps.shape();
+  report.t0 = jp.plan.t0();
+  return report;
+}
+
+}  // namespace
+
+InversionReport run_inversion(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
+  StageTracker stages(progress, cancelled);
+  return stages.run([&] { return invert_stages(o, stages); });
+}
+
+}  // namespace dvs

@@ -1,0 +1,116 @@
+#include "pipeline/job_stages.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include "diffusion/sampler.hpp"
+#include "dvs/error.hpp"
+#include "models/lora.hpp"
+#include "pipeline/inversion_cache.hpp"
+#include "pipeline/latent_layout.hpp"
+#include "pipeline/transformer_denoiser.hpp"
+#include "tensor/dispatch.hpp"
+#include "vk/context.hpp"
+
+namespace dvs {
+
+JobPlan plan_job(const RunOptions& o) {
+  Settings st = resolve(o);
+  if (!std::filesystem::is_directory(o.model))
+    throw Error(o.model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+  if (!o.lora.empty() && !std::filesystem::is_regular_file(o.lora))
+    throw Error(o.lora.string() + ": no such LoRA file (give --lora FILE.safetensors[:SCALE])");
+  // Cheap checks of the model before any long work.
+  diffusion::CogVideoXSchedule schedule(diffusion::load_scheduler_config(o.model));
+  diffusion::SamplingPlan plan = schedule.plan(st.steps, st.strength);
+  T5Tokenizer tokenizer = T5Tokenizer::load(o.model);
+  const int text_len = max_text_seq_length(o.model);
+  return JobPlan{std::move(st), std::move(schedule), std::move(plan), std::move(tokenizer), text_len};
+}
+
+std::optional<models::VaeTiling> vae_tiling(const RunOptions& o) {
+  if (!o.vae_tiling) return std::nullopt;
+  models::VaeTiling t;
+  t.tile_sample_min_height = o.vae_tile_height;
+  t.tile_sample_min_width = o.vae_tile_width;
+  return t;
+}
+
+EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Settings& st,
+                            const RenderedInput& in) {
+  const auto tiling = vae_tiling(o);
+  auto encode = [&](const Tensor& video) { return tiling ? vae.encode_tiled(video, *tiling) : vae.encode(video); };
+  EncodedRender e;
+  e.scaling = float(vae.config().scaling_factor);
+  e.posterior = encode(video_to_device(ctx, in.render));
+  e.x0_mean = to_diffusion_layout(ctx, e.posterior.mean, e.scaling);
+  e.x0 = st.official ? to_diffusion_layout(ctx, posterior_sample(ctx, e.posterior, o.seed, 101), e.scaling) : e.x0_mean;
+  const Shape& s = in.render.shape;  // [F,3,H,W]
+  HostTensor first({1, s[1], 1, s[2], s[3]}, DType::f32);  // frame 0
+  std::memcpy(first.data.data(), in.render.data.data(), first.bytes());
+  models::VaePosterior img_post = encode(Tensor::upload(ctx, first));
+  Tensor img0 = to_diffusion_layout(ctx, st.official ? posterior_sample(ctx, img_post, o.seed, 102) : img_post.mean, e.scaling);
+  e.image_latent = Tensor::zeros(ctx, e.x0.shape(), DType::f32, "image latent");
+  ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy(img0.buffer(), e.image_latent.buffer(), img0.bytes()); });
+  return e;
+}
+
+HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling) {
+  const auto tiling = vae_tiling(o);
+  Tensor z = to_vae_layout(ctx, latent, 1.0f / scaling);
+  HostTensor frames = video_to_host(ctx, tiling ? vae.decode_tiled(z, *tiling) : vae.decode(z));
+  for (int64_t i = 0; i < frames.numel(); ++i) frames.as<float>()[i] = std::clamp(frames.as<float>()[i], -1.0f, 1.0f);
+  return frames;
+}
+
+std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o) {
+  auto transformer = std::make_unique<models::CogVideoXTransformer>(ctx, o.model / "transformer");
+  if (!o.lora.empty()) {
+    try {
+      transformer->set_lora(models::load_lora(ctx, o.lora, float(o.lora_scale)));
+    } catch (const Error& e) {
+      throw Error("--lora " + o.lora.string() + ": " + e.what());
+    }
+  }
+  return transformer;
+}
+
+InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
+                              const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
+                              StageTracker& stages) {
+  const Settings& st = jp.settings;
+  const int t0 = jp.plan.t0();
+  // Keyed by what determines x0 and the image latent (the splat's float atomics may reorder sums, so the
+  // rendered bytes themselves are not a stable key), and by what changes the model (LoRA) or x0 (tiling).
+  const RenderJob& j = o.render;
+  const auto tiling = vae_tiling(o);
+  const std::string key = InversionCache::key(
+      {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
+       std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
+       j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft",
+       std::to_string(j.fx) + "," + std::to_string(j.fy) + "," + std::to_string(j.cx) + "," + std::to_string(j.cy),
+       o.preset, std::to_string(st.inversion_steps), std::to_string(t0),
+       o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + std::to_string(o.lora_scale),
+       tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)
+              : "untiled"});
+  InversionCache cache(o.cache_dir);
+  InversionResult r;
+  if (o.use_cache) {
+    r.cache_file = cache.file(key);
+    r.eps = cache.load(ctx, key, enc.x0_mean.shape());
+  }
+  r.from_cache = r.eps.defined();
+  if (r.from_cache) {
+    stages.say(1, 1, "inversion loaded from the cache");
+    return r;
+  }
+  std::vector<diffusion::StepCoefficients> steps =
+      st.official ? diffusion::inversion_steps_official(diffusion::DDIMInverseSchedule(jp.schedule.config()), st.inversion_steps)
+                  : diffusion::inversion_steps_paper(jp.schedule, t0, st.inversion_steps);
+  TransformerDenoiser model(ctx, transformer, enc.image_latent, text_empty, 1);
+  r.eps = diffusion::invert(ctx, enc.x0_mean, steps, std::ref(model), {false, 1.0}, stages.loop_callbacks());
+  if (o.use_cache) cache.store(ctx, key, r.eps);
+  return r;
+}
+
+}  // namespace dvs

@@ -1,0 +1,65 @@
+// The stages that `dvs run` (run_pipeline) and `dvs invert` (run_inversion) share, each implemented once:
+// planning from the options and the model's small files, VAE encoding of the render, the LoRA, the DDIM
+// inversion with its on-disk cache, and VAE decoding.
+#pragma once
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "diffusion/schedule.hpp"
+#include "dvs/pipeline.hpp"
+#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "models/tokenizer.hpp"
+#include "pipeline/render_stage.hpp"
+#include "pipeline/settings.hpp"
+#include "pipeline/stage_tracker.hpp"
+
+namespace dvs {
+
+// Everything decided before device work: checked settings, the schedule and the tokenizer.
+struct JobPlan {
+  Settings settings;
+  diffusion::CogVideoXSchedule schedule;
+  diffusion::SamplingPlan plan;
+  T5Tokenizer tokenizer;
+  int text_len = 0;
+};
+
+// Checks the options and reads the model's small files (configs, vocabulary); errors name the option or file.
+JobPlan plan_job(const RunOptions& o);
+
+// The render in latent space (diffusion layout [Fl, C, h, w]).
+struct EncodedRender {
+  models::VaePosterior posterior;  // of the whole render, VAE units
+  Tensor x0_mean;                  // scaled posterior mean: what the inversion starts from
+  Tensor x0;                       // = x0_mean (paper) or a posterior sample (official)
+  Tensor image_latent;             // frame 0's latent in latent frame 0, zeros after (CogVideoX I2V)
+  float scaling = 1;               // the VAE's scaling_factor
+};
+
+EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Settings& st,
+                            const RenderedInput& in);
+
+// latent [Fl, C, h, w] (diffusion units) -> frames [F, 3, H, W] clamped to [−1, 1] on the host.
+HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling);
+
+// The VAE tiling the options ask for (none without --vae-tiling).
+std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
+
+// Loads the transformer with the options' LoRA (if any) applied.
+std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o);
+
+struct InversionResult {
+  Tensor eps;  // ε_inv at t0, diffusion layout
+  bool from_cache = false;
+  std::filesystem::path cache_file;  // empty without the cache
+};
+
+// DDIM inversion of x0_mean up to the plan's t0 with the "" prompt embedding `text_empty`, through the on-disk
+// cache (keyed by everything ε_inv depends on, LoRA and tiling included).
+InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
+                              const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
+                              StageTracker& stages);
+
+}  // namespace dvs

@@ -1,0 +1,53 @@
+// Runs a job's stages: times each one, forwards progress, polls for cancellation at every stage boundary and
+// diffusion step, and names the stage in any error it lets through (an out-of-memory error then says where
+// memory ran out).
+#pragma once
+#include <chrono>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "diffusion/sampler.hpp"
+#include "dvs/error.hpp"
+#include "dvs/pipeline.hpp"
+
+namespace dvs {
+
+class StageTracker {
+ public:
+  StageTracker(const ProgressFn& progress, const CancelFn& cancelled);
+
+  // Starts `stage` (after checking for cancellation) and announces it with `note`.
+  void begin(const std::string& stage, const std::string& note);
+  void end();  // records the time since begin()
+  void say(int step, int total, const std::string& note) const;
+  void check_cancelled() const;  // throws dvs::Cancelled when cancellation was asked for
+  // Progress and cancellation for a diffusion loop run in the current stage.
+  diffusion::LoopCallbacks loop_callbacks() const;
+  const std::vector<StageTime>& times() const { return times_; }
+
+  // Runs the whole job: diffusion::Cancelled becomes dvs::Cancelled, any other dvs::Error thrown inside a
+  // stage is rethrown as "<stage> stage: <message>".
+  template <class Job>
+  auto run(Job&& job) -> decltype(job()) {
+    try {
+      return job();
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const diffusion::Cancelled&) {
+      throw Cancelled();
+    } catch (const Error& e) {
+      if (stage_.empty()) throw;
+      throw Error(stage_ + " stage: " + e.what());
+    }
+  }
+
+ private:
+  ProgressFn progress_;
+  CancelFn cancelled_;
+  std::string stage_;
+  std::chrono::steady_clock::time_point start_;
+  std::vector<StageTime> times_;
+};
+
+}  // namespace dvs

@@ -1,0 +1,28 @@
+// The transformer as a diffusion::Denoiser: its input is concat(x, image latent) on channels, repeated for
+// each CFG row, with its own activation arena sized for that batch.
+#pragma once
+#include <memory>
+
+#include "models/cogvideox_transformer.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/memory.hpp"
+#include "vk/recorder.hpp"
+
+namespace dvs {
+
+class TransformerDenoiser {
+ public:
+  // image_latent [F,C,H,W]; text [batch, L, D] (uncond row first when batch = 2).
+  TransformerDenoiser(vk::Context& ctx, models::CogVideoXTransformer& model, const Tensor& image_latent, const Tensor& text,
+                      int batch);
+  void operator()(vk::Recorder& rec, const Tensor& x, int t, const Tensor& v);
+
+ private:
+  vk::Context& ctx_;
+  models::CogVideoXTransformer& model_;
+  Tensor image_, text_, input_, timesteps_;
+  int batch_;
+  std::unique_ptr<vk::Arena> arena_;
+};
+
+}  // namespace dvs
