@@ -1,7 +1,9 @@
 #include "diffusion/sampler.hpp"
 
+#include <cmath>
+#include <numbers>
+
 #include "tensor/dispatch.hpp"
-#include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::diffusion {
@@ -9,32 +11,40 @@ namespace {
 
 // The latent and model-output buffers one loop needs, reused by every step.
 struct LoopBuffers {
-  Tensor x[2], v, guided, pred_x0;
+  Tensor x[2], v, pred_x0;
   LoopBuffers(vk::Context& ctx, const Tensor& start, bool cfg) {
     for (Tensor& t : x) t = Tensor::empty(ctx, start.shape(), DType::f32, "diffusion latent");
     Shape vs = start.shape();
     if (vs.size() == 5) vs.erase(vs.begin());
     vs.insert(vs.begin(), cfg ? 2 : 1);
     v = Tensor::empty(ctx, vs, DType::f32, "model output");
-    guided = cfg ? Tensor::empty(ctx, start.shape(), DType::f32, "guided model output") : v.reshape(start.shape());
     pred_x0 = Tensor::empty(ctx, start.shape(), DType::f32, "x0 prediction");
   }
 };
 
-// Records v = model(x), the guidance combination and one linear step; returns the guided output.
-const Tensor& record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, LoopBuffers& b, const Tensor& x,
-                          int model_t) {
-  model(rec, x, model_t, b.v);
-  if (g.enabled) {
-    struct {
-      uint32_t n;
-      float scale;
-    } push{uint32_t(x.numel()), float(g.scale)};
-    ops::Grid grid = ops::grid_1d(x.numel(), 64);
-    rec.dispatch(rec.context().pipelines().get("diffusion/cfg_combine"), {b.v.buffer(), b.guided.buffer()}, &push,
-                 sizeof push, grid.x, grid.y, 1, "cfg_combine");
-  }
-  return b.guided;
+// Records v = model(x), then the guidance combination and the step's linear maps as one dispatch
+// (shaders/diffusion/guided_step.comp): x_out = c.next(x, ĝ) and, when `with_pred`, pred_x0 = c.pred_x0(x, ĝ).
+// `dynamic_scale` is the scale inside the positions for GuidanceMode::dynamic.
+void record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, LoopBuffers& b, const Tensor& x,
+                 const Tensor& x_out, const StepCoefficients& c, bool with_pred, double dynamic_scale = 0) {
+  model(rec, x, c.model_t, b.v);
+  const bool dynamic = g.enabled && g.mode == GuidanceMode::dynamic;
+  struct {
+    uint32_t n, flags;
+    float scale, dynamic_scale;
+    float px, pv, nx, nv;
+  } push{uint32_t(x.numel()),
+         (g.enabled ? 1u : 0u) | (dynamic ? 2u : 0u) | (with_pred ? 4u : 0u),
+         float(dynamic ? g.preservation_scale : g.scale),
+         float(dynamic_scale),
+         float(c.pred_x0.x),
+         float(c.pred_x0.v),
+         float(c.next.x),
+         float(c.next.v)};
+  const ops::Grid grid = ops::grid_1d(x.numel(), 64);
+  rec.dispatch(rec.context().pipelines().get("diffusion/guided_step"),
+               {b.v.buffer(), x.buffer(), dynamic ? g.positions.buffer() : b.v.buffer(), x_out.buffer(), b.pred_x0.buffer()},
+               &push, sizeof push, grid.x, grid.y, 1, "guided_step");
 }
 
 void check_latent(const Tensor& x) {
@@ -42,7 +52,20 @@ void check_latent(const Tensor& x) {
     throw Error("internal: diffusion latents are f32 [F,C,H,W], got " + x.describe());
 }
 
+void check_guidance(const Guidance& g, const Tensor& latent, bool sampling) {
+  if (!g.enabled || g.mode == GuidanceMode::constant) return;
+  if (!sampling) throw Error("internal: the inversion loop takes constant guidance only");
+  if (!g.positions.defined() || g.positions.dtype() != DType::f32 || g.positions.numel() != latent.numel())
+    throw Error("internal: dynamic guidance needs f32 positions of the latent's size " + latent.describe() + ", got " +
+                (g.positions.defined() ? g.positions.describe() : std::string("none")));
+}
+
 }  // namespace
+
+double dynamic_guidance_scale(double g, int t, int num_steps) {
+  const double N = num_steps;
+  return g + 2.0 - (1.0 + g * (1.0 - std::cos(std::numbers::pi * std::pow((N - double(t)) / N, 5.0))) / 2.0);
+}
 
 std::vector<StepCoefficients> inversion_steps_paper(const CogVideoXSchedule& s, int t0, int num_steps, bool model_at_target) {
   std::vector<StepCoefficients> out;
@@ -65,6 +88,7 @@ std::vector<StepCoefficients> inversion_steps_official(const DDIMInverseSchedule
 Tensor invert(vk::Context& ctx, const Tensor& x0, const std::vector<StepCoefficients>& steps, const Denoiser& model,
               const Guidance& guidance, const LoopCallbacks& cb) {
   check_latent(x0);
+  check_guidance(guidance, x0, false);
   LoopBuffers b(ctx, x0, guidance.enabled);
   vk::Recorder rec(ctx);
   int cur = 0;
@@ -73,8 +97,7 @@ Tensor invert(vk::Context& ctx, const Tensor& x0, const std::vector<StepCoeffici
     if (cb.cancelled && cb.cancelled()) throw Cancelled();
     const StepCoefficients& c = steps[i];
     rec.begin();
-    const Tensor& v = record_step(rec, model, guidance, b, b.x[cur], c.model_t);
-    ops::axpby(rec, float(c.next.x), b.x[cur], float(c.next.v), v, b.x[1 - cur]);
+    record_step(rec, model, guidance, b, b.x[cur], b.x[1 - cur], c, false);
     rec.submit();
     cur = 1 - cur;
     if (cb.latent) cb.latent(int(i), c.to_t, b.x[cur]);
@@ -87,6 +110,7 @@ SampleResult sample(vk::Context& ctx, const Tensor& x_init, const CogVideoXSched
                     const Denoiser& model, const Guidance& guidance, const LoopCallbacks& cb) {
   check_latent(x_init);
   if (plan.timesteps.empty()) throw Error("sampling: the plan has no steps (raise --strength or --steps)");
+  check_guidance(guidance, x_init, true);
   LoopBuffers b(ctx, x_init, guidance.enabled);
   vk::Recorder rec(ctx);
   int cur = 0;
@@ -96,9 +120,8 @@ SampleResult sample(vk::Context& ctx, const Tensor& x_init, const CogVideoXSched
     const int t = plan.timesteps[i];
     const StepCoefficients c = s.step(t, plan.num_inference_steps);
     rec.begin();
-    const Tensor& v = record_step(rec, model, guidance, b, b.x[cur], c.model_t);
-    ops::axpby(rec, float(c.pred_x0.x), b.x[cur], float(c.pred_x0.v), v, b.pred_x0);
-    ops::axpby(rec, float(c.next.x), b.x[cur], float(c.next.v), v, b.x[1 - cur]);
+    record_step(rec, model, guidance, b, b.x[cur], b.x[1 - cur], c, true,
+                dynamic_guidance_scale(guidance.scale, t, plan.num_steps()));
     rec.submit();
     cur = 1 - cur;
     if (cb.latent) cb.latent(int(i), t, b.x[cur]);

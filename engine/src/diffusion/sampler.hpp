@@ -18,10 +18,25 @@ namespace dvs::diffusion {
 // (uncond, cond) when guidance is on, else [1,F,C,H,W].
 using Denoiser = std::function<void(vk::Recorder& rec, const Tensor& x, int model_timestep, const Tensor& v)>;
 
+enum class GuidanceMode {
+  constant,  // ĝ = u + g·(c − u) everywhere (paper, diffusers)
+  dynamic,   // the official position-wise rule (reference/official-code.md §5.5), see below
+};
+
 struct Guidance {
   bool enabled = true;  // false: one model row, used as is
-  double scale = 6.0;
+  double scale = 6.0;   // g
+  // dynamic: ĝ = u + g_dyn(t)·(c − u) where `positions` ≠ 0 (P = the official latent mask V < 1, the
+  // occluded cells) and u + preservation_scale·(c − u) elsewhere; g_dyn = dynamic_guidance_scale(g, t, N).
+  GuidanceMode mode = GuidanceMode::constant;
+  Tensor positions;                 // f32, the latent's shape
+  double preservation_scale = 1.0;  // p (official config 1.0: the visible cells use the cond output)
 };
+
+// The official per-step scale, in double exactly as written (the argument of the cosine is ~1e8 for the raw
+// timestep, so any other evaluation order changes the value): g + 2 − (1 + g·(1 − cos(π·((N − t)/N)^5))/2)
+// with t the integer timestep and N the number of strength-truncated steps (reference Appendix C).
+double dynamic_guidance_scale(double g, int t, int num_steps);
 
 struct LoopCallbacks {
   std::function<void(int step, int total, int timestep)> progress;          // after each step
@@ -51,7 +66,8 @@ struct SampleResult {
   Tensor pred_x0;  // the last step's x̂0 (what is decoded)
 };
 
-// Guided DDIM sampling over plan.timesteps (CogVideoXDDIMScheduler.step semantics).
+// Guided DDIM sampling over plan.timesteps (CogVideoXDDIMScheduler.step semantics). Throws dvs::Error when the
+// plan has no step or a dynamic guidance has no positions tensor of the latent's size.
 SampleResult sample(vk::Context& ctx, const Tensor& x_init, const CogVideoXSchedule& s, const SamplingPlan& plan,
                     const Denoiser& model, const Guidance& guidance, const LoopCallbacks& callbacks = {});
 

@@ -240,7 +240,7 @@ SamplingPlan CogVideoXSchedule::plan(int S, double strength) const {
   const int t_start = std::max(S - init, 0);
   if (init <= 0)
     fail("strength " + std::to_string(strength) + " with " + std::to_string(S) +
-         " steps keeps no sampling step (int(steps*strength) = 0); raise the strength or the step count");
+         " steps keeps no sampling step (int(steps*strength) = 0); raise --strength or --steps");
   SamplingPlan p;
   p.num_inference_steps = S;
   p.timesteps.assign(all.begin() + t_start, all.end());
