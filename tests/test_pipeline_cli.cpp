@@ -7,33 +7,16 @@
 
 #include "geometry/synthetic_scene.hpp"
 #include "io/npy.hpp"
+#include "io/safetensors_writer.hpp"
 #include "io/video.hpp"
 #include "support/files.hpp"
+#include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
 
 namespace dvs {
 namespace {
 
-struct PipelineInputs {
-  test::TempDir dir;
-  std::filesystem::path video = dir / "scene.mp4", depth = dir / "depth.npy", cache = dir / "cache";
-  PipelineInputs() {
-    geometry::SyntheticSceneSpec spec;
-    spec.frames = 9;
-    spec.height = 64;
-    spec.width = 64;
-    spec.K = geometry::Intrinsics::official_default(64, 64);
-    auto clip = geometry::render_synthetic(spec);
-    write_video(video, clip.rgb, 10.0);
-    write_npy(depth, clip.depth);
-  }
-  std::string command(const std::filesystem::path& out, const std::string& extra = "") const {
-    return test::program("dvs") + " run --video " + video.string() + " --depth " + depth.string() +
-           " --metric-depth --model " + (test::golden_path() / "model").string() +
-           " --prompt 'a red fox' --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --progress json --cache-dir " +
-           cache.string() + " --out " + out.string() + " " + extra;
-  }
-};
+using test::PipelineInputs;
 
 TEST(PipelineCli, RunWritesEveryOutputAndReusesTheInversion) {
   PipelineInputs in;
@@ -63,9 +46,38 @@ TEST(PipelineCli, RunWritesEveryOutputAndReusesTheInversion) {
   EXPECT_TRUE(run2["inversion_from_cache"].get<bool>());
 }
 
+std::vector<std::string> files_in(const std::filesystem::path& dir) {
+  std::vector<std::string> names;
+  if (std::filesystem::is_directory(dir))
+    for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  return names;
+}
+
+size_t count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
+}
+
 TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
   PipelineInputs in;
   auto out = in.dir / "bad";
+  // A model folder whose VAE weights are cut short: found only when the VAE loads, after the render.
+  const auto broken_model = in.dir / "broken_model";
+  std::filesystem::copy(in.model, broken_model, std::filesystem::copy_options::recursive);
+  for (const auto& e : std::filesystem::directory_iterator(broken_model / "vae"))
+    if (e.path().extension() == ".safetensors") std::filesystem::resize_file(e.path(), std::filesystem::file_size(e.path()) / 2);
+  test::write_text(in.dir / "empty.mp4", "");
+  test::write_text(in.dir / "garbage.mp4", std::string(4096, 'x'));
+  test::write_text(in.dir / "a_file", "x");
+  {
+    geometry::SyntheticSceneSpec spec;
+    spec.frames = 5;
+    spec.height = 64;
+    spec.width = 64;
+    spec.K = geometry::Intrinsics::official_default(64, 64);
+    write_npy(in.dir / "depth5.npy", geometry::render_synthetic(spec).depth);
+  }
   struct Case {
     std::string extra, expect;
   } cases[] = {
@@ -74,15 +86,93 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
       {"--strength 0.001", "strength"},
       {"--guidance -1", "--guidance"},
       {"--model " + (in.dir / "no_model").string(), "no_model"},
+      {"--model " + broken_model.string(), "broken_model"},
       {"--trajectory nowhere", "nowhere"},
+      {"--video " + (in.dir / "empty.mp4").string(), "empty.mp4"},
+      {"--video " + (in.dir / "garbage.mp4").string(), "garbage.mp4"},
+      {"--video " + (in.dir / "none.mp4").string(), "none.mp4"},
+      {"--depth " + (in.dir / "depth5.npy").string(), "depth5.npy"},
+      {"--steps many", "--steps"},
+      {"--seed -4", "--seed"},
+      {"--size 64xq", "--size"},
+      {"--size 60x64", "multiples of 8"},
+      {"--height 64", "--width"},
+      {"--height 64 --width 64", "not both"},  // --size is in the base command
+      {"--lora " + (in.dir / "no_lora.safetensors").string() + ":0.5", "no_lora.safetensors"},
+      {"--vae-tile 30x30", "--vae-tile"},
+      {"--vae-tile 40x40", "do not join"},
+      {"--out " + (in.dir / "a_file" / "sub").string(), "a_file"},
   };
   for (const Case& c : cases) {
     auto r = test::run_command(in.command(out, c.extra));
     EXPECT_NE(r.exit_code, 0) << c.extra;
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.extra << "\n" << r.output;
-    EXPECT_FALSE(std::filesystem::exists(out / "output.mp4")) << c.extra;
-    EXPECT_FALSE(std::filesystem::exists(out / "run.json")) << c.extra;
+    EXPECT_EQ(count(r.output, "dvs: error: "), 1u) << c.extra << "\n" << r.output;
+    EXPECT_EQ(r.output.find("internal error"), std::string::npos) << c.extra << "\n" << r.output;
+    for (const auto& name : files_in(out)) ADD_FAILURE() << c.extra << " left " << name;
   }
+}
+
+// A LoRA adapter on two attention projections of the pack's transformer (inner dim 2 heads × 16), in the
+// diffusers layout load_lora reads.
+std::filesystem::path write_lora(const std::filesystem::path& dir) {
+  const int64_t D = 32, r = 4;
+  std::vector<std::pair<std::string, HostTensor>> tensors;
+  uint32_t state = 7;
+  auto values = [&](size_t n, float amplitude) {
+    std::vector<float> v(n);
+    for (auto& x : v) x = amplitude * (float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24) - 0.5f);
+    return v;
+  };
+  for (const char* module : {"transformer_blocks.0.attn1.to_q", "transformer_blocks.1.attn1.to_v"}) {
+    const std::string name = std::string("transformer.") + module;
+    tensors.push_back({name + ".lora_A.weight", HostTensor::from_f32({r, D}, values(size_t(r * D), 0.5f))});
+    tensors.push_back({name + ".lora_B.weight", HostTensor::from_f32({D, r}, values(size_t(D * r), 1.0f))});
+  }
+  const auto file = dir / "adapter.safetensors";
+  write_safetensors(file, tensors);
+  return file;
+}
+
+TEST(PipelineCli, LoraAndVaeTilingRunsAreRecordedAndKeyTheCache) {
+  PipelineInputs in;
+  const std::string lora = write_lora(in.dir.path).string();
+  auto record = [&](const char* out) { return nlohmann::json::parse(std::ifstream(in.dir / out / "run.json")); };
+
+  auto tiled = test::run_command(in.command(in.dir / "tiled", "--vae-tile 48x40"));  // 64×64 frames: 2×2 overlapping tiles
+  ASSERT_EQ(tiled.exit_code, 0) << tiled.output;
+  EXPECT_EQ(read_video(in.dir / "tiled" / "output.mp4").shape, (Shape{9, 3, 64, 64}));
+  EXPECT_TRUE(record("tiled")["settings"]["vae_tiling"].get<bool>());
+  EXPECT_TRUE(record("tiled")["lora"].is_null());
+
+  auto with_lora = test::run_command(in.command(in.dir / "lora", "--vae-tile 48x40 --lora " + lora + ":0.5"));
+  ASSERT_EQ(with_lora.exit_code, 0) << with_lora.output;
+  auto r = record("lora");
+  EXPECT_EQ(r["lora"]["file"], lora);
+  EXPECT_EQ(r["lora"]["scale"], 0.5);
+  EXPECT_FALSE(r["inversion_from_cache"].get<bool>()) << "the LoRA changes the model, so the cache key";
+
+  auto again = test::run_command(in.command(in.dir / "lora2", "--vae-tile 48x40 --lora " + lora + ":0.5 --seed 9"));
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_TRUE(record("lora2")["inversion_from_cache"].get<bool>());
+
+  auto untiled = test::run_command(in.command(in.dir / "untiled", "--lora " + lora + ":0.5"));
+  ASSERT_EQ(untiled.exit_code, 0) << untiled.output;
+  EXPECT_FALSE(record("untiled")["inversion_from_cache"].get<bool>()) << "tiling changes x0, so the cache key";
+  auto versions = record("untiled")["versions"];
+  for (const char* k : {"dvs", "vulkan_api", "driver", "opencv"}) EXPECT_FALSE(versions[k].get<std::string>().empty()) << k;
+  EXPECT_GT(record("untiled")["peak_host_bytes"].get<double>(), 0);
+}
+
+TEST(PipelineCli, HeightAndWidthAreTheSizeOption) {
+  PipelineInputs in;
+  std::string cmd = in.command(in.dir / "hw");
+  cmd.replace(cmd.find("--size 64x64"), 12, "--height 64 --width 64");
+  auto r = test::run_command(cmd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto record = nlohmann::json::parse(std::ifstream(in.dir / "hw" / "run.json"));
+  EXPECT_EQ(record["settings"]["height"], 64);
+  EXPECT_EQ(record["settings"]["width"], 64);
 }
 
 }  // namespace

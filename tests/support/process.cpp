@@ -1,5 +1,7 @@
 #include "support/process.hpp"
 
+#include <spawn.h>
+#include <unistd.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -17,6 +19,20 @@ CommandResult run_command(const std::string& cmd) {
   int status = pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+int start_command(const std::string& cmd) {
+  const std::string line = "exec " + cmd;
+  const char* argv[] = {"/bin/sh", "-c", line.c_str(), nullptr};
+  pid_t pid = -1;
+  if (posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char* const*>(argv), environ) != 0) return -1;
+  return int(pid);
+}
+
+int wait_command(int pid) {
+  int status = 0;
+  if (waitpid(pid_t(pid), &status, 0) < 0) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 std::string program(const std::string& name) { return std::string(DVS_BIN_DIR) + "/" + name; }

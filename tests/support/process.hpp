@@ -11,6 +11,12 @@ struct CommandResult {
 
 CommandResult run_command(const std::string& cmd);
 
+// Starts `cmd` in the background through /bin/sh (exec'd, so the pid is the program's own) and returns its
+// pid, for tests that signal a running program. The command redirects its own output.
+int start_command(const std::string& cmd);
+// Waits for a started command: its exit code, or 128 + the signal that ended it.
+int wait_command(int pid);
+
 // Path of a program this build produced ("dvs", "dvs-weights").
 std::string program(const std::string& name);
 

@@ -6,6 +6,7 @@
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
 #include "models/lora.hpp"
+#include "models/vae_tiling.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/transformer_denoiser.hpp"
@@ -36,9 +37,22 @@ std::optional<models::VaeTiling> vae_tiling(const RunOptions& o) {
   return t;
 }
 
+void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& tiling) {
+  // diffusers keeps `stride` of each tile and moves by `stride` in the input; unless both are the same distance
+  // in pixels, the tiles overlap or leave gaps and the result has the wrong size.
+  const int64_t r = cfg.spatial_ratio();
+  const auto enc = models::TilePlan::for_encode(cfg, tiling), dec = models::TilePlan::for_decode(cfg, tiling);
+  if (enc.stride_h != enc.limit_h * r || enc.stride_w != enc.limit_w * r || dec.stride_h * r != dec.limit_h ||
+      dec.stride_w * r != dec.limit_w)
+    throw Error("--vae-tile " + std::to_string(enc.tile_in_h) + "x" + std::to_string(enc.tile_in_w) +
+                ": tiles of this size do not join exactly (the tile stride, 5/6 of the height and 4/5 of the width, "
+                "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
+}
+
 EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Settings& st,
                             const RenderedInput& in) {
   const auto tiling = vae_tiling(o);
+  if (tiling) check_tiles_join(vae.config(), *tiling);
   auto encode = [&](const Tensor& video) { return tiling ? vae.encode_tiled(video, *tiling) : vae.encode(video); };
   EncodedRender e;
   e.scaling = float(vae.config().scaling_factor);

@@ -1,0 +1,39 @@
+// The synthetic scene (9 frames of 64×64, exact metric depth) that `dvs run` tests feed the conformance pack's
+// tiny model (its positional table fixes that size), and the command line a user would type for it.
+#pragma once
+#include <filesystem>
+#include <string>
+
+#include "geometry/synthetic_scene.hpp"
+#include "io/npy.hpp"
+#include "io/video.hpp"
+#include "support/files.hpp"
+#include "support/process.hpp"
+
+namespace dvs::test {
+
+struct PipelineInputs {
+  TempDir dir;
+  std::filesystem::path video = dir / "scene.mp4", depth = dir / "depth.npy", cache = dir / "cache";
+  std::filesystem::path model = golden_path() / "model";
+  PipelineInputs() {
+    geometry::SyntheticSceneSpec spec;
+    spec.frames = 9;
+    spec.height = 64;
+    spec.width = 64;
+    spec.K = geometry::Intrinsics::official_default(64, 64);
+    auto clip = geometry::render_synthetic(spec);
+    write_video(video, clip.rgb, 10.0);
+    write_npy(depth, clip.depth);
+  }
+  // The inputs, model, size and schedule options every `dvs run`/`dvs invert` test shares.
+  std::string inputs() const {
+    return " --video " + video.string() + " --depth " + depth.string() + " --metric-depth --model " + model.string() +
+           " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + cache.string();
+  }
+  std::string command(const std::filesystem::path& out, const std::string& extra = "") const {
+    return program("dvs") + " run" + inputs() + " --prompt 'a red fox' --progress json --out " + out.string() + " " + extra;
+  }
+};
+
+}  // namespace dvs::test
