@@ -9,5 +9,8 @@ int run_info(const std::vector<std::string>& args);
 int run_render(const std::vector<std::string>& args);
 int run_run(const std::vector<std::string>& args);
 int run_demo(const std::vector<std::string>& args);
+int run_invert(const std::vector<std::string>& args);
+int run_encode_prompt(const std::vector<std::string>& args);
+int run_batch(const std::vector<std::string>& args);
 
 }  // namespace dvs::cli

@@ -1,6 +1,7 @@
 // The `dvs` command line. Sub-commands are added here as the engine grows; each prints one clear
 // message and exits non-zero on any user error.
 #include <cstring>
+#include <new>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "dvs/info.hpp"
 #include "args.hpp"
 #include "commands.hpp"
+#include "interrupt.hpp"
 
 namespace {
 
@@ -22,6 +24,9 @@ const char* kUsage =
     "  run             re-render a video along a new camera path (the whole pipeline)\n"
     "  info            list the Vulkan devices, their features, memory and limits\n"
     "  render          geometry only: a video seen along a new camera path, plus its visibility mask\n"
+    "  invert          render, encode and DDIM-invert only: writes eps_inv.npy and fills run's cache\n"
+    "  encode-prompt   T5 embeddings of a prompt as .npy\n"
+    "  batch           many runs from a JSON-lines file, shardable across machines (--shard i/n)\n"
     "\n"
     "common options:\n"
     "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
@@ -56,16 +61,26 @@ int main(int argc, char** argv) {
       std::cout << "dvs " << dvs::version() << "\n";
       return 0;
     }
+    dvs::cli::install_interrupt_handler();
     std::string cmd = args[0];
     std::vector<std::string> rest(args.begin() + 1, args.end());
     if (cmd == "info") return dvs::cli::run_info(rest);
     if (cmd == "render") return dvs::cli::run_render(rest);
     if (cmd == "run") return dvs::cli::run_run(rest);
     if (cmd == "demo") return dvs::cli::run_demo(rest);
+    if (cmd == "invert") return dvs::cli::run_invert(rest);
+    if (cmd == "encode-prompt") return dvs::cli::run_encode_prompt(rest);
+    if (cmd == "batch") return dvs::cli::run_batch(rest);
     std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
     return 2;
+  } catch (const dvs::Cancelled&) {
+    std::cerr << "dvs: interrupted; partial outputs removed\n";
+    return dvs::cli::kInterruptedExitCode;
   } catch (const dvs::Error& e) {
     std::cerr << "dvs: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "dvs: error: out of host memory; try --vae-tiling, a smaller --size or fewer --frames\n";
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "dvs: internal error: " << e.what() << "\n";
