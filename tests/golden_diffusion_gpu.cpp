@@ -1,13 +1,18 @@
-// The diffusion stages on the GPU against pack A's e2e case: K-RNR (official 3 rounds and the paper's
-// per-channel AdaIN), the inversion loop and the guided sampling loop. The transformer is replaced by a
-// denoiser that replays the model outputs the pack saved, so these tests check exactly the diffusion math
-// (the model itself has its own golden tests). Tolerances: cases.json.
+// The diffusion stages on the GPU against the pack's e2e case (DVS_GOLDEN_DIR; any pack of this format):
+// K-RNR (official 3 rounds and the paper's per-channel AdaIN), the inversion loop and the guided sampling
+// loop, with constant CFG (the pack's own rule) and with the official position-wise dynamic CFG applied to
+// the pack's raw uncond/cond outputs (reference: a plain C++ loop on the pack's ᾱ table). The transformer is
+// replaced by a denoiser that replays the model outputs the pack saved, so these tests check exactly the
+// diffusion math (the model itself has its own golden tests). Sizes, step counts, timesteps and the latent
+// scaling factor come from the pack's files and cases.json. Tolerances: cases.json.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
 
 #include "diffusion/krnr.hpp"
 #include "diffusion/sampler.hpp"
@@ -63,6 +68,12 @@ HostTensor vae_to_latent_layout(const HostTensor& t, float scale) {
 
 SchedulerConfig pack_scheduler() { return load_scheduler_config(test::golden_path() / "model"); }
 
+// Diffusion latent = scaling_factor × VAE latent, from the pack's VAE config.
+float pack_scaling() {
+  const auto j = nlohmann::json::parse(std::ifstream(test::golden_path() / "model" / "vae" / "config.json"));
+  return j.at("scaling_factor").get<float>();
+}
+
 // A denoiser that writes the pack's saved (uncond, cond) outputs for the timestep it is asked for.
 Denoiser replay(vk::Context& ctx, const std::string& prefix) {
   return [&ctx, prefix](vk::Recorder&, const Tensor&, int t, const Tensor& v) {
@@ -85,8 +96,8 @@ TEST_F(GpuTest, GoldenKrnrOfficialRounds) {
   const int t0 = s.plan(settings().at("num_inference_steps"), settings().at("strength")).t0();
   Tensor x0 = Tensor::upload(ctx(), load("e2e/krnr_x0.npy"));
   Tensor eps = Tensor::upload(ctx(), load("e2e/eps_inv.npy"));
-  Tensor mu = Tensor::upload(ctx(), vae_to_latent_layout(load("e2e/video_posterior_mean.npy"), 0.7f)).reshape(x0.shape());
-  Tensor sigma = Tensor::upload(ctx(), vae_to_latent_layout(load("e2e/video_posterior_std.npy"), 0.7f)).reshape(x0.shape());
+  Tensor mu = Tensor::upload(ctx(), vae_to_latent_layout(load("e2e/video_posterior_mean.npy"), pack_scaling())).reshape(x0.shape());
+  Tensor sigma = Tensor::upload(ctx(), vae_to_latent_layout(load("e2e/video_posterior_std.npy"), pack_scaling())).reshape(x0.shape());
   const int k = settings().at("k_order"), delta = settings().at("delta_official"), rounds = settings().at("krnr_rounds");
   Tensor out = adaptive_krnr_official(ctx(), x0, eps, mu, sigma, s.alpha_cumprod(t0), k, delta, rounds);
   expect_close(out, load("e2e/x_init.npy"), ctx(), "e2e_krnr", "x_init (official, 3 rounds)");
@@ -152,6 +163,80 @@ TEST_F(GpuTest, GoldenSamplingLoop) {
   expect_close(r.latent, load("e2e/final_latent.npy"), ctx(), "e2e_sampling", "final_latent");
   std::string last = "e2e/sampling_step" + std::to_string(ts.size() - 1) + "_t" + std::to_string(int(ts.back())) + "_pred_x0.npy";
   expect_close(r.pred_x0, load(last), ctx(), "e2e_sampling", "last pred_x0");
+}
+
+// The official position-wise dynamic CFG (reference/official-code.md §5.5) on the pack's saved per-step
+// uncond/cond outputs: GPU loop vs a plain C++ loop that applies the rule and CogVideoXDDIMScheduler.step
+// (pack README conventions) with the pack's ᾱ table, chained from x_init. P: a seeded pattern of latent cells
+// (the official V < 1 is constant over channels), preservation scale 1 (official config).
+TEST_F(GpuTest, GoldenSamplingLoopDynamicCfg) {
+  CogVideoXSchedule s(pack_scheduler());
+  const SamplingPlan plan = s.plan(settings().at("num_inference_steps"), settings().at("strength"));
+  std::vector<float> ts = load("e2e/sampling_timesteps.npy").to_f32();
+  ASSERT_EQ(size_t(plan.num_steps()), ts.size());
+  const HostTensor x_init = load("e2e/x_init.npy");
+  const Shape& xs = x_init.shape;  // [1, F, C, H, W]
+  ASSERT_EQ(xs.size(), 5u);
+  const int64_t F = xs[1], C = xs[2], HW = xs[3] * xs[4];
+  std::mt19937 rng(7);
+  std::vector<float> cells(size_t(F * HW)), positions(size_t(x_init.numel()));
+  for (float& c : cells) c = float(rng() % 2);
+  for (int64_t f = 0; f < F; ++f)
+    for (int64_t c = 0; c < C; ++c)
+      for (int64_t k = 0; k < HW; ++k) positions[size_t((f * C + c) * HW + k)] = cells[size_t(f * HW + k)];
+
+  const std::vector<float> abar = load("scheduler/cogvideox_alphas_cumprod.npy").to_f32();
+  const auto sched_cfg = nlohmann::json::parse(std::ifstream(test::golden_path() / "model" / "scheduler" / "scheduler_config.json"));
+  const int T = sched_cfg.value("num_train_timesteps", 1000), S = settings().at("num_inference_steps");
+  const double g = settings().at("guidance_scale"), p = 1.0, N = double(ts.size());
+
+  auto run = [&](const std::vector<float>& pos, double pres, const std::string& what) {
+    // Host reference, in double.
+    std::vector<double> x(x_init.numel()), pred(x.size());
+    const std::vector<float> xi = x_init.to_f32();
+    for (size_t i = 0; i < x.size(); ++i) x[i] = xi[i];
+    std::vector<std::vector<double>> latents;
+    for (size_t step = 0; step < ts.size(); ++step) {
+      const int t = int(ts[step]), prev = t - T / S;
+      const std::string stem = "e2e/sampling_step" + std::to_string(step) + "_t" + std::to_string(t) + "_model_";
+      const std::vector<float> u = load(stem + "uncond.npy").to_f32(), c = load(stem + "cond.npy").to_f32();
+      const double gd = g + 2 - (1 + g * (1 - std::cos(std::numbers::pi * std::pow((N - t) / N, 5.0))) / 2);
+      const double at = abar[size_t(t)], ap = prev >= 0 ? abar[size_t(prev)] : 1.0;
+      const double A = std::sqrt((1 - ap) / (1 - at)), B = std::sqrt(ap) - std::sqrt(at) * A;
+      for (size_t i = 0; i < x.size(); ++i) {
+        const double v = u[i] + (pos[i] != 0 ? gd : pres) * (double(c[i]) - u[i]);
+        pred[i] = std::sqrt(at) * x[i] - std::sqrt(1 - at) * v;
+        x[i] = A * x[i] + B * pred[i];
+      }
+      latents.push_back(x);
+    }
+    // GPU.
+    Guidance guide{true, g};
+    guide.mode = GuidanceMode::dynamic;
+    guide.positions = Tensor::upload(ctx(), HostTensor::from_f32(x_init.shape, pos));
+    guide.preservation_scale = pres;
+    std::map<int, Tensor> got;
+    LoopCallbacks cb;
+    cb.latent = [&](int, int t, const Tensor& l) { got[t] = Tensor::upload(ctx(), l.download(ctx())); };
+    SampleResult r = sample(ctx(), Tensor::upload(ctx(), x_init), s, plan, replay(ctx(), "sampling_step"), guide, cb);
+    auto as_host = [&](const std::vector<double>& v) {
+      std::vector<float> f(v.begin(), v.end());
+      return HostTensor::from_f32(x_init.shape, f);
+    };
+    for (size_t step = 0; step < ts.size(); ++step)
+      expect_close(got.at(int(ts[step])), as_host(latents[step]), ctx(), "e2e_sampling",
+                   what + " latent after t=" + std::to_string(int(ts[step])));
+    expect_close(r.pred_x0, as_host(pred), ctx(), "e2e_sampling", what + " last pred_x0");
+  };
+  run(positions, p, "dynamic CFG, random P, p=1:");
+  run(std::vector<float>(positions.size(), 1.0f), p, "dynamic CFG, P everywhere:");
+  // P empty and p = g is the constant rule: the pack's own latents.
+  Guidance guide{true, g};
+  guide.mode = GuidanceMode::dynamic;
+  guide.positions = Tensor::zeros(ctx(), x_init.shape, DType::f32);
+  guide.preservation_scale = g;
+  SampleResult r = sample(ctx(), Tensor::upload(ctx(), x_init), s, plan, replay(ctx(), "sampling_step"), guide);
+  expect_close(r.latent, load("e2e/final_latent.npy"), ctx(), "e2e_sampling", "dynamic mode, P empty, p=g: final_latent");
 }
 
 }  // namespace

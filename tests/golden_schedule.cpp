@@ -3,7 +3,8 @@
 // scheduler parts of e2e_inversion / e2e_sampling, e2e_krnr (official 3-round K-RNR) and
 // e2e_krnr_brief_variant (paper per-channel AdaIN). Tolerances are the cases.json ones
 // (|ours − golden| ≤ atol + rtol·|golden|); every test prints the max error it saw. Settings (step
-// counts, strength, k, δ, rounds, guidance) come from cases.json, so any pack of this format can be run.
+// counts, strength, k, δ, rounds, guidance), the timestep lists and step files present, and the latent
+// scaling factor come from cases.json and the pack's files, so any pack of this format can be run.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -92,6 +93,38 @@ std::vector<int> step_files(const std::string& prefix, const std::string& suffix
   return {ts.begin(), ts.end()};
 }
 
+// The N of the files scheduler/<prefix>_timesteps_<N>.npy, ascending.
+std::vector<int> timestep_files(const std::string& prefix) {
+  const std::regex re(prefix + "_timesteps_([0-9]+)\\.npy");
+  std::set<int> ns;
+  for (const auto& e : fs::directory_iterator(pack() / "scheduler")) {
+    std::smatch m;
+    const std::string name = e.path().filename().string();
+    if (std::regex_match(name, m, re)) ns.insert(std::stoi(m[1]));
+  }
+  return {ns.begin(), ns.end()};
+}
+
+// The set_timesteps(S) a scheduler case ran step() after: a "num_inference_steps" field when the case has
+// one, else the S its description and call name ("... set_timesteps(50) ...").
+int case_steps(const std::string& name) {
+  const auto& c = case_of(name);
+  if (c.contains("num_inference_steps")) return c.at("num_inference_steps").get<int>();
+  const std::regex re("set_timesteps\\(([0-9]+)\\)");
+  for (const char* key : {"description", "call"}) {
+    std::smatch m;
+    const std::string text = c.value(key, "");
+    if (std::regex_search(text, m, re)) return std::stoi(m[1]);
+  }
+  throw std::runtime_error("cases.json: case " + name + " names no set_timesteps(S)");
+}
+
+// Diffusion latent = scaling_factor × VAE latent, from the pack's VAE config.
+float pack_scaling() {
+  std::ifstream f(pack() / "model" / "vae" / "config.json");
+  return nlohmann::json::parse(f).at("scaling_factor").get<float>();
+}
+
 // Max |a − g| and whether every element is within atol + rtol·|g|.
 struct Compare {
   double max_abs = 0;
@@ -154,7 +187,9 @@ SchedulerConfig pack_config() { return load_scheduler_config(pack() / "model"); 
 
 TEST(GoldenSchedule, CogVideoXTimesteps) {
   const CogVideoXSchedule s(pack_config());
-  for (int n : {4, 30, 50}) {
+  const std::vector<int> ns = timestep_files("cogvideox");
+  ASSERT_FALSE(ns.empty());
+  for (int n : ns) {
     const auto golden = load_ints("scheduler/cogvideox_timesteps_" + std::to_string(n) + ".npy");
     EXPECT_EQ(s.timesteps(n), golden) << "set_timesteps(" << n << ")";
   }
@@ -179,9 +214,10 @@ TEST(GoldenSchedule, CogVideoXStep) {
   const Tol tol = tol_of("sched_cogvideox_step");
   const std::vector<int> ts = step_files("cogvideox_step", "prev_sample");
   ASSERT_FALSE(ts.empty());
+  const int S = case_steps("sched_cogvideox_step"), T = s.config().num_train_timesteps;
   for (int t : ts) {
-    const StepCoefficients c = s.step(t, 50);  // the case's set_timesteps(50)
-    EXPECT_EQ(c.to_t, t - 20 < 0 ? -1 : t - 20);
+    const StepCoefficients c = s.step(t, S);
+    EXPECT_EQ(c.to_t, t - T / S < 0 ? -1 : t - T / S);
     const std::string stem = "scheduler/cogvideox_step_t" + std::to_string(t);
     EXPECT_CLOSE(apply(c.next, x, v), load(stem + "_prev_sample.npy"), tol, "step t=" + std::to_string(t) + " prev_sample");
     EXPECT_CLOSE(apply(c.pred_x0, x, v), load(stem + "_pred_x0.npy"), tol, "step t=" + std::to_string(t) + " pred_x0");
@@ -197,14 +233,17 @@ void check_inverse(const std::string& name, const SchedulerConfig& cfg) {
   const DDIMInverseSchedule s(cfg);
   const Tol kSchedTol = tol_of("sched_" + name);
   EXPECT_CLOSE(s.alphas_cumprod(), load("scheduler/" + name + "_alphas_cumprod.npy"), kSchedTol, name + " alphas_cumprod");
-  for (int n : {3, 30})
+  const std::vector<int> ns = timestep_files(name);
+  EXPECT_FALSE(ns.empty());
+  for (int n : ns)
     EXPECT_EQ(s.timesteps(n), load_ints("scheduler/" + name + "_timesteps_" + std::to_string(n) + ".npy")) << name << " " << n;
   const auto v = load("scheduler/step_model_output.npy");
   const auto x = load("scheduler/step_sample.npy");
   const std::vector<int> ts = step_files(name + "_step", "next_sample");
   ASSERT_FALSE(ts.empty());
+  const int S = case_steps("sched_" + name);
   for (int t : ts) {
-    const StepCoefficients c = s.step(t, 30);  // the case's set_timesteps(30)
+    const StepCoefficients c = s.step(t, S);
     EXPECT_EQ(c.model_t, t);
     const std::string stem = "scheduler/" + name + "_step_t" + std::to_string(t);
     EXPECT_CLOSE(apply(c.next, x, v), load(stem + "_next_sample.npy"), kSchedTol, name + " t=" + std::to_string(t) + " next");
@@ -288,8 +327,8 @@ TEST(GoldenKrnr, OfficialThreeRounds) {
   const auto x0 = load("e2e/krnr_x0.npy");
   const auto mean_t = load_tensor("e2e/video_posterior_mean.npy");
   const auto std_t = load_tensor("e2e/video_posterior_std.npy");
-  const auto mu = bcfhw_to_fchw(mean_t, 0.7f), sigma = bcfhw_to_fchw(std_t, 0.7f);
-  {  // x0 = 0.7·(mean + std·noise): checks the layout conversion of μ and σ.
+  const auto mu = bcfhw_to_fchw(mean_t, pack_scaling()), sigma = bcfhw_to_fchw(std_t, pack_scaling());
+  {  // x0 = scaling·(mean + std·noise): checks the layout conversion of μ and σ.
     const auto noise = bcfhw_to_fchw(load_tensor("e2e/video_sample_noise.npy"), 1.0f);
     std::vector<float> rebuilt(x0.size());
     for (size_t i = 0; i < x0.size(); ++i) rebuilt[i] = mu[i] + sigma[i] * noise[i];

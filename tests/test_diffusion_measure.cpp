@@ -1,6 +1,6 @@
 // Measurement, not a test (skipped unless DVS_MEASURE=1): how much of a guided sampling step is spent outside
 // the transformer on the demo's tiny model (the demo clip's latent size, 3×4×12×16). The denoiser is built
-// as the pipeline builds it (run_pipeline.cpp: concat(x, image latent) on channels, the row copy for the CFG
+// as the pipeline builds it (pipeline/transformer_denoiser.cpp: concat(x, image latent) on channels, the row copy for the CFG
 // batch, the timestep upload, the transformer), so the "glue" is that plus the sampler's guidance combine and
 // scheduler step. Prints wall times per step of
 //   model  — the transformer alone, one submission per step;
