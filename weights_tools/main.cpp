@@ -1,5 +1,6 @@
-// dvs-weights: look inside model weights. `inspect` lists components, tensors, dtypes, shapes and sizes and
-// checks them against the schema their config.json implies. make-tiny and merge-lora are placeholders.
+// dvs-weights: look inside model weights and make new ones. `inspect` lists components, tensors, dtypes, shapes
+// and sizes and checks them against the schema their config.json implies; `make-tiny` writes a random-weight
+// model; `merge-lora` writes a model folder with a LoRA merged into the transformer (merge_lora.hpp).
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "io/model_schema.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
+#include "merge_lora.hpp"
 
 namespace fs = std::filesystem;
 
@@ -36,13 +38,15 @@ commands:
             [--vae-channels a,b,c,d] [--latent-channels N]
                     write a random-weight CogVideoX-5B-I2V folder of tiny (or any) size that dvs loads;
                     defaults are the conformance pack's sizes
-  merge-lora ...    merge a LoRA into transformer weights (not implemented yet)
+  merge-lora --model DIR --lora FILE[:SCALE] --out DIR2 [--prefix P]
+                    write DIR2, a copy of DIR whose transformer has the LoRA merged into its weights
+                    (W + SCALE·(alpha/rank)·B·A, in the stored dtype, sharded like DIR); see merge-lora --help
 
 options:
   -h, --help        this text
 
 exit status: 0 all good; 1 a file is unreadable or corrupt, or weights do not match their schema;
-             2 usage error or command not implemented.
+             2 usage error.
 )";
 
 std::string human_bytes(uint64_t n) {
@@ -336,10 +340,7 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  if (cmd == "merge-lora") {
-    std::cerr << "dvs-weights: " << cmd << ": not implemented yet\n";
-    return 2;
-  }
+  if (cmd == "merge-lora") return dvs::weights_tools::merge_lora_command(args);
   std::cerr << "dvs-weights: unknown command '" << cmd << "'\n" << kUsage;
   return 2;
 }

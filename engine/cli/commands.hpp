@@ -12,5 +12,6 @@ int run_demo(const std::vector<std::string>& args);
 int run_invert(const std::vector<std::string>& args);
 int run_encode_prompt(const std::vector<std::string>& args);
 int run_batch(const std::vector<std::string>& args);
+int run_plan(const std::vector<std::string>& args);
 
 }  // namespace dvs::cli

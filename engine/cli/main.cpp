@@ -27,6 +27,7 @@ const char* kUsage =
     "  invert          render, encode and DDIM-invert only: writes eps_inv.npy and fills run's cache\n"
     "  encode-prompt   T5 embeddings of a prompt as .npy\n"
     "  batch           many runs from a JSON-lines file, shardable across machines (--shard i/n)\n"
+    "  plan            device memory a run needs (weights, each model call, VAE tiling for a budget)\n"
     "\n"
     "common options:\n"
     "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
@@ -71,6 +72,7 @@ int main(int argc, char** argv) {
     if (cmd == "invert") return dvs::cli::run_invert(rest);
     if (cmd == "encode-prompt") return dvs::cli::run_encode_prompt(rest);
     if (cmd == "batch") return dvs::cli::run_batch(rest);
+    if (cmd == "plan") return dvs::cli::run_plan(rest);
     std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
     return 2;
   } catch (const dvs::Cancelled&) {

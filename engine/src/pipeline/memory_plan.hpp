@@ -1,0 +1,103 @@
+// Device memory of a whole dvs run, planned from the model's config.json files alone (no weights read, no
+// device): weight bytes per component, the peak of each model stage, the peak of the run and, given a budget,
+// the VAE spatial tiling that fits. The activation figures come from the models' own from-config planners
+// (CogVideoXTransformer::arena_bytes, T5Encoder::arena_bytes, CogVideoXVae::*_working_bytes); this file adds
+// the tensors each stage allocates around them (inputs, outputs, tables), each rounded to the allocator's
+// alignment as the allocator does.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "io/host_tensor.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "models/vae_tiling.hpp"
+
+namespace dvs::pipeline {
+
+// The three configs a plan needs, and the stored bytes of each component's weights when known.
+struct PlanModel {
+  std::string source;  // the folder, or the built-in name
+  nlohmann::json transformer, vae, text_encoder;
+  // Per component: stored bytes read from the safetensors headers (nullopt: no weights present; the plan
+  // then counts the config's tensors at `assumed_dtype_bytes` each).
+  std::optional<uint64_t> transformer_stored, vae_stored, text_encoder_stored;
+  int assumed_dtype_bytes = 2;  // bf16, the real model's storage
+};
+
+// Built-in configurations: "cogvideox-5b-i2v" (THUDM/CogVideoX-5b-I2V's config.json files, bf16 weights).
+std::vector<std::string> builtin_model_names();
+bool is_builtin_model(std::string_view name);
+PlanModel builtin_plan_model(std::string_view name);
+// <dir>/{transformer,vae,text_encoder}/config.json, plus the safetensors headers when present (headers only).
+PlanModel plan_model_from_folder(const std::filesystem::path& dir);
+
+struct PlanRequest {
+  int64_t frames = 49, height = 480, width = 720;  // pixels
+  int prompts = 2;                                 // T5 batch: negative + positive prompt
+  std::optional<uint64_t> budget;                  // bytes
+  uint64_t alignment = 256;                        // the device allocator's (dvs info; 256 covers common GPUs)
+};
+
+struct ComponentWeightBytes {
+  std::string name;      // "transformer", "vae", "text_encoder"
+  uint64_t params = 0;   // from the config's tensor list (tied/optional tensors not counted)
+  uint64_t bytes = 0;    // stored bytes
+  bool from_headers = false;
+};
+
+// One model call: `working` is the planner's activation figure (arena / VAE working set), `io` the tensors the
+// call allocates around it (inputs, outputs, tables); total = the call's device peak above the weights.
+struct StageMemory {
+  std::string name;      // "t5_encode", "transformer_cfg", "transformer_inversion", "vae_encode", "vae_decode"
+  std::string what;      // human description with shapes
+  uint64_t working = 0, io = 0;
+  uint64_t total() const { return working + io; }
+};
+
+struct TilingOption {
+  bool tiled = false;
+  models::VaeTiling tiling;          // diffusers' enable_tiling() settings (tile sizes resolved)
+  models::TilePlan encode, decode;   // as the VAE derives them
+  int64_t tiles = 1;                 // tiles per frame (encode)
+  StageMemory vae_encode, vae_decode;
+  uint64_t run_peak = 0;             // weights + carried + the largest stage, with this tiling
+};
+
+struct MemoryPlan {
+  PlanRequest request;
+  std::string source;
+  int64_t latent_frames = 0, latent_height = 0, latent_width = 0, text_len = 0;
+  std::vector<ComponentWeightBytes> weights;
+  uint64_t weights_total = 0;
+  std::vector<StageMemory> stages;   // untiled
+  uint64_t carried = 0;              // tensors kept across stages (text embeddings, latents)
+  uint64_t run_peak = 0;             // untiled
+  std::vector<TilingOption> tilings; // [0] untiled, then smaller and smaller tiles
+  int chosen = -1;                   // index into tilings when a budget is given and something fits
+  std::vector<std::string> notes;
+};
+
+// Throws dvs::Error for bad sizes (frames not 4k+1, height/width not multiples of the latent patch).
+MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& request);
+
+// The stage figures on their own (tests compare them with live allocations).
+StageMemory plan_t5_stage(const nlohmann::json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch,
+                          int64_t len);
+StageMemory plan_transformer_stage(const nlohmann::json& config, uint64_t alignment, int64_t batch, int64_t latent_frames,
+                                   int64_t latent_height, int64_t latent_width, int64_t text_len);
+StageMemory plan_vae_encode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& video);
+StageMemory plan_vae_decode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& z);
+
+// "24GiB", "80GB", "1.5 GiB", "512MiB", "1000000" (bytes). Throws dvs::Error naming `option` otherwise.
+uint64_t parse_byte_size(const std::string& text, const std::string& option = "--budget");
+
+std::string format_plan_table(const MemoryPlan& plan);
+nlohmann::json plan_to_json(const MemoryPlan& plan);
+
+}  // namespace dvs::pipeline
