@@ -11,6 +11,7 @@
 #include "dvs/error.hpp"
 #include "io/depth.hpp"
 #include "io/npy.hpp"
+#include "io/video.hpp"
 
 #include "support/files.hpp"
 #include "io/depth_images.hpp"
@@ -206,6 +207,23 @@ TEST(GeometryDepth, FitToVideoAndCentre) {
   EXPECT_EQ(fit_depth_to_video(z, 3, 8, 12, false, "d.npz").shape, (Shape{3, 8, 12}));
   expect_error([&] { fit_depth_to_video(z, 2, 4, 6, false, "d.npz"); }, {"d.npz", "3 depth frames", "trim"});
   expect_error([&] { fit_depth_to_video(z, 5, 4, 6, true, "d.npz"); }, {"d.npz", "3 depth frames", "5"});
+}
+
+TEST(GeometryDepth, GrayscaleVideo) {
+  test::TempDir d;
+  // Disparity ramp 40..200 across columns, 3 frames, as a gray video.
+  HostTensor frames({3, 3, 16, 32}, DType::f32);
+  for (int f = 0; f < 3; ++f)
+    for (int c = 0; c < 3; ++c)
+      for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 32; ++x) frames.as<float>()[((f * 3 + c) * 16 + y) * 32 + x] = (40.0f + 5.0f * x) / 127.5f - 1.0f;
+  write_video(d / "depth.mp4", frames, 10);
+  HostTensor raw = read_depth_array(d / "depth.mp4");
+  ASSERT_EQ(raw.shape, (Shape{3, 16, 32}));
+  EXPECT_NEAR(raw.as<float>()[8 * 32 + 2], 50.0f, 4.0f);   // lossy codec: a few levels
+  EXPECT_NEAR(raw.as<float>()[8 * 32 + 30], 190.0f, 4.0f);
+  HostTensor z = load_depth(d / "depth.mp4");  // disparity -> depth: near (bright) columns get small depth
+  EXPECT_LT(z.as<float>()[8 * 32 + 30], z.as<float>()[8 * 32 + 2]);
 }
 
 }  // namespace

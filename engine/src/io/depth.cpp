@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "io/video.hpp"
 #include "io/depth_images.hpp"
 #include "io/npy.hpp"
 
@@ -71,6 +72,20 @@ std::vector<uint8_t> read_npz_member(const std::filesystem::path& path, std::str
 
 }  // namespace
 
+// A grayscale depth video (what many depth tools export for viewing): the luma of each frame, 0..255.
+HostTensor read_depth_video(const std::filesystem::path& path) {
+  HostTensor rgb = read_video(path);  // [N,3,H,W] in [−1,1]
+  const int64_t N = rgb.shape[0], H = rgb.shape[2], W = rgb.shape[3], plane = H * W;
+  HostTensor out({N, H, W}, DType::f32);
+  for (int64_t f = 0; f < N; ++f)
+    for (int64_t i = 0; i < plane; ++i) {
+      const float* p = rgb.as<float>() + f * 3 * plane + i;
+      const float gray = (p[0] + p[plane] + p[2 * plane]) / 3.0f;  // channels are equal for a gray video
+      out.as<float>()[f * plane + i] = std::round((gray + 1.0f) * 127.5f);
+    }
+  return out;
+}
+
 HostTensor read_depth_array(const std::filesystem::path& path) {
   const std::string name = path.string();
   if (!std::filesystem::exists(path)) throw Error(name + ": no such depth file");
@@ -84,9 +99,11 @@ HostTensor read_depth_array(const std::filesystem::path& path) {
     std::string member;
     std::vector<uint8_t> bytes = read_npz_member(path, member);
     t = parse_npy(bytes, name + ":" + member);
+  } else if (ext == ".mp4" || ext == ".mov" || ext == ".mkv" || ext == ".avi" || ext == ".webm") {
+    t = read_depth_video(path);
   } else {
     throw Error(name + ": unsupported depth file type '" + ext +
-                "' (expected .npy or .npz holding [N,H,W], or a folder of .png / .exr frames)");
+                "' (expected .npy or .npz holding [N,H,W], a grayscale video, or a folder of .png / .exr frames)");
   }
   if (t.shape.size() == 4 && t.shape[1] == 1) t.shape = {t.shape[0], t.shape[2], t.shape[3]};
   if (t.shape.size() != 3)

@@ -29,6 +29,9 @@ HostTensor read_depth_array(const std::filesystem::path& path);
 // Validates and converts an array already in memory; `name` is used in error messages.
 HostTensor depth_from_array(const HostTensor& values, const std::string& name, const DepthOptions& options = {});
 
+// A grayscale depth video as [N,H,W] f32 values 0..255 (disparity unless told otherwise).
+HostTensor read_depth_video(const std::filesystem::path& path);
+
 // read_depth_array + depth_from_array.
 HostTensor load_depth(const std::filesystem::path& path, const DepthOptions& options = {});
 
