@@ -7,7 +7,6 @@
 #include <string>
 #include <vector>
 
-#include <sys/resource.h>
 
 #include "harness.hpp"
 #include "tensor/ops_attention.hpp"
@@ -16,46 +15,6 @@
 
 namespace dvs::bench {
 namespace {
-
-// On a CPU device (lavapipe) wall-clock rates swing with whatever else runs on the machine; work per CPU
-// second of this process is far steadier, and its ratio to the FMA-peak shader's, measured the same way, is
-// the figure to compare between runs.
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-double gflop_per_cpu_second(vk::Recorder& rec, double flops) {
-  rec.submit();  // warm
-  int reps = 0;
-  double c0 = cpu_seconds(), used = 0;
-  do {
-    rec.submit();
-    ++reps;
-    used = cpu_seconds() - c0;
-  } while (used < 0.5 && reps < 100);
-  return flops * reps / (used * 1e9);
-}
-
-double peak_per_cpu_second(Bench& b) {
-  static double cached = -1;
-  if (cached >= 0) return cached;
-  vk::Context& ctx = b.ctx();
-  const uint32_t iters = 1024, groups = 512;
-  vk::Buffer out = ctx.allocator().allocate(groups * 64 * 4);
-  const uint32_t spec[] = {iters};
-  vk::Recorder rec(ctx);
-  rec.begin();
-  const float push[2] = {0.999f, 1e-3f};
-  rec.dispatch(ctx.pipelines().get("bench/fma_peak", spec), {out.view()}, push, sizeof push, groups);
-  rec.end();
-  cached = gflop_per_cpu_second(rec, double(groups) * 64 * 64 * iters * 2);
-  char note[128];
-  std::snprintf(note, sizeof note, "%.1f GFLOP per CPU-second (reference for attention's per-CPU-second ratios)", cached);
-  b.report({"fma_peak_per_cpu_second", "32768x64x1024", 0, 0, 0, note});
-  return cached;
-}
 
 struct Shape {
   int64_t batch, heads, len, head_dim;
@@ -108,7 +67,7 @@ void run_shape(Bench& b, const Shape& sh) {
     per_cpu = flops / ((cpu_seconds() - c0) * 1e9);
   } else {
     ms = Bench::time_ms([&] { rec.submit(); });
-    if (cpu_device) per_cpu = gflop_per_cpu_second(rec, flops);
+    if (cpu_device) per_cpu = gflop_per_cpu_second([&] { rec.submit(); }, flops);
   }
   char shape[96];
   std::snprintf(shape, sizeof shape, "B%lld H%lld L%lld D%lld%s%s%s", (long long)sh.batch, (long long)sh.heads,
@@ -118,7 +77,7 @@ void run_shape(Bench& b, const Shape& sh) {
   if (sh.fused) note += ", fused QKV";
   if (sh.workspace) note += ", K/V repacked head-major (workspace)";
   if (cpu_device) {
-    double peak = peak_per_cpu_second(b);
+    const double peak = b.limits().fma_peak_per_cpu_second;
     char extra[128];
     std::snprintf(extra, sizeof extra, "; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second", per_cpu,
                   peak > 0 ? per_cpu / peak : 0.0);

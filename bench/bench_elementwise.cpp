@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
-#include <sys/resource.h>
 #include <memory>
 #include <string>
 #include <vector>
@@ -30,47 +29,19 @@ Tensor filled(vk::Context& ctx, const Shape& s, DType t = DType::f32) {
   return x;
 }
 
-// The harness's copy benchmark, recorded once: 64 MiB read + 64 MiB written.
-struct CopyRef {
-  vk::Buffer src, dst;
-  std::unique_ptr<vk::Recorder> rec;
-  double bytes = 0;
-  explicit CopyRef(vk::Context& ctx) {
-    const uint64_t n = 64ull << 20;
-    src = ctx.allocator().allocate(n);
-    dst = ctx.allocator().allocate(n);
-    ctx.transfer().fill_zero(src.view());
-    rec = std::make_unique<vk::Recorder>(ctx);
-    rec->begin();
-    uint32_t n4 = uint32_t(n / 16);
-    rec->dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
-    rec->end();
-    bytes = 2.0 * double(n);
-  }
-};
-
 double once_ms(vk::Recorder& rec) {
   auto a = std::chrono::steady_clock::now();
   rec.submit();
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count();
 }
 
-// CPU time of this process (all threads, so lavapipe's workers included) in ms: on a CPU device the work an
-// op costs, nearly independent of how many other processes compete for the cores.
-double process_cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) * 1e3 +
-         (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec)) * 1e-3;
-}
-
 double cpu_ms_per_call(vk::Recorder& rec, int calls) {
-  const double a = process_cpu_ms();
+  const double a = cpu_seconds();  // all threads, so lavapipe's workers are included
   for (int i = 0; i < calls; ++i) rec.submit();
-  return (process_cpu_ms() - a) / calls;
+  return (cpu_seconds() - a) * 1e3 / calls;
 }
 
-void measure(Bench& b, CopyRef& copy, const std::string& op, const std::string& shape, double bytes,
+void measure(Bench& b, CopyRun& copy, const std::string& op, const std::string& shape, double bytes,
              const std::function<void(vk::Recorder&)>& record, const std::string& note = {}) {
   vk::Recorder rec(b.ctx());
   rec.begin();
@@ -80,7 +51,7 @@ void measure(Bench& b, CopyRef& copy, const std::string& op, const std::string& 
   double best_op = 1e30, best_copy = 1e30;
   for (int i = 0; i < (b.quick() ? 3 : 6); ++i) {
     best_op = std::min(best_op, once_ms(rec));
-    best_copy = std::min(best_copy, once_ms(*copy.rec));
+    best_copy = std::min(best_copy, once_ms(copy.recorder));
   }
   std::string now;
   char buf[160];
@@ -89,7 +60,7 @@ void measure(Bench& b, CopyRef& copy, const std::string& op, const std::string& 
   now = buf;
   if (b.ctx().caps().type == VK_PHYSICAL_DEVICE_TYPE_CPU) {
     const int calls = b.quick() ? 2 : 4;
-    const double cpu_op = cpu_ms_per_call(rec, calls), cpu_copy = cpu_ms_per_call(*copy.rec, calls);
+    const double cpu_op = cpu_ms_per_call(rec, calls), cpu_copy = cpu_ms_per_call(copy.recorder, calls);
     std::snprintf(buf, sizeof buf, "; by CPU time %.2fx copy", (bytes / cpu_op) / (copy.bytes / cpu_copy));
     now += buf;
   }
@@ -98,7 +69,7 @@ void measure(Bench& b, CopyRef& copy, const std::string& op, const std::string& 
 
 void elementwise(Bench& b) {
   vk::Context& ctx = b.ctx();
-  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
+  CopyRun copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t n = b.quick() ? (4 << 20) : (16 << 20);  // f32 elements: 64 MiB, like the copy benchmark
   const double f = 4.0 * double(n);
   const std::string sn = std::to_string(n >> 20) + "M f32";
@@ -140,7 +111,7 @@ void elementwise(Bench& b) {
 
 void layout(Bench& b) {
   vk::Context& ctx = b.ctx();
-  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
+  CopyRun copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t q = b.quick() ? 4 : 1;
   // Concat of two latents on channels ([B, F, C, H, W], the I2V input) at 8x the real latent area.
   Shape half = {1, 13, 16, 120 / q, 360};
@@ -178,7 +149,7 @@ void layout(Bench& b) {
 
 void random(Bench& b) {
   vk::Context& ctx = b.ctx();
-  CopyRef copy(ctx);  // lives within the group: Vulkan objects must go before the context
+  CopyRun copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t n = b.quick() ? (4 << 20) : (16 << 20);
   const std::string sn = std::to_string(n >> 20) + "M";
   Tensor x = filled(ctx, {n}), i = filled(ctx, {n}, DType::i32);

@@ -18,38 +18,24 @@ namespace dvs::bench {
 namespace {
 
 void fma_peak(Bench& b) {
-  vk::Context& ctx = b.ctx();
-  const uint32_t iters = 1024, groups = 512, invocations = groups * 64;
-  vk::Buffer out = ctx.allocator().allocate(invocations * 4);
-  uint32_t spec[] = {iters};
-  const vk::Pipeline& p = ctx.pipelines().get("bench/fma_peak", spec);
-  vk::Recorder rec(ctx);
-  rec.begin();
-  float push[2] = {0.999f, 1e-3f};
-  rec.dispatch(p, {out.view()}, push, sizeof push, groups);
-  rec.end();
-  double ms = Bench::time_ms([&] { rec.submit(); });
-  double flops = double(invocations) * 64 * iters * 2;  // 16 vec4 FMAs per round
-  b.limits().fma_peak_gflops = flops / (ms * 1e6);
-  b.report({"fma_peak_f32", std::to_string(invocations) + "x64x" + std::to_string(iters), ms, flops / (ms * 1e6), 0,
-            "device limit"});
+  FmaPeakRun run(b.ctx());
+  double ms = Bench::time_ms([&] { run.recorder.submit(); });
+  b.limits().fma_peak_gflops = run.flops / (ms * 1e6);
+  b.report({"fma_peak_f32", "32768 invocations", ms, run.flops / (ms * 1e6), 0, "device limit"});
+  if (b.ctx().caps().type == VK_PHYSICAL_DEVICE_TYPE_CPU) {
+    b.limits().fma_peak_per_cpu_second = gflop_per_cpu_second([&] { run.recorder.submit(); }, run.flops);
+    char note[128];
+    std::snprintf(note, sizeof note, "%.1f GFLOP per CPU-second: the reference for the per-CPU-second ratios",
+                  b.limits().fma_peak_per_cpu_second);
+    b.report({"fma_peak_per_cpu_second", "32768 invocations", 0, 0, 0, note});
+  }
 }
 
 void copy_bandwidth(Bench& b) {
-  vk::Context& ctx = b.ctx();
-  const uint64_t bytes = 64ull << 20;
-  vk::Buffer src = ctx.allocator().allocate(bytes), dst = ctx.allocator().allocate(bytes);
-  ctx.transfer().fill_zero(src.view());
-  const vk::Pipeline& p = ctx.pipelines().get("bench/copy");
-  vk::Recorder rec(ctx);
-  rec.begin();
-  uint32_t n4 = uint32_t(bytes / 16);
-  rec.dispatch(p, {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
-  rec.end();
-  double ms = Bench::time_ms([&] { rec.submit(); });
-  double gbps = 2.0 * double(bytes) / (ms * 1e6);
-  b.limits().copy_gbps = gbps;
-  b.report({"copy_shader", "64MiB", ms, 0, gbps, "device limit (read+write bytes)"});
+  CopyRun copy(b.ctx());
+  double ms = Bench::time_ms([&] { copy.recorder.submit(); });
+  b.limits().copy_gbps = copy.bytes / (ms * 1e6);
+  b.report({"copy_shader", "64MiB", ms, 0, b.limits().copy_gbps, "device limit (read+write bytes)"});
 }
 
 void openblas_sgemm(Bench& b) {

@@ -1,7 +1,6 @@
 // Linear / GEMM throughput: fp32, bf16 and f16 weights on square, model-class and GEMV shapes, with the
 // epilogue cost on one shape. FLOPs = 2·M·N·K. DVS_LINEAR_KERNEL=rows,cols,sg_m pins a kernel variant
 // (for tuning).
-#include <sys/resource.h>
 
 #include <chrono>
 #include <cstdio>
@@ -33,44 +32,6 @@ HostTensor random_host(Shape s, DType dt, uint32_t seed) {
   for (size_t i = 0; i < v.size(); ++i)
     o.as<uint16_t>()[i] = dt == DType::bf16 ? f32_to_bf16(v[i]) : f32_to_f16(v[i]);
   return o;
-}
-
-// CPU seconds (user + system) this process used so far: on a CPU device (lavapipe) FLOPs per CPU second
-// is a throughput measure that other processes' load does not distort much.
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-// GFLOP per CPU second of `fn` doing `flops` per call, over at least `reps` calls.
-double gflops_per_cpu_second(const std::function<void()>& fn, double flops, int reps) {
-  fn();
-  double c0 = cpu_seconds();
-  for (int i = 0; i < reps; ++i) fn();
-  return flops * reps / ((cpu_seconds() - c0) * 1e9);
-}
-
-// The harness's FMA-peak shader measured per CPU second (once per run): the reference for the figures above
-// when other processes share the machine.
-double peak_per_cpu_second(Bench& b) {
-  static double cached = -1;
-  if (cached >= 0) return cached;
-  vk::Context& ctx = b.ctx();
-  const uint32_t iters = 1024, groups = 512;
-  vk::Buffer out = ctx.allocator().allocate(groups * 64 * 4);
-  uint32_t spec[] = {iters};
-  const vk::Pipeline& p = ctx.pipelines().get("bench/fma_peak", spec);
-  vk::Recorder rec(ctx);
-  rec.begin();
-  float push[2] = {0.999f, 1e-3f};
-  rec.dispatch(p, {out.view()}, push, sizeof push, groups);
-  rec.end();
-  cached = gflops_per_cpu_second([&] { rec.submit(); }, double(groups) * 64 * 64 * iters * 2, 4);
-  char note[128];
-  std::snprintf(note, sizeof note, "%.2f GFLOP per CPU-second: reference for the per-CPU-second ratios below", cached);
-  b.report({"fma_peak_per_cpu_second", "32768x64x1024", 0, 0, 0, note});
-  return cached;
 }
 
 struct Case {
@@ -132,7 +93,7 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
     record(rec, s, kern);
     rec.end();
     ms = Bench::time_ms([&] { rec.submit(); }, b.quick() ? 0.2 : 1.0);
-    per_cpu = gflops_per_cpu_second([&] { rec.submit(); }, flops, 2);
+    per_cpu = gflop_per_cpu_second([&] { rec.submit(); }, flops);
   } else {
     // Large shapes: compile the same pipeline on a few rows, then time single calls.
     ops::LinearShape small = s;
@@ -157,7 +118,7 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
   std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
   std::snprintf(note, sizeof note, "%s%s, tile %dx%d lanes %d %s; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second",
                 c.name, wrate, kern.rows, kern.cols, kern.lanes, kern.vectorized ? "vec8" : "scalar", per_cpu,
-                peak_per_cpu_second(b) > 0 ? per_cpu / peak_per_cpu_second(b) : 0.0);
+                b.limits().fma_peak_per_cpu_second > 0 ? per_cpu / b.limits().fma_peak_per_cpu_second : 0.0);
   b.report({op, shape, ms, gflops, 0, note});
 }
 
@@ -177,7 +138,7 @@ void tune(Bench& b, const char* list) {
     pos = e + 1;
   }
   vk::Context& ctx = b.ctx();
-  const double peak_per_cpu = peak_per_cpu_second(b);
+  const double peak_per_cpu = b.limits().fma_peak_per_cpu_second;
   for (DType wdt : {DType::f32, DType::bf16}) {
     Tensor x = Tensor::upload(ctx, random_host({m, k}, DType::f32, 1));
     Tensor w = Tensor::upload(ctx, random_host({n, k}, wdt, 2));

@@ -36,32 +36,16 @@ Tensor random_tensor(vk::Context& ctx, Shape shape, float offset = 0.0f, DType d
   return Tensor::upload(ctx, h);
 }
 
-// The shader copy bandwidth measured right before an op: on a machine shared with other jobs the load
-// changes within a run, so each op also gets a ratio to a copy timed next to it (in the note).
-double adjacent_copy_gbps(vk::Context& ctx) {
-  static vk::Buffer src, dst;
-  const uint64_t bytes = 64ull << 20;
-  if (!src.valid()) {
-    src = ctx.allocator().allocate(bytes);
-    dst = ctx.allocator().allocate(bytes);
-  }
-  vk::Recorder rec(ctx);
-  rec.begin();
-  uint32_t n4 = uint32_t(bytes / 16);
-  rec.dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
-  rec.end();
-  double ms = Bench::time_ms([&] { rec.submit(); }, 0.3);
-  return 2.0 * double(bytes) / (ms * 1e6);
-}
-
 // Records `op` kRepeats times, times the submission, reports ms per op and GB/s for `bytes` per op.
-void measure(Bench& b, const std::string& op, const std::string& shape, double bytes, const std::string& note,
+// Each op also gets a ratio to a copy timed right before it: on a machine shared with other jobs the load
+// changes within a run.
+void measure(Bench& b, CopyRun& copy_run, const std::string& op, const std::string& shape, double bytes, const std::string& note,
              const std::function<void(vk::Recorder&)>& record) {
   vk::Recorder rec(b.ctx());
   rec.begin();
   for (int i = 0; i < kRepeats; ++i) record(rec);
   rec.end();
-  const double copy = adjacent_copy_gbps(b.ctx());
+  const double copy = copy_run.gbps();
   double ms = Bench::time_ms([&] { rec.submit(); }) / kRepeats;
   const double gbps = bytes / (ms * 1e6);
   char ratio[64];
@@ -71,6 +55,7 @@ void measure(Bench& b, const std::string& op, const std::string& shape, double b
 
 void norms(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRun copy(ctx);  // lives within the group: Vulkan objects must go before the context
   const int64_t rows = b.quick() ? 1024 : 4096, D = 3072;
   {
     // CogVideoXLayerNormZero on [text 226; video] rows with the [B, 6D] modulation table.
@@ -83,26 +68,26 @@ void norms(Bench& b) {
     mod.shift_col[0] = 3 * D, mod.scale_col[0] = 4 * D, mod.shift_col[1] = 0, mod.scale_col[1] = D;
     const std::string shape = std::to_string(rows) + "x" + std::to_string(D);
     const double bytes = 2.0 * double(x.bytes());
-    measure(b, "layernorm_affine_bf16", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
+    measure(b, copy, "layernorm_affine_bf16", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
     ops::set_row_mapping(ops::RowMapping::workgroup_per_row);
-    measure(b, "layernorm_affine_bf16_wg", shape, bytes, "workgroup per row (GPU mapping)",
+    measure(b, copy, "layernorm_affine_bf16_wg", shape, bytes, "workgroup per row (GPU mapping)",
             [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
     ops::set_row_mapping(ops::RowMapping::invocation_per_row);
-    measure(b, "layernorm_affine_bf16_inv", shape, bytes, "invocation per row (CPU mapping)",
+    measure(b, copy, "layernorm_affine_bf16_inv", shape, bytes, "invocation per row (CPU mapping)",
             [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
     ops::set_row_mapping(ops::RowMapping::automatic);
-    measure(b, "layernorm_zero_modulated", shape, bytes, "adaLN, text/video split",
+    measure(b, copy, "layernorm_zero_modulated", shape, bytes, "adaLN, text/video split",
             [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f, &mod); });
-    measure(b, "layernorm_no_affine", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, {}, {}, 1e-5f); });
+    measure(b, copy, "layernorm_no_affine", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, {}, {}, 1e-5f); });
     Tensor tw = random_tensor(ctx, {D}, 1.0f);
-    measure(b, "rmsnorm", shape, bytes, "", [&](vk::Recorder& r) { ops::rmsnorm(r, x, y, tw, 1e-6f); });
+    measure(b, copy, "rmsnorm", shape, bytes, "", [&](vk::Recorder& r) { ops::rmsnorm(r, x, y, tw, 1e-6f); });
   }
   {
     // q of a fused QKV output [rows, 3*3072], 48 heads x 64, in place.
     const int64_t qrows = rows / 2;
     Tensor qkv = random_tensor(ctx, {qrows, 3 * D});
     Tensor w = random_tensor(ctx, {64}, 1.0f, DType::bf16), bias = random_tensor(ctx, {64}, 0.0f, DType::bf16);
-    measure(b, "head_layernorm_q", std::to_string(qrows) + "x48x64 in " + std::to_string(3 * D), 2.0 * qrows * D * 4.0,
+    measure(b, copy, "head_layernorm_q", std::to_string(qrows) + "x48x64 in " + std::to_string(3 * D), 2.0 * qrows * D * 4.0,
             "in place, column slice", [&](vk::Recorder& r) { ops::head_layernorm(r, qkv, qkv, 48, 64, 0, w, bias); });
   }
   {
@@ -116,15 +101,15 @@ void norms(Bench& b) {
       // The statistics half alone (reduce_partials + reduce_merge), to split the cost.
       const int64_t n_groups = 32, len = x.numel() / n_groups;
       Tensor m = Tensor::empty(ctx, {n_groups}, DType::f32), v = Tensor::empty(ctx, {n_groups}, DType::f32);
-      measure(b, "groupnorm_stats_only", "1x128x" + std::to_string(F) + "x120x180 G32", double(x.bytes()), "bytes read",
+      measure(b, copy, "groupnorm_stats_only", "1x128x" + std::to_string(F) + "x120x180 G32", double(x.bytes()), "bytes read",
               [&](vk::Recorder& r) {
                 ops::reduce_segments(r, x, {n_groups, len, len, len, 0}, ops::ReduceMode::mean_var, m, v, scratch);
               });
     }
-    measure(b, "groupnorm", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
+    measure(b, copy, "groupnorm", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
             "stats pass reads x once more (3 dispatches)",
             [&](vk::Recorder& r) { ops::groupnorm(r, x, y, 32, g, be, 1e-6f, false, scratch); });
-    measure(b, "groupnorm_silu", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
+    measure(b, copy, "groupnorm_silu", "1x128x" + std::to_string(F) + "x120x180 G32", 2.0 * double(x.bytes()),
             "stats pass reads x once more (3 dispatches)",
             [&](vk::Recorder& r) { ops::groupnorm(r, x, y, 32, g, be, 1e-6f, true, scratch); });
   }
@@ -132,6 +117,7 @@ void norms(Bench& b) {
 
 void positional(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRun copy(ctx);
   {
     // RoPE on q and k (96 heads of 64 from column 0) of the video tokens of a fused QKV [rows, 9216].
     const int64_t text = 226, video = b.quick() ? 512 : 2048 - 226, L = text + video;
@@ -139,12 +125,12 @@ void positional(Bench& b) {
     ops::RopeTables t = ops::cogvideox_rope_tables(64, 1, 1, video, 1, video);
     Tensor c = Tensor::upload(ctx, t.cos), s = Tensor::upload(ctx, t.sin);
     const double bytes = 2.0 * video * 6144 * 4.0 + 2.0 * double(c.bytes());
-    measure(b, "rope_qk", std::to_string(video) + "x96x64", bytes, "in place, q and k of fused QKV",
+    measure(b, copy, "rope_qk", std::to_string(video) + "x96x64", bytes, "in place, q and k of fused QKV",
             [&](vk::Recorder& r) { ops::rope(r, qkv, qkv, 1, L, text, 96, 64, 0, c, s); });
   }
   {
     Tensor ts = random_tensor(ctx, {2}, 500.0f), e = Tensor::empty(ctx, {2, 3072}, DType::f32);
-    measure(b, "timestep_embedding", "2x3072", double(e.bytes()), "launch-bound",
+    measure(b, copy, "timestep_embedding", "2x3072", double(e.bytes()), "launch-bound",
             [&](vk::Recorder& r) { ops::timestep_embedding(r, ts, e); });
   }
   {
@@ -157,6 +143,7 @@ void positional(Bench& b) {
 
 void reductions(Bench& b) {
   vk::Context& ctx = b.ctx();
+  CopyRun copy(ctx);
   {
     // AdaIN statistics of a latent [F, C, H, W] = [13, 16, 60, 90] (real size) and a 16x larger one.
     for (int64_t scale : {1, 4}) {
@@ -165,7 +152,7 @@ void reductions(Bench& b) {
       Tensor x = random_tensor(ctx, {F, C, H, W}, 3.0f);
       Tensor m = Tensor::empty(ctx, {C}, DType::f32), v = Tensor::empty(ctx, {C}, DType::f32);
       Tensor scratch = Tensor::empty(ctx, {ops::reduce_scratch_elems(C, F * H * W)}, DType::f32);
-      measure(b, "channel_mean_var", "13x16x" + std::to_string(H) + "x" + std::to_string(W), double(x.bytes()),
+      measure(b, copy, "channel_mean_var", "13x16x" + std::to_string(H) + "x" + std::to_string(W), double(x.bytes()),
               "bytes read", [&](vk::Recorder& r) { ops::channel_mean_var(r, x, F, C, H * W, m, v, scratch); });
     }
   }
@@ -174,9 +161,9 @@ void reductions(Bench& b) {
     Tensor x = random_tensor(ctx, {n});
     Tensor out = Tensor::empty(ctx, {1}, DType::f32);
     Tensor scratch = Tensor::empty(ctx, {ops::reduce_scratch_elems(1, n)}, DType::f32);
-    measure(b, "sum_all", std::to_string(n), double(x.bytes()), "bytes read",
+    measure(b, copy, "sum_all", std::to_string(n), double(x.bytes()), "bytes read",
             [&](vk::Recorder& r) { ops::sum_all(r, x, out, scratch); });
-    measure(b, "max_all", std::to_string(n), double(x.bytes()), "bytes read",
+    measure(b, copy, "max_all", std::to_string(n), double(x.bytes()), "bytes read",
             [&](vk::Recorder& r) { ops::max_all(r, x, out, scratch); });
   }
 }

@@ -2,7 +2,13 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
+
+#include <sys/resource.h>
+
+#include "vk/pipeline.hpp"
+#include "vk/transfer.hpp"
 
 namespace dvs::bench {
 
@@ -10,6 +16,51 @@ std::vector<Registered>& registry() {
   static std::vector<Registered> r;
   return r;
 }
+
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+double gflop_per_cpu_second(const std::function<void()>& fn, double flops) {
+  fn();  // warm
+  int reps = 0;
+  double c0 = cpu_seconds(), used = 0;
+  do {
+    fn();
+    ++reps;
+    used = cpu_seconds() - c0;
+  } while (used < 0.5 && reps < 100);
+  return flops * reps / (used * 1e9);
+}
+
+// DVS_FMA_PEAK="chains,unroll" overrides the shader's defaults (to re-tune it on another device).
+FmaPeakRun::FmaPeakRun(vk::Context& ctx) : recorder(ctx) {
+  const uint32_t iters = 8192, groups = 512, invocations = groups * 64;
+  uint32_t spec[] = {iters, 3, 32};  // ITERS, CHAINS, UNROLL (the shader's defaults)
+  if (const char* env = std::getenv("DVS_FMA_PEAK")) std::sscanf(env, "%u,%u", &spec[1], &spec[2]);
+  out = ctx.allocator().allocate(invocations * 4);
+  recorder.begin();
+  const float push[2] = {0.999f, 1e-3f};
+  recorder.dispatch(ctx.pipelines().get("bench/fma_peak", spec), {out.view()}, push, sizeof push, groups);
+  recorder.end();
+  flops = double(invocations) * iters * spec[1] * 4 * 2;  // CHAINS vec4 FMAs per round, 2 flops each
+}
+
+CopyRun::CopyRun(vk::Context& ctx) : recorder(ctx) {
+  const uint64_t n = 64ull << 20;
+  src = ctx.allocator().allocate(n);
+  dst = ctx.allocator().allocate(n);
+  ctx.transfer().fill_zero(src.view());
+  recorder.begin();
+  const uint32_t n4 = uint32_t(n / 16);
+  recorder.dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
+  recorder.end();
+  bytes = 2.0 * double(n);
+}
+
+double CopyRun::gbps(double min_seconds) { return bytes / (Bench::time_ms([&] { recorder.submit(); }, min_seconds) * 1e6); }
 
 Registration::Registration(const char* group, int order, BenchFn fn) { registry().push_back({group, order, fn}); }
 

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "vk/context.hpp"
+#include "vk/memory.hpp"
+#include "vk/recorder.hpp"
 
 namespace dvs::bench {
 
@@ -22,6 +24,7 @@ struct Result {
 
 struct Limits {
   double fma_peak_gflops = 0;   // device, independent FMA chains
+  double fma_peak_per_cpu_second = 0;  // the same shader, GFLOP per CPU-second of this process (CPU devices)
   double copy_gbps = 0;         // device, shader buffer copy
   double sgemm_gflops = 0;      // OpenBLAS on the host, same thread count (0 if unavailable)
 };
@@ -44,6 +47,31 @@ class Bench {
   bool quick_;
   Limits limits_;
   std::vector<Result> results_;
+};
+
+// CPU time of this process. On a CPU device (lavapipe) wall-clock rates swing with whatever else runs on the
+// machine; work per CPU-second is far steadier, and its ratio to the FMA-peak shader's, measured the same way,
+// is the figure to compare between runs.
+double cpu_seconds();
+// GFLOP per CPU-second of `fn` doing `flops` per call: one warm-up call, then calls until ~0.5 CPU-seconds.
+double gflop_per_cpu_second(const std::function<void()>& fn, double flops);
+
+// The FMA-peak shader (shaders/bench/fma_peak.comp) recorded once: `flops` per submit of `recorder`.
+struct FmaPeakRun {
+  FmaPeakRun(vk::Context& ctx);
+  vk::Buffer out;
+  vk::Recorder recorder;
+  double flops = 0;
+};
+
+// The copy shader (shaders/bench/copy.comp) over 64 MiB, recorded once: `bytes` read + written per submit.
+// Owned by the benchmark that uses it: Vulkan objects must go before the context.
+struct CopyRun {
+  CopyRun(vk::Context& ctx);
+  vk::Buffer src, dst;
+  vk::Recorder recorder;
+  double bytes = 0;
+  double gbps(double min_seconds = 0.3);  // timed now (the machine's load changes within a run)
 };
 
 using BenchFn = void (*)(Bench&);
