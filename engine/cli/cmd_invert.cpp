@@ -29,7 +29,7 @@ const char* kInvertHelp =
 // run's options that do not change ε_inv are not taken, so a user cannot believe they did.
 std::set<std::string> invert_options() {
   std::set<std::string> o = kRunOptions;
-  for (const char* name : {"prompt", "negative-prompt", "guidance", "k", "delta", "seed"}) o.erase(name);
+  for (const char* name : {"prompt", "negative-prompt", "guidance", "k", "delta", "seed", "dynamic-cfg", "preservation-scale"}) o.erase(name);
   return o;
 }
 
