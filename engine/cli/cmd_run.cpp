@@ -36,6 +36,10 @@ const char* kRunHelp =
     "  --k K                 K-RNR order (10; real values allowed)\n"
     "  --delta D             AdaIN target order (paper 3, official 2)\n"
     "  --guidance G          classifier-free guidance scale (6)\n"
+    "  --dynamic-cfg on|off  the authors' position-wise guidance: occluded latents get a per-step scale from G,\n"
+    "                        fully visible ones --preservation-scale (official on, paper off: constant G)\n"
+    "  --preservation-scale P  guidance scale of the fully visible latents with --dynamic-cfg on (1 = the\n"
+    "                        prompt-conditioned prediction, as the authors' config)\n"
     "  --seed N              seed of every random draw (42)\n"
     "  --lora FILE[:SCALE]   a LoRA adapter (.safetensors, diffusers/PEFT layout) on the transformer, for the\n"
     "                        inversion and the sampling (scale 1 when not given)\n"
@@ -52,6 +56,7 @@ const char* kRunHelp =
 const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out", "frames", "size", "resize",
                                            "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
                                            "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
+                                           "dynamic-cfg", "preservation-scale",
                                            "cache-dir", "progress", "height", "width", "lora", "vae-tile"};
 const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
 
@@ -122,6 +127,12 @@ RunOptions parse_run_options(const Args& a) {
   o.k = a.number("k", 10);
   o.delta = a.number("delta", 0);
   o.guidance = a.number("guidance", 6.0);
+  if (a.has("dynamic-cfg")) {
+    const std::string d = a.str("dynamic-cfg");
+    if (d != "on" && d != "off") throw Error("dvs run: --dynamic-cfg must be on or off, got '" + d + "'");
+    o.dynamic_cfg = d == "on";
+  }
+  o.preservation_scale = a.number("preservation-scale", 1.0);
   o.seed = uint64_t(a.integer("seed", 42, 0, 2147483647));
   o.cache_dir = a.str("cache-dir");
   o.use_cache = !a.has("no-cache");

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,11 @@ struct RunOptions {
   double k = 10;
   double delta = 0;                 // 0 = preset default (paper 3, official 2)
   double guidance = 6.0;
+  // The official position-wise dynamic CFG (reference/official-code.md §5.5): occluded latents (the official
+  // mask V < 1) get a per-step scale from `guidance`, fully visible ones `preservation_scale`. Unset = the
+  // preset's choice (official on, paper off: constant `guidance` everywhere).
+  std::optional<bool> dynamic_cfg;
+  double preservation_scale = 1.0;  // dynamic CFG only; the official config's 1.0 = the cond prediction
   uint64_t seed = 42;
   std::filesystem::path cache_dir;  // inversion cache; empty = $DVS_CACHE_DIR or ~/.cache/dvs
   bool use_cache = true;

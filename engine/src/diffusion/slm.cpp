@@ -275,6 +275,17 @@ void apply_slm(vk::Recorder& rec, const Tensor& latent, const SlmIndexPlan& plan
                g.x, g.y, g.z, "slm_sample");
 }
 
+Tensor positions_to_replace(vk::Context& ctx, const SlmMasks& masks, int channels) {
+  const int64_t hw = int64_t(masks.height) * masks.width;
+  if (int64_t(masks.x0_target.size()) != masks.cells() || channels < 1)
+    throw Error("internal: positions_to_replace: masks of " + std::to_string(masks.x0_target.size()) + " cells");
+  std::vector<float> p(size_t(masks.cells() * channels));
+  for (int64_t f = 0; f < masks.frames; ++f)
+    for (int64_t c = 0; c < channels; ++c)
+      for (int64_t k = 0; k < hw; ++k) p[size_t((f * channels + c) * hw + k)] = masks.x0_target[size_t(f * hw + k)] ? 1.0f : 0.0f;
+  return Tensor::upload(ctx, HostTensor::from_f32({masks.frames, channels, masks.height, masks.width}, p));
+}
+
 ops::RandomStream slm_stream(uint64_t seed, bool eps, int round, int64_t latent_numel) {
   // A round draws at most latent_numel elements, so windows [round·numel, (round+1)·numel) never overlap.
   return ops::RandomStream{seed, eps ? kSlmStreamEps : kSlmStreamX0, uint64_t(round) * uint64_t(latent_numel)};

@@ -110,6 +110,10 @@ constexpr uint32_t kSlmStreamX0 = 0x534c4d30u;   // "SLM0"
 constexpr uint32_t kSlmStreamEps = 0x534c4d31u;  // "SLM1"
 ops::RandomStream slm_stream(uint64_t seed, bool eps, int round, int64_t latent_numel);
 
+// The x0 target cells (official: P = positions_to_replace = V < 1; paper: M) as an f32 latent [F, C, h, w]
+// (1 = set, the same in every channel): the positions the official dynamic CFG guides with its per-step scale.
+Tensor positions_to_replace(vk::Context& ctx, const SlmMasks& masks, int channels);
+
 // Convenience: x0 and ε modulated with their own streams of options.seed, round `round`.
 void apply_slm(vk::Recorder& rec, const Tensor& x0, const Tensor& eps, const SlmPlan& plan, uint64_t seed,
                int round = 0);

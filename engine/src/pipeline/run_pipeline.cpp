@@ -3,6 +3,9 @@
 // are shared with run_inversion (pipeline/job_stages.hpp).
 #include <vulkan/vulkan.h>
 
+#include <cmath>
+
+#include "diffusion/init_noise.hpp"
 #include "diffusion/krnr.hpp"
 #include "diffusion/sampler.hpp"
 #include "diffusion/schedule.hpp"
@@ -32,6 +35,9 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   RunReport report;
   JobPlan jp = plan_job(o);
   const Settings& st = jp.settings;
+  const bool dynamic_cfg = o.dynamic_cfg.value_or(st.official);  // the official code always uses it
+  if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
+    throw Error("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
   const diffusion::CogVideoXSchedule& schedule = jp.schedule;
   const diffusion::SamplingPlan& plan = jp.plan;
 
@@ -83,31 +89,31 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   slm.seed = o.seed;
   diffusion::SlmMasks masks = diffusion::compute_slm_masks(ctx, in.mask, &in.depth, true, int(lat[0]), slm);
   diffusion::SlmPlan slm_plan = diffusion::make_slm_plan(ctx, masks, int(lat[1]), slm.scope);
-  Tensor x0_mod = Tensor::empty(ctx, lat, DType::f32, "x0"), eps_mod = Tensor::empty(ctx, lat, DType::f32, "eps");
-  ops::run_now(ctx, [&](vk::Recorder& rec) {
-    rec.copy(x0.buffer(), x0_mod.buffer(), x0.bytes());
-    rec.copy(eps_inv.buffer(), eps_mod.buffer(), eps_inv.bytes());
-  });
-  const double abar = schedule.alpha_cumprod(t0);
-  Tensor x_init;
-  if (!st.official) {
-    ops::run_now(ctx, [&](vk::Recorder& rec) { diffusion::apply_slm(rec, x0_mod, eps_mod, slm_plan, o.seed, 0); });
-    x_init = diffusion::adaptive_krnr_paper(ctx, x0_mod, eps_mod, abar, o.k, st.delta);
-  } else {  // three rounds of SLM + per-element K-RNR, each output the next ε
-    Tensor mu = to_diffusion_layout(ctx, post.mean, sf), sigma = to_diffusion_layout(ctx, post.std, sf);
-    for (int round = 0; round < 3; ++round) {
-      ops::run_now(ctx, [&](vk::Recorder& rec) { diffusion::apply_slm(rec, x0_mod, eps_mod, slm_plan, o.seed, round); });
-      eps_mod = diffusion::adaptive_krnr_official(ctx, x0_mod, eps_mod, mu, sigma, abar, int(o.k), int(st.delta), 1);
-    }
-    x_init = eps_mod;
+  diffusion::InitNoiseOptions noise = st.official ? diffusion::InitNoiseOptions::official() : diffusion::InitNoiseOptions::paper();
+  noise.k = o.k;
+  noise.delta = st.delta;
+  noise.seed = o.seed;
+  Tensor mu, sigma;  // the official per-element AdaIN's posterior statistics
+  if (st.official) {
+    mu = to_diffusion_layout(ctx, post.mean, sf);
+    sigma = to_diffusion_layout(ctx, post.std, sf);
   }
+  const Tensor x_init = diffusion::init_noise(
+      ctx, {&x0, &eps_inv, &slm_plan, st.official ? &mu : nullptr, st.official ? &sigma : nullptr, schedule.alpha_cumprod(t0)},
+      noise);
   stages.end();
 
   // 8. Sampling with classifier-free guidance.
   stages.begin("sample", "guided DDIM sampling");
   TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
   diffusion::LoopCallbacks cb = stages.loop_callbacks();
-  diffusion::SampleResult result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), {true, o.guidance}, cb);
+  diffusion::Guidance guidance{true, o.guidance};
+  if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
+    guidance.mode = diffusion::GuidanceMode::dynamic;
+    guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
+    guidance.preservation_scale = o.preservation_scale;
+  }
+  diffusion::SampleResult result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
   stages.end();
 
   // 9. Decode and write.
@@ -137,6 +143,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
                       std::to_string(VK_API_VERSION_MINOR(caps.api_version)) + "." +
                       std::to_string(VK_API_VERSION_PATCH(caps.api_version));
   extras.opencv = video_library_version();
+  extras.dynamic_cfg = dynamic_cfg;
   write_run_record(report.run_json, o, report, extras);
   files.commit();
   return report;

@@ -35,6 +35,8 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"k", o.k},
                    {"delta", x.delta},
                    {"guidance", o.guidance},
+                   {"dynamic_cfg", x.dynamic_cfg},
+                   {"preservation_scale", o.preservation_scale},
                    {"seed", o.seed},
                    {"cache", o.use_cache},
                    {"vae_tiling", o.vae_tiling}};

@@ -18,6 +18,7 @@ struct RunRecordExtras {
   std::string device, driver, model_hash;
   bool slm_source_fell_back = false;
   std::string vulkan_api, opencv;  // the device's Vulkan API version, OpenCV's version
+  bool dynamic_cfg = false;        // the resolved --dynamic-cfg (the preset's when not given)
 };
 
 void write_run_record(const std::filesystem::path& path, const RunOptions& o, const RunReport& r, const RunRecordExtras& x);
