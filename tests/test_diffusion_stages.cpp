@@ -5,7 +5,8 @@
 //    random model outputs of odd sizes;
 //  - S = 1, strength 1.0, a strength that keeps no step (the error names the option);
 //  - K-RNR's closed form on the GPU against the recursion for integer k;
-//  - init_noise for both presets against the previous inline pipeline code and a host reference.
+//  - init_noise for both presets against the previous inline pipeline code and a host reference;
+//  - P for the dynamic CFG (positions_to_replace) from the SLM masks.
 // (AdaIN statistics, SLM properties and reproducibility: test_diffusion_gpu.cpp, test_slm.cpp, test_schedule.cpp.)
 #include <gtest/gtest.h>
 
@@ -387,6 +388,20 @@ TEST_F(GpuTest, InitNoiseSlmChangesOnlyTargetsToSourceValues) {
     }
   }
   EXPECT_EQ(changed, nc.plan.x0.n_targets);
+}
+
+TEST_F(GpuTest, PositionsToReplaceBroadcastsTheX0TargetsOverChannels) {
+  SlmMasks m;
+  m.frames = 2;
+  m.height = 3;
+  m.width = 5;
+  std::mt19937 rng(3);
+  for (int i = 0; i < 30; ++i) m.x0_target.push_back(uint8_t(rng() % 2));
+  const std::vector<float> p = positions_to_replace(ctx(), m, 3).download(ctx()).to_f32();
+  ASSERT_EQ(p.size(), 90u);
+  for (int f = 0; f < 2; ++f)
+    for (int c = 0; c < 3; ++c)
+      for (int k = 0; k < 15; ++k) EXPECT_EQ(p[size_t((f * 3 + c) * 15 + k)], m.x0_target[size_t(f * 15 + k)] ? 1.0f : 0.0f);
 }
 
 }  // namespace
