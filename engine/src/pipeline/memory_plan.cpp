@@ -294,11 +294,24 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   plan.carried = tensor_bytes({req.prompts, L, tcfg.text_embed_dim}, req.alignment) +
                  tensor_bytes({1, L, tcfg.text_embed_dim}, req.alignment) +
                  4 * tensor_bytes({Fl, vcfg.latent_channels, Hl, Wl}, req.alignment);
-  uint64_t non_vae = 0;
-  for (const auto& s : plan.stages)
-    if (s.name != "vae_encode" && s.name != "vae_decode") non_vae = std::max(non_vae, s.total());
+  // The run's phases (run_pipeline.cpp): the VAE stays loaded throughout; T5 only for the text stage, the
+  // transformer only for inversion and sampling. Each phase: the weights resident then + carried + its call.
+  auto weights_of = [&](const std::string& name) {
+    for (const auto& w : plan.weights)
+      if (w.name == name) return w.bytes;
+    return uint64_t(0);
+  };
+  auto stage_of = [&](const std::string& name) {
+    for (const auto& st : plan.stages)
+      if (st.name == name) return st.total();
+    return uint64_t(0);
+  };
+  const uint64_t vae_w = weights_of("vae");
+  const uint64_t text_phase = vae_w + weights_of("text_encoder") + stage_of("t5_encode");
+  const uint64_t transformer_phase =
+      vae_w + weights_of("transformer") + std::max(stage_of("transformer_cfg"), stage_of("transformer_inversion"));
   auto run_peak = [&](const StageMemory& e, const StageMemory& d) {
-    return plan.weights_total + plan.carried + std::max({non_vae, e.total(), d.total()});
+    return plan.carried + std::max({text_phase, transformer_phase, vae_w + e.total(), vae_w + d.total()});
   };
   plan.run_peak = run_peak(enc, dec);
 
@@ -356,11 +369,12 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
         break;
       }
     if (plan.chosen < 0) {
-      const uint64_t floor_bytes = plan.weights_total + plan.carried + non_vae;
+      const uint64_t floor_bytes = plan.carried + std::max(text_phase, transformer_phase);
       if (floor_bytes > *req.budget)
-        plan.notes.push_back("nothing fits in " + gib(*req.budget) + ": the weights (" + gib(plan.weights_total) +
-                             ") and the largest model call outside the VAE (" + gib(non_vae) +
-                             ") already need " + gib(floor_bytes) +
+        plan.notes.push_back("nothing fits in " + gib(*req.budget) + ": the " +
+                             (transformer_phase >= text_phase ? "transformer phase (VAE + transformer weights and its call)"
+                                                              : "text phase (VAE + T5 weights and its call)") +
+                             " already needs " + gib(floor_bytes) +
                              " with any VAE tiling; use a device with more memory or fewer frames / a smaller size");
       else
         plan.notes.push_back("nothing fits in " + gib(*req.budget) + ": even the smallest VAE tile tried needs " +
@@ -422,7 +436,7 @@ std::string format_plan_table(const MemoryPlan& p) {
     o << line;
   }
   o << "  kept across stages: " << gib(p.carried) << " (prompt embeddings, latents)\n\n";
-  o << "whole run (all weights resident + kept tensors + the largest stage)\n";
+  o << "whole run (the largest phase: VAE weights + T5 or transformer weights when loaded + kept tensors + that call)\n";
   for (size_t i = 0; i < p.tilings.size(); ++i) {
     const auto& t = p.tilings[i];
     std::string name = t.tiled ? "VAE tiles " + std::to_string(t.tiling.tile_sample_min_height) + "x" +

@@ -66,7 +66,7 @@ struct TilingOption {
   models::TilePlan encode, decode;   // as the VAE derives them
   int64_t tiles = 1;                 // tiles per frame (encode)
   StageMemory vae_encode, vae_decode;
-  uint64_t run_peak = 0;             // weights + carried + the largest stage, with this tiling
+  uint64_t run_peak = 0;             // the largest phase of the run with this tiling (see plan_memory)
 };
 
 struct MemoryPlan {

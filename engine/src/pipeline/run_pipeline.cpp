@@ -66,10 +66,13 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
 
   // 4. Text.
   stages.begin("text", "encoding the prompts");
-  models::T5Encoder t5(ctx, o.model / "text_encoder");
-  Tensor text = t5.encode_prompts(jp.tokenizer, {st.negative, o.prompt}, jp.text_len);  // [uncond; cond]
-  Tensor text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official
-                                                                          // CFG over two identical "" rows is a no-op)
+  Tensor text, text_inv;
+  {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
+    models::T5Encoder t5(ctx, o.model / "text_encoder");
+    text = t5.encode_prompts(jp.tokenizer, {st.negative, o.prompt}, jp.text_len);  // [uncond; cond]
+    text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
+                                                                    // over two identical "" rows is a no-op)
+  }
   stages.end();
 
   // 5. Inversion (cached on disk).
@@ -105,15 +108,19 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
 
   // 8. Sampling with classifier-free guidance.
   stages.begin("sample", "guided DDIM sampling");
-  TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
-  diffusion::LoopCallbacks cb = stages.loop_callbacks();
-  diffusion::Guidance guidance{true, o.guidance};
-  if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
-    guidance.mode = diffusion::GuidanceMode::dynamic;
-    guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
-    guidance.preservation_scale = o.preservation_scale;
+  diffusion::SampleResult result;
+  {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
+    TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
+    diffusion::LoopCallbacks cb = stages.loop_callbacks();
+    diffusion::Guidance guidance{true, o.guidance};
+    if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
+      guidance.mode = diffusion::GuidanceMode::dynamic;
+      guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
+      guidance.preservation_scale = o.preservation_scale;
+    }
+    result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
   }
-  diffusion::SampleResult result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
+  transformer_ptr.reset();
   stages.end();
 
   // 9. Decode and write.

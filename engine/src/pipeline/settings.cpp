@@ -1,14 +1,16 @@
 #include "pipeline/settings.hpp"
 
+#include <cmath>
+
 #include "dvs/error.hpp"
 
 namespace dvs {
 namespace {
 
-// The official code's fixed negative prompt (reference/official-code.md §5.1).
+// The official code's fixed negative prompt (reference/official-code.md §5.1, `NEG` in infer.py).
 constexpr const char* kOfficialNegativePrompt =
-    "The video is not of a high quality, it has a low resolution. Watermark present in each frame. The background "
-    "is solid. Strange body and strange trajectory. Distortion. ";
+    "crowded scene, car in the road, bad anatomy, deformed body, occlusions, dark scene, black, unseen regions, "
+    "black & white, blurry, pixelated.";
 
 }  // namespace
 
@@ -24,6 +26,8 @@ Settings resolve(const RunOptions& o) {
   s.negative = !o.negative_prompt.empty() ? o.negative_prompt : (s.official ? kOfficialNegativePrompt : "");
   if (!(s.strength > 0 && s.strength <= 1)) throw Error("--strength must be in (0, 1], got " + std::to_string(s.strength));
   if (!(o.k > 0)) throw Error("--k must be > 0");
+  if (s.official && o.k != std::floor(o.k))  // the official K-RNR is the integer recursion (Σ a·b^i, i < k)
+    throw Error("--k must be a whole number with --preset official (the authors' recursion), got " + std::to_string(o.k));
   if (!(o.guidance >= 0)) throw Error("--guidance must be ≥ 0");
   if (s.steps > 1000 || s.inversion_steps > 1000) throw Error("--steps and --inversion-steps must be ≤ 1000");
   if (o.render.frames != 0 && (o.render.frames - 1) % 4 != 0)
