@@ -120,6 +120,31 @@ TEST_F(GpuTest, CopyRoundTrips) {
   EXPECT_EQ(in, out);
 }
 
+// Scattered pieces between two views that start inside their buffers, as one recorded command.
+TEST_F(GpuTest, CopyRegionsScattersPieces) {
+  const size_t n = 1000;
+  std::vector<uint8_t> in(n), out(n, 0), expected(n, 0);
+  for (size_t i = 0; i < n; ++i) in[i] = uint8_t(i * 7 + 3);
+  vk::Buffer a = ctx().allocator().allocate(n), b = ctx().allocator().allocate(n);
+  ctx().transfer().upload(a.view(), in.data(), n);
+  ctx().transfer().fill_zero(b.view());
+  const vk::BufferView src = a.view().sub(16, 512), dst = b.view().sub(64, 900);
+  const std::vector<VkBufferCopy> regions = {{0, 0, 5}, {100, 7, 33}, {511, 899, 1}, {40, 500, 60}};
+  for (const VkBufferCopy& r : regions)
+    for (VkDeviceSize i = 0; i < r.size; ++i) expected[64 + r.dstOffset + i] = in[16 + r.srcOffset + i];
+  vk::Recorder rec(ctx());
+  rec.begin();
+  rec.copy_regions(src, dst, regions);
+  rec.end();
+  rec.submit();
+  ctx().transfer().download(b.view(), out.data(), n);
+  EXPECT_EQ(out, expected);
+  rec.begin();
+  const VkBufferCopy outside{500, 0, 13};  // past the end of src
+  EXPECT_THROW(rec.copy_regions(src, dst, std::span(&outside, 1)), dvs::Error);
+  rec.end();
+}
+
 // out = in * scale + offset + bias, through test/spec_constants.
 struct SpecProbe {
   uint32_t n;

@@ -2,7 +2,7 @@
 
 #include <vector>
 
-#include "tensor/ops_layout.hpp"
+#include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
 namespace dvs {
@@ -17,15 +17,31 @@ TransformerDenoiser::TransformerDenoiser(vk::Context& ctx, models::CogVideoXTran
   model.positional_embedding(s[0], s[2], s[3], text.dim(1));
   arena_ = std::make_unique<vk::Arena>(ctx.allocator(), model.arena_bytes(batch, s[0], s[2], s[3], text.dim(1)),
                                        "transformer activations");
+  // The image half of every row never changes: written once here, so a step only copies x in (no concat).
+  ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy_regions(image_.buffer(), input_.buffer(), frame_regions(1)); });
+  x_regions_ = frame_regions(0);
+}
+
+// Frame f of the source ([F,C,H,W]) to the x (half 0) or image (half 1) part of frame f of every row of input_
+// ([batch, F, 2C, H, W]).
+std::vector<VkBufferCopy> TransformerDenoiser::frame_regions(int half) const {
+  const int64_t frames = image_.dim(0);
+  const VkDeviceSize bytes = frame_bytes();
+  std::vector<VkBufferCopy> r;
+  for (int b = 0; b < batch_; ++b)
+    for (int64_t f = 0; f < frames; ++f) r.push_back({f * bytes, ((b * frames + f) * 2 + half) * bytes, bytes});
+  return r;
+}
+
+VkDeviceSize TransformerDenoiser::frame_bytes() const {
+  const Shape& s = image_.shape();
+  return VkDeviceSize(s[1] * s[2] * s[3]) * sizeof(float);
 }
 
 void TransformerDenoiser::operator()(vk::Recorder& rec, const Tensor& x, int t, const Tensor& v) {
-  const Shape& s = image_.shape();
   std::vector<float> ts(static_cast<size_t>(batch_), static_cast<float>(t));
   timesteps_.write(ctx_, HostTensor::from_f32({batch_}, ts));  // host write before this recording runs
-  Tensor row0 = input_.rows(0, 1);
-  ops::concat(rec, {x.reshape({1, s[0], s[1], s[2], s[3]}), image_.reshape({1, s[0], s[1], s[2], s[3]})}, row0, 2);
-  for (int b = 1; b < batch_; ++b) rec.copy(row0.buffer(), input_.rows(b, 1).buffer(), row0.bytes());
+  rec.copy_regions(x.buffer(), input_.buffer(), x_regions_);
   arena_->reset();
   model_.record(rec, *arena_, input_, text_, timesteps_, v);
 }

@@ -2,6 +2,7 @@
 // each CFG row, with its own activation arena sized for that batch.
 #pragma once
 #include <memory>
+#include <vector>
 
 #include "models/cogvideox_transformer.hpp"
 #include "tensor/tensor.hpp"
@@ -18,11 +19,15 @@ class TransformerDenoiser {
   void operator()(vk::Recorder& rec, const Tensor& x, int t, const Tensor& v);
 
  private:
+  VkDeviceSize frame_bytes() const;  // one latent frame [C,H,W] in f32
+  std::vector<VkBufferCopy> frame_regions(int half) const;
+
   vk::Context& ctx_;
   models::CogVideoXTransformer& model_;
   Tensor image_, text_, input_, timesteps_;
   int batch_;
   std::unique_ptr<vk::Arena> arena_;
+  std::vector<VkBufferCopy> x_regions_;  // x into every row, per step
 };
 
 }  // namespace dvs

@@ -1,5 +1,7 @@
 #include "vk/recorder.hpp"
 
+#include <vector>
+
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/profiler.hpp"
@@ -192,6 +194,21 @@ void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize b
   track({dst.buffer, dst.offset, dst.offset + bytes}, true);
   VkBufferCopy region{src.offset, dst.offset, bytes};
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, 1, &region);
+}
+
+void Recorder::copy_regions(const BufferView& src, const BufferView& dst, std::span<const VkBufferCopy> regions) {
+  if (!recording_) throw Error("internal: copy outside begin()/end()");
+  if (regions.empty()) return;
+  std::vector<VkBufferCopy> absolute(regions.begin(), regions.end());
+  for (VkBufferCopy& r : absolute) {
+    if (r.srcOffset + r.size > src.size || r.dstOffset + r.size > dst.size)
+      throw Error("internal: recorded copy region outside its buffers");
+    r.srcOffset += src.offset;
+    r.dstOffset += dst.offset;
+  }
+  track({src.buffer, src.offset, src.offset + src.size}, false);
+  track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
+  vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, uint32_t(absolute.size()), absolute.data());
 }
 
 void Recorder::fill_zero(const BufferView& dst) {

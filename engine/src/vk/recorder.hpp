@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,9 @@ class Recorder {
   void dispatch(const Pipeline& p, const std::vector<Binding>& bindings, const void* push, uint32_t push_bytes,
                 uint32_t groups_x, uint32_t groups_y = 1, uint32_t groups_z = 1, const std::string& label = {});
   void copy(const BufferView& src, const BufferView& dst, VkDeviceSize bytes);
+  // Many pieces between the same two views in one command (offsets relative to the views): one transfer
+  // command instead of one per piece, which matters where each command costs tens of µs (lavapipe).
+  void copy_regions(const BufferView& src, const BufferView& dst, std::span<const VkBufferCopy> regions);
   void fill_zero(const BufferView& dst);
   void barrier();  // full compute/transfer barrier, for dependencies the tracker cannot see
   void end();
