@@ -52,9 +52,9 @@ namespace {
 struct SceneFiles {
   dvs::test::TempDir dir;
   std::filesystem::path video, depth;
-  SceneFiles() {
+  explicit SceneFiles(int frames = 5) {
     dvs::geometry::SyntheticSceneSpec spec;
-    spec.frames = 5;
+    spec.frames = frames;
     spec.height = 48;
     spec.width = 64;
     spec.K = dvs::geometry::Intrinsics::official_default(64, 48);
@@ -80,6 +80,26 @@ TEST(CliRender, WritesEveryOutput) {
   dvs::HostTensor render = dvs::read_video(out / "render.mp4", {}, &info);
   EXPECT_EQ(render.shape, (dvs::Shape{5, 3, 48, 64}));
   EXPECT_NEAR(info.fps, 12.0, 1e-3);  // output keeps the input fps
+}
+
+// Depth written for the whole source clip (as a video depth estimator does) follows the video's --frames cut;
+// depth of another length needs --trim-depth.
+TEST(CliRender, WholeClipDepthFollowsTheFrameCut) {
+  SceneFiles s(9);
+  const std::string base = kDvs + " render --video " + s.video.string() + " --metric-depth --size 48x64 --frames 5 ";
+  auto r = dvs::test::run_command(base + "--depth " + s.depth.string() + " --out " + (s.dir / "a").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(dvs::read_npy(s.dir / "a" / "mask.npy").shape, (dvs::Shape{5, 48, 64}));
+  dvs::HostTensor seven = dvs::read_npy(s.depth);
+  seven.shape[0] = 7;
+  seven.data.resize(size_t(seven.numel()) * 4);
+  dvs::write_npy(s.dir / "depth7.npy", seven);
+  r = dvs::test::run_command(base + "--depth " + (s.dir / "depth7.npy").string() + " --out " + (s.dir / "b").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("depth7.npy: has 7 depth frames but the video has 5 (--trim-depth"), std::string::npos) << r.output;
+  r = dvs::test::run_command(base + "--trim-depth --depth " + (s.dir / "depth7.npy").string() + " --out " +
+                             (s.dir / "c").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
 TEST(CliRender, BadInputsFailClearlyAndWriteNothing) {

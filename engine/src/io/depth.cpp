@@ -202,7 +202,7 @@ HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, i
   if (N > frames) {
     if (!allow_trim)
       throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames) +
-                  " (ask to trim the depth to use its first " + std::to_string(frames) + ")");
+                  " (--trim-depth uses its first " + std::to_string(frames) + ")");
     d.shape[0] = frames;
     d.data.resize(size_t(frames) * size_t(depth.shape[1] * depth.shape[2]) * 4);
   }

@@ -42,6 +42,7 @@ HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions&
   vi.width = int(cap.get(cv::CAP_PROP_FRAME_WIDTH));
   vi.height = int(cap.get(cv::CAP_PROP_FRAME_HEIGHT));
   vi.fps = cap.get(cv::CAP_PROP_FPS);
+  vi.frames_in_file = std::max(0, int(cap.get(cv::CAP_PROP_FRAME_COUNT)));
   if (!(vi.fps > 0 && vi.fps < 1000)) vi.fps = 30;
   const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
   std::vector<cv::Mat> frames;
@@ -53,6 +54,7 @@ HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions&
   }
   if (frames.empty()) throw Error(name + ": the video has no decodable frames");
   vi.frames = int(frames.size());
+  if (o.max_frames <= 0 || vi.frames < o.max_frames) vi.frames_in_file = vi.frames;  // read to the end: exact
   if (info) *info = vi;
 
   HostTensor out({int64_t(frames.size()), 3, h, w}, DType::f32);

@@ -23,6 +23,7 @@ struct VideoReadOptions {
 struct VideoInfo {
   int width = 0, height = 0;  // of the file
   int frames = 0;             // decoded (after max_frames)
+  int frames_in_file = 0;     // the container's frame count (0 when it does not say)
   double fps = 0;
 };
 

@@ -62,7 +62,10 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
 
   DepthOptions dopt;
   dopt.values = job.metric_depth ? DepthValues::depth : DepthValues::disparity;
-  r.depth = fit_depth_to_video(load_depth(job.depth, dopt), F, H, W, job.trim_depth, job.depth.string());
+  HostTensor depth = load_depth(job.depth, dopt);
+  // Depth for the whole source clip (what a video depth estimator writes) follows the video's --frames cut.
+  const bool whole_clip = vi.frames_in_file > 0 && depth.shape[0] == vi.frames_in_file;
+  r.depth = fit_depth_to_video(depth, F, H, W, job.trim_depth || whole_clip, job.depth.string());
   r.seconds_decode = seconds_since(t0);
 
   r.K = geometry::Intrinsics::official_default(W, H);
