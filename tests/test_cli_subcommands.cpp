@@ -18,24 +18,6 @@ namespace {
 
 using test::PipelineInputs;
 
-std::string read_text(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-std::vector<std::string> files_in(const std::filesystem::path& dir) {
-  std::vector<std::string> names;
-  if (std::filesystem::is_directory(dir))
-    for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
-  return names;
-}
-
-size_t count(const std::string& text, const std::string& what) {
-  size_t n = 0;
-  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
-  return n;
-}
-
 TEST(CliInvert, WritesEpsInvAndRunReusesIt) {
   PipelineInputs in;
   const auto inv_out = in.dir / "inv";
@@ -127,7 +109,7 @@ TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
 
   auto again = test::run_command(base);  // one shard: everything
   EXPECT_NE(again.exit_code, 0) << "job 3 still fails";
-  EXPECT_EQ(count(again.output, ": running"), 1u) << "only the failed job runs again\n" << again.output;
+  EXPECT_EQ(test::count_of(again.output, ": running"), 1u) << "only the failed job runs again\n" << again.output;
   EXPECT_NE(again.output.find("job 3 (jobs.jsonl:6): running"), std::string::npos) << again.output;
   EXPECT_NE(again.output.find("5 jobs: 0 done, 4 skipped (already done), 1 failed"), std::string::npos) << again.output;
 }
@@ -157,16 +139,16 @@ TEST(CliInterrupt, SigintStopsARunCleanly) {
   bool inverting = false;
   for (int i = 0; i < 6000 && !inverting; ++i) {  // up to a minute for the first inversion step
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    inverting = read_text(log).find("\"stage\":\"invert\",\"step\":1,") != std::string::npos;
+    inverting = test::read_text(log).find("\"stage\":\"invert\",\"step\":1,") != std::string::npos;
   }
-  ASSERT_TRUE(inverting) << read_text(log);
+  ASSERT_TRUE(inverting) << test::read_text(log);
   kill(pid, SIGINT);
-  EXPECT_EQ(test::wait_command(pid), 130) << read_text(log);
-  const std::string output = read_text(log);
+  EXPECT_EQ(test::wait_command(pid), 130) << test::read_text(log);
+  const std::string output = test::read_text(log);
   EXPECT_NE(output.find("interrupted"), std::string::npos) << output;
   EXPECT_EQ(output.find("error"), std::string::npos) << output;
-  for (const auto& name : files_in(out)) ADD_FAILURE() << "left in the output folder: " << name;
-  for (const auto& name : files_in(in.cache)) EXPECT_EQ(name.find("partial"), std::string::npos) << name;
+  for (const auto& name : test::files_in(out)) ADD_FAILURE() << "left in the output folder: " << name;
+  for (const auto& name : test::files_in(in.cache)) EXPECT_EQ(name.find("partial"), std::string::npos) << name;
 }
 
 }  // namespace

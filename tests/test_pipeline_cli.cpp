@@ -46,19 +46,6 @@ TEST(PipelineCli, RunWritesEveryOutputAndReusesTheInversion) {
   EXPECT_TRUE(run2["inversion_from_cache"].get<bool>());
 }
 
-std::vector<std::string> files_in(const std::filesystem::path& dir) {
-  std::vector<std::string> names;
-  if (std::filesystem::is_directory(dir))
-    for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
-  return names;
-}
-
-size_t count(const std::string& text, const std::string& what) {
-  size_t n = 0;
-  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
-  return n;
-}
-
 TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
   PipelineInputs in;
   auto out = in.dir / "bad";
@@ -107,9 +94,9 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
     auto r = test::run_command(in.command(out, c.extra));
     EXPECT_NE(r.exit_code, 0) << c.extra;
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.extra << "\n" << r.output;
-    EXPECT_EQ(count(r.output, "dvs: error: "), 1u) << c.extra << "\n" << r.output;
+    EXPECT_EQ(test::count_of(r.output, "dvs: error: "), 1u) << c.extra << "\n" << r.output;
     EXPECT_EQ(r.output.find("internal error"), std::string::npos) << c.extra << "\n" << r.output;
-    for (const auto& name : files_in(out)) ADD_FAILURE() << c.extra << " left " << name;
+    for (const auto& name : test::files_in(out)) ADD_FAILURE() << c.extra << " left " << name;
   }
 }
 

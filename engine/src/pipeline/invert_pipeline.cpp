@@ -19,12 +19,8 @@ InversionReport invert_stages(const RunOptions& o, StageTracker& stages) {
   copt.device = o.render.device;
   vk::Context ctx(copt);
 
-  stages.begin("render", "decoding and rendering");
-  RenderedInput in = render_stage(ctx, o.render, [&](const std::string& s) { stages.say(0, 0, s); });
+  RenderedInput in = render_for_model(ctx, o, stages);
   const int F = int(in.rgb.shape[0]);
-  if ((F - 1) % 4 != 0)
-    throw Error(o.render.video.string() + ": " + std::to_string(F) + " frames were decoded; the model needs 4k+1 — pass --frames");
-  stages.end();
 
   stages.begin("encode", "VAE-encoding the render");
   EncodedRender enc;

@@ -49,6 +49,16 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
                 "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
 }
 
+RenderedInput render_for_model(vk::Context& ctx, const RunOptions& o, StageTracker& stages) {
+  stages.begin("render", "decoding and rendering");
+  RenderedInput in = render_stage(ctx, o.render, [&](const std::string& s) { stages.say(0, 0, s); });
+  const int F = int(in.rgb.shape[0]);
+  if ((F - 1) % 4 != 0)
+    throw Error(o.render.video.string() + ": " + std::to_string(F) + " frames were decoded; the model needs 4k+1 — pass --frames");
+  stages.end();
+  return in;
+}
+
 EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Settings& st,
                             const RenderedInput& in) {
   const auto tiling = vae_tiling(o);

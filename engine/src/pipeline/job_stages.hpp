@@ -29,6 +29,9 @@ struct JobPlan {
 // Checks the options and reads the model's small files (configs, vocabulary); errors name the option or file.
 JobPlan plan_job(const RunOptions& o);
 
+// Stages 1–2: decode and render, checking that the model can take the frame count (4k+1).
+RenderedInput render_for_model(vk::Context& ctx, const RunOptions& o, StageTracker& stages);
+
 // The render in latent space (diffusion layout [Fl, C, h, w]).
 struct EncodedRender {
   models::VaePosterior posterior;  // of the whole render, VAE units
