@@ -1,0 +1,82 @@
+// The VAE ends of the pack's end-to-end case, through the pipeline's own layout conversions
+// (pipeline/latent_layout): the I2V image latent built from the first frame (posterior mean + std · the pack's
+// saved noise, × scaling_factor, in latent frame 0 and zeros after) and the decoded final video
+// (vae.decode(final_latent / scaling_factor), not clamped). Sizes and tolerances come from the pack
+// (DVS_GOLDEN_DIR; cases.json: e2e_image_latents atol/rtol, e2e_sampling frames_atol).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "io/npy.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "pipeline/latent_layout.hpp"
+#include "support/files.hpp"
+#include "support/gpu.hpp"
+#include "tensor/dispatch.hpp"
+
+namespace dvs {
+namespace {
+
+using test::GpuTest;
+
+HostTensor load(const std::string& rel) { return read_npy(test::golden_path() / rel); }
+
+const nlohmann::json& case_json(const std::string& name) {
+  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(test::golden_path() / "cases.json"));
+  for (const auto& c : j.at("cases"))
+    if (c.at("name") == name) return c;
+  throw std::runtime_error("no case " + name + " in cases.json");
+}
+
+void expect_close(const HostTensor& ours, const HostTensor& golden, double atol, double rtol, const std::string& what) {
+  ASSERT_EQ(ours.numel(), golden.numel()) << what;
+  const std::vector<float> a = ours.to_f32(), g = golden.to_f32();
+  double worst = 0;
+  size_t bad = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const double d = std::fabs(double(a[i]) - double(g[i]));
+    worst = std::max(worst, std::isnan(d) ? INFINITY : d);
+    if (!(d <= atol + rtol * std::fabs(double(g[i])))) ++bad;
+  }
+  std::printf("  %-40s max |diff| = %.3e (atol %g, rtol %g)\n", what.c_str(), worst, atol, rtol);
+  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << a.size() << " outside tolerance, max |diff| " << worst;
+}
+
+float scaling(const models::CogVideoXVae& vae) { return float(vae.config().scaling_factor); }
+
+TEST_F(GpuTest, GoldenE2eImageLatentFromTheFirstFrame) {
+  const auto& tol = case_json("e2e_image_latents").at("tolerance");
+  const double atol = tol.at("atol"), rtol = tol.at("rtol");
+  models::CogVideoXVae vae(ctx(), test::golden_path() / "model" / "vae");
+  HostTensor image = load("e2e/image.npy");  // [1, 3, H, W] -> one frame of [1, 3, 1, H, W]
+  image.shape = {image.shape[0], image.shape[1], 1, image.shape[2], image.shape[3]};
+  const models::VaePosterior post = vae.encode(Tensor::upload(ctx(), image));
+  expect_close(post.mean.download(ctx()), load("e2e/image_posterior_mean.npy"), atol, rtol, "image posterior mean");
+  expect_close(post.std.download(ctx()), load("e2e/image_posterior_std.npy"), atol, rtol, "image posterior std");
+
+  // The pipeline's official-preset path: mean + std·noise, then the diffusion layout (the pack's noise replaces
+  // the torch generator's draw).
+  const Tensor noise = Tensor::upload(ctx(), load("e2e/image_sample_noise.npy"));
+  Tensor sample = Tensor::empty(ctx(), post.mean.shape(), DType::f32);
+  ops::run_now(ctx(), [&](vk::Recorder& rec) { models::CogVideoXVae::sample(rec, post, noise, sample); });
+  const Tensor frame0 = to_diffusion_layout(ctx(), sample, scaling(vae));  // [1, C, h, w]
+  const HostTensor golden = load("e2e/image_latents.npy");             // [1, Fl, C, h, w]: frame 0, zeros after
+  HostTensor ours(golden.shape, DType::f32);
+  const HostTensor f0 = frame0.download(ctx());
+  std::copy(f0.as<float>(), f0.as<float>() + f0.numel(), ours.as<float>());
+  expect_close(ours, golden, atol, rtol, "image_latents");
+}
+
+TEST_F(GpuTest, GoldenE2eFinalFramesDecoded) {
+  const double frames_atol = case_json("e2e_sampling").at("tolerance").at("frames_atol");
+  models::CogVideoXVae vae(ctx(), test::golden_path() / "model" / "vae");
+  HostTensor latent = load("e2e/final_latent.npy");  // [1, Fl, C, h, w]
+  latent.shape.erase(latent.shape.begin());
+  const Tensor z = to_vae_layout(ctx(), Tensor::upload(ctx(), latent), 1.0f / scaling(vae));
+  expect_close(vae.decode(z).download(ctx()), load("e2e/final_frames.npy"), frames_atol, 0, "final_frames");
+}
+
+}  // namespace
+}  // namespace dvs
