@@ -100,8 +100,8 @@ void elementwise(Bench& b) {
   measure(b, copy, "scale_shift_rows", shape_str(rs), 2.0 * 4 * double(rows_x.numel()),
           [&](vk::Recorder& r) { ops::scale_shift(r, rows_x, vec, rshift, rows_z, 1.0f); }, "adaLN x(1+scale)+shift");
   Tensor odd_x = Tensor::on(x.buffer(), {n - 1}, DType::f32), odd_z = Tensor::on(z.buffer(), {n - 1}, DType::f32);
-  measure(b, copy, "silu_scalar_path", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
-          "odd count: no vec4");
+  measure(b, copy, "silu_odd_count", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
+          "vec4 body + scalar tail");
   Tensor h = filled(ctx, {n}, DType::bf16);
   measure(b, copy, "cast_f32_bf16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, h); });
   measure(b, copy, "cast_bf16_f32", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, h, z); });

@@ -47,7 +47,8 @@ Tensor upload(vk::Context& ctx, const Shape& s, const std::vector<float>& v) {
 }
 
 // Odd sizes exercise the scalar shaders, multiples of 4 the vec4 ones; [2, 13, 16, 60/8...] the tiny model.
-const std::vector<Shape> kShapes = {{1}, {7}, {33}, {129}, {3, 5, 7}, {4, 8}, {2, 16, 6, 10}, {1, 2, 16, 30, 45}};
+// {3, 5, 67}: odd and large enough for a vec4 body plus a scalar tail.
+const std::vector<Shape> kShapes = {{1}, {7}, {33}, {129}, {3, 5, 7}, {3, 5, 67}, {4, 8}, {2, 16, 6, 10}, {1, 2, 16, 30, 45}};
 
 void expect_close(const std::vector<float>& got, const std::vector<double>& want, double atol, double rtol,
                   const std::string& what) {

@@ -19,8 +19,9 @@ layout(std430, binding = 0) readonly buffer X { T x[]; };
 #endif
 layout(std430, binding = 1) writeonly buffer Y { T y[]; };
 layout(push_constant) uniform Push {
-  uint n;  // in units of T
+  uint n;      // in units of T
   float a, b;
+  uint first;  // first unit (the scalar tail after a vec4 body of an odd-sized tensor)
 } p;
 
 // tanh from one exp of a non-positive argument: never overflows (inf/inf) for large |u|.
@@ -39,5 +40,5 @@ T apply(T v) {
 void main() {
   // Grid-stride loop over a bounded grid (measured faster on lavapipe than one contiguous span per group).
   uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-  for (uint i = gl_GlobalInvocationID.x; i < p.n; i += stride) y[i] = apply(LOAD_X(i));
+  for (uint i = p.first + gl_GlobalInvocationID.x; i < p.n; i += stride) y[i] = apply(LOAD_X(i));
 }

@@ -58,17 +58,28 @@ void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, con
   const int64_t n = x.numel();
   if (n == 0) return;
   vk::Context& ctx = rec.context();
-  const bool vec4 = n % 4 == 0;
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4);
-  const int64_t units = vec4 ? n / 4 : n;
+  const uint32_t spec[] = {uint32_t(kind)};
   struct {
     uint32_t n;
     float a, b;
-  } push{uint32_t(units), a, b};
-  const uint32_t spec[] = {uint32_t(kind)};
-  const char* shader = texel ? "nn/eltwise_unary_tex4" : vec4 ? "nn/eltwise_unary_vec4" : "nn/eltwise_unary";
-  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
-  rec.dispatch(p, {texel ? rgba(x) : vk::Binding(x.buffer()), y.buffer()}, &push, sizeof push, groups_for(units), 1, 1, op);
+    uint32_t first;
+  } push{0, a, b, 0};
+  const int64_t body = n / 4 * 4;
+  if (body == n || body >= 4 * int64_t(kLocal)) {  // whole vec4s; an odd-sized tensor adds a scalar tail below
+    const Tensor xb = body == n ? x : Tensor::on(x.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
+    const Tensor yb = body == n ? y : Tensor::on(y.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
+    const bool texel = g_texel_inputs && texel_ok(ctx, xb, body / 4);
+    push.n = uint32_t(body / 4);
+    const vk::Pipeline& p = ctx.pipelines().get(texel ? "nn/eltwise_unary_tex4" : "nn/eltwise_unary_vec4", spec);
+    rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push, groups_for(body / 4), 1,
+                 1, op);
+    if (body == n) return;
+    push.first = uint32_t(body);
+  }
+  push.n = uint32_t(n);
+  const int64_t rest = n - push.first;
+  rec.dispatch(ctx.pipelines().get("nn/eltwise_unary", spec), {x.buffer(), y.buffer()}, &push, sizeof push, groups_for(rest),
+               1, 1, op);
 }
 
 // y broadcast over x as y[(e / inner) % C]; see the header for the accepted shapes.
