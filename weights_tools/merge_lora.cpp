@@ -3,11 +3,11 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cmath>
 #include <iostream>
 #include <map>
 
 #include "dvs/error.hpp"
+#include "io/lora_file.hpp"
 #include "io/model_folder.hpp"
 #include "io/safetensors.hpp"
 #include "io/safetensors_writer.hpp"
@@ -36,43 +36,8 @@ bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-struct Adapter {
-  HostTensor a, b;  // A [rank, in], B [out, rank]
-  double scale = 1.0;  // user scale x (alpha / rank) when alpha is given
-};
-
-std::map<std::string, Adapter> read_adapters(const MergeLoraOptions& o) {
-  const WeightSet set = WeightSet::open_file(o.lora);
-  const std::string where = o.lora.string();
-  const std::string a_suffix = ".lora_A.weight";
-  std::map<std::string, Adapter> out;
-  for (const auto& [name, ref] : set.entries()) {
-    if (!ends_with(name, a_suffix)) continue;
-    const std::string module = name.substr(0, name.size() - a_suffix.size());
-    const std::string b_name = module + ".lora_B.weight";
-    if (!set.find(b_name)) throw Error(where + ": '" + name + "' has no matching '" + b_name + "'");
-    Adapter ad;
-    ad.a = set.load(name);
-    ad.b = set.load(b_name);
-    if (ad.a.shape.size() != 2 || ad.b.shape.size() != 2 || ad.b.shape[1] != ad.a.shape[0])
-      throw Error(where + ": LoRA '" + module + "' has A [" + shape_str(ad.a.shape) + "] and B [" + shape_str(ad.b.shape) +
-                  "]; expected A [rank, in] and B [out, rank]");
-    ad.scale = o.scale;
-    if (set.find(module + ".alpha")) {
-      const std::vector<float> v = set.load(module + ".alpha").to_f32();
-      if (v.size() != 1) throw Error(where + ": '" + module + ".alpha' must hold one value");
-      ad.scale *= double(v[0]) / double(ad.a.shape[0]);
-    }
-    std::string key = module;
-    if (!o.prefix.empty() && key.rfind(o.prefix, 0) == 0) key = key.substr(o.prefix.size());
-    out.emplace(key, std::move(ad));
-  }
-  if (out.empty()) throw Error(where + ": no LoRA tensors ('*.lora_A.weight' / '*.lora_B.weight') found");
-  return out;
-}
-
 // W + scale·B·A in W's dtype (f32 / f16 / bf16; narrowing rounds to nearest even).
-HostTensor merged(const HostTensor& w, const Adapter& ad, const std::string& name) {
+HostTensor merged(const HostTensor& w, const LoraFileAdapter& ad, const std::string& name) {
   const int64_t out = ad.b.shape[0], rank = ad.a.shape[0], in = ad.a.shape[1];
   if (w.shape != Shape{out, in})
     throw Error("LoRA for '" + name + "' is [" + std::to_string(out) + ", " + std::to_string(in) +
@@ -117,16 +82,6 @@ void copy_tree(const fs::path& from, const fs::path& to, const fs::path& transfo
   }
 }
 
-double parse_scale(const std::string& text, const std::string& spec) {
-  try {
-    size_t used = 0;
-    const double s = std::stod(text, &used);
-    if (used == text.size() && std::isfinite(s)) return s;
-  } catch (const std::exception&) {
-  }
-  throw Error("--lora " + spec + ": the scale after ':' must be a number, got '" + text + "'");
-}
-
 }  // namespace
 
 MergeLoraReport merge_lora_folder(const MergeLoraOptions& o) {
@@ -140,7 +95,7 @@ MergeLoraReport merge_lora_folder(const MergeLoraOptions& o) {
     throw Error(o.out.string() + ": already exists and is not an empty folder; choose another --out");
   if (fs::weakly_canonical(o.out) == fs::weakly_canonical(o.model)) throw Error("--out must differ from --model");
 
-  const std::map<std::string, Adapter> adapters = read_adapters(o);
+  const std::map<std::string, LoraFileAdapter> adapters = read_lora_file(o.lora, o.scale, o.prefix);
   const WeightSet weights = WeightSet::open_dir(tr_dir);
   for (const auto& [module, ad] : adapters)
     if (!weights.find(module + ".weight"))
@@ -212,14 +167,9 @@ int merge_lora_command(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    // FILE[:SCALE]: the scale is what follows the last ':' when the whole spec is not an existing file.
-    o.lora = lora_spec;
-    std::error_code ec;
-    const size_t colon = lora_spec.rfind(':');
-    if (!fs::exists(o.lora, ec) && colon != std::string::npos) {
-      o.lora = lora_spec.substr(0, colon);
-      o.scale = parse_scale(lora_spec.substr(colon + 1), lora_spec);
-    }
+    const LoraSpec lora = parse_lora_spec(lora_spec);
+    o.lora = lora.file;
+    o.scale = lora.scale;
     const MergeLoraReport r = merge_lora_folder(o);
     std::cout << "merged " << r.merged_modules << " LoRA module(s) (rank up to " << r.rank << ", scale " << o.scale
               << ") into " << o.out.string() << "\n";

@@ -46,11 +46,7 @@ int run_invert(const std::vector<std::string>& argv) {
   Progress progress(mode);
   InversionReport r = run_inversion(o, std::ref(progress), interrupted);
   progress.finish();
-  if (mode != ProgressMode::quiet) {
-    std::cerr << "stage times:";
-    for (const auto& s : r.stages) std::cerr << " " << s.stage << " " << s.seconds << "s";
-    std::cerr << (r.from_cache ? "  (inversion from the cache)" : "") << "\n";
-  }
+  print_stage_times(mode, r.stages, r.from_cache);
   std::cout << "wrote " << r.eps_inv_npy.string() << " [";
   for (size_t i = 0; i < r.shape.size(); ++i) std::cout << (i ? "," : "") << r.shape[i];
   std::cout << "] (t0 = " << r.t0 << ")\n";

@@ -1,6 +1,5 @@
 // `dvs run` (the whole pipeline on the user's video) and `dvs demo` (the same on a generated scene and a
 // tiny random model).
-#include <cmath>
 #include <iostream>
 #include <tuple>
 
@@ -8,6 +7,7 @@
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
+#include "io/lora_file.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
 #include "run_command.hpp"
@@ -60,36 +60,21 @@ const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out"
                                            "cache-dir", "progress", "height", "width", "lora", "vae-tile"};
 const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
 
-namespace {
-
-// "FILE" or "FILE:SCALE" (the last ':' followed by a number; a path may hold ':' itself).
-std::pair<std::filesystem::path, double> parse_lora(const Args& a) {
-  const std::string v = a.str("lora");
-  if (const auto colon = v.rfind(':'); colon != std::string::npos) {
-    const std::string tail = v.substr(colon + 1);
-    try {
-      size_t used = 0;
-      const double scale = std::stod(tail, &used);
-      if (used == tail.size() && std::isfinite(scale)) return {v.substr(0, colon), scale};
-    } catch (const std::logic_error&) {
-    }
-  }
-  return {v, 1.0};
-}
-
-}  // namespace
 
 ProgressMode progress_mode(const Args& a) { return parse_progress_mode(a.str("progress"), a.has("quiet")); }
+
+void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache) {
+  if (mode == ProgressMode::quiet) return;
+  std::cerr << "stage times:";
+  for (const auto& s : stages) std::cerr << " " << s.stage << " " << s.seconds << "s";
+  std::cerr << (inversion_from_cache ? "  (inversion from the cache)" : "") << "\n";
+}
 
 int execute_run(const RunOptions& o, ProgressMode mode) {
   Progress progress(mode);
   RunReport r = run_pipeline(o, std::ref(progress), interrupted);
   progress.finish();
-  if (mode != ProgressMode::quiet) {
-    std::cerr << "stage times:";
-    for (const auto& s : r.stages) std::cerr << " " << s.stage << " " << s.seconds << "s";
-    std::cerr << (r.inversion_from_cache ? "  (inversion from the cache)" : "") << "\n";
-  }
+  print_stage_times(mode, r.stages, r.inversion_from_cache);
   std::cout << "wrote " << r.output_mp4.string() << "\n      " << r.render_mp4.string() << "\n      " << r.mask_mp4.string()
             << "\n      " << r.comparison_mp4.string() << "\n      " << r.run_json.string() << "\n";
   return 0;
@@ -136,7 +121,11 @@ RunOptions parse_run_options(const Args& a) {
   o.seed = uint64_t(a.integer("seed", 42, 0, 2147483647));
   o.cache_dir = a.str("cache-dir");
   o.use_cache = !a.has("no-cache");
-  if (a.has("lora")) std::tie(o.lora, o.lora_scale) = parse_lora(a);
+  if (a.has("lora")) {
+    const LoraSpec lora = parse_lora_spec(a.str("lora"));
+    o.lora = lora.file;
+    o.lora_scale = lora.scale;
+  }
   o.vae_tiling = a.has("vae-tiling") || a.has("vae-tile");
   if (a.has("vae-tile")) std::tie(o.vae_tile_height, o.vae_tile_width) = a.size("vae-tile", {0, 0});
   return o;

@@ -3,6 +3,7 @@
 #pragma once
 #include <set>
 #include <string>
+#include <vector>
 
 #include "args.hpp"
 #include "dvs/pipeline.hpp"
@@ -18,6 +19,9 @@ extern const char* kRunHelp;
 // present (the caller requires it where it matters).
 RunOptions parse_run_options(const Args& a);
 ProgressMode progress_mode(const Args& a);
+
+// One line on stderr with each stage's seconds (nothing with --quiet).
+void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache);
 
 // Runs the whole pipeline, printing progress, stage times and the files written.
 int execute_run(const RunOptions& o, ProgressMode mode);

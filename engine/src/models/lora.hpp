@@ -1,8 +1,5 @@
-// LoRA adapters in the diffusers / PEFT safetensors layout, applied unmerged as diffusers does after
-// load_lora_weights: y = W·x + b + scale·B·(A·x), with A = "<module>.lora_A.weight" [rank, in] and
-// B = "<module>.lora_B.weight" [out, rank]; scale = user scale · (alpha / rank) when the file holds
-// "<module>.alpha", else the user scale (PEFT's default lora_alpha = rank). Module names are taken after an
-// optional "transformer." prefix (diffusers' saved layout), e.g. "transformer_blocks.3.attn1.to_q".
+// LoRA adapters applied unmerged as diffusers does after load_lora_weights: y = W·x + b + scale·B·(A·x). The
+// file layout, the scale rule and the module names are in io/lora_file.hpp.
 #pragma once
 #include <cstdint>
 #include <filesystem>

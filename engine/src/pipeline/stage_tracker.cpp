@@ -20,14 +20,16 @@ void StageTracker::say(int step, int total, const std::string& note) const {
   if (progress_) progress_(stage_, step, total, note);
 }
 
+bool StageTracker::cancel_requested() const { return cancelled_ && cancelled_(); }
+
 void StageTracker::check_cancelled() const {
-  if (cancelled_ && cancelled_()) throw Cancelled();
+  if (cancel_requested()) throw Cancelled();
 }
 
 diffusion::LoopCallbacks StageTracker::loop_callbacks() const {
   diffusion::LoopCallbacks cb;
   cb.progress = [this](int step, int total, int t) { say(step, total, "t=" + std::to_string(t)); };
-  cb.cancelled = [this] { return cancelled_ && cancelled_(); };
+  cb.cancelled = [this] { return cancel_requested(); };
   return cb;
 }
 

@@ -43,6 +43,8 @@ class StageTracker {
   }
 
  private:
+  bool cancel_requested() const;
+
   ProgressFn progress_;
   CancelFn cancelled_;
   std::string stage_;
