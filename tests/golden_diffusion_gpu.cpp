@@ -20,28 +20,20 @@
 #include "tensor/dispatch.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
+#include "support/pack.hpp"
 
 namespace dvs::diffusion {
 namespace {
 
 using test::GpuTest;
+using test::pack_scaling;
 
-HostTensor load(const std::string& rel) { return read_npy(test::golden_path() / rel); }
-
-const nlohmann::json& cases() {
-  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(test::golden_path() / "cases.json"));
-  return j;
-}
-const nlohmann::json& settings() { return cases().at("e2e_settings"); }
-std::pair<double, double> tolerance(const std::string& name) {
-  for (const auto& c : cases().at("cases"))
-    if (c.at("name") == name) return {c.at("tolerance").at("atol").get<double>(), c.at("tolerance").at("rtol").get<double>()};
-  throw std::runtime_error("no case " + name);
-}
+HostTensor load(const std::string& rel) { return test::pack_npy(rel); }
+const nlohmann::json& settings() { return test::pack_cases().at("e2e_settings"); }
 
 void expect_close(const Tensor& ours, const HostTensor& golden, vk::Context& ctx, const std::string& case_name,
                   const std::string& what) {
-  auto [atol, rtol] = tolerance(case_name);
+  const auto [atol, rtol] = test::pack_tolerance(case_name);
   std::vector<float> a = ours.download(ctx).to_f32(), g = golden.to_f32();
   ASSERT_EQ(a.size(), g.size()) << what;
   double worst = 0;
@@ -67,12 +59,6 @@ HostTensor vae_to_latent_layout(const HostTensor& t, float scale) {
 }
 
 SchedulerConfig pack_scheduler() { return load_scheduler_config(test::golden_path() / "model"); }
-
-// Diffusion latent = scaling_factor × VAE latent, from the pack's VAE config.
-float pack_scaling() {
-  const auto j = nlohmann::json::parse(std::ifstream(test::golden_path() / "model" / "vae" / "config.json"));
-  return j.at("scaling_factor").get<float>();
-}
 
 // A denoiser that writes the pack's saved (uncond, cond) outputs for the timestep it is asked for.
 Denoiser replay(vk::Context& ctx, const std::string& prefix) {

@@ -14,6 +14,7 @@
 #include "pipeline/latent_layout.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
+#include "support/pack.hpp"
 #include "tensor/dispatch.hpp"
 
 namespace dvs {
@@ -21,14 +22,7 @@ namespace {
 
 using test::GpuTest;
 
-HostTensor load(const std::string& rel) { return read_npy(test::golden_path() / rel); }
-
-const nlohmann::json& case_json(const std::string& name) {
-  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(test::golden_path() / "cases.json"));
-  for (const auto& c : j.at("cases"))
-    if (c.at("name") == name) return c;
-  throw std::runtime_error("no case " + name + " in cases.json");
-}
+HostTensor load(const std::string& rel) { return test::pack_npy(rel); }
 
 void expect_close(const HostTensor& ours, const HostTensor& golden, double atol, double rtol, const std::string& what) {
   ASSERT_EQ(ours.numel(), golden.numel()) << what;
@@ -47,8 +41,8 @@ void expect_close(const HostTensor& ours, const HostTensor& golden, double atol,
 float scaling(const models::CogVideoXVae& vae) { return float(vae.config().scaling_factor); }
 
 TEST_F(GpuTest, GoldenE2eImageLatentFromTheFirstFrame) {
-  const auto& tol = case_json("e2e_image_latents").at("tolerance");
-  const double atol = tol.at("atol"), rtol = tol.at("rtol");
+  const auto tol = test::pack_tolerance("e2e_image_latents");
+  const double atol = tol.atol, rtol = tol.rtol;
   models::CogVideoXVae vae(ctx(), test::golden_path() / "model" / "vae");
   HostTensor image = load("e2e/image.npy");  // [1, 3, H, W] -> one frame of [1, 3, 1, H, W]
   image.shape = {image.shape[0], image.shape[1], 1, image.shape[2], image.shape[3]};
@@ -70,7 +64,7 @@ TEST_F(GpuTest, GoldenE2eImageLatentFromTheFirstFrame) {
 }
 
 TEST_F(GpuTest, GoldenE2eFinalFramesDecoded) {
-  const double frames_atol = case_json("e2e_sampling").at("tolerance").at("frames_atol");
+  const double frames_atol = test::pack_case("e2e_sampling").at("tolerance").at("frames_atol");
   models::CogVideoXVae vae(ctx(), test::golden_path() / "model" / "vae");
   HostTensor latent = load("e2e/final_latent.npy");  // [1, Fl, C, h, w]
   latent.shape.erase(latent.shape.begin());

@@ -22,6 +22,7 @@
 #include "diffusion/schedule.hpp"
 #include "io/npy.hpp"
 #include "support/gpu.hpp"
+#include "support/pack.hpp"
 
 namespace fs = std::filesystem;
 using namespace dvs::diffusion;
@@ -56,53 +57,23 @@ std::vector<double> load_f64(const std::string& rel) {
   return out;
 }
 
-struct Tol {
-  double atol, rtol;
-};
+using Tol = dvs::test::PackTolerance;
+using dvs::test::pack_scaling;
 
-const nlohmann::json& cases() {
-  static const nlohmann::json j = [] {
-    std::ifstream f(pack() / "cases.json");
-    return nlohmann::json::parse(f);
-  }();
-  return j;
-}
-
-const nlohmann::json& case_of(const std::string& name) {
-  for (const auto& c : cases().at("cases"))
-    if (c.at("name") == name) return c;
-  throw std::runtime_error("cases.json has no case " + name);
-}
-
-Tol tol_of(const std::string& name) {
-  const auto& t = case_of(name).at("tolerance");
-  return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
-}
+const nlohmann::json& cases() { return dvs::test::pack_cases(); }
+const nlohmann::json& case_of(const std::string& name) { return dvs::test::pack_case(name); }
+Tol tol_of(const std::string& name) { return dvs::test::pack_tolerance(name); }
 
 const nlohmann::json& e2e() { return cases().at("e2e_settings"); }
 
 // The timesteps t of the files scheduler/<prefix>_t<t>_<suffix>.npy, ascending.
 std::vector<int> step_files(const std::string& prefix, const std::string& suffix) {
-  const std::regex re(prefix + "_t([0-9]+)_" + suffix + "\\.npy");
-  std::set<int> ts;
-  for (const auto& e : fs::directory_iterator(pack() / "scheduler")) {
-    std::smatch m;
-    const std::string name = e.path().filename().string();
-    if (std::regex_match(name, m, re)) ts.insert(std::stoi(m[1]));
-  }
-  return {ts.begin(), ts.end()};
+  return dvs::test::pack_file_numbers("scheduler", prefix + "_t([0-9]+)_" + suffix + "\\.npy");
 }
 
 // The N of the files scheduler/<prefix>_timesteps_<N>.npy, ascending.
 std::vector<int> timestep_files(const std::string& prefix) {
-  const std::regex re(prefix + "_timesteps_([0-9]+)\\.npy");
-  std::set<int> ns;
-  for (const auto& e : fs::directory_iterator(pack() / "scheduler")) {
-    std::smatch m;
-    const std::string name = e.path().filename().string();
-    if (std::regex_match(name, m, re)) ns.insert(std::stoi(m[1]));
-  }
-  return {ns.begin(), ns.end()};
+  return dvs::test::pack_file_numbers("scheduler", prefix + "_timesteps_([0-9]+)\\.npy");
 }
 
 // The set_timesteps(S) a scheduler case ran step() after: a "num_inference_steps" field when the case has
@@ -117,12 +88,6 @@ int case_steps(const std::string& name) {
     if (std::regex_search(text, m, re)) return std::stoi(m[1]);
   }
   throw std::runtime_error("cases.json: case " + name + " names no set_timesteps(S)");
-}
-
-// Diffusion latent = scaling_factor × VAE latent, from the pack's VAE config.
-float pack_scaling() {
-  std::ifstream f(pack() / "model" / "vae" / "config.json");
-  return nlohmann::json::parse(f).at("scaling_factor").get<float>();
 }
 
 // Max |a − g| and whether every element is within atol + rtol·|g|.

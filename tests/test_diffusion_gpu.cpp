@@ -8,6 +8,7 @@
 #include "diffusion/krnr.hpp"
 #include "diffusion/sampler.hpp"
 #include "support/gpu.hpp"
+#include "support/random_latent.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 
@@ -15,14 +16,6 @@ namespace dvs::diffusion {
 namespace {
 
 using test::GpuTest;
-
-HostTensor random_latent(Shape s, uint32_t seed, float offset = 0) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> n(0, 1);
-  HostTensor h(std::move(s), DType::f32);
-  for (int64_t i = 0; i < h.numel(); ++i) h.as<float>()[i] = n(rng) + offset * float(i % 3);
-  return h;
-}
 
 double max_diff(const std::vector<float>& a, const std::vector<float>& b) {
   double m = 0;
@@ -32,7 +25,7 @@ double max_diff(const std::vector<float>& a, const std::vector<float>& b) {
 
 TEST_F(GpuTest, AdaptiveKrnrPaperMatchesReference) {
   for (Shape s : {Shape{3, 5, 7, 9}, Shape{1, 1, 1, 33}, Shape{13, 4, 3, 5}}) {
-    HostTensor x0 = random_latent(s, 1, 0.5f), eps = random_latent(s, 2);
+    HostTensor x0 = test::random_latent(s, 1, 0.5f), eps = test::random_latent(s, 2);
     reference::LatentShape ls{s[0], s[1], s[2], s[3]};
     for (double abar : {0.0002475, 0.3, 0.9}) {
       Tensor out = adaptive_krnr_paper(ctx(), Tensor::upload(ctx(), x0), Tensor::upload(ctx(), eps), abar, 10, 3);
@@ -44,7 +37,7 @@ TEST_F(GpuTest, AdaptiveKrnrPaperMatchesReference) {
 
 TEST_F(GpuTest, AdainGivesTheTargetChannelStatistics) {
   Shape s{5, 3, 9, 11};
-  HostTensor content = random_latent(s, 3, 2.0f), style = random_latent(s, 4);
+  HostTensor content = test::random_latent(s, 3, 2.0f), style = test::random_latent(s, 4);
   for (int64_t i = 0; i < style.numel(); ++i) style.as<float>()[i] = style.as<float>()[i] * 0.3f + 1.5f;
   Tensor c = Tensor::upload(ctx(), content), st = Tensor::upload(ctx(), style), out = Tensor::empty(ctx(), s, DType::f32);
   AdainWorkspace ws(ctx(), LatentDims::of(c));
@@ -71,7 +64,7 @@ TEST_F(GpuTest, AdainGivesTheTargetChannelStatistics) {
 
 TEST_F(GpuTest, OfficialKrnrMatchesReference) {
   Shape s{3, 4, 5, 7};
-  HostTensor x0 = random_latent(s, 5), eps = random_latent(s, 6), mu = random_latent(s, 7), sigma = random_latent(s, 8);
+  HostTensor x0 = test::random_latent(s, 5), eps = test::random_latent(s, 6), mu = test::random_latent(s, 7), sigma = test::random_latent(s, 8);
   for (int64_t i = 0; i < sigma.numel(); ++i) sigma.as<float>()[i] = 0.1f + std::fabs(sigma.as<float>()[i]);
   const double abar = 0.0002475;
   Tensor out = adaptive_krnr_official(ctx(), Tensor::upload(ctx(), x0), Tensor::upload(ctx(), eps), Tensor::upload(ctx(), mu),
@@ -96,7 +89,7 @@ TEST_F(GpuTest, SamplingLoopMatchesHostLoop) {
   CogVideoXSchedule s;
   SamplingPlan plan = s.plan(7, 0.8);
   Shape shape{2, 3, 5, 8};  // the stand-in model binds row views: rows of a multiple of 16 bytes
-  HostTensor x = random_latent(shape, 9);
+  HostTensor x = test::random_latent(shape, 9);
   const double g = 4.5;
   SampleResult r = sample(ctx(), Tensor::upload(ctx(), x), s, plan, linear_model(), {true, g});
   std::vector<double> ref(x.numel());
@@ -124,7 +117,7 @@ TEST_F(GpuTest, InversionLoopMatchesHostLoopAndCancels) {
   EXPECT_EQ(steps.front().from_t, -1);
   EXPECT_EQ(steps.back().to_t, s.plan(10, 0.9).t0());
   Shape shape{1, 3, 4, 4};
-  HostTensor x = random_latent(shape, 10);
+  HostTensor x = test::random_latent(shape, 10);
   Tensor out = invert(ctx(), Tensor::upload(ctx(), x), steps, linear_model(), {false, 1.0});
   std::vector<double> ref(x.numel());
   for (int64_t i = 0; i < x.numel(); ++i) ref[size_t(i)] = x.as<float>()[i];

@@ -22,6 +22,7 @@
 #include "models/tiny_model.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
+#include "support/random_latent.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/memory.hpp"
 #include "vk/profiler.hpp"
@@ -31,14 +32,6 @@ using namespace diffusion;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-HostTensor random_host(Shape s, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> n(0, 1);
-  HostTensor h(std::move(s), DType::f32);
-  for (int64_t i = 0; i < h.numel(); ++i) h.as<float>()[i] = n(rng);
-  return h;
-}
 
 // The fastest repeat: other processes on the machine only ever add time.
 double best(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
@@ -56,9 +49,9 @@ TEST(DiffusionMeasure, SamplingStepGlueShare) {
   models::write_tiny_model(dir.path, spec);
   models::CogVideoXTransformer transformer(ctx, dir.path / "transformer");
   const Shape lat{3, 4, 12, 16};
-  Tensor x_init = Tensor::upload(ctx, random_host(lat, 1)), image = Tensor::upload(ctx, random_host(lat, 2));
-  Tensor text = Tensor::upload(ctx, random_host({2, 16, 32}, 3));
-  Tensor mask = Tensor::upload(ctx, random_host(lat, 4));  // any values: only "≠ 0" matters
+  Tensor x_init = Tensor::upload(ctx, test::random_latent(lat, 1)), image = Tensor::upload(ctx, test::random_latent(lat, 2));
+  Tensor text = Tensor::upload(ctx, test::random_latent({2, 16, 32}, 3));
+  Tensor mask = Tensor::upload(ctx, test::random_latent(lat, 4));  // any values: only "≠ 0" matters
   TransformerDenoiser den(ctx, transformer, image, text, 2);
 
   CogVideoXSchedule s;

@@ -21,6 +21,7 @@
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
+#include "support/random_latent.hpp"
 #include "tensor/dispatch.hpp"
 
 namespace dvs::diffusion {
@@ -36,14 +37,6 @@ std::string error_of(F&& f) {
     return e.what();
   }
   return "";
-}
-
-HostTensor random_latent(Shape s, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> n(0, 1);
-  HostTensor h(std::move(s), DType::f32);
-  for (int64_t i = 0; i < h.numel(); ++i) h.as<float>()[i] = n(rng);
-  return h;
 }
 
 double max_rel_diff(const std::vector<float>& a, const std::vector<double>& b) {
@@ -90,7 +83,7 @@ struct RandomModel {
   Shape latent;
   std::vector<std::vector<float>> u, c;  // per call, in call order
   void operator()(vk::Recorder&, const Tensor&, int t, const Tensor& v) {
-    HostTensor hu = random_latent(latent, uint32_t(2 * t + 1)), hc = random_latent(latent, uint32_t(2 * t + 2));
+    HostTensor hu = test::random_latent(latent, uint32_t(2 * t + 1)), hc = test::random_latent(latent, uint32_t(2 * t + 2));
     u.push_back(hu.to_f32());
     c.push_back(hc.to_f32());
     Shape vs = latent;
@@ -132,7 +125,7 @@ void check_sampling(vk::Context& ctx, const SamplingPlan& plan, Guidance g, cons
                     const std::string& what) {
   const Shape shape{3, 5, 7, 9};  // odd everywhere
   const CogVideoXSchedule s;
-  const HostTensor x = random_latent(shape, 77);
+  const HostTensor x = test::random_latent(shape, 77);
   RandomModel m{shape, {}, {}};
   if (g.mode == GuidanceMode::dynamic) g.positions = Tensor::upload(ctx, HostTensor::from_f32(shape, positions));
   int progress = 0;
@@ -190,7 +183,7 @@ TEST_F(GpuTest, SamplingEdgeCases) {
   EXPECT_NE(msg.find("--strength"), std::string::npos) << msg;
   EXPECT_NE(msg.find("--steps"), std::string::npos) << msg;
   // An empty plan and a dynamic guidance without positions are refused.
-  const Tensor x = Tensor::upload(ctx(), random_latent({1, 4, 4, 4}, 1));
+  const Tensor x = Tensor::upload(ctx(), test::random_latent({1, 4, 4, 4}, 1));
   RandomModel m{{1, 4, 4, 4}, {}, {}};
   EXPECT_NE(error_of([&] { sample(ctx(), x, s, SamplingPlan{10, {}}, std::ref(m), {true, 6.0}); }).find("--strength"),
             std::string::npos);
@@ -204,7 +197,7 @@ TEST_F(GpuTest, SamplingEdgeCases) {
 
 TEST_F(GpuTest, KrnrClosedFormEqualsRecursionOnGpu) {
   const Shape shape{3, 5, 7, 9};
-  const HostTensor x0 = random_latent(shape, 11), eps = random_latent(shape, 12);
+  const HostTensor x0 = test::random_latent(shape, 11), eps = test::random_latent(shape, 12);
   const Tensor dx0 = Tensor::upload(ctx(), x0), deps = Tensor::upload(ctx(), eps), out = Tensor::empty(ctx(), shape, DType::f32);
   for (double abar : {CogVideoXSchedule().alpha_cumprod(966), 0.3, 0.9})
     for (int k : {1, 2, 3, 6, 10}) {
@@ -233,10 +226,10 @@ struct NoiseCase {
   double abar = CogVideoXSchedule().alpha_cumprod(966);
 
   explicit NoiseCase(vk::Context& ctx) {
-    x0 = random_latent(shape, 21);
-    eps = random_latent(shape, 22);
-    mu = random_latent(shape, 23);
-    sigma = random_latent(shape, 24);
+    x0 = test::random_latent(shape, 21);
+    eps = test::random_latent(shape, 22);
+    mu = test::random_latent(shape, 23);
+    sigma = test::random_latent(shape, 24);
     for (int64_t i = 0; i < sigma.numel(); ++i) sigma.as<float>()[i] = 0.1f + std::fabs(sigma.as<float>()[i]);
     const int cells = int(shape[0] * shape[2] * shape[3]);
     std::mt19937 rng(25);
