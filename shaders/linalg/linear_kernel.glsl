@@ -1,6 +1,7 @@
 // Body of the linear shaders (linalg/linear.comp with subgroup operations, linalg/linear_nosubgroup.comp
 // without: defines LINEAR_NO_SUBGROUPS for devices that lack subgroup shuffles).
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
 #ifndef LINEAR_NO_SUBGROUPS
 #extension GL_KHR_shader_subgroup_basic : require
 #extension GL_KHR_shader_subgroup_shuffle : require
@@ -37,8 +38,8 @@ const bool DIRECT = ROWS < 8 || LANES == 2;         // every lane fetches every 
 const int RG = DIRECT ? ROWS : ROWS / 8;            // X rows a lane fetches per step
 const int SG_N = 8 / SG_M;
 
-layout(binding = 0) uniform samplerBuffer Xt;   // f32: RGBA32F (KVEC) or R32F
-layout(binding = 1) uniform usamplerBuffer Wt;  // RGBA32UI (KVEC), or R32UI (f32) / R16UI (16-bit)
+layout(binding = 0) uniform textureBuffer Xt;   // f32: RGBA32F (KVEC) or R32F
+layout(binding = 1) uniform utextureBuffer Wt;  // RGBA32UI (KVEC), or R32UI (f32) / R16UI (16-bit)
 layout(std430, binding = 2) writeonly buffer Yb { float y[]; };
 layout(std430, binding = 3) readonly buffer Bias { uint bias[]; };     // f32, or 16-bit pairs
 layout(std430, binding = 4) readonly buffer Scale { float scale[]; };

@@ -1,4 +1,5 @@
 #version 450
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
 #extension GL_EXT_control_flow_attributes : require
 // Flash attention: out = softmax(q·kᵀ·scale + bias + mask)·v, keys streamed in blocks with an online softmax
 // in fp32 (running max and sum per query row), so no Lq×Lk matrix ever exists.
@@ -27,12 +28,12 @@ layout(constant_id = 4) const int KB = 8;             // keys per block of the o
 const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX
 
-layout(binding = 0) uniform samplerBuffer Q;     // RGBA32F texels
-layout(binding = 1) uniform samplerBuffer K;     // RGBA32F
-layout(binding = 2) uniform samplerBuffer V;     // RGBA32F
+layout(binding = 0) uniform textureBuffer Q;     // RGBA32F texels
+layout(binding = 1) uniform textureBuffer K;     // RGBA32F
+layout(binding = 2) uniform textureBuffer V;     // RGBA32F
 layout(std430, binding = 3) writeonly buffer Out { vec4 o[]; };
-layout(binding = 4) uniform samplerBuffer Bias;  // R32F [H, Lq, Lk]
-layout(binding = 5) uniform samplerBuffer Mask;  // R32F [B, Lk]
+layout(binding = 4) uniform textureBuffer Bias;  // R32F [H, Lq, Lk]
+layout(binding = 5) uniform textureBuffer Mask;  // R32F [B, Lk]
 
 // Offsets and strides in vec4 units. q and out: token-major rows [B, L, H·D]. k and v: row (token) stride
 // plus explicit batch and head strides, so they can be token-major like q or repacked head-major

@@ -1,4 +1,5 @@
 #version 450
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
 #extension GL_GOOGLE_include_directive : require
 // Repacks K and V from the models' token-major [B, L, H·D] rows (any row stride and column offset) into
 // head-major [B, H, L, D] in the attention workspace (K first, then V), so that attention streams each head's
@@ -7,8 +8,8 @@ layout(local_size_x = 64) in;
 // After the local size: flat_index() uses gl_WorkGroupSize, which is (1,1,1) until the layout is declared.
 #include "index.glsl"
 
-layout(binding = 0) uniform samplerBuffer K;  // RGBA32F
-layout(binding = 1) uniform samplerBuffer V;  // RGBA32F
+layout(binding = 0) uniform textureBuffer K;  // RGBA32F
+layout(binding = 1) uniform textureBuffer V;  // RGBA32F
 layout(std430, binding = 2) writeonly buffer Packed { vec4 packed[]; };
 
 layout(push_constant) uniform Push {

@@ -13,7 +13,8 @@ layout(local_size_x = 64) in;
 #define T uint
 #endif
 #ifdef TEXEL
-layout(binding = 0) uniform usamplerBuffer src_tex;  // RGBA32UI: ~2-3x cheaper loads on lavapipe
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
+layout(binding = 0) uniform utextureBuffer src_tex;  // RGBA32UI: ~2-3x cheaper loads on lavapipe
 #define LOAD(j) texelFetch(src_tex, int(j))
 #else
 layout(std430, binding = 0) readonly buffer Src { T src[]; };

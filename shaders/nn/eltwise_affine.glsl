@@ -11,9 +11,10 @@ layout(local_size_x = 64) in;
 #define T float
 #endif
 #ifdef TEXEL
-layout(binding = 0) uniform samplerBuffer x_tex;
-layout(binding = 1) uniform samplerBuffer s_tex;
-layout(binding = 2) uniform samplerBuffer t_tex;
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
+layout(binding = 0) uniform textureBuffer x_tex;
+layout(binding = 1) uniform textureBuffer s_tex;
+layout(binding = 2) uniform textureBuffer t_tex;
 #define LOAD_X(i) texelFetch(x_tex, int(i))
 #define S1(j) texelFetch(s_tex, int(j)).x
 #define T1(j) texelFetch(t_tex, int(j)).x

@@ -17,8 +17,9 @@ layout(local_size_x = 64) in;
 #define TY float
 #endif
 #ifdef TEXEL
-layout(binding = 0) uniform samplerBuffer x_tex;
-layout(binding = 1) uniform samplerBuffer y_tex;
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
+layout(binding = 0) uniform textureBuffer x_tex;
+layout(binding = 1) uniform textureBuffer y_tex;
 #define LOAD_X(i) texelFetch(x_tex, int(i))
 #define LOAD_Y(j) texelFetch(y_tex, int(j))
 #define Y1(j) texelFetch(y_tex, int(j)).x

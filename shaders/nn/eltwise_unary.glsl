@@ -11,7 +11,8 @@ layout(local_size_x = 64) in;
 #define T float
 #endif
 #ifdef TEXEL
-layout(binding = 0) uniform samplerBuffer x_tex;
+#extension GL_EXT_samplerless_texture_functions : require  // textureBuffer + texelFetch: no combined sampler (SPIR-V 1.6)
+layout(binding = 0) uniform textureBuffer x_tex;
 #define LOAD_X(i) texelFetch(x_tex, int(i))
 #else
 layout(std430, binding = 0) readonly buffer X { T x[]; };

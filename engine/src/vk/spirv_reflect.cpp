@@ -93,6 +93,8 @@ ShaderInterface reflect_shader(std::span<const uint32_t> w) {
     }
     out.bindings.push_back(b);
   }
+  for (const auto& [sampled, img] : sampled_image_of)
+    if (image_info.count(img) && image_info[img].first == DimBuffer) out.combined_texel_buffer_sampler = true;
   std::sort(out.bindings.begin(), out.bindings.end(),
             [](const ShaderBinding& x, const ShaderBinding& y) { return x.binding < y.binding; });
   return out;

@@ -22,6 +22,10 @@ struct ShaderInterface {
   std::vector<ShaderBinding> bindings;  // sorted by binding number
   uint32_t push_constant_bytes = 0;     // 0 if none (upper bound is the layout's 128 bytes)
   uint32_t local_size[3] = {1, 1, 1};   // literal LocalSize, when not from specialization constants
+  // The module declares a combined image-sampler type over a texel buffer (GLSL samplerBuffer): invalid from
+  // SPIR-V 1.6 on, rejected by current driver stacks. dvs shaders use textureBuffer instead (checked by
+  // tests/test_shader_portability.cpp and at build time by cmake/shaders.cmake).
+  bool combined_texel_buffer_sampler = false;
 };
 
 ShaderInterface reflect_shader(std::span<const uint32_t> spirv);
