@@ -183,6 +183,7 @@ Context::Context(const ContextOptions& options) {
       exts.push_back("VK_EXT_shader_atomic_float");
     }
     if (caps_.has_extension("VK_KHR_portability_subset")) exts.push_back("VK_KHR_portability_subset");
+    if (caps_.memory_budget_ext) exts.push_back(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);  // the Allocator reads heap budgets
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
     vkGetPhysicalDeviceFeatures(physical_, &supported.features);
     feats.features.shaderInt64 = supported.features.shaderInt64;

@@ -117,6 +117,8 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
   for (uint32_t t = 0; t < mem.memoryTypeCount; ++t)
     if (mem.memoryTypes[t].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT)
       c.heaps[mem.memoryTypes[t].heapIndex].host_visible = true;
+  c.memory_budget_ext = c.has_extension(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);
+  c.memory_budget = query_memory_budget(pd, c.type, c.memory_budget_ext);
   return c;
 }
 
@@ -181,6 +183,7 @@ std::string describe_device(const DeviceCaps& c) {
   for (size_t h = 0; h < c.heaps.size(); ++h)
     o << "    heap " << h << ": " << format_bytes(c.heaps[h].size) << (c.heaps[h].device_local ? ", device-local" : "")
       << (c.heaps[h].host_visible ? ", host-visible" : "") << "\n";
+  o << "  device memory for dvs: " << c.memory_budget.describe() << "\n";
   return o.str();
 }
 

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "vk/memory_budget.hpp"
+
 namespace dvs::vk {
 
 struct MemoryHeapInfo {
@@ -44,6 +46,8 @@ struct DeviceCaps {
   bool timestamps = false;
 
   std::vector<MemoryHeapInfo> heaps;
+  DeviceMemoryBudget memory_budget;  // what dvs may hold (memory_budget.hpp: host RAM on CPU devices)
+  bool memory_budget_ext = false;    // VK_EXT_memory_budget
   std::vector<std::string> extensions;
 
   bool has_extension(const char* name) const;

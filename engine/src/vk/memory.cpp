@@ -69,6 +69,39 @@ Allocator::Allocator(Context& ctx) : ctx_(ctx) {
                                        p.limits.nonCoherentAtomSize});
   // Blocks big enough that weights and arenas rarely need their own, small enough to fit any limit.
   block_size_ = std::min<VkDeviceSize>(256ull << 20, c.max_memory_allocation_size);
+  // Host RAM available now on a CPU device, the heap budget or size on a GPU (memory_budget.hpp).
+  budget_ = query_memory_budget(ctx.physical_device(), c.type, c.memory_budget_ext);
+}
+
+void Allocator::limit_device_memory(uint64_t bytes) { limit_ = limit_ ? std::min(*limit_, bytes) : bytes; }
+
+uint64_t Allocator::device_memory_capacity() const {
+  uint64_t cap = budget_.bytes;
+  if (limit_) cap = std::min(cap, *limit_);
+  return cap;
+}
+
+void Allocator::check_budget(VkDeviceSize size, uint32_t heap, const std::string& what) const {
+  if (heap != budget_.heap) return;  // staging in a host heap of a discrete GPU: not device memory
+  uint64_t after = heap_reserved_ + size;
+  uint64_t cap = device_memory_capacity();
+  std::string source = budget_.describe();
+  if (budget_.source == MemoryBudgetSource::heap_budget) {
+    // The budget moves with other processes: read it now. Usage counts this process' whole use of the heap.
+    if (auto hb = query_heap_budget(ctx_.physical_device(), true, budget_.heap)) {
+      after = std::max(after, hb->usage + size);
+      if (!limit_ || hb->budget < cap) {
+        cap = hb->budget;
+        source = format_bytes(hb->budget) + " (VK_EXT_memory_budget heapBudget of heap " + std::to_string(heap) + ", now)";
+      }
+    }
+  }
+  if (limit_ && cap == *limit_) source = format_bytes(cap) + " (limit set by Allocator::limit_device_memory)";
+  if (after > cap)
+    throw Error("Out of device memory: " + what + " needs a new block of " + format_bytes(size) + ", which would "
+                "bring dvs's device memory to " + format_bytes(after) + ", over the " + source + " it may use. Try "
+                "--vae-tiling, a smaller --height/--width, fewer --frames, or a device with more memory (dvs plan "
+                "shows what each stage needs).");
 }
 
 Allocator::~Allocator() {
@@ -102,13 +135,7 @@ uint32_t Allocator::memory_type_for(MemoryUse use, uint32_t type_bits) const {
   int t = -1;
   if (use == MemoryUse::device) {
     // Unified memory: the largest device-local heap is also host-visible; map it and skip staging.
-    VkDeviceSize biggest = 0;
-    uint32_t big_heap = 0;
-    for (uint32_t h = 0; h < mp.memoryHeapCount; ++h)
-      if ((mp.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) && mp.memoryHeaps[h].size > biggest) {
-        biggest = mp.memoryHeaps[h].size;
-        big_heap = h;
-      }
+    uint32_t big_heap = device_heap_index(mp);
     for (uint32_t i = 0; i < mp.memoryTypeCount && t < 0; ++i) {
       VkMemoryPropertyFlags f = mp.memoryTypes[i].propertyFlags;
       if ((type_bits & (1u << i)) && mp.memoryTypes[i].heapIndex == big_heap &&
@@ -145,6 +172,15 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
   VkMemoryAllocateInfo mai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   mai.allocationSize = req.size;
   mai.memoryTypeIndex = memory_type_for(use, req.memoryTypeBits);
+  VkPhysicalDeviceMemoryProperties mp{};
+  vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
+  const uint32_t heap = mp.memoryTypes[mai.memoryTypeIndex].heapIndex;
+  try {
+    check_budget(req.size, heap, what);
+  } catch (...) {
+    vkDestroyBuffer(dev, block->buffer, nullptr);
+    throw;
+  }
   VkResult r = vkAllocateMemory(dev, &mai, nullptr, &block->memory);
   if (r != VK_SUCCESS) {
     vkDestroyBuffer(dev, block->buffer, nullptr);
@@ -155,8 +191,9 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
     VK_CHECK(r);
   }
   VK_CHECK(vkBindBufferMemory(dev, block->buffer, block->memory, 0));
-  VkPhysicalDeviceMemoryProperties mp{};
-  vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
+  block->heap = heap;
+  block->bytes = req.size;
+  if (heap == budget_.heap) heap_reserved_ += req.size;
   if (mp.memoryTypes[mai.memoryTypeIndex].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
     void* p = nullptr;
     VK_CHECK(vkMapMemory(dev, block->memory, 0, VK_WHOLE_SIZE, 0, &p));

@@ -7,8 +7,11 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "vk/memory_budget.hpp"
 
 namespace dvs::vk {
 
@@ -38,6 +41,8 @@ struct MemoryBlock {
   VkDeviceSize size = 0;
   uint8_t* mapped = nullptr;
   MemoryUse use = MemoryUse::device;
+  uint32_t heap = 0;         // memory heap of the allocation
+  VkDeviceSize bytes = 0;    // allocation size (memory requirements: may exceed `size`)
   std::map<VkDeviceSize, VkDeviceSize> free_ranges;  // offset -> size, coalesced
 };
 
@@ -87,17 +92,29 @@ class Allocator {
   bool device_memory_is_mapped() const;  // unified memory: uploads are plain memcpy
   VkDeviceSize max_binding() const;      // maxStorageBufferRange
 
+  // Device memory this allocator may hold in the device heap (memory_budget.hpp: host RAM available on a CPU
+  // device, the heap budget or size on a GPU); a new block beyond it is refused with an error naming the
+  // request. The budget is read when the allocator is made (a GPU's heap budget again before every block).
+  const DeviceMemoryBudget& memory_budget() const { return budget_; }
+  uint64_t device_memory_capacity() const;        // the budget, lowered by limit_device_memory()
+  uint64_t device_memory_reserved() const { return heap_reserved_; }
+  void limit_device_memory(uint64_t bytes);       // a lower cap (tests; sharing a device)
+
  private:
   friend class Buffer;
   void release(Buffer& b);
   MemoryBlock* new_block(VkDeviceSize size, MemoryUse use, const std::string& what);
   uint32_t memory_type_for(MemoryUse use, uint32_t type_bits) const;
+  void check_budget(VkDeviceSize size, uint32_t heap, const std::string& what) const;  // throws when over
 
   Context& ctx_;
   VkDeviceSize alignment_ = 256;
   VkDeviceSize block_size_ = 0;
   std::vector<std::unique_ptr<MemoryBlock>> blocks_;
   MemoryStats stats_;
+  DeviceMemoryBudget budget_;
+  std::optional<uint64_t> limit_;
+  uint64_t heap_reserved_ = 0;  // bytes of blocks in budget_.heap
   int device_type_ = -1;  // memory type chosen for MemoryUse::device
 };
 
