@@ -18,6 +18,7 @@
 #include "io/model_schema.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
+#include "io/third_party_logs.hpp"
 #include "merge_lora.hpp"
 #include "value_scan.hpp"
 
@@ -53,6 +54,7 @@ commands:
 
 options:
   -h, --help        this text
+  --verbose         let the libraries' own log lines through (SentencePiece's trainer in make-tiny)
 
 exit status: 0 all good; 1 a file is unreadable or corrupt, or weights do not match their schema;
              2 usage error.
@@ -397,7 +399,13 @@ int make_tiny(const std::vector<std::string>& args) {
 }
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
+  std::vector<std::string> args;
+  bool verbose = false;
+  for (int i = 1; i < argc; ++i) {  // --verbose: the libraries' own log lines (SentencePiece) too
+    if (std::strcmp(argv[i], "--verbose") == 0) verbose = true;
+    else args.emplace_back(argv[i]);
+  }
+  dvs::set_third_party_logs(verbose);
   if (args.empty()) {
     std::cerr << kUsage;
     return 2;

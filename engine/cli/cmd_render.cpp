@@ -50,7 +50,7 @@ int run_render(const std::vector<std::string>& argv) {
   job.height = h;
   job.width = w;
   std::string resize = a.str("resize", "crop");
-  if (resize != "crop" && resize != "squash") throw Error("dvs render: --resize must be crop or squash");
+  if (resize != "crop" && resize != "squash") a.fail("--resize must be crop or squash, got '" + resize + "'");
   job.squash = resize == "squash";
   job.metric_depth = a.has("metric-depth");
   job.trim_depth = a.has("trim-depth");
@@ -62,7 +62,7 @@ int run_render(const std::vector<std::string>& argv) {
     job.fx = k[0], job.fy = k[1], job.cx = k[2], job.cy = k[3];
   }
   RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; });
-  std::cout << "rendered " << s.frames << " frames at " << s.width << "x" << s.height << " (decode " << s.seconds_decode
+  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << s.seconds_decode
             << " s, render " << s.seconds_render << " s, write " << s.seconds_write << " s)\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "
             << s.poses_json.string() << "\n";

@@ -10,6 +10,7 @@
 #include "io/lora_file.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
+#include "prompt_length.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
@@ -137,8 +138,11 @@ int run_run(const std::vector<std::string>& argv) {
     std::cout << kRunHelp;
     return 0;
   }
-  a.required("prompt");
-  return execute_run(parse_run_options(a), progress_mode(a));
+  if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed: no text conditioning)");
+  const RunOptions o = parse_run_options(a);
+  for (const auto& [text, option] : {std::pair{o.prompt, "--prompt"}, std::pair{o.negative_prompt, "--negative-prompt"}})
+    if (auto w = prompt_truncation_warning(o.model, text, option)) std::cerr << "dvs run: " << *w << "\n";
+  return execute_run(o, progress_mode(a));
 }
 
 int run_demo(const std::vector<std::string>& argv) {

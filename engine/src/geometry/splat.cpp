@@ -163,8 +163,8 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
     throw Error("render: the trajectory has " + std::to_string(trajectory.frames()) + " poses for " + std::to_string(F) +
                 " frames");
   if (K.width != W || K.height != H)
-    throw Error("render: the intrinsics are for " + std::to_string(K.width) + "x" + std::to_string(K.height) +
-                " but the frames are " + std::to_string(W) + "x" + std::to_string(H) + " (use Intrinsics::scaled_to)");
+    throw Error("render: the intrinsics are for " + std::to_string(K.height) + "x" + std::to_string(K.width) +
+                " (HxW) but the frames are " + std::to_string(H) + "x" + std::to_string(W) + " (use Intrinsics::scaled_to)");
   // Tensors of rgb/render are 3 planes per frame: keep each within one binding too.
   int chunk = std::max(1, int(std::min<int64_t>(F, SplatRenderer::frames_per_binding(ctx, int(H), int(W)))));
   if (options.max_chunk_frames > 0) chunk = std::min(chunk, options.max_chunk_frames);

@@ -73,9 +73,9 @@ HostTensor read_depth_image_sequence(const std::filesystem::path& folder) {
     if (i == 0) {
       out = HostTensor({int64_t(files.size()), f.shape[0], f.shape[1]}, DType::f32);
     } else if (f.shape[0] != out.shape[1] || f.shape[1] != out.shape[2]) {
-      throw Error(files[i].string() + ": is " + std::to_string(f.shape[1]) + "x" + std::to_string(f.shape[0]) +
-                  " but " + files[0].filename().string() + " is " + std::to_string(out.shape[2]) + "x" +
-                  std::to_string(out.shape[1]));
+      throw Error(files[i].string() + ": is " + std::to_string(f.shape[0]) + "x" + std::to_string(f.shape[1]) +
+                  " (HxW) but " + files[0].filename().string() + " is " + std::to_string(out.shape[1]) + "x" +
+                  std::to_string(out.shape[2]));
     }
     std::memcpy(out.data.data() + i * f.data.size(), f.data.data(), f.data.size());
   }

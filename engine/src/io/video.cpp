@@ -9,6 +9,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "dvs/error.hpp"
+#include "io/third_party_logs.hpp"
 
 namespace dvs {
 namespace {
@@ -85,6 +86,7 @@ void write_video(const std::filesystem::path& path, const HostTensor& frames, do
   std::filesystem::path tmp = path.parent_path() / (path.stem().string() + ".partial-" + std::to_string(::getpid()) + path.extension().string());
   cv::VideoWriter writer;
   for (const char* codec : {"avc1", "mp4v"}) {
+    const QuietStderr quiet;  // OpenCV prints the codec-tag fallback with fprintf, whatever the log level
     writer.open(tmp.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc(codec[0], codec[1], codec[2], codec[3]), fps,
                 cv::Size(int(W), int(H)));
     if (writer.isOpened()) break;

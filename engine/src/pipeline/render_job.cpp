@@ -56,9 +56,9 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   r.rgb = read_video(job.video, vo, &vi);
   r.fps = vi.fps;
   const int F = int(r.rgb.shape[0]), H = job.height, W = job.width;
-  say("decoded " + std::to_string(F) + " frames of " + job.video.string() + " (" + std::to_string(vi.width) + "x" +
-      std::to_string(vi.height) + " at " + std::to_string(vi.fps).substr(0, 5) + " fps) -> " + std::to_string(W) +
-      "x" + std::to_string(H));
+  say("decoded " + std::to_string(F) + " frames of " + job.video.string() + " (" + std::to_string(vi.height) + "x" +
+      std::to_string(vi.width) + " at " + std::to_string(vi.fps).substr(0, 5) + " fps) -> " + std::to_string(H) +
+      "x" + std::to_string(W) + " (HxW)");
 
   DepthOptions dopt;
   dopt.values = job.metric_depth ? DepthValues::depth : DepthValues::disparity;
