@@ -49,8 +49,9 @@ SplatRenderer::SplatRenderer(vk::Context& ctx, int height, int width, int max_fr
                 std::to_string(width) + " exceed one storage binding; render in chunks of at most " +
                 std::to_string(frames_per_binding(ctx, height, width)) + " frames (render_clip does)");
   if (max_frames > 65535) throw Error("splat renderer: at most 65535 frames per dispatch");
-  float_atomics_ = options.atomics == SplatAtomics::float_atomics ||
-                   (options.atomics == SplatAtomics::automatic && ctx.caps().float32_atomic_add);
+  // Only on request: float atomics sum in whatever order the invocations run, so two renders of the same
+  // input differ in the last bits, and that difference grows through the whole diffusion chain.
+  float_atomics_ = options.atomics == SplatAtomics::float_atomics;
   if (float_atomics_ && !ctx.caps().float32_atomic_add)
     throw Error("splat renderer: float atomics were requested but this device has no float32 atomic add");
   const uint64_t pixels = uint64_t(max_frames) * uint64_t(height) * uint64_t(width);
