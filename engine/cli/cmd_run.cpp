@@ -22,7 +22,8 @@ const char* kRunHelp =
     "with the transformer, fills occluded latents (SLM), initialises the noise (adaptive K-RNR) and samples the\n"
     "new view. Writes DIR/output.mp4, render.mp4, mask.mp4, comparison.mp4 (input | render | output) and run.json.\n"
     "\n"
-    "inputs (as dvs render): --video --depth --metric-depth --trim-depth --trajectory --frames (4k+1, default 49)\n"
+    "inputs (as dvs render): --video --depth --metric-depth --trim-depth --depth-fit --trajectory\n"
+    "  --frames N            4k+1, default 49\n"
     "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
     "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
     "  --resize crop|squash  --intrinsics fx,fy,cx,cy  --points\n"
@@ -58,7 +59,8 @@ const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out"
                                            "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
                                            "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
                                            "dynamic-cfg", "preservation-scale",
-                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile"};
+                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile",
+                                           "depth-fit"};
 const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
 
 
@@ -98,6 +100,9 @@ RunOptions parse_run_options(const Args& a) {
   o.render.squash = resize == "squash";
   o.render.metric_depth = a.has("metric-depth");
   o.render.trim_depth = a.has("trim-depth");
+  o.render.depth_fit = a.str("depth-fit", "error");
+  if (o.render.depth_fit != "error" && o.render.depth_fit != "stretch" && o.render.depth_fit != "crop")
+    a.fail("--depth-fit must be error, stretch or crop, got '" + o.render.depth_fit + "'");
   o.render.hard_points = a.has("points");
   o.render.export_glb = false;
   o.render.device = a.str("device");
