@@ -17,6 +17,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
 
 namespace dvs::geometry {
 
@@ -449,7 +450,8 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
   if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true)) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    throw Error(path.string() + ": could not write the .glb file");
+    const std::string full = no_space_note(path.parent_path());
+    throw Error(path.string() + ": could not write the .glb file" + (full.empty() ? std::string() : ": " + full));
   }
   std::filesystem::rename(tmp, path);
 }

@@ -348,7 +348,9 @@ void write_npy(const std::filesystem::path& path, const HostTensor& t) {
   std::error_code ec;
   if (!wrote || !closed) {
     std::filesystem::remove(tmp, ec);
-    throw Error(name + ": write failed: " + std::strerror(wrote ? errno : werr) + " (nothing was written)");
+    const int e = wrote ? errno : werr;
+    throw Error(name + ": write failed: " + (e == ENOSPC ? std::string("no space left on device") : std::strerror(e)) +
+                " (nothing was written)");
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

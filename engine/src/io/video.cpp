@@ -9,6 +9,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
 #include "io/third_party_logs.hpp"
 
 namespace dvs {
@@ -91,8 +92,14 @@ void write_video(const std::filesystem::path& path, const HostTensor& frames, do
                 cv::Size(int(W), int(H)));
     if (writer.isOpened()) break;
   }
-  if (!writer.isOpened())
+  const std::filesystem::path folder = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  if (!writer.isOpened()) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    const std::string full = no_space_note(folder);
+    if (!full.empty()) throw Error(name + ": cannot create the video: " + full);
     throw Error(name + ": cannot create the video (is the folder writable? does this OpenCV have an MP4 encoder?)");
+  }
   const size_t plane = size_t(H) * W;
   cv::Mat bgr(int(H), int(W), CV_8UC3);
   for (int64_t f = 0; f < F; ++f) {
@@ -109,6 +116,12 @@ void write_video(const std::filesystem::path& path, const HostTensor& frames, do
   }
   writer.release();
   std::error_code ec;
+  // OpenCV does not report FFmpeg's write errors: a full disk shows only as a short file and no free space.
+  const std::string full = no_space_note(folder);
+  if (!full.empty() || !std::filesystem::exists(tmp, ec) || std::filesystem::file_size(tmp, ec) == 0) {
+    std::filesystem::remove(tmp, ec);
+    throw Error(name + ": writing the video failed: " + (full.empty() ? std::string("the encoder wrote nothing") : full));
+  }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
     std::filesystem::remove(tmp, ec);
