@@ -15,7 +15,7 @@ ProgressMode parse_progress_mode(const std::string& value, bool quiet) {
   if (value.empty() || value == "bar") return ProgressMode::bar;
   if (value == "json") return ProgressMode::json;
   if (value == "none") return ProgressMode::quiet;
-  throw UsageError("--progress must be bar, json or none, got '" + value + "'");
+  throw UsageError("--progress must be bar, json or none, got '" + value + "' (see --help)");
 }
 
 Progress::Progress(ProgressMode mode) : mode_(mode), tty_(isatty(fileno(stderr))) {}
