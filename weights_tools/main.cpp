@@ -270,7 +270,10 @@ class Inspector {
       flat /= n;
     }
     std::string out = "[";
-    for (size_t d = 0; d < idx.size(); ++d) out += (d ? "," : "") + std::to_string(idx[d]);
+    for (size_t d = 0; d < idx.size(); ++d) {
+      if (d) out += ',';
+      out += std::to_string(idx[d]);
+    }
     return out + "]";
   }
 
