@@ -89,7 +89,7 @@ TEST(CliConventions, JsonProgressIsPureJsonLinesWithAFinalEventEmptyPromptAndLon
   EXPECT_EQ(err.find("warning: --prompt"), std::string::npos) << err;
 
   // A failing run: still pure JSON Lines, ending in an error event with the exit code and the message.
-  const auto bad = test::run_command("(" + kDvs + " run" + in.inputs() + " --progress json --prompt x --frames 3 " +
+  const auto bad = test::run_command("(" + kDvs + " run" + in.inputs() + " --progress json --prompt x " +
                                      "--depth " + (in.dir / "none.npy").string() + " --out " + (in.dir / "bad").string() +
                                      " > " + so.string() + " 2> " + se.string() + ")");
   EXPECT_EQ(bad.exit_code, 1) << test::read_text(se);
