@@ -113,7 +113,7 @@ int main(int argc, char** argv) {
     std::cerr << "dvs: interrupted; partial outputs removed\n";
     return finish(json, dvs::cli::kInterruptedExitCode, "interrupted");
   } catch (const dvs::UsageError& e) {
-    std::cerr << e.what() << "\n";
+    std::cerr << "dvs: error: " << e.what() << "\n";
     return finish(json, 2, e.what());
   } catch (const dvs::Error& e) {
     std::cerr << "dvs: error: " << e.what() << "\n";
