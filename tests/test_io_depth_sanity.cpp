@@ -189,6 +189,8 @@ TEST(IoDepthSanity, DvsRenderRefusesMismatchedDepthUnlessTold) {
   EXPECT_FALSE(fs::exists(d / "a" / "render.mp4"));
   const auto stretched = test::run_command(base + (d / "b").string() + " --depth-fit stretch");
   EXPECT_EQ(stretched.exit_code, 0) << stretched.output;
+  // Sizes are printed as H×W, like --size (the 48×64 video is landscape).
+  EXPECT_NE(stretched.output.find("rendered 3 frames at 48x64 (HxW)"), std::string::npos) << stretched.output;
   EXPECT_EQ(test::run_command(base + (d / "c").string() + " --depth-fit sideways").exit_code, 2);
 }
 
