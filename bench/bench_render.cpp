@@ -47,7 +47,8 @@ void render(Bench& b) {
     SplatOptions o;
   };
   std::vector<Variant> variants;
-  if (ctx.caps().float32_atomic_add) variants.push_back({"splat_soft_float_atomics", {}});
+  if (ctx.caps().float32_atomic_add)
+    variants.push_back({"splat_soft_float_atomics", {SplatMode::soft_bilinear, SplatAtomics::float_atomics}});
   variants.push_back({"splat_soft_fixed_point", {SplatMode::soft_bilinear, SplatAtomics::fixed_point}});
   variants.push_back({"splat_hard_zbuffer", {SplatMode::hard_point}});
   for (const auto& v : variants) {

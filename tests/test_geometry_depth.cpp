@@ -86,8 +86,13 @@ TEST(GeometryDepth, BadInputsNameTheFile) {
   expect_error([&] { load_depth(d.path / "zero.npy"); }, {"zero.npy", "zero frames"});
   write_npy(d.path / "rank2.npy", ramp({4, 4}, 1, 1));
   expect_error([&] { load_depth(d.path / "rank2.npy"); }, {"rank2.npy", "[N,H,W]"});
-  write_npy(d.path / "int.npy", HostTensor({1, 2, 2}, DType::i32));
-  expect_error([&] { load_depth(d.path / "int.npy"); }, {"int.npy", "float32", "i32"});
+  // Integer depth maps (16-bit tools, i32 after numpy's widening) are read as their values.
+  HostTensor ints({1, 2, 2}, DType::i32);
+  for (int i = 0; i < 4; ++i) ints.as<int32_t>()[i] = 40000 + i;
+  write_npy(d.path / "int.npy", ints);
+  const HostTensor as_float = read_depth_array(d.path / "int.npy");
+  ASSERT_EQ(as_float.dtype, DType::f32);
+  EXPECT_EQ(as_float.as<float>()[3], 40003.0f);
   HostTensor flat({2, 2, 2}, DType::f32);
   for (int i = 0; i < 8; ++i) flat.as<float>()[i] = 3.f;
   write_npy(d.path / "flat.npy", flat);
@@ -167,7 +172,7 @@ TEST(GeometryDepth, Png16Sequence) {
   EXPECT_FLOAT_EQ(z.as<float>()[0], 60.0f);       // f000 first: 60000 mm
   EXPECT_FLOAT_EQ(z.as<float>()[15 + 14], 1.014f);
   write_png16(d.path / "f002.png", 4, 3, 1);
-  expect_error([&] { load_depth(d.path, mm); }, {"f002.png", "4x3"});
+  expect_error([&] { load_depth(d.path, mm); }, {"f002.png", "is 3x4 (HxW)", "f000.png is 3x5"});
 }
 
 TEST(GeometryDepth, ExrSequence) {

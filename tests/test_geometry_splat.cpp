@@ -121,6 +121,13 @@ SplatOptions fixed_point() {
   return o;
 }
 
+// The float-atomics path where the device has it (an option; the default is fixed point), else the default.
+SplatOptions float_path(vk::Context& ctx) {
+  SplatOptions o;
+  if (ctx.caps().float32_atomic_add) o.atomics = SplatAtomics::float_atomics;
+  return o;
+}
+
 // Identity trajectory: every pixel lands exactly on itself (weight 4 on its own pixel only) -> the input.
 TEST_F(GpuTest, GeometrySplatIdentityReproducesInput) {
   const int F = 2, H = 48, W = 64;
@@ -129,12 +136,12 @@ TEST_F(GpuTest, GeometrySplatIdentityReproducesInput) {
   HostTensor depth({F, H, W}, DType::f32);
   std::mt19937 g(2);
   for (int64_t i = 0; i < depth.numel(); ++i) depth.as<float>()[i] = float(1 << (g() % 4));  // 1, 2, 4, 8
-  for (SplatOptions o : {SplatOptions{}, fixed_point(), SplatOptions{SplatMode::hard_point}}) {
+  for (SplatOptions o : {float_path(ctx()), fixed_point(), SplatOptions{SplatMode::hard_point}}) {
     RenderedClip r = render_clip(ctx(), rgb, depth, constant(glm::dmat4(1.0), F), K, o);
     double err = 0;
     for (int64_t i = 0; i < rgb.numel(); ++i) err = std::max(err, double(std::abs(r.render.as<float>()[i] - rgb.as<float>()[i])));
     for (int64_t i = 0; i < r.mask.numel(); ++i) ASSERT_EQ(r.mask.as<float>()[i], 1.f);
-    EXPECT_LE(err, o.atomics == SplatAtomics::fixed_point ? 2e-5 : 1e-6) << "mode " << int(o.mode);
+    EXPECT_LE(err, o.atomics != SplatAtomics::float_atomics ? 2e-5 : 1e-6) << "mode " << int(o.mode);
   }
 }
 
@@ -148,7 +155,7 @@ TEST_F(GpuTest, GeometrySplatPlaneTranslationShiftsByFocalTimesTOverZ) {
   for (int64_t i = 0; i < depth.numel(); ++i) depth.as<float>()[i] = 4.f;
   for (double shift : {5.0, 2.5}) {
     double t = shift * 4.0 / 64.0;  // f·t/z = shift
-    for (SplatOptions o : {SplatOptions{}, fixed_point()}) {
+    for (SplatOptions o : {float_path(ctx()), fixed_point()}) {
       RenderedClip r = render_clip(ctx(), rgb, depth, constant(translation({-t, 0, 0}), F), K, o);
       const int s0 = int(std::floor(shift));
       const bool half = shift != std::floor(shift);
@@ -169,7 +176,7 @@ TEST_F(GpuTest, GeometrySplatPlaneTranslationShiftsByFocalTimesTOverZ) {
             err = std::max(err, double(std::abs(got - want)));
           }
         }
-      EXPECT_LE(err, 1e-4) << "shift " << shift << " fixed=" << (o.atomics == SplatAtomics::fixed_point);
+      EXPECT_LE(err, 1e-4) << "shift " << shift << " fixed=" << (o.atomics != SplatAtomics::float_atomics);
     }
   }
 }
@@ -194,7 +201,7 @@ TEST_F(GpuTest, GeometrySplatObjectDisocclusionMatchesGeometry) {
     bool square = in_rows && x + so >= x0 && x + so < x1;       // the square moved over it
     return hidden_wall && !square;
   };
-  for (SplatOptions o : {SplatOptions{}, fixed_point(), SplatOptions{SplatMode::hard_point}}) {
+  for (SplatOptions o : {float_path(ctx()), fixed_point(), SplatOptions{SplatMode::hard_point}}) {
     RenderedClip r = render_clip(ctx(), rgb, depth, constant(translation({-0.25, 0, 0}), F), K, o);
     int inter = 0, uni = 0;
     double colour_err = 0;
@@ -228,8 +235,8 @@ TEST_F(GpuTest, GeometrySplatMatchesOfficialReference) {
   tr.transforms = {official_transform(4, -7, 0.1, 3.0), official_transform(-10, 12, -0.2, 3.0),
                    official_transform(0, 0, 0.0, 3.0) * translation({0.3, -0.2, 0.1})};
   RenderedClip ref = reference_splat(rgb, depth, tr, K, false);
-  for (SplatOptions o : {SplatOptions{}, fixed_point()}) {
-    bool fixed = o.atomics == SplatAtomics::fixed_point;
+  for (SplatOptions o : {float_path(ctx()), fixed_point()}) {
+    bool fixed = o.atomics != SplatAtomics::float_atomics;
     RenderedClip r = render_clip(ctx(), rgb, depth, tr, K, o);
     Diff d = compare(r, ref);
     EXPECT_LE(d.mask_mismatch, 2) << "fixed=" << fixed;
@@ -279,7 +286,7 @@ TEST_F(GpuTest, GeometrySplatChunksMatchOneChunk) {
   std::uniform_real_distribution<float> u(1.f, 9.f);
   for (int64_t i = 0; i < depth.numel(); ++i) depth.as<float>()[i] = u(g);
   Trajectory tr = load_trajectory("arc_left:10", F, 3.0);
-  for (SplatOptions o : {SplatOptions{}, fixed_point(), SplatOptions{SplatMode::hard_point}}) {
+  for (SplatOptions o : {float_path(ctx()), fixed_point(), SplatOptions{SplatMode::hard_point}}) {
     RenderedClip one = render_clip(ctx(), rgb, depth, tr, K, o);
     o.max_chunk_frames = 2;  // chunks of 2, 2, 1
     RenderedClip chunked = render_clip(ctx(), rgb, depth, tr, K, o);

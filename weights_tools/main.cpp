@@ -12,12 +12,15 @@
 #include <algorithm>
 
 #include "dvs/error.hpp"
+#include "dvs/usage_error.hpp"
 #include "io/model_folder.hpp"
 #include "models/tiny_model.hpp"
 #include "io/model_schema.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
+#include "io/third_party_logs.hpp"
 #include "merge_lora.hpp"
+#include "value_scan.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,24 +29,32 @@ namespace {
 constexpr const char* kUsage = R"(usage: dvs-weights <command> [options]
 
 commands:
-  inspect PATH [--summary]
+  inspect PATH [--summary] [--values]
       PATH is a pipeline folder (with model_index.json), a component folder (config.json + weights),
       a .safetensors file, a *.safetensors.index.json shard index, or a .npy file.
       Prints every component with its library and class, every tensor with dtype, shape and bytes, totals
       per component and overall, and checks the tensors against the schema of the component's class
       (T5EncoderModel, CogVideoXTransformer3DModel, AutoencoderKLCogVideoX) built from its config.json.
+      A component that model_index.json lists and whose class needs weights (a model class) but that has
+      no *.safetensors is an error.
       --summary  totals and schema check only, no per-tensor lines.
+      --values   also read every floating-point weight and fail (exit 1) on NaN or Inf, naming the tensor
+                 and its first bad element (flat index and [i,j,...]); reads all the data, so it takes
+                 about as long as reading the files once.
   make-tiny --out DIR [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
-            [--t5-layers N] [--t5-d-model N] [--vocab N] [--text-len N] [--sample HxWxF]
+            [--t5-layers N] [--t5-d-model N] [--vocab N] [--text-len N] [--sample LHxLWxF]
             [--vae-channels a,b,c,d] [--latent-channels N]
                     write a random-weight CogVideoX-5B-I2V folder of tiny (or any) size that dvs loads;
-                    defaults are the conformance pack's sizes
+                    defaults are the conformance pack's sizes. DIR is a folder (created; not a file).
+                    --sample is the transformer's sample size in LATENT units: latent height x latent width
+                    (pixels / 8, the VAE's scale) x video frames; e.g. 8x8x9 suits --size 64x64 --frames 9
   merge-lora --model DIR --lora FILE[:SCALE] --out DIR2 [--prefix P]
                     write DIR2, a copy of DIR whose transformer has the LoRA merged into its weights
                     (W + SCALE·(alpha/rank)·B·A, in the stored dtype, sharded like DIR); see merge-lora --help
 
 options:
   -h, --help        this text
+  --verbose         let the libraries' own log lines through (SentencePiece's trainer in make-tiny)
 
 exit status: 0 all good; 1 a file is unreadable or corrupt, or weights do not match their schema;
              2 usage error.
@@ -79,7 +90,7 @@ struct Totals {
 
 class Inspector {
  public:
-  explicit Inspector(bool summary) : summary_(summary) {}
+  Inspector(bool summary, bool values) : summary_(summary), values_(values) {}
 
   int failures() const { return failures_; }
 
@@ -144,6 +155,7 @@ class Inspector {
         error(e.what());
       }
     }
+    if (values_) check_values(w);
     return t;
   }
 
@@ -159,7 +171,13 @@ class Inspector {
         const dvs::Component comp = m.load(c.name);
         std::cout << "  config: " << comp.config_path.string() << "\n";
         if (!comp.weights) {
-          std::cout << "  no weights\n";
+          if (expects_weights(c.class_name)) {
+            std::cout << "  no weights\n";
+            error(c.name + ": model_index.json lists it as " + c.class_name + ", a model with weights, but " +
+                  comp.dir.string() + " holds no *.safetensors (an incomplete download or copy?)");
+          } else {
+            std::cout << "  no weights (none expected for " << c.class_name << ")\n";
+          }
           continue;
         }
         ++with_weights;
@@ -201,7 +219,23 @@ class Inspector {
     const dvs::HostTensor t = dvs::read_npy(p);
     std::cout << "npy " << p.string() << ": " << dvs::dtype_name(t.dtype) << " " << shape_list(t.shape) << ", "
               << human_bytes(t.bytes()) << "\n";
-    return 0;
+    if (values_ && (t.dtype == dvs::DType::f32 || t.dtype == dvs::DType::f16)) {
+      const auto hit = dvs::weights_tools::first_non_finite(t.data, t.dtype == dvs::DType::f32 ? "F32" : "F16");
+      if (hit)
+        error(p.string() + ": holds " + std::string(hit->nan ? "NaN" : "an infinite value") + ", first at element " +
+              std::to_string(hit->index) + " " + index_list(t.shape, hit->index));
+      else
+        std::cout << "  values: OK, all finite\n";
+    }
+    return finish();
+  }
+
+  // Model classes hold weights; tokenizers and schedulers do not.
+  static bool expects_weights(const std::string& cls) {
+    auto ends = [&](const std::string& suffix) {
+      return cls.size() >= suffix.size() && cls.compare(cls.size() - suffix.size(), suffix.size(), suffix) == 0;
+    };
+    return dvs::has_schema(cls) || ends("Model") || cls.rfind("Autoencoder", 0) == 0;
   }
 
  private:
@@ -210,7 +244,40 @@ class Inspector {
     return failures_ ? 1 : 0;
   }
 
-  bool summary_;
+  // --values: every float tensor read; each one holding NaN/Inf is a failure naming its first bad element.
+  void check_values(const dvs::WeightSet& w) {
+    size_t checked = 0, bad = 0;
+    for (const auto& [name, r] : w.entries()) {
+      if (!dvs::weights_tools::is_float_dtype(r.info->dtype_name)) continue;
+      ++checked;
+      const auto hit = dvs::weights_tools::first_non_finite(r.file->bytes(*r.info), r.info->dtype_name);
+      if (!hit) continue;
+      ++bad;
+      error(w.source().string() + ": tensor '" + name + "' " + r.info->dtype_name + shape_list(r.info->shape) + " holds " +
+            (hit->nan ? "NaN" : "an infinite value") + ", first at element " + std::to_string(hit->index) + " " +
+            index_list(r.info->shape, hit->index));
+    }
+    if (bad == 0) std::cout << "  values: OK, all " << checked << " floating-point tensors are finite\n";
+    else std::cout << "  values: " << bad << " of " << checked << " floating-point tensors hold NaN or Inf\n";
+  }
+
+  // Flat C-order index -> "[i,j,k]".
+  static std::string index_list(const dvs::Shape& shape, uint64_t flat) {
+    std::vector<uint64_t> idx(shape.size());
+    for (size_t d = shape.size(); d-- > 0;) {
+      const uint64_t n = uint64_t(std::max<int64_t>(shape[d], 1));
+      idx[d] = flat % n;
+      flat /= n;
+    }
+    std::string out = "[";
+    for (size_t d = 0; d < idx.size(); ++d) {
+      if (d) out += ',';
+      out += std::to_string(idx[d]);
+    }
+    return out + "]";
+  }
+
+  bool summary_, values_;
   int failures_ = 0;
 };
 
@@ -219,10 +286,11 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 }
 
 int inspect(const std::vector<std::string>& args) {
-  bool summary = false;
+  bool summary = false, values = false;
   std::string path;
   for (const auto& a : args) {
     if (a == "--summary") summary = true;
+    else if (a == "--values") values = true;
     else if (a == "-h" || a == "--help") {
       std::cout << kUsage;
       return 0;
@@ -239,7 +307,7 @@ int inspect(const std::vector<std::string>& args) {
     std::cerr << "dvs-weights: inspect needs a PATH\n" << kUsage;
     return 2;
   }
-  Inspector ins(summary);
+  Inspector ins(summary, values);
   try {
     const fs::path p(path);
     std::error_code ec;
@@ -269,7 +337,7 @@ int make_tiny(const std::vector<std::string>& args) {
   dvs::models::TinyModelSpec spec;
   std::string out;
   auto value = [&](size_t& i) -> const std::string& {
-    if (i + 1 >= args.size()) throw dvs::Error("make-tiny: " + args[i] + " needs a value");
+    if (i + 1 >= args.size()) throw dvs::UsageError("make-tiny: " + args[i] + " needs a value");
     return args[++i];
   };
   auto integer = [&](size_t& i, int lo, int hi) {
@@ -280,18 +348,22 @@ int make_tiny(const std::vector<std::string>& args) {
       if (used == v.size() && x >= lo && x <= hi) return x;
     } catch (const std::exception&) {
     }
-    throw dvs::Error("make-tiny: " + name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+    throw dvs::UsageError("make-tiny: " + name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
                      "], got '" + v + "'");
   };
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
+    if (a == "-h" || a == "--help") {
+      std::cout << kUsage;
+      return 0;
+    }
     if (a == "--out") out = value(i);
     else if (a == "--seed") spec.seed = uint64_t(integer(i, 0, 1 << 30));
     else if (a == "--dtype") {
       const std::string& d = value(i);
       if (d == "f32") spec.dtype = dvs::DType::f32;
       else if (d == "bf16") spec.dtype = dvs::DType::bf16;
-      else throw dvs::Error("make-tiny: --dtype must be f32 or bf16");
+      else throw dvs::UsageError("make-tiny: --dtype must be f32 or bf16");
     } else if (a == "--layers") spec.layers = integer(i, 1, 64);
     else if (a == "--heads") spec.heads = integer(i, 1, 64);
     else if (a == "--head-dim") spec.head_dim = integer(i, 16, 256);
@@ -303,14 +375,24 @@ int make_tiny(const std::vector<std::string>& args) {
     else if (a == "--sample") {
       const std::string v = value(i);
       if (std::sscanf(v.c_str(), "%dx%dx%d", &spec.sample_height, &spec.sample_width, &spec.sample_frames) != 3)
-        throw dvs::Error("make-tiny: --sample must be LATENT_HxLATENT_WxFRAMES, e.g. 8x8x9");
+        throw dvs::UsageError("make-tiny: --sample must be LATENT_HxLATENT_WxFRAMES in latent units (pixels / 8), "
+                              "e.g. 8x8x9 for 64x64-pixel videos of 9 frames");
     } else if (a == "--vae-channels") {
       spec.vae_channels.clear();
       std::stringstream ss(value(i));
-      for (std::string part; std::getline(ss, part, ',');) spec.vae_channels.push_back(std::stoi(part));
-    } else throw dvs::Error("make-tiny: unknown option " + a + " (see dvs-weights --help)");
+      for (std::string part; std::getline(ss, part, ',');) {
+        try {
+          spec.vae_channels.push_back(std::stoi(part));
+        } catch (const std::exception&) {
+          throw dvs::UsageError("make-tiny: --vae-channels must be comma-separated whole numbers, got '" + part + "'");
+        }
+      }
+    } else throw dvs::UsageError("make-tiny: unknown option " + a + " (see dvs-weights --help)");
   }
-  if (out.empty()) throw dvs::Error("make-tiny: --out DIR is required");
+  if (out.empty()) throw dvs::UsageError("make-tiny: --out DIR is required");
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec))
+    throw dvs::Error("make-tiny: --out " + out + " is a file; it must name a folder (it is created when missing)");
   spec.t5_d_kv = std::max(1, spec.t5_d_model / spec.t5_heads);
   spec.t5_d_ff = 2 * spec.t5_d_model;
   spec.time_embed_dim = spec.heads * spec.head_dim;
@@ -320,7 +402,13 @@ int make_tiny(const std::vector<std::string>& args) {
 }
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
+  std::vector<std::string> args;
+  bool verbose = false;
+  for (int i = 1; i < argc; ++i) {  // --verbose: the libraries' own log lines (SentencePiece) too
+    if (std::strcmp(argv[i], "--verbose") == 0) verbose = true;
+    else args.emplace_back(argv[i]);
+  }
+  dvs::set_third_party_logs(verbose);
   if (args.empty()) {
     std::cerr << kUsage;
     return 2;
@@ -335,7 +423,10 @@ int main(int argc, char** argv) {
   if (cmd == "make-tiny") {
     try {
       return make_tiny(args);
-    } catch (const dvs::Error& e) {
+    } catch (const dvs::UsageError& e) {
+      std::cerr << "dvs-weights: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {  // dvs::Error, and filesystem errors while writing the folder
       std::cerr << "dvs-weights: error: " << e.what() << "\n";
       return 1;
     }

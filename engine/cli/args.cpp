@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
+#include "dvs/usage_error.hpp"
 
 namespace dvs::cli {
 
@@ -40,7 +41,7 @@ Args::Args(std::string command, const std::vector<std::string>& argv, const std:
 }
 
 void Args::fail(const std::string& what) const {
-  throw Error("dvs " + command_ + ": " + what + " (see dvs " + command_ + " --help)");
+  throw UsageError("dvs " + command_ + ": " + what + " (see dvs " + command_ + " --help)");
 }
 
 std::string Args::str(const std::string& name, const std::string& fallback) const {

@@ -25,7 +25,8 @@ class Args {
   std::vector<double> numbers(const std::string& name, size_t count) const;  // "a,b,c,d"
   // The working size from --size HxW or from --height H --width W (both, and not with --size).
   std::pair<int, int> working_size(std::pair<int, int> fallback) const;
-  [[noreturn]] void fail(const std::string& what) const;  // "dvs <command>: <what> (see dvs <command> --help)"
+  // Throws dvs::UsageError (exit status 2): "dvs <command>: <what> (see dvs <command> --help)".
+  [[noreturn]] void fail(const std::string& what) const;
 
  private:
   std::string command_;

@@ -40,7 +40,13 @@ int run_plan(const std::vector<std::string>& argv) {
   req.height = a.integer("height", 480, 1, 1 << 16);
   req.width = a.integer("width", 720, 1, 1 << 16);
   req.alignment = uint64_t(a.integer("alignment", 256, 1, 1 << 20));
-  if (a.has("budget")) req.budget = pipeline::parse_byte_size(a.str("budget"), "--budget");
+  if (a.has("budget")) {
+    try {
+      req.budget = pipeline::parse_byte_size(a.str("budget"), "--budget");
+    } catch (const Error& e) {
+      a.fail(e.what());  // a malformed option value is a usage error (exit 2)
+    }
+  }
   const pipeline::PlanModel pm =
       pipeline::is_builtin_model(model) ? pipeline::builtin_plan_model(model) : pipeline::plan_model_from_folder(model);
   const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);

@@ -16,9 +16,13 @@ static const char* kRenderHelp =
     "scene.glb (trajectory + frame-0 point cloud, for any glTF viewer).\n"
     "\n"
     "  --video V             input video (any size and fps)\n"
-    "  --depth D             per-frame depth: .npy/.npz [N,H,W] (key 'depths'), or a folder of 16-bit PNG/EXR\n"
+    "  --depth D             per-frame depth: .npy/.npz [N,H,W] (or [N,H,W,1]; float or 16-bit; FILE.npz:KEY\n"
+    "                        picks an array, default key 'depths'), a folder of 16-bit PNG/EXR frames (natural\n"
+    "                        name order: d_2 before d_10) or a grayscale video\n"
     "  --metric-depth        D holds metric depth (default: disparity, as Video-Depth-Anything writes)\n"
     "  --trim-depth          allow D to have more frames than the video uses\n"
+    "  --depth-fit error|stretch|crop  depth of another aspect ratio (or orientation) than the video: refuse\n"
+    "                        (error, the default), scale each axis (stretch) or cut its centre (crop)\n"
     "  --trajectory T        loop1..loop4, wave1, oscillating_wave (official), pan_left, pan_right, tilt_up,\n"
     "                        tilt_down, dolly_in, dolly_out, truck_left, truck_right, arc_left, arc_right\n"
     "                        (NAME:MAGNITUDE sets degrees or radius fractions), or a .txt (official three-line\n"
@@ -34,7 +38,7 @@ static const char* kRenderHelp =
 
 int run_render(const std::vector<std::string>& argv) {
   Args a("render", argv,
-         {"video", "depth", "trajectory", "out", "frames", "size", "resize", "intrinsics", "device"},
+         {"video", "depth", "trajectory", "out", "frames", "size", "resize", "intrinsics", "device", "depth-fit"},
          {"metric-depth", "trim-depth", "points", "no-glb"});
   if (a.help()) {
     std::cout << kRenderHelp;
@@ -50,10 +54,13 @@ int run_render(const std::vector<std::string>& argv) {
   job.height = h;
   job.width = w;
   std::string resize = a.str("resize", "crop");
-  if (resize != "crop" && resize != "squash") throw Error("dvs render: --resize must be crop or squash");
+  if (resize != "crop" && resize != "squash") a.fail("--resize must be crop or squash, got '" + resize + "'");
   job.squash = resize == "squash";
   job.metric_depth = a.has("metric-depth");
   job.trim_depth = a.has("trim-depth");
+  job.depth_fit = a.str("depth-fit", "error");
+  if (job.depth_fit != "error" && job.depth_fit != "stretch" && job.depth_fit != "crop")
+    a.fail("--depth-fit must be error, stretch or crop, got '" + job.depth_fit + "'");
   job.hard_points = a.has("points");
   job.export_glb = !a.has("no-glb");
   job.device = a.str("device");
@@ -62,7 +69,7 @@ int run_render(const std::vector<std::string>& argv) {
     job.fx = k[0], job.fy = k[1], job.cx = k[2], job.cy = k[3];
   }
   RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; });
-  std::cout << "rendered " << s.frames << " frames at " << s.width << "x" << s.height << " (decode " << s.seconds_decode
+  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << s.seconds_decode
             << " s, render " << s.seconds_render << " s, write " << s.seconds_write << " s)\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "
             << s.poses_json.string() << "\n";

@@ -10,6 +10,7 @@
 #include "io/lora_file.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
+#include "prompt_length.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
@@ -21,7 +22,8 @@ const char* kRunHelp =
     "with the transformer, fills occluded latents (SLM), initialises the noise (adaptive K-RNR) and samples the\n"
     "new view. Writes DIR/output.mp4, render.mp4, mask.mp4, comparison.mp4 (input | render | output) and run.json.\n"
     "\n"
-    "inputs (as dvs render): --video --depth --metric-depth --trim-depth --trajectory --frames (4k+1, default 49)\n"
+    "inputs (as dvs render): --video --depth --metric-depth --trim-depth --depth-fit --trajectory\n"
+    "  --frames N            4k+1, default 49\n"
     "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
     "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
     "  --resize crop|squash  --intrinsics fx,fy,cx,cy  --points\n"
@@ -57,7 +59,8 @@ const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out"
                                            "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
                                            "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
                                            "dynamic-cfg", "preservation-scale",
-                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile"};
+                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile",
+                                           "depth-fit"};
 const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
 
 
@@ -97,6 +100,9 @@ RunOptions parse_run_options(const Args& a) {
   o.render.squash = resize == "squash";
   o.render.metric_depth = a.has("metric-depth");
   o.render.trim_depth = a.has("trim-depth");
+  o.render.depth_fit = a.str("depth-fit", "error");
+  if (o.render.depth_fit != "error" && o.render.depth_fit != "stretch" && o.render.depth_fit != "crop")
+    a.fail("--depth-fit must be error, stretch or crop, got '" + o.render.depth_fit + "'");
   o.render.hard_points = a.has("points");
   o.render.export_glb = false;
   o.render.device = a.str("device");
@@ -137,8 +143,11 @@ int run_run(const std::vector<std::string>& argv) {
     std::cout << kRunHelp;
     return 0;
   }
-  a.required("prompt");
-  return execute_run(parse_run_options(a), progress_mode(a));
+  if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed: no text conditioning)");
+  const RunOptions o = parse_run_options(a);
+  for (const auto& [text, option] : {std::pair{o.prompt, "--prompt"}, std::pair{o.negative_prompt, "--negative-prompt"}})
+    if (auto w = prompt_truncation_warning(o.model, text, option)) std::cerr << "dvs run: " << *w << "\n";
+  return execute_run(o, progress_mode(a));
 }
 
 int run_demo(const std::vector<std::string>& argv) {

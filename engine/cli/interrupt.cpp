@@ -1,19 +1,33 @@
 #include "interrupt.hpp"
 
 #include <csignal>
+#include <ctime>
 
 namespace dvs::cli {
 namespace {
 
 volatile std::sig_atomic_t g_interrupted = 0;
+// When the first signal arrived (CLOCK_MONOTONIC, ns); written once in the handler before g_interrupted.
+volatile long long g_first_ns = 0;
+
+long long now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);  // async-signal-safe
+  return static_cast<long long>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
 
 void on_signal(int sig) {
-  if (g_interrupted) {  // the second signal: the user insists, stop now
-    std::signal(sig, SIG_DFL);
-    std::raise(sig);
+  const long long t = now_ns();
+  if (!g_interrupted) {
+    g_first_ns = t;
+    g_interrupted = 1;
     return;
   }
-  g_interrupted = 1;
+  // A repeat within the grace period is the same Ctrl-C (a terminal or `timeout -s INT` may deliver two
+  // at once): the clean stop goes on. Later, the user insists: stop now.
+  if (t - g_first_ns < kSameInterruptNs) return;
+  std::signal(sig, SIG_DFL);
+  std::raise(sig);
 }
 
 }  // namespace

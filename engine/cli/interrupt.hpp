@@ -1,5 +1,6 @@
 // Ctrl-C and SIGTERM: the first one sets a flag that long jobs poll (at stage boundaries and before every
-// diffusion step) so they stop cleanly and remove their partial outputs; a second one ends the process at once.
+// diffusion step) so they stop cleanly and remove their partial outputs. Another signal within half a second of
+// the first is the same interruption (two often arrive together); one after that ends the process at once.
 #pragma once
 
 namespace dvs::cli {
@@ -9,5 +10,8 @@ bool interrupted();
 
 // The exit code of a job stopped by a signal (128 + SIGINT, as shells report it).
 constexpr int kInterruptedExitCode = 130;
+
+// Signals this close to the first one (nanoseconds) count as the same Ctrl-C.
+constexpr long long kSameInterruptNs = 500'000'000LL;
 
 }  // namespace dvs::cli

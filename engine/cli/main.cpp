@@ -1,5 +1,9 @@
 // The `dvs` command line. Sub-commands are added here as the engine grows; each prints one clear
 // message and exits non-zero on any user error.
+//
+// Exit status, the same for every command: 0 done (and --help), 1 the work failed (bad input file, device
+// error, ...), 2 usage error (unknown option, malformed or missing value), 130 interrupted (Ctrl-C/SIGTERM),
+// 3 internal error (a bug: please report it).
 #include <cstring>
 #include <new>
 #include <iostream>
@@ -8,9 +12,12 @@
 
 #include "dvs/error.hpp"
 #include "dvs/info.hpp"
+#include "dvs/usage_error.hpp"
 #include "args.hpp"
 #include "commands.hpp"
 #include "interrupt.hpp"
+#include "io/third_party_logs.hpp"
+#include "progress.hpp"
 
 namespace {
 
@@ -31,9 +38,23 @@ const char* kUsage =
     "\n"
     "common options:\n"
     "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
-    "  -h, --help       this help\n"
-    "  --version        print the version\n";
+    "  --verbose        let the libraries' own log lines through (FFmpeg, OpenCV, SentencePiece)\n"
+    "  -h, --help       this help (also: dvs <command> --help)\n"
+    "  --version        print the version\n"
+    "\n"
+    "exit status: 0 done; 1 the work failed; 2 usage error; 130 interrupted (Ctrl-C); 3 internal error.\n"
+    "With --progress json, stdout carries only JSON Lines (every other line goes to stderr), ending with one\n"
+    "{\"event\":\"done\"} or {\"event\":\"error\"} object.\n";
 
+// The final event of a --progress json run (nothing otherwise).
+int finish(bool json, int code, const std::string& message = "") {
+  if (json) {
+    nlohmann::json e{{"event", code == 0 ? "done" : "error"}, {"exit_code", code}};
+    if (code != 0) e["message"] = message;
+    dvs::cli::emit_json_event(e);
+  }
+  return code;
+}
 
 }  // namespace
 
@@ -52,7 +73,16 @@ int run_info(const std::vector<std::string>& argv) {
 }  // namespace dvs::cli
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
+  std::vector<std::string> args;
+  bool verbose = false;
+  for (int i = 1; i < argc; ++i) {  // --verbose is common to every command
+    if (std::strcmp(argv[i], "--verbose") == 0) verbose = true;
+    else args.emplace_back(argv[i]);
+  }
+  dvs::set_third_party_logs(verbose);  // before any library starts logging
+  // --progress json: stdout is for JSON Lines alone, so every plain line (std::cout) goes to stderr.
+  const bool json = dvs::cli::wants_json_progress(args);
+  if (json) std::cout.rdbuf(std::cerr.rdbuf());
   try {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
       std::cout << kUsage;
@@ -65,27 +95,35 @@ int main(int argc, char** argv) {
     dvs::cli::install_interrupt_handler();
     std::string cmd = args[0];
     std::vector<std::string> rest(args.begin() + 1, args.end());
-    if (cmd == "info") return dvs::cli::run_info(rest);
-    if (cmd == "render") return dvs::cli::run_render(rest);
-    if (cmd == "run") return dvs::cli::run_run(rest);
-    if (cmd == "demo") return dvs::cli::run_demo(rest);
-    if (cmd == "invert") return dvs::cli::run_invert(rest);
-    if (cmd == "encode-prompt") return dvs::cli::run_encode_prompt(rest);
-    if (cmd == "batch") return dvs::cli::run_batch(rest);
-    if (cmd == "plan") return dvs::cli::run_plan(rest);
-    std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
-    return 2;
+    int code = -1;
+    if (cmd == "info") code = dvs::cli::run_info(rest);
+    else if (cmd == "render") code = dvs::cli::run_render(rest);
+    else if (cmd == "run") code = dvs::cli::run_run(rest);
+    else if (cmd == "demo") code = dvs::cli::run_demo(rest);
+    else if (cmd == "invert") code = dvs::cli::run_invert(rest);
+    else if (cmd == "encode-prompt") code = dvs::cli::run_encode_prompt(rest);
+    else if (cmd == "batch") code = dvs::cli::run_batch(rest);
+    else if (cmd == "plan") code = dvs::cli::run_plan(rest);
+    if (code < 0) {
+      std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
+      return finish(json, 2, "unknown command '" + cmd + "'");
+    }
+    return finish(json, code, code ? "the command failed" : "");
   } catch (const dvs::Cancelled&) {
     std::cerr << "dvs: interrupted; partial outputs removed\n";
-    return dvs::cli::kInterruptedExitCode;
+    return finish(json, dvs::cli::kInterruptedExitCode, "interrupted");
+  } catch (const dvs::UsageError& e) {
+    std::cerr << "dvs: error: " << e.what() << "\n";
+    return finish(json, 2, e.what());
   } catch (const dvs::Error& e) {
     std::cerr << "dvs: error: " << e.what() << "\n";
-    return 1;
+    return finish(json, 1, e.what());
   } catch (const std::bad_alloc&) {
-    std::cerr << "dvs: error: out of host memory; try --vae-tiling, a smaller --size or fewer --frames\n";
-    return 1;
+    const char* msg = "out of host memory; try --vae-tiling, a smaller --size or fewer --frames";
+    std::cerr << "dvs: error: " << msg << "\n";
+    return finish(json, 1, msg);
   } catch (const std::exception& e) {
     std::cerr << "dvs: internal error: " << e.what() << "\n";
-    return 3;
+    return finish(json, 3, std::string("internal error: ") + e.what());
   }
 }

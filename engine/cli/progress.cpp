@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "dvs/usage_error.hpp"
 
 namespace dvs::cli {
 
@@ -14,7 +15,7 @@ ProgressMode parse_progress_mode(const std::string& value, bool quiet) {
   if (value.empty() || value == "bar") return ProgressMode::bar;
   if (value == "json") return ProgressMode::json;
   if (value == "none") return ProgressMode::quiet;
-  throw Error("--progress must be bar, json or none");
+  throw UsageError("--progress must be bar, json or none, got '" + value + "' (see --help)");
 }
 
 Progress::Progress(ProgressMode mode) : mode_(mode), tty_(isatty(fileno(stderr))) {}
@@ -29,9 +30,8 @@ void Progress::operator()(const std::string& stage, int step, int total, const s
   double elapsed = std::chrono::duration<double>(now - stage_start_).count();
   if (mode_ == ProgressMode::quiet) return;
   if (mode_ == ProgressMode::json) {
-    nlohmann::json j{{"stage", stage}, {"step", step}, {"total", total}, {"elapsed_s", elapsed}, {"note", note}};
-    std::fprintf(stdout, "%s\n", j.dump().c_str());
-    std::fflush(stdout);
+    emit_json_event({{"event", "progress"}, {"stage", stage}, {"step", step}, {"total", total}, {"elapsed_s", elapsed},
+                     {"note", note}});
     return;
   }
   std::string line;
@@ -58,6 +58,25 @@ void Progress::operator()(const std::string& stage, int step, int total, const s
 void Progress::finish() {
   if (open_line_) std::fprintf(stderr, "\n");
   open_line_ = false;
+}
+
+}  // namespace dvs::cli
+
+namespace dvs::cli {
+
+void emit_json_event(const nlohmann::json& event) {
+  // C stdio, not std::cout: with --progress json, main points std::cout at stderr so that plain lines never
+  // mix into the JSON Lines on stdout.
+  std::fprintf(stdout, "%s\n", event.dump().c_str());
+  std::fflush(stdout);
+}
+
+bool wants_json_progress(const std::vector<std::string>& args) {
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--progress=json") return true;
+    if (args[i] == "--progress" && i + 1 < args.size() && args[i + 1] == "json") return true;
+  }
+  return false;
 }
 
 }  // namespace dvs::cli

@@ -2,7 +2,9 @@
 // object per event with --progress json, nothing with --quiet.
 #pragma once
 #include <chrono>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 namespace dvs::cli {
 
@@ -26,5 +28,12 @@ class Progress {
 };
 
 ProgressMode parse_progress_mode(const std::string& value, bool quiet);
+
+// --progress json: one JSON object per line on stdout. Every event has "event": "progress" (a stage's step),
+// then exactly one final "done" (exit_code 0) or "error" (message, exit_code 1, 2 or 130).
+void emit_json_event(const nlohmann::json& event);
+
+// Whether a command line asks for --progress json (main decides where plain lines go before parsing).
+bool wants_json_progress(const std::vector<std::string>& args);
 
 }  // namespace dvs::cli

@@ -15,6 +15,7 @@ struct RenderJob {
   bool squash = false;               // resize by squashing (official) instead of crop
   bool metric_depth = false;         // depth file holds metric depth instead of disparity
   bool trim_depth = false;           // allow a depth file with more frames than the video uses
+  std::string depth_fit = "error";   // depth of another aspect ratio than the video: error | stretch | crop
   double fx = 0, fy = 0, cx = 0, cy = 0;  // 0 = the official default (f = 500 at 1024×576), scaled
   bool hard_points = false;          // z-buffer point splatting instead of the soft bilinear splat
   bool export_glb = true;            // scene.glb: trajectory + frame-0 point cloud

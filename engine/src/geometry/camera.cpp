@@ -14,8 +14,8 @@ Intrinsics Intrinsics::official_default(int width, int height) {
 
 Intrinsics Intrinsics::scaled_to(int new_width, int new_height) const {
   if (new_width <= 0 || new_height <= 0)
-    throw Error("camera: image size must be positive, got " + std::to_string(new_width) + "x" +
-                std::to_string(new_height));
+    throw Error("camera: image size must be positive, got " + std::to_string(new_height) + "x" +
+                std::to_string(new_width) + " (HxW)");
   Intrinsics k = *this;
   double sx = double(new_width) / width, sy = double(new_height) / height;
   k.fx = fx * sx;

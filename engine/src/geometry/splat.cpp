@@ -49,8 +49,9 @@ SplatRenderer::SplatRenderer(vk::Context& ctx, int height, int width, int max_fr
                 std::to_string(width) + " exceed one storage binding; render in chunks of at most " +
                 std::to_string(frames_per_binding(ctx, height, width)) + " frames (render_clip does)");
   if (max_frames > 65535) throw Error("splat renderer: at most 65535 frames per dispatch");
-  float_atomics_ = options.atomics == SplatAtomics::float_atomics ||
-                   (options.atomics == SplatAtomics::automatic && ctx.caps().float32_atomic_add);
+  // Only on request: float atomics sum in whatever order the invocations run, so two renders of the same
+  // input differ in the last bits, and that difference grows through the whole diffusion chain.
+  float_atomics_ = options.atomics == SplatAtomics::float_atomics;
   if (float_atomics_ && !ctx.caps().float32_atomic_add)
     throw Error("splat renderer: float atomics were requested but this device has no float32 atomic add");
   const uint64_t pixels = uint64_t(max_frames) * uint64_t(height) * uint64_t(width);
@@ -163,8 +164,8 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
     throw Error("render: the trajectory has " + std::to_string(trajectory.frames()) + " poses for " + std::to_string(F) +
                 " frames");
   if (K.width != W || K.height != H)
-    throw Error("render: the intrinsics are for " + std::to_string(K.width) + "x" + std::to_string(K.height) +
-                " but the frames are " + std::to_string(W) + "x" + std::to_string(H) + " (use Intrinsics::scaled_to)");
+    throw Error("render: the intrinsics are for " + std::to_string(K.height) + "x" + std::to_string(K.width) +
+                " (HxW) but the frames are " + std::to_string(H) + "x" + std::to_string(W) + " (use Intrinsics::scaled_to)");
   // Tensors of rgb/render are 3 planes per frame: keep each within one binding too.
   int chunk = std::max(1, int(std::min<int64_t>(F, SplatRenderer::frames_per_binding(ctx, int(H), int(W)))));
   if (options.max_chunk_frames > 0) chunk = std::min(chunk, options.max_chunk_frames);

@@ -17,6 +17,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
 
 namespace dvs::geometry {
 
@@ -304,7 +305,23 @@ PointCloud point_cloud_from_rgbd(const float* rgb, const float* depth, int H, in
   return pc;
 }
 
-void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& trajectory, const PointCloud* cloud,
+PointCloud clip_far_points(const PointCloud& cloud, double ratio) {
+  if (!(ratio > 0) || cloud.positions.empty()) return cloud;
+  std::vector<float> z;
+  z.reserve(cloud.positions.size());
+  for (const auto& p : cloud.positions) z.push_back(p.z);
+  std::nth_element(z.begin(), z.begin() + std::ptrdiff_t(z.size() / 2), z.end());
+  const double limit = ratio * double(z[z.size() / 2]);
+  PointCloud out;
+  for (size_t i = 0; i < cloud.positions.size(); ++i)
+    if (double(cloud.positions[i].z) <= limit) {
+      out.positions.push_back(cloud.positions[i]);
+      if (i < cloud.colors.size()) out.colors.push_back(cloud.colors[i]);
+    }
+  return out;
+}
+
+void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& trajectory, const PointCloud* full_cloud,
                           const GlbExportOptions& options) {
   if (trajectory.transforms.empty()) throw Error(path.string() + ": cannot export an empty trajectory");
   if (!(options.fps > 0)) throw Error(path.string() + ": export fps must be > 0");
@@ -318,6 +335,13 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
   // World for viewers: the source camera with y and z flipped (y-up, camera looking down −z).
   auto to_world = [](const glm::dvec3& p) { return glm::vec3(float(p.x), float(-p.y), float(-p.z)); };
 
+  if (full_cloud && full_cloud->colors.size() != full_cloud->positions.size())
+    throw Error(path.string() + ": point cloud has " + std::to_string(full_cloud->positions.size()) + " positions but " +
+                std::to_string(full_cloud->colors.size()) + " colours");
+  PointCloud clipped;
+  if (full_cloud) clipped = clip_far_points(*full_cloud, options.far_clip_over_median);
+  const PointCloud* cloud = full_cloud ? &clipped : nullptr;
+  double extent = 1.0;  // the farthest point or camera centre from the origin: zfar goes beyond it
   if (cloud && !cloud->positions.empty()) {
     if (cloud->colors.size() != cloud->positions.size())
       throw Error(path.string() + ": point cloud has " + std::to_string(cloud->positions.size()) + " positions but " +
@@ -326,6 +350,7 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
     for (size_t i = 0; i < cloud->positions.size(); ++i) {
       glm::vec3 w = to_world(glm::dvec3(cloud->positions[i]));
       pos.insert(pos.end(), {w.x, w.y, w.z});
+      extent = std::max(extent, double(glm::length(w)));
       col.insert(col.end(), {cloud->colors[i].x, cloud->colors[i].y, cloud->colors[i].z});
     }
     std::vector<double> lo, hi;
@@ -355,6 +380,7 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
     trans.insert(trans.end(), {float(C[3].x), float(C[3].y), float(C[3].z)});
     rots.insert(rots.end(), {float(q.x), float(q.y), float(q.z), float(q.w)});
     centres.insert(centres.end(), {float(C[3].x), float(C[3].y), float(C[3].z)});
+    extent = std::max(extent, glm::length(glm::dvec3(C[3])));
   }
   tinygltf::Camera cam;
   cam.type = "perspective";
@@ -366,6 +392,8 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
     cam.perspective.yfov = 60.0 * 3.14159265358979323846 / 180.0;
   }
   cam.perspective.znear = 0.01;
+  // Any camera position sees every point within twice the extent (both lie within `extent` of the origin).
+  cam.perspective.zfar = 2.0 * extent + 1.0;
   m.cameras.push_back(cam);
   tinygltf::Node cn;
   cn.name = "camera";
@@ -422,7 +450,8 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
   if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true)) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    throw Error(path.string() + ": could not write the .glb file");
+    const std::string full = no_space_note(path.parent_path());
+    throw Error(path.string() + ": could not write the .glb file" + (full.empty() ? std::string() : ": " + full));
   }
   std::filesystem::rename(tmp, path);
 }

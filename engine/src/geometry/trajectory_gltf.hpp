@@ -46,9 +46,18 @@ PointCloud point_cloud_from_rgbd(const float* rgb_frame, const float* depth_fram
 struct GlbExportOptions {
   double fps = 30;
   const Intrinsics* intrinsics = nullptr;  // sets the camera's field of view; default 60° vertical
+  // Points farther than this multiple of the cloud's median depth are left out (0 keeps all): depth from
+  // disparity puts the sky at 10⁴ units, which would make a viewer's "fit to view" show a dot.
+  double far_clip_over_median = 8;
 };
 
-// Writes a binary glTF atomically (temporary file + rename). `cloud` may be null.
+// The points of `cloud` whose depth (z) is at most `ratio` × the median depth (all of them for ratio ≤ 0).
+PointCloud clip_far_points(const PointCloud& cloud, double ratio);
+
+// Writes a binary glTF atomically (temporary file + rename) that passes the Khronos glTF validator. `cloud`
+// may be null. The perspective camera has znear 0.01 and a finite zfar beyond every point and camera
+// centre (glTF 2.0 forbids zfar = 0; an absent zfar means an infinite projection, which some viewers
+// mishandle).
 void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& trajectory, const PointCloud* cloud,
                           const GlbExportOptions& options = {});
 

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
 
 namespace dvs::geometry {
 
@@ -140,17 +141,29 @@ std::string trajectory_to_json(const Trajectory& t) {
   return j.dump(1);
 }
 
+namespace {
+
+// ": no space left on device (…)" when that is why a write into path's folder failed, else "".
+std::string with_space_note(const std::filesystem::path& path) {
+  const std::string note = no_space_note(path.parent_path());
+  return note.empty() ? note : ": " + note;
+}
+
+}  // namespace
+
 void write_trajectory_json(const std::filesystem::path& path, const Trajectory& t) {
   std::string text = trajectory_to_json(t);
   std::filesystem::path tmp = path;
   tmp += ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw Error(path.string() + ": cannot write the trajectory file");
+    if (!f) throw Error(path.string() + ": cannot write the trajectory file" + with_space_note(path));
     f << text;
+    f.close();  // the buffered bytes reach the disk here: check after it
     if (!f) {
-      std::filesystem::remove(tmp);
-      throw Error(path.string() + ": write failed");
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error(path.string() + ": write failed" + with_space_note(path));
     }
   }
   std::filesystem::rename(tmp, path);

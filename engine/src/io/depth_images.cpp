@@ -1,6 +1,7 @@
 #include "io/depth_images.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -45,6 +46,32 @@ HostTensor read_single_channel(const std::filesystem::path& file, const char* ki
 
 }  // namespace
 
+bool natural_less(const std::string& a, const std::string& b) {
+  size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    const bool da = std::isdigit(static_cast<unsigned char>(a[i])), db = std::isdigit(static_cast<unsigned char>(b[j]));
+    if (da && db) {  // compare the whole digit runs as numbers: without leading zeros, longer is larger
+      size_t ie = i, je = j;
+      while (ie < a.size() && std::isdigit(static_cast<unsigned char>(a[ie]))) ++ie;
+      while (je < b.size() && std::isdigit(static_cast<unsigned char>(b[je]))) ++je;
+      size_t ia = i, jb = j;
+      while (ia + 1 < ie && a[ia] == '0') ++ia;
+      while (jb + 1 < je && b[jb] == '0') ++jb;
+      if (ie - ia != je - jb) return ie - ia < je - jb;
+      const int c = a.compare(ia, ie - ia, b, jb, je - jb);
+      if (c != 0) return c < 0;
+      if (ie - i != je - j) return ie - i < je - j;  // equal values: fewer leading zeros first
+      i = ie;
+      j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i;
+      ++j;
+    }
+  }
+  return a.size() - i < b.size() - j;
+}
+
 HostTensor read_depth_png(const std::filesystem::path& file) { return read_single_channel(file, "PNG"); }
 
 HostTensor read_depth_exr(const std::filesystem::path& file) {
@@ -66,16 +93,18 @@ HostTensor read_depth_image_sequence(const std::filesystem::path& folder) {
   if (!png.empty() && !exr.empty()) throw Error(name + ": holds both .png and .exr files; keep one kind per folder");
   std::vector<std::filesystem::path>& files = png.empty() ? exr : png;
   if (files.empty()) throw Error(name + ": has no .png or .exr depth images (zero frames)");
-  std::sort(files.begin(), files.end());
+  std::sort(files.begin(), files.end(), [](const std::filesystem::path& a, const std::filesystem::path& b) {
+    return natural_less(a.filename().string(), b.filename().string());
+  });
   HostTensor out;
   for (size_t i = 0; i < files.size(); ++i) {
     HostTensor f = png.empty() ? read_depth_exr(files[i]) : read_depth_png(files[i]);
     if (i == 0) {
       out = HostTensor({int64_t(files.size()), f.shape[0], f.shape[1]}, DType::f32);
     } else if (f.shape[0] != out.shape[1] || f.shape[1] != out.shape[2]) {
-      throw Error(files[i].string() + ": is " + std::to_string(f.shape[1]) + "x" + std::to_string(f.shape[0]) +
-                  " but " + files[0].filename().string() + " is " + std::to_string(out.shape[2]) + "x" +
-                  std::to_string(out.shape[1]));
+      throw Error(files[i].string() + ": is " + std::to_string(f.shape[0]) + "x" + std::to_string(f.shape[1]) +
+                  " (HxW) but " + files[0].filename().string() + " is " + std::to_string(out.shape[1]) + "x" +
+                  std::to_string(out.shape[2]));
     }
     std::memcpy(out.data.data() + i * f.data.size(), f.data.data(), f.data.size());
   }

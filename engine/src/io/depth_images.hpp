@@ -1,13 +1,18 @@
 // Depth image sequences: a folder of single-channel 16-bit (or 8-bit) PNGs or float EXRs, one file per
-// frame, taken in lexicographic file-name order (name them with zero-padded numbers). PNG integer values
+// frame, taken in natural file-name order (d_2 before d_10; zero-padded names sort the same either way). PNG integer values
 // are returned as they are stored (use DepthOptions::metric_scale for millimetres); EXR reads the channel
 // its single channel as float (OpenCV reads both).
 #pragma once
 #include <filesystem>
+#include <string>
 
 #include "io/host_tensor.hpp"
 
 namespace dvs {
+
+// "Natural" order of file names: digit runs compare as numbers (d_2 < d_10; an equal number with more
+// leading zeros sorts after), everything else byte by byte.
+bool natural_less(const std::string& a, const std::string& b);
 
 // [N,H,W] f32 from every .png or every .exr in `folder` (one kind only). Errors name the file.
 HostTensor read_depth_image_sequence(const std::filesystem::path& folder);

@@ -24,7 +24,7 @@ constexpr uint64_t kMaxHeaderLen = 1u << 20;  // numpy headers are ~100 bytes; a
 struct NpyType {
   DType dtype;    // what the HostTensor holds
   size_t stored;  // bytes per element in the file
-  enum Conv { copy, f64_to_f32, i64_to_i32 } conv;
+  enum Conv { copy, f64_to_f32, i64_to_i32, u16_to_i32 } conv;
 };
 
 std::optional<NpyType> npy_type(std::string_view d) {
@@ -34,6 +34,7 @@ std::optional<NpyType> npy_type(std::string_view d) {
   if (d == "|u1" || d == "<u1" || d == "=u1" || d == "u1") return NpyType{DType::u8, 1, NpyType::copy};
   if (d == "<f8") return NpyType{DType::f32, 8, NpyType::f64_to_f32};
   if (d == "<i8") return NpyType{DType::i32, 8, NpyType::i64_to_i32};
+  if (d == "<u2") return NpyType{DType::i32, 2, NpyType::u16_to_i32};  // 16-bit depth maps; widened exactly
   return std::nullopt;
 }
 
@@ -218,7 +219,7 @@ HostTensor parse_npy(std::span<const uint8_t> b, const std::string& name) {
   const auto type = npy_type(h.descr);
   if (!type)
     throw Error(name + ": unsupported .npy dtype '" + h.descr +
-                "' (supported: <f4 <f2 <i4 |u1, and <f8 <i8 narrowed to f32/i32; little-endian only)");
+                "' (supported: <f4 <f2 <i4 |u1, <f8 <i8 narrowed to f32/i32, <u2 widened to i32; little-endian only)");
 
   // Element count with overflow checks; the data must then fit in what the file actually holds.
   uint64_t numel = 1;
@@ -248,6 +249,14 @@ HostTensor parse_npy(std::span<const uint8_t> b, const std::string& name) {
         std::memcpy(&v, src + 8 * i, 8);
         const float f = float(v);  // round to nearest; out-of-range becomes +-Inf, NaN stays NaN
         std::memcpy(t.data.data() + 4 * i, &f, 4);
+      }
+      break;
+    case NpyType::u16_to_i32:
+      for (uint64_t i = 0; i < numel; ++i) {
+        uint16_t v;
+        std::memcpy(&v, src + 2 * i, 2);
+        const int32_t w = int32_t(v);
+        std::memcpy(t.data.data() + 4 * i, &w, 4);
       }
       break;
     case NpyType::i64_to_i32:
@@ -339,7 +348,9 @@ void write_npy(const std::filesystem::path& path, const HostTensor& t) {
   std::error_code ec;
   if (!wrote || !closed) {
     std::filesystem::remove(tmp, ec);
-    throw Error(name + ": write failed: " + std::strerror(wrote ? errno : werr) + " (nothing was written)");
+    const int e = wrote ? errno : werr;
+    throw Error(name + ": write failed: " + (e == ENOSPC ? std::string("no space left on device") : std::strerror(e)) +
+                " (nothing was written)");
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

@@ -1,7 +1,7 @@
 // NumPy .npy files (format versions 1.0, 2.0, 3.0): the golden packs' tensor format.
 //
 // Read: little-endian '<f4' '<f2' '<i4' '|u1' as stored; '<f8' narrowed to f32; '<i8' narrowed to i32 (an
-// out-of-range value is an error). C order only. Write: f32 f16 i32 u8 as stored; bf16 (no numpy dtype) as
+// out-of-range value is an error); '<u2' (16-bit depth maps) widened to i32. C order only. Write: f32 f16 i32 u8 as stored; bf16 (no numpy dtype) as
 // '<f4'. Writes go to a temporary file that is renamed into place, so no half-written .npy is ever left.
 #pragma once
 #include <cstdint>

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
 #include "io/safetensors.hpp"
 
 namespace dvs {
@@ -32,10 +33,12 @@ void write_safetensors(const std::filesystem::path& path, const std::vector<std:
     out.write(reinterpret_cast<const char*>(len), 8);
     out.write(text.data(), std::streamsize(n));
     for (const auto& [name, t] : tensors) out.write(reinterpret_cast<const char*>(t.data.data()), std::streamsize(t.bytes()));
+    out.close();  // the last buffered bytes reach the disk here
     if (!out) {
       std::error_code ec;
       std::filesystem::remove(tmp, ec);
-      throw Error(path.string() + ": write failed (disk full?)");
+      const std::string full = no_space_note(path.parent_path());
+      throw Error(path.string() + ": write failed (" + (full.empty() ? std::string("an I/O error") : full) + ")");
     }
   }
   std::filesystem::rename(tmp, path);

@@ -32,7 +32,8 @@ struct VideoInfo {
 HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& options = {}, VideoInfo* info = nullptr);
 
 // Frames [F,3,H,W] (RGB) or [F,1,H,W] / [F,H,W] (gray, written as RGB) in [−1,1] (values are clamped).
-// H.264 when the FFmpeg build has an encoder for it, else MPEG-4 part 2.
+// H.264 when the FFmpeg build has an encoder for it, else MPEG-4 part 2. The same frames always give the
+// same bytes (the encoder's uninitialised reads see a fixed fill, video.cpp).
 void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps);
 
 // The version of the OpenCV library that reads and writes videos (for run records).

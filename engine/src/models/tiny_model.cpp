@@ -2,6 +2,8 @@
 
 #include <sentencepiece_trainer.h>
 
+#include "io/third_party_logs.hpp"
+
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -153,7 +155,10 @@ void write_tokenizer(const std::filesystem::path& dir, const TinyModelSpec& s) {
        << " --model_type=unigram --pad_id=0 --eos_id=1 --unk_id=2 --bos_id=-1 --character_coverage=1.0"
        << " --normalization_rule_name=nmt_nfkc --hard_vocab_limit=false --num_threads=1 --seed_sentencepiece_size=100000"
        << " --minloglevel=2";
-  auto status = sentencepiece::SentencePieceTrainer::Train(args.str());
+  auto status = [&] {
+    const QuietStderr quiet;  // the trainer prints its command line whatever --minloglevel says
+    return sentencepiece::SentencePieceTrainer::Train(args.str());
+  }();
   std::filesystem::remove(corpus);
   std::filesystem::remove(dir / "spiece.vocab");
   if (!status.ok()) throw Error(dir.string() + ": training the tiny tokenizer failed: " + status.ToString());

@@ -42,7 +42,8 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
                 std::to_string(job.height) + "x" + std::to_string(job.width));
   if (job.frames < 0) throw Error("--frames must be ≥ 0 (0 = all frames)");
   // Check everything the user gave before any long work.
-  if (!std::filesystem::exists(job.depth)) throw Error(job.depth.string() + ": no such depth file or folder");
+  if (!depth_source_exists(job.depth)) throw Error(job.depth.string() + ": no such depth file or folder");
+  const DepthFit depth_fit = parse_depth_fit(job.depth_fit);
   prepare_out_dir(job.out_dir);
 
   RenderedInput r;
@@ -56,16 +57,17 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   r.rgb = read_video(job.video, vo, &vi);
   r.fps = vi.fps;
   const int F = int(r.rgb.shape[0]), H = job.height, W = job.width;
-  say("decoded " + std::to_string(F) + " frames of " + job.video.string() + " (" + std::to_string(vi.width) + "x" +
-      std::to_string(vi.height) + " at " + std::to_string(vi.fps).substr(0, 5) + " fps) -> " + std::to_string(W) +
-      "x" + std::to_string(H));
+  say("decoded " + std::to_string(F) + " frames of " + job.video.string() + " (" + std::to_string(vi.height) + "x" +
+      std::to_string(vi.width) + " at " + std::to_string(vi.fps).substr(0, 5) + " fps) -> " + std::to_string(H) +
+      "x" + std::to_string(W) + " (HxW)");
 
   DepthOptions dopt;
   dopt.values = job.metric_depth ? DepthValues::depth : DepthValues::disparity;
   HostTensor depth = load_depth(job.depth, dopt);
   // Depth for the whole source clip (what a video depth estimator writes) follows the video's --frames cut.
   const bool whole_clip = vi.frames_in_file > 0 && depth.shape[0] == vi.frames_in_file;
-  r.depth = fit_depth_to_video(depth, F, H, W, job.trim_depth || whole_clip, job.depth.string());
+  r.depth = map_depth_to_video(depth, F, {vi.height, vi.width, H, W, vo.resize}, depth_fit,
+                               job.trim_depth || whole_clip, job.depth.string());
   r.seconds_decode = seconds_since(t0);
 
   r.K = geometry::Intrinsics::official_default(W, H);

@@ -1,0 +1,13 @@
+// A command line that cannot be understood (unknown option, missing or malformed value). The programs exit
+// with status 2 for it, 1 for failures of the work itself, 130 when interrupted.
+#pragma once
+#include "dvs/error.hpp"
+
+namespace dvs {
+
+class UsageError : public Error {
+ public:
+  explicit UsageError(const std::string& what) : Error(what) {}
+};
+
+}  // namespace dvs
