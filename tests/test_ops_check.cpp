@@ -107,7 +107,7 @@ TEST_F(OpsCheck, RequireFiniteNamesTheTensorAndTheIndex) {
     EXPECT_NE(m.find("x_init [2,3,4]: 1 non-finite value (NaN/Inf), the first at [1,2,3] (flat index 23)"), std::string::npos) << m;
     EXPECT_NE(m.find("check the weights"), std::string::npos) << m;
   }
-  const Tensor ok = Tensor::upload(ctx(), HostTensor::from_f32({3}, {1, 2, 3}));
+  const Tensor ok = Tensor::upload(ctx(), HostTensor::from_f32({3}, std::vector<float>{1, 2, 3}));
   EXPECT_NO_THROW(ops::require_finite(ctx(), {{&ok, "fine"}}));
 }
 

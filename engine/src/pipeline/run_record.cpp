@@ -33,7 +33,6 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"width", o.render.width},
                    {"resize", o.render.squash ? "squash" : "crop"},
                    {"intrinsics", x.intrinsics},
-                   {"intrinsics_given", o.render.fx > 0},
                    {"points", o.render.hard_points},
                    {"trim_depth", o.render.trim_depth},
                    {"steps", x.steps},
