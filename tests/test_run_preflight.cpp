@@ -124,8 +124,8 @@ TEST(RunPreflight, ExplicitOutOfRangeValuesAreErrorsNotTheDefault) {
   const auto out = in.dir / "out";
   for (const auto& [extra, option] : std::vector<std::pair<std::string, std::string>>{
            {"--strength 0", "--strength"}, {"--strength 1.5", "--strength"}, {"--delta 0", "--delta"},
-           {"--delta -2", "--delta"}, {"--k 0", "--k"}, {"--intrinsics 0,0,0,0", "--intrinsics fx,fy,cx,cy"},
-           {"--intrinsics 50,50,-1,32", "--intrinsics fx,fy,cx,cy"}, {"--preservation-scale -1", "--preservation-scale"},
+           {"--delta -2", "--delta"}, {"--k 0", "--k"}, {"--intrinsics 0,0,0,0", "--intrinsics"},
+           {"--intrinsics 50,50,-1,32", "--intrinsics"}, {"--preservation-scale -1", "--preservation-scale"},
            {"--guidance -0.5", "--guidance"}}) {
     auto r = test::run_command(in.command(out, extra + " --check"));
     EXPECT_NE(r.exit_code, 0) << extra << "\n" << r.output;

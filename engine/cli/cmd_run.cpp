@@ -29,7 +29,8 @@ const char* kRunHelp =
     "inputs (as dvs render): --video --depth --metric-depth --trim-depth --trajectory --frames (4k+1, default 49)\n"
     "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
     "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
-    "  --resize crop|squash  --intrinsics fx,fy,cx,cy  --points\n"
+    "  --resize crop|squash  --intrinsics fx,fy,cx,cy (default: f = 500 px at 1024x576, square pixels under crop,\n"
+    "                        scaled per axis under squash)  --points\n"
     "  --model DIR           model folder laid out like THUDM/CogVideoX-5b-I2V\n"
     "  --prompt TEXT         what the scene shows\n"
     "  --negative-prompt T   default \"\" (paper) / the authors' fixed text (official)\n"
@@ -126,7 +127,7 @@ RunOptions parse_run_options(const Args& a) {
     auto k = a.numbers("intrinsics", 4);
     for (double v : k)
       if (!(v > 0 && std::isfinite(v)))
-        a.fail("--intrinsics fx,fy,cx,cy must all be > 0 (pixels of the working size), got " + a.str("intrinsics") +
+        a.fail("--intrinsics must be four numbers > 0 (fx,fy,cx,cy in pixels of the working size), got " + a.str("intrinsics") +
                " (leave it out for the default)");
     o.render.fx = k[0], o.render.fy = k[1], o.render.cx = k[2], o.render.cy = k[3];
   }
