@@ -199,7 +199,9 @@ int run_run(const std::vector<std::string>& argv) {
     if (!r.ok()) throw Error(r.message());
     if (progress_mode(a) != ProgressMode::quiet)
       for (const auto& n : r.notes) std::cerr << "  " << n << "\n";
-    std::cout << "preflight: no problem found; dvs run with these options would start\n";
+    // stdout stays JSON Lines under --progress json: the verdict goes to stderr there.
+    (progress_mode(a) == ProgressMode::json ? std::cerr : std::cout)
+        << "preflight: no problem found; dvs run with these options would start\n";
     return 0;
   }
   return execute_run(o, progress_mode(a));
