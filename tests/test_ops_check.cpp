@@ -1,6 +1,6 @@
 // The device-side NaN/Inf scan (ops::NonFiniteCheck, shaders/nn/nonfinite.comp) against a plain C++ count
 // and first index: clean tensors, planted NaN/+Inf/-Inf at the start, the end, an odd tail and across the
-// ranges of a split scan; several tensors in one recording keep their own slots.
+// ranges of a split scan; several tensors in one recording keep their own slots; texel and storage reads.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,6 +12,7 @@
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_check.hpp"
+#include "tensor/ops_elementwise.hpp"
 
 namespace dvs {
 namespace {
@@ -51,9 +52,22 @@ std::vector<ops::NonFiniteHit> scan(vk::Context& ctx, const std::vector<std::vec
   return check.hits();
 }
 
-class OpsCheck : public GpuTest {};
+// Both shader variants: texel-buffer reads (the default where views allow) and the storage-buffer fallback.
+class OpsCheck : public GpuTest, public ::testing::WithParamInterface<bool> {
+ protected:
+  void SetUp() override {
+    GpuTest::SetUp();
+    ops::use_texel_inputs(GetParam());
+  }
+  void TearDown() override {
+    ops::use_texel_inputs(true);
+    GpuTest::TearDown();
+  }
+};
+INSTANTIATE_TEST_SUITE_P(Paths, OpsCheck, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
 
-TEST_F(OpsCheck, CountsAndLocatesNonFiniteValues) {
+TEST_P(OpsCheck, CountsAndLocatesNonFiniteValues) {
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
   for (size_t n : {size_t(1), size_t(15), size_t(17), size_t(1000), size_t(4099)}) {
     for (int plant = 0; plant < 4; ++plant) {
@@ -75,7 +89,7 @@ TEST_F(OpsCheck, CountsAndLocatesNonFiniteValues) {
   }
 }
 
-TEST_F(OpsCheck, SplitScanKeepsGlobalIndices) {
+TEST_P(OpsCheck, SplitScanKeepsGlobalIndices) {
   // 1 MiB ranges over 700k floats: three dispatches; the bad values lie in the 2nd and 3rd ranges only.
   std::vector<float> v = random_values(700000, 3);
   v[600001] = std::numeric_limits<float>::infinity();
@@ -86,7 +100,18 @@ TEST_F(OpsCheck, SplitScanKeepsGlobalIndices) {
   EXPECT_EQ(hits[0].first, 300007);
 }
 
-TEST_F(OpsCheck, EachTensorHasItsOwnSlot) {
+TEST_P(OpsCheck, ValuesPastTheEndAreNotScanned) {
+  // A 5-element view whose vec4 reads reach 3 NaN floats that belong to something else.
+  std::vector<float> backing(64, 1.0f);
+  for (size_t i = 5; i < 64; ++i) backing[i] = std::numeric_limits<float>::quiet_NaN();
+  const Tensor all = Tensor::upload(ctx(), HostTensor::from_f32({64}, backing));
+  const Tensor five = Tensor::on(all.buffer().sub(0, 5 * sizeof(float)), {5}, DType::f32);
+  ops::NonFiniteCheck check(ctx(), 2);
+  ops::run_now(ctx(), [&](vk::Recorder& rec) { check.record(rec, five, "five"); });
+  EXPECT_TRUE(check.hits().empty());
+}
+
+TEST_P(OpsCheck, EachTensorHasItsOwnSlot) {
   std::vector<float> clean = random_values(64, 1), bad = random_values(64, 2);
   bad[9] = std::numeric_limits<float>::quiet_NaN();
   const auto hits = scan(ctx(), {clean, bad, clean});
@@ -95,7 +120,7 @@ TEST_F(OpsCheck, EachTensorHasItsOwnSlot) {
   EXPECT_EQ(hits[0].first, 9);
 }
 
-TEST_F(OpsCheck, RequireFiniteNamesTheTensorAndTheIndex) {
+TEST_P(OpsCheck, RequireFiniteNamesTheTensorAndTheIndex) {
   std::vector<float> v(2 * 3 * 4, 0.5f);
   v[1 * 12 + 2 * 4 + 3] = std::numeric_limits<float>::quiet_NaN();
   const Tensor t = Tensor::upload(ctx(), HostTensor::from_f32({2, 3, 4}, v));

@@ -5,6 +5,7 @@
 
 #include "dvs/error.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/recorder.hpp"
@@ -13,7 +14,7 @@ namespace dvs::ops {
 namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
-constexpr uint32_t kRun = 16, kLocal = 64;  // shaders/nn/nonfinite.comp
+constexpr uint32_t kRun = 16, kLocal = 64;  // about kRun vec4s per invocation; workgroup size (nonfinite.glsl)
 
 std::string format_shape(const Shape& s) {
   std::string r = "[";
@@ -61,16 +62,21 @@ void NonFiniteCheck::record(vk::Recorder& rec, const Tensor& t, const std::strin
   // range keeps the tensor's own offset alignment.
   const VkDeviceSize limit = range_bytes ? range_bytes : ctx_.allocator().max_binding();
   const VkDeviceSize max_bytes = std::max<VkDeviceSize>(VkDeviceSize(1) << 20, limit >> 20 << 20);
-  const vk::Pipeline& p = ctx_.pipelines().get("nn/nonfinite");
+  const vk::Pipeline& storage = ctx_.pipelines().get("nn/nonfinite");
   const int64_t n = t.numel();
   for (int64_t first = 0; first < n;) {
     const int64_t count = std::min<int64_t>(n - first, int64_t(max_bytes / sizeof(float)));
-    const vk::BufferView range = t.buffer().sub(VkDeviceSize(first) * sizeof(float), VkDeviceSize(count) * sizeof(float));
+    vk::BufferView range = t.buffer().sub(VkDeviceSize(first) * sizeof(float), VkDeviceSize(count) * sizeof(float));
+    range.size = (range.size + 15) / 16 * 16;  // read as vec4s (views are >= 64-byte aligned, padding in-allocation)
     struct {
       uint32_t n, base, slot;
     } push{uint32_t(count), uint32_t(first), slot};
-    const Grid g = grid_1d(div_up(count, kRun), kLocal);
-    rec.dispatch(p, {range, result_.view()}, &push, sizeof push, g.x, g.y, 1, "nonfinite");
+    const Grid g = grid_1d(div_up(div_up(count, 4), kRun), kLocal);
+    if (texel_inputs_enabled() && texel_view_ok(ctx_, range, 16))
+      rec.dispatch(ctx_.pipelines().get("nn/nonfinite_tex4"), {vk::Binding(range, VK_FORMAT_R32G32B32A32_UINT), result_.view()},
+                   &push, sizeof push, g.x, g.y, 1, "nonfinite");
+    else
+      rec.dispatch(storage, {range, result_.view()}, &push, sizeof push, g.x, g.y, 1, "nonfinite");
     first += count;
   }
 }
