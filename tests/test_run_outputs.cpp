@@ -36,6 +36,10 @@ TEST(RunOutputs, AFailingRunLeavesTheEarlierResultsIntact) {
   for (const char* f : {"output.mp4", "render.mp4", "mask.mp4", "comparison.mp4", "run.json"})
     ASSERT_TRUE(before.count(f)) << f;
 
+  // A staging folder left by a process that no longer exists (pid 2^22 + 1 exceeds Linux's PID_MAX_LIMIT, so it
+  // is never alive) is cleaned up by the next run into the folder.
+  const auto stale = out / ".dvs-partial-4194305-0";
+  test::write_text(stale / "output.mp4", "half");
   // The same job with a decoder weight set to NaN: it runs every stage up to the VAE decode and fails there.
   const auto model = test::copy_model(in.model, in.dir / "nan_decoder");
   test::plant_nan(model, "vae", "decoder.conv_out.conv.weight", 5);
@@ -47,6 +51,7 @@ TEST(RunOutputs, AFailingRunLeavesTheEarlierResultsIntact) {
   EXPECT_NE(second.output.find("non-finite values (NaN/Inf), the first at [0,0,0,0,0]"), std::string::npos) << second.output;
   EXPECT_NE(second.output.find("\"stage\":\"sample\""), std::string::npos) << "it failed late, after sampling\n" << second.output;
   EXPECT_EQ(folder_bytes(out), before) << "the first run's files, byte for byte, and nothing else (no staging folder)";
+  EXPECT_FALSE(std::filesystem::exists(stale)) << "a dead process's staging folder is removed";
 }
 
 TEST(RunOutputs, NanInTheTransformerStopsTheInversionAtItsFirstStep) {

@@ -13,6 +13,7 @@
 #include "io/video.hpp"
 #include "vk/context.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/run_outputs.hpp"
 
 namespace dvs {
 namespace {
@@ -42,6 +43,7 @@ void prepare_out_dir(const std::filesystem::path& dir) {
   { std::ofstream(probe) << "x"; }
   if (!std::filesystem::exists(probe)) throw Error(dir.string() + ": the output folder is not writable");
   std::filesystem::remove(probe, ec);
+  remove_stale_staging(dir);
 }
 
 RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::function<void(const std::string&)>& say_fn) {

@@ -1,6 +1,11 @@
 #include "pipeline/run_outputs.hpp"
 
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 
 #include <atomic>
 
@@ -8,9 +13,23 @@
 
 namespace dvs {
 
+namespace {
+constexpr const char* kStagingPrefix = ".dvs-partial-";
+}
+
+void remove_stale_staging(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(kStagingPrefix, 0) != 0 || !e.is_directory(ec)) continue;
+    const long pid = std::strtol(name.c_str() + std::strlen(kStagingPrefix), nullptr, 10);
+    if (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove_all(e.path(), ec);
+  }
+}
+
 RunOutputs::RunOutputs(std::filesystem::path dir) : dir_(std::move(dir)) {
   static std::atomic<int> n{0};
-  staging_ = dir_ / (".dvs-partial-" + std::to_string(::getpid()) + "-" + std::to_string(n++));
+  staging_ = dir_ / (kStagingPrefix + std::to_string(::getpid()) + "-" + std::to_string(n++));
   std::error_code ec;
   std::filesystem::remove_all(staging_, ec);
   std::filesystem::create_directories(staging_, ec);

@@ -9,6 +9,9 @@
 
 namespace dvs {
 
+// Removes staging folders in `dir` left by dvs processes that no longer exist (killed with SIGKILL, power loss).
+void remove_stale_staging(const std::filesystem::path& dir);
+
 class RunOutputs {
  public:
   explicit RunOutputs(std::filesystem::path dir);  // creates the staging folder
