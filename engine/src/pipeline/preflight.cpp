@@ -236,8 +236,10 @@ void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
 // Device memory as the planner sees it, against the chosen device's largest device-local heap.
 void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
-  std::vector<vk::DeviceCaps> devices;
-  if (!c.attempt("", [&] { devices = vk::list_devices(); })) return;
+  // Listed once per process: a batch preflights every job.
+  static std::optional<std::vector<vk::DeviceCaps>> listed;
+  if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return;
+  const std::vector<vk::DeviceCaps>& devices = *listed;
   uint32_t index = 0;
   if (!c.attempt("--device", [&] { index = vk::select_device(devices, o.render.device); })) return;
   const vk::DeviceCaps& dev = devices.at(index);
