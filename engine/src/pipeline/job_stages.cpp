@@ -79,8 +79,10 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
   Tensor img0 = to_diffusion_layout(ctx, st.official ? posterior_sample(ctx, img_post, o.seed, 102) : img_post.mean, e.scaling);
   e.image_latent = Tensor::zeros(ctx, e.x0.shape(), DType::f32, "image latent");
   ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy(img0.buffer(), e.image_latent.buffer(), img0.bytes()); });
-  ops::require_finite(ctx, {{&e.x0_mean, "x0 (the render's latent)"}, {&e.x0, "x0 (posterior sample)"},
-                            {&e.image_latent, "image latent"}}, kNonFiniteHint);
+  std::vector<std::pair<const Tensor*, std::string>> results = {{&e.x0_mean, "x0 (the render's latent)"},
+                                                                 {&e.image_latent, "image latent"}};
+  if (st.official) results.push_back({&e.x0, "x0 (posterior sample)"});  // otherwise the same tensor as x0_mean
+  ops::require_finite(ctx, results, kNonFiniteHint);
   return e;
 }
 
