@@ -18,7 +18,10 @@ constexpr uint32_t kRun = 16, kLocal = 64;  // about kRun vec4s per invocation; 
 
 std::string format_shape(const Shape& s) {
   std::string r = "[";
-  for (size_t i = 0; i < s.size(); ++i) r += (i ? "," : "") + std::to_string(s[i]);
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (i) r += ",";
+    r += std::to_string(s[i]);
+  }
   return r + "]";
 }
 
