@@ -75,15 +75,27 @@ TEST(CliEncodePrompt, MatchesTheT5Golden) {
 TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
   PipelineInputs in;
   const auto jobs = in.dir / "jobs.jsonl";
-  const int kJobs = 5, kBad = 3;  // job 3 names a trajectory that does not exist
+  // Job 3's depth has 5 frames for the 9-frame video: it passes the batch's up-front checks and fails in its
+  // render stage (a trajectory that does not exist would stop the whole shard before any job, see
+  // BatchPreflight in test_run_preflight.cpp).
+  const int kJobs = 5, kBad = 3;
+  {
+    geometry::SyntheticSceneSpec spec;
+    spec.frames = 5;
+    spec.height = 64;
+    spec.width = 64;
+    spec.K = geometry::Intrinsics::official_default(64, 64);
+    write_npy(in.dir / "depth5.npy", geometry::render_synthetic(spec).depth);
+  }
   {
     std::ofstream f(jobs);
     f << "# video, depth and model come from the command line\n";
     for (int i = 0; i < kJobs; ++i) {
       nlohmann::json job{{"prompt", "job " + std::to_string(i)},
                          {"out", (in.dir / ("out" + std::to_string(i))).string()},
-                         {"trajectory", i == kBad ? "nowhere" : (i % 2 ? "pan_left:5" : "loop1")},
+                         {"trajectory", i % 2 ? "pan_left:5" : "loop1"},
                          {"seed", i}};
+      if (i == kBad) job["depth"] = (in.dir / "depth5.npy").string();
       f << job.dump() << "\n" << (i == 1 ? "\n" : "");  // a blank line is not a job
     }
   }
@@ -97,7 +109,7 @@ TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
     for (std::string s = r.output; std::regex_search(s, m, std::regex("job (\\d+) \\(jobs.jsonl:\\d+\\): running")); s = m.suffix())
       runs[std::stoi(m[1].str())]++;
     if (has_bad) EXPECT_NE(r.output.find("job 3 (jobs.jsonl:"), std::string::npos) << r.output;
-    if (has_bad) EXPECT_NE(r.output.find("nowhere"), std::string::npos) << r.output;
+    if (has_bad) EXPECT_NE(r.output.find("depth5.npy"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("failed"), std::string::npos) << "summary line\n" << r.output;
   }
   for (int i = 0; i < kJobs; ++i) {

@@ -3,6 +3,7 @@
 // ≡ i (mod n); a job whose output.mp4 and run.json exist is skipped, so a re-run resumes.
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -10,6 +11,7 @@
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
+#include "pipeline/preflight.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
@@ -26,8 +28,11 @@ const char* kBatchHelp =
     "\n"
     "  --shard I/N   run only the jobs whose index (0-based, in file order) is I modulo N (default 0/1)\n"
     "\n"
-    "A job whose out folder holds output.mp4 and run.json is skipped. A failing job is reported and the batch goes\n"
-    "on; the exit code is 1 when any job failed. Ctrl-C stops the current job cleanly and exits with 130.\n";
+    "The whole file is checked first: unknown keys, missing required fields (video, depth, model, prompt, out), bad\n"
+    "values, two jobs with the same out folder, and each pending job's preflight (dvs run --help) are reported\n"
+    "together and nothing runs. A job whose out folder holds output.mp4 and run.json is skipped. A job failing while\n"
+    "it runs is reported and the batch goes on; the exit code is 1 when any job failed. Ctrl-C stops the current job\n"
+    "cleanly and exits with 130.\n";
 
 struct Shard {
   int index = 0, count = 1;
@@ -119,10 +124,19 @@ int run_batch(const std::vector<std::string>& argv) {
   }
   const std::vector<Job> jobs = read_jobs(jobs_file);
 
-  int done = 0, skipped = 0, failed = 0, mine = 0;
+  // The whole file is checked before the first job runs: every job's keys, required fields and values, that no
+  // two jobs share an out folder (the second would be skipped as "already done"), and each of this shard's
+  // pending jobs' preflight. Any problem stops the batch with all of them listed.
+  struct Planned {
+    const Job* job;
+    std::string where;
+    RunOptions options;
+    ProgressMode mode = ProgressMode::bar;
+  };
+  std::vector<Planned> planned;
+  std::vector<std::string> problems;
+  std::map<std::string, std::string> outs;  // normalised out folder -> the job that writes it
   for (const Job& job : jobs) {
-    if (job.index % shard.count != shard.index) continue;
-    ++mine;
     const std::string where = "job " + std::to_string(job.index) + " (" + jobs_file.filename().string() + ":" +
                               std::to_string(job.line) + ")";
     try {
@@ -130,20 +144,56 @@ int run_batch(const std::vector<std::string>& argv) {
       const auto own = job_arguments(job.spec);
       args.insert(args.end(), own.begin(), own.end());
       Args a("batch", args, kRunOptions, kRunFlags);
-      a.required("prompt");
-      const RunOptions o = parse_run_options(a);
+      std::string missing;
+      for (const char* key : {"video", "depth", "model", "prompt", "out"})
+        if (a.str(key).empty()) missing += std::string(missing.empty() ? "" : ", ") + "\"" + key + "\"";
+      if (!missing.empty()) {
+        problems.push_back(where + ": missing required " + missing + " (a key of the job or a --option of dvs batch)");
+        continue;
+      }
+      Planned p{&job, where, parse_run_options(a), progress_mode(a)};
+      std::filesystem::path out_path = std::filesystem::absolute(p.options.render.out_dir).lexically_normal();
+      if (!out_path.has_filename()) out_path = out_path.parent_path();  // "out/" is "out"
+      const std::string out = std::filesystem::weakly_canonical(out_path).string();
+      if (auto [it, fresh] = outs.emplace(out, where); !fresh) {
+        problems.push_back(where + ": \"out\" " + p.options.render.out_dir.string() + " is also the out folder of " +
+                           it->second + "; give every job its own out folder");
+        continue;
+      }
+      if (job.index % shard.count != shard.index) continue;
+      if (!finished(p.options.render.out_dir)) {
+        const PreflightReport r = preflight(p.options, JobKind::run);
+        for (const auto& problem : r.problems) problems.push_back(where + ": " + problem);
+      }
+      planned.push_back(std::move(p));
+    } catch (const Error& e) {
+      problems.push_back(where + ": " + e.what());
+    }
+  }
+  if (!problems.empty()) {
+    std::string m = jobs_file.string() + ": " + std::to_string(problems.size()) + " problem" + (problems.size() == 1 ? "" : "s") +
+                    " found before running anything; no job was run:";
+    for (const auto& p : problems) m += "\n  - " + p;
+    throw Error(m);
+  }
+
+  int done = 0, skipped = 0, failed = 0, mine = 0;
+  for (const Planned& p : planned) {
+    ++mine;
+    const RunOptions& o = p.options;
+    try {
       if (finished(o.render.out_dir)) {
-        std::cout << "dvs batch: " << where << ": skipped, " << o.render.out_dir.string() << " is already done\n";
+        std::cout << "dvs batch: " << p.where << ": skipped, " << o.render.out_dir.string() << " is already done\n";
         ++skipped;
         continue;
       }
-      std::cout << "dvs batch: " << where << ": running -> " << o.render.out_dir.string() << "\n" << std::flush;
-      execute_run(o, progress_mode(a));
+      std::cout << "dvs batch: " << p.where << ": running -> " << o.render.out_dir.string() << "\n" << std::flush;
+      execute_run(o, p.mode);
       ++done;
     } catch (const Cancelled&) {
       throw;
     } catch (const Error& e) {
-      std::cerr << "dvs batch: " << where << " failed: " << e.what() << "\n";
+      std::cerr << "dvs batch: " << p.where << " failed: " << e.what() << "\n";
       ++failed;
     }
   }

@@ -1,5 +1,8 @@
 // `dvs run` (the whole pipeline on the user's video) and `dvs demo` (the same on a generated scene and a
 // tiny random model).
+#include <algorithm>
+#include <cmath>
+#include <functional>
 #include <iostream>
 #include <tuple>
 
@@ -8,6 +11,8 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/lora_file.hpp"
+#include "pipeline/preflight.hpp"
+#include "pipeline/run_record.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
 #include "prompt_length.hpp"
@@ -26,7 +31,8 @@ const char* kRunHelp =
     "  --frames N            4k+1, default 49\n"
     "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
     "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
-    "  --resize crop|squash  --intrinsics fx,fy,cx,cy  --points\n"
+    "  --resize crop|squash  --intrinsics fx,fy,cx,cy (default: f = 500 px at 1024x576, square pixels under crop,\n"
+    "                        scaled per axis under squash)  --points\n"
     "  --model DIR           model folder laid out like THUDM/CogVideoX-5b-I2V\n"
     "  --prompt TEXT         what the scene shows\n"
     "  --negative-prompt T   default \"\" (paper) / the authors' fixed text (official)\n"
@@ -53,6 +59,11 @@ const char* kRunHelp =
     "other:\n"
     "  --device I|NAME       Vulkan device\n"
     "  --progress bar|json|none   progress output (default bar); --quiet = none\n"
+    "  --check               preflight only: check the options, files, model (configs, weight headers, tokenizer),\n"
+    "                        LoRA, tiling and device memory, report every problem, run nothing (exit 0 = fine)\n"
+    "  --from RUN.json       repeat a run from the run.json it wrote; options given next to it override its values\n"
+    "Every run starts with that preflight. Outputs are staged and moved into DIR only when the run completes: a run\n"
+    "that fails or is cancelled leaves the files of an earlier run in DIR as they were.\n"
     "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n";
 
 const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out", "frames", "size", "resize",
@@ -83,6 +94,18 @@ int execute_run(const RunOptions& o, ProgressMode mode) {
   return 0;
 }
 
+namespace {
+
+// An explicit value is used or refused, never swapped for the default (RunOptions' 0 = "the preset's").
+double explicit_number(const Args& a, const std::string& name, double fallback, const std::function<bool(double)>& ok,
+                       const std::string& range) {
+  const double v = a.number(name, fallback);
+  if (a.has(name) && !ok(v)) a.fail("--" + name + " must be " + range + ", got " + a.str(name) + " (leave it out for the default)");
+  return v;
+}
+
+}  // namespace
+
 RunOptions parse_run_options(const Args& a) {
   RunOptions o;
   o.render.video = a.required("video");
@@ -108,27 +131,32 @@ RunOptions parse_run_options(const Args& a) {
   o.render.device = a.str("device");
   if (a.has("intrinsics")) {
     auto k = a.numbers("intrinsics", 4);
+    for (double v : k)
+      if (!(v > 0 && std::isfinite(v)))
+        a.fail("--intrinsics must be four numbers > 0 (fx,fy,cx,cy in pixels of the working size), got " + a.str("intrinsics") +
+               " (leave it out for the default)");
     o.render.fx = k[0], o.render.fy = k[1], o.render.cx = k[2], o.render.cy = k[3];
   }
   o.negative_prompt = a.str("negative-prompt");
   o.preset = a.str("preset", "paper");
   o.steps = a.integer("steps", 0, 1, 1000);
-  o.strength = a.number("strength", 0);
+  o.strength = explicit_number(a, "strength", 0, [](double v) { return v > 0 && v <= 1; }, "in (0, 1]");
   o.inversion_steps = a.integer("inversion-steps", 0, 1, 1000);
-  o.k = a.number("k", 10);
-  o.delta = a.number("delta", 0);
-  o.guidance = a.number("guidance", 6.0);
+  o.k = explicit_number(a, "k", 10, [](double v) { return v > 0; }, "> 0");
+  o.delta = explicit_number(a, "delta", 0, [](double v) { return v > 0; }, "> 0");
+  o.guidance = explicit_number(a, "guidance", 6.0, [](double v) { return v >= 0; }, "≥ 0");
   if (a.has("dynamic-cfg")) {
     const std::string d = a.str("dynamic-cfg");
     if (d != "on" && d != "off") throw Error("dvs run: --dynamic-cfg must be on or off, got '" + d + "'");
     o.dynamic_cfg = d == "on";
   }
-  o.preservation_scale = a.number("preservation-scale", 1.0);
+  o.preservation_scale = explicit_number(a, "preservation-scale", 1.0, [](double v) { return v >= 0; }, "≥ 0");
   o.seed = uint64_t(a.integer("seed", 42, 0, 2147483647));
   o.cache_dir = a.str("cache-dir");
   o.use_cache = !a.has("no-cache");
   if (a.has("lora")) {
     const LoraSpec lora = parse_lora_spec(a.str("lora"));
+    if (!std::isfinite(lora.scale)) a.fail("--lora: the scale must be a finite number, got " + a.str("lora"));
     o.lora = lora.file;
     o.lora_scale = lora.scale;
   }
@@ -137,8 +165,35 @@ RunOptions parse_run_options(const Args& a) {
   return o;
 }
 
+std::vector<std::string> with_recorded_run(const std::vector<std::string>& argv) {
+  std::vector<std::string> own;
+  std::string from;
+  for (size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == "--from" && i + 1 < argv.size()) from = argv[++i];
+    else if (argv[i].rfind("--from=", 0) == 0) from = argv[i].substr(7);
+    else own.push_back(argv[i]);
+  }
+  if (from.empty()) return argv;
+  std::vector<std::string> recorded = run_record_arguments(from);
+  // The user's own --height/--width replace the recorded --size (the two forms do not mix).
+  const bool own_dims = std::count(own.begin(), own.end(), "--height") + std::count(own.begin(), own.end(), "--width") > 0;
+  std::vector<std::string> args;
+  for (size_t i = 0; i < recorded.size(); ++i) {
+    if (own_dims && recorded[i] == "--size") {
+      ++i;
+      continue;
+    }
+    args.push_back(recorded[i]);
+  }
+  args.insert(args.end(), own.begin(), own.end());  // later values win
+  return args;
+}
+
 int run_run(const std::vector<std::string>& argv) {
-  Args a("run", argv, kRunOptions, kRunFlags);
+  std::set<std::string> flags = kRunFlags;
+  flags.insert("check");
+  const std::vector<std::string> args = with_recorded_run(argv);
+  Args a("run", args, kRunOptions, flags);
   if (a.help()) {
     std::cout << kRunHelp;
     return 0;
@@ -147,6 +202,16 @@ int run_run(const std::vector<std::string>& argv) {
   const RunOptions o = parse_run_options(a);
   for (const auto& [text, option] : {std::pair{o.prompt, "--prompt"}, std::pair{o.negative_prompt, "--negative-prompt"}})
     if (auto w = prompt_truncation_warning(o.model, text, option)) std::cerr << "dvs run: " << *w << "\n";
+  if (a.has("check")) {
+    const PreflightReport r = preflight(o, JobKind::run);
+    if (!r.ok()) throw Error(r.message());
+    if (progress_mode(a) != ProgressMode::quiet)
+      for (const auto& n : r.notes) std::cerr << "  " << n << "\n";
+    // stdout stays JSON Lines under --progress json: the verdict goes to stderr there.
+    (progress_mode(a) == ProgressMode::json ? std::cerr : std::cout)
+        << "preflight: no problem found; dvs run with these options would start\n";
+    return 0;
+  }
   return execute_run(o, progress_mode(a));
 }
 

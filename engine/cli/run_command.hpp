@@ -19,6 +19,9 @@ extern const char* kRunHelp;
 // present (the caller requires it where it matters).
 RunOptions parse_run_options(const Args& a);
 ProgressMode progress_mode(const Args& a);
+// argv with `--from RUN.json` replaced by the arguments that run.json records, placed before the rest so the
+// options given next to --from override them. argv itself when there is no --from.
+std::vector<std::string> with_recorded_run(const std::vector<std::string>& argv);
 
 // One line on stderr with each stage's seconds (nothing with --quiet).
 void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache);

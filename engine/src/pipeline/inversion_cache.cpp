@@ -1,6 +1,7 @@
 #include "pipeline/inversion_cache.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -50,16 +51,29 @@ std::string InversionCache::key(const std::vector<std::string>& parts) {
 
 std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / ("eps_inv-" + key + ".npy"); }
 
-Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape) const {
+Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected) const {
   std::error_code ec;
   if (!std::filesystem::exists(file(key), ec)) return {};
+  std::string why;
   try {
     HostTensor h = read_npy(file(key));
-    if (h.shape != shape || h.dtype != DType::f32) return {};
-    return Tensor::upload(ctx, h, "cached inversion");
-  } catch (const Error&) {
-    return {};  // a damaged cache file is as good as none
+    if (h.shape != shape || h.dtype != DType::f32) {
+      why = std::string("it holds ") + dtype_name(h.dtype) + " [" + shape_str(h.shape) + "], not the expected f32 [" + shape_str(shape) + "]";
+    } else {
+      // Read on the host anyway: checked here, before a NaN entry could turn every later run black.
+      const float* v = h.as<float>();
+      int64_t bad = 0, first = -1;
+      for (int64_t i = 0; i < h.numel(); ++i)
+        if (!std::isfinite(v[i])) bad++, first = first < 0 ? i : first;
+      if (bad == 0) return Tensor::upload(ctx, h, "cached inversion");
+      why = std::to_string(bad) + " non-finite values (NaN/Inf), the first at flat index " + std::to_string(first);
+    }
+  } catch (const Error& e) {
+    why = e.what();  // a damaged cache file is as good as none
   }
+  std::filesystem::remove(file(key), ec);
+  if (rejected) *rejected = file(key).string() + ": " + why + "; removed, inverting again";
+  return {};
 }
 
 void InversionCache::store(vk::Context& ctx, const std::string& key, const Tensor& latent) const {

@@ -14,9 +14,12 @@ class InversionCache {
  public:
   explicit InversionCache(std::filesystem::path dir = {});  // empty: $DVS_CACHE_DIR or ~/.cache/dvs, + /inversions
   static std::string key(const std::vector<std::string>& parts);
-  Tensor load(vk::Context& ctx, const std::string& key, const Shape& shape) const;  // undefined when absent
+  // Undefined when absent. An entry that is not a finite f32 array of `shape` (damaged, truncated, NaN/Inf) is
+  // never reused: it is removed and `rejected` (when given) says why.
+  Tensor load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected = nullptr) const;
   void store(vk::Context& ctx, const std::string& key, const Tensor& latent) const;
   std::filesystem::path file(const std::string& key) const;
+  const std::filesystem::path& dir() const { return dir_; }
 
  private:
   std::filesystem::path dir_;

@@ -5,6 +5,7 @@
 #include "models/cogvideox_vae.hpp"
 #include "models/t5_encoder.hpp"
 #include "pipeline/job_stages.hpp"
+#include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/stage_tracker.hpp"
@@ -14,6 +15,7 @@ namespace dvs {
 namespace {
 
 InversionReport invert_stages(const RunOptions& o, StageTracker& stages) {
+  require_preflight(o, JobKind::invert);  // every problem knowable now, before any device work
   JobPlan jp = plan_job(o);
   vk::ContextOptions copt;
   copt.device = o.render.device;
@@ -46,8 +48,8 @@ InversionReport invert_stages(const RunOptions& o, StageTracker& stages) {
   stages.begin("write", "writing eps_inv.npy");
   RunOutputs files(o.render.out_dir);
   InversionReport report;
-  report.eps_inv_npy = files.add("eps_inv.npy");
-  write_npy(report.eps_inv_npy, inv.eps.download(ctx));
+  write_npy(files.add("eps_inv.npy"), inv.eps.download(ctx));
+  report.eps_inv_npy = files.final_path("eps_inv.npy");
   stages.end();
   stages.check_cancelled();
   files.commit();

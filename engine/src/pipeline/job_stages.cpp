@@ -10,6 +10,7 @@
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/transformer_denoiser.hpp"
+#include "tensor/ops_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -66,7 +67,9 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
   auto encode = [&](const Tensor& video) { return tiling ? vae.encode_tiled(video, *tiling) : vae.encode(video); };
   EncodedRender e;
   e.scaling = float(vae.config().scaling_factor);
-  e.posterior = encode(video_to_device(ctx, in.render));
+  const Tensor video = video_to_device(ctx, in.render);
+  ops::require_finite(ctx, {{&video, "render"}}, kNonFiniteHint);
+  e.posterior = encode(video);
   e.x0_mean = to_diffusion_layout(ctx, e.posterior.mean, e.scaling);
   e.x0 = st.official ? to_diffusion_layout(ctx, posterior_sample(ctx, e.posterior, o.seed, 101), e.scaling) : e.x0_mean;
   const Shape& s = in.render.shape;  // [F,3,H,W]
@@ -76,15 +79,35 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
   Tensor img0 = to_diffusion_layout(ctx, st.official ? posterior_sample(ctx, img_post, o.seed, 102) : img_post.mean, e.scaling);
   e.image_latent = Tensor::zeros(ctx, e.x0.shape(), DType::f32, "image latent");
   ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy(img0.buffer(), e.image_latent.buffer(), img0.bytes()); });
+  std::vector<std::pair<const Tensor*, std::string>> results = {{&e.x0_mean, "x0 (the render's latent)"},
+                                                                 {&e.image_latent, "image latent"}};
+  if (st.official) results.push_back({&e.x0, "x0 (posterior sample)"});  // otherwise the same tensor as x0_mean
+  ops::require_finite(ctx, results, kNonFiniteHint);
   return e;
 }
 
-HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling) {
+HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling,
+                         int frames) {
   const auto tiling = vae_tiling(o);
   Tensor z = to_vae_layout(ctx, latent, 1.0f / scaling);
-  HostTensor frames = video_to_host(ctx, tiling ? vae.decode_tiled(z, *tiling) : vae.decode(z));
-  for (int64_t i = 0; i < frames.numel(); ++i) frames.as<float>()[i] = std::clamp(frames.as<float>()[i], -1.0f, 1.0f);
-  return frames;
+  const Tensor decoded = tiling ? vae.decode_tiled(z, *tiling) : vae.decode(z);
+  ops::require_finite(ctx, {{&decoded, "decoded frames"}}, kNonFiniteHint);
+  HostTensor all = video_to_host(ctx, decoded);
+  const int64_t got = all.shape[0];
+  // diffusers' decoder batches latent frames as [0 : 2 + Fl mod 2], then 2 at a time, and its temporal
+  // upsampling keeps a batch's first frame apart only when the batch is odd. With an even Fl the first batch
+  // is even, so latent frame 0 (which encodes video frame 0 alone) comes out as 4 frames instead of 1: 4·Fl
+  // frames for a 4·Fl − 3 frame video, the first 3 being extra copies of frame 0. They are dropped, which
+  // aligns every later frame with the render's.
+  if (got != frames && !(got == frames + 3 && latent.dim(0) % 2 == 0))
+    throw Error("internal: the VAE decoded " + std::to_string(got) + " frames from " + std::to_string(latent.dim(0)) +
+                " latent frames; expected " + std::to_string(frames));
+  const int64_t skip = got - frames;
+  const Shape& s = all.shape;  // [F,3,H,W]
+  HostTensor out({frames, s[1], s[2], s[3]}, DType::f32);
+  std::memcpy(out.data.data(), all.as<float>() + skip * s[1] * s[2] * s[3], out.bytes());
+  for (int64_t i = 0; i < out.numel(); ++i) out.as<float>()[i] = std::clamp(out.as<float>()[i], -1.0f, 1.0f);
+  return out;
 }
 
 std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o) {
@@ -121,7 +144,9 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
   InversionResult r;
   if (o.use_cache) {
     r.cache_file = cache.file(key);
-    r.eps = cache.load(ctx, key, enc.x0_mean.shape());
+    std::string rejected;
+    r.eps = cache.load(ctx, key, enc.x0_mean.shape(), &rejected);
+    if (!rejected.empty()) stages.say(0, 0, "ignoring the cached inversion " + rejected);
   }
   r.from_cache = r.eps.defined();
   if (r.from_cache) {
@@ -132,7 +157,10 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
       st.official ? diffusion::inversion_steps_official(diffusion::DDIMInverseSchedule(jp.schedule.config()), st.inversion_steps)
                   : diffusion::inversion_steps_paper(jp.schedule, t0, st.inversion_steps);
   TransformerDenoiser model(ctx, transformer, enc.image_latent, text_empty, 1);
-  r.eps = diffusion::invert(ctx, enc.x0_mean, steps, std::ref(model), {false, 1.0}, stages.loop_callbacks());
+  ops::NonFiniteCheck check(ctx);
+  model.watch(&check, "inversion");
+  r.eps = diffusion::invert(ctx, enc.x0_mean, steps, std::ref(model), {false, 1.0}, stages.loop_callbacks(&check));
+  ops::require_finite(ctx, {{&r.eps, "ε_inv"}}, kNonFiniteHint);  // before it is cached
   if (o.use_cache) cache.store(ctx, key, r.eps);
   return r;
 }

@@ -44,8 +44,10 @@ struct EncodedRender {
 EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Settings& st,
                             const RenderedInput& in);
 
-// latent [Fl, C, h, w] (diffusion units) -> frames [F, 3, H, W] clamped to [−1, 1] on the host.
-HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling);
+// latent [Fl, C, h, w] (diffusion units) -> `frames` frames [frames, 3, H, W] clamped to [−1, 1] on the host
+// (the render's count: with an even Fl the VAE decodes 3 more, see the .cpp). NaN/Inf in them is an error.
+HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling,
+                         int frames);
 
 // The VAE tiling the options ask for (none without --vae-tiling).
 std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);

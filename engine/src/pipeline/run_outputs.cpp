@@ -1,19 +1,62 @@
 #include "pipeline/run_outputs.hpp"
 
+#include <signal.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include <atomic>
+
+#include "dvs/error.hpp"
+
 namespace dvs {
 
-std::filesystem::path RunOutputs::add(const std::string& name) {
-  auto path = dir_ / name;
+namespace {
+constexpr const char* kStagingPrefix = ".dvs-partial-";
+}
+
+void remove_stale_staging(const std::filesystem::path& dir) {
   std::error_code ec;
-  std::filesystem::remove(path, ec);
-  files_.push_back(path);
-  return path;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(kStagingPrefix, 0) != 0 || !e.is_directory(ec)) continue;
+    const long pid = std::strtol(name.c_str() + std::strlen(kStagingPrefix), nullptr, 10);
+    if (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove_all(e.path(), ec);
+  }
+}
+
+RunOutputs::RunOutputs(std::filesystem::path dir) : dir_(std::move(dir)) {
+  static std::atomic<int> n{0};
+  staging_ = dir_ / (kStagingPrefix + std::to_string(::getpid()) + "-" + std::to_string(n++));
+  std::error_code ec;
+  std::filesystem::remove_all(staging_, ec);
+  std::filesystem::create_directories(staging_, ec);
+  if (ec) throw Error(staging_.string() + ": cannot create the staging folder for the outputs (" + ec.message() + ")");
+}
+
+std::filesystem::path RunOutputs::add(const std::string& name) {
+  names_.push_back(name);
+  return staging_ / name;
+}
+
+void RunOutputs::commit() {
+  for (const auto& name : names_) {
+    std::error_code ec;
+    std::filesystem::rename(staging_ / name, dir_ / name, ec);
+    if (ec)
+      throw Error((dir_ / name).string() + ": cannot move the finished file into place (" + ec.message() +
+                  "); the staged copy was in " + staging_.string());
+  }
+  committed_ = true;
+  std::error_code ec;
+  std::filesystem::remove_all(staging_, ec);
 }
 
 RunOutputs::~RunOutputs() {
-  if (committed_) return;
   std::error_code ec;
-  for (const auto& f : files_) std::filesystem::remove(f, ec);
+  std::filesystem::remove_all(staging_, ec);
 }
 
 }  // namespace dvs

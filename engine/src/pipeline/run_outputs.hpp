@@ -1,6 +1,7 @@
-// The files one job writes into its output folder. Until commit(), the destructor removes every one of them,
-// so a failed or cancelled job leaves nothing that looks finished (each file itself is written to a temporary
-// name and renamed when complete, see io/video.hpp and io/npy.hpp).
+// The files one job writes into its output folder, written first into a staging folder inside it
+// (DIR/.dvs-partial-<pid>-<n>/, same file system) and moved into place by commit() only when the job has
+// finished. A job that fails or is cancelled before commit() removes its staging folder and leaves every file
+// an earlier job finished in DIR exactly as it was: results are never destroyed by a later failure.
 #pragma once
 #include <filesystem>
 #include <string>
@@ -8,21 +9,28 @@
 
 namespace dvs {
 
+// Removes staging folders in `dir` left by dvs processes that no longer exist (killed with SIGKILL, power loss).
+void remove_stale_staging(const std::filesystem::path& dir);
+
 class RunOutputs {
  public:
-  explicit RunOutputs(std::filesystem::path dir) : dir_(std::move(dir)) {}
-  ~RunOutputs();
+  explicit RunOutputs(std::filesystem::path dir);  // creates the staging folder
+  ~RunOutputs();                                   // removes it (with anything not committed)
   RunOutputs(const RunOutputs&) = delete;
   RunOutputs& operator=(const RunOutputs&) = delete;
 
-  // The path for `name` in the folder. A file of that name from an earlier job is removed now, so the folder
-  // never mixes this job's files with an older job's.
+  // Where to write `name` now (in the staging folder).
   std::filesystem::path add(const std::string& name);
-  void commit() { committed_ = true; }
+  // Where `name` will be once committed: DIR/name.
+  std::filesystem::path final_path(const std::string& name) const { return dir_ / name; }
+  // Renames every added file into DIR, in the order they were added (so the one added last, e.g. run.json,
+  // marks the folder finished), replacing files of the same names. Throws dvs::Error naming a file that
+  // could not be moved.
+  void commit();
 
  private:
-  std::filesystem::path dir_;
-  std::vector<std::filesystem::path> files_;
+  std::filesystem::path dir_, staging_;
+  std::vector<std::string> names_;
   bool committed_ = false;
 };
 

@@ -3,7 +3,9 @@
 // are shared with run_inversion (pipeline/job_stages.hpp).
 #include <vulkan/vulkan.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 
 #include "diffusion/init_noise.hpp"
 #include "diffusion/krnr.hpp"
@@ -16,15 +18,18 @@
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/t5_encoder.hpp"
+#include "models/vae_tiling.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "pipeline/transformer_denoiser.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/ops_check.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
 
@@ -33,6 +38,7 @@ namespace {
 
 RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   RunReport report;
+  require_preflight(o, JobKind::run);  // every problem knowable now, before any device work
   JobPlan jp = plan_job(o);
   const Settings& st = jp.settings;
   const bool dynamic_cfg = o.dynamic_cfg.value_or(st.official);  // the official code always uses it
@@ -69,6 +75,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
     text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
                                                                     // over two identical "" rows is a no-op)
   }
+  ops::require_finite(ctx, {{&text, "prompt embeddings"}, {&text_inv, "empty-prompt embedding"}}, kNonFiniteHint);
   stages.end();
 
   // 5. Inversion (cached on disk).
@@ -100,6 +107,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   const Tensor x_init = diffusion::init_noise(
       ctx, {&x0, &eps_inv, &slm_plan, st.official ? &mu : nullptr, st.official ? &sigma : nullptr, schedule.alpha_cumprod(t0)},
       noise);
+  ops::require_finite(ctx, {{&x_init, "x_init"}}, kNonFiniteHint);
   stages.end();
 
   // 8. Sampling with classifier-free guidance.
@@ -107,7 +115,9 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   diffusion::SampleResult result;
   {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
     TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
-    diffusion::LoopCallbacks cb = stages.loop_callbacks();
+    ops::NonFiniteCheck check(ctx);
+    model.watch(&check, "sampling");
+    diffusion::LoopCallbacks cb = stages.loop_callbacks(&check);
     diffusion::Guidance guidance{true, o.guidance};
     if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
       guidance.mode = diffusion::GuidanceMode::dynamic;
@@ -115,28 +125,31 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
       guidance.preservation_scale = o.preservation_scale;
     }
     result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
+    ops::require_finite(ctx, {{&result.latent, "final latent"}, {&result.pred_x0, "final x0 prediction"}}, kNonFiniteHint);
   }
   transformer_ptr.reset();
   stages.end();
 
   // 9. Decode and write.
   stages.begin("decode", "VAE-decoding the result");
-  HostTensor output = decode_latent(ctx, vae, o, result.pred_x0, sf);
+  HostTensor output = decode_latent(ctx, vae, o, result.pred_x0, sf, F);
   stages.end();
 
   stages.begin("write", "writing the videos");
-  RunOutputs files(o.render.out_dir);
-  report.run_json = files.add("run.json");  // first: the folder stops looking finished until it is rewritten
-  report.render_mp4 = files.add("render.mp4");
-  report.mask_mp4 = files.add("mask.mp4");
-  report.comparison_mp4 = files.add("comparison.mp4");
-  report.output_mp4 = files.add("output.mp4");
-  write_video(report.render_mp4, in.render, in.fps);
-  write_video(report.mask_mp4, mask_as_video(in.mask), in.fps);
-  write_video(report.comparison_mp4, hstack_videos({&in.rgb, &in.render, &output}), in.fps);
-  write_video(report.output_mp4, output, in.fps);
+  RunOutputs files(o.render.out_dir);  // staged: earlier results in the folder stay until this run is complete
+  const auto render_mp4 = files.add("render.mp4"), mask_mp4 = files.add("mask.mp4"),
+             comparison_mp4 = files.add("comparison.mp4"), output_mp4 = files.add("output.mp4"),
+             run_json = files.add("run.json");  // last: moved into place last, it marks the folder finished
+  write_video(render_mp4, in.render, in.fps);
+  write_video(mask_mp4, mask_as_video(in.mask), in.fps);
+  write_video(comparison_mp4, hstack_videos({&in.rgb, &in.render, &output}), in.fps);
+  write_video(output_mp4, output, in.fps);
+  report.render_mp4 = files.final_path("render.mp4");
+  report.mask_mp4 = files.final_path("mask.mp4");
+  report.comparison_mp4 = files.final_path("comparison.mp4");
+  report.output_mp4 = files.final_path("output.mp4");
+  report.run_json = files.final_path("run.json");
   stages.end();
-  stages.check_cancelled();  // the last chance before the job looks finished
   report.stages = stages.times();
   report.peak_device_bytes = ctx.allocator().stats().peak_bytes_in_use;
   const auto& caps = ctx.caps();
@@ -147,7 +160,27 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
                       std::to_string(VK_API_VERSION_PATCH(caps.api_version));
   extras.opencv = video_library_version();
   extras.dynamic_cfg = dynamic_cfg;
-  write_run_record(report.run_json, o, report, extras);
+  extras.intrinsics = {in.K.fx, in.K.fy, in.K.cx, in.K.cy};
+  if (const auto tiling = vae_tiling(o)) {
+    const auto tp = models::TilePlan::for_encode(vae.config(), *tiling);
+    extras.vae_tile_height = int(tp.tile_in_h), extras.vae_tile_width = int(tp.tile_in_w);
+  }
+  std::vector<std::string> pose_text;
+  for (const auto& T : in.trajectory.transforms) {
+    std::array<double, 16> m{};
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m[size_t(r * 4 + c)] = T[c][r];  // glm is column-major
+    extras.poses.push_back(m);
+    for (double v : m) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.17g", v);
+      pose_text.push_back(buf);
+    }
+  }
+  extras.poses_hash = InversionCache::key(pose_text);
+  extras.cache_dir = o.use_cache ? InversionCache(o.cache_dir).dir().string() : "";
+  write_run_record(run_json, o, report, extras);
+  stages.check_cancelled();  // the last chance before the job's files replace anything
   files.commit();
   return report;
 }

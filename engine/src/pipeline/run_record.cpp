@@ -17,9 +17,14 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
   j["device"] = x.device;
   j["driver"] = x.driver;
   j["versions"] = {{"dvs", version()}, {"vulkan_api", x.vulkan_api}, {"driver", x.driver}, {"opencv", x.opencv}};
-  j["inputs"] = {{"video", o.render.video.string()}, {"depth", o.render.depth.string()},
-                 {"depth_values", o.render.metric_depth ? "depth" : "disparity"}, {"trajectory", o.render.trajectory},
-                 {"model", o.model.string()}, {"model_hash", x.model_hash}};
+  const auto abs = [](const std::filesystem::path& p) { return p.empty() ? std::string() : std::filesystem::absolute(p).lexically_normal().string(); };
+  // A trajectory is a preset name or a file: a file is recorded by its absolute path.
+  const std::string& traj = o.render.trajectory;
+  const bool traj_file = std::filesystem::exists(traj.substr(0, traj.find(':')));
+  j["inputs"] = {{"video", abs(o.render.video)}, {"depth", abs(o.render.depth)},
+                 {"depth_values", o.render.metric_depth ? "depth" : "disparity"},
+                 {"trajectory", traj_file ? abs(traj) : traj}, {"trajectory_poses_hash", x.poses_hash},
+                 {"model", abs(o.model)}, {"model_hash", x.model_hash}, {"out", abs(o.render.out_dir)}};
   j["settings"] = {{"preset", o.preset},
                    {"prompt", o.prompt},
                    {"negative_prompt", x.negative_prompt},
@@ -27,6 +32,9 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"height", o.render.height},
                    {"width", o.render.width},
                    {"resize", o.render.squash ? "squash" : "crop"},
+                   {"intrinsics", x.intrinsics},
+                   {"points", o.render.hard_points},
+                   {"trim_depth", o.render.trim_depth},
                    {"steps", x.steps},
                    {"strength", x.strength},
                    {"t0", x.t0},
@@ -39,10 +47,12 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"preservation_scale", o.preservation_scale},
                    {"seed", o.seed},
                    {"cache", o.use_cache},
+                   {"cache_dir", x.cache_dir.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(abs(x.cache_dir))},
                    {"vae_tiling", o.vae_tiling}};
-  if (o.vae_tiling) j["settings"]["vae_tile"] = {o.vae_tile_height, o.vae_tile_width};  // 0 = the VAE's default
+  if (o.vae_tiling) j["settings"]["vae_tile"] = {x.vae_tile_height, x.vae_tile_width};
   j["lora"] = o.lora.empty() ? nlohmann::ordered_json(nullptr)
-                             : nlohmann::ordered_json{{"file", o.lora.string()}, {"scale", o.lora_scale}};
+                             : nlohmann::ordered_json{{"file", abs(o.lora)}, {"scale", o.lora_scale}};
+  j["trajectory_poses"] = x.poses;
   j["slm_source_fell_back_to_visible"] = x.slm_source_fell_back;
   j["inversion_from_cache"] = r.inversion_from_cache;
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
@@ -77,6 +87,67 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
     std::filesystem::remove(tmp, ec);
     throw Error(path.string() + ": cannot write run.json (" + why + ")");
   }
+}
+
+std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json) {
+  nlohmann::json j;
+  try {
+    std::ifstream in(run_json);
+    if (!in) throw Error(run_json.string() + ": cannot read it (give --from RUN.json, a run.json dvs run wrote)");
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(run_json.string() + ": not a run.json (" + e.what() + ")");
+  }
+  const auto section = [&](const char* name) -> const nlohmann::json& {
+    if (!j.contains(name) || !j[name].is_object())
+      throw Error(run_json.string() + ": no \"" + std::string(name) + "\" object: not a run.json dvs run wrote");
+    return j[name];
+  };
+  const nlohmann::json &in = section("inputs"), &st = section("settings");
+  std::vector<std::string> args;
+  const auto text = [&](const nlohmann::json& obj, const char* key, const char* option) {
+    if (!obj.contains(key) || obj[key].is_null()) throw Error(run_json.string() + ": \"" + key + "\" is missing");
+    const auto& v = obj[key];
+    args.push_back(std::string("--") + option);
+    args.push_back(v.is_string() ? v.get<std::string>() : v.dump());
+  };
+  const auto flag = [&](const nlohmann::json& obj, const char* key, const char* option) {
+    if (obj.contains(key) && obj[key].is_boolean() && obj[key].get<bool>()) args.push_back(std::string("--") + option);
+  };
+  text(in, "video", "video");
+  text(in, "depth", "depth");
+  if (in.value("depth_values", "") == "depth") args.push_back("--metric-depth");
+  text(in, "trajectory", "trajectory");
+  text(in, "model", "model");
+  text(in, "out", "out");
+  text(st, "preset", "preset");
+  text(st, "prompt", "prompt");
+  if (st.contains("negative_prompt") && st["negative_prompt"].is_string() && !st["negative_prompt"].get<std::string>().empty())
+    text(st, "negative_prompt", "negative-prompt");
+  text(st, "frames", "frames");
+  args.push_back("--size");
+  args.push_back(st.at("height").dump() + "x" + st.at("width").dump());
+  text(st, "resize", "resize");
+  if (st.contains("intrinsics") && st["intrinsics"].is_array() && st["intrinsics"].size() == 4) {
+    std::string k;
+    for (const auto& v : st["intrinsics"]) k += (k.empty() ? "" : ",") + v.dump();
+    args.insert(args.end(), {"--intrinsics", k});
+  }
+  flag(st, "points", "points");
+  flag(st, "trim_depth", "trim-depth");
+  for (const auto& [key, option] : std::vector<std::pair<const char*, const char*>>{
+           {"steps", "steps"}, {"strength", "strength"}, {"inversion_steps", "inversion-steps"}, {"k", "k"},
+           {"delta", "delta"}, {"guidance", "guidance"}, {"preservation_scale", "preservation-scale"}, {"seed", "seed"}})
+    text(st, key, option);
+  if (st.contains("dynamic_cfg") && st["dynamic_cfg"].is_boolean())
+    args.insert(args.end(), {"--dynamic-cfg", st["dynamic_cfg"].get<bool>() ? "on" : "off"});
+  if (st.contains("cache") && st["cache"].is_boolean() && !st["cache"].get<bool>()) args.push_back("--no-cache");
+  if (st.contains("cache_dir") && st["cache_dir"].is_string()) text(st, "cache_dir", "cache-dir");
+  if (st.contains("vae_tile") && st["vae_tile"].is_array() && st["vae_tile"].size() == 2)
+    args.insert(args.end(), {"--vae-tile", st["vae_tile"][0].dump() + "x" + st["vae_tile"][1].dump()});
+  if (j.contains("lora") && j["lora"].is_object())
+    args.insert(args.end(), {"--lora", j["lora"].at("file").get<std::string>() + ":" + j["lora"].at("scale").dump()});
+  return args;
 }
 
 }  // namespace dvs

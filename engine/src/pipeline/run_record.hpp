@@ -1,8 +1,12 @@
-// run.json: everything needed to understand or repeat a run — every setting (the resolved preset values),
-// the seed, the model's fingerprint, the LoRA, per-stage times, peak device and host memory, device and versions.
+// run.json: everything needed to understand or repeat a run — every setting actually used (the resolved preset
+// values, intrinsics, tile size, the camera path's poses), absolute paths, the seed, the model's fingerprint,
+// the LoRA, per-stage times, peak device and host memory, device and versions. `dvs run --from run.json` turns
+// it back into the run's options (run_record_arguments).
 #pragma once
 #include <filesystem>
+#include <array>
 #include <string>
+#include <vector>
 
 #include "dvs/pipeline.hpp"
 
@@ -19,7 +23,18 @@ struct RunRecordExtras {
   bool slm_source_fell_back = false;
   std::string vulkan_api, opencv;  // the device's Vulkan API version, OpenCV's version
   bool dynamic_cfg = false;        // the resolved --dynamic-cfg (the preset's when not given)
+  // What the run actually used where an option has a default worked out from the inputs.
+  std::array<double, 4> intrinsics{};  // fx, fy, cx, cy in pixels of the working size
+  int vae_tile_height = 0, vae_tile_width = 0;  // pixels, resolved (0 without tiling)
+  std::vector<std::array<double, 16>> poses;    // the trajectory's per-frame 4×4 transforms, row-major
+  std::string poses_hash;                       // hash of `poses`: compare two runs' camera paths at a glance
+  std::string cache_dir;                        // the inversion cache folder used
 };
+
+// A run.json turned back into `dvs run` arguments ("--video", "/abs/v.mp4", ...): every input and setting the
+// run used, so that running them repeats it (kept next to the writer so the two cannot drift apart).
+// Throws dvs::Error naming the file and the key when it is not a run.json dvs wrote.
+std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json);
 
 void write_run_record(const std::filesystem::path& path, const RunOptions& o, const RunReport& r, const RunRecordExtras& x);
 

@@ -2,6 +2,10 @@
 
 namespace dvs {
 
+const char* const kNonFiniteHint =
+    "the run is stopped rather than writing a black video. Usual causes: a weight file holding NaN/Inf "
+    "(dvs-weights inspect --values MODEL lists them), a damaged input, or an overflow (16-bit arithmetic)";
+
 StageTracker::StageTracker(const ProgressFn& progress, const CancelFn& cancelled)
     : progress_(progress), cancelled_(cancelled) {}
 
@@ -26,9 +30,16 @@ void StageTracker::check_cancelled() const {
   if (cancel_requested()) throw Cancelled();
 }
 
-diffusion::LoopCallbacks StageTracker::loop_callbacks() const {
+diffusion::LoopCallbacks StageTracker::loop_callbacks(ops::NonFiniteCheck* check) const {
   diffusion::LoopCallbacks cb;
-  cb.progress = [this](int step, int total, int t) { say(step, total, "t=" + std::to_string(t)); };
+  cb.progress = [this, check](int step, int total, int t) {
+    if (check) {  // the step's recording has run: its scans are final
+      const auto hits = check->hits();
+      if (!hits.empty()) throw Error(hits.front().message() + "; " + kNonFiniteHint);
+      check->clear();
+    }
+    say(step, total, "t=" + std::to_string(t));
+  };
   cb.cancelled = [this] { return cancel_requested(); };
   return cb;
 }

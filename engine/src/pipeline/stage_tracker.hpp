@@ -10,8 +10,12 @@
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
+#include "tensor/ops_check.hpp"
 
 namespace dvs {
+
+// What a NaN/Inf in a stage's result usually means, appended to the error.
+extern const char* const kNonFiniteHint;
 
 class StageTracker {
  public:
@@ -22,8 +26,9 @@ class StageTracker {
   void end();  // records the time since begin()
   void say(int step, int total, const std::string& note) const;
   void check_cancelled() const;  // throws dvs::Cancelled when cancellation was asked for
-  // Progress and cancellation for a diffusion loop run in the current stage.
-  diffusion::LoopCallbacks loop_callbacks() const;
+  // Progress and cancellation for a diffusion loop run in the current stage. With `check`, the scans each step
+  // recorded into it (see TransformerDenoiser::watch) are read after the step and a NaN/Inf stops the job.
+  diffusion::LoopCallbacks loop_callbacks(ops::NonFiniteCheck* check = nullptr) const;
   const std::vector<StageTime>& times() const { return times_; }
 
   // Runs the whole job: diffusion::Cancelled becomes dvs::Cancelled, any other dvs::Error thrown inside a

@@ -43,7 +43,10 @@ void TransformerDenoiser::operator()(vk::Recorder& rec, const Tensor& x, int t, 
   timesteps_.write(ctx_, HostTensor::from_f32({batch_}, ts));  // host write before this recording runs
   rec.copy_regions(x.buffer(), input_.buffer(), x_regions_);
   arena_->reset();
+  if (check_) check_->record(rec, x, loop_ + " latent entering step " + std::to_string(step_ + 1));
   model_.record(rec, *arena_, input_, text_, timesteps_, v);
+  if (check_) check_->record(rec, v, "transformer output at " + loop_ + " step " + std::to_string(step_ + 1) + " (t=" + std::to_string(t) + ")");
+  ++step_;
 }
 
 }  // namespace dvs

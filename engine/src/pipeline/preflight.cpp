@@ -1,0 +1,310 @@
+#include "pipeline/preflight.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <set>
+
+#include "diffusion/schedule.hpp"
+#include "dvs/error.hpp"
+#include "geometry/trajectory.hpp"
+#include "io/lora_file.hpp"
+#include "io/model_folder.hpp"
+#include "io/model_schema.hpp"
+#include "io/video.hpp"
+#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "models/t5_encoder.hpp"
+#include "models/tokenizer.hpp"
+#include "models/vae_tiling.hpp"
+#include "pipeline/memory_plan.hpp"
+#include "pipeline/settings.hpp"
+#include "vk/context.hpp"
+#include "vk/device_info.hpp"
+
+namespace dvs {
+namespace {
+
+std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_string(w); }
+
+std::string gib(uint64_t b) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f GiB", double(b) / double(uint64_t(1) << 30));
+  return buf;
+}
+
+// The first existing folder at or above `p` (the output folder need not exist yet).
+std::filesystem::path existing_ancestor(std::filesystem::path p) {
+  p = std::filesystem::absolute(p);
+  while (!p.empty() && !std::filesystem::exists(p) && p != p.parent_path()) p = p.parent_path();
+  return p;
+}
+
+class Checker {
+ public:
+  explicit Checker(PreflightReport& r) : r_(r) {}
+  // Runs `f`; a dvs::Error it throws becomes a problem (prefixed with `what` when given).
+  bool attempt(const std::string& what, const std::function<void()>& f) {
+    try {
+      f();
+      return true;
+    } catch (const Error& e) {
+      problem(what.empty() ? e.what() : what + ": " + e.what());
+      return false;
+    } catch (const std::exception& e) {
+      problem((what.empty() ? std::string() : what + ": ") + e.what());
+      return false;
+    }
+  }
+  void problem(const std::string& p) { r_.problems.push_back(p); }
+  void note(const std::string& n) { r_.notes.push_back(n); }
+
+ private:
+  PreflightReport& r_;
+};
+
+void check_inputs(const RunOptions& o, Checker& c) {
+  const RenderJob& j = o.render;
+  if (j.height <= 0 || j.width <= 0 || j.height % 8 || j.width % 8)
+    c.problem("--size " + hw(j.height, j.width) + ": height and width must be positive multiples of 8 (the VAE works on " +
+              "8x8 pixel cells), e.g. --size " + hw(std::max(8, j.height / 8 * 8), std::max(8, j.width / 8 * 8)));
+  if (!std::isfinite(j.fx) || !std::isfinite(j.fy) || !std::isfinite(j.cx) || !std::isfinite(j.cy) ||
+      ((j.fx != 0 || j.fy != 0 || j.cx != 0 || j.cy != 0) && !(j.fx > 0 && j.fy > 0 && j.cx > 0 && j.cy > 0)))
+    c.problem("--intrinsics: fx, fy, cx, cy must all be > 0 (pixels of the working size), or leave the option out for " +
+              std::string("the default"));
+  // The video: opened and one small frame decoded, which also gives the container's frame count.
+  if (!std::filesystem::is_regular_file(j.video)) {
+    c.problem(j.video.string() + ": no such video file (give --video FILE)");
+  } else {
+    c.attempt("", [&] {
+      VideoReadOptions vo;
+      vo.max_frames = 1;
+      vo.height = 8, vo.width = 8;
+      VideoInfo vi;
+      read_video(j.video, vo, &vi);
+      if (vi.frames_in_file > 0 && j.frames > vi.frames_in_file) {
+        const int fit = (vi.frames_in_file - 1) / 4 * 4 + 1;
+        c.problem(j.video.string() + ": holds " + std::to_string(vi.frames_in_file) + " frames, fewer than --frames " +
+                  std::to_string(j.frames) + "; use --frames " + std::to_string(fit) + " (the largest 4k+1 it has)");
+      }
+      c.note("video " + j.video.string() + ": " + std::to_string(vi.frames_in_file) + " frames of " + hw(vi.height, vi.width));
+    });
+  }
+  if (!std::filesystem::exists(j.depth)) c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE)");
+  // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
+  c.attempt("--trajectory " + j.trajectory, [&] { geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0); });
+  // The output folder: an existing folder we may write into, or creatable below one.
+  const auto out = std::filesystem::absolute(j.out_dir);
+  if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
+    c.problem(j.out_dir.string() + ": exists and is not a folder (give --out DIR)");
+  } else {
+    const auto base = existing_ancestor(out);
+    if (!std::filesystem::is_directory(base))
+      c.problem(j.out_dir.string() + ": cannot be created, " + base.string() + " is not a folder (give another --out)");
+    else if (::access(base.c_str(), W_OK | X_OK) != 0)
+      c.problem(j.out_dir.string() + ": " + base.string() + " is not writable (give another --out)");
+  }
+}
+
+struct ModelFacts {
+  std::optional<models::CogVideoXTransformerConfig> transformer;
+  std::optional<models::VaeConfig> vae;
+  std::optional<models::T5EncoderConfig> t5;
+  nlohmann::json transformer_json, vae_json, t5_json;
+};
+
+// One component: its config parses, and its safetensors headers hold every tensor the config implies, with the
+// right shape and a dtype the engine reads.
+void check_component(const std::filesystem::path& model, const std::string& name, Checker& c, nlohmann::json& config_out,
+                     const std::function<Schema(const nlohmann::json&, std::string_view)>& schema_of,
+                     const std::function<void(const nlohmann::json&, std::string_view)>& parse) {
+  const auto dir = model / name;
+  const std::string origin = (dir / "config.json").string();
+  nlohmann::json cfg;
+  if (!c.attempt("", [&] { cfg = read_json_file(dir / "config.json", "the model folder must hold " + name + "/config.json"); }))
+    return;
+  if (!c.attempt("", [&] { parse(cfg, origin); })) return;
+  config_out = cfg;
+  Schema schema;
+  if (!c.attempt("", [&] { schema = schema_of(cfg, origin); })) return;
+  std::optional<WeightSet> ws;
+  if (!c.attempt(dir.string(), [&] { ws.emplace(WeightSet::open_dir(dir)); })) return;
+  std::vector<std::string> issues;
+  for (const SchemaIssue& i : check_schema(schema, *ws))
+    if (i.kind != SchemaIssue::Kind::unexpected) issues.push_back(i.message());
+  for (const auto& [tensor, ref] : ws->entries())
+    if (!ref.info->dtype)
+      issues.push_back("tensor '" + tensor + "': dtype " + ref.info->dtype_name + " cannot be used (F32, F16 or BF16)");
+  if (!issues.empty()) {
+    std::string text = ws->source().string() + ": " + std::to_string(issues.size()) + " weight" +
+                       (issues.size() == 1 ? "" : "s") + " missing or mis-shaped for " + origin + " (";
+    for (size_t i = 0; i < std::min<size_t>(issues.size(), 5); ++i) text += (i ? "; " : "") + issues[i];
+    if (issues.size() > 5) text += "; and " + std::to_string(issues.size() - 5) + " more";
+    c.problem(text + "); the weights do not belong to this config — re-download or re-convert the component");
+  }
+}
+
+ModelFacts check_model(const RunOptions& o, Checker& c) {
+  ModelFacts m;
+  if (!std::filesystem::is_directory(o.model)) {
+    c.problem(o.model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+    return m;
+  }
+  c.attempt("", [&] { ModelFolder::open(o.model); });
+  check_component(o.model, "transformer", c, m.transformer_json,
+                  [](const nlohmann::json& j, std::string_view s) { return cogvideox_transformer_schema(j, s); },
+                  [&](const nlohmann::json& j, std::string_view s) { m.transformer = models::CogVideoXTransformerConfig::from_json(j, s); });
+  check_component(o.model, "vae", c, m.vae_json,
+                  [](const nlohmann::json& j, std::string_view s) { return cogvideox_vae_schema(j, s); },
+                  [&](const nlohmann::json& j, std::string_view) { m.vae = models::VaeConfig::from_json(j); });
+  check_component(o.model, "text_encoder", c, m.t5_json,
+                  [](const nlohmann::json& j, std::string_view s) { return t5_encoder_schema(j, s); },
+                  [&](const nlohmann::json& j, std::string_view s) { m.t5 = models::T5EncoderConfig::from_json(j, s); });
+  c.attempt("", [&] { T5Tokenizer::load(o.model); });
+  c.attempt("", [&] { max_text_seq_length(o.model); });
+  return m;
+}
+
+// The size, frames and channels against what the configs fix.
+void check_model_fit(const RunOptions& o, const ModelFacts& m, Checker& c) {
+  if (!m.transformer || !m.vae) return;
+  const auto& t = *m.transformer;
+  const auto& v = *m.vae;
+  const int64_t r = v.spatial_ratio(), cell = r * t.patch_size;
+  const int H = o.render.height, W = o.render.width;
+  if (t.learned_pos && (H != t.sample_height * r || W != t.sample_width * r)) {
+    c.problem("--size " + hw(H, W) + ": this model's learned positional table needs --size " +
+              hw(t.sample_height * r, t.sample_width * r) + " (any 4k+1 --frames; diffusers rejects other sizes for it)");
+  } else if (H > 0 && W > 0 && (H % cell || W % cell)) {
+    c.problem("--size " + hw(H, W) + ": the latent (" + hw(H / r, W / r) + ") must be a multiple of the transformer's patch " +
+              std::to_string(t.patch_size) + ", so height and width must be multiples of " + std::to_string(cell) +
+              ", e.g. --size " + hw(std::max(cell, H / cell * cell), std::max(cell, W / cell * cell)));
+  }
+  if (v.latent_channels * 2 != t.in_channels || v.latent_channels != t.out_channels)
+    c.problem(o.model.string() + ": the VAE's latent_channels (" + std::to_string(v.latent_channels) +
+              ") do not match the transformer's in_channels/out_channels (" + std::to_string(t.in_channels) + "/" +
+              std::to_string(t.out_channels) + "; CogVideoX I2V needs 2x and 1x): the components come from different models");
+  if (m.t5 && m.t5->d_model != t.text_embed_dim)
+    c.problem(o.model.string() + ": the text encoder's d_model (" + std::to_string(m.t5->d_model) +
+              ") differs from the transformer's text_embed_dim (" + std::to_string(t.text_embed_dim) +
+              "): the components come from different models");
+  if (o.vae_tiling)
+    c.attempt("", [&] {
+      models::VaeTiling tiling;
+      tiling.tile_sample_min_height = o.vae_tile_height;
+      tiling.tile_sample_min_width = o.vae_tile_width;
+      const auto enc = models::TilePlan::for_encode(v, tiling), dec = models::TilePlan::for_decode(v, tiling);
+      if (enc.stride_h != enc.limit_h * r || enc.stride_w != enc.limit_w * r || dec.stride_h * r != dec.limit_h ||
+          dec.stride_w * r != dec.limit_w)
+        throw Error("--vae-tile " + hw(enc.tile_in_h, enc.tile_in_w) +
+                    ": tiles of this size do not join exactly (the tile stride, 5/6 of the height and 4/5 of the width, "
+                    "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
+    });
+}
+
+void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
+  if (o.lora.empty()) return;
+  if (!std::filesystem::is_regular_file(o.lora)) {
+    c.problem(o.lora.string() + ": no such LoRA file (give --lora FILE.safetensors[:SCALE])");
+    return;
+  }
+  if (!std::isfinite(o.lora_scale)) c.problem("--lora " + o.lora.string() + ": the scale must be a finite number");
+  c.attempt("--lora " + o.lora.string(), [&] {
+    const auto adapters = read_lora_file(o.lora, o.lora_scale);
+    if (!m.transformer) return;
+    const int64_t D = m.transformer->dim();
+    std::set<std::string> known;
+    for (int64_t i = 0; i < m.transformer->num_layers; ++i)
+      for (const char* p : {"attn1.to_q", "attn1.to_k", "attn1.to_v", "attn1.to_out.0"})
+        known.insert("transformer_blocks." + std::to_string(i) + "." + p);
+    for (const auto& [name, ad] : adapters) {
+      if (!known.count(name))
+        throw Error("module '" + name + "' is not an attention projection of this transformer (supported: " +
+                    "transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}, i < " + std::to_string(m.transformer->num_layers) +
+                    "): the adapter was made for another model");
+      if (ad.a.shape != Shape{ad.rank(), D} || ad.b.shape != Shape{D, ad.rank()})
+        throw Error("module '" + name + "' has A [" + shape_str(ad.a.shape) + "] and B [" + shape_str(ad.b.shape) +
+                    "], this transformer needs A [rank, " + std::to_string(D) + "] and B [" + std::to_string(D) +
+                    ", rank]: the adapter was made for another model");
+    }
+  });
+}
+
+// Device memory as the planner sees it, against the chosen device's largest device-local heap.
+void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
+  if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
+  // Listed once per process: a batch preflights every job.
+  static std::optional<std::vector<vk::DeviceCaps>> listed;
+  if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return;
+  const std::vector<vk::DeviceCaps>& devices = *listed;
+  uint32_t index = 0;
+  if (!c.attempt("--device", [&] { index = vk::select_device(devices, o.render.device); })) return;
+  const vk::DeviceCaps& dev = devices.at(index);
+  uint64_t heap = 0;
+  for (const auto& h : dev.heaps)
+    if (h.device_local) heap = std::max(heap, h.size);
+  c.attempt("memory plan", [&] {
+    pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
+    pipeline::PlanRequest req;
+    req.frames = o.render.frames, req.height = o.render.height, req.width = o.render.width;
+    req.alignment = std::max<uint64_t>(256, dev.min_storage_buffer_offset_alignment);
+    if (heap) req.budget = heap;
+    const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
+    c.note("memory plan: " + gib(plan.run_peak) + " at the peak untiled; " + dev.name + " has " + gib(heap));
+    // A CPU driver's heap figure is not a hard limit (lavapipe allocates from RAM beyond it): no verdict there.
+    if (!heap || dev.type == VK_PHYSICAL_DEVICE_TYPE_CPU) return;
+    if (plan.chosen < 0) {
+      std::string why = plan.notes.empty() ? std::string("it does not fit") : plan.notes.back();
+      c.problem("device memory: the run needs more than " + dev.name + "'s " + gib(heap) + " (" + why + ")");
+    } else if (plan.chosen > 0 && !o.vae_tiling) {
+      const auto& t = plan.tilings[size_t(plan.chosen)].tiling;
+      c.problem("device memory: untiled, the run needs " + gib(plan.run_peak) + " of " + dev.name + "'s " + gib(heap) +
+                "; add --vae-tile " + hw(t.tile_sample_min_height, t.tile_sample_min_width) + " (fits)");
+    }
+  });
+}
+
+}  // namespace
+
+std::string PreflightReport::message() const {
+  std::string m = "preflight found " + std::to_string(problems.size()) + " problem" + (problems.size() == 1 ? "" : "s") +
+                  "; nothing was run:";
+  for (const auto& p : problems) m += "\n  - " + p;
+  return m;
+}
+
+PreflightReport preflight(const RunOptions& o, JobKind kind) {
+  PreflightReport r;
+  Checker c(r);
+  std::optional<Settings> st;
+  c.attempt("", [&] { st = resolve(o); });
+  if (kind == JobKind::run && st) {
+    const bool dynamic_cfg = o.dynamic_cfg.value_or(st->official);
+    if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
+      c.problem("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
+  }
+  check_inputs(o, c);
+  const ModelFacts m = check_model(o, c);
+  if (std::filesystem::is_directory(o.model) && st)
+    c.attempt("", [&] {
+      diffusion::CogVideoXSchedule schedule(diffusion::load_scheduler_config(o.model));
+      const diffusion::SamplingPlan plan = schedule.plan(st->steps, st->strength);
+      if (kind == JobKind::run && plan.num_steps() < 1)
+        throw Error("--steps " + std::to_string(st->steps) + " at --strength " + std::to_string(st->strength) +
+                    " leaves no sampling step; raise either");
+    });
+  check_model_fit(o, m, c);
+  check_lora(o, m, c);
+  check_memory(o, m, c);
+  return r;
+}
+
+void require_preflight(const RunOptions& o, JobKind kind) {
+  const PreflightReport r = preflight(o, kind);
+  if (!r.ok()) throw Error(r.message());
+}
+
+}  // namespace dvs

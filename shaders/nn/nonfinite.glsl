@@ -1,0 +1,40 @@
+// Body of nonfinite.comp / nonfinite_tex4.comp: the including shader defines LOAD4(k), the k-th vec4 of the
+// range's f32 bits as a uvec4, after the layout(local_size_x) line.
+//
+// Non-finite scan for ops::NonFiniteCheck: counts the NaN and ±Inf elements of an f32 range and keeps the
+// smallest (global) index of one in the result slot. Invocation g tests vec4s g, g + G, g + 2G, … (G
+// invocations in all: neighbouring lanes read neighbouring vec4s) with a branch-free test of the exponent bits
+// (all ones = NaN or Inf); only when that finds something does it re-read them element by element for the count
+// and the first index. A clean tensor costs one read of its bytes and no atomics.
+#include "index.glsl"
+
+const uint EXP = 0x7f800000u;
+
+layout(std430, binding = 1) buffer R { uint result[]; };  // per slot: count, first index (0xffffffff = none)
+
+layout(push_constant) uniform Push { uint n, base, slot; } p;  // elements in this range, its first global index
+
+void main() {
+  uint g = flat_index();
+  uint G = gl_NumWorkGroups.x * gl_NumWorkGroups.y * gl_WorkGroupSize.x;
+  uint n4 = (p.n + 3u) / 4u;  // the last vec4 may reach past n: those lanes are excluded in the exact pass
+  if (g >= n4) return;
+  uvec4 gap = uvec4(1u);  // component-wise min of (bits & EXP) ^ EXP: 0 where an element was NaN or Inf
+  for (uint k = g; k < n4; k += G) gap = min(gap, (LOAD4(k) & EXP) ^ EXP);
+  if (all(notEqual(gap, uvec4(0u)))) return;
+  uint count = 0u, first = 0xffffffffu;
+  for (uint k = g; k < n4; k += G) {
+    uvec4 v = LOAD4(k);
+    for (uint j = 0u; j < 4u; ++j) {
+      uint i = k * 4u + j;
+      if (i < p.n && (v[j] & EXP) == EXP) {
+        count++;
+        first = min(first, i);
+      }
+    }
+  }
+  if (count > 0u) {
+    atomicAdd(result[p.slot * 2u], count);
+    atomicMin(result[p.slot * 2u + 1u], p.base + first);
+  }
+}
