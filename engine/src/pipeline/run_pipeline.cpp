@@ -16,6 +16,7 @@
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/t5_encoder.hpp"
+#include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
@@ -23,7 +24,6 @@
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
-#include "pipeline/transformer_denoiser.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
@@ -65,7 +65,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   Tensor text, text_inv;
   {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
     models::T5Encoder t5(ctx, o.model / "text_encoder");
-    text = t5.encode_prompts(jp.tokenizer, {st.negative, o.prompt}, jp.text_len);  // [uncond; cond]
+    text = guidance_text(ctx, t5, jp.tokenizer, st.negative, o.prompt, jp.text_len);  // [uncond; cond]
     text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
                                                                     // over two identical "" rows is a no-op)
   }
@@ -106,7 +106,6 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   stages.begin("sample", "guided DDIM sampling");
   diffusion::SampleResult result;
   {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
-    TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
     diffusion::LoopCallbacks cb = stages.loop_callbacks();
     diffusion::Guidance guidance{true, o.guidance};
     if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
@@ -114,7 +113,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
       guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
       guidance.preservation_scale = o.preservation_scale;
     }
-    result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
+    result = sample_latent(ctx, transformer, schedule, plan, x_init, image_latent, text, guidance, cb);
   }
   transformer_ptr.reset();
   stages.end();
