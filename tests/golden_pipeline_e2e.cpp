@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,7 @@
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "pipeline/stage_tracker.hpp"
 #include "support/files.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
@@ -60,7 +62,6 @@ RunOptions pack_options() {
   o.delta = settings().at("delta_official");
   o.guidance = settings().at("guidance_scale");
   o.seed = settings().at("generator_seed");
-  o.negative_prompt = "unused: the tests feed the pack's embeddings";
   o.use_cache = false;
   return o;
 }
@@ -295,8 +296,15 @@ TEST_F(PipelineE2e, ChainedFromTheVideo) {
   const Tensor image_latent = image_latent_of(video, enc.x0_mean.dim(0));
   expect_close("image_latents", image_latent, ctx(), load("e2e/image_latents.npy"), img_tol);
 
-  const Tensor eps = invert_and_check(jp, enc.x0_mean, image_latent,
-                                      upload(load("e2e/empty_embeds.npy")));
+  const Tensor empty_text = upload(load("e2e/empty_embeds.npy"));
+  const Tensor eps = invert_and_check(jp, enc.x0_mean, image_latent, empty_text);
+  // invert_render as `dvs run` calls it (cache off), on the EncodedRender with the pack's image-latent draw in
+  // place of the Philox one: it must invert x0_mean (not the sampled x0) with that image latent.
+  enc.image_latent = image_latent;
+  StageTracker stages({}, {});
+  const InversionResult inv = invert_render(ctx(), transformer(), o, jp, int(video.shape[0]), enc, empty_text, stages);
+  EXPECT_FALSE(inv.from_cache);
+  expect_close("eps_inv (invert_render)", inv.eps, ctx(), load("e2e/eps_inv.npy"), test::pack_tolerance("e2e_inversion"));
 
   Tensor sample = Tensor::empty(ctx(), enc.posterior.mean.shape(), DType::f32);
   const Tensor noise = upload(load("e2e/video_sample_noise.npy"));
