@@ -7,11 +7,12 @@
 // Every run renders with --points (the hard z-buffer splat, deterministic; the soft splat's float atomics may
 // sum in any order), so the runs differ only by the model.
 // Tolerances. Merged vs unmerged differ by float32 summation order only (W·x + s·B·(A·x) vs (W + s·B·A)·x,
-// ~1e-7 relative per GEMM; tests/test_weights_merge_lora.cpp bounds one transformer call at 1e-5 + 1e-4·|ref|).
-// ε_inv after the inversion steps: 1e-4 + 1e-3·|ref|. output.mp4: the frames are quantised to 8 bits, so a
-// 1e-6 difference can flip a pixel by one level and the encoder's decisions may spread that; mean |diff| over
-// all pixels ≤ 0.5/255 and every pixel within 8/255. The adapter changes both by far more (asserted below, so
-// neither comparison can pass by the LoRA having no effect).
+// ~1e-7 relative per GEMM; tests/test_weights_merge_lora.cpp bounds one transformer call at 1e-5 + 1e-4·|ref|):
+// ε_inv after the inversion steps within 1e-4 + 1e-3·|ref| (measured 7e-7). output.mp4 is 8-bit H.264, which
+// amplifies float differences of that size: today two identical `dvs run --points` commands write one of two
+// output.mp4 files that differ by mean |diff| 0.032 (≈4 levels of [−1, 1]), max 0.51 (issue 12, item 11). So
+// the videos "equal" at mean |diff| ≤ 0.06 (no per-pixel bound), and the adapter, strong enough to move the
+// video by mean ≥ 0.12 (twice that bound), must.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -109,7 +110,7 @@ Difference difference(const HostTensor& a, const HostTensor& b, double atol = 0,
 
 TEST(PipelineLora, RunWithLoraEqualsTheMergedModelAndDiffersFromNone) {
   test::PipelineInputs in;
-  const std::string adapter = write_adapter(in.dir.path).string() + ":0.8";
+  const std::string adapter = write_adapter(in.dir.path).string() + ":2";
   const fs::path merged = in.dir / "merged_model";
   const auto m = test::run_command(test::program("dvs-weights") + " merge-lora --model '" + in.model.string() + "' --lora '" +
                                    adapter + "' --out '" + merged.string() + "'");
@@ -134,10 +135,9 @@ TEST(PipelineLora, RunWithLoraEqualsTheMergedModelAndDiffersFromNone) {
   EXPECT_LE(eps_same.worst_excess, 0) << "ε_inv of --lora and of the merged model differ beyond " << eps_atol << " + "
                                       << eps_rtol << "·|ref|: max |diff| " << eps_same.max_abs;
   EXPECT_GT(eps_effect.max_abs, 100 * eps_atol) << "the adapter must change the inversion";
-  const double level = 2.0 / 255;  // one 8-bit level in [−1, 1]
-  EXPECT_LE(frames_same.mean_abs, 0.5 * level) << "output.mp4 of --lora vs the merged model";
-  EXPECT_LE(frames_same.max_abs, 8 * level) << "output.mp4 of --lora vs the merged model";
-  EXPECT_GT(frames_effect.mean_abs, 4 * level) << "the adapter must change output.mp4";
+  const double same_video = 0.06;  // mean |diff| in [−1, 1], see the top of the file
+  EXPECT_LE(frames_same.mean_abs, same_video) << "output.mp4 of --lora vs the merged model";
+  EXPECT_GT(frames_effect.mean_abs, 2 * same_video) << "the adapter must change output.mp4";
 }
 
 }  // namespace
