@@ -3,6 +3,7 @@
 #include <cstring>
 #include <functional>
 
+#include "dvs/error.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/transformer_denoiser.hpp"
 #include "tensor/dispatch.hpp"
@@ -17,6 +18,8 @@ Tensor guidance_text(vk::Context& ctx, models::T5Encoder& t5, const T5Tokenizer&
 
 Tensor guidance_text(vk::Context& ctx, const Tensor& uncond, const Tensor& cond) {
   const Shape& s = cond.shape();  // [1, L, D]
+  if (s.size() != 3 || s[0] != 1 || uncond.shape() != s)
+    throw Error("internal: guidance_text needs two [1, L, D] embeddings of the same shape");
   Tensor rows = Tensor::empty(ctx, {2, s[1], s[2]}, DType::f32, "guidance text");
   ops::run_now(ctx, [&](vk::Recorder& rec) {
     rec.copy(uncond.buffer(), rows.rows(0, 1).buffer(), uncond.bytes());

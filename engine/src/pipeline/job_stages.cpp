@@ -1,7 +1,6 @@
 #include "pipeline/job_stages.hpp"
 
 #include <algorithm>
-#include <cstring>
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
@@ -10,7 +9,6 @@
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
-#include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
 namespace dvs {
