@@ -244,20 +244,19 @@ TEST_F(PipelineE2e, InversionStepByStep) {
                    upload(load("e2e/empty_embeds.npy")));
 }
 
-// K-RNR as the official preset runs it (3 rounds, per-element AdaIN from the posterior, δ = 2), without SLM.
+// initial_latent as the official preset runs it (3 rounds, per-element AdaIN from the posterior, δ = 2), without
+// SLM (the pack has no renderer masks), from the pack's x0 sample, ε_inv and posterior.
 TEST_F(PipelineE2e, NoiseInitialisation) {
   const RunOptions o = pack_options();
   const JobPlan jp = plan_job(o);
-  const float sf = test::pack_scaling();
-  const Tensor x0 = pack("e2e/krnr_x0.npy"), eps = pack("e2e/eps_inv.npy");
-  const Tensor mu = to_diffusion_layout(ctx(), upload(load("e2e/video_posterior_mean.npy")), sf);
-  const Tensor sigma = to_diffusion_layout(ctx(), upload(load("e2e/video_posterior_std.npy")), sf);
-  diffusion::InitNoiseOptions opt = diffusion::InitNoiseOptions::official();
-  opt.slm = false;
-  opt.k = o.k;
-  opt.delta = jp.settings.delta;
-  ASSERT_EQ(opt.rounds, int(settings().at("krnr_rounds")));
-  const Tensor x_init = diffusion::init_noise(ctx(), {&x0, &eps, nullptr, &mu, &sigma, jp.schedule.alpha_cumprod(jp.plan.t0())}, opt);
+  EncodedRender enc;
+  enc.scaling = test::pack_scaling();
+  enc.posterior.mean = upload(load("e2e/video_posterior_mean.npy"));
+  enc.posterior.std = upload(load("e2e/video_posterior_std.npy"));
+  enc.x0 = pack("e2e/krnr_x0.npy");
+  EXPECT_EQ(diffusion::InitNoiseOptions::official().rounds, int(settings().at("krnr_rounds")));
+  const Tensor x_init =
+      initial_latent(ctx(), jp.settings, o.k, o.seed, enc, pack("e2e/eps_inv.npy"), nullptr, jp.schedule.alpha_cumprod(jp.plan.t0()));
   expect_close("x_init", x_init, ctx(), load("e2e/x_init.npy"), test::pack_tolerance("e2e_krnr"));
 }
 
@@ -309,14 +308,10 @@ TEST_F(PipelineE2e, ChainedFromTheVideo) {
   Tensor sample = Tensor::empty(ctx(), enc.posterior.mean.shape(), DType::f32);
   const Tensor noise = upload(load("e2e/video_sample_noise.npy"));
   ops::run_now(ctx(), [&](vk::Recorder& rec) { models::CogVideoXVae::sample(rec, enc.posterior, noise, sample); });
-  const Tensor x0 = to_diffusion_layout(ctx(), sample, sf);
-  expect_close("x0 (0.7 · posterior sample)", x0, ctx(), load("e2e/krnr_x0.npy"), img_tol);
-  const Tensor mu = to_diffusion_layout(ctx(), enc.posterior.mean, sf), sigma = to_diffusion_layout(ctx(), enc.posterior.std, sf);
-  diffusion::InitNoiseOptions opt = diffusion::InitNoiseOptions::official();
-  opt.slm = false;
-  opt.k = o.k;
-  opt.delta = jp.settings.delta;
-  const Tensor x_init = diffusion::init_noise(ctx(), {&x0, &eps, nullptr, &mu, &sigma, jp.schedule.alpha_cumprod(jp.plan.t0())}, opt);
+  enc.x0 = to_diffusion_layout(ctx(), sample, sf);  // the pack's draw in place of the Philox one
+  expect_close("x0 (0.7 · posterior sample)", enc.x0, ctx(), load("e2e/krnr_x0.npy"), img_tol);
+  const Tensor x_init =
+      initial_latent(ctx(), jp.settings, o.k, o.seed, enc, eps, nullptr, jp.schedule.alpha_cumprod(jp.plan.t0()));
   expect_close("x_init", x_init, ctx(), load("e2e/x_init.npy"), test::pack_tolerance("e2e_krnr"));
 
   const diffusion::SampleResult r = sample_and_check(jp, jp.plan, x_init, image_latent, "e2e_sampling", true);

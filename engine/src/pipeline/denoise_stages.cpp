@@ -3,6 +3,8 @@
 #include <cstring>
 #include <functional>
 
+#include "diffusion/init_noise.hpp"
+
 #include "dvs/error.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/transformer_denoiser.hpp"
@@ -47,6 +49,22 @@ std::vector<diffusion::StepCoefficients> inversion_steps(const Settings& st, con
                                                          int t0) {
   return st.official ? diffusion::inversion_steps_official(diffusion::DDIMInverseSchedule(schedule.config()), st.inversion_steps)
                      : diffusion::inversion_steps_paper(schedule, t0, st.inversion_steps);
+}
+
+Tensor initial_latent(vk::Context& ctx, const Settings& st, double k, uint64_t seed, const EncodedRender& enc,
+                      const Tensor& eps_inv, const diffusion::SlmPlan* slm, double alpha_cumprod_t0) {
+  diffusion::InitNoiseOptions noise = st.official ? diffusion::InitNoiseOptions::official() : diffusion::InitNoiseOptions::paper();
+  noise.k = k;
+  noise.delta = st.delta;
+  noise.seed = seed;
+  noise.slm = slm != nullptr;
+  Tensor mu, sigma;  // the official per-element AdaIN's posterior statistics
+  if (st.official) {
+    mu = to_diffusion_layout(ctx, enc.posterior.mean, enc.scaling);
+    sigma = to_diffusion_layout(ctx, enc.posterior.std, enc.scaling);
+  }
+  return diffusion::init_noise(
+      ctx, {&enc.x0, &eps_inv, slm, st.official ? &mu : nullptr, st.official ? &sigma : nullptr, alpha_cumprod_t0}, noise);
 }
 
 Tensor invert_latent(vk::Context& ctx, models::CogVideoXTransformer& transformer,

@@ -6,11 +6,13 @@
 #include <vector>
 
 #include "diffusion/sampler.hpp"
+#include "diffusion/slm.hpp"
 #include "diffusion/schedule.hpp"
 #include "io/host_tensor.hpp"
 #include "models/cogvideox_transformer.hpp"
 #include "models/t5_encoder.hpp"
 #include "models/tokenizer.hpp"
+#include "pipeline/job_stages.hpp"
 #include "pipeline/settings.hpp"
 #include "tensor/tensor.hpp"
 
@@ -35,6 +37,12 @@ Tensor image_latent(vk::Context& ctx, const Tensor& frame0, int64_t latent_frame
 // whole schedule; paper: the float64 schedule up to t0).
 std::vector<diffusion::StepCoefficients> inversion_steps(const Settings& st, const diffusion::CogVideoXSchedule& schedule,
                                                          int t0);
+
+// Stages 6–7: x_init, the latent at t0, from enc.x0 and ε_inv by the settings' preset (paper: one round of
+// K-RNR with per-channel AdaIN; official: three rounds with the per-element AdaIN from enc.posterior), with SLM
+// from `slm` first in each round (null: K-RNR only). k: --k; seed: the SLM draws.
+Tensor initial_latent(vk::Context& ctx, const Settings& st, double k, uint64_t seed, const EncodedRender& enc,
+                      const Tensor& eps_inv, const diffusion::SlmPlan* slm, double alpha_cumprod_t0);
 
 // DDIM inversion of x0 (diffusion layout) with the transformer conditioned on `image_latent` and one text row
 // (the "" prompt: no guidance, as the official CFG over two identical rows). Returns ε_inv.

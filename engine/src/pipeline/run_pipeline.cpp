@@ -54,7 +54,6 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   models::CogVideoXVae vae(ctx, o.model / "vae");
   EncodedRender enc = encode_render(ctx, vae, o, st, in);
   const Tensor& x0 = enc.x0;
-  const models::VaePosterior& post = enc.posterior;
   const float sf = enc.scaling;
   const Tensor& image_latent = enc.image_latent;
   const Shape lat = x0.shape();  // [Fl, C, h, w]
@@ -88,18 +87,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   slm.seed = o.seed;
   diffusion::SlmMasks masks = diffusion::compute_slm_masks(ctx, in.mask, &in.depth, true, int(lat[0]), slm);
   diffusion::SlmPlan slm_plan = diffusion::make_slm_plan(ctx, masks, int(lat[1]), slm.scope);
-  diffusion::InitNoiseOptions noise = st.official ? diffusion::InitNoiseOptions::official() : diffusion::InitNoiseOptions::paper();
-  noise.k = o.k;
-  noise.delta = st.delta;
-  noise.seed = o.seed;
-  Tensor mu, sigma;  // the official per-element AdaIN's posterior statistics
-  if (st.official) {
-    mu = to_diffusion_layout(ctx, post.mean, sf);
-    sigma = to_diffusion_layout(ctx, post.std, sf);
-  }
-  const Tensor x_init = diffusion::init_noise(
-      ctx, {&x0, &eps_inv, &slm_plan, st.official ? &mu : nullptr, st.official ? &sigma : nullptr, schedule.alpha_cumprod(t0)},
-      noise);
+  const Tensor x_init = initial_latent(ctx, st, o.k, o.seed, enc, eps_inv, &slm_plan, schedule.alpha_cumprod(t0));
   stages.end();
 
   // 8. Sampling with classifier-free guidance.
