@@ -19,6 +19,7 @@
 #include "io/npy.hpp"
 #include "tensor/dispatch.hpp"
 #include "support/files.hpp"
+#include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "support/pack.hpp"
 
@@ -34,17 +35,7 @@ const nlohmann::json& settings() { return test::pack_cases().at("e2e_settings");
 void expect_close(const Tensor& ours, const HostTensor& golden, vk::Context& ctx, const std::string& case_name,
                   const std::string& what) {
   const auto [atol, rtol] = test::pack_tolerance(case_name);
-  std::vector<float> a = ours.download(ctx).to_f32(), g = golden.to_f32();
-  ASSERT_EQ(a.size(), g.size()) << what;
-  double worst = 0;
-  size_t bad = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    double d = std::fabs(double(a[i]) - g[i]);
-    worst = std::max(worst, d);
-    if (!(d <= atol + rtol * std::fabs(g[i]))) ++bad;
-  }
-  std::printf("  %-40s max |diff| = %.3e\n", what.c_str(), worst);
-  EXPECT_EQ(bad, 0u) << what << ": max |diff| " << worst;
+  test::expect_close(what, ours.download(ctx), golden, atol, rtol);
 }
 
 // [1, C, F, H, W] -> [F, C, H, W] (host), times `scale`.

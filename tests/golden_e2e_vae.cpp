@@ -1,6 +1,7 @@
 // The VAE ends of the pack's end-to-end case, through the pipeline's own layout conversions
-// (pipeline/latent_layout): the I2V image latent built from the first frame (posterior mean + std · the pack's
-// saved noise, × scaling_factor, in latent frame 0 and zeros after) and the decoded final video
+// (pipeline/latent_layout, pipeline/denoise_stages): the I2V image latent built from the first frame (posterior
+// mean + std · the pack's saved noise, × scaling_factor, in latent frame 0 and zeros after; the whole production
+// tensor is compared) and the decoded final video
 // (vae.decode(final_latent / scaling_factor), not clamped). Sizes and tolerances come from the pack
 // (DVS_GOLDEN_DIR; cases.json: e2e_image_latents atol/rtol, e2e_sampling frames_atol).
 #include <gtest/gtest.h>
@@ -11,8 +12,10 @@
 
 #include "io/npy.hpp"
 #include "models/cogvideox_vae.hpp"
+#include "pipeline/denoise_stages.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "support/files.hpp"
+#include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "support/pack.hpp"
 #include "tensor/dispatch.hpp"
@@ -25,17 +28,7 @@ using test::GpuTest;
 HostTensor load(const std::string& rel) { return test::pack_npy(rel); }
 
 void expect_close(const HostTensor& ours, const HostTensor& golden, double atol, double rtol, const std::string& what) {
-  ASSERT_EQ(ours.numel(), golden.numel()) << what;
-  const std::vector<float> a = ours.to_f32(), g = golden.to_f32();
-  double worst = 0;
-  size_t bad = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    const double d = std::fabs(double(a[i]) - double(g[i]));
-    worst = std::max(worst, std::isnan(d) ? INFINITY : d);
-    if (!(d <= atol + rtol * std::fabs(double(g[i])))) ++bad;
-  }
-  std::printf("  %-40s max |diff| = %.3e (atol %g, rtol %g)\n", what.c_str(), worst, atol, rtol);
-  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << a.size() << " outside tolerance, max |diff| " << worst;
+  test::expect_close(what, ours, golden, atol, rtol);
 }
 
 float scaling(const models::CogVideoXVae& vae) { return float(vae.config().scaling_factor); }
@@ -50,16 +43,13 @@ TEST_F(GpuTest, GoldenE2eImageLatentFromTheFirstFrame) {
   expect_close(post.mean.download(ctx()), load("e2e/image_posterior_mean.npy"), atol, rtol, "image posterior mean");
   expect_close(post.std.download(ctx()), load("e2e/image_posterior_std.npy"), atol, rtol, "image posterior std");
 
-  // The pipeline's official-preset path: mean + std·noise, then the diffusion layout (the pack's noise replaces
-  // the torch generator's draw).
+  // The pipeline's official-preset path: mean + std·noise (the pack's noise replaces the torch generator's draw),
+  // then the production image latent (pipeline/denoise_stages: latent frame 0, zeros after), compared whole.
   const Tensor noise = Tensor::upload(ctx(), load("e2e/image_sample_noise.npy"));
   Tensor sample = Tensor::empty(ctx(), post.mean.shape(), DType::f32);
   ops::run_now(ctx(), [&](vk::Recorder& rec) { models::CogVideoXVae::sample(rec, post, noise, sample); });
-  const Tensor frame0 = to_diffusion_layout(ctx(), sample, scaling(vae));  // [1, C, h, w]
-  const HostTensor golden = load("e2e/image_latents.npy");             // [1, Fl, C, h, w]: frame 0, zeros after
-  HostTensor ours(golden.shape, DType::f32);
-  const HostTensor f0 = frame0.download(ctx());
-  std::copy(f0.as<float>(), f0.as<float>() + f0.numel(), ours.as<float>());
+  const HostTensor golden = load("e2e/image_latents.npy");  // [1, Fl, C, h, w]
+  const HostTensor ours = image_latent(ctx(), sample, golden.shape.at(1), scaling(vae)).download(ctx());
   expect_close(ours, golden, atol, rtol, "image_latents");
 }
 

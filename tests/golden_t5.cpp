@@ -15,6 +15,7 @@
 #include "io/npy.hpp"
 #include "models/t5_encoder.hpp"
 #include "models/tokenizer.hpp"
+#include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 
 namespace fs = std::filesystem;
@@ -53,29 +54,15 @@ std::vector<std::vector<int32_t>> id_rows(const HostTensor& t) {
   return rows;
 }
 
-// Compares `ours` (starting at element `offset`) with the whole golden tensor; returns the max |error|.
-double expect_close(const std::string& what, const std::vector<float>& ours, const HostTensor& golden, Tol tol,
-                    size_t offset = 0) {
-  const auto g = golden.to_f32();
-  EXPECT_LE(offset + g.size(), ours.size()) << what << ": size";
-  if (offset + g.size() > ours.size()) return INFINITY;
-  double max_err = 0;
-  size_t bad = 0, first_bad = 0;
-  for (size_t i = 0; i < g.size(); ++i) {
-    const double e = std::fabs(double(ours[offset + i]) - double(g[i]));
-    max_err = std::max(max_err, std::isnan(e) ? INFINITY : e);
-    if (!(e <= tol.atol + tol.rtol * std::fabs(double(g[i])))) {
-      if (bad++ == 0) first_bad = i;
-    }
-  }
-  std::cout << "[golden] " << what << ": max |err| " << max_err << " (atol " << tol.atol << ", rtol " << tol.rtol
-            << ")\n";
-  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << g.size() << " elements outside tolerance, first at " << first_bad
-                     << " (ours " << ours[offset + first_bad] << ", golden " << g[first_bad] << "), max |err| " << max_err;
-  return max_err;
+// Compares `ours` (or its row `row` of the outermost dimension) with the whole golden tensor, shapes included
+// (support/golden_compare.hpp); returns the max |error|.
+double expect_close(const std::string& what, const HostTensor& ours, const HostTensor& golden, Tol tol, int64_t row = -1) {
+  if (row < 0) return dvs::test::expect_close(what, ours, golden, tol.atol, tol.rtol);
+  HostTensor part(dvs::Shape(ours.shape.begin() + 1, ours.shape.end()), ours.dtype);
+  std::copy_n(ours.data.begin() + long(size_t(row) * part.bytes()), part.bytes(), part.data.begin());
+  return dvs::test::expect_close(what, part, golden, tol.atol, tol.rtol);
 }
 
-std::vector<float> values(dvs::vk::Context& ctx, const dvs::Tensor& t) { return t.download(ctx).to_f32(); }
 
 }  // namespace
 
@@ -105,21 +92,21 @@ TEST_F(GoldenT5, MaskedWithPerLayerHiddenStates) {
     mask[b].assign(mask_t.begin() + long(b * ids[b].size()), mask_t.begin() + long((b + 1) * ids[b].size()));
   std::vector<HostTensor> hidden;
   const dvs::Tensor out = t5.encode(ids, mask, &hidden);
-  expect_close("t5_masked last_hidden_state", values(ctx(), out), npy("t5/masked_last_hidden_state.npy"),
+  expect_close("t5_masked last_hidden_state", out.download(ctx()), npy("t5/masked_last_hidden_state.npy"),
                case_tolerance("t5_masked"));
   const Tol layers = case_tolerance("t5_masked_layers");
   ASSERT_EQ(int64_t(hidden.size()), t5.config().num_layers + 1);
   for (size_t i = 0; i < hidden.size(); ++i) {
     const fs::path f = pack() / "t5" / ("masked_hidden_state_" + std::to_string(i) + ".npy");
-    if (!fs::exists(f)) continue;
-    expect_close("t5_masked_layers hidden_states[" + std::to_string(i) + "]", hidden[i].to_f32(), dvs::read_npy(f), layers);
+    ASSERT_TRUE(fs::exists(f)) << "the pack has no hidden state " << i << ": " << f;
+    expect_close("t5_masked_layers hidden_states[" + std::to_string(i) + "]", hidden[i], dvs::read_npy(f), layers);
   }
 }
 
 TEST_F(GoldenT5, NoMask) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
   const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
-  expect_close("t5_nomask", values(ctx(), out), npy("t5/nomask_last_hidden_state.npy"), case_tolerance("t5_nomask"));
+  expect_close("t5_nomask", out.download(ctx()), npy("t5/nomask_last_hidden_state.npy"), case_tolerance("t5_nomask"));
 }
 
 TEST_F(GoldenT5, TextToEmbeddings) {
@@ -129,7 +116,7 @@ TEST_F(GoldenT5, TextToEmbeddings) {
   const auto prompts = nlohmann::json::parse(f).get<std::vector<std::string>>();
   dvs::models::T5Encoder t5(ctx(), model / "text_encoder");
   const dvs::Tensor out = t5.encode_prompts(tok, {prompts.at(0)}, dvs::max_text_seq_length(model));
-  expect_close("t5_text_to_embeddings", values(ctx(), out), npy("t5/text_embeds.npy"),
+  expect_close("t5_text_to_embeddings", out.download(ctx()), npy("t5/text_embeds.npy"),
                case_tolerance("t5_text_to_embeddings"));
 }
 
@@ -140,19 +127,18 @@ TEST_F(GoldenT5, E2EPromptsAsOneBatch) {
   std::vector<std::vector<int32_t>> ids;
   for (const char* n : names) ids.push_back(id_rows(npy(std::string("e2e/") + n + "_input_ids.npy")).at(0));
   const dvs::Tensor out = t5.encode(ids);
-  const auto v = values(ctx(), out);
+  const HostTensor v = out.download(ctx());
   const Tol tol = case_tolerance("t5_e2e_prompts");
-  const size_t per_row = size_t(out.numel() / 3);
   for (size_t i = 0; i < 3; ++i)
     expect_close(std::string("t5_e2e_prompts ") + names[i], v,
-                 npy(std::string("e2e/") + names[i] + "_embeds.npy"), tol, i * per_row);
+                 npy(std::string("e2e/") + names[i] + "_embeds.npy"), tol, int64_t(i));
 }
 
 TEST_F(GoldenT5, Bf16Sharded) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model_bf16" / "text_encoder");
   EXPECT_EQ(t5.weights().get("shared.weight").dtype(), dvs::DType::bf16);
   const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
-  expect_close("bf16_sharded t5", values(ctx(), out), npy("bf16_sharded/t5_nomask_last_hidden_state.npy"),
+  expect_close("bf16_sharded t5", out.download(ctx()), npy("bf16_sharded/t5_nomask_last_hidden_state.npy"),
                case_tolerance("bf16_sharded", "t5"));
 }
 

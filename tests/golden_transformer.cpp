@@ -15,6 +15,7 @@
 
 #include "io/npy.hpp"
 #include "models/cogvideox_transformer.hpp"
+#include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "tensor/ops_elementwise.hpp"
 
@@ -43,25 +44,13 @@ Tol case_tolerance(const std::string& name, const std::string& part = {}) {
 
 HostTensor npy(const std::string& rel) { return dvs::read_npy(pack() / rel); }
 
-double expect_close(const std::string& what, const std::vector<float>& ours, const HostTensor& golden, Tol tol,
-                    size_t offset = 0) {
-  const auto g = golden.to_f32();
-  EXPECT_LE(offset + g.size(), ours.size()) << what << ": size";
-  if (offset + g.size() > ours.size()) return INFINITY;
-  double max_err = 0;
-  size_t bad = 0, first_bad = 0;
-  for (size_t i = 0; i < g.size(); ++i) {
-    const double e = std::fabs(double(ours[offset + i]) - double(g[i]));
-    max_err = std::max(max_err, std::isnan(e) ? INFINITY : e);
-    if (!(e <= tol.atol + tol.rtol * std::fabs(double(g[i])))) {
-      if (bad++ == 0) first_bad = i;
-    }
-  }
-  std::cout << "[golden] " << what << ": max |err| " << max_err << " (atol " << tol.atol << ", rtol " << tol.rtol
-            << ")\n";
-  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << g.size() << " elements outside tolerance, first at " << first_bad
-                     << " (ours " << ours[offset + first_bad] << ", golden " << g[first_bad] << "), max |err| " << max_err;
-  return max_err;
+// Compares `ours` (or its row `row` of the outermost dimension) with the whole golden tensor, shapes included
+// (support/golden_compare.hpp); returns the max |error|.
+double expect_close(const std::string& what, const HostTensor& ours, const HostTensor& golden, Tol tol, int64_t row = -1) {
+  if (row < 0) return dvs::test::expect_close(what, ours, golden, tol.atol, tol.rtol);
+  HostTensor part(dvs::Shape(ours.shape.begin() + 1, ours.shape.end()), ours.dtype);
+  std::copy_n(ours.data.begin() + long(size_t(row) * part.bytes()), part.bytes(), part.data.begin());
+  return dvs::test::expect_close(what, part, golden, tol.atol, tol.rtol);
 }
 
 float scalar(const std::string& rel) { return npy(rel).to_f32().at(0); }
@@ -84,20 +73,20 @@ TEST_F(GoldenTransformer, T999OutputAndIntermediates) {
 
   // The RoPE tables the model built for this latent size are the pipeline's (case rope).
   const auto& rope = tr.rope_tables(latent.dim(1), latent.dim(3), latent.dim(4));
-  expect_close("rope cos", rope.first.download(ctx()).to_f32(), npy("transformer/rope_cos.npy"), case_tolerance("rope"));
-  expect_close("rope sin", rope.second.download(ctx()).to_f32(), npy("transformer/rope_sin.npy"), case_tolerance("rope"));
+  expect_close("rope cos", rope.first.download(ctx()), npy("transformer/rope_cos.npy"), case_tolerance("rope"));
+  expect_close("rope sin", rope.second.download(ctx()), npy("transformer/rope_sin.npy"), case_tolerance("rope"));
 
-  expect_close("t999 time_embedding", taps.time_embedding.to_f32(), npy("transformer/t999_time_embedding.npy"), tol);
-  expect_close("t999 patch_embed", taps.patch_embed.to_f32(), npy("transformer/t999_patch_embed.npy"), tol);
+  expect_close("t999 time_embedding", taps.time_embedding, npy("transformer/t999_time_embedding.npy"), tol);
+  expect_close("t999 patch_embed", taps.patch_embed, npy("transformer/t999_patch_embed.npy"), tol);
   for (size_t i = 0; i < taps.block_hidden.size(); ++i) {
     const std::string b = "transformer/t999_block" + std::to_string(i);
-    if (!fs::exists(pack() / (b + "_hidden.npy"))) continue;
-    expect_close("t999 block" + std::to_string(i) + " hidden", taps.block_hidden[i].to_f32(), npy(b + "_hidden.npy"), tol);
-    expect_close("t999 block" + std::to_string(i) + " encoder", taps.block_encoder[i].to_f32(), npy(b + "_encoder.npy"), tol);
+    ASSERT_TRUE(fs::exists(pack() / (b + "_hidden.npy"))) << "the pack has no tap of block " << i << ": " << b;
+    expect_close("t999 block" + std::to_string(i) + " hidden", taps.block_hidden[i], npy(b + "_hidden.npy"), tol);
+    expect_close("t999 block" + std::to_string(i) + " encoder", taps.block_encoder[i], npy(b + "_encoder.npy"), tol);
   }
-  expect_close("t999 norm_final", taps.norm_final.to_f32(), npy("transformer/t999_norm_final.npy"), tol);
-  expect_close("t999 proj_out", taps.proj_out.to_f32(), npy("transformer/t999_proj_out.npy"), tol);
-  expect_close("transformer_t999 output", out.download(ctx()).to_f32(), npy("transformer/output_t999.npy"), tol);
+  expect_close("t999 norm_final", taps.norm_final, npy("transformer/t999_norm_final.npy"), tol);
+  expect_close("t999 proj_out", taps.proj_out, npy("transformer/t999_proj_out.npy"), tol);
+  expect_close("transformer_t999 output", out.download(ctx()), npy("transformer/output_t999.npy"), tol);
 }
 
 TEST_F(GoldenTransformer, T500) {
@@ -107,10 +96,10 @@ TEST_F(GoldenTransformer, T500) {
   const dvs::Tensor out = tr.forward(upload("transformer/hidden_states.npy"), upload("transformer/encoder_hidden_states.npy"),
                                      std::span<const float>(&t, 1), &taps);
   const Tol tol = case_tolerance("transformer_t500");
-  expect_close("t500 time_embedding", taps.time_embedding.to_f32(), npy("transformer/t500_time_embedding.npy"), tol);
-  expect_close("t500 block0 hidden", taps.block_hidden.at(0).to_f32(), npy("transformer/t500_block0_hidden.npy"), tol);
-  expect_close("t500 block0 encoder", taps.block_encoder.at(0).to_f32(), npy("transformer/t500_block0_encoder.npy"), tol);
-  expect_close("transformer_t500 output", out.download(ctx()).to_f32(), npy("transformer/output_t500.npy"), tol);
+  expect_close("t500 time_embedding", taps.time_embedding, npy("transformer/t500_time_embedding.npy"), tol);
+  expect_close("t500 block0 hidden", taps.block_hidden.at(0), npy("transformer/t500_block0_hidden.npy"), tol);
+  expect_close("t500 block0 encoder", taps.block_encoder.at(0), npy("transformer/t500_block0_encoder.npy"), tol);
+  expect_close("transformer_t500 output", out.download(ctx()), npy("transformer/output_t500.npy"), tol);
 }
 
 // CFG-style batch of 2 in one call: row 0 = (text, t500), row 1 = (0.5·text, t999). Row 0 must equal the
@@ -130,12 +119,12 @@ TEST_F(GoldenTransformer, BatchOfTwoWithDifferentTextAndTimesteps) {
   const float ts[2] = {scalar("transformer/timestep_500.npy"), scalar("transformer/timestep_999.npy")};
   const dvs::Tensor out2 = tr.forward(dvs::Tensor::upload(ctx(), stack2(lat, lat)), dvs::Tensor::upload(ctx(), stack2(txt, half)),
                                       std::span<const float>(ts, 2));
-  const auto v2 = out2.download(ctx()).to_f32();
+  const HostTensor v2 = out2.download(ctx());
   const Tol tol = case_tolerance("transformer_t500");
-  expect_close("batch2 row0 (t500)", v2, npy("transformer/output_t500.npy"), tol);
+  expect_close("batch2 row0 (t500)", v2, npy("transformer/output_t500.npy"), tol, 0);
   const dvs::Tensor out1 = tr.forward(dvs::Tensor::upload(ctx(), lat), dvs::Tensor::upload(ctx(), half),
                                       std::span<const float>(&ts[1], 1));
-  expect_close("batch2 row1 vs batch-1 call", v2, out1.download(ctx()), {1e-6, 1e-6}, size_t(out1.numel()));
+  expect_close("batch2 row1 vs batch-1 call", v2, out1.download(ctx()), {1e-6, 1e-6}, 1);
 }
 
 TEST_F(GoldenTransformer, Bf16Sharded) {
@@ -144,7 +133,7 @@ TEST_F(GoldenTransformer, Bf16Sharded) {
   const float t = scalar("transformer/timestep_999.npy");
   const dvs::Tensor out = tr.forward(upload("transformer/hidden_states.npy"), upload("transformer/encoder_hidden_states.npy"),
                                      std::span<const float>(&t, 1));
-  expect_close("bf16_sharded transformer", out.download(ctx()).to_f32(), npy("bf16_sharded/transformer_output_t999.npy"),
+  expect_close("bf16_sharded transformer", out.download(ctx()), npy("bf16_sharded/transformer_output_t999.npy"),
                case_tolerance("bf16_sharded", "transformer"));
 }
 

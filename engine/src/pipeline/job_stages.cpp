@@ -1,15 +1,14 @@
 #include "pipeline/job_stages.hpp"
 
 #include <algorithm>
-#include <cstring>
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
 #include "models/lora.hpp"
 #include "models/vae_tiling.hpp"
+#include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
-#include "pipeline/transformer_denoiser.hpp"
 #include "tensor/ops_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
@@ -72,13 +71,8 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
   e.posterior = encode(video);
   e.x0_mean = to_diffusion_layout(ctx, e.posterior.mean, e.scaling);
   e.x0 = st.official ? to_diffusion_layout(ctx, posterior_sample(ctx, e.posterior, o.seed, 101), e.scaling) : e.x0_mean;
-  const Shape& s = in.render.shape;  // [F,3,H,W]
-  HostTensor first({1, s[1], 1, s[2], s[3]}, DType::f32);  // frame 0
-  std::memcpy(first.data.data(), in.render.data.data(), first.bytes());
-  models::VaePosterior img_post = encode(Tensor::upload(ctx, first));
-  Tensor img0 = to_diffusion_layout(ctx, st.official ? posterior_sample(ctx, img_post, o.seed, 102) : img_post.mean, e.scaling);
-  e.image_latent = Tensor::zeros(ctx, e.x0.shape(), DType::f32, "image latent");
-  ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy(img0.buffer(), e.image_latent.buffer(), img0.bytes()); });
+  models::VaePosterior img_post = encode(Tensor::upload(ctx, first_frame(in.render)));
+  e.image_latent = image_latent(ctx, st.official ? posterior_sample(ctx, img_post, o.seed, 102) : img_post.mean, e.x0.dim(0), e.scaling);
   std::vector<std::pair<const Tensor*, std::string>> results = {{&e.x0_mean, "x0 (the render's latent)"},
                                                                  {&e.image_latent, "image latent"}};
   if (st.official) results.push_back({&e.x0, "x0 (posterior sample)"});  // otherwise the same tensor as x0_mean
@@ -153,13 +147,9 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
     stages.say(1, 1, "inversion loaded from the cache");
     return r;
   }
-  std::vector<diffusion::StepCoefficients> steps =
-      st.official ? diffusion::inversion_steps_official(diffusion::DDIMInverseSchedule(jp.schedule.config()), st.inversion_steps)
-                  : diffusion::inversion_steps_paper(jp.schedule, t0, st.inversion_steps);
-  TransformerDenoiser model(ctx, transformer, enc.image_latent, text_empty, 1);
   ops::NonFiniteCheck check(ctx);
-  model.watch(&check, "inversion");
-  r.eps = diffusion::invert(ctx, enc.x0_mean, steps, std::ref(model), {false, 1.0}, stages.loop_callbacks(&check));
+  r.eps = invert_latent(ctx, transformer, inversion_steps(st, jp.schedule, t0), enc.x0_mean, enc.image_latent, text_empty,
+                        stages.loop_callbacks(&check), &check);
   ops::require_finite(ctx, {{&r.eps, "ε_inv"}}, kNonFiniteHint);  // before it is cached
   if (o.use_cache) cache.store(ctx, key, r.eps);
   return r;

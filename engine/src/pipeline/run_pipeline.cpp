@@ -19,6 +19,7 @@
 #include "models/cogvideox_vae.hpp"
 #include "models/t5_encoder.hpp"
 #include "models/vae_tiling.hpp"
+#include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
@@ -27,7 +28,6 @@
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
-#include "pipeline/transformer_denoiser.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_check.hpp"
 #include "vk/context.hpp"
@@ -60,7 +60,6 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   models::CogVideoXVae vae(ctx, o.model / "vae");
   EncodedRender enc = encode_render(ctx, vae, o, st, in);
   const Tensor& x0 = enc.x0;
-  const models::VaePosterior& post = enc.posterior;
   const float sf = enc.scaling;
   const Tensor& image_latent = enc.image_latent;
   const Shape lat = x0.shape();  // [Fl, C, h, w]
@@ -71,7 +70,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   Tensor text, text_inv;
   {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
     models::T5Encoder t5(ctx, o.model / "text_encoder");
-    text = t5.encode_prompts(jp.tokenizer, {st.negative, o.prompt}, jp.text_len);  // [uncond; cond]
+    text = guidance_text(ctx, t5, jp.tokenizer, st.negative, o.prompt, jp.text_len);  // [uncond; cond]
     text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
                                                                     // over two identical "" rows is a no-op)
   }
@@ -95,18 +94,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   slm.seed = o.seed;
   diffusion::SlmMasks masks = diffusion::compute_slm_masks(ctx, in.mask, &in.depth, true, int(lat[0]), slm);
   diffusion::SlmPlan slm_plan = diffusion::make_slm_plan(ctx, masks, int(lat[1]), slm.scope);
-  diffusion::InitNoiseOptions noise = st.official ? diffusion::InitNoiseOptions::official() : diffusion::InitNoiseOptions::paper();
-  noise.k = o.k;
-  noise.delta = st.delta;
-  noise.seed = o.seed;
-  Tensor mu, sigma;  // the official per-element AdaIN's posterior statistics
-  if (st.official) {
-    mu = to_diffusion_layout(ctx, post.mean, sf);
-    sigma = to_diffusion_layout(ctx, post.std, sf);
-  }
-  const Tensor x_init = diffusion::init_noise(
-      ctx, {&x0, &eps_inv, &slm_plan, st.official ? &mu : nullptr, st.official ? &sigma : nullptr, schedule.alpha_cumprod(t0)},
-      noise);
+  const Tensor x_init = initial_latent(ctx, st, o.k, o.seed, enc, eps_inv, &slm_plan, schedule.alpha_cumprod(t0));
   ops::require_finite(ctx, {{&x_init, "x_init"}}, kNonFiniteHint);
   stages.end();
 
@@ -114,9 +102,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   stages.begin("sample", "guided DDIM sampling");
   diffusion::SampleResult result;
   {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
-    TransformerDenoiser model(ctx, transformer, image_latent, text, 2);
     ops::NonFiniteCheck check(ctx);
-    model.watch(&check, "sampling");
     diffusion::LoopCallbacks cb = stages.loop_callbacks(&check);
     diffusion::Guidance guidance{true, o.guidance};
     if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
@@ -124,7 +110,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
       guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
       guidance.preservation_scale = o.preservation_scale;
     }
-    result = diffusion::sample(ctx, x_init, schedule, plan, std::ref(model), guidance, cb);
+    result = sample_latent(ctx, transformer, schedule, plan, x_init, image_latent, text, guidance, cb, &check);
     ops::require_finite(ctx, {{&result.latent, "final latent"}, {&result.pred_x0, "final x0 prediction"}}, kNonFiniteHint);
   }
   transformer_ptr.reset();
