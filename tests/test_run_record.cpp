@@ -63,6 +63,7 @@ TEST(RunRecord, RecordsWhatWasUsedAndRepeatsFromIt) {
   EXPECT_EQ(ia, ib) << "the same inputs, camera path included";
   EXPECT_EQ(a["lora"], b["lora"]);
   EXPECT_EQ(a["trajectory_poses"], b["trajectory_poses"]);
+  EXPECT_TRUE(b["inversion_from_cache"].get<bool>()) << "the same render (intrinsics typed out) and inversion settings";
 }
 
 TEST(RunRecord, FromNeedsARunJson) {

@@ -1,6 +1,8 @@
 #include "pipeline/job_stages.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstring>
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
@@ -116,6 +118,18 @@ std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx,
   return transformer;
 }
 
+namespace {
+
+// The camera as used (not as given: the default and the same values typed out, as `dvs run --from` does, render
+// the same and share the cache entry), at full precision.
+std::string intrinsics_key(const geometry::Intrinsics& K) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g,%.17g", K.fx, K.fy, K.cx, K.cy);
+  return buf;
+}
+
+}  // namespace
+
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages) {
@@ -129,7 +143,7 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
       {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
        std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
        j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft",
-       std::to_string(j.fx) + "," + std::to_string(j.fy) + "," + std::to_string(j.cx) + "," + std::to_string(j.cy),
+       intrinsics_key(job_intrinsics(j)),
        o.preset, std::to_string(st.inversion_steps), std::to_string(t0),
        o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + std::to_string(o.lora_scale),
        tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)

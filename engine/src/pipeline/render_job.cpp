@@ -18,21 +18,28 @@
 namespace dvs {
 namespace {
 
-// The default camera when none is given. The official default is f = 500 px at 1024×576 scaled per axis to the
-// working size: right for --resize squash (the official code squashes, so pixels stop being square), wrong for
-// a centre crop, which scales both axes by one factor. Under crop the 1024×576 frame is cropped to the working
-// aspect and scaled uniformly (cover), so fx = fy = 500 · max(W/1024, H/576), centred.
-geometry::Intrinsics default_intrinsics(int W, int H, bool squash) {
-  geometry::Intrinsics K = geometry::Intrinsics::official_default(W, H);
-  if (!squash) K.fx = K.fy = 500.0 * std::max(double(W) / 1024.0, double(H) / 576.0);
-  return K;
-}
-
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace
+
+// The default camera when none is given. The official default is f = 500 px at 1024×576 scaled per axis to the
+// working size: right for --resize squash (the official code squashes, so pixels stop being square), wrong for
+// a centre crop, which scales both axes by one factor. Under crop the 1024×576 frame is cropped to the working
+// aspect and scaled uniformly (cover), so fx = fy = 500 · max(W/1024, H/576), centred.
+geometry::Intrinsics job_intrinsics(const RenderJob& job) {
+  const int W = job.width, H = job.height;
+  geometry::Intrinsics K = geometry::Intrinsics::official_default(W, H);
+  if (!job.squash) K.fx = K.fy = 500.0 * std::max(double(W) / 1024.0, double(H) / 576.0);
+  if (job.fx != 0 || job.fy != 0 || job.cx != 0 || job.cy != 0) {
+    if (!(job.fx > 0 && job.fy > 0 && job.cx > 0 && job.cy > 0))
+      throw Error("--intrinsics needs all four of fx,fy,cx,cy (in pixels of the working size), all > 0");
+    K.fx = job.fx, K.fy = job.fy, K.cx = job.cx, K.cy = job.cy, K.width = W, K.height = H;
+  }
+  K.validate();
+  return K;
+}
 
 void prepare_out_dir(const std::filesystem::path& dir) {
   std::error_code ec;
@@ -83,13 +90,7 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
                                job.trim_depth || whole_clip, job.depth.string());
   r.seconds_decode = seconds_since(t0);
 
-  r.K = default_intrinsics(W, H, job.squash);
-  if (job.fx != 0 || job.fy != 0 || job.cx != 0 || job.cy != 0) {
-    if (!(job.fx > 0 && job.fy > 0 && job.cx > 0 && job.cy > 0))
-      throw Error("--intrinsics needs all four of fx,fy,cx,cy (in pixels of the working size), all > 0");
-    r.K.fx = job.fx, r.K.fy = job.fy, r.K.cx = job.cx, r.K.cy = job.cy, r.K.width = W, r.K.height = H;
-  }
-  r.K.validate();
+  r.K = job_intrinsics(job);
   r.trajectory = geometry::load_trajectory(job.trajectory, F, geometry::official_radius(centre_depth(r.depth)));
   say("trajectory " + r.trajectory.description);
 

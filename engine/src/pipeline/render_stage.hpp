@@ -26,6 +26,10 @@ struct RenderedInput {
 // Checks the job's numbers and files, creates out_dir, then decodes and renders.
 RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::function<void(const std::string&)>& say);
 
+// The camera a job renders with: its --intrinsics, else the default (square pixels under crop, the official
+// per-axis scaling under squash). Throws dvs::Error for incomplete or non-positive values.
+geometry::Intrinsics job_intrinsics(const RenderJob& job);
+
 // Validates and creates the output folder (clear error when it cannot be written).
 void prepare_out_dir(const std::filesystem::path& dir);
 
