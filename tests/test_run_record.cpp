@@ -44,6 +44,7 @@ TEST(RunRecord, RecordsWhatWasUsedAndRepeatsFromIt) {
   EXPECT_NEAR(a["settings"]["intrinsics"][3].get<double>(), 32.0, 1e-9);
   EXPECT_EQ(a["settings"]["points"], true);
   EXPECT_EQ(a["settings"]["trim_depth"], false);
+  EXPECT_EQ(a["settings"]["depth_fit"], "error");
   EXPECT_EQ(a["settings"]["vae_tile"], nlohmann::json::array({48, 40}));
   ASSERT_EQ(a["trajectory_poses"].size(), 9u);
   EXPECT_EQ(a["trajectory_poses"][0].size(), 16u);

@@ -119,7 +119,7 @@ RunOptions parse_run_options(const Args& a) {
   o.render.height = h;
   o.render.width = w;
   std::string resize = a.str("resize", "crop");
-  if (resize != "crop" && resize != "squash") throw Error("dvs run: --resize must be crop or squash");
+  if (resize != "crop" && resize != "squash") a.fail("--resize must be crop or squash, got '" + resize + "'");
   o.render.squash = resize == "squash";
   o.render.metric_depth = a.has("metric-depth");
   o.render.trim_depth = a.has("trim-depth");
@@ -147,7 +147,7 @@ RunOptions parse_run_options(const Args& a) {
   o.guidance = explicit_number(a, "guidance", 6.0, [](double v) { return v >= 0; }, "≥ 0");
   if (a.has("dynamic-cfg")) {
     const std::string d = a.str("dynamic-cfg");
-    if (d != "on" && d != "off") throw Error("dvs run: --dynamic-cfg must be on or off, got '" + d + "'");
+    if (d != "on" && d != "off") a.fail("--dynamic-cfg must be on or off, got '" + d + "'");
     o.dynamic_cfg = d == "on";
   }
   o.preservation_scale = explicit_number(a, "preservation-scale", 1.0, [](double v) { return v >= 0; }, "≥ 0");

@@ -35,6 +35,7 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"intrinsics", x.intrinsics},
                    {"points", o.render.hard_points},
                    {"trim_depth", o.render.trim_depth},
+                   {"depth_fit", o.render.depth_fit},
                    {"steps", x.steps},
                    {"strength", x.strength},
                    {"t0", x.t0},
@@ -135,6 +136,7 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
   }
   flag(st, "points", "points");
   flag(st, "trim_depth", "trim-depth");
+  text(st, "depth_fit", "depth-fit");
   for (const auto& [key, option] : std::vector<std::pair<const char*, const char*>>{
            {"steps", "steps"}, {"strength", "strength"}, {"inversion_steps", "inversion-steps"}, {"k", "k"},
            {"delta", "delta"}, {"guidance", "guidance"}, {"preservation_scale", "preservation-scale"}, {"seed", "seed"}})
