@@ -266,6 +266,8 @@ TEST(PthReader, BadPicklesAreRejected) {
   cases.push_back({"memo_missing", Pickle().proto().op('h').op('\x05').stop().b, "memo key 5"});
   cases.push_back({"two_values_at_stop", Pickle().proto().op('}').op('}').stop().b, "2 values on the stack"});
   cases.push_back({"not_a_dict", Pickle().proto().integer(5).stop().b, "not a state_dict"});
+  cases.push_back({"too_many_objects", Pickle().proto().raw(std::string(size_t(1) << 20, ')')).stop().b,
+                   "more than 524288 objects"});
   cases.push_back({"long1_too_long", Pickle().proto().op('\x8a').op('\x09').raw(std::string(9, '\1')).stop().b,
                    "does not fit in 64 bits"});
   {

@@ -424,6 +424,66 @@ TEST(PthVdaFuzz, TruncatedAndFlippedCheckpointFailCleanly) {
   EXPECT_GT(errors, int(cuts.size()) - 3);
 }
 
+// Mutated pickles with intact CRCs (re-zipped with the original storages), so that what the pickle claims about
+// storages, offsets and shapes reaches the bounds checks: a clean dvs::Error, or tensors that read back at the
+// size they claim.
+TEST(PthVdaFuzz, RezippedMutatedPicklesHitTheBoundsChecksCleanly) {
+  const fs::path ckpt = vda_checkpoint_path();
+  std::vector<std::pair<std::string, std::string>> records;
+  {
+    int err = 0;
+    zip_t* za = zip_open(ckpt.c_str(), ZIP_RDONLY, &err);
+    ASSERT_NE(za, nullptr);
+    for (zip_int64_t i = 0; i < zip_get_num_entries(za, 0); ++i) {
+      zip_stat_t st;
+      zip_stat_index(za, zip_uint64_t(i), 0, &st);
+      std::string data(st.size, '\0');
+      zip_file_t* f = zip_fopen_index(za, zip_uint64_t(i), 0);
+      zip_fread(f, data.data(), data.size());
+      zip_fclose(f);
+      records.emplace_back(zip_get_name(za, zip_uint64_t(i), 0), std::move(data));
+    }
+    zip_discard(za);
+  }
+  size_t pkl = records.size();
+  for (size_t i = 0; i < records.size(); ++i)
+    if (records[i].first.size() > 9 && records[i].first.compare(records[i].first.size() - 9, 9, "/data.pkl") == 0) pkl = i;
+  ASSERT_LT(pkl, records.size());
+  const std::string original = records[pkl].second;
+  TempDir dir;
+  const fs::path p = dir / "m.pth";
+  std::mt19937 rng(3);
+  int errors = 0, parsed = 0;
+  for (int iter = 0; iter < 120; ++iter) {
+    std::string b = original;
+    // Small integers (sizes, strides, offsets, storage sizes) are the BININT1/BININT2 arguments: change one.
+    size_t pos = rng() % b.size();
+    while (pos + 1 < b.size() && b[pos] != 'K' && b[pos] != 'M') ++pos;
+    if (pos + 1 < b.size()) b[pos + 1] = char(rng() % 256);
+    records[pkl].second = b;
+    int err = 0;
+    zip_t* za = zip_open(p.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &err);
+    ASSERT_NE(za, nullptr);
+    for (const auto& [name, data] : records) {
+      const zip_int64_t idx = zip_file_add(za, name.c_str(), zip_source_buffer(za, data.data(), data.size(), 0), 0);
+      zip_set_file_compression(za, zip_uint64_t(idx), ZIP_CM_STORE, 0);
+    }
+    ASSERT_EQ(zip_close(za), 0);
+    try {
+      const dvs::PthFile f = dvs::PthFile::open(p);
+      for (const auto& t : f.tensors()) EXPECT_EQ(f.read_bytes(t).size(), t.nbytes()) << t.name;
+      ++parsed;
+    } catch (const dvs::Error& e) {
+      ++errors;
+      EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "byte " << pos + 1 << ": not a dvs::Error: " << e.what();
+    }
+  }
+  std::cout << "[ fuzz ] re-zipped mutated pickles: " << errors << " errors, " << parsed << " parsed\n";
+  EXPECT_GT(errors, 0);
+}
+
 // The restricted unpickler alone on the real data.pkl, truncated at and corrupted around many positions: only
 // dvs::Error may come out (no crash, no other exception, no hang).
 TEST(PthVdaFuzz, MutatedStateDictPicklesFailCleanly) {

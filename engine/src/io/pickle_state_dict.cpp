@@ -70,6 +70,8 @@ std::string opcode_text(uint8_t op) {
   return buf;
 }
 
+constexpr size_t kMaxObjects = size_t(1) << 19;
+
 class Parser {
  public:
   Parser(std::span<const uint8_t> p, const std::string& file) : p_(p), file_(file) {}
@@ -198,6 +200,10 @@ class Parser {
   }
 
   Node* make(Node::Kind k) {
+    // A state_dict builds ~10 objects per tensor and ~5 per module; this bounds the memory a crafted pickle of
+    // tiny opcodes can claim (each node is a few hundred bytes).
+    if (arena_.size() >= kMaxObjects)
+      fail("the pickle builds more than " + std::to_string(kMaxObjects) + " objects; not a plausible state_dict");
     arena_.emplace_back();
     arena_.back().kind = k;
     return &arena_.back();
@@ -228,10 +234,7 @@ class Parser {
     marks_.pop_back();
     return m;
   }
-  void memo_put(uint64_t k) {
-    if (stack_.empty()) fail("stack underflow: nothing to memoize");
-    memo_[k] = stack_.back();
-  }
+  void memo_put(uint64_t k) { memo_[k] = top(); }
   void memo_get(uint64_t k) {
     auto it = memo_.find(k);
     if (it == memo_.end()) fail("memo key " + std::to_string(k) + " read before it was written");

@@ -12,7 +12,7 @@ namespace dvs {
 
 namespace {
 
-constexpr uint64_t kMaxPickleBytes = uint64_t(1) << 30;  // a vitl state_dict pickle is ~100 KB
+constexpr uint64_t kMaxPickleBytes = uint64_t(1) << 26;  // a vitl state_dict pickle is ~100 KB
 
 bool mul_ok(uint64_t a, uint64_t b, uint64_t& out) { return !__builtin_mul_overflow(a, b, &out); }
 bool add_ok(uint64_t a, uint64_t b, uint64_t& out) { return !__builtin_add_overflow(a, b, &out); }
