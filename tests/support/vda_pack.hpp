@@ -15,13 +15,19 @@ inline std::filesystem::path vda_golden_path() {
   return e && *e ? std::filesystem::path(e) : std::filesystem::path(DVS_DEFAULT_VDA_GOLDEN_DIR);
 }
 
+inline nlohmann::json vda_read_json(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  if (!in) throw std::runtime_error(p.string() + ": missing (set DVS_VDA_GOLDEN_DIR to a vda conformance pack)");
+  return nlohmann::json::parse(in);
+}
+
 inline const nlohmann::json& vda_cases() {
-  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(vda_golden_path() / "cases.json"));
+  static const nlohmann::json j = vda_read_json(vda_golden_path() / "cases.json");
   return j;
 }
 
 inline const nlohmann::json& vda_model_config() {
-  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(vda_golden_path() / "model" / "config.json"));
+  static const nlohmann::json j = vda_read_json(vda_golden_path() / "model" / "config.json");
   return j;
 }
 

@@ -206,6 +206,7 @@ VdaConfig vda_config_from_json(const nlohmann::json& j, const std::string& origi
       integer(inf, "inference", "interp_len", 0, c.infer_len, false, c.interp_len);
       integer(inf, "inference", "input_size_default", 1, 1 << 16, false, c.input_size);
       if (inf.contains("keyframes")) {
+        if (!inf["keyframes"].is_array()) throw Error(origin + ": inference.keyframes must be a list of frame positions");
         c.keyframes.clear();
         for (const auto& k : inf["keyframes"]) {
           if (!k.is_number_integer() || k.get<int>() < 0 || k.get<int>() >= c.infer_len)
@@ -233,13 +234,14 @@ VdaConfig vda_config_from_json(const nlohmann::json& j, const std::string& origi
 void check_vda_config_against(const VdaConfig& c, const std::map<std::string, Shape>& shapes,
                               const std::filesystem::path& checkpoint) {
   const Observed o = observe(shapes, checkpoint.string());
+  auto seen = [](int v) { return v < 0 ? std::string("absent") : std::to_string(v); };
   auto mismatch = [&](const std::string& what, const std::string& config_value, const std::string& tensor_value) {
     throw Error(c.origin + " does not describe " + checkpoint.string() + ": " + what + " is " + config_value +
                 " in the config but " + tensor_value + " in the tensors");
   };
   if (o.embed_dim != c.embed_dim) mismatch("the embed dim", std::to_string(c.embed_dim), std::to_string(o.embed_dim));
   if (o.depth != c.depth) mismatch("the encoder block count", std::to_string(c.depth), std::to_string(o.depth));
-  if (o.features != c.features) mismatch("head.features", std::to_string(c.features), std::to_string(o.features));
+  if (o.features != c.features) mismatch("head.features", std::to_string(c.features), seen(o.features));
   if (o.out_channels != c.out_channels) mismatch("head.out_channels", arr(c.out_channels), arr(o.out_channels));
   if (o.pe_len >= 0 && o.pe_len != c.temporal_max_len)
     mismatch("temporal_max_len", std::to_string(c.temporal_max_len), std::to_string(o.pe_len) + " (pos_encoder.pe rows)");
