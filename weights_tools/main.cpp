@@ -254,7 +254,7 @@ int inspect(const std::vector<std::string>& args) {
     if (ends_with(path, ".npy")) return ins.npy(p);
     if (ends_with(path, ".pth") || ends_with(path, ".pt")) return dvs::weights_tools::inspect_pth(p, summary);
     if (ends_with(path, ".safetensors") || ends_with(path, ".json")) return ins.weight_source(p, false);
-    throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json or .npy");
+    throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json, .pth or .npy");
   } catch (const dvs::Error& e) {
     std::cout.flush();
     std::cerr << "dvs-weights: error: " << e.what() << "\n";
