@@ -164,7 +164,7 @@ class PipelineE2e : public GpuTest {
     HostTensor golden = frames_first(load("e2e/final_frames.npy"));
     for (int64_t i = 0; i < golden.numel(); ++i) golden.as<float>()[i] = std::clamp(golden.as<float>()[i], -1.0f, 1.0f);
     const HostTensor frames = decode_latent(ctx(), vae(), pack_options(), latent, float(vae().config().scaling_factor),
-                                              int(golden.dim(0)));
+                                              int(golden.shape[0]));
     test::expect_close("final frames (clamped)", frames, golden, atol, 0);
   }
 

@@ -19,6 +19,7 @@
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
 #include "io/third_party_logs.hpp"
+#include "convert_pth.hpp"
 #include "merge_lora.hpp"
 #include "value_scan.hpp"
 
@@ -31,7 +32,7 @@ constexpr const char* kUsage = R"(usage: dvs-weights <command> [options]
 commands:
   inspect PATH [--summary] [--values]
       PATH is a pipeline folder (with model_index.json), a component folder (config.json + weights),
-      a .safetensors file, a *.safetensors.index.json shard index, or a .npy file.
+      a .safetensors file, a *.safetensors.index.json shard index, a PyTorch .pth checkpoint, or a .npy file.
       Prints every component with its library and class, every tensor with dtype, shape and bytes, totals
       per component and overall, and checks the tensors against the schema of the component's class
       (T5EncoderModel, CogVideoXTransformer3DModel, AutoencoderKLCogVideoX) built from its config.json.
@@ -48,6 +49,8 @@ commands:
                     defaults are the conformance pack's sizes. DIR is a folder (created; not a file).
                     --sample is the transformer's sample size in LATENT units: latent height x latent width
                     (pixels / 8, the VAE's scale) x video frames; e.g. 8x8x9 suits --size 64x64 --frames 9
+  convert IN.pth OUT.safetensors
+                    write the checkpoint's tensors (names, dtypes, shapes, bytes) as safetensors
   merge-lora --model DIR --lora FILE[:SCALE] --out DIR2 [--prefix P]
                     write DIR2, a copy of DIR whose transformer has the LoRA merged into its weights
                     (W + SCALE·(alpha/rank)·B·A, in the stored dtype, sharded like DIR); see merge-lora --help
@@ -317,8 +320,9 @@ int inspect(const std::vector<std::string>& args) {
     }
     if (!fs::exists(p, ec)) throw dvs::Error(path + ": no such file or folder");
     if (ends_with(path, ".npy")) return ins.npy(p);
+    if (ends_with(path, ".pth") || ends_with(path, ".pt")) return dvs::weights_tools::inspect_pth(p, summary);
     if (ends_with(path, ".safetensors") || ends_with(path, ".json")) return ins.weight_source(p, false);
-    throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json or .npy");
+    throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json, .pth or .npy");
   } catch (const dvs::Error& e) {
     std::cout.flush();
     std::cerr << "dvs-weights: error: " << e.what() << "\n";
@@ -431,6 +435,7 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
+  if (cmd == "convert") return dvs::weights_tools::convert_command(args);
   if (cmd == "merge-lora") return dvs::weights_tools::merge_lora_command(args);
   std::cerr << "dvs-weights: unknown command '" << cmd << "'\n" << kUsage;
   return 2;
