@@ -114,7 +114,7 @@ class Allocator {
   MemoryStats stats_;
   DeviceMemoryBudget budget_;
   std::optional<uint64_t> limit_;
-  uint64_t heap_reserved_ = 0;  // bytes of blocks in budget_.heap
+  uint64_t heap_reserved_ = 0;  // bytes of blocks in budget_.heap (a block freed must subtract its `bytes`)
   int device_type_ = -1;  // memory type chosen for MemoryUse::device
 };
 
