@@ -3,9 +3,11 @@
 // [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
 // has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
 // outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
-// the inputs. The convolutions read inputs and weights through texel buffers: each must start at an
-// allocation-aligned offset (whole tensors and arena views do) and hold at most maxTexelBufferElements
-// (2^27 on lavapipe and NVIDIA); larger activations must be split (spatial tiles, frame batches).
+// the inputs. The convolutions run as an implicit GEMM (shaders/nn/conv_gemm.glsl) over chunks of output
+// frames and rows whose input is first repacked channels-last into recorder scratch (the chunks stay within
+// maxStorageBufferRange and maxTexelBufferElements); the weights are repacked once per call. x and a cache
+// are read through texel buffers: each must start at an allocation-aligned offset (whole tensors and arena
+// views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
 #pragma once
 #include <cstdint>
 
@@ -68,13 +70,15 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
                         bool compress_time);
 
-// Tuning / testing knob for the convolution shader: output channels x output pixels computed per
-// invocation (each 0 = automatic: chosen from the device and the size of the convolution), and how the
-// weights reach the lanes (-1 automatic, 0 every lane loads them, 1 subgroup broadcasts: CPU drivers).
+// Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.glsl; defaults come from
+// tensor/kernel_tuning.cpp). Register block: `rows` output pixels x 8*`cols` output channels per 8-lane
+// cluster (0 = automatic), `lanes` -1 automatic, else GemmTile::lanes (2 = no subgroup shuffles).
 struct ConvRegisterBlock {
-  uint32_t channels = 0, pixels = 0;
-  int share_weights = -1;
+  int rows = 0, cols = 0, lanes = -1;
 };
 void set_conv_register_block(const ConvRegisterBlock& block);
+// Largest repacked input chunk in bytes (0 = the device's limits): smaller values force the frame and row
+// splits that the real size needs, on small tensors.
+void set_conv_chunk_bytes(uint64_t bytes);
 
 }  // namespace dvs::ops
