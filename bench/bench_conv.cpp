@@ -5,7 +5,9 @@
 // in seconds per frame. On a CPU device the machine is usually shared: the ratio per CPU-second (conv and
 // peak both measured as work per CPU-second of this process) is the figure that survives other load.
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <iostream>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -221,14 +223,26 @@ void resampling(Bench& b, int64_t c, int64_t f, int64_t h, int64_t w) {
 
 // The VAE's convolution shapes (channel widths 128/256/256/512 as in CogVideoX-5B), at a spatial size
 // that keeps each measurement around a second on two CPU threads.
+// --quick: the first three shapes only. DVS_BENCH_CONV_TILE=rows,cols[,lanes[,k_unroll]] overrides the register
+// block of tensor/kernel_tuning.cpp (to try a tile before it goes into the table).
 void conv_group(Bench& b) {
   bool q = b.quick();
+  if (const char* env = std::getenv("DVS_BENCH_CONV_TILE")) {
+    ops::ConvRegisterBlock blk;
+    if (std::sscanf(env, "%d,%d,%d,%d", &blk.rows, &blk.cols, &blk.lanes, &blk.k_unroll) < 2) {
+      std::cerr << "DVS_BENCH_CONV_TILE must be rows,cols[,lanes[,k_unroll]], got '" << env << "'\n";
+      return;
+    }
+    ops::set_conv_register_block(blk);
+    std::cout << "conv register block from DVS_BENCH_CONV_TILE: " << env << "\n";
+  }
   FmaPeakRun peak(b.ctx());
   // Encoder down block 0 / decoder up block 3 (128 channels, full resolution; 1/8 of 480x720 here).
   conv3d(b, peak, 128, 128, q ? 3 : 9, 60, 90, DType::bf16, false);
   conv3d(b, peak, 128, 128, 3, 60, 90, DType::f32, true);
-  conv3d(b, peak, 128, 256, 3, 30, 45, DType::bf16, false);  // down block 1's first conv
   conv3d(b, peak, 256, 256, 3, 30, 45, DType::bf16, false);
+  if (q) return;
+  conv3d(b, peak, 128, 256, 3, 30, 45, DType::bf16, false);  // down block 1's first conv
   conv3d(b, peak, 256, 512, 3, 16, 24, DType::bf16, false);  // down block 3's first conv
   conv3d(b, peak, 512, 512, 3, 16, 24, DType::bf16, false);  // mid block, decoder up block 0
   conv3d(b, peak, 512, 256, 3, 30, 45, DType::bf16, false);  // decoder up block 2's first conv

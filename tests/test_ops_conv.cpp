@@ -339,15 +339,17 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
 // them per device): other choices, with partial tiles in pixels and channels, must give the same results.
 // {16 x 2}: two shuffled 8-pixel groups; {4 x 4}: every lane fetches every pixel (few pixels);
 // {8 x 2, lanes 2}: the variant without subgroup operations (conv_gemm_nosubgroup) that devices without
-// shuffles run, so its pipeline is covered on lavapipe too.
+// shuffles run, so its pipeline is covered on lavapipe too; {8 x 3, k_unroll 2}: two 8-channel steps per
+// loop trip (16 channels: one trip; the 12-channel case falls back to single steps).
 TEST_F(ConvOps, OtherRegisterBlocks) {
   uint32_t seed = 100;
-  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{16, 2, -1}, ops::ConvRegisterBlock{4, 4, -1},
-                                     ops::ConvRegisterBlock{8, 2, 2}}) {
+  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{16, 2, -1, 0}, ops::ConvRegisterBlock{4, 4, -1, 0},
+                                     ops::ConvRegisterBlock{8, 2, 2, 0}, ops::ConvRegisterBlock{8, 3, -1, 2}}) {
     ops::set_conv_register_block(blk);
     try {
       run_conv2d(ctx(), {1, 9, 21, 2, 9, 19, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, seed++);
       run_conv2d(ctx(), {1, 12, 5, 1, 9, 11, 3, ops::Conv2dParams::downsample3x3(), DType::f32, false}, seed++);
+      run_conv2d(ctx(), {1, 16, 13, 1, 7, 9, 3, ops::Conv2dParams::same3x3(), DType::f16, true}, seed++);
     } catch (...) {
       ops::set_conv_register_block({});
       throw;

@@ -30,6 +30,9 @@ layout(constant_id = 1) const int COLS = 3;   // channel columns per lane
 layout(constant_id = 2) const int WTYPE = 2;  // weight storage: 0 f32, 1 f16, 2 bf16
 layout(constant_id = 3) const int LANES = 0;  // 0: subgroups of exactly 8; 1: clusters of 8 in wider subgroups; 2: no subgroup ops
 layout(constant_id = 4) const int SG_M = 2;   // clusters of a workgroup along M (8 / SG_M along N)
+// 8-channel steps per trip of the channel loop (CP must be a multiple of 8 * KU): lavapipe merges every
+// loop-carried value (the accumulators) with the execution mask once per trip, so longer trips amortise it.
+layout(constant_id = 5) const int KU = 1;
 
 #ifdef CONV_NO_SUBGROUPS
 const bool DIRECT = true;
@@ -138,27 +141,29 @@ void main() {
           uint pix = ((pf[g] + a) * p.src_rows + uint(ih) / up - p.src_r0) * p.src_w + uint(iw) / up;
           xt[g] = inside ? pix * cp4 : p.zero_texel;
         }
-        for (uint k = 0; k < cp; k += 8) {
-          float xv[RG][8], wv[COLS][8];
-          [[unroll]] for (int g = 0; g < RG; ++g) {
-            vec4 lo = texelFetch(Xt, int(xt[g] + (k >> 2))), hi = texelFetch(Xt, int(xt[g] + (k >> 2) + 1));
-            xv[g][0] = lo.x; xv[g][1] = lo.y; xv[g][2] = lo.z; xv[g][3] = lo.w;
-            xv[g][4] = hi.x; xv[g][5] = hi.y; xv[g][6] = hi.z; xv[g][7] = hi.w;
-          }
-          [[unroll]] for (int c = 0; c < COLS; ++c) w_step(we[c] + wk + k, wv[c]);
-          [[unroll]] for (int j = 0; j < 8; ++j) {
-            if (DIRECT) {
-              [[unroll]] for (int r = 0; r < ROWS; ++r)
-                [[unroll]] for (int c = 0; c < COLS; ++c) acc[r][c] = fma(xv[r][j], wv[c][j], acc[r][c]);
-            } else {
-              [[unroll]] for (int g = 0; g < RG; ++g)
-                [[unroll]] for (int i = 0; i < 8; ++i) {
-                  float xb = bcast(xv[g][j], i);
-                  [[unroll]] for (int c = 0; c < COLS; ++c) acc[8 * g + i][c] = fma(xb, wv[c][j], acc[8 * g + i][c]);
-                }
+        for (uint k0 = 0; k0 < cp; k0 += 8 * KU)
+          [[unroll]] for (int ku = 0; ku < KU; ++ku) {
+            uint k = k0 + 8 * ku;
+            float xv[RG][8], wv[COLS][8];
+            [[unroll]] for (int g = 0; g < RG; ++g) {
+              vec4 lo = texelFetch(Xt, int(xt[g] + (k >> 2))), hi = texelFetch(Xt, int(xt[g] + (k >> 2) + 1));
+              xv[g][0] = lo.x; xv[g][1] = lo.y; xv[g][2] = lo.z; xv[g][3] = lo.w;
+              xv[g][4] = hi.x; xv[g][5] = hi.y; xv[g][6] = hi.z; xv[g][7] = hi.w;
+            }
+            [[unroll]] for (int c = 0; c < COLS; ++c) w_step(we[c] + wk + k, wv[c]);
+            [[unroll]] for (int j = 0; j < 8; ++j) {
+              if (DIRECT) {
+                [[unroll]] for (int r = 0; r < ROWS; ++r)
+                  [[unroll]] for (int c = 0; c < COLS; ++c) acc[r][c] = fma(xv[r][j], wv[c][j], acc[r][c]);
+              } else {
+                [[unroll]] for (int g = 0; g < RG; ++g)
+                  [[unroll]] for (int i = 0; i < 8; ++i) {
+                    float xb = bcast(xv[g][j], i);
+                    [[unroll]] for (int c = 0; c < COLS; ++c) acc[8 * g + i][c] = fma(xb, wv[c][j], acc[8 * g + i][c]);
+                  }
+              }
             }
           }
-        }
       }
 
   [[unroll]] for (int r = 0; r < ROWS; ++r) {

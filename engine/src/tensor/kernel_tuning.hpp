@@ -13,8 +13,9 @@ namespace dvs::ops {
 // Register blocking of conv_gemm: a cluster of 8 lanes computes `rows` output pixels x 8*`cols` output
 // channels; `sg_m` of the workgroup's 8 clusters lie along the pixels. `lanes`: 0 subgroups of exactly 8,
 // 1 clusters of 8 inside wider subgroups, 2 no subgroup shuffles (every lane fetches every pixel).
+// `k_unroll`: 8-channel steps per trip of the channel loop (at most; 1, 2 or 4, as the channels allow).
 struct GemmTile {
-  int rows = 8, cols = 3, sg_m = 2, lanes = 0;
+  int rows = 8, cols = 3, sg_m = 2, lanes = 0, k_unroll = 1;
 };
 
 // The tile for a convolution with `outputs` output pixels per chunk and weights stored as `wdt`, on the

@@ -131,6 +131,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo);
   if (g_block_override.rows) tile.rows = g_block_override.rows;
   if (g_block_override.cols) tile.cols = g_block_override.cols;
+  if (g_block_override.k_unroll) tile.k_unroll = g_block_override.k_unroll;
   if (g_block_override.lanes >= 0) tile.lanes = std::max(g_block_override.lanes, gemm_lanes(caps));
   if (tile.rows < 8 || tile.lanes == 2) tile.sg_m = 1;
   const int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;
@@ -163,8 +164,10 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
 
   vk::BufferView packed_w = pack_weights(rec, op, j, w, wdt, cp);
   const vk::BufferView bias_view = bias ? word_view(*bias) : word_view(w);
-  std::array<uint32_t, 5> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
-                                       uint32_t(tile.sg_m)};
+  const int64_t steps = cp / 8;
+  const uint32_t ku = steps % 4 == 0 ? std::min<uint32_t>(4, uint32_t(tile.k_unroll)) : (steps % 2 == 0 ? std::min<uint32_t>(2, uint32_t(tile.k_unroll)) : 1u);
+  std::array<uint32_t, 6> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
+                                       uint32_t(tile.sg_m), std::max(ku, 1u)};
   const vk::Pipeline& gemm =
       ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
   const vk::Pipeline& pack = ctx.pipelines().get("nn/conv_pack_input");
@@ -224,8 +227,9 @@ std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
 }  // namespace
 
 void set_conv_register_block(const ConvRegisterBlock& block) {
-  if (block.rows < 0 || block.rows > 16 || block.cols < 0 || block.cols > 8 || block.lanes > 2)
-    fail("set_conv_register_block", "block out of range (rows 1..16, cols 1..8, lanes -1..2)");
+  if (block.rows < 0 || block.rows > 16 || block.cols < 0 || block.cols > 8 || block.lanes > 2 ||
+      !(block.k_unroll == 0 || block.k_unroll == 1 || block.k_unroll == 2 || block.k_unroll == 4))
+    fail("set_conv_register_block", "block out of range (rows 1..16, cols 1..8, lanes -1..2, k_unroll 0, 1, 2, 4)");
   g_block_override = block;
 }
 
