@@ -416,6 +416,39 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
   EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y); }), Error);
 }
 
+// Caller-provided staging (what the VAE passes so that its memory plan counts it): buffers of the sizes
+// *_scratch() gives are enough and give the recorder-scratch result bit for bit; a weights buffer one
+// element short is refused, not overrun.
+TEST_F(ConvOps, CallerScratch) {
+  vk::Context& c = ctx();
+  Vid x = random_vid(1, 12, 3, 9, 11, 140);
+  Conv3dWeights cw = make_conv3d(c, 10, 12, 3, DType::f32, 141);
+  std::vector<float> wr;
+  Tensor w2 = Tensor::upload(c, make_weights({10, 12, 3, 3}, DType::bf16, 142, 0.2f, wr));
+  Tensor xt = up(c, x), ct = up(c, random_vid(1, 12, 2, 9, 11, 143));
+  Shape up_s = ops::upsample2x_shape(xt.shape(), true);
+  up_s[1] = 10;
+  auto run = [&](bool given, int64_t weights_short) {
+    ops::ConvScratchSize s3 = ops::causal_conv3d_scratch(xt.shape(), cw.wt.shape());
+    ops::ConvScratchSize s2 = ops::conv2d_scratch(xt.shape(), w2.shape());
+    ops::ConvScratchSize su = ops::upsample2x_conv3x3_scratch(xt.shape(), w2.shape(), true);
+    ops::ConvScratch a{Tensor::empty(c, {s3.input}, DType::f32), Tensor::empty(c, {s3.weights - weights_short}, DType::f32)};
+    ops::ConvScratch b{Tensor::empty(c, {s2.input}, DType::f32), Tensor::empty(c, {s2.weights}, DType::f32)};
+    ops::ConvScratch u{Tensor::empty(c, {su.input}, DType::f32), Tensor::empty(c, {su.weights}, DType::f32)};
+    Tensor y1 = Tensor::empty(c, {1, 10, 3, 9, 11}, DType::f32), y2 = Tensor::empty(c, y1.shape(), DType::f32);
+    Tensor y3 = Tensor::empty(c, y1.shape(), DType::f32), y4 = Tensor::empty(c, up_s, DType::f32);
+    ops::run_now(c, [&](vk::Recorder& rec) {
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y1, &ct, nullptr, given ? &a : nullptr);
+      ops::conv2d(rec, xt, w2, nullptr, y3, ops::Conv2dParams::same3x3(), given ? &b : nullptr);
+      ops::upsample2x_conv3x3(rec, xt, w2, nullptr, y4, true, given ? &u : nullptr);
+    });
+    return std::vector<Vid>{down(c, y1), down(c, y3), down(c, y4)};
+  };
+  std::vector<Vid> own = run(false, 0), given = run(true, 0);
+  for (size_t i = 0; i < own.size(); ++i) expect_equal(given[i], own[i], "caller scratch, op " + std::to_string(i));
+  EXPECT_THROW(run(true, 1), Error);
+}
+
 TEST_F(ConvOps, Conv1x1) {
   vk::Context& c = ctx();
   uint32_t seed = 110;

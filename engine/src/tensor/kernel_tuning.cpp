@@ -37,12 +37,19 @@ int gemm_lanes(const vk::DeviceCaps& c) {
   return 2;
 }
 
-GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, std::string* device_class) {
+GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64_t out_channels,
+                   std::string* device_class) {
   for (const TuningEntry& e : kTable) {
     if (!e.matches(caps)) continue;
     GemmTile t = wdt == DType::f32 ? e.conv_f32_weights : e.conv_16bit_weights;
     if (outputs < 8 * t.rows) t = e.conv_small;
     t.lanes = gemm_lanes(caps);
+    // Few output channels (the decoder's conv_out has 3): all 8 clusters along the pixels and one or two
+    // 8-channel columns, instead of a 64-channel tile that is mostly padding.
+    if (out_channels <= 16) {
+      t.sg_m = 8;
+      t.cols = out_channels <= 8 ? 1 : 2;
+    }
     if (device_class) *device_class = e.name;
     return t;
   }

@@ -18,9 +18,11 @@ struct GemmTile {
   int rows = 8, cols = 3, sg_m = 2, lanes = 0, k_unroll = 1;
 };
 
-// The tile for a convolution with `outputs` output pixels per chunk and weights stored as `wdt`, on the
-// device described by `caps`. `device_class` (optional) receives the name of the table entry used.
-GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, std::string* device_class = nullptr);
+// The tile for a convolution with `outputs` output pixels, `out_channels` output channels and weights
+// stored as `wdt`, on the device described by `caps`. `device_class` (optional) receives the name of the
+// table entry used.
+GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64_t out_channels,
+                   std::string* device_class = nullptr);
 
 // How the lanes of a cluster talk on this device (GemmTile::lanes): a property of its subgroups.
 int gemm_lanes(const vk::DeviceCaps& caps);

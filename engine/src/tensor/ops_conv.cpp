@@ -84,6 +84,17 @@ void check_texels(const char* op, const vk::Context& ctx, const Tensor& t, uint6
                  " elements; split the convolution (spatial tiles or fewer frames per batch)");
 }
 
+constexpr uint64_t kScratchInputCap = 128ull << 20;  // bytes; see ConvScratch
+
+// f32 elements of a convolution's staging: the whole repacked input (capped) and the repacked weights.
+ConvScratchSize scratch_size(int64_t frames_out, int64_t kt, int64_t h, int64_t w, int64_t cin, int64_t cout,
+                             int64_t taps) {
+  const int64_t cp = (cin + 7) / 8 * 8;
+  uint64_t input = uint64_t(frames_out + kt - 1) * uint64_t(h * w) * uint64_t(cp) * 4 + uint64_t(cp) * 4;
+  uint64_t weights = uint64_t(cout * taps * cp) * 4;  // f32, the largest weight dtype
+  return {int64_t(std::min(input, kScratchInputCap) / 4), int64_t(weights / 4)};
+}
+
 // Source rows [first, end) that output rows [oh0, oh1) read (empty when they read only padding).
 struct RowSpan {
   int64_t first = 0, end = 0;
@@ -97,7 +108,8 @@ RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) {
 }
 
 // Packed weights [Cout, taps, CP] in scratch slot 1, recorded once per call.
-vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, int64_t cp) {
+vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, int64_t cp,
+                            const ConvScratch* given) {
   vk::Context& ctx = rec.context();
   int64_t taps = j.kt * j.kh * j.kw;
   int64_t words = j.cout * taps * cp / (wdt == 0 ? 1 : 2);
@@ -105,7 +117,10 @@ vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j,
   expect(bytes <= ctx.caps().max_storage_buffer_range, op,
          "packed weights of " + w.describe() + " exceed maxStorageBufferRange");
   check_texels(op, ctx, w, uint64_t(words) / 4);
-  vk::BufferView packed = rec.scratch(1, bytes, "convolution weights (repacked)");
+  if (given)
+    expect(uint64_t(given->weights.bytes()) >= bytes, op, "weights scratch " + given->weights.describe() + " is too small");
+  vk::BufferView packed = given ? given->weights.buffer() : rec.scratch(1, bytes, "convolution weights (repacked)");
+  packed.size = bytes;
   PackWeightsPush pc{u32(op, words), u32(op, j.cin), u32(op, taps), u32(op, cp)};
   std::array<uint32_t, 1> spec = {wdt};
   Grid g = grid_1d(words, 64);
@@ -119,7 +134,7 @@ vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j,
 // kernel runs over it. Chunks are sized so the packed input stays within one storage binding and one
 // texel view, and the grid within 65535 workgroups per dimension.
 void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const Tensor& w,
-                 const Tensor* bias, const Tensor& y) {
+                 const Tensor* bias, const Tensor& y, const ConvScratch* given) {
   if (j.b == 0 || j.frames_out == 0 || j.ho == 0 || j.wo == 0 || j.cout == 0) return;
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
@@ -128,18 +143,19 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   if (j.cache) check_texels(op, ctx, *j.cache, uint64_t(j.cache->numel()));
   const int64_t cp = (j.cin + 7) / 8 * 8, up = j.upsample ? 2 : 1;
 
-  GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo);
+  GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo, j.cout);
   if (g_block_override.rows) tile.rows = g_block_override.rows;
   if (g_block_override.cols) tile.cols = g_block_override.cols;
   if (g_block_override.k_unroll) tile.k_unroll = g_block_override.k_unroll;
   if (g_block_override.lanes >= 0) tile.lanes = std::max(g_block_override.lanes, gemm_lanes(caps));
-  if (tile.rows < 8 || tile.lanes == 2) tile.sg_m = 1;
   const int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;
   expect(div_up(j.cout, tile_n) <= 65535, op, "too many output channels for one dispatch");
 
   // Chunk budget: one storage binding (the pack writes it), one texel view of RGBA32F texels.
   uint64_t cap = caps.max_storage_buffer_range;
   if (caps.max_texel_buffer_elements) cap = std::min<uint64_t>(cap, caps.max_texel_buffer_elements * 16);
+  cap = std::min(cap, kScratchInputCap);
+  if (given) cap = std::min<uint64_t>(cap, uint64_t(given->input.bytes()));
   if (g_chunk_bytes_override) cap = std::min<uint64_t>(cap, g_chunk_bytes_override);
   const uint64_t pixel_bytes = uint64_t(cp) * 4, max_m = uint64_t(65535) * uint64_t(tile_m);
   // Bytes of a chunk of nfo output frames and r output rows, wherever the rows lie (interior rows read the
@@ -162,7 +178,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
                                     std::to_string(cap) + " bytes) of repacked input; tile the input spatially");
   }
 
-  vk::BufferView packed_w = pack_weights(rec, op, j, w, wdt, cp);
+  vk::BufferView packed_w = pack_weights(rec, op, j, w, wdt, cp, given);
   const vk::BufferView bias_view = bias ? word_view(*bias) : word_view(w);
   const int64_t steps = cp / 8;
   const uint32_t ku = steps % 4 == 0 ? std::min<uint32_t>(4, uint32_t(tile.k_unroll)) : (steps % 2 == 0 ? std::min<uint32_t>(2, uint32_t(tile.k_unroll)) : 1u);
@@ -181,7 +197,9 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
         int64_t src_rows = rs.end - rs.first, packed_frames = nfo + j.kt - 1;
         int64_t texels = packed_frames * src_rows * j.w * (cp / 4);
         expect(uint64_t(texels + cp / 4) * 16 <= cap, op, "chunk planning error");  // guards the bound above
-        vk::BufferView packed_x = rec.scratch(0, uint64_t(texels + cp / 4) * 16, "convolution input chunk (repacked)");
+        const uint64_t packed_bytes = uint64_t(texels + cp / 4) * 16;
+        vk::BufferView packed_x = given ? given->input.buffer() : rec.scratch(0, packed_bytes, "convolution input chunk (repacked)");
+        packed_x.size = packed_bytes;
 
         PackInputPush pp{u32(op, texels), u32(op, cp / 4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
                          u32(op, b), u32(op, fo0), u32(op, packed_frames), u32(op, rs.first), u32(op, src_rows),
@@ -251,7 +269,7 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
 }
 
 void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-            const Conv2dParams& p) {
+            const Conv2dParams& p, const ConvScratch* scratch) {
   const char* op = "conv2d";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -277,7 +295,7 @@ void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* b
     j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
   }
   check_bias(op, w, bias, j.cout);
-  record_conv(rec, op, j, x, w, bias, y);
+  record_conv(rec, op, j, x, w, bias, y, scratch);
 }
 
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
@@ -286,7 +304,7 @@ Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
 }
 
 void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                   const Tensor* cache_in, const Tensor* cache_out) {
+                   const Tensor* cache_in, const Tensor* cache_out, const ConvScratch* scratch) {
   const char* op = "causal_conv3d";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -318,7 +336,7 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   // taps are summed in the same order, so a clip run in frame batches equals the whole clip bit for bit.
   j.time_mode = cache_in ? 3 : 0;
   j.cache = cache_in;
-  record_conv(rec, op, j, x, w, bias, y);
+  record_conv(rec, op, j, x, w, bias, y, scratch);
 
   if (cache_out && j.frames > 0) {
     struct {
@@ -333,13 +351,14 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   }
 }
 
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y) {
+void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+             const ConvScratch* scratch) {
   const char* op = "conv1x1";
   auto k = kernel_dims(op, w);
   expect(k[2] == 1 && k[3] == 1 && k[4] == 1, op, "weights " + w.describe() + " are not 1x1x1");
   expect(x.rank() == 5, op, "input must be [B, C, F, H, W], got " + x.describe());
   Tensor w5 = w.reshape({k[0], k[1], 1, 1, 1});
-  causal_conv3d(rec, x, w5, bias, y, nullptr, nullptr);
+  causal_conv3d(rec, x, w5, bias, y, nullptr, nullptr, scratch);
 }
 
 int64_t downsample_time_frames(int64_t frames) { return frames % 2 == 1 ? 1 + (frames - 1) / 2 : frames / 2; }
@@ -421,7 +440,7 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 }
 
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                        bool compress_time) {
+                        bool compress_time, const ConvScratch* scratch) {
   const char* op = "upsample2x_conv3x3";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -440,7 +459,25 @@ void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, con
   int64_t plane = j.ho * j.wo;
   j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames_out * plane, j.ys_b = j.cout * j.frames_out * plane;
   check_bias(op, w, bias, j.cout);
-  record_conv(rec, op, j, x, w, bias, y);
+  record_conv(rec, op, j, x, w, bias, y, scratch);
+}
+
+ConvScratchSize conv2d_scratch(const Shape& x, const Shape& w) {
+  expect(x.size() == 4 || x.size() == 5, "conv2d", "input must be [N, C, H, W] or [B, C, F, H, W]");
+  int64_t frames = x.size() == 5 ? x[2] : 1;
+  return scratch_size(frames, 1, x[x.size() - 2], x[x.size() - 1], x[1], w[0], w[w.size() - 2] * w[w.size() - 1]);
+}
+
+ConvScratchSize causal_conv3d_scratch(const Shape& x, const Shape& w) {
+  expect(x.size() == 5, "causal_conv3d", "input must be [B, C, F, H, W]");
+  int64_t kt = w.size() == 5 ? w[2] : 1, taps = 1;
+  for (size_t i = 2; i < w.size(); ++i) taps *= w[i];
+  return scratch_size(x[2], kt, x[3], x[4], x[1], w[0], taps);
+}
+
+ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time) {
+  Shape up = upsample2x_shape(x, compress_time);
+  return scratch_size(up[2], 1, x[3], x[4], x[1], w[0], 9);
 }
 
 }  // namespace dvs::ops

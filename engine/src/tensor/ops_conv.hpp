@@ -30,9 +30,22 @@ struct Conv2dParams {
   static Conv2dParams downsample3x3() { return {2, 0, 1, 0, 1, false}; }
 };
 
+// Staging memory of one convolution (the input chunk and the weights, repacked). Without it the op takes
+// recorder scratch (vk::Recorder::scratch); callers that plan their memory (the VAE) pass buffers of the
+// sizes *_scratch() gives, f32 elements each, which depend on shapes alone (not the device, not the weight
+// dtype: the weights part is sized for f32): the input part is the whole repacked input, capped at 128 MiB
+// (the smallest maxStorageBufferRange Vulkan allows; larger inputs run in chunks of at most that).
+struct ConvScratch {
+  Tensor input, weights;
+};
+struct ConvScratchSize {
+  int64_t input = 0, weights = 0;
+};
+
 // x: [B, Cin, F, H, W] or [N, Cin, H, W] (images); w: [Cout, Cin, kh, kw] or [Cout, Cin, 1, kh, kw].
 void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-            const Conv2dParams& params);
+            const Conv2dParams& params, const ConvScratch* scratch = nullptr);
+ConvScratchSize conv2d_scratch(const Shape& x, const Shape& w);
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
 
 // CogVideoXCausalConv3d (pad_mode "constant"): kernel [Cout, Cin, kt, kh, kw] with odd kh, kw; spatial zero
@@ -43,11 +56,14 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
 // after the convolution has read it). With kt = 1 this is the pointwise / per-frame conv and caches are
 // not allowed.
 void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                   const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr);
+                   const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr,
+                   const ConvScratch* scratch = nullptr);
+ConvScratchSize causal_conv3d_scratch(const Shape& x, const Shape& w);  // also conv1x1
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w);  // [B, Cin, kt-1, H, W]
 
 // 1x1x1 convolution (CogVideoXSafeConv3d k=1, conv_shortcut): x [B, Cin, F, H, W], w [Cout, Cin(,1,1,1)].
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y);
+void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+             const ConvScratch* scratch = nullptr);
 
 // Temporal pair averaging of CogVideoXDownsample3D (compress_time): odd F keeps frame 0 and averages the
 // rest in pairs; even F averages all pairs. y: [B, C, downsample_time_frames(F), H, W].
@@ -68,7 +84,8 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 // the 4x larger upsampled tensor is never stored. w: [Cout, Cin, 3, 3]. y: [B, Cout, Fo, 2H, 2W] with Fo
 // from upsample2x_shape. Results are bit-identical to upsample2x then conv2d(same3x3).
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                        bool compress_time);
+                        bool compress_time, const ConvScratch* scratch = nullptr);
+ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time);
 
 // Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.glsl; defaults come from
 // tensor/kernel_tuning.cpp). Register block: `rows` output pixels x 8*`cols` output channels per 8-lane
