@@ -335,22 +335,118 @@ TEST_F(ConvOps, CausalConv3dCacheMatchesWholeClip) {
   }
 }
 
-// The register block and the weight sharing are specialization constants: other choices (with partial
-// blocks in both channels and pixels) must give the same results. {8, 4, direct loads} is what GPUs with
-// wide subgroups run, so this covers their pipeline on lavapipe. Other tests run the small default block,
-// whose pipelines compile fastest; dvs-bench runs the large one.
+// The register block and the lane scheme are specialization constants (tensor/kernel_tuning.cpp picks
+// them per device): other choices, with partial tiles in pixels and channels, must give the same results.
+// {16 x 2}: two shuffled 8-pixel groups; {4 x 4}: every lane fetches every pixel (few pixels);
+// {8 x 2, lanes 2}: the variant without subgroup operations (conv_gemm_nosubgroup) that devices without
+// shuffles run, so its pipeline is covered on lavapipe too; {8 x 3, k_unroll 2}: two 8-channel steps per
+// loop trip (16 channels: one trip; the 12-channel case falls back to single steps).
 TEST_F(ConvOps, OtherRegisterBlocks) {
   uint32_t seed = 100;
-  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{8, 4, 0}, ops::ConvRegisterBlock{16, 8, 1}}) {
+  for (ops::ConvRegisterBlock blk : {ops::ConvRegisterBlock{16, 2, -1, 0}, ops::ConvRegisterBlock{4, 4, -1, 0},
+                                     ops::ConvRegisterBlock{8, 2, 2, 0}, ops::ConvRegisterBlock{8, 3, -1, 2}}) {
     ops::set_conv_register_block(blk);
     try {
       run_conv2d(ctx(), {1, 9, 21, 2, 9, 19, 3, ops::Conv2dParams::same3x3(), DType::bf16, true}, seed++);
+      run_conv2d(ctx(), {1, 12, 5, 1, 9, 11, 3, ops::Conv2dParams::downsample3x3(), DType::f32, false}, seed++);
+      run_conv2d(ctx(), {1, 16, 13, 1, 7, 9, 3, ops::Conv2dParams::same3x3(), DType::f16, true}, seed++);
     } catch (...) {
       ops::set_conv_register_block({});
       throw;
     }
   }
   ops::set_conv_register_block({});
+}
+
+// Large inputs are split into chunks of output frames, and single frames into chunks of output rows,
+// each repacked separately (set_conv_chunk_bytes forces the splits the real size needs). Every split must
+// give the unsplit result bit for bit (same values, same summation order), which the tests above check
+// against the references: frame chunks with the causal prefix and with a cache, row chunks with padding
+// rows at both ends, stride 2 (chunk borders on odd input rows) and the fused upsampling (row chunks of
+// the upsampled image).
+TEST_F(ConvOps, SplitsOverFramesAndRows) {
+  vk::Context& c = ctx();
+  struct Reset {
+    ~Reset() { ops::set_conv_chunk_bytes(0); }
+  } reset;
+  const int64_t cin = 12, cout = 10, f = 5, h = 11, w = 9;
+  Vid x = random_vid(2, cin, f, h, w, 130);
+  Vid cache = random_vid(2, cin, 2, h, w, 131);
+  Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 132);
+  std::vector<float> wr;
+  Tensor w2 = Tensor::upload(c, make_weights({cout, cin, 3, 3}, DType::bf16, 133, 0.2f, wr));
+  Tensor xt = up(c, x), ct = up(c, cache);
+  Shape down_s = ops::conv2d_shape(xt.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
+  Shape up_s = ops::upsample2x_shape(xt.shape(), true);
+  up_s[1] = cout;
+  uint32_t dispatches = 0;  // of the last run_all: more chunks, more dispatches
+  auto run_all = [&] {
+    std::vector<Vid> r;
+    Tensor y1 = Tensor::empty(c, {2, cout, f, h, w}, DType::f32), y2 = Tensor::empty(c, y1.shape(), DType::f32);
+    Tensor y3 = Tensor::empty(c, down_s, DType::f32), y4 = Tensor::empty(c, up_s, DType::f32);
+    ops::run_now(c, [&](vk::Recorder& rec) {
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y1);
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y2, &ct);
+      ops::conv2d(rec, xt, w2, nullptr, y3, ops::Conv2dParams::downsample3x3());
+      ops::upsample2x_conv3x3(rec, xt, w2, nullptr, y4, true);
+      dispatches = rec.dispatch_count();
+    });
+    for (const Tensor* t : {&y1, &y2, &y3, &y4}) r.push_back(down(c, *t));
+    return r;
+  };
+  std::vector<Vid> whole = run_all();
+  expect_close(whole[0], causal_ref(x, nullptr, cw, cout, 3, nullptr), "unsplit causal conv");
+  expect_close(whole[1], causal_ref(x, &cache, cw, cout, 3, nullptr), "unsplit causal conv with cache");
+  uint32_t previous = dispatches;
+  const int64_t cp_bytes = 16 * 4;  // 12 channels pad to 16, f32
+  // One frame of the padded axis is h*w pixels: room for 4 padded frames (2 output frames + the prefix),
+  // then for 9 source rows of padded frames (the causal conv: 3 frames x 3 rows = one output row per chunk).
+  for (int64_t budget : {4 * h * w * cp_bytes + cp_bytes, 9 * w * cp_bytes + cp_bytes}) {
+    ops::set_conv_chunk_bytes(uint64_t(budget));
+    std::vector<Vid> split = run_all();
+    const char* names[] = {"causal conv", "causal conv with cache", "stride 2", "upsample + conv"};
+    for (size_t i = 0; i < split.size(); ++i)
+      expect_equal(split[i], whole[i], std::string(names[i]) + " split at " + std::to_string(budget) + " bytes");
+    EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+    previous = dispatches;
+  }
+  // A budget below one row of one frame cannot be met: a clear error, not a wrong result.
+  ops::set_conv_chunk_bytes(uint64_t(w * cp_bytes));
+  Tensor y = Tensor::empty(c, {2, cout, f, h, w}, DType::f32);
+  EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y); }), Error);
+}
+
+// Caller-provided staging (what the VAE passes so that its memory plan counts it): buffers of the sizes
+// *_scratch() gives are enough and give the recorder-scratch result bit for bit; a weights buffer one
+// element short is refused, not overrun.
+TEST_F(ConvOps, CallerScratch) {
+  vk::Context& c = ctx();
+  Vid x = random_vid(1, 12, 3, 9, 11, 140);
+  Conv3dWeights cw = make_conv3d(c, 10, 12, 3, DType::f32, 141);
+  std::vector<float> wr;
+  Tensor w2 = Tensor::upload(c, make_weights({10, 12, 3, 3}, DType::bf16, 142, 0.2f, wr));
+  Tensor xt = up(c, x), ct = up(c, random_vid(1, 12, 2, 9, 11, 143));
+  Shape up_s = ops::upsample2x_shape(xt.shape(), true);
+  up_s[1] = 10;
+  auto run = [&](bool given, int64_t weights_short) {
+    ops::ConvScratchSize s3 = ops::causal_conv3d_scratch(xt.shape(), cw.wt.shape());
+    ops::ConvScratchSize s2 = ops::conv2d_scratch(xt.shape(), w2.shape());
+    ops::ConvScratchSize su = ops::upsample2x_conv3x3_scratch(xt.shape(), w2.shape(), true);
+    ops::ConvScratch a{Tensor::empty(c, {s3.input}, DType::f32), Tensor::empty(c, {s3.weights - weights_short}, DType::f32)};
+    ops::ConvScratch b{Tensor::empty(c, {s2.input}, DType::f32), Tensor::empty(c, {s2.weights}, DType::f32)};
+    ops::ConvScratch u{Tensor::empty(c, {su.input}, DType::f32), Tensor::empty(c, {su.weights}, DType::f32)};
+    Tensor y1 = Tensor::empty(c, {1, 10, 3, 9, 11}, DType::f32), y2 = Tensor::empty(c, y1.shape(), DType::f32);
+    Tensor y3 = Tensor::empty(c, y1.shape(), DType::f32), y4 = Tensor::empty(c, up_s, DType::f32);
+    ops::run_now(c, [&](vk::Recorder& rec) {
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y1, &ct, nullptr, given ? &a : nullptr);
+      ops::conv2d(rec, xt, w2, nullptr, y3, ops::Conv2dParams::same3x3(), given ? &b : nullptr);
+      ops::upsample2x_conv3x3(rec, xt, w2, nullptr, y4, true, given ? &u : nullptr);
+    });
+    return std::vector<Vid>{down(c, y1), down(c, y3), down(c, y4)};
+  };
+  std::vector<Vid> own = run(false, 0), given = run(true, 0);
+  for (size_t i = 0; i < own.size(); ++i) expect_equal(given[i], own[i], "caller scratch, op " + std::to_string(i));
+  EXPECT_THROW(run(true, 1), Error);
 }
 
 TEST_F(ConvOps, Conv1x1) {

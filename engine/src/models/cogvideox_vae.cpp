@@ -163,21 +163,28 @@ struct Layers {
   }
 
   // CogVideoXCausalConv3d (kt = 3 here) with its cache under `prefix`.
+  // Staging of one convolution (its repacked input and weights) from the pool, so that dry runs count it
+  // like every other buffer; returned right after the op is recorded.
+  ops::ConvScratch conv_scratch(Run& run, const ops::ConvScratchSize& s) { return {run.get({s.input}), run.get({s.weights})}; }
+  void put_scratch(Run& run, const ops::ConvScratch& s) {
+    run.put(s.input);
+    run.put(s.weights);
+  }
+
   Tensor causal_conv(Run& run, const Tensor& x, const std::string& prefix) {
     const Tensor& wt = W(prefix + ".conv.weight");
     const Tensor* b = Bias(prefix + ".conv.bias");
     Tensor y = run.get({x.dim(0), wt.dim(0), x.dim(2), x.dim(3), x.dim(4)});
+    const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(x.shape(), wt.shape()));
     if (wt.dim(2) == 1) {
-      if (rec) ops::causal_conv3d(*rec, x, wt, b, y);
-      return y;
-    }
-    auto it = run.cache.find(prefix);
-    if (it == run.cache.end()) {
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, nullptr, nullptr, &cs);
+    } else if (auto it = run.cache.find(prefix); it == run.cache.end()) {
       Tensor c = run.new_cache(prefix, ops::causal_conv3d_cache_shape(x.shape(), wt.shape()));
-      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, nullptr, &c);
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, nullptr, &c, &cs);
     } else {
-      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, &it->second, &it->second);
+      if (rec) ops::causal_conv3d(*rec, x, wt, b, y, &it->second, &it->second, &cs);
     }
+    put_scratch(run, cs);
     return y;
   }
 
@@ -201,10 +208,12 @@ struct Layers {
     }
     const Tensor& zq = it->second;
     Tensor cy = run.get(f.shape()), cb = run.get(f.shape()), y = run.get(f.shape());
+    const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(zq.shape(), W(prefix + ".conv_y.conv.weight").shape()));
     if (rec) {
-      ops::conv1x1(*rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy);
-      ops::conv1x1(*rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb);
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy, &cs);
+      ops::conv1x1(*rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb, &cs);
     }
+    put_scratch(run, cs);
     group_norm(run, f, y, prefix + ".norm_layer", 1e-6f, false);
     if (rec) ops::scale_shift(*rec, y, cy, cb, y);
     run.put(cy);
@@ -241,10 +250,12 @@ struct Layers {
     run.put(h2);
     if (cin != out.dim(1)) {
       Tensor s = run.get(out.shape());
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(x.shape(), W(p + ".conv_shortcut.weight").shape()));
       if (rec) {
-        ops::conv1x1(*rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s);
+        ops::conv1x1(*rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s, &cs);
         ops::add(*rec, out, s, out);
       }
+      put_scratch(run, cs);
       run.put(s);
     } else if (rec) {
       ops::add(*rec, out, x, out);
@@ -275,7 +286,9 @@ struct Layers {
         const Tensor& wt = W(p + ".downsamplers.0.conv.weight");
         const auto params = ops::Conv2dParams::downsample3x3();
         Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
-        if (rec) ops::conv2d(*rec, h, wt, Bias(p + ".downsamplers.0.conv.bias"), y, params);
+        const ops::ConvScratch cs = conv_scratch(run, ops::conv2d_scratch(h.shape(), wt.shape()));
+        if (rec) ops::conv2d(*rec, h, wt, Bias(p + ".downsamplers.0.conv.bias"), y, params, &cs);
+        put_scratch(run, cs);
         run.put(h);
         h = y;
       }
@@ -290,7 +303,9 @@ struct Layers {
     run.put(h);
     if (cfg.use_quant_conv) {
       Tensor q = run.get(out.shape());
-      if (rec) ops::conv1x1(*rec, out, W("quant_conv.weight"), Bias("quant_conv.bias"), q);
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(out.shape(), W("quant_conv.weight").shape()));
+      if (rec) ops::conv1x1(*rec, out, W("quant_conv.weight"), Bias("quant_conv.bias"), q, &cs);
+      put_scratch(run, cs);
       out = q;
     }
     return out;
@@ -302,7 +317,9 @@ struct Layers {
     Tensor z = z_in;
     if (cfg.use_post_quant_conv) {
       z = run.get(z_in.shape());
-      if (rec) ops::conv1x1(*rec, z_in, W("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z);
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(z_in.shape(), W("post_quant_conv.weight").shape()));
+      if (rec) ops::conv1x1(*rec, z_in, W("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z, &cs);
+      put_scratch(run, cs);
     }
     run.z = z;
     Tensor h = causal_conv(run, z, "decoder.conv_in");
@@ -326,7 +343,9 @@ struct Layers {
         const Tensor& wt = W(p + ".upsamplers.0.conv.weight");
         const auto params = ops::Conv2dParams::same3x3();
         Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
-        if (rec) ops::conv2d(*rec, u, wt, Bias(p + ".upsamplers.0.conv.bias"), y, params);
+        const ops::ConvScratch cs = conv_scratch(run, ops::conv2d_scratch(u.shape(), wt.shape()));
+        if (rec) ops::conv2d(*rec, u, wt, Bias(p + ".upsamplers.0.conv.bias"), y, params, &cs);
+        put_scratch(run, cs);
         run.put(u);
         h = y;
       }

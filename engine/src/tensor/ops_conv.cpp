@@ -6,12 +6,12 @@
 
 #include "dvs/error.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
 namespace {
 
-constexpr uint32_t kConvLocal = 64;      // shaders/nn/conv.comp local_size_x
 constexpr uint32_t kMaxCachePrefix = 4;  // shaders/nn/conv3d_cache.comp MAXP
 
 [[noreturn]] void fail(const char* op, const std::string& what) { throw Error(std::string("internal: ") + op + ": " + what); }
@@ -41,54 +41,34 @@ uint32_t u32(const char* op, int64_t v) {
   return uint32_t(v);
 }
 
-// Register block per invocation (output channels x output pixels of a row). CPU drivers (narrow
-// subgroups, loads executed per lane: lavapipe) want tall blocks that reuse every load many times and
-// share weights through subgroup broadcasts; GPUs want few registers per thread and load the uniform
-// weights directly. On lavapipe the 16x16 block runs ~1.3x faster than 8x8 but its pipeline takes ~8x
-// longer to compile (seconds), so small convolutions (tests, tiny models) use 8x8.
-struct ConvBlock {
-  uint32_t co = 8, px = 8;
-  bool bcast = true;
-};
 ConvRegisterBlock g_block_override;
+uint64_t g_chunk_bytes_override = 0;
 
-ConvBlock conv_block(const vk::Context& ctx, double macs) {
-  const auto& caps = ctx.caps();
-  bool cpu_like = caps.subgroup_size >= 8 && caps.subgroup_size <= 16;
-  ConvBlock b = cpu_like ? (macs >= double(1u << 27) ? ConvBlock{16, 16, true} : ConvBlock{8, 8, true})
-                         : ConvBlock{8, 4, false};
-  if (g_block_override.channels) b.co = g_block_override.channels;
-  if (g_block_override.pixels) b.px = g_block_override.pixels;
-  if (g_block_override.share_weights >= 0) b.bcast = g_block_override.share_weights == 1;
-  if (caps.subgroup_size < 8) b.bcast = false;  // the broadcast scheme needs 8 lanes per subgroup
-  return b;
-}
-
-// Everything conv.comp needs for a [B, Cin, F, H, W] input.
+// Everything a convolution needs, for a [B, Cin, F, H, W] input.
 struct ConvJob {
   int64_t b = 1, cin = 1, frames = 1, h = 1, w = 1;
   int64_t cout = 1, kt = 1, kh = 1, kw = 1, stride = 1;
   int64_t pad_top = 0, pad_left = 0, ho = 1, wo = 1, frames_out = 1, prefix = 0;
   int64_t ys_b = 0, ys_c = 0, ys_f = 0, ys_h = 0, ys_w = 0;
-  bool upsample = false;   // read the nearest x2 spatial upsampling of the input (h, w: input sizes)
-  uint32_t time_map = 0;   // output frame -> input frame for kt = 1 (see conv.comp)
+  bool upsample = false;     // read the nearest x2 spatial upsampling of the input (h, w: input sizes)
+  uint32_t time_mode = 0;    // padded frame -> source frame, see conv_pack_input.comp
+  const Tensor* cache = nullptr;  // time_mode 3: the previous batch's last `prefix` frames
 };
 
-struct ConvPush {
-  uint32_t cin, cout, src_frames, h, w, ho, wo;
+struct GemmPush {
+  uint32_t m, n, cp, kt, kh, kw, stride, up, wo, rows, oh0;
   int32_t pad_top, pad_left;
-  uint32_t prefix, src_shift, tap_mode, has_bias, tiles_w, frames, fo_begin;
-  uint32_t ys_b, ys_c, ys_f, ys_h, ys_w;
-  uint32_t time_map;
+  uint32_t in_h, in_w, src_r0, src_rows, src_w, zero_texel, y_base;
+  uint32_t ys_f, ys_h, ys_w, ys_c, has_bias;
 };
-static_assert(sizeof(ConvPush) <= 128);
+static_assert(sizeof(GemmPush) <= 128);
 
-// One pass of conv.comp over output frames [fo_begin, fo_begin + frames) reading `src`.
-struct ConvPass {
-  const Tensor* src;
-  int64_t src_frames, src_shift, fo_begin, frames;
-  uint32_t tap_mode;  // 0 all taps, 1 taps on the prefix only, 2 taps on the input only (resumes from y)
-  bool add_bias;
+struct PackInputPush {
+  uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
+};
+
+struct PackWeightsPush {
+  uint32_t words, cin, taps, cp;
 };
 
 void check_bias(const char* op, const Tensor& w, const Tensor* bias, int64_t cout) {
@@ -97,59 +77,160 @@ void check_bias(const char* op, const Tensor& w, const Tensor* bias, int64_t cou
   expect(bias->numel() == cout, op, "bias " + bias->describe() + " must hold Cout = " + std::to_string(cout) + " values");
 }
 
-void record_conv_pass(vk::Recorder& rec, const char* op, const ConvJob& j, const ConvPass& pass, const Tensor& w,
-                      const Tensor* bias, const Tensor& y) {
-  if (pass.frames <= 0) return;
+void check_texels(const char* op, const vk::Context& ctx, const Tensor& t, uint64_t texels) {
+  uint64_t max_texels = ctx.caps().max_texel_buffer_elements;
+  if (max_texels && texels > max_texels)
+    fail(op, t.describe() + " exceeds the device's texel-buffer limit of " + std::to_string(max_texels) +
+                 " elements; split the convolution (spatial tiles or fewer frames per batch)");
+}
+
+constexpr uint64_t kScratchInputCap = 128ull << 20;  // bytes; see ConvScratch
+
+// f32 elements of a convolution's staging: the whole repacked input (capped) and the repacked weights.
+ConvScratchSize scratch_size(int64_t frames_out, int64_t kt, int64_t h, int64_t w, int64_t cin, int64_t cout,
+                             int64_t taps) {
+  const int64_t cp = (cin + 7) / 8 * 8;
+  uint64_t input = uint64_t(frames_out + kt - 1) * uint64_t(h * w) * uint64_t(cp) * 4 + uint64_t(cp) * 4;
+  uint64_t weights = uint64_t(cout * taps * cp) * 4;  // f32, the largest weight dtype
+  return {int64_t(std::min(input, kScratchInputCap) / 4), int64_t(weights / 4)};
+}
+
+// Source rows [first, end) that output rows [oh0, oh1) read (empty when they read only padding).
+struct RowSpan {
+  int64_t first = 0, end = 0;
+};
+RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) {
+  int64_t up = j.upsample ? 2 : 1;
+  int64_t lo = std::max<int64_t>(oh0 * j.stride - j.pad_top, 0);
+  int64_t hi = std::min<int64_t>((oh1 - 1) * j.stride - j.pad_top + j.kh - 1, up * j.h - 1);
+  if (hi < lo) return {};
+  return {lo / up, hi / up + 1};
+}
+
+// Packed weights [Cout, taps, CP] in scratch slot 1, recorded once per call.
+vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, int64_t cp,
+                            const ConvScratch* given) {
+  vk::Context& ctx = rec.context();
+  int64_t taps = j.kt * j.kh * j.kw;
+  int64_t words = j.cout * taps * cp / (wdt == 0 ? 1 : 2);
+  uint64_t bytes = uint64_t(words) * 4;
+  expect(bytes <= ctx.caps().max_storage_buffer_range, op,
+         "packed weights of " + w.describe() + " exceed maxStorageBufferRange");
+  check_texels(op, ctx, w, uint64_t(words) / 4);
+  if (given)
+    expect(uint64_t(given->weights.bytes()) >= bytes, op, "weights scratch " + given->weights.describe() + " is too small");
+  vk::BufferView packed = given ? given->weights.buffer() : rec.scratch(1, bytes, "convolution weights (repacked)");
+  packed.size = bytes;
+  PackWeightsPush pc{u32(op, words), u32(op, j.cin), u32(op, taps), u32(op, cp)};
+  std::array<uint32_t, 1> spec = {wdt};
+  Grid g = grid_1d(words, 64);
+  rec.dispatch(ctx.pipelines().get("nn/conv_pack_weights", spec), {word_view(w), packed}, &pc, sizeof pc, g.x, g.y, 1,
+               std::string(op) + "_pack_weights");
+  return packed;
+}
+
+// The convolution: the weights are repacked once, then per batch item and chunk of output frames (and,
+// when one frame is too large, of output rows) the chunk's input is repacked channels-last and the GEMM
+// kernel runs over it. Chunks are sized so the packed input stays within one storage binding and one
+// texel view, and the grid within 65535 workgroups per dimension.
+void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const Tensor& w,
+                 const Tensor* bias, const Tensor& y, const ConvScratch* given) {
+  if (j.b == 0 || j.frames_out == 0 || j.ho == 0 || j.wo == 0 || j.cout == 0) return;
+  vk::Context& ctx = rec.context();
+  const vk::DeviceCaps& caps = ctx.caps();
   uint32_t wdt = weight_code(op, w.dtype());
-  double macs = double(j.b * pass.frames * j.ho * j.wo) * double(j.cout) * double(j.cin * j.kt * j.kh * j.kw);
-  ConvBlock blk = conv_block(rec.context(), macs);
-  std::array<uint32_t, 9> spec = {u32(op, j.kt), u32(op, j.kh), u32(op, j.kw), u32(op, j.stride), wdt,
-                                  blk.bcast ? 1u : 0u, blk.co, blk.px, j.upsample ? 1u : 0u};
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv", spec);
+  check_texels(op, ctx, x, uint64_t(x.numel()));
+  if (j.cache) check_texels(op, ctx, *j.cache, uint64_t(j.cache->numel()));
+  const int64_t cp = (j.cin + 7) / 8 * 8, up = j.upsample ? 2 : 1;
 
-  ConvPush pc{};
-  pc.cin = u32(op, j.cin);
-  pc.cout = u32(op, j.cout);
-  pc.src_frames = u32(op, pass.src_frames);
-  pc.h = u32(op, j.h);
-  pc.w = u32(op, j.w);
-  pc.ho = u32(op, j.ho);
-  pc.wo = u32(op, j.wo);
-  pc.pad_top = int32_t(j.pad_top);
-  pc.pad_left = int32_t(j.pad_left);
-  pc.prefix = u32(op, j.prefix);
-  pc.src_shift = u32(op, pass.src_shift);
-  pc.tap_mode = pass.tap_mode;
-  pc.has_bias = bias && pass.add_bias ? 1 : 0;
-  pc.tiles_w = div_up(j.wo, blk.px);
-  pc.frames = u32(op, pass.frames);
-  pc.fo_begin = u32(op, pass.fo_begin);
-  pc.ys_b = u32(op, j.ys_b);
-  pc.ys_c = u32(op, j.ys_c);
-  pc.ys_f = u32(op, j.ys_f);
-  pc.ys_h = u32(op, j.ys_h);
-  pc.ys_w = u32(op, j.ys_w);
-  pc.time_map = j.time_map;
+  GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo, j.cout);
+  if (g_block_override.rows) tile.rows = g_block_override.rows;
+  if (g_block_override.cols) tile.cols = g_block_override.cols;
+  if (g_block_override.k_unroll) tile.k_unroll = g_block_override.k_unroll;
+  if (g_block_override.lanes >= 0) tile.lanes = std::max(g_block_override.lanes, gemm_lanes(caps));
+  const int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;
+  expect(div_up(j.cout, tile_n) <= 65535, op, "too many output channels for one dispatch");
 
-  int64_t gx = div_up(j.ho * int64_t(pc.tiles_w), kConvLocal);
-  int64_t gy = div_up(j.cout, blk.co);
-  int64_t gz = j.b * pass.frames;
-  if (gx > 65535 || gy > 65535 || gz > 65535)
-    fail(op, "grid " + std::to_string(gx) + "x" + std::to_string(gy) + "x" + std::to_string(gz) +
-                 " exceeds 65535 workgroups per dimension; tile the input");
-  if (gx == 0 || gy == 0) return;
+  // Chunk budget: one storage binding (the pack writes it), one texel view of RGBA32F texels.
+  uint64_t cap = caps.max_storage_buffer_range;
+  if (caps.max_texel_buffer_elements) cap = std::min<uint64_t>(cap, caps.max_texel_buffer_elements * 16);
+  cap = std::min(cap, kScratchInputCap);
+  if (given) cap = std::min<uint64_t>(cap, uint64_t(given->input.bytes()));
+  if (g_chunk_bytes_override) cap = std::min<uint64_t>(cap, g_chunk_bytes_override);
+  const uint64_t pixel_bytes = uint64_t(cp) * 4, max_m = uint64_t(65535) * uint64_t(tile_m);
+  // Bytes of a chunk of nfo output frames and r output rows, wherever the rows lie (interior rows read the
+  // most source rows: the span of r rows plus the kernel, halved and rounded out when upsampling).
+  auto chunk_bytes = [&](int64_t nfo, int64_t r) {
+    int64_t span = (r - 1) * j.stride + j.kh;
+    int64_t src_rows = r == j.ho ? source_rows(j, 0, j.ho).end - source_rows(j, 0, j.ho).first
+                                 : std::min(j.h, up == 1 ? span : (span - 1) / 2 + 2);
+    return uint64_t(nfo + j.kt - 1) * uint64_t(src_rows) * uint64_t(j.w) * pixel_bytes + pixel_bytes;
+  };
+  int64_t chunk_frames = 0, chunk_rows = j.ho;
+  for (int64_t n = j.frames_out; n >= 1 && chunk_frames == 0; --n)
+    if (chunk_bytes(n, j.ho) <= cap && uint64_t(n * j.ho * j.wo) <= max_m) chunk_frames = n;
+  if (chunk_frames == 0) {  // one frame at a time, split over rows
+    chunk_frames = 1;
+    chunk_rows = 0;
+    for (int64_t r = j.ho; r >= 1 && chunk_rows == 0; --r)
+      if (chunk_bytes(1, r) <= cap && uint64_t(r * j.wo) <= max_m) chunk_rows = r;
+    expect(chunk_rows >= 1, op, "one output row of " + y.describe() + " needs more than the device's binding limit (" +
+                                    std::to_string(cap) + " bytes) of repacked input; tile the input spatially");
+  }
 
-  // Input and weights are read through texel buffers, whose size limit (2^27 elements on lavapipe and
-  // on NVIDIA) can be below the storage-buffer range.
-  uint64_t max_texels = rec.context().caps().max_texel_buffer_elements;
-  for (const Tensor* t : {pass.src, &w})
-    if (max_texels && uint64_t(t->numel()) > max_texels)
-      fail(op, t->describe() + " exceeds the device's texel-buffer limit of " + std::to_string(max_texels) +
-                   " elements; split the convolution (spatial tiles or fewer frames per batch)");
-  VkFormat wfmt = wdt == 0 ? VK_FORMAT_R32_UINT : VK_FORMAT_R16_UINT;
-  vk::BufferView bv = bias ? word_view(*bias) : word_view(w);
-  rec.dispatch(pipe, {vk::Binding(pass.src->buffer(), VK_FORMAT_R32_SFLOAT), vk::Binding(w.buffer(), wfmt), bv, y.buffer()},
-               &pc, sizeof pc, uint32_t(gx), uint32_t(gy), uint32_t(gz), op);
+  vk::BufferView packed_w = pack_weights(rec, op, j, w, wdt, cp, given);
+  const vk::BufferView bias_view = bias ? word_view(*bias) : word_view(w);
+  const int64_t steps = cp / 8;
+  const uint32_t ku = steps % 4 == 0 ? std::min<uint32_t>(4, uint32_t(tile.k_unroll)) : (steps % 2 == 0 ? std::min<uint32_t>(2, uint32_t(tile.k_unroll)) : 1u);
+  std::array<uint32_t, 6> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
+                                       uint32_t(tile.sg_m), std::max(ku, 1u)};
+  const vk::Pipeline& gemm =
+      ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
+  const vk::Pipeline& pack = ctx.pipelines().get("nn/conv_pack_input");
+  const Tensor& cache_src = j.cache ? *j.cache : x;
+
+  for (int64_t b = 0; b < j.b; ++b)
+    for (int64_t fo0 = 0; fo0 < j.frames_out; fo0 += chunk_frames)
+      for (int64_t oh0 = 0; oh0 < j.ho; oh0 += chunk_rows) {
+        int64_t nfo = std::min(chunk_frames, j.frames_out - fo0), oh1 = std::min(j.ho, oh0 + chunk_rows);
+        RowSpan rs = source_rows(j, oh0, oh1);
+        int64_t src_rows = rs.end - rs.first, packed_frames = nfo + j.kt - 1;
+        int64_t texels = packed_frames * src_rows * j.w * (cp / 4);
+        expect(uint64_t(texels + cp / 4) * 16 <= cap, op, "chunk planning error");  // guards the bound above
+        const uint64_t packed_bytes = uint64_t(texels + cp / 4) * 16;
+        vk::BufferView packed_x = given ? given->input.buffer() : rec.scratch(0, packed_bytes, "convolution input chunk (repacked)");
+        packed_x.size = packed_bytes;
+
+        PackInputPush pp{u32(op, texels), u32(op, cp / 4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
+                         u32(op, b), u32(op, fo0), u32(op, packed_frames), u32(op, rs.first), u32(op, src_rows),
+                         u32(op, j.prefix), j.time_mode};
+        Grid g = grid_1d(texels + cp / 4, 64);
+        rec.dispatch(pack,
+                     {vk::Binding(x.buffer(), VK_FORMAT_R32_SFLOAT), vk::Binding(cache_src.buffer(), VK_FORMAT_R32_SFLOAT),
+                      packed_x},
+                     &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+
+        GemmPush pc{};
+        int64_t m = nfo * (oh1 - oh0) * j.wo;
+        pc.m = u32(op, m);
+        pc.n = u32(op, j.cout);
+        pc.cp = u32(op, cp);
+        pc.kt = u32(op, j.kt), pc.kh = u32(op, j.kh), pc.kw = u32(op, j.kw);
+        pc.stride = u32(op, j.stride), pc.up = u32(op, up);
+        pc.wo = u32(op, j.wo), pc.rows = u32(op, oh1 - oh0), pc.oh0 = u32(op, oh0);
+        pc.pad_top = int32_t(j.pad_top), pc.pad_left = int32_t(j.pad_left);
+        pc.in_h = u32(op, up * j.h), pc.in_w = u32(op, up * j.w);
+        pc.src_r0 = u32(op, rs.first), pc.src_rows = u32(op, src_rows), pc.src_w = u32(op, j.w);
+        pc.zero_texel = u32(op, texels);
+        pc.y_base = u32(op, b * j.ys_b + fo0 * j.ys_f + oh0 * j.ys_h);
+        pc.ys_f = u32(op, j.ys_f), pc.ys_h = u32(op, j.ys_h), pc.ys_w = u32(op, j.ys_w), pc.ys_c = u32(op, j.ys_c);
+        pc.has_bias = bias ? 1 : 0;
+        uint32_t gx = div_up(m, tile_m), gy = div_up(j.cout, tile_n);
+        rec.dispatch(gemm,
+                     {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
+                      vk::Binding(packed_w, VK_FORMAT_R32G32B32A32_UINT), bias_view, y.buffer()},
+                     &pc, sizeof pc, gx, gy, 1, op);
+      }
 }
 
 // Weight shape as (Cout, Cin, kt, kh, kw) from a 4-D or 5-D tensor.
@@ -164,9 +245,13 @@ std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
 }  // namespace
 
 void set_conv_register_block(const ConvRegisterBlock& block) {
-  if (block.channels > 64 || block.pixels > 64) fail("set_conv_register_block", "block too large");
+  if (block.rows < 0 || block.rows > 16 || block.cols < 0 || block.cols > 8 || block.lanes > 2 ||
+      !(block.k_unroll == 0 || block.k_unroll == 1 || block.k_unroll == 2 || block.k_unroll == 4))
+    fail("set_conv_register_block", "block out of range (rows 1..16, cols 1..8, lanes -1..2, k_unroll 0, 1, 2, 4)");
   g_block_override = block;
 }
+
+void set_conv_chunk_bytes(uint64_t bytes) { g_chunk_bytes_override = bytes; }
 
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
   const char* op = "conv2d";
@@ -184,7 +269,7 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
 }
 
 void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-            const Conv2dParams& p) {
+            const Conv2dParams& p, const ConvScratch* scratch) {
   const char* op = "conv2d";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -210,7 +295,7 @@ void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* b
     j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
   }
   check_bias(op, w, bias, j.cout);
-  record_conv_pass(rec, op, j, {&x, j.frames, 0, 0, j.frames, 0, true}, w, bias, y);
+  record_conv(rec, op, j, x, w, bias, y, scratch);
 }
 
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
@@ -219,7 +304,7 @@ Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
 }
 
 void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                   const Tensor* cache_in, const Tensor* cache_out) {
+                   const Tensor* cache_in, const Tensor* cache_out, const ConvScratch* scratch) {
   const char* op = "causal_conv3d";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -247,17 +332,11 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   int64_t plane = j.h * j.w;
   j.ys_w = 1, j.ys_h = j.w, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
   check_bias(op, w, bias, j.cout);
-  if (!cache_in) {
-    // First frame batch: the prefix replicates frame 0 (src frame = max(tp - prefix, 0)).
-    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, 0, j.frames, 0, true}, w, bias, y);
-  } else {
-    // Frames whose taps all lie on the input, then the first `prefix` frames in two passes: the cache
-    // taps (partial sum into y) and the input taps resuming from it.
-    int64_t head = std::min(j.prefix, j.frames);
-    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, head, j.frames - head, 0, true}, w, bias, y);
-    record_conv_pass(rec, op, j, {cache_in, j.prefix, 0, 0, head, 1, false}, w, bias, y);
-    record_conv_pass(rec, op, j, {&x, j.frames, j.prefix, 0, head, 2, true}, w, bias, y);
-  }
+  // The prefix replicates frame 0 (first frame batch) or is the previous batch's cache; either way the
+  // taps are summed in the same order, so a clip run in frame batches equals the whole clip bit for bit.
+  j.time_mode = cache_in ? 3 : 0;
+  j.cache = cache_in;
+  record_conv(rec, op, j, x, w, bias, y, scratch);
 
   if (cache_out && j.frames > 0) {
     struct {
@@ -272,13 +351,14 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   }
 }
 
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y) {
+void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+             const ConvScratch* scratch) {
   const char* op = "conv1x1";
   auto k = kernel_dims(op, w);
   expect(k[2] == 1 && k[3] == 1 && k[4] == 1, op, "weights " + w.describe() + " are not 1x1x1");
   expect(x.rank() == 5, op, "input must be [B, C, F, H, W], got " + x.describe());
   Tensor w5 = w.reshape({k[0], k[1], 1, 1, 1});
-  causal_conv3d(rec, x, w5, bias, y, nullptr, nullptr);
+  causal_conv3d(rec, x, w5, bias, y, nullptr, nullptr, scratch);
 }
 
 int64_t downsample_time_frames(int64_t frames) { return frames % 2 == 1 ? 1 + (frames - 1) / 2 : frames / 2; }
@@ -360,7 +440,7 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 }
 
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                        bool compress_time) {
+                        bool compress_time, const ConvScratch* scratch) {
   const char* op = "upsample2x_conv3x3";
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
@@ -375,11 +455,29 @@ void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, con
   j.ho = up[3], j.wo = up[4], j.frames_out = up[2], j.prefix = 0;
   j.upsample = true;
   int64_t f = x.dim(2);
-  j.time_map = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
+  j.time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
   int64_t plane = j.ho * j.wo;
   j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames_out * plane, j.ys_b = j.cout * j.frames_out * plane;
   check_bias(op, w, bias, j.cout);
-  record_conv_pass(rec, op, j, {&x, j.frames, 0, 0, j.frames_out, 0, true}, w, bias, y);
+  record_conv(rec, op, j, x, w, bias, y, scratch);
+}
+
+ConvScratchSize conv2d_scratch(const Shape& x, const Shape& w) {
+  expect(x.size() == 4 || x.size() == 5, "conv2d", "input must be [N, C, H, W] or [B, C, F, H, W]");
+  int64_t frames = x.size() == 5 ? x[2] : 1;
+  return scratch_size(frames, 1, x[x.size() - 2], x[x.size() - 1], x[1], w[0], w[w.size() - 2] * w[w.size() - 1]);
+}
+
+ConvScratchSize causal_conv3d_scratch(const Shape& x, const Shape& w) {
+  expect(x.size() == 5, "causal_conv3d", "input must be [B, C, F, H, W]");
+  int64_t kt = w.size() == 5 ? w[2] : 1, taps = 1;
+  for (size_t i = 2; i < w.size(); ++i) taps *= w[i];
+  return scratch_size(x[2], kt, x[3], x[4], x[1], w[0], taps);
+}
+
+ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time) {
+  Shape up = upsample2x_shape(x, compress_time);
+  return scratch_size(up[2], 1, x[3], x[4], x[1], w[0], 9);
 }
 
 }  // namespace dvs::ops

@@ -3,9 +3,11 @@
 // [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
 // has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
 // outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
-// the inputs. The convolutions read inputs and weights through texel buffers: each must start at an
-// allocation-aligned offset (whole tensors and arena views do) and hold at most maxTexelBufferElements
-// (2^27 on lavapipe and NVIDIA); larger activations must be split (spatial tiles, frame batches).
+// the inputs. The convolutions run as an implicit GEMM (shaders/nn/conv_gemm.glsl) over chunks of output
+// frames and rows whose input is first repacked channels-last into recorder scratch (the chunks stay within
+// maxStorageBufferRange and maxTexelBufferElements); the weights are repacked once per call. x and a cache
+// are read through texel buffers: each must start at an allocation-aligned offset (whole tensors and arena
+// views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
 #pragma once
 #include <cstdint>
 
@@ -28,9 +30,22 @@ struct Conv2dParams {
   static Conv2dParams downsample3x3() { return {2, 0, 1, 0, 1, false}; }
 };
 
+// Staging memory of one convolution (the input chunk and the weights, repacked). Without it the op takes
+// recorder scratch (vk::Recorder::scratch); callers that plan their memory (the VAE) pass buffers of the
+// sizes *_scratch() gives, f32 elements each, which depend on shapes alone (not the device, not the weight
+// dtype: the weights part is sized for f32): the input part is the whole repacked input, capped at 128 MiB
+// (the smallest maxStorageBufferRange Vulkan allows; larger inputs run in chunks of at most that).
+struct ConvScratch {
+  Tensor input, weights;
+};
+struct ConvScratchSize {
+  int64_t input = 0, weights = 0;
+};
+
 // x: [B, Cin, F, H, W] or [N, Cin, H, W] (images); w: [Cout, Cin, kh, kw] or [Cout, Cin, 1, kh, kw].
 void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-            const Conv2dParams& params);
+            const Conv2dParams& params, const ConvScratch* scratch = nullptr);
+ConvScratchSize conv2d_scratch(const Shape& x, const Shape& w);
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
 
 // CogVideoXCausalConv3d (pad_mode "constant"): kernel [Cout, Cin, kt, kh, kw] with odd kh, kw; spatial zero
@@ -41,11 +56,14 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
 // after the convolution has read it). With kt = 1 this is the pointwise / per-frame conv and caches are
 // not allowed.
 void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                   const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr);
+                   const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr,
+                   const ConvScratch* scratch = nullptr);
+ConvScratchSize causal_conv3d_scratch(const Shape& x, const Shape& w);  // also conv1x1
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w);  // [B, Cin, kt-1, H, W]
 
 // 1x1x1 convolution (CogVideoXSafeConv3d k=1, conv_shortcut): x [B, Cin, F, H, W], w [Cout, Cin(,1,1,1)].
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y);
+void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+             const ConvScratch* scratch = nullptr);
 
 // Temporal pair averaging of CogVideoXDownsample3D (compress_time): odd F keeps frame 0 and averages the
 // rest in pairs; even F averages all pairs. y: [B, C, downsample_time_frames(F), H, W].
@@ -66,15 +84,19 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 // the 4x larger upsampled tensor is never stored. w: [Cout, Cin, 3, 3]. y: [B, Cout, Fo, 2H, 2W] with Fo
 // from upsample2x_shape. Results are bit-identical to upsample2x then conv2d(same3x3).
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
-                        bool compress_time);
+                        bool compress_time, const ConvScratch* scratch = nullptr);
+ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time);
 
-// Tuning / testing knob for the convolution shader: output channels x output pixels computed per
-// invocation (each 0 = automatic: chosen from the device and the size of the convolution), and how the
-// weights reach the lanes (-1 automatic, 0 every lane loads them, 1 subgroup broadcasts: CPU drivers).
+// Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.glsl; defaults come from
+// tensor/kernel_tuning.cpp). Register block: `rows` output pixels x 8*`cols` output channels per 8-lane
+// cluster (0 = automatic), `lanes` -1 automatic, else GemmTile::lanes (2 = no subgroup shuffles),
+// `k_unroll` 8-channel steps per loop trip (0 automatic; 1, 2 or 4).
 struct ConvRegisterBlock {
-  uint32_t channels = 0, pixels = 0;
-  int share_weights = -1;
+  int rows = 0, cols = 0, lanes = -1, k_unroll = 0;
 };
 void set_conv_register_block(const ConvRegisterBlock& block);
+// Largest repacked input chunk in bytes (0 = the device's limits): smaller values force the frame and row
+// splits that the real size needs, on small tensors.
+void set_conv_chunk_bytes(uint64_t bytes);
 
 }  // namespace dvs::ops

@@ -1,5 +1,6 @@
 #include "vk/recorder.hpp"
 
+#include <algorithm>
 #include <vector>
 
 #include "vk/check.hpp"
@@ -34,6 +35,20 @@ void Recorder::release_resources() {
   texel_views_.clear();
   for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
   pool_in_use_ = 0;
+  scratch_.clear();
+  scratch_slot_.clear();
+}
+
+BufferView Recorder::scratch(uint32_t slot, VkDeviceSize bytes, const std::string& what) {
+  if (slot >= scratch_slot_.size()) scratch_slot_.resize(slot + 1, 0);
+  size_t& idx = scratch_slot_[slot];
+  if (idx == 0 || scratch_[idx - 1].view().size < bytes) {
+    scratch_.push_back(ctx_.allocator().allocate(std::max<VkDeviceSize>(bytes, 16), MemoryUse::device, what));
+    idx = scratch_.size();
+  }
+  BufferView v = scratch_[idx - 1].view();
+  v.size = std::max<VkDeviceSize>(bytes, 16);
+  return v;
 }
 
 void Recorder::begin() {

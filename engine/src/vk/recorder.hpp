@@ -44,6 +44,11 @@ class Recorder {
   void copy_regions(const BufferView& src, const BufferView& dst, std::span<const VkBufferCopy> regions);
   void fill_zero(const BufferView& dst);
   void barrier();  // full compute/transfer barrier, for dependencies the tracker cannot see
+  // Device memory for data an op stages inside the recording (repacked convolution operands). Each `slot`
+  // is one region, reused by later requests for that slot while it is large enough (the hazard tracker
+  // orders the reuse); a larger request gets a new buffer and the old one stays alive, as recorded
+  // commands use it. Freed when the recording is dropped (begin, destructor).
+  BufferView scratch(uint32_t slot, VkDeviceSize bytes, const std::string& what);
   void end();
   void submit();   // submit and wait; may be called again to replay
 
@@ -67,6 +72,8 @@ class Recorder {
   std::vector<VkDescriptorPool> pools_;
   size_t pool_in_use_ = 0;
   std::vector<VkBufferView> texel_views_;
+  std::vector<Buffer> scratch_;        // every scratch buffer of the recording
+  std::vector<size_t> scratch_slot_;   // slot -> index in scratch_ + 1 (0: none yet)
   std::vector<Range> reads_, writes_;  // since the last barrier
   uint32_t dispatches_ = 0, barriers_ = 0;
   VkDeviceSize texel_alignment_ = 1;

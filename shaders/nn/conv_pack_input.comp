@@ -1,0 +1,56 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_samplerless_texture_functions : require
+// The input of one convolution chunk, repacked channels-last for conv_gemm: out[frame][row][col][CP]
+// (CP = channels rounded up to 8, the extra channels zero) over `frames` frames of the time-padded axis
+// starting at tp0 and source rows [r0, r0 + rows), followed by one zero pixel (the target of every tap
+// that falls into the spatial padding). One invocation writes one vec4 (4 channels of one pixel).
+//
+// Frame tp of the padded axis is, by time_mode:
+//   0: x frame max(tp - prefix, 0)  (causal conv without cache: the prefix replicates frame 0; plain conv2d: prefix 0)
+//   1: x frame tp == 0 ? 0 : 1 + (tp - 1) / 2   (CogVideoXUpsample3D, odd frame count)
+//   2: x frame tp / 2                           (CogVideoXUpsample3D, even frame count)
+//   3: tp < prefix ? cache frame tp : x frame tp - prefix   (causal conv with the previous batch's cache)
+layout(local_size_x = 64) in;
+#include "index.glsl"
+
+layout(binding = 0) uniform textureBuffer X;      // R32F, [B, C, F, H, W]
+layout(binding = 1) uniform textureBuffer Cache;  // R32F, [B, C, prefix, H, W] (time_mode 3; else any)
+layout(std430, binding = 2) writeonly buffer Out { vec4 o[]; };
+
+layout(push_constant) uniform Push {
+  uint texels;        // frames * rows * w * cp4 (the zero pixel follows)
+  uint cp4;           // CP / 4
+  uint c, src_frames, h, w;
+  uint batch;         // batch item packed
+  uint tp0, frames, r0, rows;
+  uint prefix, time_mode;
+} p;
+
+void main() {
+  uint i = flat_index();
+  if (i >= p.texels + p.cp4) return;
+  if (i >= p.texels) {  // the zero pixel
+    o[i] = vec4(0.0);
+    return;
+  }
+  uint c4 = i % p.cp4, pix = i / p.cp4;
+  uint col = pix % p.w, t = pix / p.w;
+  uint row = p.r0 + t % p.rows, tp = p.tp0 + t / p.rows;
+  bool from_cache = p.time_mode == 3u && tp < p.prefix;
+  uint frame;
+  if (p.time_mode == 1u) frame = tp == 0u ? 0u : 1u + (tp - 1u) / 2u;
+  else if (p.time_mode == 2u) frame = tp / 2u;
+  else if (p.time_mode == 3u) frame = from_cache ? tp : tp - p.prefix;
+  else frame = uint(max(int(tp) - int(p.prefix), 0));
+  uint frames = from_cache ? p.prefix : p.src_frames;
+  uint hw = p.h * p.w, inner = row * p.w + col;
+  vec4 v = vec4(0.0);
+  for (uint j = 0; j < 4u; ++j) {
+    uint ch = c4 * 4u + j;
+    if (ch >= p.c) break;
+    int e = int(((p.batch * p.c + ch) * frames + frame) * hw + inner);
+    v[j] = from_cache ? texelFetch(Cache, e).x : texelFetch(X, e).x;
+  }
+  o[i] = v;
+}
