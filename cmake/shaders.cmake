@@ -14,7 +14,7 @@ if(CMAKE_SCRIPT_MODE_FILE)
     message(FATAL_ERROR "glslc -E ${SHADER} failed:\n${err}")
   endif()
   string(REGEX MATCH "(^|[^A-Za-z0-9_])[iu]?samplerBuffer([^A-Za-z0-9_]|$)" hit "${expanded}")
-  if(hit AND NOT ALLOW_COMBINED)
+  if(hit)
     message(FATAL_ERROR "${SHADER}: declares or uses a combined sampler buffer (${hit}), which SPIR-V 1.6 "
       "drivers reject. Declare the input as textureBuffer/utextureBuffer/itextureBuffer, add "
       "'#extension GL_EXT_samplerless_texture_functions : require' and read it with texelFetch(tex, i).")
@@ -22,10 +22,6 @@ if(CMAKE_SCRIPT_MODE_FILE)
   return()
 endif()
 
-# Shaders still allowed to use combined sampler buffers. Only the convolution kernels, which their owner is
-# rewriting (and converting) on another branch: remove the entry once that branch is merged, so the check
-# covers every shader. Names are regular expressions on the shader name ("nn/conv" matches nn/conv*.comp).
-set(DVS_SHADERS_COMBINED_SAMPLER_EXCEPTIONS "^nn/conv")
 set(DVS_SHADERS_CMAKE ${CMAKE_CURRENT_LIST_FILE})
 
 function(dvs_embed_shaders target shader_root)
@@ -37,19 +33,12 @@ function(dvs_embed_shaders target shader_root)
   foreach(src ${sources})
     file(RELATIVE_PATH rel ${shader_root} ${src})
     string(REGEX REPLACE "\\.comp$" "" name ${rel})
-    set(allow_combined OFF)
-    foreach(pattern ${DVS_SHADERS_COMBINED_SAMPLER_EXCEPTIONS})
-      if(name MATCHES "${pattern}")
-        set(allow_combined ON)
-      endif()
-    endforeach()
     set(spv ${CMAKE_CURRENT_BINARY_DIR}/spv/${name}.spv)
     get_filename_component(spv_dir ${spv} DIRECTORY)
     add_custom_command(
       OUTPUT ${spv}
       COMMAND ${CMAKE_COMMAND} -E make_directory ${spv_dir}
-      COMMAND ${CMAKE_COMMAND} -DGLSLC=${GLSLC} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src}
-              -DALLOW_COMBINED=${allow_combined} -P ${DVS_SHADERS_CMAKE}
+      COMMAND ${CMAKE_COMMAND} -DGLSLC=${GLSLC} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src} -P ${DVS_SHADERS_CMAKE}
       COMMAND ${GLSLC} --target-env=vulkan1.2 -O -I ${shader_root}/common -o ${spv} ${src}
       DEPENDS ${src} ${includes} ${DVS_SHADERS_CMAKE}
       COMMENT "glslc ${rel}"

@@ -5,7 +5,6 @@
 // what was actually embedded, and that reflection keeps deriving the uniform-texel-buffer descriptor.
 #include <gtest/gtest.h>
 
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -14,10 +13,6 @@
 
 namespace dvs {
 namespace {
-
-// The convolution kernels are being rewritten (and converted) on another branch: remove this exception once
-// it is merged, together with DVS_SHADERS_COMBINED_SAMPLER_EXCEPTIONS in cmake/shaders.cmake.
-const std::regex kCombinedSamplerExceptions("^nn/conv.*");
 
 // A hand-assembled module: %img = OpTypeImage %float Buffer ... Sampled=1, then optionally
 // %si = OpTypeSampledImage %img, and a UniformConstant variable of the image (or sampled image) at binding 3.
@@ -55,7 +50,7 @@ TEST(ShaderPortability, NoEmbeddedShaderUsesCombinedTexelBufferSamplers) {
   size_t texel_inputs = 0;
   for (const std::string& name : vk::shader_names()) {
     vk::ShaderInterface iface = vk::reflect_shader(vk::find_shader(name));
-    if (iface.combined_texel_buffer_sampler && !std::regex_match(name, kCombinedSamplerExceptions))
+    if (iface.combined_texel_buffer_sampler)
       offenders.push_back(name);
     for (const vk::ShaderBinding& b : iface.bindings)
       texel_inputs += b.kind == vk::BindingKind::uniform_texel_buffer;
