@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "support/expect_error.hpp"
 #include "dvs/error.hpp"
 #include "io/depth.hpp"
 #include "io/npy.hpp"
@@ -27,15 +28,7 @@ namespace fs = std::filesystem;
 
 using test::TempDir;
 
-template <class F>
-void expect_error(F&& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    ADD_FAILURE() << "expected a dvs::Error";
-  } catch (const Error& e) {
-    for (const auto& p : parts) EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what() << " lacks " << p;
-  }
-}
+using dvs::test::expect_error;
 
 HostTensor ramp(Shape s, float lo, float step) {
   HostTensor t(s, DType::f32);

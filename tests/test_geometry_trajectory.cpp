@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "support/expect_error.hpp"
 #include "dvs/error.hpp"
 #include "geometry/camera.hpp"
 #include "geometry/trajectory.hpp"
@@ -43,15 +44,7 @@ double max_diff(const glm::dmat4& a, const glm::dmat4& b) {
   return d;
 }
 
-template <class F>
-void expect_error(F&& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    ADD_FAILURE() << "expected a dvs::Error";
-  } catch (const Error& e) {
-    for (const auto& p : parts) EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what() << " lacks " << p;
-  }
-}
+using dvs::test::expect_error;
 
 glm::dvec2 project_point(const Trajectory& t, int frame, const Intrinsics& K, glm::dvec3 X) {
   glm::dvec4 Y = t.transforms[size_t(frame)] * glm::dvec4(X, 1.0);

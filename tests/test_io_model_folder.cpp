@@ -9,6 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
@@ -39,17 +40,7 @@ void put_st(const fs::path& p, const std::vector<std::string>& names) {
   write_text(p, bytes + s + std::string(size_t(off), '\0'));
 }
 
-template <class F>
-void expect_error(F&& f, const std::string& file, const std::string& word) {
-  try {
-    f();
-    ADD_FAILURE() << "no error; expected one mentioning '" << word << "'";
-  } catch (const dvs::Error& e) {
-    const std::string msg = e.what();
-    EXPECT_NE(msg.find(file), std::string::npos) << "message does not name " << file << ": " << msg;
-    EXPECT_NE(msg.find(word), std::string::npos) << "message lacks '" << word << "': " << msg;
-  }
-}
+using dvs::test::expect_error;
 
 const dvs::TensorSpec* spec(const dvs::Schema& s, const std::string& name) {
   for (const auto& t : s.tensors)

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/host_tensor.hpp"
@@ -55,18 +56,7 @@ std::vector<uint8_t> raw(const std::vector<T>& v) {
   return b;
 }
 
-// Expects a dvs::Error whose message names the file and contains `word`.
-template <class F>
-void expect_error(F&& f, const std::string& file, const std::string& word) {
-  try {
-    f();
-    ADD_FAILURE() << "no error; expected one mentioning '" << word << "'";
-  } catch (const dvs::Error& e) {
-    const std::string msg = e.what();
-    EXPECT_NE(msg.find(file), std::string::npos) << "message does not name " << file << ": " << msg;
-    EXPECT_NE(msg.find(word), std::string::npos) << "message lacks '" << word << "': " << msg;
-  }
-}
+using dvs::test::expect_error;
 
 // Reference rounding: the nearest representable value by exhaustive search over the non-negative finite
 // 16-bit patterns (which increase monotonically), ties to the even pattern.

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "dvs/error.hpp"
 #include "io/pickle_state_dict.hpp"
 #include "io/pth_file.hpp"
@@ -118,17 +119,7 @@ std::vector<float> floats(const std::vector<uint8_t>& b) {
   return v;
 }
 
-template <class F>
-void expect_error(F&& f, const std::string& file, const std::string& word) {
-  try {
-    f();
-    ADD_FAILURE() << "no error; expected one mentioning '" << word << "'";
-  } catch (const dvs::Error& e) {
-    const std::string msg = e.what();
-    EXPECT_NE(msg.find(file), std::string::npos) << "message does not name " << file << ": " << msg;
-    EXPECT_NE(msg.find(word), std::string::npos) << "message lacks '" << word << "': " << msg;
-  }
-}
+using dvs::test::expect_error;
 
 }  // namespace
 

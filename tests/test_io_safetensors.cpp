@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
@@ -45,17 +46,7 @@ std::vector<uint8_t> st_bytes(const std::string& header, const std::vector<uint8
   return out;
 }
 
-template <class F>
-void expect_error(F&& f, const std::string& file, const std::string& word) {
-  try {
-    f();
-    ADD_FAILURE() << "no error; expected one mentioning '" << word << "'";
-  } catch (const dvs::Error& e) {
-    const std::string msg = e.what();
-    EXPECT_NE(msg.find(file), std::string::npos) << "message does not name " << file << ": " << msg;
-    EXPECT_NE(msg.find(word), std::string::npos) << "message lacks '" << word << "': " << msg;
-  }
-}
+using dvs::test::expect_error;
 
 std::vector<std::pair<std::string, fs::path>> pack_components(const fs::path& folder) {
   return {{"text_encoder", folder / "text_encoder"}, {"transformer", folder / "transformer"}, {"vae", folder / "vae"}};
