@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "diffusion/init_noise.hpp"
 #include "diffusion/krnr.hpp"
 #include "diffusion/sampler.hpp"
@@ -29,15 +30,7 @@ namespace {
 
 using test::GpuTest;
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dvs::test::error_of;
 
 double max_rel_diff(const std::vector<float>& a, const std::vector<double>& b) {
   double m = 0;

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "dvs/error.hpp"
 #include "io/npy.hpp"
 #include "io/pickle_state_dict.hpp"
@@ -46,15 +47,7 @@ std::map<std::string, dvs::Shape> shapes_of(const dvs::PthFile& f) {
   return m;
 }
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const dvs::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dvs::test::error_of;
 
 // The bytes of the archive's */data.pkl record, read with libzip independently of the reader under test.
 std::string pickle_of(const fs::path& p) {

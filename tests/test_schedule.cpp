@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "diffusion/krnr_reference.hpp"
 #include "diffusion/schedule.hpp"
 #include "dvs/error.hpp"
@@ -19,15 +20,7 @@ namespace ref = dvs::diffusion::reference;
 
 namespace {
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const dvs::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dvs::test::error_of;
 
 std::vector<float> randn(size_t n, uint32_t seed, float scale = 1.0f, float offset = 0.0f) {
   std::mt19937 rng(seed);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "dvs/error.hpp"
 #include "models/tokenizer.hpp"
@@ -23,15 +24,7 @@ namespace {
 // The in-repo pack A (not DVS_GOLDEN_DIR): these expectations are about its tiny vocabulary.
 fs::path model_dir() { return fs::path(DVS_DEFAULT_GOLDEN_DIR) / "model"; }
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const dvs::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dvs::test::error_of;
 
 const dvs::T5Tokenizer& tok() {
   static dvs::T5Tokenizer t = dvs::T5Tokenizer::load(model_dir());

@@ -33,4 +33,15 @@ void expect_error(F&& f, const std::vector<std::string>& parts) {
   }
 }
 
+// The message of the dvs::Error f() throws, or "" when it throws none.
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const dvs::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
 }  // namespace dvs::test
