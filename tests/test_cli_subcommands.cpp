@@ -79,14 +79,7 @@ TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
   // render stage (a trajectory that does not exist would stop the whole shard before any job, see
   // BatchPreflight in test_run_preflight.cpp).
   const int kJobs = 5, kBad = 3;
-  {
-    geometry::SyntheticSceneSpec spec;
-    spec.frames = 5;
-    spec.height = 64;
-    spec.width = 64;
-    spec.K = geometry::Intrinsics::official_default(64, 64);
-    write_npy(in.dir / "depth5.npy", geometry::render_synthetic(spec).depth);
-  }
+  test::PipelineInputs::write_scene_depth(in.dir / "depth5.npy", 5);
   {
     std::ofstream f(jobs);
     f << "# video, depth and model come from the command line\n";

@@ -9,6 +9,7 @@
 #include "io/npy.hpp"
 #include "io/safetensors_writer.hpp"
 #include "io/video.hpp"
+#include "support/lora_adapter.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
@@ -57,14 +58,7 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
   test::write_text(in.dir / "empty.mp4", "");
   test::write_text(in.dir / "garbage.mp4", std::string(4096, 'x'));
   test::write_text(in.dir / "a_file", "x");
-  {
-    geometry::SyntheticSceneSpec spec;
-    spec.frames = 5;
-    spec.height = 64;
-    spec.width = 64;
-    spec.K = geometry::Intrinsics::official_default(64, 64);
-    write_npy(in.dir / "depth5.npy", geometry::render_synthetic(spec).depth);
-  }
+  test::PipelineInputs::write_scene_depth(in.dir / "depth5.npy", 5);
   struct Case {
     std::string extra, expect;
   } cases[] = {
@@ -103,22 +97,7 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
 // A LoRA adapter on two attention projections of the pack's transformer (inner dim 2 heads × 16), in the
 // diffusers layout load_lora reads.
 std::filesystem::path write_lora(const std::filesystem::path& dir) {
-  const int64_t D = 32, r = 4;
-  std::vector<std::pair<std::string, HostTensor>> tensors;
-  uint32_t state = 7;
-  auto values = [&](size_t n, float amplitude) {
-    std::vector<float> v(n);
-    for (auto& x : v) x = amplitude * (float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24) - 0.5f);
-    return v;
-  };
-  for (const char* module : {"transformer_blocks.0.attn1.to_q", "transformer_blocks.1.attn1.to_v"}) {
-    const std::string name = std::string("transformer.") + module;
-    tensors.push_back({name + ".lora_A.weight", HostTensor::from_f32({r, D}, values(size_t(r * D), 0.5f))});
-    tensors.push_back({name + ".lora_B.weight", HostTensor::from_f32({D, r}, values(size_t(D * r), 1.0f))});
-  }
-  const auto file = dir / "adapter.safetensors";
-  write_safetensors(file, tensors);
-  return file;
+  return test::write_lora_adapter(dir, {"transformer_blocks.0.attn1.to_q", "transformer_blocks.1.attn1.to_v"}, 7, 0.5f);
 }
 
 TEST(PipelineCli, LoraAndVaeTilingRunsAreRecordedAndKeyTheCache) {

@@ -27,6 +27,7 @@
 #include "io/safetensors_writer.hpp"
 #include "io/video.hpp"
 #include "support/files.hpp"
+#include "support/lora_adapter.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
 
@@ -38,23 +39,9 @@ namespace fs = std::filesystem;
 // A rank-4 adapter (diffusers layout) on the attention projections of both blocks of the pack's transformer
 // (inner dim 2 heads × 16), large enough to move the output visibly.
 fs::path write_adapter(const fs::path& dir) {
-  const int64_t D = 32, r = 4;
-  std::vector<std::pair<std::string, HostTensor>> tensors;
-  uint32_t state = 11;
-  auto values = [&](size_t n, float amplitude) {
-    std::vector<float> v(n);
-    for (auto& x : v) x = amplitude * (float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24) - 0.5f);
-    return v;
-  };
-  for (const char* module : {"transformer_blocks.0.attn1.to_q", "transformer_blocks.0.attn1.to_v",
-                             "transformer_blocks.1.attn1.to_k", "transformer_blocks.1.attn1.to_out.0"}) {
-    const std::string name = std::string("transformer.") + module;
-    tensors.push_back({name + ".lora_A.weight", HostTensor::from_f32({r, D}, values(size_t(r * D), 1.0f))});
-    tensors.push_back({name + ".lora_B.weight", HostTensor::from_f32({D, r}, values(size_t(D * r), 1.0f))});
-  }
-  const fs::path file = dir / "adapter.safetensors";
-  write_safetensors(file, tensors);
-  return file;
+  return test::write_lora_adapter(dir, {"transformer_blocks.0.attn1.to_q", "transformer_blocks.0.attn1.to_v",
+                                        "transformer_blocks.1.attn1.to_k", "transformer_blocks.1.attn1.to_out.0"},
+                                  11, 1.0f);
 }
 
 std::set<fs::path> cache_files(const fs::path& cache) {

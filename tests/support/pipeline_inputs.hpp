@@ -31,6 +31,15 @@ struct PipelineInputs {
     return " --video " + video.string() + " --depth " + depth.string() + " --metric-depth --model " + model.string() +
            " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + cache.string();
   }
+  // Exact depth of the same 64×64 scene with another frame count, for inputs whose length must not match.
+  static void write_scene_depth(const std::filesystem::path& file, int frames) {
+    geometry::SyntheticSceneSpec spec;
+    spec.frames = frames;
+    spec.height = 64;
+    spec.width = 64;
+    spec.K = geometry::Intrinsics::official_default(64, 64);
+    write_npy(file, geometry::render_synthetic(spec).depth);
+  }
   std::string command(const std::filesystem::path& out, const std::string& extra = "") const {
     return program("dvs") + " run" + inputs() + " --prompt 'a red fox' --progress json --out " + out.string() + " " + extra;
   }
