@@ -103,7 +103,7 @@ TEST_F(GpuTest, AllocatorRefusesBlocksBeyondItsCapacity) {
   vk::Buffer second = a.allocate(2000, vk::MemoryUse::device, "second");  // same block: no new memory
   EXPECT_EQ(a.device_memory_reserved(), block);
   try {
-    a.allocate(block, vk::MemoryUse::device, "the third tensor", false);  // needs a second block
+    a.allocate(block, vk::MemoryUse::device, "the third tensor");  // needs a second block
     FAIL() << "expected a refusal";
   } catch (const Error& e) {
     std::string msg = e.what();

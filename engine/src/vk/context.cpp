@@ -1,5 +1,6 @@
 #include "vk/context.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -219,6 +220,22 @@ Context::Context(const ContextOptions& options) {
     release();
     throw;
   }
+}
+
+void Context::override_limits(const LimitOverrides& extra) {
+  caps_.max_storage_buffer_range = caps_.device_limits.binding;
+  caps_.max_texel_buffer_elements = caps_.device_limits.texels;
+  caps_.max_memory_allocation_size = caps_.device_limits.alloc;
+  for (int i = 0; i < 3; ++i) caps_.max_workgroup_count[i] = caps_.device_limits.groups[i];
+  LimitOverrides o = limit_overrides_from_env();
+  auto lower = [](std::optional<uint64_t>& a, const std::optional<uint64_t>& b) {
+    if (b) a = a ? std::min(*a, *b) : *b;
+  };
+  lower(o.binding, extra.binding);
+  lower(o.texels, extra.texels);
+  lower(o.alloc, extra.alloc);
+  lower(o.groups, extra.groups);
+  apply_limit_overrides(caps_, o);
 }
 
 Context::~Context() { release(); }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "vk/device_info.hpp"
+#include "vk/device_limits.hpp"
 
 namespace dvs::vk {
 
@@ -40,6 +41,10 @@ class Context {
   VkQueue queue() const { return queue_; }
   uint32_t queue_family() const { return queue_family_; }
   const DeviceCaps& caps() const { return caps_; }
+  // Lowers the limits in force further than DVS_LIMITS does (min of both), or back to DVS_LIMITS alone with
+  // {} (tests that force one op's split paths: tests/support/scoped_limits.hpp). The allocator's existing
+  // blocks are kept; new ones follow the new alloc limit.
+  void override_limits(const LimitOverrides& extra);
   bool validation_enabled() const { return validation_; }
 
   Allocator& allocator() { return *allocator_; }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
+#include "vk/device_limits.hpp"
 #include "vk/memory.hpp"
 
 namespace dvs::vk {
@@ -77,11 +78,13 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
   c.max_storage_buffer_range = L.maxStorageBufferRange;
   c.max_memory_allocation_size = maint3.maxMemoryAllocationSize;
   c.min_storage_buffer_offset_alignment = L.minStorageBufferOffsetAlignment;
+  c.min_texel_buffer_offset_alignment = L.minTexelBufferOffsetAlignment;
   c.max_texel_buffer_elements = L.maxTexelBufferElements;
   c.max_compute_shared_memory = L.maxComputeSharedMemorySize;
   c.max_workgroup_invocations = L.maxComputeWorkGroupInvocations;
   for (int i = 0; i < 3; ++i) c.max_workgroup_count[i] = L.maxComputeWorkGroupCount[i];
   c.max_push_constants = L.maxPushConstantsSize;
+  apply_limit_overrides(c, limit_overrides_from_env());
   c.timestamp_period_ns = L.timestampPeriod;
   c.timestamps = L.timestampComputeAndGraphics;
 
@@ -158,6 +161,7 @@ uint32_t select_device(const std::vector<DeviceCaps>& devices, const std::string
 
 std::string describe_device(const DeviceCaps& c) {
   std::ostringstream o;
+  auto forced = [](bool is, const std::string& device_value) { return is ? " * [" + device_value + "]" : std::string(); };
   auto yes = [](bool b) { return b ? "yes" : "no"; };
   o << "Device " << c.index << ": " << c.name << "\n"
     << "  type:                 " << device_type_name(c.type) << "\n"
@@ -174,8 +178,19 @@ std::string describe_device(const DeviceCaps& c) {
     << "  cooperative matrix:   " << yes(c.cooperative_matrix) << "\n"
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"
-    << "  maxStorageBufferRange:      " << format_bytes(c.max_storage_buffer_range) << "\n"
-    << "  maxMemoryAllocationSize:    " << format_bytes(c.max_memory_allocation_size) << "\n"
+    << "  limits in force" << (c.forced_limits.any() ? " (* lowered by DVS_LIMITS; the device's value in brackets)" : "")
+    << ":\n"
+    << "  maxStorageBufferRange:      " << format_bytes(c.max_storage_buffer_range)
+    << forced(c.forced_limits.binding, format_bytes(c.device_limits.binding)) << "\n"
+    << "  maxTexelBufferElements:     " << c.max_texel_buffer_elements
+    << forced(c.forced_limits.texels, std::to_string(c.device_limits.texels)) << "\n"
+    << "  maxMemoryAllocationSize:    " << format_bytes(c.max_memory_allocation_size)
+    << forced(c.forced_limits.alloc, format_bytes(c.device_limits.alloc)) << "\n"
+    << "  maxComputeWorkGroupCount:   " << c.max_workgroup_count[0] << " x " << c.max_workgroup_count[1] << " x "
+    << c.max_workgroup_count[2]
+    << forced(c.forced_limits.groups, std::to_string(c.device_limits.groups[0]) + " x " +
+                                          std::to_string(c.device_limits.groups[1]) + " x " +
+                                          std::to_string(c.device_limits.groups[2])) << "\n"
     << "  maxComputeSharedMemorySize: " << format_bytes(c.max_compute_shared_memory) << "\n"
     << "  maxComputeWorkGroupInvocations: " << c.max_workgroup_invocations << "\n"
     << "  maxPushConstantsSize:       " << c.max_push_constants << " B\n"

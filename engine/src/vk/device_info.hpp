@@ -17,6 +17,16 @@ struct MemoryHeapInfo {
   bool host_visible = false;  // some memory type of this heap is host-visible
 };
 
+// The device's own values of the limits DVS_LIMITS can lower (device_limits.hpp).
+struct DeviceLimitValues {
+  uint64_t binding = 0, texels = 0, alloc = 0;
+  uint32_t groups[3] = {};
+};
+struct ForcedLimits {
+  bool binding = false, texels = false, alloc = false, groups = false;
+  bool any() const { return binding || texels || alloc || groups; }
+};
+
 struct DeviceCaps {
   uint32_t index = 0;
   std::string name;
@@ -34,13 +44,18 @@ struct DeviceCaps {
   bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix
   bool push_descriptor = false;
 
+  // The limits every op and allocation honours: the device's, lowered by DVS_LIMITS where it says so
+  // (device_limits holds the device's own values, forced_limits which were lowered).
   uint64_t max_storage_buffer_range = 0;
   uint64_t max_memory_allocation_size = 0;
   uint64_t min_storage_buffer_offset_alignment = 0;
+  uint64_t min_texel_buffer_offset_alignment = 0;
   uint64_t max_texel_buffer_elements = 0;
   uint32_t max_compute_shared_memory = 0;
   uint32_t max_workgroup_invocations = 0;
   uint32_t max_workgroup_count[3] = {};
+  DeviceLimitValues device_limits;
+  ForcedLimits forced_limits;
   uint32_t max_push_constants = 0;
   float timestamp_period_ns = 0;
   bool timestamps = false;

@@ -206,13 +206,9 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
   return blocks_.back().get();
 }
 
-Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string& what, bool bindable) {
+Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string& what) {
   const DeviceCaps& c = ctx_.caps();
   if (bytes == 0) bytes = 4;  // zero-size tensors still get a valid binding
-  if (bindable && bytes > c.max_storage_buffer_range)
-    throw Error("Buffer for " + what + " needs " + format_bytes(bytes) + " but this device binds at most " +
-                format_bytes(c.max_storage_buffer_range) + " (maxStorageBufferRange) per buffer. Use tiling, a smaller "
-                "size, or split the tensor.");
   if (bytes > c.max_memory_allocation_size)
     throw Error("Buffer for " + what + " needs " + format_bytes(bytes) + ", more than this device can allocate at "
                 "once (maxMemoryAllocationSize " + format_bytes(c.max_memory_allocation_size) + ").");
@@ -277,19 +273,13 @@ void Allocator::release(Buffer& b) {
 // ---- Arena -------------------------------------------------------------------------------------------
 
 Arena::Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what)
-    : buffer_(alloc.allocate(capacity, MemoryUse::device, what, false)),
-      what_(what),
-      alignment_(alloc.alignment()),
-      max_binding_(alloc.max_binding()) {}
+    : buffer_(alloc.allocate(capacity, MemoryUse::device, what)), what_(what), alignment_(alloc.alignment()) {}
 
 BufferView Arena::alloc(VkDeviceSize bytes) {
   VkDeviceSize need = align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
   if (need > buffer_.size() - used_)
     throw Error("The " + what_ + " of " + format_bytes(buffer_.size()) + " is full: " + format_bytes(used_) +
                 " used, " + format_bytes(bytes) + " more requested. Use a smaller size or tiling.");
-  if (bytes > max_binding_)
-    throw Error("A tensor in the " + what_ + " needs " + format_bytes(bytes) + ", more than one buffer binding holds (" +
-                format_bytes(max_binding_) + ", maxStorageBufferRange). Use tiling or a smaller size.");
   BufferView v = buffer_.view().sub(used_, std::max<VkDeviceSize>(bytes, 4));
   used_ += need;
   peak_ = std::max(peak_, used_);

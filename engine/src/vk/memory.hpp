@@ -1,6 +1,8 @@
 // Device memory: large VkDeviceMemory blocks (each ≤ maxMemoryAllocationSize, with one VkBuffer covering
-// it) suballocated first-fit into Buffers. A Buffer is what one descriptor binds, so a bindable request
-// larger than maxStorageBufferRange is refused with an error that says so.
+// it) suballocated first-fit into Buffers. A Buffer may be larger than one descriptor binds
+// (maxStorageBufferRange): ops that meet such a tensor bind bounded sub-ranges of it (Recorder::dispatch
+// refuses any binding over the limit). A request larger than one allocation (maxMemoryAllocationSize) is
+// refused with an error that says so.
 #pragma once
 #include <vulkan/vulkan.h>
 
@@ -82,9 +84,7 @@ class Allocator {
   ~Allocator();
 
   // `what` names the request in error messages ("transformer weights", "attention scores", ...).
-  // `bindable` requests must fit one storage-buffer binding (maxStorageBufferRange).
-  Buffer allocate(VkDeviceSize bytes, MemoryUse use = MemoryUse::device, const std::string& what = "buffer",
-                  bool bindable = true);
+  Buffer allocate(VkDeviceSize bytes, MemoryUse use = MemoryUse::device, const std::string& what = "buffer");
 
   const MemoryStats& stats() const { return stats_; }
   VkDeviceSize alignment() const { return alignment_; }
@@ -132,7 +132,7 @@ class Arena {
  private:
   Buffer buffer_;
   std::string what_;
-  VkDeviceSize alignment_, max_binding_;
+  VkDeviceSize alignment_;
   VkDeviceSize used_ = 0, peak_ = 0;
 };
 

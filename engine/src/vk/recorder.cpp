@@ -5,6 +5,7 @@
 
 #include "vk/check.hpp"
 #include "vk/context.hpp"
+#include "vk/device_limits.hpp"
 #include "vk/profiler.hpp"
 
 namespace dvs::vk {
@@ -133,9 +134,13 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
                 std::to_string(bindings.size()) + " given");
   const DeviceCaps& caps = ctx_.caps();
   if (gx == 0 || gy == 0 || gz == 0) return;  // nothing to do (empty tensor)
+  // The limits in force (the device's, or lower under DVS_LIMITS): an op that meets a large tensor must split
+  // its work so that no dispatch exceeds them; getting here means one did not (a bug in that op).
   if (gx > caps.max_workgroup_count[0] || gy > caps.max_workgroup_count[1] || gz > caps.max_workgroup_count[2])
     throw Error("internal: shader " + p.name + " dispatch of " + std::to_string(gx) + "x" + std::to_string(gy) + "x" +
-                std::to_string(gz) + " groups exceeds the device's maxComputeWorkGroupCount");
+                std::to_string(gz) + " groups exceeds maxComputeWorkGroupCount " +
+                std::to_string(caps.max_workgroup_count[0]) + "x" + std::to_string(caps.max_workgroup_count[1]) + "x" +
+                std::to_string(caps.max_workgroup_count[2]) + (caps.forced_limits.groups ? " (DVS_LIMITS)" : ""));
   if (push_bytes > 128 || push_bytes % 4) throw Error("internal: push constants must be ≤ 128 bytes, multiple of 4");
 
   VkDescriptorSet set = allocate_set(p.set_layout);
@@ -147,6 +152,17 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
     if (!v.valid()) throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " has no buffer");
     const bool texel = decl[i].kind == BindingKind::uniform_texel_buffer || decl[i].kind == BindingKind::storage_texel_buffer;
     const VkDeviceSize align = texel ? texel_alignment_ : caps.min_storage_buffer_offset_alignment;
+    if (texel) {
+      const uint32_t tb = texel_format_bytes(bindings[i].texel_format);
+      if (tb && v.size / tb > caps.max_texel_buffer_elements)
+        throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " is a texel view of " +
+                    std::to_string(v.size / tb) + " texels, over maxTexelBufferElements " +
+                    std::to_string(caps.max_texel_buffer_elements) + (caps.forced_limits.texels ? " (DVS_LIMITS)" : ""));
+    } else if (v.size > caps.max_storage_buffer_range) {
+      throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " covers " + format_bytes(v.size) +
+                  " (" + std::to_string(v.size) + " B), over maxStorageBufferRange " +
+                  format_bytes(caps.max_storage_buffer_range) + (caps.forced_limits.binding ? " (DVS_LIMITS)" : ""));
+    }
     if (align && v.offset % align)
       throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " starts at offset " +
                   std::to_string(v.offset) + ", not a multiple of the device's " + std::to_string(align) +
