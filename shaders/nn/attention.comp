@@ -24,6 +24,10 @@ layout(constant_id = 1) const bool HAS_BIAS = false;  // additive bias [H, Lq, L
 layout(constant_id = 2) const bool HAS_MASK = false;  // key mask [B, Lk], 0 = masked
 layout(constant_id = 3) const int R = 4;              // query rows per invocation
 layout(constant_id = 4) const int KB = 8;             // keys per block of the online softmax
+// Keys split over several dispatches (a split too long for one binding): the running max, sum and
+// accumulators of each (row, head) are carried from one dispatch to the next through State.
+layout(constant_id = 5) const bool LOAD_STATE = false;   // continue from State instead of starting afresh
+layout(constant_id = 6) const bool STORE_STATE = false;  // leave the running state in State, write no output
 
 const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX
@@ -34,6 +38,8 @@ layout(binding = 2) uniform textureBuffer V;     // RGBA32F
 layout(std430, binding = 3) writeonly buffer Out { vec4 o[]; };
 layout(binding = 4) uniform textureBuffer Bias;  // R32F [H, Lq, Lk]
 layout(binding = 5) uniform textureBuffer Mask;  // R32F [B, Lk]
+// Per (row, head) of the dispatch: D4 accumulator vec4s, then (max, sum, 0, 0).
+layout(std430, binding = 6) buffer State { vec4 st[]; };
 
 // Offsets and strides in vec4 units. q and out: token-major rows [B, L, H·D]. k and v: row (token) stride
 // plus explicit batch and head strides, so they can be token-major like q or repacked head-major
@@ -44,7 +50,9 @@ layout(push_constant) uniform Push {
   uint k_off, k_stride, k_bstride, k_hstride;
   uint v_off, v_stride, v_bstride, v_hstride;
   float scale;
-  uint bias_off, mask_off;  // elements
+  // Elements: bias (h, row, key) at bias_off + h·bias_hstride + row·bias_rstride + key; mask (b, key) at
+  // mask_off + b·kv_len + key.
+  uint bias_off, bias_hstride, bias_rstride, mask_off;
 } p;
 
 void main() {
@@ -61,7 +69,7 @@ void main() {
     uint row = min(row0 + r * gl_WorkGroupSize.x, p.q_len - 1);
     uint base = (b * p.q_len + row) * p.q_stride + p.q_off + h * D4;
     [[unroll]] for (int c = 0; c < D4; ++c) q[r][c] = texelFetch(Q, int(base + c)) * (p.scale * LOG2E);
-    bias_row[r] = (h * p.q_len + row) * p.kv_len + p.bias_off;
+    bias_row[r] = h * p.bias_hstride + row * p.bias_rstride + p.bias_off;
   }
 
   float m[R], l[R];
@@ -70,6 +78,14 @@ void main() {
     m[r] = MASKED;
     l[r] = 0;
     [[unroll]] for (int c = 0; c < D4; ++c) acc[r][c] = vec4(0);
+  }
+  if (LOAD_STATE) {
+    [[unroll]] for (int r = 0; r < R; ++r) {
+      uint base = (min(row0 + r * gl_WorkGroupSize.x, p.q_len - 1) * p.heads + h) * (D4 + 1);
+      [[unroll]] for (int c = 0; c < D4; ++c) acc[r][c] = st[base + c];
+      m[r] = st[base + D4].x;
+      l[r] = st[base + D4].y;
+    }
   }
 
   for (uint key0 = 0; key0 < p.kv_len; key0 += KB) {
@@ -125,10 +141,16 @@ void main() {
     }
   }
 
-  // ---- normalise and store ----
+  // ---- normalise and store (or leave the state for the next keys) ----
   [[unroll]] for (int r = 0; r < R; ++r) {
     uint row = row0 + r * gl_WorkGroupSize.x;
-    if (row < p.q_len) {
+    if (STORE_STATE) {
+      if (row < p.q_len) {
+        uint base = (row * p.heads + h) * (D4 + 1);
+        [[unroll]] for (int c = 0; c < D4; ++c) st[base + c] = acc[r][c];
+        st[base + D4] = vec4(m[r], l[r], 0, 0);
+      }
+    } else if (row < p.q_len) {
       float inv = 1.0 / l[r];
       uint base = (b * p.q_len + row) * p.o_stride + p.o_off + h * D4;
       [[unroll]] for (int c = 0; c < D4; ++c) o[base + c] = acc[r][c] * inv;

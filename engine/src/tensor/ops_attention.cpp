@@ -1,7 +1,9 @@
 #include "tensor/ops_attention.hpp"
 
+#include <algorithm>
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -24,6 +26,7 @@ Blocking blocking_for(const vk::DeviceCaps& caps, int64_t head_dim) {
 }
 constexpr uint32_t kWorkgroupSize = 64;
 constexpr VkDeviceSize kTexelOffsetAlign = 256;  // the largest minTexelBufferOffsetAlignment Vulkan allows
+constexpr uint32_t kScratchSlot = 2;  // Recorder::scratch slots 2 (K/V) and 3 (state); the convolutions use 0 and 1
 
 [[noreturn]] void fail(const std::string& what) { throw Error("internal: attention: " + what); }
 
@@ -33,8 +36,8 @@ struct Bound {
   uint32_t off4 = 0, stride4 = 0;
 };
 
-Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
-                   bool texel, const vk::DeviceCaps& caps) {
+// Validates an operand against the shape: defined f32, aligned columns inside the row stride, large enough.
+void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width) {
   if (!a.t.defined()) fail(std::string(name) + " is not given");
   expect_dtype("attention", name, a.t, DType::f32);
   int64_t stride = a.row_stride ? a.row_stride : width;
@@ -44,10 +47,17 @@ Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, i
   if (a.column_offset + width > stride)
     fail(std::string(name) + ": columns [" + std::to_string(a.column_offset) + ", " +
          std::to_string(a.column_offset + width) + ") do not fit a row stride of " + std::to_string(stride));
-  int64_t need = (batch * len - 1) * stride + a.column_offset + width;  // elements touched, from the start
+  const int64_t need = (batch * len - 1) * stride + a.column_offset + width;  // elements touched, from the start
   if (need > a.t.numel())
     fail(std::string(name) + " is " + a.t.describe() + ": too small for " + std::to_string(batch) + "x" +
          std::to_string(len) + " rows of stride " + std::to_string(stride));
+}
+
+Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
+                   bool texel, const vk::DeviceCaps& caps) {
+  check_operand(name, a, batch, len, width);
+  const int64_t stride = a.row_stride ? a.row_stride : width;
+  const int64_t need = (batch * len - 1) * stride + a.column_offset + width;
   Bound b;
   vk::BufferView v = a.t.buffer();
   VkDeviceSize bytes = VkDeviceSize(need) * 4;
@@ -77,40 +87,239 @@ struct Push {
   uint32_t k_off, k_stride, k_bstride, k_hstride;
   uint32_t v_off, v_stride, v_bstride, v_hstride;
   float scale;
-  uint32_t bias_off, mask_off;  // elements
+  uint32_t bias_off, bias_hstride, bias_rstride, mask_off;  // elements
 };
 
 struct PackPush {
-  uint32_t count, kv_len, heads, d4;
+  uint32_t count, rows, heads, d4;
   uint32_t k_off, k_stride, v_off, v_stride;
+  uint32_t out_len, pk_off, pv_off;
 };
 
-}  // namespace
+// ---- the split path: bounded sub-views of every operand, one batch element at a time ----
 
-void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
-               const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
-  if (s.head_dim < 4 || s.head_dim > 128 || s.head_dim % 4)
-    fail("head_dim " + std::to_string(s.head_dim) + " is not a multiple of 4 in [4, 128]");
-  if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
-  if (s.batch == 0 || s.q_len == 0) return;
-  if (s.kv_len == 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
+// A bound window of elements [first, first + count) of a buffer, started at the aligned-down offset; the
+// skipped elements (shift) go to the shader as an element offset.
+struct Window {
+  vk::BufferView view;
+  uint32_t shift = 0;  // elements
+};
+Window window(const vk::BufferView& base, int64_t first, int64_t count, uint64_t align) {
+  const VkDeviceSize start = base.offset + VkDeviceSize(first) * 4, shift = start % align;
+  Window w;
+  w.view = {base.buffer, start - shift, VkDeviceSize(count) * 4 + shift, base.mapped ? base.mapped + (int64_t(start - shift) - int64_t(base.offset)) : nullptr};
+  w.shift = uint32_t(shift / 4);
+  return w;
+}
+
+struct Geometry {  // the operand strides of a call, elements
+  int64_t qs, ks, vs, os;
+};
+
+int64_t div_floor_pos(int64_t a, int64_t b) { return a < 0 ? -1 : a / b; }
+
+AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, const Geometry& g, const AttentionOptions& opt,
+                const Blocking& blk, VkDeviceSize workspace_bytes) {
+  const int64_t D = s.head_dim, D4 = D / 4, Lq = s.q_len, Lk = s.kv_len, H = s.heads;
+  const int64_t align = int64_t(binding_alignment(caps)), slack = align / 4;  // worst-case shift, elements
+  const int64_t cap_t = int64_t(binding_capacity(caps, 16) / 4) - slack;      // RGBA32F texel window
+  const int64_t cap_s = int64_t(binding_capacity(caps, 0) / 4) - slack;       // storage window
+  const int64_t cap_r = int64_t(binding_capacity(caps, 4) / 4) - slack;       // R32F texel window (bias, mask)
+  const int64_t kvs = std::max(g.ks, g.vs), rpg = int64_t(kWorkgroupSize) * blk.rows;
+  auto align_up = [&](int64_t bytes) { return (bytes + align - 1) / align * align; };
+
+  AttentionSplit p;
+  p.whole = false;
+  // In place when one head's keys (strided through the token-major rows) fit a binding; else head-major.
+  p.repack = opt.workspace || (Lk - 1) * kvs + D > cap_t;
+  p.keys = p.repack ? cap_t / D : div_floor_pos(cap_t - D, kvs) + 1;
+  if (opt.key_mask || opt.bias) p.keys = std::min(p.keys, cap_r);
+  p.keys = std::min(p.keys, Lk);
+  if (p.keys < Lk && p.keys >= blk.keys) p.keys = p.keys / blk.keys * blk.keys;  // whole softmax blocks: same sums
+  if (p.keys < 1) fail("not even one key of one head fits a binding: head_dim " + std::to_string(D) + ", row stride " +
+                       std::to_string(kvs) + " elements");
+  const bool key_split = p.keys < Lk;
+
+  int64_t best = 0;
+  for (int64_t hg = std::min<int64_t>(H, caps.max_workgroup_count[1]); hg >= 1; --hg) {
+    if (p.repack) {
+      if ((hg - 1) * Lk * D + p.keys * D > cap_t) continue;
+      const int64_t region = align_up(hg * Lk * D * 4);  // bytes of K (and of V) head-major
+      if (opt.workspace ? 2 * region + align > int64_t(workspace_bytes)
+                        : 2 * region > int64_t(caps.max_memory_allocation_size))
+        continue;
+    } else if ((p.keys - 1) * kvs + hg * D > cap_t) {
+      continue;
+    }
+    int64_t qc = std::min<int64_t>(Lq, int64_t(caps.max_workgroup_count[0]) * rpg);
+    qc = std::min(qc, div_floor_pos(cap_t - hg * D, g.qs) + 1);
+    qc = std::min(qc, div_floor_pos(cap_s - hg * D, g.os) + 1);
+    if (opt.bias) qc = std::min(qc, div_floor_pos(cap_r - (hg - 1) * Lq * Lk - p.keys, Lk) + 1);
+    if (key_split) qc = std::min(qc, cap_s / (hg * (D + 4)));
+    if (qc < 1) continue;
+    if (qc < Lq && qc >= rpg) qc = qc / rpg * rpg;  // whole workgroups
+    if (hg * qc > best) {
+      best = hg * qc;
+      p.head_group = hg;
+      p.q_rows = qc;
+    }
+  }
+  if (best == 0)
+    fail("no split of heads " + std::to_string(H) + " x rows " + std::to_string(Lq) + " x keys " + std::to_string(Lk) +
+         " (head_dim " + std::to_string(D) + ") fits the limits in force");
+  if (p.repack) {
+    // Repack chunks: token rows of the input (one head group's columns) and of every head's output rows.
+    int64_t lc = std::min(Lk, div_floor_pos(cap_t - p.head_group * D, kvs) + 1);
+    lc = std::min(lc, div_floor_pos(cap_s - (p.head_group - 1) * Lk * D, D));
+    lc = std::min<int64_t>(lc, int64_t(max_groups_1d(caps) * kWorkgroupSize) / (p.head_group * D4));
+    if (lc < 1) fail("the K/V repack of " + std::to_string(p.head_group) + " heads does not fit the limits in force");
+    p.pack_rows = lc;
+  }
+  return p;
+}
+
+void attention_split(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
+                     const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt,
+                     const Blocking& blk, const Geometry& g, const AttentionSplit& p) {
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
-  Blocking blk = blocking_for(caps, s.head_dim);
-  if (opt.rows_per_invocation) {
-    if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
-    blk.rows = opt.rows_per_invocation;
+  const int64_t D = s.head_dim, D4 = D / 4, Lq = s.q_len, Lk = s.kv_len, H = s.heads;
+  const uint64_t align = binding_alignment(caps);
+  const int64_t rpg = int64_t(kWorkgroupSize) * blk.rows;
+  const VkFormat rgba = VK_FORMAT_R32G32B32A32_SFLOAT, r32 = VK_FORMAT_R32_SFLOAT;
+
+  // Head-major K and V of one head group: [hg, Lk, D] each, in the workspace or a recording scratch.
+  const VkDeviceSize region = (VkDeviceSize(p.head_group * Lk * D) * 4 + align - 1) / align * align;
+  vk::BufferView kreg, vreg;
+  if (p.repack) {
+    vk::BufferView ws = opt.workspace ? opt.workspace->buffer()
+                                      : rec.scratch(kScratchSlot, 2 * region, "attention K/V (head-major)");
+    const VkDeviceSize lead = (align - ws.offset % align) % align;
+    kreg = {ws.buffer, ws.offset + lead, region, ws.mapped ? ws.mapped + lead : nullptr};
+    vreg = {ws.buffer, kreg.offset + region, region, ws.mapped ? kreg.mapped + region : nullptr};
   }
+
+  for (int64_t b = 0; b < s.batch; ++b) {
+    for_each_chunk(H, p.head_group, [&](int64_t h0, int64_t hn) {
+      if (p.repack) {
+        for_each_chunk(Lk, p.pack_rows, [&](int64_t l0, int64_t ln) {
+          const Window ki = window(k.t.buffer(), (b * Lk + l0) * g.ks + k.column_offset + h0 * D, (ln - 1) * g.ks + hn * D, align);
+          const Window vi = window(v.t.buffer(), (b * Lk + l0) * g.vs + v.column_offset + h0 * D, (ln - 1) * g.vs + hn * D, align);
+          const Window ko = window(kreg, l0 * D, (hn - 1) * Lk * D + ln * D, align);
+          const Window vo = window(vreg, l0 * D, (hn - 1) * Lk * D + ln * D, align);
+          PackPush pp{uint32_t(hn * ln * D4), uint32_t(ln), uint32_t(hn), uint32_t(D4), ki.shift / 4, uint32_t(g.ks / 4),
+                      vi.shift / 4, uint32_t(g.vs / 4), uint32_t(Lk), ko.shift / 4, vo.shift / 4};
+          const Grid gr = grid_1d(caps, hn * ln * D4, kWorkgroupSize);
+          rec.dispatch(ctx.pipelines().get("nn/attention_pack"),
+                       {vk::Binding(ki.view, rgba), vk::Binding(vi.view, rgba), ko.view, vo.view}, &pp, sizeof pp,
+                       gr.x, gr.y, 2, "attention_pack");
+        });
+      }
+      for_each_chunk(Lq, p.q_rows, [&](int64_t q0, int64_t qn) {
+        const Window qw = window(q.t.buffer(), (b * Lq + q0) * g.qs + q.column_offset + h0 * D, (qn - 1) * g.qs + hn * D, align);
+        const Window ow = window(out.t.buffer(), (b * Lq + q0) * g.os + out.column_offset + h0 * D, (qn - 1) * g.os + hn * D, align);
+        vk::BufferView state = ow.view;  // bound but unused unless the keys are split
+        if (p.keys < Lk) state = rec.scratch(kScratchSlot + 1, VkDeviceSize(qn * hn * (D + 4)) * 4, "attention running state");
+        for_each_chunk(Lk, p.keys, [&](int64_t k0, int64_t kn) {
+          Window kw, vw;
+          Push push{};
+          push.q_len = uint32_t(qn);
+          push.kv_len = uint32_t(kn);
+          push.heads = uint32_t(hn);
+          push.q_off = qw.shift / 4;
+          push.q_stride = uint32_t(g.qs / 4);
+          push.o_off = ow.shift / 4;
+          push.o_stride = uint32_t(g.os / 4);
+          if (p.repack) {
+            kw = window(kreg, k0 * D, (hn - 1) * Lk * D + kn * D, align);
+            vw = window(vreg, k0 * D, (hn - 1) * Lk * D + kn * D, align);
+            push.k_stride = push.v_stride = uint32_t(D4);
+            push.k_hstride = push.v_hstride = uint32_t(Lk * D4);
+          } else {
+            kw = window(k.t.buffer(), (b * Lk + k0) * g.ks + k.column_offset + h0 * D, (kn - 1) * g.ks + hn * D, align);
+            vw = window(v.t.buffer(), (b * Lk + k0) * g.vs + v.column_offset + h0 * D, (kn - 1) * g.vs + hn * D, align);
+            push.k_stride = uint32_t(g.ks / 4);
+            push.v_stride = uint32_t(g.vs / 4);
+            push.k_hstride = push.v_hstride = uint32_t(D4);
+          }
+          push.k_off = kw.shift / 4;
+          push.v_off = vw.shift / 4;
+          push.scale = opt.scale;
+          vk::Binding bias(qw.view.sub(0, 16), r32), mask(qw.view.sub(0, 16), r32);
+          if (opt.bias) {
+            const Window bw = window(opt.bias->buffer(), (h0 * Lq + q0) * Lk + k0, (hn - 1) * Lq * Lk + (qn - 1) * Lk + kn, align);
+            bias = vk::Binding(bw.view, r32);
+            push.bias_off = bw.shift;
+            push.bias_hstride = uint32_t(Lq * Lk);
+            push.bias_rstride = uint32_t(Lk);
+          }
+          if (opt.key_mask) {
+            const Window mw = window(opt.key_mask->buffer(), b * Lk + k0, kn, align);
+            mask = vk::Binding(mw.view, r32);
+            push.mask_off = mw.shift;
+          }
+          const uint32_t spec[] = {uint32_t(D4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys,
+                                   k0 > 0 ? 1u : 0u, k0 + kn < Lk ? 1u : 0u};
+          rec.dispatch(ctx.pipelines().get("nn/attention", spec),
+                       {vk::Binding(qw.view, rgba), vk::Binding(kw.view, rgba), vk::Binding(vw.view, rgba), ow.view, bias,
+                        mask, state},
+                       &push, sizeof push, uint32_t(div_up(qn, rpg)), uint32_t(hn), 1, "attention");
+        });
+      });
+    });
+  }
+}
+
+// Whether one dispatch (plus one repack when a workspace is given) stays within the limits in force.
+bool fits_whole(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand* ops[4], const Geometry& g,
+                const AttentionOptions& opt, const Blocking& blk) {
+  const int64_t width = s.heads * s.head_dim;
   const int64_t rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
   if (div_up(s.q_len, rows_per_group) > caps.max_workgroup_count[0] || s.heads > caps.max_workgroup_count[1] ||
       s.batch > caps.max_workgroup_count[2])
-    fail("q_len/heads/batch exceed the dispatch grid");
-  const int64_t width = s.heads * s.head_dim;
-  Bound bq = bind_operand("q", q, s.batch, s.q_len, width, true, caps);
-  Bound bk = bind_operand("k", k, s.batch, s.kv_len, width, true, caps);
-  Bound bv = bind_operand("v", v, s.batch, s.kv_len, width, true, caps);
-  Bound bo = bind_operand("out", out, s.batch, s.q_len, width, false, caps);
+    return false;
+  const int64_t lens[4] = {s.q_len, s.kv_len, s.kv_len, s.q_len}, strides[4] = {g.qs, g.ks, g.vs, g.os};
+  for (int i = 0; i < 4; ++i) {
+    const bool texel = i < 3;
+    const uint64_t shift = texel ? ops[i]->t.buffer().offset % kTexelOffsetAlign : 0;
+    const uint64_t bytes = uint64_t((s.batch * lens[i] - 1) * strides[i] + ops[i]->column_offset + width) * 4 + shift;
+    if (bytes > binding_capacity(caps, texel ? 16 : 0)) return false;
+  }
+  for (const Tensor* t : {opt.bias, opt.key_mask})
+    if (t && uint64_t(t->numel()) * 4 + t->buffer().offset % kTexelOffsetAlign > binding_capacity(caps, 4)) return false;
+  if (opt.workspace) {
+    const int64_t count = s.batch * s.heads * s.kv_len * (s.head_dim / 4);
+    if (opt.workspace->numel() < 8 * count) return false;  // the whole batch at once: the split path repacks per batch
+    if (uint64_t(8 * count) * 4 + opt.workspace->buffer().offset % kTexelOffsetAlign > binding_capacity(caps, 16)) return false;
+    if (uint64_t(div_up(count, kWorkgroupSize)) > max_groups_1d(caps) || caps.max_workgroup_count[2] < 2) return false;
+  }
+  return true;
+}
 
+// Validates a call and decides how it runs.
+struct Prepared {
+  Blocking blk{1, 4};
+  Geometry geo{};
+  AttentionSplit split;
+};
+Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
+                 const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
+  if (s.head_dim < 4 || s.head_dim > 128 || s.head_dim % 4)
+    fail("head_dim " + std::to_string(s.head_dim) + " is not a multiple of 4 in [4, 128]");
+  if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
+  if (s.kv_len == 0 && s.batch > 0 && s.q_len > 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
+  Prepared pr;
+  pr.blk = blocking_for(caps, s.head_dim);
+  if (opt.rows_per_invocation) {
+    if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
+    pr.blk.rows = opt.rows_per_invocation;
+  }
+  if (s.batch == 0 || s.q_len == 0) return pr;
+  const int64_t width = s.heads * s.head_dim;
+  check_operand("q", q, s.batch, s.q_len, width);
+  check_operand("k", k, s.batch, s.kv_len, width);
+  check_operand("v", v, s.batch, s.kv_len, width);
+  check_operand("out", out, s.batch, s.q_len, width);
   if (opt.bias) {
     expect_dtype("attention", "bias", *opt.bias, DType::f32);
     expect_shape("attention", "bias", *opt.bias, {s.heads, s.q_len, s.kv_len});
@@ -120,32 +329,65 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
     expect_dtype("attention", "key_mask", *opt.key_mask, DType::f32);
     expect_shape("attention", "key_mask", *opt.key_mask, {s.batch, s.kv_len});
   }
+  if (opt.workspace) {
+    expect_dtype("attention", "workspace", *opt.workspace, DType::f32);
+    if (opt.workspace->numel() < attention_workspace_elements(s))
+      fail("workspace " + opt.workspace->describe() + " is smaller than the " +
+           std::to_string(attention_workspace_elements(s)) + " elements needed");
+  }
+  auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
+  pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
+  const AttentionOperand* all[4] = {&q, &k, &v, &out};
+  if (!fits_whole(caps, s, all, pr.geo, opt, pr.blk))
+    pr.split = plan_split(caps, s, pr.geo, opt, pr.blk, opt.workspace ? VkDeviceSize(opt.workspace->numel()) * 4 : 0);
+  return pr;
+}
 
-  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys};
+}  // namespace
+
+AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
+                                    const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                                    const AttentionOptions& options) {
+  return prepare(caps, shape, q, k, v, out, options).split;
+}
+
+void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
+               const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
+  vk::Context& ctx = rec.context();
+  const vk::DeviceCaps& caps = ctx.caps();
+  const Prepared pr = prepare(caps, s, q, k, v, out, opt);
+  if (s.batch == 0 || s.q_len == 0) return;
+  if (!pr.split.whole) return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
+  const Blocking blk = pr.blk;
+  const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
+
+  Bound bq = bind_operand("q", q, s.batch, s.q_len, width, true, caps);
+  Bound bk = bind_operand("k", k, s.batch, s.kv_len, width, true, caps);
+  Bound bv = bind_operand("v", v, s.batch, s.kv_len, width, true, caps);
+  Bound bo = bind_operand("out", out, s.batch, s.q_len, width, false, caps);
+
+  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys, 0u, 0u};
   const vk::Pipeline& pipe = ctx.pipelines().get("nn/attention", spec);
 
   const uint32_t d4 = uint32_t(s.head_dim / 4), kv_len = uint32_t(s.kv_len);
   Push push{uint32_t(s.q_len), kv_len, uint32_t(s.heads), bq.off4, bq.stride4, bo.off4, bo.stride4,
             // k and v token-major: batch stride Lk rows, head stride D
             bk.off4, bk.stride4, kv_len * bk.stride4, d4, bv.off4, bv.stride4, kv_len * bv.stride4, d4,
-            opt.scale, 0, 0};
+            opt.scale, 0, uint32_t(s.q_len * s.kv_len), kv_len, 0};
   const VkFormat rgba = VK_FORMAT_R32G32B32A32_SFLOAT;
   vk::Binding k_binding(bk.view, rgba), v_binding(bv.view, rgba);
 
   if (opt.workspace) {
     // Repack K and V head-major [B, H, Lk, D] (K then V) and read them from there.
     const int64_t count = s.batch * s.heads * s.kv_len * int64_t(d4);  // vec4s per tensor
-    expect_dtype("attention", "workspace", *opt.workspace, DType::f32);
-    if (opt.workspace->numel() < attention_workspace_elements(s))
-      fail("workspace " + opt.workspace->describe() + " is smaller than the " +
-           std::to_string(attention_workspace_elements(s)) + " elements needed");
     if (2 * count > int64_t(UINT32_MAX)) fail("workspace too large to index");
     vk::BufferView ws = opt.workspace->buffer();
     ws.size = VkDeviceSize(2 * count) * 16;
     Bound bw = bind_operand("workspace", {*opt.workspace, 0, 4}, 1, 2 * count, 4, true, caps);  // as 2·count vec4 rows
-    PackPush pp{uint32_t(count), kv_len, uint32_t(s.heads), d4, bk.off4, bk.stride4, bv.off4, bv.stride4};
-    Grid g = grid_1d(count, 64);
-    rec.dispatch(ctx.pipelines().get("nn/attention_pack"), {k_binding, v_binding, ws}, &pp, sizeof pp, g.x, g.y, 2,
+    PackPush pp{uint32_t(count), kv_len, uint32_t(s.heads), d4, bk.off4, bk.stride4, bv.off4, bv.stride4,
+                kv_len, 0, uint32_t(count)};
+    Grid g = grid_1d(caps, count, kWorkgroupSize);
+    rec.dispatch(ctx.pipelines().get("nn/attention_pack"), {k_binding, v_binding, ws, ws}, &pp, sizeof pp, g.x, g.y, 2,
                  "attention_pack");
     k_binding = vk::Binding(bw.view, rgba);
     v_binding = vk::Binding(bw.view, rgba);
@@ -177,7 +419,7 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   };
   vk::Binding bias_binding = scalar_texels(opt.bias, "bias", push.bias_off);
   vk::Binding mask_binding = scalar_texels(opt.key_mask, "key_mask", push.mask_off);
-  rec.dispatch(pipe, {vk::Binding(bq.view, rgba), k_binding, v_binding, bo.view, bias_binding, mask_binding},
+  rec.dispatch(pipe, {vk::Binding(bq.view, rgba), k_binding, v_binding, bo.view, bias_binding, mask_binding, bo.view},
                &push, sizeof push, div_up(s.q_len, rows_per_group), uint32_t(s.heads), uint32_t(s.batch),
                "attention");
 }
@@ -196,7 +438,8 @@ void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor
 }
 
 int64_t attention_workspace_elements(const AttentionShape& s) {
-  return 2 * s.batch * s.heads * s.kv_len * s.head_dim;
+  // One batch element's K and V (the split path repacks one at a time), plus room to align both.
+  return 2 * s.heads * s.kv_len * s.head_dim + 2 * int64_t(kTexelOffsetAlign / 4);
 }
 
 bool attention_workspace_helps(const vk::DeviceCaps& caps, const AttentionShape& s) {

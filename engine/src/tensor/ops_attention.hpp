@@ -35,13 +35,16 @@ struct AttentionOptions {
   const Tensor* key_mask = nullptr;  // f32 [B, Lk]: 0 = masked key, anything else = attend
   uint32_t rows_per_invocation = 0;  // register blocking; 0 = chosen per device (tests force other values)
   // Optional f32 scratch of at least attention_workspace_elements(shape) elements. When given, K and V are
-  // first repacked head-major [B, H, Lk, D] into it (one extra memory-bound dispatch) and streamed from there.
+  // first repacked head-major [B, H, Lk, D] into it (one extra memory-bound dispatch; per batch element, or
+  // per head group, when the call is split) and streamed from there.
   // Worth it on CPU devices (lavapipe) with many interleaved heads at long lengths, where each head's K/V
   // rows are far apart in the token-major layout (measured ~2× faster at H=48, L=2048); pointless on GPUs.
   const Tensor* workspace = nullptr;
 };
 
-// Elements of the optional workspace: 2·B·H·Lk·D (K and V, head-major).
+// Elements the caller must provide as a workspace: one batch element's K and V head-major (2·H·Lk·D) plus
+// alignment room; never more, whatever the batch. A workspace of 2·B·H·Lk·D repacks the whole batch at once
+// when it fits one binding.
 int64_t attention_workspace_elements(const AttentionShape& shape);
 
 // Whether giving a workspace is expected to pay on this device: CPU devices with several heads and long
@@ -54,6 +57,22 @@ bool attention_workspace_helps(const vk::DeviceCaps& caps, const AttentionShape&
 // error; Lq = 0 or B = 0 records nothing.
 void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOperand& q, const AttentionOperand& k,
                const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& options = {});
+
+// How attention() cuts a call to stay within the limits in force (no binding over maxStorageBufferRange or
+// maxTexelBufferElements, no grid over maxComputeWorkGroupCount). `whole`: one dispatch as always (plus one
+// repack with a workspace). Otherwise one batch element at a time, `head_group` heads at a time; q rows in
+// chunks of `q_rows`; keys in chunks of `keys` (< Lk only when one head's keys do not fit a binding: the
+// online-softmax state is carried between dispatches, in whole key blocks, so results stay bitwise equal);
+// K/V repacked head-major (`repack`, in chunks of `pack_rows` token rows) when given a workspace or when one
+// head's keys, strided through the token-major rows, do not fit a binding. Without a workspace, the repack
+// goes to Recorder scratch of at most 2 bindings (within the allocation limit).
+struct AttentionSplit {
+  bool whole = true, repack = false;
+  int64_t head_group = 0, q_rows = 0, keys = 0, pack_rows = 0;
+};
+AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
+                                    const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                                    const AttentionOptions& options = {});
 
 // Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,
