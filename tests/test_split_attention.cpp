@@ -1,0 +1,192 @@
+// Attention split over bounded sub-views (issue 10): limits forced low (ScopedLimits) make each kind of split
+// happen at odd, tiny sizes. Every split result must equal the call under the limits in force without the
+// scoped ones BITWISE: the same kernel computes every (row, head) with the same arithmetic in the same order
+// (keys are split only at whole softmax blocks and the running state round-trips exactly through fp32
+// memory; the repack only moves values). Each result is also checked against the double reference with the
+// tolerance of test_ops_attention.cpp, and the split is proven: the plan says it split, and the recorder
+// saw exactly the dispatches that plan implies. (Key chunks shorter than one softmax block cannot keep the
+// order: those are compared within 1e-6·max|v|.)
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "support/attention_reference.hpp"
+#include "support/gpu.hpp"
+#include "support/scoped_limits.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_attention.hpp"
+
+namespace dvs::test {
+namespace {
+
+using attention_ref::HostOperand;
+using attention_ref::random_values;
+using ops::AttentionOperand;
+using ops::AttentionOptions;
+using ops::AttentionShape;
+using ops::AttentionSplit;
+
+struct SplitCase {
+  int64_t batch, heads, head_dim, q_len, kv_len;
+  bool fused = false;  // q, k, v as column slices of one [B, L, 3·H·D] tensor (needs q_len == kv_len)
+  bool bias = false, mask = false, workspace = false;
+  uint32_t rows_per_invocation = 0;
+  std::string limits;  // ScopedLimits spec that forces the split
+};
+
+int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
+
+// Dispatches a split plan records: per batch element and head group, the repack chunks and the
+// query-row × key chunks.
+int64_t planned_dispatches(const SplitCase& c, const AttentionSplit& p) {
+  const int64_t pack = p.repack ? ceil_div(c.kv_len, p.pack_rows) : 0;
+  return c.batch * ceil_div(c.heads, p.head_group) * (pack + ceil_div(c.q_len, p.q_rows) * ceil_div(c.kv_len, p.keys));
+}
+
+class SplitAttentionTest : public GpuTest {
+ protected:
+  // Runs the case without and with the scoped limits; returns the split plan for the caller's assertions.
+  AttentionSplit check(const SplitCase& c, uint32_t seed) {
+    const AttentionShape s{c.batch, c.heads, c.head_dim, c.q_len, c.kv_len};
+    const int64_t W = c.heads * c.head_dim;
+    HostOperand hq, hk, hv;
+    AttentionOperand q, k, v;
+    if (c.fused) {
+      EXPECT_EQ(c.q_len, c.kv_len);
+      std::vector<float> all = random_values(size_t(c.batch * c.q_len * 3 * W), seed);
+      hq = {all, 0, 3 * W};
+      hk = {all, W, 3 * W};
+      hv = {all, 2 * W, 3 * W};
+      Tensor qkv = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.q_len, 3 * W}, all));
+      q = ops::fused_qkv_operand(qkv, 0, c.heads, c.head_dim);
+      k = ops::fused_qkv_operand(qkv, 1, c.heads, c.head_dim);
+      v = ops::fused_qkv_operand(qkv, 2, c.heads, c.head_dim);
+    } else {
+      auto make = [&](int64_t len, uint32_t sd, HostOperand& h, AttentionOperand& op) {
+        h = {random_values(size_t(c.batch * len * W), sd), 0, W};
+        op = {Tensor::upload(ctx(), HostTensor::from_f32({c.batch, len, W}, h.data))};
+      };
+      make(c.q_len, seed, hq, q);
+      make(c.kv_len, seed + 1, hk, k);
+      make(c.kv_len, seed + 2, hv, v);
+    }
+    AttentionOptions opt;
+    opt.scale = 1.0f / std::sqrt(float(c.head_dim));
+    opt.rows_per_invocation = c.rows_per_invocation;
+    std::vector<float> bias, mask;
+    Tensor tbias, tmask, ws;
+    if (c.bias) {
+      bias = random_values(size_t(c.heads * c.q_len * c.kv_len), seed + 3, 2.0f);
+      tbias = Tensor::upload(ctx(), HostTensor::from_f32({c.heads, c.q_len, c.kv_len}, bias));
+      opt.bias = &tbias;
+    }
+    if (c.mask) {
+      mask.resize(size_t(c.batch * c.kv_len));
+      for (size_t i = 0; i < mask.size(); ++i) mask[i] = (i * 7 + seed) % 5 == 0 ? 0.0f : 1.0f;
+      tmask = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.kv_len}, mask));
+      opt.key_mask = &tmask;
+    }
+    if (c.workspace) {
+      ws = Tensor::empty(ctx(), {ops::attention_workspace_elements(s)}, DType::f32);
+      opt.workspace = &ws;
+    }
+    Tensor out = Tensor::empty(ctx(), {c.batch, c.q_len, W}, DType::f32);
+
+    auto run = [&](uint32_t& dispatches) {
+      ops::run_now(ctx(), [&](vk::Recorder& rec) {
+        const uint32_t before = rec.dispatch_count();
+        ops::attention(rec, s, q, k, v, {out}, opt);
+        dispatches = rec.dispatch_count() - before;
+      });
+      return out.download(ctx()).to_f32();
+    };
+    uint32_t base_dispatches = 0, split_dispatches = 0;
+    const AttentionSplit base_plan = ops::attention_split_plan(ctx().caps(), s, q, k, v, {out}, opt);
+    const std::vector<float> base = run(base_dispatches);
+    AttentionSplit plan;
+    std::vector<float> got;
+    {
+      ScopedLimits l(ctx(), c.limits);
+      plan = ops::attention_split_plan(ctx().caps(), s, q, k, v, {out}, opt);
+      got = run(split_dispatches);
+    }
+    const std::string what = "B" + std::to_string(c.batch) + " H" + std::to_string(c.heads) + " D" +
+                             std::to_string(c.head_dim) + " Lq" + std::to_string(c.q_len) + " Lk" +
+                             std::to_string(c.kv_len) + " under " + c.limits;
+    EXPECT_FALSE(plan.whole) << what;
+    if (!plan.whole) EXPECT_EQ(int64_t(split_dispatches), planned_dispatches(c, plan)) << what;
+    if (base_plan.whole) EXPECT_GT(split_dispatches, base_dispatches) << what;  // not so under DVS_LIMITS
+
+    double vmax = 0;
+    for (float x : hv.data) vmax = std::max(vmax, double(std::fabs(x)));
+    EXPECT_EQ(got.size(), base.size());
+    size_t differ = 0;
+    if (plan.keys == c.kv_len || plan.keys % 4 == 0 || plan.whole) {
+      for (size_t i = 0; i < got.size() && i < base.size(); ++i) differ += std::memcmp(&got[i], &base[i], 4) != 0;
+      EXPECT_EQ(differ, 0u) << what << ": elements not bitwise equal to the unsplit call";
+    } else {
+      // Key chunks shorter than one softmax block (4 keys): other rescaling steps, same sums to ~1 ulp.
+      for (size_t i = 0; i < got.size() && i < base.size(); ++i) differ += !(std::fabs(got[i] - base[i]) <= 1e-6 * vmax);
+      EXPECT_EQ(differ, 0u) << what << ": elements off the unsplit call by more than 1e-6·max|v|";
+    }
+
+    const std::vector<double> ref = attention_ref::reference(s, hq, hk, hv, opt.scale, c.bias ? &bias : nullptr,
+                                                             c.mask ? &mask : nullptr);
+    const double tol = 2e-5 + 2e-5 * vmax;
+    size_t bad = 0;
+    for (size_t i = 0; i < got.size() && i < ref.size(); ++i) bad += !(std::fabs(double(got[i]) - ref[i]) <= tol);
+    EXPECT_EQ(bad, 0u) << what << ": elements off the reference by more than " << tol;
+    return plan;
+  }
+};
+
+// (a) binding: 37 query rows of 36 floats do not fit 5 KiB, 29 key rows do: query-row chunks, keys in place.
+TEST_F(SplitAttentionTest, QueryRowChunks) {
+  const AttentionSplit p = check({2, 3, 12, 37, 29, false, true, true, false, 0, "binding=5KiB"}, 10);
+  EXPECT_LT(p.q_rows, 37);
+}
+
+// (b) texels: the relative-position bias [3, 37, 37] as R32F texels holds one head (1369) but not two in
+// 1400 texels: one head per group.
+TEST_F(SplitAttentionTest, HeadGroups) {
+  const AttentionSplit p = check({2, 3, 12, 37, 37, true, true, true, false, 0, "texels=1400"}, 20);
+  EXPECT_LT(p.head_group, 3);
+}
+
+// (c) binding: one head's K strided through the fused rows (36 rows × 108 floats) does not fit 8 KiB, so K/V
+// are repacked head-major, in token-row chunks (19 fused rows fit); with and without a caller workspace.
+TEST_F(SplitAttentionTest, RepackChunks) {
+  for (bool workspace : {false, true}) {
+    const AttentionSplit p = check({2, 3, 12, 37, 37, true, false, true, workspace, 0, "binding=8KiB"}, 30);
+    EXPECT_TRUE(p.repack);
+    EXPECT_LT(p.pack_rows, 37);
+  }
+}
+
+// Keys: at 1 KiB not even one head's 37 keys × 12 floats fit: keys in chunks (whole blocks of the online
+// softmax: bitwise equal), the running state carried between dispatches; with bias and mask windowed alike.
+// At head_dim 128 a chunk holds one key, less than a block: equal within 1e-6·max|v| instead.
+TEST_F(SplitAttentionTest, KeyChunks) {
+  const AttentionSplit p = check({2, 3, 12, 37, 37, true, true, true, false, 0, "binding=1KiB"}, 40);
+  EXPECT_LT(p.keys, 37);
+  EXPECT_TRUE(p.repack);
+  const AttentionSplit p2 = check({1, 2, 128, 5, 9, false, true, false, false, 0, "binding=1KiB"}, 41);
+  EXPECT_LT(p2.keys, 4);
+}
+
+// (d) groups: 64 workgroups per grid dimension. Heads are on y (67 heads), batch on z (65 elements), query
+// blocks on x (4100 rows at one row per invocation: 65 blocks of 64).
+TEST_F(SplitAttentionTest, GridLimits) {
+  const AttentionSplit heads = check({1, 67, 4, 37, 29, false, true, false, false, 0, "groups=64"}, 50);
+  EXPECT_LE(heads.head_group, 64);
+  check({65, 1, 4, 5, 3, false, false, true, false, 0, "groups=64"}, 51);
+  const AttentionSplit rows = check({1, 1, 4, 4100, 5, false, false, false, false, 1, "groups=64"}, 52);
+  EXPECT_LT(rows.q_rows, 4100);
+}
+
+}  // namespace
+}  // namespace dvs::test
