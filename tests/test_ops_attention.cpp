@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <random>
 #include <vector>
@@ -41,6 +42,15 @@ class AttentionTest : public GpuTest {
   void check(const Case& c, uint32_t seed) {
     AttentionShape s{c.batch, c.heads, c.head_dim, c.q_len, c.kv_len};
     const int64_t W = c.heads * c.head_dim;
+    // Under a low allocation limit (DVS_LIMITS) the largest cases cannot even be uploaded: skip those.
+    const int64_t rows = c.batch * std::max(c.q_len, c.kv_len) * (c.fused ? 3 * W : W + 2 * c.pad_columns);
+    const int64_t most = std::max({rows, c.bias ? c.heads * c.q_len * c.kv_len : 0,
+                                   c.workspace ? ops::attention_workspace_elements(s) : 0});
+    if (uint64_t(most) * 4 > ctx().caps().max_memory_allocation_size) {
+      std::cout << "[ SKIPPED  ] B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
+                << c.kv_len << ": a tensor over the allocation limit in force\n";
+      return;
+    }
     HostOperand hq, hk, hv;
     Tensor tq, tk, tv;
     AttentionOperand q, k, v;
