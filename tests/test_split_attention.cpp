@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -186,6 +187,47 @@ TEST_F(SplitAttentionTest, GridLimits) {
   check({65, 1, 4, 5, 3, false, false, true, false, 0, "groups=64"}, 51);
   const AttentionSplit rows = check({1, 1, 4, 4100, 5, false, false, false, false, 1, "groups=64"}, 52);
   EXPECT_LT(rows.q_rows, 4100);
+}
+
+// The real sizes under lavapipe's limits (128 MiB bindings), planned only (nothing allocated: the operands
+// are views of a placeholder buffer handle that is never bound). CogVideoX 49×480×720: fused QKV
+// [2, 17776, 9216] (1.31 GB) must split, with K/V repacked head-major and each head's 17776 keys in one
+// dispatch; T5-XXL at 226 tokens fits whole.
+TEST(SplitAttentionPlan, RealSizesUnderLavapipeLimits) {
+  vk::DeviceCaps caps;
+  caps.type = VK_PHYSICAL_DEVICE_TYPE_CPU;
+  caps.max_storage_buffer_range = 128ull << 20;
+  caps.max_texel_buffer_elements = 1ull << 27;
+  caps.max_memory_allocation_size = 2ull << 30;
+  caps.min_storage_buffer_offset_alignment = caps.min_texel_buffer_offset_alignment = 16;
+  for (uint32_t& g : caps.max_workgroup_count) g = 65535;
+  const vk::BufferView placeholder{reinterpret_cast<VkBuffer>(uintptr_t{0x1000}), 0, 1ull << 40, nullptr};
+  auto plan = [&](const AttentionShape& s, const ops::AttentionOptions& opt) {
+    const Tensor qkv = Tensor::on(placeholder, {s.batch, s.q_len, 3 * s.heads * s.head_dim}, DType::f32);
+    const Tensor out = Tensor::on(placeholder, {s.batch, s.q_len, s.heads * s.head_dim}, DType::f32);
+    return ops::attention_split_plan(caps, s, ops::fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
+                                     ops::fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
+                                     ops::fused_qkv_operand(qkv, 2, s.heads, s.head_dim), {out}, opt);
+  };
+  const AttentionShape cog{2, 48, 64, 17776, 17776};
+  const AttentionSplit p = plan(cog, {});
+  EXPECT_FALSE(p.whole);
+  EXPECT_TRUE(p.repack);
+  EXPECT_EQ(p.keys, 17776);
+  EXPECT_GE(p.head_group, 16);  // a few head groups of 4.5 MB per head's K
+  EXPECT_GE(p.q_rows, 2048);
+  const SplitCase c{2, 48, 64, 17776, 17776};
+  std::cout << "CogVideoX real size: head group " << p.head_group << ", q rows " << p.q_rows << ", repack rows "
+            << p.pack_rows << ", " << planned_dispatches(c, p) << " dispatches\n";
+  EXPECT_LE(planned_dispatches(c, p), 64) << "head group " << p.head_group << ", q rows " << p.q_rows << ", pack rows "
+                                          << p.pack_rows;
+
+  const AttentionShape t5{2, 64, 64, 226, 226};
+  const Tensor bias = Tensor::on(placeholder, {64, 226, 226}, DType::f32), mask = Tensor::on(placeholder, {2, 226}, DType::f32);
+  ops::AttentionOptions opt;
+  opt.bias = &bias;
+  opt.key_mask = &mask;
+  EXPECT_TRUE(plan(t5, opt).whole);
 }
 
 }  // namespace

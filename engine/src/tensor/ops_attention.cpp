@@ -167,6 +167,8 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
   if (best == 0)
     fail("no split of heads " + std::to_string(H) + " x rows " + std::to_string(Lq) + " x keys " + std::to_string(Lk) +
          " (head_dim " + std::to_string(D) + ") fits the limits in force");
+  // As many groups, evened out (48 heads by at most 29: 24 + 24, not 29 + 19): less repack memory.
+  p.head_group = div_up(H, div_up(H, p.head_group));
   if (p.repack) {
     // Repack chunks: token rows of the input (one head group's columns) and of every head's output rows.
     int64_t lc = std::min(Lk, div_floor_pos(cap_t - p.head_group * D, kvs) + 1);
