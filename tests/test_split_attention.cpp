@@ -216,9 +216,10 @@ TEST(SplitAttentionPlan, RealSizesUnderLavapipeLimits) {
   EXPECT_EQ(p.keys, 17776);
   EXPECT_GE(p.head_group, 16);  // a few head groups of 4.5 MB per head's K
   EXPECT_GE(p.q_rows, 2048);
+  EXPECT_LE(p.scratch_bytes, 2 * caps.max_storage_buffer_range);  // head-major K and V of one head group
   const SplitCase c{2, 48, 64, 17776, 17776};
   std::cout << "CogVideoX real size: head group " << p.head_group << ", q rows " << p.q_rows << ", repack rows "
-            << p.pack_rows << ", " << planned_dispatches(c, p) << " dispatches\n";
+            << p.pack_rows << ", " << planned_dispatches(c, p) << " dispatches, " << p.scratch_bytes << " B scratch\n";
   EXPECT_LE(planned_dispatches(c, p), 64) << "head group " << p.head_group << ", q rows " << p.q_rows << ", pack rows "
                                           << p.pack_rows;
 

@@ -30,6 +30,21 @@ constexpr uint32_t kScratchSlot = 2;  // Recorder::scratch slots 2 (K/V) and 3 (
 
 [[noreturn]] void fail(const std::string& what) { throw Error("internal: attention: " + what); }
 
+// A bound window of elements [first, first + count) of a buffer, started at the aligned-down offset; the
+// skipped elements (shift) go to the shader as an element offset.
+struct Window {
+  vk::BufferView view;
+  uint32_t shift = 0;  // elements
+};
+Window window(const vk::BufferView& base, int64_t first, int64_t count, uint64_t align) {
+  const VkDeviceSize start = base.offset + VkDeviceSize(first) * 4, shift = start % align;
+  Window w;
+  w.view = {base.buffer, start - shift, VkDeviceSize(count) * 4 + shift,
+            base.mapped ? base.mapped + (int64_t(start - shift) - int64_t(base.offset)) : nullptr};
+  w.shift = uint32_t(shift / 4);
+  return w;
+}
+
 // A q/k/v/out operand checked against the shape, as a binding plus offset/stride in vec4 units.
 struct Bound {
   vk::BufferView view;
@@ -54,30 +69,18 @@ void check_operand(const char* name, const AttentionOperand& a, int64_t batch, i
 }
 
 Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
-                   bool texel, const vk::DeviceCaps& caps) {
+                   bool texel) {
   check_operand(name, a, batch, len, width);
   const int64_t stride = a.row_stride ? a.row_stride : width;
   const int64_t need = (batch * len - 1) * stride + a.column_offset + width;
+  // Texel views must start at an aligned offset: start earlier and shift the columns instead.
+  const Window w = window(a.t.buffer(), 0, need, texel ? kTexelOffsetAlign : 1);
+  if (w.shift % 4) fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
+  if ((need + int64_t(w.shift)) / 4 > int64_t(UINT32_MAX)) fail(std::string(name) + " is too large to index");
   Bound b;
-  vk::BufferView v = a.t.buffer();
-  VkDeviceSize bytes = VkDeviceSize(need) * 4;
-  VkDeviceSize shift = 0;
-  if (texel) {
-    // Texel views must start at an aligned offset: start earlier and shift the columns instead.
-    shift = v.offset % kTexelOffsetAlign;
-    if (shift % 16) fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
-    if ((bytes + shift) / 16 > caps.max_texel_buffer_elements)
-      fail(std::string(name) + " spans " + std::to_string((bytes + shift) / 16) +
-           " RGBA32F texels, more than this device's maxTexelBufferElements (" +
-           std::to_string(caps.max_texel_buffer_elements) + ")");
-  }
-  b.view.buffer = v.buffer;
-  b.view.offset = v.offset - shift;
-  b.view.size = bytes + shift;
-  b.view.mapped = v.mapped ? v.mapped - shift : nullptr;
-  b.off4 = uint32_t((a.column_offset + int64_t(shift / 4)) / 4);
+  b.view = w.view;
+  b.off4 = uint32_t((a.column_offset + int64_t(w.shift)) / 4);
   b.stride4 = uint32_t(stride / 4);
-  if ((need + int64_t(shift / 4)) / 4 > int64_t(UINT32_MAX)) fail(std::string(name) + " is too large to index");
   return b;
 }
 
@@ -96,21 +99,7 @@ struct PackPush {
   uint32_t out_len, pk_off, pv_off;
 };
 
-// ---- the split path: bounded sub-views of every operand, one batch element at a time ----
-
-// A bound window of elements [first, first + count) of a buffer, started at the aligned-down offset; the
-// skipped elements (shift) go to the shader as an element offset.
-struct Window {
-  vk::BufferView view;
-  uint32_t shift = 0;  // elements
-};
-Window window(const vk::BufferView& base, int64_t first, int64_t count, uint64_t align) {
-  const VkDeviceSize start = base.offset + VkDeviceSize(first) * 4, shift = start % align;
-  Window w;
-  w.view = {base.buffer, start - shift, VkDeviceSize(count) * 4 + shift, base.mapped ? base.mapped + (int64_t(start - shift) - int64_t(base.offset)) : nullptr};
-  w.shift = uint32_t(shift / 4);
-  return w;
-}
+// ---- the split path: one batch element at a time ----
 
 struct Geometry {  // the operand strides of a call, elements
   int64_t qs, ks, vs, os;
@@ -176,7 +165,9 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
     lc = std::min<int64_t>(lc, int64_t(max_groups_1d(caps) * kWorkgroupSize) / (p.head_group * D4));
     if (lc < 1) fail("the K/V repack of " + std::to_string(p.head_group) + " heads does not fit the limits in force");
     p.pack_rows = lc;
+    if (!opt.workspace) p.scratch_bytes += uint64_t(2 * align_up(p.head_group * Lk * D * 4));
   }
+  if (key_split) p.scratch_bytes += uint64_t(align_up(p.q_rows * p.head_group * (D + 4) * 4));
   return p;
 }
 
@@ -363,10 +354,10 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   const Blocking blk = pr.blk;
   const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
 
-  Bound bq = bind_operand("q", q, s.batch, s.q_len, width, true, caps);
-  Bound bk = bind_operand("k", k, s.batch, s.kv_len, width, true, caps);
-  Bound bv = bind_operand("v", v, s.batch, s.kv_len, width, true, caps);
-  Bound bo = bind_operand("out", out, s.batch, s.q_len, width, false, caps);
+  Bound bq = bind_operand("q", q, s.batch, s.q_len, width, true);
+  Bound bk = bind_operand("k", k, s.batch, s.kv_len, width, true);
+  Bound bv = bind_operand("v", v, s.batch, s.kv_len, width, true);
+  Bound bo = bind_operand("out", out, s.batch, s.q_len, width, false);
 
   const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys, 0u, 0u};
   const vk::Pipeline& pipe = ctx.pipelines().get("nn/attention", spec);
@@ -385,7 +376,7 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
     if (2 * count > int64_t(UINT32_MAX)) fail("workspace too large to index");
     vk::BufferView ws = opt.workspace->buffer();
     ws.size = VkDeviceSize(2 * count) * 16;
-    Bound bw = bind_operand("workspace", {*opt.workspace, 0, 4}, 1, 2 * count, 4, true, caps);  // as 2·count vec4 rows
+    Bound bw = bind_operand("workspace", {*opt.workspace, 0, 4}, 1, 2 * count, 4, true);  // as 2·count vec4 rows
     PackPush pp{uint32_t(count), kv_len, uint32_t(s.heads), d4, bk.off4, bk.stride4, bv.off4, bv.stride4,
                 kv_len, 0, uint32_t(count)};
     Grid g = grid_1d(caps, count, kWorkgroupSize);
@@ -409,15 +400,10 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   auto scalar_texels = [&](const Tensor* t, const char* name, uint32_t& shift_elems) {
     shift_elems = 0;
     if (!t) return vk::Binding(bq.view.sub(0, 16), VK_FORMAT_R32_SFLOAT);
-    vk::BufferView v = t->buffer();
-    VkDeviceSize shift = v.offset % kTexelOffsetAlign;
-    if (shift % 4) fail(std::string(name) + " is not 4-byte aligned");
-    if ((uint64_t(t->numel()) + shift / 4) > caps.max_texel_buffer_elements)
-      fail(std::string(name) + " has more elements than this device's maxTexelBufferElements");
-    vk::BufferView aligned{v.buffer, v.offset - shift, VkDeviceSize(t->numel()) * 4 + shift,
-                           v.mapped ? v.mapped - shift : nullptr};
-    shift_elems = uint32_t(shift / 4);
-    return vk::Binding(aligned, VK_FORMAT_R32_SFLOAT);
+    if (t->buffer().offset % 4) fail(std::string(name) + " is not 4-byte aligned");
+    const Window w = window(t->buffer(), 0, t->numel(), kTexelOffsetAlign);
+    shift_elems = w.shift;
+    return vk::Binding(w.view, VK_FORMAT_R32_SFLOAT);
   };
   vk::Binding bias_binding = scalar_texels(opt.bias, "bias", push.bias_off);
   vk::Binding mask_binding = scalar_texels(opt.key_mask, "key_mask", push.mask_off);

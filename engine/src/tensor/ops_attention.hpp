@@ -65,10 +65,12 @@ void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOp
 // online-softmax state is carried between dispatches, in whole key blocks, so results stay bitwise equal);
 // K/V repacked head-major (`repack`, in chunks of `pack_rows` token rows) when given a workspace or when one
 // head's keys, strided through the token-major rows, do not fit a binding. Without a workspace, the repack
-// goes to Recorder scratch of at most 2 bindings (within the allocation limit).
+// goes to Recorder scratch of at most 2 bindings (within the allocation limit): `scratch_bytes` (with the
+// running state of split keys), for memory planners.
 struct AttentionSplit {
   bool whole = true, repack = false;
   int64_t head_group = 0, q_rows = 0, keys = 0, pack_rows = 0;
+  uint64_t scratch_bytes = 0;
 };
 AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
                                     const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
