@@ -131,7 +131,8 @@ class SplitAttentionTest : public GpuTest {
       EXPECT_EQ(differ, 0u) << what << ": elements not bitwise equal to the unsplit call";
     } else {
       // Key chunks shorter than one softmax block (4 keys): other rescaling steps, same sums to ~1 ulp.
-      for (size_t i = 0; i < got.size() && i < base.size(); ++i) differ += !(std::fabs(got[i] - base[i]) <= 1e-6 * vmax);
+      for (size_t i = 0; i < got.size() && i < base.size(); ++i)
+        differ += !(std::fabs(got[i] - base[i]) <= 1e-6 * vmax);
       EXPECT_EQ(differ, 0u) << what << ": elements off the unsplit call by more than 1e-6·max|v|";
     }
 
@@ -179,8 +180,8 @@ TEST_F(SplitAttentionTest, KeyChunks) {
   EXPECT_LT(p2.keys, 4);
 }
 
-// (d) groups: 64 workgroups per grid dimension. Heads are on y (67 heads, with their bias), batch on z (65 elements), query
-// blocks on x (4100 rows at one row per invocation: 65 blocks of 64).
+// (d) groups: 64 workgroups per grid dimension. Heads are on y (67 heads, with their bias), batch on z
+// (65 elements), query blocks on x (4100 rows at one row per invocation: 65 blocks of 64).
 TEST_F(SplitAttentionTest, GridLimits) {
   const AttentionSplit heads = check({1, 67, 4, 9, 7, false, true, false, false, 0, "groups=64"}, 50);
   EXPECT_LE(heads.head_group, 64);
@@ -224,7 +225,8 @@ TEST(SplitAttentionPlan, RealSizesUnderLavapipeLimits) {
                                           << p.pack_rows;
 
   const AttentionShape t5{2, 64, 64, 226, 226};
-  const Tensor bias = Tensor::on(placeholder, {64, 226, 226}, DType::f32), mask = Tensor::on(placeholder, {2, 226}, DType::f32);
+  const Tensor bias = Tensor::on(placeholder, {64, 226, 226}, DType::f32);
+  const Tensor mask = Tensor::on(placeholder, {2, 226}, DType::f32);
   ops::AttentionOptions opt;
   opt.bias = &bias;
   opt.key_mask = &mask;

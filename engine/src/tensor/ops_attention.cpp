@@ -55,6 +55,8 @@ struct Bound {
 void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width) {
   if (!a.t.defined()) fail(std::string(name) + " is not given");
   expect_dtype("attention", name, a.t, DType::f32);
+  // Read and written as vec4s from (aligned-down) windows: the shift must be whole vec4s.
+  if (a.t.buffer().offset % 16) fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
   int64_t stride = a.row_stride ? a.row_stride : width;
   if (a.column_offset < 0 || a.column_offset % 4 || stride % 4)
     fail(std::string(name) + ": column offset " + std::to_string(a.column_offset) + " and row stride " +
@@ -75,7 +77,6 @@ Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, i
   const int64_t need = (batch * len - 1) * stride + a.column_offset + width;
   // Texel views must start at an aligned offset: start earlier and shift the columns instead.
   const Window w = window(a.t.buffer(), 0, need, texel ? kTexelOffsetAlign : 1);
-  if (w.shift % 4) fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
   if ((need + int64_t(w.shift)) / 4 > int64_t(UINT32_MAX)) fail(std::string(name) + " is too large to index");
   Bound b;
   b.view = w.view;
@@ -107,8 +108,8 @@ struct Geometry {  // the operand strides of a call, elements
 
 int64_t div_floor_pos(int64_t a, int64_t b) { return a < 0 ? -1 : a / b; }
 
-AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, const Geometry& g, const AttentionOptions& opt,
-                const Blocking& blk, VkDeviceSize workspace_bytes) {
+AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, const Geometry& g,
+                          const AttentionOptions& opt, const Blocking& blk, VkDeviceSize workspace_bytes) {
   const int64_t D = s.head_dim, D4 = D / 4, Lq = s.q_len, Lk = s.kv_len, H = s.heads;
   const int64_t align = int64_t(binding_alignment(caps)), slack = align / 4;  // worst-case shift, elements
   const int64_t cap_t = int64_t(binding_capacity(caps, 16) / 4) - slack;      // RGBA32F texel window
@@ -194,14 +195,22 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
 
   for (int64_t b = 0; b < s.batch; ++b) {
     for_each_chunk(H, p.head_group, [&](int64_t h0, int64_t hn) {
+      // Rows [row0, row0 + n) of batch element b, heads [h0, h0 + hn), of a token-major operand.
+      auto rows = [&](const AttentionOperand& a, int64_t stride, int64_t len, int64_t row0, int64_t n) {
+        return window(a.t.buffer(), (b * len + row0) * stride + a.column_offset + h0 * D, (n - 1) * stride + hn * D,
+                      align);
+      };
+      // Keys [key0, key0 + n) of every head of the group, head-major.
+      auto keys = [&](const vk::BufferView& region, int64_t key0, int64_t n) {
+        return window(region, key0 * D, (hn - 1) * Lk * D + n * D, align);
+      };
       if (p.repack) {
         for_each_chunk(Lk, p.pack_rows, [&](int64_t l0, int64_t ln) {
-          const Window ki = window(k.t.buffer(), (b * Lk + l0) * g.ks + k.column_offset + h0 * D, (ln - 1) * g.ks + hn * D, align);
-          const Window vi = window(v.t.buffer(), (b * Lk + l0) * g.vs + v.column_offset + h0 * D, (ln - 1) * g.vs + hn * D, align);
-          const Window ko = window(kreg, l0 * D, (hn - 1) * Lk * D + ln * D, align);
-          const Window vo = window(vreg, l0 * D, (hn - 1) * Lk * D + ln * D, align);
-          PackPush pp{uint32_t(hn * ln * D4), uint32_t(ln), uint32_t(hn), uint32_t(D4), ki.shift / 4, uint32_t(g.ks / 4),
-                      vi.shift / 4, uint32_t(g.vs / 4), uint32_t(Lk), ko.shift / 4, vo.shift / 4};
+          const Window ki = rows(k, g.ks, Lk, l0, ln), vi = rows(v, g.vs, Lk, l0, ln);
+          const Window ko = keys(kreg, l0, ln), vo = keys(vreg, l0, ln);
+          PackPush pp{uint32_t(hn * ln * D4), uint32_t(ln),      uint32_t(hn), uint32_t(D4),
+                      ki.shift / 4,           uint32_t(g.ks / 4), vi.shift / 4, uint32_t(g.vs / 4),
+                      uint32_t(Lk),           ko.shift / 4,       vo.shift / 4};
           const Grid gr = grid_1d(caps, hn * ln * D4, kWorkgroupSize);
           rec.dispatch(ctx.pipelines().get("nn/attention_pack"),
                        {vk::Binding(ki.view, rgba), vk::Binding(vi.view, rgba), ko.view, vo.view}, &pp, sizeof pp,
@@ -209,10 +218,10 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
         });
       }
       for_each_chunk(Lq, p.q_rows, [&](int64_t q0, int64_t qn) {
-        const Window qw = window(q.t.buffer(), (b * Lq + q0) * g.qs + q.column_offset + h0 * D, (qn - 1) * g.qs + hn * D, align);
-        const Window ow = window(out.t.buffer(), (b * Lq + q0) * g.os + out.column_offset + h0 * D, (qn - 1) * g.os + hn * D, align);
+        const Window qw = rows(q, g.qs, Lq, q0, qn), ow = rows(out, g.os, Lq, q0, qn);
         vk::BufferView state = ow.view;  // bound but unused unless the keys are split
-        if (p.keys < Lk) state = rec.scratch(kScratchSlot + 1, VkDeviceSize(qn * hn * (D + 4)) * 4, "attention running state");
+        if (p.keys < Lk)
+          state = rec.scratch(kScratchSlot + 1, VkDeviceSize(qn * hn * (D + 4)) * 4, "attention running state");
         for_each_chunk(Lk, p.keys, [&](int64_t k0, int64_t kn) {
           Window kw, vw;
           Push push{};
@@ -224,13 +233,13 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
           push.o_off = ow.shift / 4;
           push.o_stride = uint32_t(g.os / 4);
           if (p.repack) {
-            kw = window(kreg, k0 * D, (hn - 1) * Lk * D + kn * D, align);
-            vw = window(vreg, k0 * D, (hn - 1) * Lk * D + kn * D, align);
+            kw = keys(kreg, k0, kn);
+            vw = keys(vreg, k0, kn);
             push.k_stride = push.v_stride = uint32_t(D4);
             push.k_hstride = push.v_hstride = uint32_t(Lk * D4);
           } else {
-            kw = window(k.t.buffer(), (b * Lk + k0) * g.ks + k.column_offset + h0 * D, (kn - 1) * g.ks + hn * D, align);
-            vw = window(v.t.buffer(), (b * Lk + k0) * g.vs + v.column_offset + h0 * D, (kn - 1) * g.vs + hn * D, align);
+            kw = rows(k, g.ks, Lk, k0, kn);
+            vw = rows(v, g.vs, Lk, k0, kn);
             push.k_stride = uint32_t(g.ks / 4);
             push.v_stride = uint32_t(g.vs / 4);
             push.k_hstride = push.v_hstride = uint32_t(D4);
@@ -240,7 +249,8 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
           push.scale = opt.scale;
           vk::Binding bias(qw.view.sub(0, 16), r32), mask(qw.view.sub(0, 16), r32);
           if (opt.bias) {
-            const Window bw = window(opt.bias->buffer(), (h0 * Lq + q0) * Lk + k0, (hn - 1) * Lq * Lk + (qn - 1) * Lk + kn, align);
+            const Window bw =
+                window(opt.bias->buffer(), (h0 * Lq + q0) * Lk + k0, (hn - 1) * Lq * Lk + (qn - 1) * Lk + kn, align);
             bias = vk::Binding(bw.view, r32);
             push.bias_off = bw.shift;
             push.bias_hstride = uint32_t(Lq * Lk);
@@ -254,8 +264,8 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
           const uint32_t spec[] = {uint32_t(D4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys,
                                    k0 > 0 ? 1u : 0u, k0 + kn < Lk ? 1u : 0u};
           rec.dispatch(ctx.pipelines().get("nn/attention", spec),
-                       {vk::Binding(qw.view, rgba), vk::Binding(kw.view, rgba), vk::Binding(vw.view, rgba), ow.view, bias,
-                        mask, state},
+                       {vk::Binding(qw.view, rgba), vk::Binding(kw.view, rgba), vk::Binding(vw.view, rgba), ow.view,
+                        bias, mask, state},
                        &push, sizeof push, uint32_t(div_up(qn, rpg)), uint32_t(hn), 1, "attention");
         });
       });
@@ -279,11 +289,13 @@ bool fits_whole(const vk::DeviceCaps& caps, const AttentionShape& s, const Atten
     if (bytes > binding_capacity(caps, texel ? 16 : 0)) return false;
   }
   for (const Tensor* t : {opt.bias, opt.key_mask})
-    if (t && uint64_t(t->numel()) * 4 + t->buffer().offset % kTexelOffsetAlign > binding_capacity(caps, 4)) return false;
+    if (t && uint64_t(t->numel()) * 4 + t->buffer().offset % kTexelOffsetAlign > binding_capacity(caps, 4))
+      return false;
   if (opt.workspace) {
     const int64_t count = s.batch * s.heads * s.kv_len * (s.head_dim / 4);
     if (opt.workspace->numel() < 8 * count) return false;  // the whole batch at once: the split path repacks per batch
-    if (uint64_t(8 * count) * 4 + opt.workspace->buffer().offset % kTexelOffsetAlign > binding_capacity(caps, 16)) return false;
+    const uint64_t shift = opt.workspace->buffer().offset % kTexelOffsetAlign;
+    if (uint64_t(8 * count) * 4 + shift > binding_capacity(caps, 16)) return false;
     if (uint64_t(div_up(count, kWorkgroupSize)) > max_groups_1d(caps) || caps.max_workgroup_count[2] < 2) return false;
   }
   return true;
@@ -295,8 +307,9 @@ struct Prepared {
   Geometry geo{};
   AttentionSplit split;
 };
-Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
-                 const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
+Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
+                 const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                 const AttentionOptions& opt) {
   if (s.head_dim < 4 || s.head_dim > 128 || s.head_dim % 4)
     fail("head_dim " + std::to_string(s.head_dim) + " is not a multiple of 4 in [4, 128]");
   if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
@@ -359,7 +372,8 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   Bound bv = bind_operand("v", v, s.batch, s.kv_len, width, true);
   Bound bo = bind_operand("out", out, s.batch, s.q_len, width, false);
 
-  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys, 0u, 0u};
+  const uint32_t spec[] = {uint32_t(s.head_dim / 4), opt.bias ? 1u : 0u, opt.key_mask ? 1u : 0u, blk.rows, blk.keys,
+                           0u, 0u};  // no state: all keys in this dispatch
   const vk::Pipeline& pipe = ctx.pipelines().get("nn/attention", spec);
 
   const uint32_t d4 = uint32_t(s.head_dim / 4), kv_len = uint32_t(s.kv_len);
