@@ -62,7 +62,8 @@ void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOp
 // maxTexelBufferElements, no grid over maxComputeWorkGroupCount). `whole`: one dispatch as always (plus one
 // repack with a workspace). Otherwise one batch element at a time, `head_group` heads at a time; q rows in
 // chunks of `q_rows`; keys in chunks of `keys` (< Lk only when one head's keys do not fit a binding: the
-// online-softmax state is carried between dispatches, in whole key blocks, so results stay bitwise equal);
+// online-softmax state is carried between dispatches, in whole key blocks where a binding holds one, so
+// results stay bitwise equal to the whole call; chunks under one block differ by rounding only);
 // K/V repacked head-major (`repack`, in chunks of `pack_rows` token rows) when given a workspace or when one
 // head's keys, strided through the token-major rows, do not fit a binding. Without a workspace, the repack
 // goes to Recorder scratch of at most 2 bindings (within the allocation limit): `scratch_bytes` (with the
