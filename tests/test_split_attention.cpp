@@ -176,6 +176,11 @@ TEST_F(SplitAttentionTest, KeyChunks) {
   const AttentionSplit p = check({2, 3, 12, 37, 37, true, true, true, false, 0, "binding=1KiB"}, 40);
   EXPECT_LT(p.keys, 37);
   EXPECT_TRUE(p.repack);
+  const AttentionSplit pw = check({2, 3, 12, 37, 37, true, true, true, true, 0, "binding=1KiB"}, 42);  // workspace
+  EXPECT_LT(pw.keys, 37);
+  const uint64_t state_bytes = uint64_t(pw.q_rows * pw.head_group * (12 + 4) * 4);
+  EXPECT_GE(pw.scratch_bytes, state_bytes);
+  EXPECT_LT(pw.scratch_bytes, state_bytes + 256) << "only the running state outside the workspace";
   const AttentionSplit p2 = check({1, 2, 128, 5, 9, false, true, false, false, 0, "binding=1KiB"}, 41);
   EXPECT_LT(p2.keys, 4);
 }
