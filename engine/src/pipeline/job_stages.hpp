@@ -49,6 +49,10 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
 HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling,
                          int frames);
 
+// Throws dvs::Error when tiles of this size do not join exactly (run's check of --vae-tile; dvs plan offers
+// only sizes it accepts).
+void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& tiling);
+
 // The VAE tiling the options ask for (none without --vae-tiling).
 std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
 
