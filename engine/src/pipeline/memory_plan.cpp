@@ -589,7 +589,7 @@ std::string format_plan_table(const MemoryPlan& p) {
     if (p.request.budget) o << "budget " << gib(*p.request.budget);
     if (p.request.limits) o << (p.request.budget ? ", " : "") << "limits of " << p.request.limits->source;
     o << ": ";
-    if (p.chosen < 0) o << "NOTHING RUNS\n";
+    if (p.chosen < 0) o << "NOTHING FITS\n";
     else if (p.chosen == 0) o << "runs untiled (peak " << gib(p.tilings[0].run_peak) << "): dvs run without --vae-tiling\n";
     else {
       const auto& t = p.tilings[size_t(p.chosen)];
