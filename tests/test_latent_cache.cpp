@@ -113,6 +113,26 @@ TEST(LatentCache, InterruptedDecodeIsReRunStraightToTheDecode) {
   EXPECT_EQ(a.data, b.data) << "the re-run's frames differ from the uninterrupted run's";
 }
 
+TEST(LatentCache, FailedDecodeKeepsTheLatent) {
+  test::PipelineInputs in;
+  RunOptions o = options(in, in.dir / "cache", in.dir / "out");
+  // The decode fails as it starts (as an out-of-memory error would).
+  auto fail_at_decode = [](const std::string& stage, int, int, const std::string&) {
+    if (stage == "decode") throw Error("decode stage: out of device memory (injected)");
+  };
+  EXPECT_THROW(run_pipeline(o, fail_at_decode), Error);
+  EXPECT_FALSE(fs::exists(in.dir / "out" / "output.mp4"));
+  int latents = 0;
+  for (const auto& e : fs::directory_iterator(in.dir / "cache"))
+    latents += e.path().filename().string().rfind("latent-", 0) == 0 && e.path().extension() == ".npy";
+  EXPECT_EQ(latents, 1) << "the sampled latent was not kept";
+  o.vae_tiling = true;
+  const RunResult again = run(o);
+  EXPECT_TRUE(again.record["latent"]["reused"].get<bool>());
+  EXPECT_FALSE(again.stages.count("sample"));
+  EXPECT_FALSE(again.stages.count("invert"));
+}
+
 TEST(LatentCache, KeyHasWhatDeterminesTheLatentAndNotTheVaeOptions) {
   test::PipelineInputs in;
   const RunOptions base = options(in, in.dir / "cache", in.dir / "out");
