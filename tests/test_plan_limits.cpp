@@ -16,7 +16,8 @@ namespace {
 
 using nlohmann::json;
 
-test::CommandResult plan(const std::string& args, const std::string& env = "") {
+// DVS_LIMITS cleared unless the test sets it: the tiny-limits profile must not change the real-size plans.
+test::CommandResult plan(const std::string& args, const std::string& env = "DVS_LIMITS=") {
   return test::run_command(env + " " + test::program("dvs") + " plan --model cogvideox-5b-i2v " + args);
 }
 
@@ -126,9 +127,13 @@ TEST(PlanLimits, DeviceLimitsHonourDvsLimits) {
   EXPECT_EQ(r.exit_code, 1) << r.output;  // the CFG FFN activation (1.6 GiB) cannot be one allocation
   const json j = json::parse(r.output);
   EXPECT_EQ(j["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
-  const auto open = plan("--device 0 --budget 64GiB --json", "DVS_LIMITS=");
+  const auto open = plan("--device 0 --budget 64GiB --json");
   ASSERT_EQ(open.exit_code, 0) << open.output;
   EXPECT_GT(json::parse(open.output)["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
+  // A profile is lowered the same way.
+  const auto lowered = plan("--limits nvidia --budget 24GiB --json", "DVS_LIMITS=alloc=1GiB");
+  EXPECT_EQ(lowered.exit_code, 1) << lowered.output;
+  EXPECT_EQ(json::parse(lowered.output)["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // `dvs plan`: the device memory a run needs, from the model's config.json files alone (no weights loaded, no
 // device opened).
+#include <algorithm>
 #include <iostream>
 
 #include "args.hpp"
@@ -8,6 +9,7 @@
 #include "pipeline/memory_plan.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
+#include "vk/device_limits.hpp"
 #include "vk/limit_profiles.hpp"
 
 namespace dvs::cli {
@@ -33,7 +35,7 @@ static const char* kPlanHelp =
     "  --device N|NAME    plan for this Vulkan device: its limits (lowered by DVS_LIMITS) and, without --budget,\n"
     "                     the memory dvs may hold on it (dvs info shows both)\n"
     "  --limits PROFILE   plan for a typical device: lavapipe, nvidia, amd, intel, apple or min (the Vulkan\n"
-    "                     specification's minimums); without --budget, the profile's memory\n"
+    "                     specification's minimums; DVS_LIMITS lowers them); without --budget, the profile's memory\n"
     "  --alignment N      the allocator's alignment in bytes (default 256; dvs info shows the device's limits)\n"
     "  --json             one JSON object instead of the table\n"
     "\n"
@@ -69,6 +71,13 @@ int run_plan(const std::vector<std::string>& argv) {
     }
     req.limits = pipeline::PlanLimits{"profile " + p->name + " (" + p->describes + ")", p->binding, p->texels, p->alloc,
                                       p->groups[0]};
+    // DVS_LIMITS lowers a profile as it lowers a device.
+    const vk::LimitOverrides env = vk::limit_overrides_from_env();
+    if (env.binding) req.limits->binding = std::min(req.limits->binding, *env.binding);
+    if (env.texels) req.limits->texels = std::min(req.limits->texels, *env.texels);
+    if (env.alloc) req.limits->alloc = std::min(req.limits->alloc, *env.alloc);
+    if (env.groups) req.limits->groups = uint32_t(std::min<uint64_t>(req.limits->groups, *env.groups));
+    if (env.any()) req.limits->source += " lowered by DVS_LIMITS";
     req.alignment = std::max<uint64_t>(req.alignment, p->alignment);
     limits_heap = p->heap;
   }
