@@ -3,12 +3,15 @@
 // an uninterrupted run gives. Driven in-process on the conformance pack's tiny model (9 frames of 64x64).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
+#include "io/npy.hpp"
 #include "io/video.hpp"
 #include "pipeline/job_stages.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -131,6 +134,27 @@ TEST(LatentCache, FailedDecodeKeepsTheLatent) {
   EXPECT_TRUE(again.record["latent"]["reused"].get<bool>());
   EXPECT_FALSE(again.stages.count("sample"));
   EXPECT_FALSE(again.stages.count("invert"));
+}
+
+TEST(LatentCache, ADamagedLatentIsSampledAgain) {
+  test::PipelineInputs in;
+  RunOptions o = options(in, in.dir / "cache", in.dir / "out1");
+  const RunResult first = run(o);
+  const fs::path file = first.record["latent"]["path"].get<std::string>();
+  HostTensor latent = read_npy(file);
+  latent.as<float>()[3] = std::numeric_limits<float>::infinity();
+  write_npy(file, latent);
+  o.render.out_dir = in.dir / "out2";
+  std::vector<std::string> notes;
+  RunReport report = run_pipeline(o, [&](const std::string&, int, int, const std::string& note) { notes.push_back(note); });
+  const json record = json::parse(std::ifstream(report.run_json));
+  EXPECT_FALSE(record["latent"]["reused"].get<bool>());
+  EXPECT_TRUE(record["seconds"].contains("sample"));
+  bool said = false;
+  for (const auto& n : notes) said |= n.find("ignoring the cached latent") != std::string::npos;
+  EXPECT_TRUE(said);
+  const HostTensor again = read_npy(file);  // sampled and stored again: finite
+  for (int64_t i = 0; i < again.numel(); ++i) ASSERT_TRUE(std::isfinite(again.as<float>()[i])) << i;
 }
 
 TEST(LatentCache, KeyHasWhatDeterminesTheLatentAndNotTheVaeOptions) {
