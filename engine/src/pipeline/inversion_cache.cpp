@@ -34,7 +34,7 @@ struct Fnv {
 
 }  // namespace
 
-InversionCache::InversionCache(std::filesystem::path dir) : dir_(std::move(dir)) {
+InversionCache::InversionCache(std::filesystem::path dir, std::string prefix) : dir_(std::move(dir)), prefix_(std::move(prefix)) {
   if (dir_.empty()) {
     if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir_ = d;
     else if (const char* home = std::getenv("HOME"); home && *home) dir_ = std::filesystem::path(home) / ".cache" / "dvs";
@@ -49,7 +49,7 @@ std::string InversionCache::key(const std::vector<std::string>& parts) {
   return f.hex();
 }
 
-std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / ("eps_inv-" + key + ".npy"); }
+std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / (prefix_ + "-" + key + ".npy"); }
 
 Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected) const {
   std::error_code ec;
@@ -72,7 +72,7 @@ Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shap
     why = e.what();  // a damaged cache file is as good as none
   }
   std::filesystem::remove(file(key), ec);
-  if (rejected) *rejected = file(key).string() + ": " + why + "; removed, inverting again";
+  if (rejected) *rejected = file(key).string() + ": " + why + "; removed, computing it again";
   return {};
 }
 

@@ -1,6 +1,7 @@
 // Inversion results on disk, keyed by a hash of everything they depend on (the model, the encoded render,
 // the image latent and the inversion settings), so a second run with another guidance, k or seed skips
-// the inversion. Files are .npy written atomically; a damaged or mismatched file is ignored.
+// the inversion. Files are .npy written atomically; a damaged or mismatched file is ignored. The same folder
+// keeps the runs' sampled latents under another prefix (job_stages.hpp: LatentCache).
 #pragma once
 #include <filesystem>
 #include <string>
@@ -12,7 +13,8 @@ namespace dvs {
 
 class InversionCache {
  public:
-  explicit InversionCache(std::filesystem::path dir = {});  // empty: $DVS_CACHE_DIR or ~/.cache/dvs, + /inversions
+  // dir empty: $DVS_CACHE_DIR or ~/.cache/dvs, + /inversions. Entries are <prefix>-<key>.npy.
+  explicit InversionCache(std::filesystem::path dir = {}, std::string prefix = "eps_inv");
   static std::string key(const std::vector<std::string>& parts);
   // Undefined when absent. An entry that is not a finite f32 array of `shape` (damaged, truncated, NaN/Inf) is
   // never reused: it is removed and `rejected` (when given) says why.
@@ -23,6 +25,7 @@ class InversionCache {
 
  private:
   std::filesystem::path dir_;
+  std::string prefix_;
 };
 
 // A stable fingerprint of a model folder: every JSON config and every weight file's size and header.

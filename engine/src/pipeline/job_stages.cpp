@@ -1,8 +1,11 @@
 #include "pipeline/job_stages.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
@@ -128,26 +131,96 @@ std::string intrinsics_key(const geometry::Intrinsics& K) {
   return buf;
 }
 
+// The splat's float atomics may reorder sums, so the rendered bytes themselves are not a stable key: the
+// inputs and render options that determine them are.
+std::vector<std::string> render_key_parts(const RunOptions& o, int frames) {
+  const RenderJob& j = o.render;
+  return {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
+          std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
+          j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft", intrinsics_key(job_intrinsics(j))};
+}
+
+std::string exact(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
 }  // namespace
+
+std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg) {
+  const Settings& st = jp.settings;
+  // Everything the sampled latent depends on except the VAE options (--vae-tiling, --vae-tile) and the device:
+  // a run whose decode failed is re-run with other ones and reuses the latent (run.json records the VAE
+  // options it was encoded with).
+  std::vector<std::string> parts = render_key_parts(o, frames);
+  parts.insert(parts.end(),
+               {"latent v1", o.render.depth_fit, o.render.trim_depth ? "trim" : "no trim", o.preset,
+                std::to_string(st.steps), exact(st.strength), std::to_string(st.inversion_steps),
+                std::to_string(jp.plan.t0()), exact(st.delta), st.negative, o.prompt, exact(o.guidance), exact(o.k),
+                dynamic_cfg ? "dynamic cfg " + exact(o.preservation_scale) : "constant cfg", std::to_string(o.seed),
+                o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + exact(o.lora_scale)});
+  return InversionCache::key(parts);
+}
+
+LatentCache::LatentCache(const RunOptions& o, std::string key) : cache_(o.cache_dir, "latent"), key_(std::move(key)) {}
+
+std::filesystem::path LatentCache::file() const { return cache_.file(key_); }
+
+std::filesystem::path LatentCache::meta_file() const {
+  std::filesystem::path f = file();
+  return f.replace_extension(".json");
+}
+
+std::optional<CachedLatent> LatentCache::load(vk::Context& ctx, const Shape& shape, std::string* rejected) const {
+  std::error_code ec;
+  if (!std::filesystem::exists(meta_file(), ec) || !std::filesystem::exists(file(), ec)) return std::nullopt;
+  CachedLatent c;
+  try {
+    c.meta = nlohmann::json::parse(std::ifstream(meta_file()));
+  } catch (const nlohmann::json::exception&) {
+    std::filesystem::remove(meta_file(), ec);
+    if (rejected) *rejected = meta_file().string() + ": not JSON; removed, sampling again";
+    return std::nullopt;
+  }
+  c.latent = cache_.load(ctx, key_, shape, rejected);
+  if (!c.latent.defined()) return std::nullopt;
+  return c;
+}
+
+void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const {
+  // The metadata first, then the latent (written under a temporary name and renamed): a latent file is
+  // there only complete and with its metadata.
+  std::error_code ec;
+  std::filesystem::create_directories(cache_.dir(), ec);
+  const std::filesystem::path tmp = meta_file().string() + ".partial-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp);
+    out << meta.dump(2) << "\n";
+    if (!out) return;  // an unwritable cache only costs time on a re-run
+  }
+  std::filesystem::rename(tmp, meta_file(), ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    return;
+  }
+  cache_.store(ctx, key_, latent);
+}
 
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages) {
   const Settings& st = jp.settings;
   const int t0 = jp.plan.t0();
-  // Keyed by what determines x0 and the image latent (the splat's float atomics may reorder sums, so the
-  // rendered bytes themselves are not a stable key), and by what changes the model (LoRA) or x0 (tiling).
-  const RenderJob& j = o.render;
+  // Keyed by what determines x0 and the image latent, and by what changes the model (LoRA) or x0 (tiling).
   const auto tiling = vae_tiling(o);
-  const std::string key = InversionCache::key(
-      {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
-       std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
-       j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft",
-       intrinsics_key(job_intrinsics(j)),
-       o.preset, std::to_string(st.inversion_steps), std::to_string(t0),
-       o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + std::to_string(o.lora_scale),
-       tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)
-              : "untiled"});
+  std::vector<std::string> parts = render_key_parts(o, frames);
+  parts.insert(parts.end(),
+               {o.preset, std::to_string(st.inversion_steps), std::to_string(t0),
+                o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + std::to_string(o.lora_scale),
+                tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)
+                       : "untiled"});
+  const std::string key = InversionCache::key(parts);
   InversionCache cache(o.cache_dir);
   InversionResult r;
   if (o.use_cache) {

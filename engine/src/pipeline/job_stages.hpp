@@ -3,6 +3,7 @@
 // inversion with its on-disk cache, and VAE decoding.
 #pragma once
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
@@ -11,6 +12,7 @@
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/tokenizer.hpp"
+#include "pipeline/inversion_cache.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/settings.hpp"
 #include "pipeline/stage_tracker.hpp"
@@ -49,6 +51,10 @@ EncodedRender encode_render(vk::Context& ctx, models::CogVideoXVae& vae, const R
 HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunOptions& o, const Tensor& latent, float scaling,
                          int frames);
 
+// Throws dvs::Error when tiles of this size do not join exactly (run's check of --vae-tile; dvs plan offers
+// only sizes it accepts).
+void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& tiling);
+
 // The VAE tiling the options ask for (none without --vae-tiling).
 std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
 
@@ -66,5 +72,29 @@ struct InversionResult {
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages);
+
+// The sampled latent on disk, in the inversion cache's folder (latent-<key>.npy and its .json metadata),
+// written before the decode: a run that fails or is interrupted in the decode is re-run straight to it.
+std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg);
+
+struct CachedLatent {
+  Tensor latent;       // what the decode takes (the final x0 prediction, diffusion layout)
+  nlohmann::json meta; // what the run.json of a run reusing it needs (see run_pipeline.cpp)
+};
+
+class LatentCache {
+ public:
+  LatentCache(const RunOptions& o, std::string key);
+  // nullopt when absent; a damaged entry is removed and `rejected` says why.
+  std::optional<CachedLatent> load(vk::Context& ctx, const Shape& shape, std::string* rejected) const;
+  void store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const;
+  std::filesystem::path file() const;
+  std::filesystem::path meta_file() const;
+  const std::string& key() const { return key_; }
+
+ private:
+  InversionCache cache_;
+  std::string key_;
+};
 
 }  // namespace dvs

@@ -11,6 +11,7 @@
 #include "io/model_schema.hpp"
 #include "models/cogvideox_transformer.hpp"
 #include "models/t5_encoder.hpp"
+#include "pipeline/job_stages.hpp"
 
 namespace dvs::pipeline {
 
@@ -70,6 +71,34 @@ int64_t ceil_halvings(int64_t x, int64_t times) {
 
 std::string shape_text(const Shape& s) { return "[" + shape_str(s) + "]"; }
 
+// Keeps the larger of the stage's largest tensor and `shape` (elem bytes each).
+void consider(StageMemory& m, const Shape& shape, uint64_t elem, const std::string& what) {
+  const uint64_t bytes = uint64_t(shape_numel(shape)) * elem;
+  if (bytes <= m.largest_bytes) return;
+  m.largest_bytes = bytes;
+  m.largest_elements = shape_numel(shape);
+  m.largest_what = what + " " + shape_text(shape) + (elem == 4 ? " f32" : elem == 2 ? " bf16" : "");
+}
+
+int64_t max_batch(const std::vector<std::pair<int64_t, int64_t>>& batches) {
+  int64_t b = 1;
+  for (const auto& [start, end] : batches) b = std::max(b, end - start);
+  return b;
+}
+
+// The largest activation of a VAE pass over `frames` frames (a frame batch plus the causal conv's 2 cached
+// frames) at h x w pixels: each level's channels (block ℓ reads c[ℓ-1] and works at c[ℓ]) at its resolution,
+// with the conv's 1-pixel padding. An upper figure at the levels that also compress time.
+void consider_vae_levels(StageMemory& m, const models::VaeConfig& cfg, int64_t frames, int64_t h, int64_t w,
+                         const std::string& what) {
+  const auto& c = cfg.block_out_channels;
+  for (size_t l = 0; l < c.size(); ++l) {
+    const int64_t ch = std::max(c[l], c[l == 0 ? 0 : l - 1]);
+    consider(m, {1, ch, frames + 2, ceil_halvings(h, int64_t(l)) + 2, ceil_halvings(w, int64_t(l)) + 2}, 4,
+             what + " level " + std::to_string(l) + " activation");
+  }
+}
+
 // A VAE encode call of `video` (encode_moments, plus the posterior when `posterior`): the device peak above the
 // weights. One frame batch: the input, the batch's working set and the result copied out of it (the VAE copies
 // a result whose pool buffer is larger; an exact fit is not copied, so this is an upper figure), then the
@@ -94,6 +123,9 @@ StageMemory vae_encode_call(const json& config, uint64_t alignment, const Shape&
   if (models::CogVideoXVae::frame_batches(frames, 8).size() == 1) total = in + std::max(m.working + mom, mom + post);
   else total = 2 * in + m.working + 2 * mom + post;
   m.io = total - m.working;
+  consider(m, video, 4, "input clip");
+  consider(m, moments, 4, "moments");
+  consider_vae_levels(m, cfg, max_batch(models::CogVideoXVae::frame_batches(frames, 8)), video[3], video[4], "encoder");
   return m;
 }
 
@@ -112,6 +144,9 @@ StageMemory vae_decode_call(const json& config, uint64_t alignment, const Shape&
   if (models::CogVideoXVae::frame_batches(z[2], 2).size() == 1) total = in + m.working + out;
   else total = 2 * in + m.working + 2 * out;
   m.io = total - m.working;
+  consider(m, frames, 4, "decoded frames");
+  const int64_t lb = max_batch(models::CogVideoXVae::frame_batches(z[2], 2));
+  consider_vae_levels(m, cfg, lb * cfg.temporal_compression_ratio, frames[3], frames[4], "decoder");
   return m;
 }
 
@@ -137,6 +172,27 @@ std::string gib(uint64_t bytes) {
 
 json stage_json(const StageMemory& s) {
   return {{"name", s.name}, {"what", s.what}, {"working_bytes", s.working}, {"io_bytes", s.io}, {"total_bytes", s.total()}};
+}
+
+
+int64_t pieces(uint64_t amount, uint64_t limit) { return limit == 0 ? 1 : int64_t((amount + limit - 1) / limit); }
+
+// One stage's largest tensor against the limits: how many bindings / texel views ops split it into, and
+// whether it fits one allocation (it must: the stage cannot run otherwise).
+std::string limits_verdict(const StageMemory& s, const PlanLimits& l) {
+  std::string v = "largest tensor " + gib(s.largest_bytes) + " (" + s.largest_what + "): ";
+  const int64_t b = pieces(s.largest_bytes, l.binding), t = pieces(uint64_t(s.largest_elements), l.texels);
+  v += b > 1 ? "split into " + std::to_string(b) + " bindings" : std::string("one binding");
+  v += ", " + std::to_string(s.largest_elements) + " texels: " +
+       (t > 1 ? "split into " + std::to_string(t) + " texel views" : std::string("one texel view"));
+  v += s.largest_bytes > l.alloc ? ", allocation OVER maxMemoryAllocationSize: cannot run" : ", allocation fits";
+  return v;
+}
+
+json limits_json(const StageMemory& s, const PlanLimits& l) {
+  return {{"largest_tensor_bytes", s.largest_bytes}, {"largest_tensor", s.largest_what},
+          {"largest_texel_view", s.largest_elements}, {"bindings", pieces(s.largest_bytes, l.binding)},
+          {"texel_views", pieces(uint64_t(s.largest_elements), l.texels)}, {"allocation_fits", s.largest_bytes <= l.alloc}};
 }
 
 }  // namespace
@@ -195,11 +251,15 @@ StageMemory plan_t5_stage(const json& t5_config, bool embedding_16bit, uint64_t 
   m.working = models::T5Encoder::arena_bytes(cfg, embedding_16bit, alignment, batch, len);
   m.io = tensor_bytes({batch, len}, alignment) /* ids, i32 */ + tensor_bytes({cfg.num_heads, len, len}, alignment) /* bias */ +
          tensor_bytes({batch, len, cfg.d_model}, alignment) /* last_hidden_state */;
+  consider(m, {cfg.vocab_size, cfg.d_model}, embedding_16bit ? 2 : 4, "token embedding");
+  consider(m, {cfg.d_ff, cfg.d_model}, embedding_16bit ? 2 : 4, "FFN weight");
+  consider(m, {batch, len, cfg.d_ff}, 4, "FFN activation");
+  consider(m, {batch, cfg.num_heads, len, len}, 4, "attention scores");
   return m;
 }
 
 StageMemory plan_transformer_stage(const json& config, uint64_t alignment, int64_t batch, int64_t F, int64_t H, int64_t W,
-                                   int64_t L) {
+                                   int64_t L, int weight_bytes) {
   const auto cfg = models::CogVideoXTransformerConfig::from_json(config);
   const int64_t p = cfg.patch_size, N = F * (H / p) * (W / p);
   StageMemory m;
@@ -211,6 +271,11 @@ StageMemory plan_transformer_stage(const json& config, uint64_t alignment, int64
          tensor_bytes({batch}, alignment) /* timesteps */ + tensor_bytes({batch, F, cfg.out_channels, H, W}, alignment);
   if (cfg.rotary) m.io += 2 * tensor_bytes({N, cfg.head_dim}, alignment);           // RoPE cos, sin
   if (cfg.learned_pos || !cfg.rotary) m.io += tensor_bytes({L + N, cfg.dim()}, alignment);  // positional table
+  // diffusers' FeedForward: inner width 4 x dim (12288 for the 5B model).
+  consider(m, {cfg.dim(), 4 * cfg.dim()}, uint64_t(weight_bytes), "FFN weight");
+  consider(m, {batch, L + N, 3 * cfg.dim()}, 4, "q, k, v");
+  consider(m, {batch, L + N, 4 * cfg.dim()}, 4, "FFN activation");
+  consider(m, {batch, F, cfg.in_channels, H, W}, 4, "latent input");
   return m;
 }
 
@@ -274,10 +339,10 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   const int64_t Fl = plan.latent_frames, Hl = plan.latent_height, Wl = plan.latent_width, L = plan.text_len;
   const bool emb16 = model.assumed_dtype_bytes == 2;
   plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L));
-  StageMemory cfg2 = plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L);
+  StageMemory cfg2 = plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes);
   cfg2.name = "transformer_cfg";
   cfg2.what += " (CFG: negative + positive)";
-  StageMemory inv = plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L);
+  StageMemory inv = plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes);
   inv.name = "transformer_inversion";
   inv.what += " (inversion)";
   plan.stages.push_back(cfg2);
@@ -322,11 +387,10 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   untiled.vae_decode = dec;
   untiled.run_peak = plan.run_peak;
   plan.tilings.push_back(untiled);
-  for (int64_t div = 2;; div *= 2) {
+  for (const auto& [th, tw] : plan_tile_sizes(vcfg)) {
     models::VaeTiling t;
-    t.tile_sample_min_height = vcfg.sample_height / div / r * r;
-    t.tile_sample_min_width = vcfg.sample_width / div / r * r;
-    if (t.tile_sample_min_height / r < 4 || t.tile_sample_min_width / r < 4) break;
+    t.tile_sample_min_height = int(th);
+    t.tile_sample_min_width = int(tw);
     const auto pe = models::TilePlan::for_encode(vcfg, t), pd = models::TilePlan::for_decode(vcfg, t);
     if (!(req.width > pe.tile_in_w || req.height > pe.tile_in_h)) continue;  // no tiling at this size
     if (pe.stride_h <= 0 || pe.stride_w <= 0 || pd.stride_h <= 0 || pd.stride_w <= 0) break;
@@ -349,6 +413,10 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     o.vae_encode.io = tensor_bytes(video, req.alignment) +
                       std::max(te.total(), tensor_bytes(moments, req.alignment) + 2 * tensor_bytes(z, req.alignment)) -
                       te.working;
+    o.vae_encode.largest_bytes = te.largest_bytes;
+    o.vae_encode.largest_elements = te.largest_elements;
+    o.vae_encode.largest_what = te.largest_what;
+    consider(o.vae_encode, video, 4, "input clip");
     const Shape zt{1, vcfg.latent_channels, Fl, std::min(Hl, pd.tile_in_h), std::min(Wl, pd.tile_in_w)};
     const StageMemory td = vae_decode_call(model.vae, req.alignment, zt);
     o.vae_decode.name = "vae_decode";
@@ -358,17 +426,40 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     o.vae_decode.io = tensor_bytes(z, req.alignment) +
                       std::max(td.total(), tensor_bytes({1, vcfg.out_channels, req.frames, req.height, req.width}, req.alignment)) -
                       td.working;
+    o.vae_decode.largest_bytes = td.largest_bytes;
+    o.vae_decode.largest_elements = td.largest_elements;
+    o.vae_decode.largest_what = td.largest_what;
+    consider(o.vae_decode, {1, vcfg.out_channels, req.frames, req.height, req.width}, 4, "decoded frames");
     o.run_peak = run_peak(o.vae_encode, o.vae_decode);
     plan.tilings.push_back(o);
   }
 
-  if (req.budget) {
+  // A setting runs when its whole-run peak is within the budget and every tensor of every stage fits one
+  // allocation (ops split a tensor over bindings and texel views; an allocation cannot be split).
+  auto too_big = [&](const StageMemory& st) -> std::string {
+    if (!req.limits || st.largest_bytes <= req.limits->alloc) return "";
+    return st.name + "'s " + st.largest_what + " (" + gib(st.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
+           gib(req.limits->alloc) + " of " + req.limits->source;
+  };
+  std::string fixed_blocker;  // a non-VAE stage no tiling helps
+  for (const auto& st : plan.stages)
+    if (st.name != "vae_encode" && st.name != "vae_decode" && fixed_blocker.empty()) fixed_blocker = too_big(st);
+  for (auto& t : plan.tilings) {
+    t.blocker = fixed_blocker;
+    if (t.blocker.empty()) t.blocker = too_big(t.vae_encode);
+    if (t.blocker.empty()) t.blocker = too_big(t.vae_decode);
+    if (t.blocker.empty() && req.budget && t.run_peak > *req.budget)
+      t.blocker = "the run's peak " + gib(t.run_peak) + " exceeds the budget " + gib(*req.budget);
+  }
+  if (plan.checked()) {
     for (size_t i = 0; i < plan.tilings.size(); ++i)
-      if (plan.tilings[i].run_peak <= *req.budget) {
+      if (plan.tilings[i].blocker.empty()) {
         plan.chosen = int(i);
         break;
       }
-    if (plan.chosen < 0) {
+    if (plan.chosen < 0 && !fixed_blocker.empty()) {
+      plan.notes.push_back("nothing runs: " + fixed_blocker + "; no VAE tiling changes that");
+    } else if (plan.chosen < 0 && req.budget) {
       const uint64_t floor_bytes = plan.carried + std::max(text_phase, transformer_phase);
       if (floor_bytes > *req.budget)
         plan.notes.push_back("nothing fits in " + gib(*req.budget) + ": the " +
@@ -377,11 +468,40 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
                              " already needs " + gib(floor_bytes) +
                              " with any VAE tiling; use a device with more memory or fewer frames / a smaller size");
       else
-        plan.notes.push_back("nothing fits in " + gib(*req.budget) + ": even the smallest VAE tile tried needs " +
-                             gib(plan.tilings.back().run_peak) + " for the whole run");
+        plan.notes.push_back("nothing runs within " + gib(*req.budget) + ": even the smallest VAE tile tried: " +
+                             plan.tilings.back().blocker);
+    } else if (plan.chosen < 0) {
+      plan.notes.push_back("nothing runs: even the smallest VAE tile tried: " + plan.tilings.back().blocker);
     }
   }
   return plan;
+}
+
+std::vector<std::pair<int64_t, int64_t>> plan_tile_sizes(const models::VaeConfig& vcfg) {
+  const int64_t r = vcfg.spatial_ratio();
+  auto accepted = [&](int64_t h, int64_t w) {
+    models::VaeTiling t;
+    t.tile_sample_min_height = int(h);
+    t.tile_sample_min_width = int(w);
+    try {
+      check_tiles_join(vcfg, t);  // run's own check of --vae-tile
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  };
+  // For each target (half the sample size, then halvings), the largest accepted multiples of 8 at or below it.
+  std::vector<std::pair<int64_t, int64_t>> out;
+  for (int64_t div = 2;; div *= 2) {
+    const int64_t target_h = vcfg.sample_height / div / 8 * 8, target_w = vcfg.sample_width / div / 8 * 8;
+    if (target_h / r < 4 || target_w / r < 4) break;
+    std::optional<std::pair<int64_t, int64_t>> found;
+    for (int64_t h = target_h; h / r >= 4 && !found; h -= 8)
+      for (int64_t w = target_w; w / r >= 4 && !found; w -= 8)
+        if (accepted(h, w)) found = std::make_pair(h, w);
+    if (found && std::find(out.begin(), out.end(), *found) == out.end()) out.push_back(*found);
+  }
+  return out;
 }
 
 // ---- sizes ----------------------------------------------------------------------------------------------------
@@ -436,6 +556,22 @@ std::string format_plan_table(const MemoryPlan& p) {
     o << line;
   }
   o << "  kept across stages: " << gib(p.carried) << " (prompt embeddings, latents)\n\n";
+  if (p.request.limits) {
+    const PlanLimits& l = *p.request.limits;
+    o << "limits of " << l.source << ": binding (maxStorageBufferRange) " << gib(l.binding)
+      << ", texel view (maxTexelBufferElements) " << l.texels << " texels, allocation (maxMemoryAllocationSize) "
+      << gib(l.alloc) << ", groups " << l.groups << "\n";
+    for (const auto& s : p.stages)
+      if (s.name != "vae_encode" && s.name != "vae_decode") o << "  " << s.name << ": " << limits_verdict(s, l) << "\n";
+    for (const auto& t : p.tilings) {
+      const std::string tag = t.tiled ? " (tiles " + std::to_string(t.tiling.tile_sample_min_height) + "x" +
+                                            std::to_string(t.tiling.tile_sample_min_width) + ")"
+                                      : std::string(" (untiled)");
+      o << "  vae_encode" << tag << ": " << limits_verdict(t.vae_encode, l) << "\n";
+      o << "  vae_decode" << tag << ": " << limits_verdict(t.vae_decode, l) << "\n";
+    }
+    o << "\n";
+  }
   o << "whole run (the largest phase: VAE weights + T5 or transformer weights when loaded + kept tensors + that call)\n";
   for (size_t i = 0; i < p.tilings.size(); ++i) {
     const auto& t = p.tilings[i];
@@ -445,17 +581,20 @@ std::string format_plan_table(const MemoryPlan& p) {
                                : std::string("VAE untiled");
     std::snprintf(line, sizeof line, "  %-34s peak %12s  (encode %s, decode %s)%s\n", name.c_str(), gib(t.run_peak).c_str(),
                   gib(t.vae_encode.total()).c_str(), gib(t.vae_decode.total()).c_str(),
-                  p.request.budget && int(i) == p.chosen ? "  <- chosen" : "");
+                  p.checked() && int(i) == p.chosen ? "  <- chosen" : "");
     o << line;
   }
-  if (p.request.budget) {
-    o << "\nbudget " << gib(*p.request.budget) << ": ";
+  if (p.checked()) {
+    o << "\n";
+    if (p.request.budget) o << "budget " << gib(*p.request.budget);
+    if (p.request.limits) o << (p.request.budget ? ", " : "") << "limits of " << p.request.limits->source;
+    o << ": ";
     if (p.chosen < 0) o << "NOTHING FITS\n";
-    else if (p.chosen == 0) o << "fits untiled (peak " << gib(p.tilings[0].run_peak) << ")\n";
+    else if (p.chosen == 0) o << "runs untiled (peak " << gib(p.tilings[0].run_peak) << "): dvs run without --vae-tiling\n";
     else {
       const auto& t = p.tilings[size_t(p.chosen)];
-      o << "needs VAE tiling: tiles of " << t.tiling.tile_sample_min_height << "x" << t.tiling.tile_sample_min_width
-        << " pixels (overlap 1/6 x 1/5), peak " << gib(t.run_peak) << "\n";
+      o << "needs VAE tiling: dvs run --vae-tile " << t.tiling.tile_sample_min_height << "x" << t.tiling.tile_sample_min_width
+        << " (overlap 1/6 x 1/5), peak " << gib(t.run_peak) << "\n";
     }
   }
   for (const auto& n : p.notes) o << "note: " << n << "\n";
@@ -476,13 +615,22 @@ json plan_to_json(const MemoryPlan& p) {
                             {"basis", w.from_headers ? "safetensors_headers" : "config"}});
   j["weights_total_bytes"] = p.weights_total;
   j["stages"] = json::array();
-  for (const auto& s : p.stages) j["stages"].push_back(stage_json(s));
+  for (const auto& s : p.stages) {
+    j["stages"].push_back(stage_json(s));
+    if (p.request.limits) j["stages"].back()["limits"] = limits_json(s, *p.request.limits);
+  }
   j["carried_bytes"] = p.carried;
   j["run_peak_bytes"] = p.run_peak;
   j["tilings"] = json::array();
   for (const auto& t : p.tilings) {
     json e = {{"tiled", t.tiled}, {"run_peak_bytes", t.run_peak}, {"vae_encode", stage_json(t.vae_encode)},
               {"vae_decode", stage_json(t.vae_decode)}};
+    if (p.request.limits) {
+      e["vae_encode"]["limits"] = limits_json(t.vae_encode, *p.request.limits);
+      e["vae_decode"]["limits"] = limits_json(t.vae_decode, *p.request.limits);
+    }
+    e["runs"] = t.blocker.empty();
+    if (!t.blocker.empty()) e["blocker"] = t.blocker;
     if (t.tiled) {
       e["tile_sample_min_height"] = t.tiling.tile_sample_min_height;
       e["tile_sample_min_width"] = t.tiling.tile_sample_min_width;
@@ -490,7 +638,12 @@ json plan_to_json(const MemoryPlan& p) {
     }
     j["tilings"].push_back(e);
   }
-  if (p.request.budget) {
+  if (p.request.limits) {
+    const PlanLimits& l = *p.request.limits;
+    j["limits"] = {{"source", l.source}, {"binding_bytes", l.binding}, {"texels", l.texels}, {"alloc_bytes", l.alloc},
+                   {"groups", l.groups}};
+  }
+  if (p.checked()) {
     json c = {{"fits", p.chosen >= 0}};
     if (p.chosen >= 0) {
       const auto& t = p.tilings[size_t(p.chosen)];

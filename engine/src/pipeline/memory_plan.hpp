@@ -37,11 +37,21 @@ PlanModel builtin_plan_model(std::string_view name);
 // <dir>/{transformer,vae,text_encoder}/config.json, plus the safetensors headers when present (headers only).
 PlanModel plan_model_from_folder(const std::filesystem::path& dir);
 
+// The device limits a plan is checked against (a real device's caps, or a profile of vk/limit_profiles.hpp).
+struct PlanLimits {
+  std::string source;                   // "device 0: llvmpipe ...", "profile nvidia: ..."
+  uint64_t binding = 0;                 // maxStorageBufferRange, bytes
+  uint64_t texels = 0;                  // maxTexelBufferElements
+  uint64_t alloc = 0;                   // maxMemoryAllocationSize, bytes
+  uint32_t groups = 0;                  // maxComputeWorkGroupCount (x)
+};
+
 struct PlanRequest {
   int64_t frames = 49, height = 480, width = 720;  // pixels
   int prompts = 2;                                 // T5 batch: negative + positive prompt
   std::optional<uint64_t> budget;                  // bytes
   uint64_t alignment = 256;                        // the device allocator's (dvs info; 256 covers common GPUs)
+  std::optional<PlanLimits> limits;                // checked when given: a setting runs only within them
 };
 
 struct ComponentWeightBytes {
@@ -58,6 +68,11 @@ struct StageMemory {
   std::string what;      // human description with shapes
   uint64_t working = 0, io = 0;
   uint64_t total() const { return working + io; }
+  // The largest single tensor the call binds (weights, activations, inputs, outputs): ops split a tensor
+  // over several bindings / texel views, but each tensor is one allocation.
+  uint64_t largest_bytes = 0;
+  int64_t largest_elements = 0;
+  std::string largest_what;
 };
 
 struct TilingOption {
@@ -67,6 +82,7 @@ struct TilingOption {
   int64_t tiles = 1;                 // tiles per frame (encode)
   StageMemory vae_encode, vae_decode;
   uint64_t run_peak = 0;             // the largest phase of the run with this tiling (see plan_memory)
+  std::string blocker;               // why this setting cannot run within the budget and limits ("" = it runs)
 };
 
 struct MemoryPlan {
@@ -80,6 +96,7 @@ struct MemoryPlan {
   uint64_t run_peak = 0;             // untiled
   std::vector<TilingOption> tilings; // [0] untiled, then smaller and smaller tiles
   int chosen = -1;                   // index into tilings when a budget is given and something fits
+  bool checked() const { return request.budget || request.limits; }
   std::vector<std::string> notes;
 };
 
@@ -90,9 +107,13 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& request);
 StageMemory plan_t5_stage(const nlohmann::json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch,
                           int64_t len);
 StageMemory plan_transformer_stage(const nlohmann::json& config, uint64_t alignment, int64_t batch, int64_t latent_frames,
-                                   int64_t latent_height, int64_t latent_width, int64_t text_len);
+                                   int64_t latent_height, int64_t latent_width, int64_t text_len, int weight_bytes = 2);
 StageMemory plan_vae_encode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& video);
 StageMemory plan_vae_decode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& z);
+
+// The VAE tile sizes the plan offers: `dvs run --vae-tile HxW` accepts each (multiples of 8 whose tiles join,
+// checked with run's own check_tiles_join), about sample size / 2, / 4, ... while the latent tile is ≥ 4 x 4.
+std::vector<std::pair<int64_t, int64_t>> plan_tile_sizes(const models::VaeConfig& vae);
 
 // "24GiB", "80GB", "1.5 GiB", "512MiB", "1000000" (bytes). Throws dvs::Error naming `option` otherwise.
 uint64_t parse_byte_size(const std::string& text, const std::string& option = "--budget");

@@ -20,6 +20,7 @@
 #include "models/t5_encoder.hpp"
 #include "models/tokenizer.hpp"
 #include "models/vae_tiling.hpp"
+#include "pipeline/job_stages.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "pipeline/settings.hpp"
 #include "vk/context.hpp"
@@ -193,15 +194,7 @@ void check_model_fit(const RunOptions& o, const ModelFacts& m, Checker& c) {
               "): the components come from different models");
   if (o.vae_tiling)
     c.attempt("", [&] {
-      models::VaeTiling tiling;
-      tiling.tile_sample_min_height = o.vae_tile_height;
-      tiling.tile_sample_min_width = o.vae_tile_width;
-      const auto enc = models::TilePlan::for_encode(v, tiling), dec = models::TilePlan::for_decode(v, tiling);
-      if (enc.stride_h != enc.limit_h * r || enc.stride_w != enc.limit_w * r || dec.stride_h * r != dec.limit_h ||
-          dec.stride_w * r != dec.limit_w)
-        throw Error("--vae-tile " + hw(enc.tile_in_h, enc.tile_in_w) +
-                    ": tiles of this size do not join exactly (the tile stride, 5/6 of the height and 4/5 of the width, "
-                    "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
+      check_tiles_join(v, *vae_tiling(o));  // the run's own check
     });
 }
 

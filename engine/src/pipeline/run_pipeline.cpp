@@ -6,6 +6,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
+#include <optional>
 
 #include "diffusion/init_noise.hpp"
 #include "diffusion/krnr.hpp"
@@ -55,70 +57,107 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   RenderedInput in = render_for_model(ctx, o, stages);
   const int F = int(in.rgb.shape[0]);
 
-  // 3. VAE: the render -> x0, its first frame -> the image-conditioning latent.
-  stages.begin("encode", "VAE-encoding the render");
+  // The sampled latent of an earlier run with these settings (one whose decode failed or was interrupted, or
+  // one re-run with other VAE options) skips stages 3–8.
   models::CogVideoXVae vae(ctx, o.model / "vae");
-  EncodedRender enc = encode_render(ctx, vae, o, st, in);
-  const Tensor& x0 = enc.x0;
-  const float sf = enc.scaling;
-  const Tensor& image_latent = enc.image_latent;
-  const Shape lat = x0.shape();  // [Fl, C, h, w]
-  stages.end();
-
-  // 4. Text.
-  stages.begin("text", "encoding the prompts");
-  Tensor text, text_inv;
-  {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
-    models::T5Encoder t5(ctx, o.model / "text_encoder");
-    text = guidance_text(ctx, t5, jp.tokenizer, st.negative, o.prompt, jp.text_len);  // [uncond; cond]
-    text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
-                                                                    // over two identical "" rows is a no-op)
+  const models::VaeConfig& vcfg = vae.config();
+  const int64_t r = vcfg.spatial_ratio();
+  const Shape lat{(F - 1) / vcfg.temporal_compression_ratio + 1, vcfg.latent_channels, in.rgb.shape[2] / r, in.rgb.shape[3] / r};
+  const float sf = float(vcfg.scaling_factor);
+  const LatentCache latent_cache(o, latent_cache_key(o, jp, F, dynamic_cfg));
+  std::optional<CachedLatent> cached;
+  if (o.use_cache) {
+    std::string rejected;
+    cached = latent_cache.load(ctx, lat, &rejected);
+    if (!rejected.empty()) stages.say(0, 0, "ignoring the cached latent " + rejected);
   }
-  ops::require_finite(ctx, {{&text, "prompt embeddings"}, {&text_inv, "empty-prompt embedding"}}, kNonFiniteHint);
-  stages.end();
-
-  // 5. Inversion (cached on disk).
-  stages.begin("invert", "DDIM inversion");
-  std::unique_ptr<models::CogVideoXTransformer> transformer_ptr = load_transformer(ctx, o);
-  models::CogVideoXTransformer& transformer = *transformer_ptr;
   const int t0 = plan.t0();
-  InversionResult inversion = invert_render(ctx, transformer, o, jp, F, enc, text_inv, stages);
-  Tensor eps_inv = inversion.eps;
-  report.inversion_from_cache = inversion.from_cache;
-  stages.end();
+  Tensor latent;  // what the decode takes: the final x0 prediction
+  bool slm_fell_back = false;
+  nlohmann::json latent_meta;
+  if (cached) {
+    stages.begin("latent", "reusing the sampled latent");
+    stages.say(1, 1, "sampled latent loaded from the cache (" + latent_cache.file().string() +
+                         "): encoding, inversion and sampling skipped");
+    latent = cached->latent;
+    latent_meta = cached->meta;
+    slm_fell_back = latent_meta.value("slm_source_fell_back", false);
+    stages.end();
+  } else {
+    // 3. VAE: the render -> x0, its first frame -> the image-conditioning latent.
+    stages.begin("encode", "VAE-encoding the render");
+    EncodedRender enc = encode_render(ctx, vae, o, st, in);
+    const Tensor& x0 = enc.x0;
+    const Tensor& image_latent = enc.image_latent;
+    if (x0.shape() != lat) throw Error("internal: the encoded render is [" + shape_str(x0.shape()) + "], expected [" + shape_str(lat) + "]");
+    stages.end();
 
-  // 6–7. SLM and adaptive K-RNR.
-  stages.begin("init_noise", "stochastic latent modulation and K-RNR");
-  diffusion::SlmOptions slm;
-  slm.preset = st.official ? diffusion::SlmOptions::Preset::official : diffusion::SlmOptions::Preset::paper;
-  slm.seed = o.seed;
-  diffusion::SlmMasks masks = diffusion::compute_slm_masks(ctx, in.mask, &in.depth, true, int(lat[0]), slm);
-  diffusion::SlmPlan slm_plan = diffusion::make_slm_plan(ctx, masks, int(lat[1]), slm.scope);
-  const Tensor x_init = initial_latent(ctx, st, o.k, o.seed, enc, eps_inv, &slm_plan, schedule.alpha_cumprod(t0));
-  ops::require_finite(ctx, {{&x_init, "x_init"}}, kNonFiniteHint);
-  stages.end();
-
-  // 8. Sampling with classifier-free guidance.
-  stages.begin("sample", "guided DDIM sampling");
-  diffusion::SampleResult result;
-  {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
-    ops::NonFiniteCheck check(ctx);
-    diffusion::LoopCallbacks cb = stages.loop_callbacks(&check);
-    diffusion::Guidance guidance{true, o.guidance};
-    if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
-      guidance.mode = diffusion::GuidanceMode::dynamic;
-      guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
-      guidance.preservation_scale = o.preservation_scale;
+    // 4. Text.
+    stages.begin("text", "encoding the prompts");
+    Tensor text, text_inv;
+    {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
+      models::T5Encoder t5(ctx, o.model / "text_encoder");
+      text = guidance_text(ctx, t5, jp.tokenizer, st.negative, o.prompt, jp.text_len);  // [uncond; cond]
+      text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
+                                                                      // over two identical "" rows is a no-op)
     }
-    result = sample_latent(ctx, transformer, schedule, plan, x_init, image_latent, text, guidance, cb, &check);
-    ops::require_finite(ctx, {{&result.latent, "final latent"}, {&result.pred_x0, "final x0 prediction"}}, kNonFiniteHint);
+    ops::require_finite(ctx, {{&text, "prompt embeddings"}, {&text_inv, "empty-prompt embedding"}}, kNonFiniteHint);
+    stages.end();
+
+    // 5. Inversion (cached on disk).
+    stages.begin("invert", "DDIM inversion");
+    std::unique_ptr<models::CogVideoXTransformer> transformer_ptr = load_transformer(ctx, o);
+    models::CogVideoXTransformer& transformer = *transformer_ptr;
+    InversionResult inversion = invert_render(ctx, transformer, o, jp, F, enc, text_inv, stages);
+    Tensor eps_inv = inversion.eps;
+    report.inversion_from_cache = inversion.from_cache;
+    stages.end();
+
+    // 6–7. SLM and adaptive K-RNR.
+    stages.begin("init_noise", "stochastic latent modulation and K-RNR");
+    diffusion::SlmOptions slm;
+    slm.preset = st.official ? diffusion::SlmOptions::Preset::official : diffusion::SlmOptions::Preset::paper;
+    slm.seed = o.seed;
+    diffusion::SlmMasks masks = diffusion::compute_slm_masks(ctx, in.mask, &in.depth, true, int(lat[0]), slm);
+    diffusion::SlmPlan slm_plan = diffusion::make_slm_plan(ctx, masks, int(lat[1]), slm.scope);
+    const Tensor x_init = initial_latent(ctx, st, o.k, o.seed, enc, eps_inv, &slm_plan, schedule.alpha_cumprod(t0));
+    ops::require_finite(ctx, {{&x_init, "x_init"}}, kNonFiniteHint);
+    slm_fell_back = masks.source_fell_back;
+    stages.end();
+
+    // 8. Sampling with classifier-free guidance.
+    stages.begin("sample", "guided DDIM sampling");
+    {  // the transformer's weights and activations are freed before the VAE decode, the run's other large call
+      ops::NonFiniteCheck check(ctx);
+      diffusion::LoopCallbacks cb = stages.loop_callbacks(&check);
+      diffusion::Guidance guidance{true, o.guidance};
+      if (dynamic_cfg) {  // official: position-wise, P = the x0 SLM targets (V < 1)
+        guidance.mode = diffusion::GuidanceMode::dynamic;
+        guidance.positions = diffusion::positions_to_replace(ctx, masks, int(lat[1]));
+        guidance.preservation_scale = o.preservation_scale;
+      }
+      diffusion::SampleResult result =
+          sample_latent(ctx, transformer, schedule, plan, x_init, image_latent, text, guidance, cb, &check);
+      ops::require_finite(ctx, {{&result.latent, "final latent"}, {&result.pred_x0, "final x0 prediction"}}, kNonFiniteHint);
+      latent = result.pred_x0;
+    }
+    transformer_ptr.reset();
+    // Kept before the decode, the run's other large call: nothing sampled is lost if it fails.
+    const auto tiling = vae_tiling(o);
+    latent_meta = {{"slm_source_fell_back", slm_fell_back},
+                   {"encoded_with", {{"vae_tiling", tiling.has_value()}}},
+                   {"model", o.model.string()}};
+    if (tiling) {
+      const auto tp = models::TilePlan::for_encode(vcfg, *tiling);
+      latent_meta["encoded_with"]["vae_tile"] = {tp.tile_in_h, tp.tile_in_w};
+    }
+    if (o.use_cache) latent_cache.store(ctx, latent, latent_meta);
+    stages.end();
   }
-  transformer_ptr.reset();
-  stages.end();
 
   // 9. Decode and write.
   stages.begin("decode", "VAE-decoding the result");
-  HostTensor output = decode_latent(ctx, vae, o, result.pred_x0, sf, F);
+  HostTensor output = decode_latent(ctx, vae, o, latent, sf, F);
   stages.end();
 
   stages.begin("write", "writing the videos");
@@ -140,7 +179,7 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   report.peak_device_bytes = ctx.allocator().stats().peak_bytes_in_use;
   const auto& caps = ctx.caps();
   RunRecordExtras extras{st.steps, st.strength, st.inversion_steps, st.delta, st.negative, t0, plan.num_steps(), caps.name,
-                         caps.driver_name + " " + caps.driver_info, model_fingerprint(o.model), masks.source_fell_back};
+                         caps.driver_name + " " + caps.driver_info, model_fingerprint(o.model), slm_fell_back};
   extras.vulkan_api = std::to_string(VK_API_VERSION_MAJOR(caps.api_version)) + "." +
                       std::to_string(VK_API_VERSION_MINOR(caps.api_version)) + "." +
                       std::to_string(VK_API_VERSION_PATCH(caps.api_version));
@@ -165,6 +204,10 @@ RunReport run_stages(const RunOptions& o, StageTracker& stages) {
   }
   extras.poses_hash = InversionCache::key(pose_text);
   extras.cache_dir = o.use_cache ? InversionCache(o.cache_dir).dir().string() : "";
+  if (o.use_cache) {
+    extras.latent = {{"path", latent_cache.file().string()}, {"key", latent_cache.key()}, {"reused", cached.has_value()},
+                     {"encoded_with", latent_meta.value("encoded_with", nlohmann::json())}};
+  }
   write_run_record(run_json, o, report, extras);
   stages.check_cancelled();  // the last chance before the job's files replace anything
   files.commit();

@@ -56,6 +56,7 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
   j["trajectory_poses"] = x.poses;
   j["slm_source_fell_back_to_visible"] = x.slm_source_fell_back;
   j["inversion_from_cache"] = r.inversion_from_cache;
+  j["latent"] = x.latent.is_null() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json::parse(x.latent.dump());
   nlohmann::ordered_json stages = nlohmann::ordered_json::object();
   double total = 0;
   for (const auto& s : r.stages) {

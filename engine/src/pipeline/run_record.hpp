@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "dvs/pipeline.hpp"
 
 namespace dvs {
@@ -29,6 +31,8 @@ struct RunRecordExtras {
   std::vector<std::array<double, 16>> poses;    // the trajectory's per-frame 4×4 transforms, row-major
   std::string poses_hash;                       // hash of `poses`: compare two runs' camera paths at a glance
   std::string cache_dir;                        // the inversion cache folder used
+  // The sampled latent in the cache: {"path", "key", "reused", "encoded_with"} (null without the cache).
+  nlohmann::json latent;
 };
 
 // A run.json turned back into `dvs run` arguments ("--video", "/abs/v.mp4", ...): every input and setting the

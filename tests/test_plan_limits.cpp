@@ -1,0 +1,140 @@
+// `dvs plan` against device limits (--limits PROFILE, --device N): each stage's largest tensor, the verdicts,
+// the recommendation, exit codes, and that every tile size it offers is one `dvs run` accepts.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "dvs/error.hpp"
+#include "models/cogvideox_vae.hpp"
+#include "pipeline/job_stages.hpp"
+#include "pipeline/memory_plan.hpp"
+#include "support/process.hpp"
+#include "vk/limit_profiles.hpp"
+
+namespace dvs {
+namespace {
+
+using nlohmann::json;
+
+// DVS_LIMITS cleared unless the test sets it: the tiny-limits profile must not change the real-size plans.
+test::CommandResult plan(const std::string& args, const std::string& env = "DVS_LIMITS=") {
+  return test::run_command(env + " " + test::program("dvs") + " plan --model cogvideox-5b-i2v " + args);
+}
+
+// run's acceptance of --vae-tile HxW: settings' multiples of 8 and check_tiles_join.
+void expect_run_accepts(const models::VaeConfig& cfg, int64_t h, int64_t w) {
+  EXPECT_TRUE(h > 0 && w > 0 && h % 8 == 0 && w % 8 == 0) << h << "x" << w;
+  models::VaeTiling t;
+  t.tile_sample_min_height = int(h);
+  t.tile_sample_min_width = int(w);
+  EXPECT_NO_THROW(check_tiles_join(cfg, t)) << h << "x" << w;
+}
+
+TEST(PlanLimits, EveryOfferedTileIsOneRunAccepts) {
+  auto vae = pipeline::builtin_plan_model("cogvideox-5b-i2v").vae;
+  // The real config, and odd sample sizes where halving lands on sizes whose tiles do not join (120 x 176 did).
+  for (auto [sh, sw] : {std::pair{480, 720}, std::pair{232, 344}, std::pair{184, 312}}) {
+    vae["sample_height"] = sh, vae["sample_width"] = sw;
+    const auto cfg = models::VaeConfig::from_json(vae);
+    const auto sizes = pipeline::plan_tile_sizes(cfg);
+    ASSERT_FALSE(sizes.empty()) << sh << "x" << sw;
+    for (const auto& [h, w] : sizes) expect_run_accepts(cfg, h, w);
+  }
+  // What the CLI prints, too.
+  const auto r = plan("--json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto cfg = models::VaeConfig::from_json(pipeline::builtin_plan_model("cogvideox-5b-i2v").vae);
+  int tiled = 0;
+  const json printed = json::parse(r.output);
+  for (const auto& t : printed["tilings"])
+    if (t["tiled"].get<bool>()) {
+      ++tiled;
+      expect_run_accepts(cfg, t["tile_sample_min_height"].get<int64_t>(), t["tile_sample_min_width"].get<int64_t>());
+    }
+  EXPECT_GE(tiled, 2);
+}
+
+TEST(PlanLimits, ProfilesAreWellFormed) {
+  for (const auto& p : vk::limit_profiles()) {
+    EXPECT_GE(p.binding, 1u << 27) << p.name << ": below the spec's maxStorageBufferRange minimum";
+    EXPECT_GE(p.texels, 65536u) << p.name;
+    EXPECT_GE(p.alloc, 1u << 30) << p.name;
+    EXPECT_GE(p.groups[0], 65535u) << p.name;
+    EXPECT_GT(p.heap, 0u) << p.name;
+    EXPECT_FALSE(p.source.empty()) << p.name;
+  }
+  const auto& min = vk::limit_profile("MIN");
+  EXPECT_EQ(min.binding, 1u << 27);
+  EXPECT_EQ(min.texels, 65536u);
+  EXPECT_EQ(min.alloc, 1u << 30);
+  EXPECT_THROW(vk::limit_profile("voodoo"), Error);
+}
+
+TEST(PlanLimits, NvidiaAt24GiBRecommendsTheDefaultTile) {
+  const auto r = plan("--limits nvidia --budget 24GiB --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json j = json::parse(r.output);
+  EXPECT_EQ(j["limits"]["binding_bytes"].get<uint64_t>(), 0xFFFFFFFFull);
+  ASSERT_TRUE(j["choice"]["fits"].get<bool>());
+  EXPECT_TRUE(j["choice"]["tiled"].get<bool>());
+  EXPECT_EQ(j["choice"]["tile_sample_min_height"], 240);
+  EXPECT_EQ(j["choice"]["tile_sample_min_width"], 360);
+  // The CFG call's FFN activation [2, 17776, 12288] f32 is its largest tensor: one 4 GiB binding, 4 texel views of 2^27.
+  for (const auto& s : j["stages"])
+    if (s["name"] == "transformer_cfg") {
+      EXPECT_EQ(s["limits"]["largest_tensor_bytes"].get<uint64_t>(), 2ull * 17776 * 12288 * 4);
+      EXPECT_EQ(s["limits"]["bindings"], 1);
+      EXPECT_EQ(s["limits"]["texel_views"], 4);
+      EXPECT_TRUE(s["limits"]["allocation_fits"].get<bool>());
+    }
+  // The table says which tile to pass to dvs run.
+  const auto table = plan("--limits nvidia --budget 24GiB");
+  EXPECT_EQ(table.exit_code, 0) << table.output;
+  EXPECT_NE(table.output.find("dvs run --vae-tile 240x360"), std::string::npos) << table.output;
+  EXPECT_NE(table.output.find("split into"), std::string::npos) << table.output;
+}
+
+TEST(PlanLimits, AllocationLimitForcesTiling) {
+  // lavapipe: 2 GiB allocations: the untiled decode's largest activation is over it, the transformer's is not.
+  const auto r = plan("--limits lavapipe --budget 64GiB --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json j = json::parse(r.output);
+  EXPECT_TRUE(j["choice"]["tiled"].get<bool>());
+  const json& untiled = j["tilings"][0];
+  EXPECT_FALSE(untiled["runs"].get<bool>());
+  EXPECT_NE(untiled["blocker"].get<std::string>().find("maxMemoryAllocationSize"), std::string::npos) << untiled.dump();
+  EXPECT_LE(untiled["run_peak_bytes"].get<uint64_t>(), 64ull << 30) << "refused for the allocation, not the budget";
+  // 128 MiB bindings: the CFG FFN activation takes 13 of them.
+  for (const auto& s : j["stages"])
+    if (s["name"] == "transformer_cfg") EXPECT_EQ(s["limits"]["bindings"], (2ull * 17776 * 12288 * 4 + (128 << 20) - 1) / (128 << 20));
+}
+
+TEST(PlanLimits, MinimumLimitsAndTinyBudgetsRefuse) {
+  const auto r = plan("--limits min --json");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const json j = json::parse(r.output);
+  EXPECT_FALSE(j["choice"]["fits"].get<bool>());
+  EXPECT_NE(j["notes"].back().get<std::string>().find("maxMemoryAllocationSize"), std::string::npos) << j["notes"].dump();
+  const auto tiny = plan("--limits nvidia --budget 2GiB");
+  EXPECT_EQ(tiny.exit_code, 1) << tiny.output;
+  EXPECT_NE(tiny.output.find("NOTHING FITS"), std::string::npos) << tiny.output;
+  EXPECT_EQ(plan("--limits voodoo").exit_code, 2);
+  EXPECT_EQ(plan("--limits nvidia --device 0").exit_code, 2);
+}
+
+TEST(PlanLimits, DeviceLimitsHonourDvsLimits) {
+  const auto r = plan("--device 0 --budget 64GiB --json", "DVS_LIMITS=alloc=1GiB");
+  EXPECT_EQ(r.exit_code, 1) << r.output;  // the CFG FFN activation (1.6 GiB) cannot be one allocation
+  const json j = json::parse(r.output);
+  EXPECT_EQ(j["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
+  const auto open = plan("--device 0 --budget 64GiB --json");
+  ASSERT_EQ(open.exit_code, 0) << open.output;
+  EXPECT_GT(json::parse(open.output)["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
+  // A profile is lowered the same way.
+  const auto lowered = plan("--limits nvidia --budget 24GiB --json", "DVS_LIMITS=alloc=1GiB");
+  EXPECT_EQ(lowered.exit_code, 1) << lowered.output;
+  EXPECT_EQ(json::parse(lowered.output)["limits"]["alloc_bytes"].get<uint64_t>(), 1ull << 30);
+}
+
+}  // namespace
+}  // namespace dvs
