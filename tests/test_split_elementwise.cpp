@@ -3,13 +3,15 @@
 // before (unsplit, or split less under DVS_LIMITS), and really splits (more dispatches).
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <functional>
+#include <limits>
 #include <random>
 #include <vector>
 
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/split_check.hpp"
+#include "tensor/ops_check.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_random.hpp"
 
@@ -31,29 +33,11 @@ class SplitElementwise : public test::GpuTest, public ::testing::WithParamInterf
     test::GpuTest::TearDown();
   }
 
-  uint32_t run(const std::function<void(vk::Recorder&)>& record) {
-    vk::Recorder rec(ctx());
-    rec.begin();
-    record(rec);
-    rec.submit();
-    return rec.dispatch_count();
-  }
+  uint32_t run(const std::function<void(vk::Recorder&)>& record) { return test::run_counted(ctx(), record); }
 
-  // Runs `op(out)` into two fresh outputs of `out_shape`, first under the limits in force, then under
-  // kSplitLimits; expects identical bytes and more dispatches.
   void expect_split_equal(const Shape& out_shape, DType dtype, const std::function<void(vk::Recorder&, const Tensor&)>& op,
                           const std::string& what) {
-    const Tensor a = Tensor::zeros(ctx(), out_shape, dtype), b = Tensor::zeros(ctx(), out_shape, dtype);
-    const uint32_t whole = run([&](vk::Recorder& r) { op(r, a); });
-    uint32_t split = 0;
-    {
-      test::ScopedLimits limits(ctx(), kSplitLimits);
-      split = run([&](vk::Recorder& r) { op(r, b); });
-    }
-    EXPECT_GT(split, whole) << what << ": did not split";
-    const HostTensor ha = a.download(ctx()), hb = b.download(ctx());
-    ASSERT_EQ(ha.bytes().size(), hb.bytes().size());
-    EXPECT_EQ(0, std::memcmp(ha.bytes().data(), hb.bytes().data(), ha.bytes().size())) << what << ": results differ";
+    test::expect_split_equal(ctx(), kSplitLimits, out_shape, dtype, op, what);
   }
 };
 INSTANTIATE_TEST_SUITE_P(SplitElementwise, SplitElementwise, ::testing::Bool(),
@@ -160,6 +144,34 @@ TEST_P(SplitElementwise, TexelLimitFallsBackPerChunk) {
     run([&](vk::Recorder& r) { ops::mul(r, x, y, b); });
   }
   EXPECT_EQ(a.download(ctx()).to_f32(), b.download(ctx()).to_f32());
+}
+
+TEST_P(SplitElementwise, NonFiniteScanSplitsOverRanges) {
+  std::vector<float> v(5003, 1.0f);
+  v[1777] = std::numeric_limits<float>::quiet_NaN();
+  v[4001] = std::numeric_limits<float>::infinity();
+  v[5002] = -std::numeric_limits<float>::infinity();
+  const Tensor t = Tensor::upload(ctx(), HostTensor::from_f32({int64_t(v.size())}, v));
+  auto scan = [&](std::vector<ops::NonFiniteHit>& hits) {
+    ops::NonFiniteCheck check(ctx(), 1);
+    const uint32_t d = run([&](vk::Recorder& r) { check.record(r, t, "t"); });
+    hits = check.hits();
+    return d;
+  };
+  std::vector<ops::NonFiniteHit> whole, split;
+  const uint32_t d_whole = scan(whole);
+  uint32_t d_split = 0;
+  {
+    test::ScopedLimits limits(ctx(), kSplitLimits);
+    d_split = scan(split);
+  }
+  EXPECT_GT(d_split, d_whole);
+  ASSERT_EQ(whole.size(), 1u);
+  ASSERT_EQ(split.size(), 1u);
+  EXPECT_EQ(split[0].count, 3u);
+  EXPECT_EQ(split[0].first, 1777);
+  EXPECT_EQ(whole[0].count, split[0].count);
+  EXPECT_EQ(whole[0].first, split[0].first);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "diffusion/krnr.hpp"
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_reduce.hpp"
@@ -45,7 +46,7 @@ void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& s
     uint32_t n, channels, inner;
     float eps;
   } push{uint32_t(content.numel()), uint32_t(d.channels), uint32_t(inner), eps};
-  ops::Grid g = ops::grid_1d(content.numel(), 64);
+  ops::Grid g = ops::grid_1d(rec.context().caps(), content.numel(), 64);
   rec.dispatch(rec.context().pipelines().get("diffusion/adain_apply"),
                {content.buffer(), ws.mean_x.buffer(), ws.var_x.buffer(), ws.mean_s.buffer(), ws.var_s.buffer(), out.buffer()},
                &push, sizeof push, g.x, g.y, 1, "adain_apply");
@@ -58,7 +59,7 @@ void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps,
     uint32_t n;
     float m_k, n_k, m_d, n_d;
   } push{uint32_t(x0.numel()), float(ck.m), float(ck.n), float(cd.m), float(cd.n)};
-  ops::Grid g = ops::grid_1d(x0.numel(), 64);
+  ops::Grid g = ops::grid_1d(rec.context().caps(), x0.numel(), 64);
   rec.dispatch(rec.context().pipelines().get("diffusion/krnr_official"),
                {x0.buffer(), eps.buffer(), mu.buffer(), sigma.buffer(), out.buffer()}, &push, sizeof push, g.x, g.y, 1,
                "krnr_official");

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -41,7 +42,7 @@ void record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, Lo
          float(c.pred_x0.v),
          float(c.next.x),
          float(c.next.v)};
-  const ops::Grid grid = ops::grid_1d(x.numel(), 64);
+  const ops::Grid grid = ops::grid_1d(rec.context().caps(), x.numel(), 64);
   rec.dispatch(rec.context().pipelines().get("diffusion/guided_step"),
                {b.v.buffer(), x.buffer(), dynamic ? g.positions.buffer() : b.v.buffer(), x_out.buffer(), b.pred_x0.buffer()},
                &push, sizeof push, grid.x, grid.y, 1, "guided_step");
