@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "dvs/error.hpp"
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
 #include "support/split_check.hpp"

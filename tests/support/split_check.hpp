@@ -36,7 +36,13 @@ inline void expect_split_equal(vk::Context& ctx, const std::string& limits, cons
   }
   EXPECT_GT(split, whole) << what << ": did not split";
   const HostTensor ha = a.download(ctx), hb = b.download(ctx);
-  EXPECT_TRUE(ha.data == hb.data) << what << ": split result differs";
+  size_t diff = 0;
+  while (diff < ha.data.size() && ha.data[diff] == hb.data[diff]) ++diff;
+  EXPECT_EQ(diff, ha.data.size()) << what << ": split result differs from byte " << diff
+                                  << (dtype == DType::f32 && diff < ha.data.size()
+                                          ? " (" + std::to_string(ha.to_f32()[diff / 4]) + " vs " +
+                                                std::to_string(hb.to_f32()[diff / 4]) + ")"
+                                          : std::string());
 }
 
 }  // namespace dvs::test

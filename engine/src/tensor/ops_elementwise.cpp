@@ -189,7 +189,9 @@ void for_each_broadcast_chunk(vk::Context& ctx, const char* op, int64_t n, const
     throw Error(std::string("internal: ") + op + ": broadcast operand " + operand.describe() +
                 " is larger than one binding (" + std::to_string(ctx.caps().max_storage_buffer_range) + " bytes)");
   const int64_t period = bc.C * bc.inner;
-  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) { fn(first, count, same, uint32_t(first % period)); });
+  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+    fn(first, count, same, same ? 0u : uint32_t(first % period));  // a same-shape operand is chunked along
+  });
 }
 
 enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };

@@ -146,8 +146,11 @@ using Axes = std::vector<std::pair<int64_t, int64_t>>;
 void record_permute(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
                     const Axes& axes, int64_t in_off, int64_t out_off) {
   int64_t n = 1;
-  for (const auto& a : axes) n *= a.first;
-  const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
+  bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0 && in_off % 4 == 0 && out_off % 4 == 0;
+  for (const auto& a : axes) {
+    n *= a.first;
+    vec4 = vec4 && (a.second == 1 || a.second % 4 == 0);
+  }
   const int64_t q = vec4 ? 4 : 1;
   struct {
     uint32_t rows, rank, dims[6], in_stride[6], lane_rows, in_off, out_off;
@@ -181,7 +184,7 @@ void record_permute(vk::Recorder& rec, const char* op, const vk::BufferView& in,
 
 // A permute too large for one binding: the output is cut into blocks along output axis k (all axes before it
 // fixed, nj indices of it, all after it whole), k the outermost axis whose one-index block fits one binding
-// on both sides (the input span of a block: its strided extent). Windows start aligned down; offsets go to
+// on both sides (the input span of a block: its strided extent), at worst the last axis. Windows start aligned down; offsets go to
 // the shader.
 void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
                    const Axes& axes) {
@@ -190,7 +193,8 @@ void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   if (in.size <= cap && out.size <= cap) return record_permute(rec, op, in, out, axes, 0, 0);
   const int64_t align = std::lcm<int64_t>(int64_t(binding_alignment(caps) / 4), 4), room = int64_t(cap / 4) - align;
   const int64_t R = int64_t(axes.size());
-  int64_t k = -1, block = 1, span = 1;  // block: output words per index of axis k; span: their input extent
+  // k = R-1 (pieces of one output row) always fits; a transpose whose rows read far apart ends there.
+  int64_t k = R - 1, block = 1, span = 1;  // block: output words per index of axis k; span: their input extent
   for (int64_t c = R - 2; c >= 0; --c) {
     int64_t b = 1, s = 1;
     for (int64_t d = c + 1; d < R; ++d) {
@@ -200,10 +204,10 @@ void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
     if (b > room || s > room) break;
     k = c, block = b, span = s;
   }
-  if (k < 0) fail(op, "one output row does not fit a binding of " + std::to_string(cap) + " bytes on both sides");
   const int64_t size_k = axes[size_t(k)].first, stride_k = axes[size_t(k)].second;
   int64_t nj = std::min(size_k, room / block);
   if (stride_k > 0) nj = std::min(nj, 1 + (room - span) / stride_k);
+  if (k == R - 1 && nj >= 4) nj = nj / 4 * 4;  // row pieces of whole vec4s where the row allows them
   int64_t prefixes = 1;
   for (int64_t d = 0; d < k; ++d) prefixes *= axes[size_t(d)].first;
   for (int64_t pf = 0; pf < prefixes; ++pf) {
