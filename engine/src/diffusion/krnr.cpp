@@ -30,8 +30,10 @@ AdainWorkspace::AdainWorkspace(vk::Context& ctx, const LatentDims& d)
       var_x(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
       mean_s(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
       var_s(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
-      scratch(Tensor::empty(ctx, {ops::reduce_scratch_elems(d.channels, d.frames * d.height * d.width)}, DType::f32,
-                            "AdaIN scratch")) {}
+      scratch(Tensor::empty(ctx,
+                            {ops::reduce_scratch_elems(ctx.caps(), ops::channel_segments(d.frames, d.channels,
+                                                                                         d.height * d.width))},
+                            DType::f32, "AdaIN scratch")) {}
 
 void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& style, const Tensor& out,
                        const AdainWorkspace& ws, float eps) {
