@@ -22,8 +22,8 @@ class SplitDiffusion : public test::GpuTest {};
 
 TEST_F(SplitDiffusion, KrnrOfficialRoundSplitsOverElementRanges) {
   const Shape s{3, 5, 7, 9};  // 945 elements: 3780 bytes
-  const Tensor x0 = Tensor::upload(ctx(), test::random_latent(s, 1)), eps = Tensor::upload(ctx(), test::random_latent(s, 2));
-  const Tensor mu = Tensor::upload(ctx(), test::random_latent(s, 3)), sigma = Tensor::upload(ctx(), test::random_latent(s, 4));
+  auto latent = [&](uint32_t seed) { return Tensor::upload(ctx(), test::random_latent(s, seed)); };
+  const Tensor x0 = latent(1), eps = latent(2), mu = latent(3), sigma = latent(4);
   test::expect_split_equal(ctx(), kSplitLimits, s, DType::f32, [&](vk::Recorder& r, const Tensor& out) {
     krnr_official_round(r, x0, eps, mu, sigma, {0.7, 0.3}, {0.9, 0.1}, out);
   }, "krnr_official_round");

@@ -36,8 +36,8 @@ class SplitElementwise : public test::GpuTest, public ::testing::WithParamInterf
 
   uint32_t run(const std::function<void(vk::Recorder&)>& record) { return test::run_counted(ctx(), record); }
 
-  void expect_split_equal(const Shape& out_shape, DType dtype, const std::function<void(vk::Recorder&, const Tensor&)>& op,
-                          const std::string& what) {
+  void expect_split_equal(const Shape& out_shape, DType dtype,
+                          const std::function<void(vk::Recorder&, const Tensor&)>& op, const std::string& what) {
     test::expect_split_equal(ctx(), kSplitLimits, out_shape, dtype, op, what);
   }
 };
@@ -60,10 +60,12 @@ TEST_P(SplitElementwise, UnaryOpsSplitOverElementRanges) {
   for (const Shape& s : kShapes) {
     const Tensor x = random_tensor(ctx(), s, 1);
     const std::string at = " [" + shape_str(s) + "]";
-    expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::scale(r, x, y, 1.5f, -0.25f); }, "scale" + at);
+    expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::scale(r, x, y, 1.5f, -0.25f); },
+                       "scale" + at);
     expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::silu(r, x, y); }, "silu" + at);
     expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::gelu_tanh(r, x, y); }, "gelu" + at);
-    expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::clamp(r, x, y, -1, 2); }, "clamp" + at);
+    expect_split_equal(s, DType::f32, [&](vk::Recorder& r, const Tensor& y) { ops::clamp(r, x, y, -1, 2); },
+                       "clamp" + at);
   }
 }
 

@@ -54,18 +54,17 @@ void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& s
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint64_t plane = uint64_t(inner) * 4;
   const int64_t planes = content.numel() / inner;
-  ops::for_each_chunk(planes, ops::rows_per_chunk(caps, "adain_apply", {ops::RowOperand{plane, 0}}, planes),
-                      [&](int64_t p0, int64_t np) {
-                        const bool whole = np == planes;
-                        auto part = [&](const Tensor& t) { return whole ? t.buffer() : t.buffer().sub(p0 * plane, np * plane); };
-                        push.n = uint32_t(np * inner);
-                        push.plane0 = uint32_t(p0);
-                        const ops::Grid g = ops::grid_1d(caps, np * inner, 64);
-                        rec.dispatch(pipe,
-                                     {part(content), ws.mean_x.buffer(), ws.var_x.buffer(), ws.mean_s.buffer(),
-                                      ws.var_s.buffer(), part(out)},
-                                     &push, sizeof push, g.x, g.y, 1, "adain_apply");
-                      });
+  const int64_t per = ops::rows_per_chunk(caps, "adain_apply", {ops::RowOperand{plane, 0}}, planes);
+  ops::for_each_chunk(planes, per, [&](int64_t p0, int64_t np) {
+    auto part = [&](const Tensor& t) { return np == planes ? t.buffer() : t.buffer().sub(p0 * plane, np * plane); };
+    push.n = uint32_t(np * inner);
+    push.plane0 = uint32_t(p0);
+    const ops::Grid g = ops::grid_1d(caps, np * inner, 64);
+    rec.dispatch(pipe,
+                 {part(content), ws.mean_x.buffer(), ws.var_x.buffer(), ws.mean_s.buffer(), ws.var_s.buffer(),
+                  part(out)},
+                 &push, sizeof push, g.x, g.y, 1, "adain_apply");
+  });
 }
 
 void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps, const Tensor& mu, const Tensor& sigma,
@@ -79,7 +78,8 @@ void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps,
   const vk::DeviceCaps& caps = rec.context().caps();
   const int64_t n = x0.numel();
   const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/krnr_official");
-  ops::for_each_chunk(n, ops::rows_per_chunk(caps, "krnr_official", {ops::RowOperand{4, 0}}, n), [&](int64_t f, int64_t m) {
+  const int64_t per = ops::rows_per_chunk(caps, "krnr_official", {ops::RowOperand{4, 0}}, n);
+  ops::for_each_chunk(n, per, [&](int64_t f, int64_t m) {
     auto part = [&](const Tensor& t) { return m == n ? t.buffer() : t.buffer().sub(f * 4, m * 4); };
     push.n = uint32_t(m);
     const ops::Grid g = ops::grid_1d(caps, m, 64);

@@ -83,8 +83,8 @@ void unary_range(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& 
     const bool texel = g_texel_inputs && texel_ok(ctx, xb, body / 4);
     push.n = uint32_t(body / 4);
     const vk::Pipeline& p = ctx.pipelines().get(texel ? "nn/eltwise_unary_tex4" : "nn/eltwise_unary_vec4", spec);
-    rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push, groups_for(ctx.caps(), body / 4),
-                 1, 1, op);
+    rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push,
+                 groups_for(ctx.caps(), body / 4), 1, 1, op);
     if (body == n) return;
     push.first = uint32_t(body);
   }

@@ -73,7 +73,8 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
 }
 
 // The words [first, end) of `v` bound from the aligned-down start: the view and the offset of `first` in it.
-std::pair<vk::BufferView, int64_t> word_window(const vk::BufferView& v, int64_t first, int64_t end, int64_t align_words) {
+std::pair<vk::BufferView, int64_t> word_window(const vk::BufferView& v, int64_t first, int64_t end,
+                                               int64_t align_words) {
   const int64_t base = first / align_words * align_words;
   return {v.sub(VkDeviceSize(base) * 4, VkDeviceSize(end - base) * 4), first - base};
 }
@@ -184,8 +185,8 @@ void record_permute(vk::Recorder& rec, const char* op, const vk::BufferView& in,
 
 // A permute too large for one binding: the output is cut into blocks along output axis k (all axes before it
 // fixed, nj indices of it, all after it whole), k the outermost axis whose one-index block fits one binding
-// on both sides (the input span of a block: its strided extent), at worst the last axis. Windows start aligned down; offsets go to
-// the shader.
+// on both sides (the input span of a block: its strided extent), at worst the last axis. Windows start
+// aligned down; offsets go to the shader.
 void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
                    const Axes& axes) {
   const vk::DeviceCaps& caps = rec.context().caps();
@@ -275,9 +276,11 @@ void record_patches_range(vk::Recorder& rec, const char* op, bool inverse, const
   // 32 invocations per group over wp; about kMaxGroups groups in all.
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint32_t gx = div_up(Wp, 32);
-  if (gx > caps.max_workgroup_count[0]) fail(op, "a row of " + std::to_string(Wp) + " patches needs too many workgroups");
+  if (gx > caps.max_workgroup_count[0])
+    fail(op, "a row of " + std::to_string(Wp) + " patches needs too many workgroups");
   const int64_t gy = std::clamp<int64_t>(BF * Hp, 1, std::max<int64_t>(1, kMaxGroups / gx));
-  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, caps.max_workgroup_count[1])), 1, op);
+  const uint32_t gy_max = caps.max_workgroup_count[1];
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, gy_max)), 1, op);
 }
 
 // Frames (BF) in chunks whose input and output (the same size) fit one binding each.

@@ -50,7 +50,8 @@ void fill(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStre
   const int64_t chunk = rows_per_chunk(rec.context().caps(), op, {RowOperand{4, 0}}, n);
   if (chunk >= n) return fill_range(rec, op, out, s, dist, a, b, range);
   for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
-    const Tensor part = Tensor::on(out.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4), {count}, out.dtype());
+    const Tensor part =
+        Tensor::on(out.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4), {count}, out.dtype());
     fill_range(rec, op, part, RandomStream{s.seed, s.stream, s.base + uint64_t(first)}, dist, a, b, range);
   });
 }
