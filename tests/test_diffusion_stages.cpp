@@ -23,6 +23,7 @@
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
 #include "support/random_latent.hpp"
+#include "support/scoped_limits.hpp"
 #include "tensor/dispatch.hpp"
 
 namespace dvs::diffusion {
@@ -160,6 +161,18 @@ TEST_F(GpuTest, GuidedStepDynamicMatchesHostLoop) {
   check_sampling(ctx(), s.plan(9, 0.9), g, random_positions(n, 6), "dynamic, p = 0.3, g = 10");
   check_sampling(ctx(), s.plan(9, 0.9), g, std::vector<float>(size_t(n), 0.0f), "dynamic, P empty");
   check_sampling(ctx(), s.plan(9, 0.9), g, std::vector<float>(size_t(n), 1.0f), "dynamic, P everywhere");
+}
+
+// The guided step over element ranges: under binding=1KiB the two-row model output (7560 bytes) and the
+// latent span several bindings, which the unsplit dispatch could not bind (the Recorder would refuse it).
+TEST_F(GpuTest, GuidedStepSplitsOverElementRanges) {
+  const CogVideoXSchedule s;
+  test::ScopedLimits limits(ctx(), "binding=1KiB,groups=64");
+  Guidance g{true, 6.0};
+  g.mode = GuidanceMode::dynamic;
+  g.preservation_scale = 0.3;
+  check_sampling(ctx(), s.plan(9, 0.9), g, random_positions(3 * 5 * 7 * 9, 7), "dynamic, split");
+  check_sampling(ctx(), s.plan(5, 1.0), {true, 6.0}, {}, "constant, split");
 }
 
 TEST_F(GpuTest, SamplingEdgeCases) {

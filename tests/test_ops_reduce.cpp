@@ -25,8 +25,9 @@ std::vector<float> random_values(size_t n, uint32_t seed, float offset, float sp
   return v;
 }
 
-Tensor scratch_for(vk::Context& ctx, int64_t segments, int64_t len) {
-  return Tensor::empty(ctx, {ops::reduce_scratch_elems(segments, len)}, DType::f32, "reduce scratch");
+// Sized for the limits in force (blocks shrink under tiny bindings).
+Tensor scratch_for(vk::Context& ctx, const ops::Segments& segs) {
+  return Tensor::empty(ctx, {ops::reduce_scratch_elems(ctx.caps(), segs)}, DType::f32, "reduce scratch");
 }
 
 // Tolerance: mean within 1e-6*(|offset| + spread) absolute; variance within 2e-5 relative.
@@ -51,7 +52,7 @@ void run_channel_stats(vk::Context& ctx, int64_t outer, int64_t C, int64_t inner
   }
   Tensor xt = Tensor::upload(ctx, HostTensor::from_f32({outer, C, inner}, x));
   Tensor mt = Tensor::empty(ctx, {C}, DType::f32), vt = Tensor::empty(ctx, {C}, DType::f32);
-  Tensor scratch = scratch_for(ctx, C, outer * inner);
+  Tensor scratch = scratch_for(ctx, ops::channel_segments(outer, C, inner));
   ops::run_now(ctx, [&](vk::Recorder& rec) { ops::channel_mean_var(rec, xt, outer, C, inner, mt, vt, scratch); });
   std::vector<float> gm = mt.download(ctx).to_f32(), gv = vt.download(ctx).to_f32();
   const std::string what = "channel_mean_var [" + std::to_string(outer) + ", " + std::to_string(C) + ", " +
@@ -86,7 +87,7 @@ void run_sum_max(vk::Context& ctx, int64_t n, float offset) {
   const float mx = *std::max_element(x.begin(), x.end());
   Tensor xt = Tensor::upload(ctx, HostTensor::from_f32({n}, x));
   Tensor st = Tensor::empty(ctx, {1}, DType::f32), mt = Tensor::empty(ctx, {1}, DType::f32);
-  Tensor scratch = scratch_for(ctx, 1, n);
+  Tensor scratch = scratch_for(ctx, ops::Segments{1, n, n, 0, 0});
   ops::run_now(ctx, [&](vk::Recorder& rec) {
     ops::sum_all(rec, xt, st, scratch);
     ops::max_all(rec, xt, mt, scratch);

@@ -11,12 +11,16 @@ layout(std430, binding = 2) readonly buffer VarX { float var_x[]; };
 layout(std430, binding = 3) readonly buffer MeanS { float mean_s[]; };
 layout(std430, binding = 4) readonly buffer VarS { float var_s[]; };
 layout(std430, binding = 5) writeonly buffer Y { float y[]; };
-layout(push_constant) uniform Push { uint n; uint channels; uint inner; float eps; } p;
+layout(push_constant) uniform Push {
+  uint n, channels, inner;
+  float eps;
+  uint plane0;  // the plane (of `inner` elements) where element 0 lies: split calls bind plane ranges
+} p;
 
 void main() {
   uint i = flat_index();
   if (i >= p.n) return;
-  uint c = (i / p.inner) % p.channels;
+  uint c = (p.plane0 + i / p.inner) % p.channels;
   float scale = sqrt(var_s[c] + p.eps) / sqrt(var_x[c] + p.eps);
   y[i] = (x[i] - mean_x[c]) * scale + mean_s[c];
 }

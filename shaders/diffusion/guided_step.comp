@@ -14,11 +14,13 @@ layout(std430, binding = 1) readonly buffer X { float x[]; };
 layout(std430, binding = 2) readonly buffer P { float positions[]; };  // bound to v when unused
 layout(std430, binding = 3) writeonly buffer Next { float x_next[]; };
 layout(std430, binding = 4) writeonly buffer Pred { float pred_x0[]; };
+layout(std430, binding = 5) readonly buffer V1 { float v1[]; };  // v's second row, from element v1_off
 layout(push_constant) uniform Push {
   uint n;
   uint flags;  // 1: v has two rows (guidance); 2: use positions; 4: write pred_x0
   float scale, dynamic_scale;
   float px, pv, nx, nv;
+  uint v1_off;  // a split call binds each row of v (and every other tensor) per chunk
 } p;
 
 void main() {
@@ -27,7 +29,7 @@ void main() {
   float g = v[i];
   if ((p.flags & 1u) != 0u) {
     float s = ((p.flags & 2u) != 0u && positions[i] != 0.0) ? p.dynamic_scale : p.scale;
-    g = g + s * (v[p.n + i] - g);
+    g = g + s * (v1[p.v1_off + i] - g);
   }
   float xi = x[i];
   x_next[i] = p.nx * xi + p.nv * g;

@@ -33,6 +33,7 @@ layout(push_constant) uniform Push {
   uint inner;  // elements of x per s/t element
   uint step_c, step_r;
   float s_offset;
+  uint base;  // x's element 0 within the period of s and t (split chunks)
 } p;
 
 #include "eltwise_broadcast.glsl"
@@ -65,7 +66,7 @@ void main() {
   }
 #else
   for (; i < p.n; i += stride) {
-    uint j = MODE == 0u ? i : (i / p.inner) % p.C;
+    uint j = MODE == 0u ? i : ((i + p.base) / p.inner) % p.C;
     z[i] = LOAD_X(i) * (S1(j) + p.s_offset) + T1(j);
   }
 #endif

@@ -37,6 +37,7 @@ layout(push_constant) uniform Push {
   uint inner;   // elements of x per y element
   uint step_c, step_r;  // advance of (c, r) per grid stride
   float alpha, beta;
+  uint base;  // x's element 0 within y's period (split chunks)
 } p;
 
 #include "eltwise_broadcast.glsl"
@@ -64,6 +65,6 @@ void main() {
     if (MODE != 0u) bcast_step(b);
   }
 #else
-  for (; i < p.n; i += stride) z[i] = combine(LOAD_X(i), MODE == 0u ? Y1(i) : Y1((i / p.inner) % p.C));
+  for (; i < p.n; i += stride) z[i] = combine(LOAD_X(i), MODE == 0u ? Y1(i) : Y1(((i + p.base) / p.inner) % p.C));
 #endif
 }

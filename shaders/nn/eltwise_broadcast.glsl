@@ -10,14 +10,18 @@
 //   4 ROWS_ODD  inner 1, C ≥ 4, C % 4 != 0: y[c], y[c+1], y[c+2], y[c+3] wrapping at C
 //   5 GENERAL   anything else (inner 2 or 3, or C < 4 rows): divisions per component
 // Non-vec4 shaders use 0 (element i) or 5.
-// Needs push constant fields C, inner, step_c, step_r in block `p`.
+// `base` shifts x's elements within y's period: a chunk of a split op starts at x element `base` of it.
+// Needs push constant fields C, inner, step_c, step_r, base in block `p`.
 layout(constant_id = 1) const uint MODE = 5;
 
 struct Bcast {
   uint c, r;
 };
 
-Bcast bcast_start(uint e) { return Bcast((e / p.inner) % p.C, e % p.inner); }
+Bcast bcast_start(uint e) {
+  e += p.base;
+  return Bcast((e / p.inner) % p.C, e % p.inner);
+}
 
 void bcast_step(inout Bcast b) {
   b.r += p.step_r;
@@ -41,5 +45,5 @@ uvec4 bcast_index4(Bcast b, uint e) {
     uvec4 k = uvec4(b.c) + uvec4(0u, 1u, 2u, 3u);
     return mix(k, k - uvec4(p.C), greaterThanEqual(k, uvec4(p.C)));
   }
-  return ((uvec4(e) + uvec4(0u, 1u, 2u, 3u)) / p.inner) % p.C;
+  return ((uvec4(e + p.base) + uvec4(0u, 1u, 2u, 3u)) / p.inner) % p.C;
 }

@@ -3,6 +3,9 @@
 // Gather: src_idx only; scatter: dst_idx only; both: SLM's target[t[i]] = source[s[i]] in one pass.
 // A source index outside [0, src_rows) reads zeros; a destination index outside [0, dst_rows) is skipped.
 // Duplicate destination indices: one of the writes wins (unspecified which).
+// A split call binds an indexed table (src with src_idx, dst with dst_idx) in row ranges: this dispatch holds
+// rows [first, first + rows) of `total`; indices elsewhere in the table are left to the other dispatches, and
+// the zero rows of out-of-table source indices are written by the dispatch holding row 0.
 // Index rows over the y grid, words of a row over x (grid-stride both): no per-element division. Short rows
 // (lane_rows): one whole row per invocation over the x grid, so lanes are not left idle.
 layout(local_size_x = 64) in;
@@ -21,13 +24,27 @@ layout(push_constant) uniform Push {
   uint src_rows, dst_rows;
   uint use_src_idx, use_dst_idx;
   uint lane_rows;
+  uint src_first, src_total, dst_first, dst_total;  // the bound row range of an indexed table
 } p;
 
 void move_row(uint r, uint k0, uint step) {
-  uint s = p.use_src_idx != 0u ? uint(src_idx[r]) : r;  // negative -> huge -> out of range
-  uint d = p.use_dst_idx != 0u ? uint(dst_idx[r]) : r;
-  if (d >= p.dst_rows) return;
-  for (uint k = k0; k < p.len; k += step) dst[d * p.len + k] = s < p.src_rows ? src[s * p.len + k] : T(0u);
+  uint s = r, d = r;
+  bool zero = false;
+  if (p.use_src_idx != 0u) {
+    s = uint(src_idx[r]);  // negative -> huge -> out of range
+    if (s >= p.src_total) {
+      if (p.src_first != 0u) return;
+      zero = true;
+    } else {
+      s -= p.src_first;  // below the range -> huge
+      if (s >= p.src_rows) return;
+    }
+  }
+  if (p.use_dst_idx != 0u) {
+    d = uint(dst_idx[r]) - p.dst_first;
+    if (uint(dst_idx[r]) >= p.dst_total || d >= p.dst_rows) return;
+  }
+  for (uint k = k0; k < p.len; k += step) dst[d * p.len + k] = zero ? T(0u) : src[s * p.len + k];
 }
 
 void main() {

@@ -25,17 +25,18 @@ layout(push_constant) uniform Push {
   uint dims[6];        // output dims, outermost first (unused trailing entries 1)
   uint in_stride[6];   // input stride of the axis that lands on output axis d
   uint lane_rows;
+  uint in_off, out_off;  // where the chunk starts in the bound input and output windows (split calls)
 } p;
 
 void copy_row(uint row, uint k0, uint step) {
   uint last = p.dims[p.rank - 1u], last_stride = p.in_stride[p.rank - 1u];
-  uint rest = row, base = 0u;
+  uint rest = row, base = p.in_off;
   for (int d = int(p.rank) - 2; d >= 0; --d) {
     uint c = rest % p.dims[d];
     rest /= p.dims[d];
     base += c * p.in_stride[d];
   }
-  for (uint k = k0; k < last; k += step) y[row * last + k] = LOAD(base + k * last_stride);
+  for (uint k = k0; k < last; k += step) y[p.out_off + row * last + k] = LOAD(base + k * last_stride);
 }
 
 void main() {

@@ -12,7 +12,8 @@ layout(std430, binding = 0) readonly buffer P { float partials[]; };
 layout(std430, binding = 1) writeonly buffer O0 { float out0[]; };
 layout(std430, binding = 2) writeonly buffer O1 { float out1[]; };
 
-layout(push_constant) uniform Push { uint seg_len, block_len, blocks, out_offset; } p;
+// One workgroup per segment, the grid folded over x and y (groups past `segments` return).
+layout(push_constant) uniform Push { uint seg_len, block_len, blocks, out_offset, segments; } p;
 
 shared float s_n[LOCAL], s_a[LOCAL], s_b[LOCAL];
 
@@ -29,6 +30,7 @@ void chan_merge(inout float n, inout float a, inout float b, float nb, float ab,
 
 void main() {
   uint seg = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  if (seg >= p.segments) return;  // the whole workgroup returns: no barrier is left half-reached
   uint t = gl_LocalInvocationID.x;
   float n = 0.0, a = MODE == 1 ? uintBitsToFloat(0xff800000u) : 0.0, b = 0.0;
   for (uint k = t; k < p.blocks; k += LOCAL) {

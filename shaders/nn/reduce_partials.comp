@@ -17,6 +17,9 @@ layout(std430, binding = 1) writeonly buffer P { float partials[]; };
 
 layout(push_constant) uniform Push {
   uint seg_len, inner, seg_stride, outer_stride, chunk, chunks;
+  // A split call: this dispatch does chunks [c_first, c_end) of segments from seg_first, reading x through a
+  // window that starts at element x_base.
+  uint x_base, c_first, c_end, seg_first;
 } p;
 
 const uint STEP = VEC4 ? 4u : 1u;  // elements per load
@@ -27,7 +30,7 @@ struct Cursor {
 };
 Cursor cursor_at(uint seg, uint j) {
   uint o = j / p.inner, i = j - o * p.inner;
-  return Cursor(seg * p.seg_stride + o * p.outer_stride + i, i);
+  return Cursor(seg * p.seg_stride + o * p.outer_stride + i - p.x_base, i);
 }
 void advance(inout Cursor c) {
   c.at += STEP;
@@ -45,8 +48,8 @@ float combine(float a, vec4 v) {
 }
 
 void main() {
-  uint c = gl_GlobalInvocationID.x, seg = gl_WorkGroupID.y;
-  if (c >= p.chunks) return;
+  uint c = p.c_first + gl_GlobalInvocationID.x, seg = p.seg_first + gl_WorkGroupID.y;
+  if (c >= p.c_end) return;
   uint begin = c * p.chunk, end = min(begin + p.chunk, p.seg_len);
   const Cursor start = cursor_at(seg, begin);
 

@@ -1,6 +1,7 @@
 #include "diffusion/krnr.hpp"
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_reduce.hpp"
@@ -29,8 +30,10 @@ AdainWorkspace::AdainWorkspace(vk::Context& ctx, const LatentDims& d)
       var_x(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
       mean_s(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
       var_s(Tensor::empty(ctx, {d.channels}, DType::f32, "AdaIN statistics")),
-      scratch(Tensor::empty(ctx, {ops::reduce_scratch_elems(d.channels, d.frames * d.height * d.width)}, DType::f32,
-                            "AdaIN scratch")) {}
+      scratch(Tensor::empty(ctx,
+                            {ops::reduce_scratch_elems(ctx.caps(), ops::channel_segments(d.frames, d.channels,
+                                                                                         d.height * d.width))},
+                            DType::f32, "AdaIN scratch")) {}
 
 void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& style, const Tensor& out,
                        const AdainWorkspace& ws, float eps) {
@@ -44,11 +47,24 @@ void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& s
   struct {
     uint32_t n, channels, inner;
     float eps;
-  } push{uint32_t(content.numel()), uint32_t(d.channels), uint32_t(inner), eps};
-  ops::Grid g = ops::grid_1d(content.numel(), 64);
-  rec.dispatch(rec.context().pipelines().get("diffusion/adain_apply"),
-               {content.buffer(), ws.mean_x.buffer(), ws.var_x.buffer(), ws.mean_s.buffer(), ws.var_s.buffer(), out.buffer()},
-               &push, sizeof push, g.x, g.y, 1, "adain_apply");
+    uint32_t plane0;
+  } push{uint32_t(content.numel()), uint32_t(d.channels), uint32_t(inner), eps, 0};
+  const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/adain_apply");
+  // Whole channel planes per dispatch, within one binding (one dispatch when the latent fits).
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t plane = uint64_t(inner) * 4;
+  const int64_t planes = content.numel() / inner;
+  const int64_t per = ops::rows_per_chunk(caps, "adain_apply", {ops::RowOperand{plane, 0}}, planes);
+  ops::for_each_chunk(planes, per, [&](int64_t p0, int64_t np) {
+    auto part = [&](const Tensor& t) { return np == planes ? t.buffer() : t.buffer().sub(p0 * plane, np * plane); };
+    push.n = uint32_t(np * inner);
+    push.plane0 = uint32_t(p0);
+    const ops::Grid g = ops::grid_1d(caps, np * inner, 64);
+    rec.dispatch(pipe,
+                 {part(content), ws.mean_x.buffer(), ws.var_x.buffer(), ws.mean_s.buffer(), ws.var_s.buffer(),
+                  part(out)},
+                 &push, sizeof push, g.x, g.y, 1, "adain_apply");
+  });
 }
 
 void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps, const Tensor& mu, const Tensor& sigma,
@@ -58,10 +74,18 @@ void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps,
     uint32_t n;
     float m_k, n_k, m_d, n_d;
   } push{uint32_t(x0.numel()), float(ck.m), float(ck.n), float(cd.m), float(cd.n)};
-  ops::Grid g = ops::grid_1d(x0.numel(), 64);
-  rec.dispatch(rec.context().pipelines().get("diffusion/krnr_official"),
-               {x0.buffer(), eps.buffer(), mu.buffer(), sigma.buffer(), out.buffer()}, &push, sizeof push, g.x, g.y, 1,
-               "krnr_official");
+  // Element ranges within one binding (one dispatch when the latent fits).
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const int64_t n = x0.numel();
+  const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/krnr_official");
+  const int64_t per = ops::rows_per_chunk(caps, "krnr_official", {ops::RowOperand{4, 0}}, n);
+  ops::for_each_chunk(n, per, [&](int64_t f, int64_t m) {
+    auto part = [&](const Tensor& t) { return m == n ? t.buffer() : t.buffer().sub(f * 4, m * 4); };
+    push.n = uint32_t(m);
+    const ops::Grid g = ops::grid_1d(caps, m, 64);
+    rec.dispatch(pipe, {part(x0), part(eps), part(mu), part(sigma), part(out)}, &push, sizeof push, g.x, g.y, 1,
+                 "krnr_official");
+  });
 }
 
 Tensor adaptive_krnr_paper(vk::Context& ctx, const Tensor& x0, const Tensor& eps_inv, double abar, double k, double delta) {

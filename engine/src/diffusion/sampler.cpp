@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -33,6 +34,7 @@ void record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, Lo
     uint32_t n, flags;
     float scale, dynamic_scale;
     float px, pv, nx, nv;
+    uint32_t v1_off;
   } push{uint32_t(x.numel()),
          (g.enabled ? 1u : 0u) | (dynamic ? 2u : 0u) | (with_pred ? 4u : 0u),
          float(dynamic ? g.preservation_scale : g.scale),
@@ -40,11 +42,38 @@ void record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, Lo
          float(c.pred_x0.x),
          float(c.pred_x0.v),
          float(c.next.x),
-         float(c.next.v)};
-  const ops::Grid grid = ops::grid_1d(x.numel(), 64);
-  rec.dispatch(rec.context().pipelines().get("diffusion/guided_step"),
-               {b.v.buffer(), x.buffer(), dynamic ? g.positions.buffer() : b.v.buffer(), x_out.buffer(), b.pred_x0.buffer()},
-               &push, sizeof push, grid.x, grid.y, 1, "guided_step");
+         float(c.next.v),
+         uint32_t(x.numel())};
+  const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/guided_step");
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const int64_t n = x.numel();
+  if (b.v.bytes() <= ops::binding_capacity(caps, 0)) {
+    const ops::Grid grid = ops::grid_1d(caps, n, 64);
+    rec.dispatch(pipe,
+                 {b.v.buffer(), x.buffer(), dynamic ? g.positions.buffer() : b.v.buffer(), x_out.buffer(),
+                  b.pred_x0.buffer(), b.v.buffer()},
+                 &push, sizeof push, grid.x, grid.y, 1, "guided_step");
+    return;
+  }
+  // Larger than one binding: element ranges of every tensor; v's second row (at element n, maybe unaligned)
+  // bound from the aligned element at or before the range, the rest as v1_off.
+  const int64_t align = int64_t(ops::binding_alignment(caps) / 4);
+  int64_t per = ops::rows_per_chunk(caps, "guided_step", {ops::RowOperand{4, 0}}, n);
+  if (uint64_t(per + align) * 4 > ops::binding_capacity(caps, 0)) per -= align;
+  auto part = [](const Tensor& t, int64_t first, int64_t count) {
+    return t.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4);
+  };
+  ops::for_each_chunk(n, per, [&](int64_t first, int64_t count) {
+    const int64_t at = n + first, base = at / align * align;
+    push.n = uint32_t(count);
+    push.v1_off = uint32_t(at - base);
+    const vk::BufferView v0 = part(b.v, first, count);
+    const ops::Grid grid = ops::grid_1d(caps, count, 64);
+    rec.dispatch(pipe,
+                 {v0, part(x, first, count), dynamic ? part(g.positions, first, count) : v0, part(x_out, first, count),
+                  part(b.pred_x0, first, count), g.enabled ? part(b.v, base, at - base + count) : v0},
+                 &push, sizeof push, grid.x, grid.y, 1, "guided_step");
+  });
 }
 
 void check_latent(const Tensor& x) {

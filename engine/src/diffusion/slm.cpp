@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 
 namespace dvs::diffusion {
@@ -94,7 +95,7 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const Tensor& pixel_mask, const Ten
     FootprintPush p{uint32_t(latent_frames), uint32_t(m.height), uint32_t(m.width), uint32_t(h), uint32_t(w),
                     with_depth ? 1u : 0u, depth_is_metric ? 1u : 0u};
     const uint32_t spec[] = {paper ? 0u : 1u};
-    const ops::Grid g = ops::grid_1d(cells, 64);
+    const ops::Grid g = ops::grid_1d(rec.context().caps(), cells, 64);
     rec.dispatch(rec.context().pipelines().get("diffusion/slm_footprint", spec),
                  {mask_t.buffer(), depth_t.buffer(), frame_max.buffer(), stats.buffer()}, &p, sizeof p, g.x, g.y, g.z,
                  "slm_footprint");
@@ -269,7 +270,7 @@ void apply_slm(vk::Recorder& rec, const Tensor& latent, const SlmIndexPlan& plan
                 std::to_string(plan.latent_numel) + " elements");
   SamplePush p{uint32_t(plan.n_targets), uint32_t(rs.seed), uint32_t(rs.seed >> 32), rs.stream, uint32_t(rs.base),
                uint32_t(rs.base >> 32)};
-  const ops::Grid g = ops::grid_1d(plan.n_targets, 64);
+  const ops::Grid g = ops::grid_1d(rec.context().caps(), plan.n_targets, 64);
   rec.dispatch(rec.context().pipelines().get("diffusion/slm_sample"),
                {latent.buffer(), plan.targets.buffer(), plan.segments.buffer(), plan.pool.buffer()}, &p, sizeof p,
                g.x, g.y, g.z, "slm_sample");

@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
@@ -95,7 +96,7 @@ void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& d
   const uint64_t pixels = uint64_t(F) * uint64_t(H_) * uint64_t(W_);
   const uint32_t gx = ops::div_up(W_, 64), gy = uint32_t(H_);  // one frame per dispatch: (W/64, H) groups
   if (H_ > 65535 || gx > 65535) throw Error("splat renderer: image too large for one dispatch per frame");
-  const ops::Grid g = ops::grid_1d(int64_t(pixels), 64);
+  const ops::Grid g = ops::grid_1d(rec.context().caps(), int64_t(pixels), 64);
   auto& pipes = rec.context().pipelines();
   auto per_frame = [&](const vk::Pipeline& pipe, std::initializer_list<vk::Binding> b, const char* label,
                        uint32_t groups_x) {

@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
@@ -61,20 +62,23 @@ void NonFiniteCheck::record(vk::Recorder& rec, const Tensor& t, const std::strin
   if (t.numel() >= int64_t(kNone)) throw Error("internal: NonFiniteCheck: " + t.describe() + " is too large");
   const uint32_t slot = uint32_t(used_.size());
   used_.push_back({what, t.shape()});
-  // Ranges no larger than one binding (a decoded video at the real size is ~200 MB), 1 MiB-aligned so every
-  // range keeps the tensor's own offset alignment.
-  const VkDeviceSize limit = range_bytes ? range_bytes : ctx_.allocator().max_binding();
-  const VkDeviceSize max_bytes = std::max<VkDeviceSize>(VkDeviceSize(1) << 20, limit >> 20 << 20);
-  const vk::Pipeline& storage = ctx_.pipelines().get("nn/nonfinite");
+  // Ranges within one binding (a decoded video at the real size is ~200 MB), whole vec4s, aligned starts;
+  // range_bytes (tests) caps them lower.
   const int64_t n = t.numel();
+  int64_t per = rows_per_chunk(ctx_.caps(), "NonFiniteCheck", {RowOperand{16, 0}}, (n + 3) / 4) * 4;
+  if (range_bytes) {
+    const int64_t align = int64_t(binding_alignment(ctx_.caps()) / sizeof(float));
+    per = std::min(per, std::max(align, int64_t(range_bytes / sizeof(float)) / align * align));
+  }
+  const vk::Pipeline& storage = ctx_.pipelines().get("nn/nonfinite");
   for (int64_t first = 0; first < n;) {
-    const int64_t count = std::min<int64_t>(n - first, int64_t(max_bytes / sizeof(float)));
+    const int64_t count = std::min<int64_t>(n - first, per);
     vk::BufferView range = t.buffer().sub(VkDeviceSize(first) * sizeof(float), VkDeviceSize(count) * sizeof(float));
     range.size = (range.size + 15) / 16 * 16;  // read as vec4s (views are >= 64-byte aligned, padding in-allocation)
     struct {
       uint32_t n, base, slot;
     } push{uint32_t(count), uint32_t(first), slot};
-    const Grid g = grid_1d(div_up(div_up(count, 4), kRun), kLocal);
+    const Grid g = grid_1d(ctx_.caps(), div_up(div_up(count, 4), kRun), kLocal);
     if (texel_inputs_enabled() && texel_view_ok(ctx_, range, 16))
       rec.dispatch(ctx_.pipelines().get("nn/nonfinite_tex4"), {vk::Binding(range, VK_FORMAT_R32G32B32A32_UINT), result_.view()},
                    &push, sizeof push, g.x, g.y, 1, "nonfinite");

@@ -30,8 +30,8 @@ class NonFiniteCheck {
  public:
   explicit NonFiniteCheck(vk::Context& ctx, int slots = 32);
 
-  // Records a scan of `t` (f32, any size) into the next free slot, one dispatch per range of at most
-  // `range_bytes` (0 = the device's binding limit; a multiple of 1 MiB otherwise, tests use small ranges).
+  // Records a scan of `t` (f32, any size) into the next free slot, one dispatch per range: ranges fit one
+  // binding under the limits in force, and hold at most `range_bytes` when that is not 0 (tests).
   void record(vk::Recorder& rec, const Tensor& t, const std::string& what, VkDeviceSize range_bytes = 0);
   // The slots recorded since the last clear() that found a non-finite value, in recording order. Call only
   // after the recordings that hold the scans have been submitted and waited for.

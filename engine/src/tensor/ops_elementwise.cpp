@@ -4,6 +4,7 @@
 #include <map>
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -12,7 +13,20 @@ namespace {
 
 constexpr uint32_t kLocal = 64, kMaxGroups = 4096;  // grid-stride loops: enough groups, few dispatch tasks
 
-uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
+// Grid-stride loops need no more groups than the limit allows: fewer just loop more.
+uint32_t groups_for(const vk::DeviceCaps& caps, int64_t items) {
+  return std::clamp<uint32_t>(div_up(items, kLocal), 1, std::min(kMaxGroups, caps.max_workgroup_count[0]));
+}
+
+// Elements per chunk of a flat walk over f32 operands: whole vec4s, each operand's chunk within one binding
+// (the texel path is then chosen per chunk). >= n: one chunk, the unsplit call.
+int64_t flat_chunk(const vk::DeviceCaps& caps, const char* op, int64_t n) {
+  return rows_per_chunk(caps, op, {RowOperand{16, 0}}, (n + 3) / 4) * 4;
+}
+
+Tensor flat_sub(const Tensor& t, int64_t first, int64_t count) {
+  return Tensor::on(t.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4), {count}, DType::f32);
+}
 
 void check_count(const char* op, const Tensor& t) {
   if (t.numel() >= int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": " + t.describe() + " is too large");
@@ -50,13 +64,11 @@ vk::Binding r32(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32_
 
 enum class UnaryOp : uint32_t { affine = 0, silu = 1, gelu_tanh = 2, clamp = 3 };
 
-void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, const Tensor& y, float a, float b) {
-  expect_dtype(op, "x", x, DType::f32);
-  expect_dtype(op, "y", y, DType::f32);
-  expect_shape(op, "y", y, x.shape());
-  check_count(op, x);
+// `vec4_body`: run whole vec4s through the vec4 shader (decided for the whole tensor, so that every chunk of
+// a split call computes each element with the same shader as the unsplit call).
+void unary_range(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, const Tensor& y, float a, float b,
+                 bool vec4_body) {
   const int64_t n = x.numel();
-  if (n == 0) return;
   vk::Context& ctx = rec.context();
   const uint32_t spec[] = {uint32_t(kind)};
   struct {
@@ -65,21 +77,37 @@ void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, con
     uint32_t first;
   } push{0, a, b, 0};
   const int64_t body = n / 4 * 4;
-  if (body == n || body >= 4 * int64_t(kLocal)) {  // whole vec4s; an odd-sized tensor adds a scalar tail below
+  if (vec4_body && body > 0) {  // whole vec4s; an odd-sized tensor adds a scalar tail below
     const Tensor xb = body == n ? x : Tensor::on(x.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
     const Tensor yb = body == n ? y : Tensor::on(y.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
     const bool texel = g_texel_inputs && texel_ok(ctx, xb, body / 4);
     push.n = uint32_t(body / 4);
     const vk::Pipeline& p = ctx.pipelines().get(texel ? "nn/eltwise_unary_tex4" : "nn/eltwise_unary_vec4", spec);
-    rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push, groups_for(body / 4), 1,
-                 1, op);
+    rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push,
+                 groups_for(ctx.caps(), body / 4), 1, 1, op);
     if (body == n) return;
     push.first = uint32_t(body);
   }
   push.n = uint32_t(n);
   const int64_t rest = n - push.first;
-  rec.dispatch(ctx.pipelines().get("nn/eltwise_unary", spec), {x.buffer(), y.buffer()}, &push, sizeof push, groups_for(rest),
-               1, 1, op);
+  rec.dispatch(ctx.pipelines().get("nn/eltwise_unary", spec), {x.buffer(), y.buffer()}, &push, sizeof push,
+               groups_for(ctx.caps(), rest), 1, 1, op);
+}
+
+// Flat element chunks, each run as an unsplit call on sub-views.
+void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, const Tensor& y, float a, float b) {
+  expect_dtype(op, "x", x, DType::f32);
+  expect_dtype(op, "y", y, DType::f32);
+  expect_shape(op, "y", y, x.shape());
+  check_count(op, x);
+  const int64_t n = x.numel();
+  if (n == 0) return;
+  const bool vec4_body = n % 4 == 0 || n >= 4 * int64_t(kLocal);  // small odd tensors: one scalar dispatch
+  const int64_t chunk = flat_chunk(rec.context().caps(), op, n);
+  if (chunk >= n) return unary_range(rec, op, kind, x, y, a, b, vec4_body);
+  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+    unary_range(rec, op, kind, flat_sub(x, first, count), flat_sub(y, first, count), a, b, vec4_body);
+  });
 }
 
 // y broadcast over x as y[(e / inner) % C]; see the header for the accepted shapes.
@@ -121,16 +149,19 @@ Broadcast broadcast_of(const char* op, const Shape& xs, const Shape& ys) {
 // Which broadcast indexing a shader runs (MODE in shaders/nn/eltwise_broadcast.glsl) and the per-stride
 // advance of its (channel, inner) counters.
 struct BcastPlan {
-  uint32_t mode = 5, C = 1, inner = 1, step_c = 0, step_r = 0;
+  uint32_t mode = 5, C = 1, inner = 1, step_c = 0, step_r = 0, base = 0;
 };
 
-BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool vec4, uint32_t groups) {
+// `same`: y has x's shape (MODE 0). `base`: the element of y's broadcast period where x's element 0 falls
+// (non-zero for a chunk that starts mid-period).
+BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool same, bool vec4, uint32_t groups, uint32_t base) {
   BcastPlan pl;
+  pl.base = base;
   if (!vec4) {
-    pl.mode = bc.inner == 1 && bc.C == n ? 0 : 5;
+    pl.mode = same ? 0 : 5;
   } else {
     if (bc.C == 1) bc.inner = n;  // a scalar: one value for every vec4
-    if (bc.inner == 1 && bc.C == n) pl.mode = 0;
+    if (same) pl.mode = 0;
     else if (bc.inner == 1 && bc.C % 4 == 0) pl.mode = 1;
     else if (bc.inner % 4 == 0) pl.mode = 2;
     else if (bc.inner >= 4) pl.mode = 3;
@@ -145,7 +176,53 @@ BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool vec4, uint32_t groups) {
   return pl;
 }
 
+// A broadcast op walked in flat chunks of x: a same-shape second operand is chunked along; any other stays
+// bound whole (row vectors and per-channel vectors are small) with the chunk's start in its period as `base`.
+// fn(x_first, count, same, base) runs one chunk.
+template <class F>
+void for_each_broadcast_chunk(vk::Context& ctx, const char* op, int64_t n, const Broadcast& bc,
+                              const Tensor& operand, F&& fn) {
+  const bool same = bc.inner == 1 && bc.C == n;
+  const int64_t chunk = flat_chunk(ctx.caps(), op, n);
+  if (chunk >= n) return fn(0, n, same, 0u);
+  if (!same && operand.bytes() > binding_capacity(ctx.caps(), 0))
+    throw Error(std::string("internal: ") + op + ": broadcast operand " + operand.describe() +
+                " is larger than one binding (" + std::to_string(ctx.caps().max_storage_buffer_range) + " bytes)");
+  const int64_t period = bc.C * bc.inner;
+  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+    fn(first, count, same, same ? 0u : uint32_t(first % period));  // a same-shape operand is chunked along
+  });
+}
+
 enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };
+
+void binary_range(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const Tensor& x, float beta,
+                  const Tensor& y, const Tensor& z, Broadcast bc, bool same, bool vec4, uint32_t base) {
+  vk::Context& ctx = rec.context();
+  const int64_t n = x.numel();
+  if (same) bc = Broadcast{n, 1};
+  const int64_t units = vec4 ? n / 4 : n;
+  const uint32_t groups = groups_for(ctx.caps(), units);
+  const BcastPlan pl = plan_broadcast(bc, n, same, vec4, groups, base);
+  const bool y_vec4 = pl.mode <= 1;  // y read as whole vec4s
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) &&
+                     texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
+  const char* shader = !vec4 ? "nn/eltwise_binary"
+                       : texel ? "nn/eltwise_binary_tex4"
+                       : y_vec4 ? "nn/eltwise_binary_vec4"
+                                : "nn/eltwise_binary_vec4_bcast";
+  struct {
+    uint32_t n, C, inner, step_c, step_r;
+    float alpha, beta;
+    uint32_t base;
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, alpha, beta, pl.base};
+  const uint32_t spec[] = {uint32_t(kind), pl.mode};
+  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
+  if (texel)
+    rec.dispatch(p, {rgba(x), y_vec4 ? rgba(y) : r32(y), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  else
+    rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+}
 
 void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const Tensor& x, float beta,
             const Tensor& y, const Tensor& z) {
@@ -157,28 +234,41 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   const Broadcast bc = broadcast_of(op, x.shape(), y.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
+  const bool vec4 = n % 4 == 0;  // decided for the whole tensor: every chunk runs the same shader
+  for_each_broadcast_chunk(rec.context(), op, n, bc, y, [&](int64_t first, int64_t count, bool same, uint32_t base) {
+    if (count == n) return binary_range(rec, op, kind, alpha, x, beta, y, z, bc, same, vec4, base);
+    binary_range(rec, op, kind, alpha, flat_sub(x, first, count), beta, same ? flat_sub(y, first, count) : y,
+                 flat_sub(z, first, count), bc, same, vec4, base);
+  });
+}
+
+void affine_range(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t,
+                  const Tensor& z, float s_offset, Broadcast bc, bool same, bool vec4, uint32_t base) {
   vk::Context& ctx = rec.context();
-  const bool vec4 = n % 4 == 0;
+  const int64_t n = x.numel();
+  if (same) bc = Broadcast{n, 1};
   const int64_t units = vec4 ? n / 4 : n;
-  const uint32_t groups = groups_for(units);
-  const BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
-  const bool y_vec4 = pl.mode <= 1;  // y read as whole vec4s
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) &&
-                     texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
-  const char* shader = !vec4 ? "nn/eltwise_binary"
-                       : texel ? "nn/eltwise_binary_tex4"
-                       : y_vec4 ? "nn/eltwise_binary_vec4"
-                                : "nn/eltwise_binary_vec4_bcast";
+  const uint32_t groups = groups_for(ctx.caps(), units);
+  BcastPlan pl = plan_broadcast(bc, n, same, vec4, groups, base);
+  if (vec4 && pl.mode == 0) pl.mode = 1;  // same shape runs as rows of length n
+  const bool st_vec4 = vec4 && pl.mode == 1;
+  const int64_t st_texels = st_vec4 ? s.numel() / 4 : s.numel();
+  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
+                     texel_ok(ctx, t, st_texels);
   struct {
     uint32_t n, C, inner, step_c, step_r;
-    float alpha, beta;
-  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, alpha, beta};
-  const uint32_t spec[] = {uint32_t(kind), pl.mode};
+    float s_offset;
+    uint32_t base;
+  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, s_offset, pl.base};
+  const char* shader = texel ? "nn/eltwise_affine_tex4" : vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine";
+  const uint32_t spec[] = {0, pl.mode};
   const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
-  if (texel)
-    rec.dispatch(p, {rgba(x), y_vec4 ? rgba(y) : r32(y), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
-  else
-    rec.dispatch(p, {x.buffer(), y.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  if (texel) {
+    auto st = [&](const Tensor& v) { return st_vec4 ? rgba(v) : r32(v); };
+    rec.dispatch(p, {rgba(x), st(s), st(t), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  } else {
+    rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
+  }
 }
 
 void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s, const Tensor& t, const Tensor& z,
@@ -193,29 +283,13 @@ void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s,
   const Broadcast bc = broadcast_of(op, x.shape(), s.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
-  vk::Context& ctx = rec.context();
   const bool vec4 = n % 4 == 0;
-  const int64_t units = vec4 ? n / 4 : n;
-  const uint32_t groups = groups_for(units);
-  BcastPlan pl = plan_broadcast(bc, n, vec4, groups);
-  if (vec4 && pl.mode == 0) pl.mode = 1;  // same shape runs as rows of length n
-  const bool st_vec4 = vec4 && pl.mode == 1;
-  const int64_t st_texels = st_vec4 ? s.numel() / 4 : s.numel();
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
-                     texel_ok(ctx, t, st_texels);
-  struct {
-    uint32_t n, C, inner, step_c, step_r;
-    float s_offset;
-  } push{uint32_t(units), pl.C, pl.inner, pl.step_c, pl.step_r, s_offset};
-  const char* shader = texel ? "nn/eltwise_affine_tex4" : vec4 ? "nn/eltwise_affine_vec4" : "nn/eltwise_affine";
-  const uint32_t spec[] = {0, pl.mode};
-  const vk::Pipeline& p = ctx.pipelines().get(shader, spec);
-  if (texel) {
-    auto st = [&](const Tensor& v) { return st_vec4 ? rgba(v) : r32(v); };
-    rec.dispatch(p, {rgba(x), st(s), st(t), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
-  } else {
-    rec.dispatch(p, {x.buffer(), s.buffer(), t.buffer(), z.buffer()}, &push, sizeof push, groups, 1, 1, op);
-  }
+  for_each_broadcast_chunk(rec.context(), op, n, bc, s, [&](int64_t first, int64_t count, bool same, uint32_t base) {
+    if (count == n) return affine_range(rec, op, x, s, t, z, s_offset, bc, same, vec4, base);
+    auto st = [&](const Tensor& v) { return same ? flat_sub(v, first, count) : v; };
+    affine_range(rec, op, flat_sub(x, first, count), st(s), st(t), flat_sub(z, first, count), s_offset, bc, same,
+                 vec4, base);
+  });
 }
 
 uint32_t cast_code(const char* op, const Tensor& t) {
@@ -233,6 +307,16 @@ vk::BufferView word_view(const Tensor& t) {
   vk::BufferView v = t.buffer();
   v.size = (v.size + 3) & ~VkDeviceSize(3);
   return v;
+}
+
+void cast_range(vk::Recorder& rec, const Tensor& x, const Tensor& y, uint32_t src, uint32_t dst) {
+  const int64_t n = x.numel();
+  const uint32_t spec[] = {src, dst};
+  const bool x8 = n % 8 == 0;  // whole uvec4 loads and stores
+  const vk::Pipeline& p = rec.context().pipelines().get(x8 ? "nn/cast_x8" : "nn/cast", spec);
+  const uint32_t push = uint32_t(n);
+  rec.dispatch(p, {word_view(x), word_view(y)}, &push, sizeof push,
+               groups_for(rec.context().caps(), x8 ? n / 8 : (n + 1) / 2), 1, 1, "cast");
 }
 
 }  // namespace
@@ -281,11 +365,15 @@ void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
     rec.copy(x.buffer(), y.buffer(), x.bytes());
     return;
   }
-  const uint32_t spec[] = {src, dst};
-  const bool x8 = n % 8 == 0;  // whole uvec4 loads and stores
-  const vk::Pipeline& p = rec.context().pipelines().get(x8 ? "nn/cast_x8" : "nn/cast", spec);
-  const uint32_t push = uint32_t(n);
-  rec.dispatch(p, {word_view(x), word_view(y)}, &push, sizeof push, groups_for(x8 ? n / 8 : (n + 1) / 2), 1, 1, "cast");
+  // Flat chunks of whole 8-element groups (16-bit data stays in whole words); each runs as an unsplit cast.
+  const size_t sx = dtype_size(x.dtype()), sy = dtype_size(y.dtype());
+  const int64_t chunk =
+      rows_per_chunk(rec.context().caps(), "cast", {RowOperand{8 * sx, 0}, RowOperand{8 * sy, 0}}, (n + 7) / 8) * 8;
+  if (chunk >= n) return cast_range(rec, x, y, src, dst);
+  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+    cast_range(rec, Tensor::on(x.buffer().sub(first * sx, count * sx), {count}, x.dtype()),
+               Tensor::on(y.buffer().sub(first * sy, count * sy), {count}, y.dtype()), src, dst);
+  });
 }
 
 }  // namespace dvs::ops

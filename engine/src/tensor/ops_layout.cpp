@@ -1,8 +1,10 @@
 #include "tensor/ops_layout.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
@@ -12,7 +14,10 @@ namespace {
 
 constexpr uint32_t kLocal = 64, kMaxGroups = 4096;
 
-uint32_t groups_for(int64_t items) { return std::clamp<uint32_t>(div_up(items, kLocal), 1, kMaxGroups); }
+// Shaders here loop grid-stride over x (and rows over y): fewer groups than the limit allows just loop more.
+uint32_t groups_for(const vk::DeviceCaps& caps, int64_t items) {
+  return std::clamp<uint32_t>(div_up(items, kLocal), 1, std::min(kMaxGroups, caps.max_workgroup_count[0]));
+}
 
 // Grid for shaders that loop rows over y and a row's items over x (grid-stride both): x covers a row,
 // y as many rows as keep the total near kMaxGroups groups.
@@ -22,12 +27,12 @@ constexpr int64_t kLaneRows = 32;
 struct Grid2 {
   uint32_t x, y, lane_rows;
 };
-Grid2 grid_rows(int64_t rows, int64_t row_items) {
-  if (row_items < kLaneRows) return {groups_for(rows), 1, 1};
+Grid2 grid_rows(const vk::DeviceCaps& caps, int64_t rows, int64_t row_items) {
+  if (row_items < kLaneRows) return {groups_for(caps, rows), 1, 1};
   // Up to 16 items per invocation and row: per-row set-up (permute's index decomposition) is amortised.
-  const uint32_t gx = groups_for(div_up(row_items, 16));
+  const uint32_t gx = groups_for(caps, div_up(row_items, 16));
   const int64_t gy = std::clamp<int64_t>(rows, 1, std::max<int64_t>(1, kMaxGroups / gx));
-  return {gx, uint32_t(std::min<int64_t>(gy, 65535)), 0};
+  return {gx, uint32_t(std::min<int64_t>(gy, caps.max_workgroup_count[1])), 0};
 }
 
 [[noreturn]] void fail(const char* op, const std::string& why) { throw Error(std::string("internal: ") + op + ": " + why); }
@@ -54,7 +59,7 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
   const bool vec4 = c.len % 4 == 0 && c.src_stride % 4 == 0 && c.src_off % 4 == 0 && c.dst_stride % 4 == 0 &&
                     c.dst_off % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
-  const Grid2 g = grid_rows(c.rows, c.len / q);
+  const Grid2 g = grid_rows(rec.context().caps(), c.rows, c.len / q);
   vk::Context& ctx = rec.context();
   const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, src, 16);
   struct {
@@ -65,6 +70,36 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
   const vk::Pipeline& p = ctx.pipelines().get(shader);
   const vk::Binding in = texel ? vk::Binding(src, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(src);
   rec.dispatch(p, {in, dst}, &push, sizeof push, g.x, g.y, 1, label);
+}
+
+// The words [first, end) of `v` bound from the aligned-down start: the view and the offset of `first` in it.
+std::pair<vk::BufferView, int64_t> word_window(const vk::BufferView& v, int64_t first, int64_t end,
+                                               int64_t align_words) {
+  const int64_t base = first / align_words * align_words;
+  return {v.sub(VkDeviceSize(base) * 4, VkDeviceSize(end - base) * 4), first - base};
+}
+
+// record_copy2d in pieces whose source and destination windows each fit one binding: blocks of whole rows,
+// and rows longer than a binding in column pieces. Windows start aligned down, the offsets go to the shader.
+void copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::BufferView& dst, Copy2d c, const char* label) {
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t cap = binding_capacity(caps, 0);
+  if (c.rows == 0 || c.len == 0) return;
+  if (src.size <= cap && dst.size <= cap) return record_copy2d(rec, src, dst, c, label);
+  const int64_t align = int64_t(binding_alignment(caps) / 4), room = int64_t(cap / 4) - align;
+  // Column pieces: multiples of 4 words keep the vec4 shader where the whole copy has it.
+  int64_t cols = std::min(c.len, room / 4 * 4);
+  const int64_t stride = std::max(c.src_stride, c.dst_stride);
+  const int64_t rows = cols < c.len || stride == 0 ? 1 : std::max<int64_t>(1, 1 + (room - cols) / stride);
+  if (cols <= 0) fail(label, "a binding of " + std::to_string(cap) + " bytes cannot hold one aligned piece");
+  for_each_chunk(c.rows, rows, [&](int64_t r0, int64_t nr) {
+    for_each_chunk(c.len, cols, [&](int64_t k0, int64_t nk) {
+      const int64_t s0 = c.src_off + r0 * c.src_stride + k0, d0 = c.dst_off + r0 * c.dst_stride + k0;
+      const auto [sv, so] = word_window(src, s0, s0 + (nr - 1) * c.src_stride + nk, align);
+      const auto [dv, dof] = word_window(dst, d0, d0 + (nr - 1) * c.dst_stride + nk, align);
+      record_copy2d(rec, sv, dv, Copy2d{nr, nk, c.src_stride, so, c.dst_stride, dof}, label);
+    });
+  });
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
@@ -100,8 +135,97 @@ void bands(vk::Recorder& rec, const char* op, const Tensor& whole, const std::ve
         fail(op, "16-bit tensors need every band to hold an even number of elements");
       c = {c.rows, c.len / 2, c.src_stride / 2, c.src_off / 2, c.dst_stride / 2, c.dst_off / 2};
     }
-    if (into_whole) record_copy2d(rec, t.buffer(), whole.buffer(), c, op);
-    else record_copy2d(rec, whole.buffer(), t.buffer(), c, op);
+    if (into_whole) copy2d(rec, t.buffer(), whole.buffer(), c, op);
+    else copy2d(rec, whole.buffer(), t.buffer(), c, op);
+  }
+}
+
+// Output axes as (size, input stride), outermost first, after merging.
+using Axes = std::vector<std::pair<int64_t, int64_t>>;
+
+// One permute dispatch: the output (contiguous from word out_off of `out`) of input words read from in_off.
+void record_permute(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
+                    const Axes& axes, int64_t in_off, int64_t out_off) {
+  int64_t n = 1;
+  bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0 && in_off % 4 == 0 && out_off % 4 == 0;
+  for (const auto& a : axes) {
+    n *= a.first;
+    vec4 = vec4 && (a.second == 1 || a.second % 4 == 0);
+  }
+  const int64_t q = vec4 ? 4 : 1;
+  struct {
+    uint32_t rows, rank, dims[6], in_stride[6], lane_rows, in_off, out_off;
+  } push{};
+  push.rank = uint32_t(axes.size());
+  for (size_t d = 0; d < 6; ++d) {
+    push.dims[d] = 1;
+    push.in_stride[d] = 0;
+  }
+  for (size_t d = 0; d < axes.size(); ++d) {
+    push.dims[d] = uint32_t(axes[d].first);
+    push.in_stride[d] = uint32_t(axes[d].second);
+  }
+  if (vec4) {
+    push.dims[axes.size() - 1] /= 4;
+    for (size_t d = 0; d < axes.size(); ++d) push.in_stride[d] = d + 1 == axes.size() ? 1 : push.in_stride[d] / 4;
+  }
+  push.in_off = uint32_t(in_off / q);
+  push.out_off = uint32_t(out_off / q);
+  const uint32_t last = push.dims[axes.size() - 1];
+  push.rows = uint32_t(n / axes.back().first);
+  vk::Context& ctx = rec.context();
+  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, in, 16);
+  const char* shader = texel ? "nn/permute_tex4" : vec4 ? "nn/permute_vec4" : "nn/permute";
+  const vk::Pipeline& p = ctx.pipelines().get(shader);
+  const Grid2 g = grid_rows(ctx.caps(), push.rows, last);
+  push.lane_rows = g.lane_rows;
+  const vk::Binding src = texel ? vk::Binding(in, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(in);
+  rec.dispatch(p, {src, out}, &push, sizeof push, g.x, g.y, 1, op);
+}
+
+// A permute too large for one binding: the output is cut into blocks along output axis k (all axes before it
+// fixed, nj indices of it, all after it whole), k the outermost axis whose one-index block fits one binding
+// on both sides (the input span of a block: its strided extent), at worst the last axis. Windows start
+// aligned down; offsets go to the shader.
+void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, const vk::BufferView& out,
+                   const Axes& axes) {
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t cap = binding_capacity(caps, 0);
+  if (in.size <= cap && out.size <= cap) return record_permute(rec, op, in, out, axes, 0, 0);
+  const int64_t align = std::lcm<int64_t>(int64_t(binding_alignment(caps) / 4), 4), room = int64_t(cap / 4) - align;
+  const int64_t R = int64_t(axes.size());
+  // k = R-1 (pieces of one output row) always fits; a transpose whose rows read far apart ends there.
+  int64_t k = R - 1, block = 1, span = 1;  // block: output words per index of axis k; span: their input extent
+  for (int64_t c = R - 2; c >= 0; --c) {
+    int64_t b = 1, s = 1;
+    for (int64_t d = c + 1; d < R; ++d) {
+      b *= axes[size_t(d)].first;
+      s += (axes[size_t(d)].first - 1) * axes[size_t(d)].second;
+    }
+    if (b > room || s > room) break;
+    k = c, block = b, span = s;
+  }
+  const int64_t size_k = axes[size_t(k)].first, stride_k = axes[size_t(k)].second;
+  int64_t nj = std::min(size_k, room / block);
+  if (stride_k > 0) nj = std::min(nj, 1 + (room - span) / stride_k);
+  if (k == R - 1 && nj >= 4) nj = nj / 4 * 4;  // row pieces of whole vec4s where the row allows them
+  int64_t prefixes = 1;
+  for (int64_t d = 0; d < k; ++d) prefixes *= axes[size_t(d)].first;
+  for (int64_t pf = 0; pf < prefixes; ++pf) {
+    int64_t in_base = 0, rest = pf;
+    for (int64_t d = k - 1; d >= 0; --d) {
+      in_base += rest % axes[size_t(d)].first * axes[size_t(d)].second;
+      rest /= axes[size_t(d)].first;
+    }
+    for_each_chunk(size_k, nj, [&](int64_t j0, int64_t cnt) {
+      const int64_t i0 = in_base + j0 * stride_k, i1 = i0 + (cnt - 1) * stride_k + span;
+      const int64_t o0 = (pf * size_k + j0) * block, o1 = o0 + cnt * block;
+      const int64_t ib = i0 / align * align, ob = o0 / align * align;
+      Axes sub = {{cnt, stride_k}};
+      sub.insert(sub.end(), axes.begin() + k + 1, axes.end());
+      record_permute(rec, op, in.sub(VkDeviceSize(ib) * 4, VkDeviceSize(i1 - ib) * 4),
+                     out.sub(VkDeviceSize(ob) * 4, VkDeviceSize(o1 - ob) * 4), sub, i0 - ib, o0 - ob);
+    });
   }
 }
 
@@ -114,7 +238,7 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   for (size_t d = r; d-- > 1;) in_stride[d - 1] = in_stride[d] * shape[d];
   std::vector<bool> seen(r, false);
   // Output axes as (size, input stride), size-1 axes dropped, then runs that stay contiguous merged.
-  std::vector<std::pair<int64_t, int64_t>> axes;
+  Axes axes;
   for (size_t d = 0; d < r; ++d) {
     const int a = perm[d];
     if (a < 0 || size_t(a) >= r || seen[size_t(a)]) fail(op, "invalid permutation");
@@ -134,38 +258,12 @@ void permute_words(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
     rec.copy(in, out, VkDeviceSize(n) * 4);
     return;
   }
-  const bool vec4 = axes.back().second == 1 && axes.back().first % 4 == 0;
-  struct {
-    uint32_t rows, rank, dims[6], in_stride[6], lane_rows;
-  } push{};
-  push.rank = uint32_t(axes.size());
-  for (size_t d = 0; d < 6; ++d) {
-    push.dims[d] = 1;
-    push.in_stride[d] = 0;
-  }
-  for (size_t d = 0; d < axes.size(); ++d) {
-    push.dims[d] = uint32_t(axes[d].first);
-    push.in_stride[d] = uint32_t(axes[d].second);
-  }
-  if (vec4) {
-    push.dims[axes.size() - 1] /= 4;
-    for (size_t d = 0; d < axes.size(); ++d) push.in_stride[d] = d + 1 == axes.size() ? 1 : push.in_stride[d] / 4;
-  }
-  const uint32_t last = push.dims[axes.size() - 1];
-  push.rows = uint32_t(n / axes.back().first);
-  vk::Context& ctx = rec.context();
-  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, in, 16);
-  const char* shader = texel ? "nn/permute_tex4" : vec4 ? "nn/permute_vec4" : "nn/permute";
-  const vk::Pipeline& p = ctx.pipelines().get(shader);
-  const Grid2 g = grid_rows(push.rows, last);
-  push.lane_rows = g.lane_rows;
-  const vk::Binding src = texel ? vk::Binding(in, VK_FORMAT_R32G32B32A32_UINT) : vk::Binding(in);
-  rec.dispatch(p, {src, out}, &push, sizeof push, g.x, g.y, 1, op);
+  permute_split(rec, op, in, out, axes);
 }
 
 // Patchify is the permute [BF, C, Hp, p, Wp, p] -> [BF, Hp, Wp, C, p, p] (and back); a dedicated shader moves
 // whole patches (one vec4 per patch for p = 2) instead of decomposing six indices per element.
-void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::BufferView& in,
+void record_patches_range(vk::Recorder& rec, const char* op, bool inverse, const vk::BufferView& in,
                     const vk::BufferView& out, int64_t BF, int64_t C, int64_t Hp, int64_t Wp, int64_t p) {
   const int64_t patches = BF * C * Hp * Wp;
   if (patches == 0) return;
@@ -176,10 +274,27 @@ void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::B
   if (p == 2) shader += "_p2";
   const vk::Pipeline& pipe = rec.context().pipelines().get(shader);
   // 32 invocations per group over wp; about kMaxGroups groups in all.
+  const vk::DeviceCaps& caps = rec.context().caps();
   const uint32_t gx = div_up(Wp, 32);
+  if (gx > caps.max_workgroup_count[0])
+    fail(op, "a row of " + std::to_string(Wp) + " patches needs too many workgroups");
   const int64_t gy = std::clamp<int64_t>(BF * Hp, 1, std::max<int64_t>(1, kMaxGroups / gx));
-  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, 65535)), 1, op);
+  const uint32_t gy_max = caps.max_workgroup_count[1];
+  rec.dispatch(pipe, {in, out}, &push, sizeof push, gx, uint32_t(std::min<int64_t>(gy, gy_max)), 1, op);
 }
+
+// Frames (BF) in chunks whose input and output (the same size) fit one binding each.
+void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::BufferView& in,
+                    const vk::BufferView& out, int64_t BF, int64_t C, int64_t Hp, int64_t Wp, int64_t p) {
+  const uint64_t frame = uint64_t(C * Hp * Wp * p * p) * 4;
+  const int64_t per = rows_per_chunk(rec.context().caps(), op, {RowOperand{frame, 0}}, BF);
+  if (per >= BF) return record_patches_range(rec, op, inverse, in, out, BF, C, Hp, Wp, p);
+  for_each_chunk(BF, per, [&](int64_t f0, int64_t nf) {
+    record_patches_range(rec, op, inverse, in.sub(f0 * frame, nf * frame), out.sub(f0 * frame, nf * frame), nf, C, Hp,
+                         Wp, p);
+  });
+}
+
 
 void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Tensor* src_idx, const Tensor* dst_idx,
                  const Tensor& dst) {
@@ -203,16 +318,45 @@ void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Ten
   if (m == 0 || len == 0 || dst_rows == 0) return;
   const bool vec4 = len % 4 == 0;
   const int64_t q = vec4 ? 4 : 1;
-  const Grid2 g = grid_rows(m, len / q);
-  struct {
-    uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx, lane_rows;
-  } push{uint32_t(m), uint32_t(len / q), uint32_t(src_rows), uint32_t(dst_rows), src_idx != nullptr,
-         dst_idx != nullptr, g.lane_rows};
-  // An absent index list binds any readable buffer; the shader does not read it.
-  const vk::BufferView si = src_idx ? src_idx->buffer() : (dst_idx ? dst_idx->buffer() : src.buffer());
-  const vk::BufferView di = dst_idx ? dst_idx->buffer() : si;
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t row_bytes = uint64_t(len) * 4;
+  // Index rows i in chunks bounding the index lists and the side walked by i (src without src_idx, dst
+  // without dst_idx); an indexed side is a table, bound in row ranges (each dispatch moves the rows whose
+  // indices fall in its range).
+  const int64_t per_i = rows_per_chunk(caps, op, {RowOperand{src_idx ? 0 : row_bytes, 0},
+                                                  RowOperand{dst_idx ? 0 : row_bytes, 0}, RowOperand{4, 0}}, m);
+  const int64_t per_src = src_idx ? rows_per_chunk(caps, op, {RowOperand{row_bytes, 0}}, src_rows) : m;
+  const int64_t per_dst = dst_idx ? rows_per_chunk(caps, op, {RowOperand{row_bytes, 0}}, dst_rows) : m;
   const vk::Pipeline& p = rec.context().pipelines().get(vec4 ? "nn/gather_rows_vec4" : "nn/gather_rows");
-  rec.dispatch(p, {src.buffer(), si, di, dst.buffer()}, &push, sizeof push, g.x, g.y, 1, op);
+  auto rows_of = [&](const Tensor& t, int64_t first, int64_t count) {
+    return t.buffer().sub(VkDeviceSize(first) * row_bytes, VkDeviceSize(count) * row_bytes);
+  };
+  auto ids_of = [&](const Tensor* idx, int64_t first, int64_t count) {
+    return count == m ? idx->buffer() : idx->buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4);
+  };
+  for_each_chunk(m, per_i, [&](int64_t i0, int64_t mi) {
+    // An empty source table still runs once: every index is outside it and reads zeros.
+    for_each_chunk(src_idx ? std::max<int64_t>(src_rows, 1) : 1, src_idx ? per_src : 1, [&](int64_t s0, int64_t ns) {
+      ns = std::min(ns, src_rows);
+      for_each_chunk(dst_idx ? dst_rows : 1, dst_idx ? per_dst : 1, [&](int64_t d0, int64_t nd) {
+        const Grid2 g = grid_rows(caps, mi, len / q);
+        struct {
+          uint32_t m, len, src_rows, dst_rows, use_src_idx, use_dst_idx, lane_rows;
+          uint32_t src_first, src_total, dst_first, dst_total;
+        } push{uint32_t(mi), uint32_t(len / q), uint32_t(src_idx ? ns : mi), uint32_t(dst_idx ? nd : mi),
+               src_idx != nullptr, dst_idx != nullptr, g.lane_rows, uint32_t(src_idx ? s0 : 0),
+               uint32_t(src_rows), uint32_t(dst_idx ? d0 : 0), uint32_t(dst_rows)};
+        const vk::BufferView sv = src_idx ? (ns == src_rows ? src.buffer() : rows_of(src, s0, ns))
+                                          : (mi == m ? src.buffer() : rows_of(src, i0, mi));
+        const vk::BufferView dv = dst_idx ? (nd == dst_rows ? dst.buffer() : rows_of(dst, d0, nd))
+                                          : (mi == m ? dst.buffer() : rows_of(dst, i0, mi));
+        // An absent index list binds any readable buffer; the shader does not read it.
+        const vk::BufferView si = src_idx ? ids_of(src_idx, i0, mi) : dst_idx ? ids_of(dst_idx, i0, mi) : sv;
+        const vk::BufferView di = dst_idx ? ids_of(dst_idx, i0, mi) : si;
+        rec.dispatch(p, {sv, si, di, dv}, &push, sizeof push, g.x, g.y, 1, op);
+      });
+    });
+  });
 }
 
 }  // namespace

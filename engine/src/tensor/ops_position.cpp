@@ -1,9 +1,11 @@
 #include "tensor/ops_position.hpp"
 
 #include <cmath>
+#include <numeric>
 #include <string>
 #include <vector>
 
+#include "tensor/binding_split.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
 
@@ -121,6 +123,27 @@ void rope(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t batch, in
                 ") do not fit " + x.describe() + " with sequence length " + std::to_string(seq_len));
   if (x.numel() > int64_t(UINT32_MAX)) throw Error("internal: rope: " + x.describe() + " too large");
   if (n == 0) return;
+  // Too large for one binding: each batch's tokens in chunks, x/y rows and cos/sin rows bound per chunk. A
+  // chunk's x/y window starts at the aligned row at or before it; the rows skipped go as `first`.
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t cap = binding_capacity(caps, 0), row_bytes = uint64_t(x.dim(1)) * 4;
+  if (x.bytes() > cap || cos.bytes() > cap) {
+    const uint64_t align = binding_alignment(caps);
+    const int64_t lead = int64_t(align / std::gcd(align, row_bytes));  // rows between aligned row starts
+    int64_t per = rows_per_chunk(caps, op, {RowOperand{row_bytes, 0}, RowOperand{uint64_t(head_dim) * 4, 0}}, n);
+    if (uint64_t(per + lead - 1) * row_bytes > cap) {  // keep room for the lead-in, chunks still aligned
+      const int64_t step = std::lcm(lead, int64_t(align / std::gcd(align, uint64_t(head_dim) * 4)));
+      per = (int64_t(cap / row_bytes) - lead + 1) / step * step;
+    }
+    if (per < 1) throw Error("internal: rope: a row of " + x.describe() + " leaves no room in one binding");
+    for (int64_t b = 0; b < batch; ++b)
+      for_each_chunk(n, per, [&](int64_t t0, int64_t nt) {
+        const int64_t row = b * seq_len + first + t0, base = row / lead * lead;
+        rope(rec, x.rows(base, row - base + nt), y.rows(base, row - base + nt), 1, row - base + nt, row - base,
+             heads, head_dim, col_offset, cos.rows(t0, nt), sin.rows(t0, nt));
+      });
+    return;
+  }
   struct {
     uint32_t B, L, first, n, H, Dh, row_stride, col_offset;
   } p{uint32_t(batch), uint32_t(seq_len), uint32_t(first), uint32_t(n), uint32_t(heads), uint32_t(head_dim),
@@ -133,7 +156,7 @@ void rope(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t batch, in
     v.size = (v.size + 15) / 16 * 16;
     return v;
   };
-  Grid g = grid_1d(batch * n * (head_dim / (vec4 ? 4 : 2)), 64);
+  Grid g = grid_1d(rec.context().caps(), batch * n * (head_dim / (vec4 ? 4 : 2)), 64);
   rec.dispatch(rec.context().pipelines().get("nn/rope", spec), {v4(x), v4(y), v4(cos), v4(sin)}, &p,
                sizeof p, g.x, g.y, 1, "rope");
 }
@@ -151,7 +174,7 @@ void timestep_embedding(vk::Recorder& rec, const Tensor& timesteps, const Tensor
     uint32_t B, D, half_dim, flip;
     float freq_shift, scale;
   } p{uint32_t(B), uint32_t(D), uint32_t(half), flip_sin_to_cos ? 1u : 0u, freq_shift, scale};
-  Grid g = grid_1d(B * half, 64);
+  Grid g = grid_1d(rec.context().caps(), B * half, 64);
   rec.dispatch(rec.context().pipelines().get("nn/timestep_embedding"), {timesteps.buffer(), emb.buffer()}, &p,
                sizeof p, g.x, g.y, 1, "timestep_embedding");
 }

@@ -4,6 +4,7 @@
 #include <bit>
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -16,11 +17,9 @@ struct Push {
   uint32_t range;
 };
 
-void fill(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStream& s, uint32_t dist, float a,
-          float b, uint32_t range) {
+void fill_range(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStream& s, uint32_t dist, float a,
+                float b, uint32_t range) {
   const int64_t n = out.numel();
-  if (n == 0) return;
-  if (n > int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": tensor " + out.describe() + " is too large");
   Push p{};
   p.n = uint32_t(n);
   p.skew = uint32_t(s.base % 4);
@@ -36,8 +35,25 @@ void fill(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStre
   p.range = range;
   const uint32_t spec[] = {dist};
   const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/philox_fill", spec);
-  const uint32_t groups = std::min<uint32_t>(div_up(p.n_blocks, 64), 4096);
+  const uint32_t groups =
+      std::clamp<uint32_t>(div_up(p.n_blocks, 64), 1, std::min(4096u, rec.context().caps().max_workgroup_count[0]));
   rec.dispatch(pipe, {out.buffer()}, &p, sizeof p, groups, 1, 1, op);
+}
+
+// Element ranges within one binding each; a range at element `first` draws from counter base + first, so the
+// values are those of the unsplit fill.
+void fill(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStream& s, uint32_t dist, float a,
+          float b, uint32_t range) {
+  const int64_t n = out.numel();
+  if (n == 0) return;
+  if (n > int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": tensor " + out.describe() + " is too large");
+  const int64_t chunk = rows_per_chunk(rec.context().caps(), op, {RowOperand{4, 0}}, n);
+  if (chunk >= n) return fill_range(rec, op, out, s, dist, a, b, range);
+  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+    const Tensor part =
+        Tensor::on(out.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4), {count}, out.dtype());
+    fill_range(rec, op, part, RandomStream{s.seed, s.stream, s.base + uint64_t(first)}, dist, a, b, range);
+  });
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
@@ -24,7 +25,7 @@ void vae_posterior(vk::Recorder& rec, const Tensor& moments, const Tensor& mean,
   struct {
     uint32_t n, half;
   } push{uint32_t(n), uint32_t(n / half[0])};
-  const Grid g = grid_1d(n, 64);
+  const Grid g = grid_1d(rec.context().caps(), n, 64);
   rec.dispatch(rec.context().pipelines().get("nn/vae_posterior", {}), {moments.buffer(), mean.buffer(), std.buffer()},
                &push, sizeof push, g.x, g.y, g.z, op);
 }
