@@ -37,6 +37,9 @@ layout(push_constant) uniform Push {
   float eps;
   uint L, split, table_stride;
   uint shift0, scale0, shift1, scale1;  // column offsets into a table row
+  // Row chunks (one dispatch per binding-sized range of rows): row 0 of the bound x/y is row row0 of the
+  // whole tensor, and the bound table starts at table row table_row0, table_off elements into the view.
+  uint row0, table_row0, table_off;
 } p;
 
 // Weight element i, and weight elements 4j..4j+3, from packed storage.
@@ -89,10 +92,11 @@ void modulation_offsets(uint row, out uint scale_at, out uint shift_at) {
   scale_at = 0;
   shift_at = 0;
   if (MODULATE) {
-    uint batch = row / p.L, token = row - batch * p.L;
+    uint global = p.row0 + row, batch = global / p.L, token = global - batch * p.L;
     bool first_set = token < p.split;
-    scale_at = batch * p.table_stride + (first_set ? p.scale0 : p.scale1);
-    shift_at = batch * p.table_stride + (first_set ? p.shift0 : p.shift1);
+    uint at = p.table_off + (batch - p.table_row0) * p.table_stride;
+    scale_at = at + (first_set ? p.scale0 : p.scale1);
+    shift_at = at + (first_set ? p.shift0 : p.shift1);
   }
 }
 
