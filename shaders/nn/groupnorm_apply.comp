@@ -22,7 +22,7 @@ layout(std430, binding = 5) readonly buffer Var { float var[]; };
 // A dispatch covers planes [plane0, plane0 + gl_NumWorkGroups.y), a run of len elements of each (the host
 // splits x into binding-sized chunks: whole planes, or one plane's elements in runs); the bound views start
 // x_off elements before the chunk's first element (aligned-down binding offset).
-layout(push_constant) uniform Push { uint C, S, channels_per_group; float eps; uint plane0, x_off, len; } p; float eps; } p;
+layout(push_constant) uniform Push { uint C, S, channels_per_group; float eps; uint plane0, x_off, len; } p;
 
 float unpack_weight(uint word, uint i) {
   if (WDTYPE == 0) return uintBitsToFloat(word);

@@ -38,8 +38,9 @@ layout(push_constant) uniform Push {
   uint L, split, table_stride;
   uint shift0, scale0, shift1, scale1;  // column offsets into a table row
   // Row chunks (one dispatch per binding-sized range of rows): row 0 of the bound x/y is row row0 of the
-  // whole tensor, and the bound table starts at table row table_row0, table_off elements into the view.
-  uint row0, table_row0, table_off;
+  // whole tensor, x_off elements into the views (aligned-down binding offset); the bound table starts at
+  // table row table_row0, table_off elements into its view.
+  uint row0, table_row0, table_off, x_off;
 } p;
 
 // Weight element i, and weight elements 4j..4j+3, from packed storage.
@@ -111,7 +112,7 @@ void kahan_add(inout vec4 sum, inout vec4 comp, vec4 v) {
 float hsum(vec4 v) { return (v.x + v.y) + (v.z + v.w); }
 
 void row_per_invocation(uint row) {
-  uint base = row * p.D, scale_at, shift_at;
+  uint base = p.x_off + row * p.D, scale_at, shift_at;
   modulation_offsets(row, scale_at, shift_at);
   vec4 s = vec4(0.0), c = vec4(0.0);
   if (VEC4) {
@@ -154,7 +155,7 @@ void main() {
   uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (row >= p.rows) return;  // uniform per workgroup
   uint t = gl_LocalInvocationID.x;
-  uint base = row * p.D;
+  uint base = p.x_off + row * p.D;
 
   uint scale_at, shift_at;
   modulation_offsets(row, scale_at, shift_at);

@@ -75,24 +75,30 @@ void check_rows(const char* op, const Tensor& x, const Tensor& y) {
 // (the largest minStorageBufferOffsetAlignment Vulkan allows).
 int64_t stats_span(int64_t n) { return (n + 63) / 64 * 64; }
 
-// Rows per dispatch of a row-wise op whose x and y rows are `row_bytes` each: every chunk's views fit one
-// binding and start aligned (rows_per_chunk), and the chunk has at most `max_rows` rows (the grid, or what
-// else the op binds per row range).
+// Rows per dispatch of a row-wise op whose x and y rows are `row_bytes` each: all of them when they fit one
+// binding, else as many as fit with the alignment slack of a chunk bound from an aligned-down offset; never
+// more than `max_rows` (the grid, or what else the op binds per row range). A row wider than a binding would
+// need split statistics: at real sizes rows are at most 16 KiB (T5, 4096 wide) against at least 128 MiB.
 int64_t row_chunk(const vk::DeviceCaps& caps, const char* op, uint64_t row_bytes, int64_t rows, int64_t max_rows) {
-  int64_t chunk = rows_per_chunk(caps, op, {RowOperand{row_bytes, 0}}, rows);
-  if (chunk <= max_rows) return chunk;
-  const uint64_t align = binding_alignment(caps), granule = align / std::gcd(align, row_bytes);
-  chunk = max_rows / int64_t(granule) * int64_t(granule);
+  const uint64_t cap = binding_capacity(caps, 0);
+  if (uint64_t(rows) * row_bytes <= cap && rows <= max_rows) return rows;
+  const int64_t chunk = std::min<int64_t>(int64_t((cap - binding_alignment(caps)) / row_bytes), max_rows);
   if (chunk < 1)
-    throw Error(std::string("internal: ") + op + ": " + std::to_string(granule) +
-                " rows (the alignment granule) need more workgroups than maxComputeWorkGroupCount allows, or more " +
-                "of the other operands than one binding holds");
+    throw Error(std::string("internal: ") + op + ": a row of " + std::to_string(row_bytes) +
+                " bytes does not fit one binding of " + std::to_string(cap) +
+                " bytes with its alignment slack (or the grid / modulation table allow no row)");
   return chunk;
 }
 
-// Rows [first, first + count) of a row-major [rows, row_elems] f32 tensor, as one binding's view.
-vk::BufferView row_view(const Tensor& t, int64_t row_elems, int64_t first, int64_t count) {
-  return vec4_view(t.buffer().sub(VkDeviceSize(first * row_elems) * 4, VkDeviceSize(count * row_elems) * 4));
+// Rows [first, first + count) of a row-major [rows, row_elems] f32 tensor as one binding's view, from an
+// aligned-down offset: row `first` starts `off` elements into the view.
+struct RowView {
+  vk::BufferView view;
+  uint32_t off = 0;
+};
+RowView row_view(const vk::DeviceCaps& caps, const Tensor& t, int64_t row_elems, int64_t first, int64_t count) {
+  const uint64_t start = uint64_t(first * row_elems) * 4, delta = start % binding_alignment(caps);
+  return {vec4_view(t.buffer().sub(start - delta, uint64_t(count * row_elems) * 4 + delta)), uint32_t(delta / 4)};
 }
 
 }  // namespace
@@ -111,7 +117,8 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
     uint32_t L, split, table_stride;
     uint32_t shift0, scale0, shift1, scale1;  // column offsets into a table row
     uint32_t row0, table_row0, table_off;     // chunk: first row, first table row bound, its element offset
-  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    uint32_t x_off;                           // chunk: element offset of its first row in the x/y views
+  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   int64_t W = 0;
   if (mod) {
     expect_dtype(op, "modulation table", mod->table, DType::f32);
@@ -158,9 +165,11 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   // Unused bindings get a harmless read-only view (x's chunk).
   vk::BufferView wv = code >= 0 ? vec4_view(weight) : vk::BufferView{}, bv = code >= 0 ? vec4_view(bias) : wv;
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
-    vk::BufferView xv = row_view(x, D, r0, rc), mv = xv;
+    const RowView xr = row_view(caps, x, D, r0, rc);
+    vk::BufferView xv = xr.view, mv = xv;
     p.rows = uint32_t(rc);
     p.row0 = uint32_t(r0);
+    p.x_off = xr.off;
     if (mod) {
       // The table rows of the batches this chunk touches (a chunk may start inside a batch), bound from an
       // aligned-down offset: the shader adds table_off elements.
@@ -171,8 +180,8 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
       p.table_off = uint32_t(delta / 4) - uint32_t(col_lo);  // wraps; the shader adds the columns back
     }
     Grid g = grid_1d(caps, rc, rows_per_group);
-    rec.dispatch(pipe, {xv, row_view(y, D, r0, rc), code >= 0 ? wv : xv, code >= 0 ? bv : xv, mv}, &p, sizeof p, g.x,
-                 g.y, 1, "layernorm");
+    rec.dispatch(pipe, {xv, row_view(caps, y, D, r0, rc).view, code >= 0 ? wv : xv, code >= 0 ? bv : xv, mv}, &p,
+                 sizeof p, g.x, g.y, 1, "layernorm");
   });
 }
 
@@ -194,15 +203,16 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
   uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, vec4 ? 1u : 0u,
                      vec4 ? uint32_t(head_dim / 4) : 1u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/headnorm", spec);
-  // Row chunks of the whole fused rows (views start aligned); one invocation per (row, head).
+  // Row chunks of the whole fused rows; one invocation per (row, head).
   const vk::DeviceCaps& caps = rec.context().caps();
   const int64_t chunk = row_chunk(caps, op, uint64_t(stride) * 4, rows, int64_t(max_groups_1d(caps)) * 64 / heads);
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
-    vk::BufferView xv = row_view(x, stride, r0, rc);
-    vk::BufferView wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
+    const RowView xr = row_view(caps, x, stride, r0, rc);
+    vk::BufferView xv = xr.view, wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
     p.rows = uint32_t(rc);
+    p.col_offset = uint32_t(col_offset) + xr.off;  // the view's offset folds into the column offset
     Grid g = grid_1d(caps, rc * heads, 64);
-    rec.dispatch(pipe, {xv, row_view(y, stride, r0, rc), wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
+    rec.dispatch(pipe, {xv, row_view(caps, y, stride, r0, rc).view, wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
   });
 }
 
@@ -214,7 +224,8 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   struct {
     uint32_t rows, D;
     float eps;
-  } p{uint32_t(rows), uint32_t(D), eps};
+    uint32_t x_off;  // chunk: element offset of its first row in the x/y views
+  } p{uint32_t(rows), uint32_t(D), eps, 0};
   const bool vec4 = D % 4 == 0;
   const int64_t n4 = vec4 ? D / 4 : D;
   const bool per_invocation = row_per_invocation(rec);
@@ -227,9 +238,11 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   const uint32_t rows_per_group = per_invocation ? 64 : 1;
   const int64_t chunk = row_chunk(caps, op, uint64_t(D) * 4, rows, int64_t(max_groups_1d(caps)) * rows_per_group);
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
+    const RowView xr = row_view(caps, x, D, r0, rc);
     p.rows = uint32_t(rc);
+    p.x_off = xr.off;
     Grid g = grid_1d(caps, rc, rows_per_group);
-    rec.dispatch(pipe, {row_view(x, D, r0, rc), row_view(y, D, r0, rc), vec4_view(weight)}, &p, sizeof p, g.x, g.y, 1,
+    rec.dispatch(pipe, {xr.view, row_view(caps, y, D, r0, rc).view, vec4_view(weight)}, &p, sizeof p, g.x, g.y, 1,
                  "rmsnorm");
   });
 }
