@@ -4,6 +4,7 @@
 // dispatches). Odd sizes throughout.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <optional>
 #include <random>
@@ -140,9 +141,42 @@ TEST_F(SplitLinearTest, RowsByGrid) {
   check({.m = 2101, .n = 5, .k = 8, .limits = "groups=64"});
 }
 
-// One row of X that does not fit a binding cannot be split over K (the fused epilogue needs the whole sum):
-// a clear error, not a bad dispatch.
-TEST_F(SplitLinearTest, RowWiderThanBindingIsAnError) {
+// One row of X (K = 520: 2080 B) over a 1 KiB binding: split over K, each later chunk adding its partial
+// products to Y (bias on the first, residual in place). Another summation order: equal within fp32
+// rounding, not bitwise.
+TEST_F(SplitLinearTest, KChunksAccumulate) {
+  for (int64_t K : {520, 523}) {  // vec8 steps, scalar texels
+    SCOPED_TRACE("K=" + std::to_string(K));
+    vk::Context& c = ctx();
+    Tensor x = random_tensor(c, 5 * K, DType::f32, 1), w = random_tensor(c, 3 * K, DType::bf16, 2);
+    Tensor bias = random_tensor(c, 3, DType::f32, 3);
+    LinearShape s;
+    s.m = 5;
+    s.n = 3;
+    s.k = K;
+    std::vector<float> plain, split;
+    uint32_t dispatches = 0;
+    for (bool limited : {false, true}) {
+      Tensor y = random_tensor(c, 15, DType::f32, 4);
+      LinearEpilogue ep;
+      ep.bias = bias;
+      ep.residual = y;
+      std::optional<test::ScopedLimits> scope;
+      if (limited) scope.emplace(c, "binding=1KiB,texels=256");
+      ops::run_now(c, [&](vk::Recorder& rec) {
+        ops::linear_batched(rec, x, w, y, s, ep);
+        dispatches = rec.dispatch_count();
+      });
+      scope.reset();
+      (limited ? split : plain) = y.download(c).to_f32();
+    }
+    EXPECT_GT(dispatches, 1u);
+    for (size_t i = 0; i < plain.size(); ++i) EXPECT_NEAR(split[i], plain[i], 1e-4 * (1 + std::abs(plain[i]))) << i;
+  }
+}
+
+// With an activation the K chunks cannot be summed after the epilogue: a clear error, not a bad dispatch.
+TEST_F(SplitLinearTest, KSplitWithActivationIsAnError) {
   vk::Context& c = ctx();
   Tensor x = random_tensor(c, 2 * 520, DType::f32, 1), w = random_tensor(c, 3 * 520, DType::f32, 2);
   Tensor y = Tensor::empty(c, {2, 3}, DType::f32);
@@ -151,8 +185,10 @@ TEST_F(SplitLinearTest, RowWiderThanBindingIsAnError) {
   s.m = 2;
   s.n = 3;
   s.k = 520;
+  LinearEpilogue ep;
+  ep.activation = Activation::silu;
   try {
-    ops::run_now(c, [&](vk::Recorder& rec) { ops::linear_batched(rec, x, w, y, s); });
+    ops::run_now(c, [&](vk::Recorder& rec) { ops::linear_batched(rec, x, w, y, s, ep); });
     ADD_FAILURE() << "expected an error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("K split"), std::string::npos) << e.what();

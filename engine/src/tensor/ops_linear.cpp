@@ -15,7 +15,7 @@ namespace {
 constexpr const char* kOp = "linear";
 
 struct Push {
-  uint32_t M, N, K, ldx, ldy;
+  uint32_t M, N, K, ldx, ldy, ldw;
   uint32_t x_off, w_off, y_off;
   uint32_t x_bs, w_bs, y_bs;
   uint32_t bias_off, scale_off, shift_off, gate_off, res_off;
@@ -133,9 +133,10 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
 
 namespace {
 
-// One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc).
+// One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc), the
+// products over k in [k0, k0+kc).
 struct Chunk {
-  int64_t b0 = 0, bc = 0, m0 = 0, mc = 0, n0 = 0, nc = 0;
+  int64_t b0 = 0, bc = 0, m0 = 0, mc = 0, n0 = 0, nc = 0, k0 = 0, kc = 0;
 };
 
 // Elements [first, first + count) of t as a tensor (bound later from an aligned-down offset).
@@ -154,12 +155,15 @@ struct Plan {
   int64_t tile_m, tile_n;
   uint32_t max_groups[3];
 
-  bool fits(int64_t bc, int64_t mc, int64_t nc) const {
+  bool vec;  // 8-value K steps: K chunks start on multiples of 8
+
+  bool fits(int64_t bc, int64_t mc, int64_t nc) const { return fits(bc, mc, nc, s.k); }
+  bool fits(int64_t bc, int64_t mc, int64_t nc, int64_t kc) const {
     const uint64_t slack = align + 4;
     auto within = [&](int64_t count, uint64_t es, uint64_t cap) { return uint64_t(count) * es + slack <= cap; };
     const int64_t vec_elems = extent(bc, s.vec_batch_stride, 1, 0, nc);
-    return within(extent(bc, s.x_batch_stride, mc, s.x_row_stride, s.k), 4, x_cap) &&
-           within(extent(bc, s.w_batch_stride, nc, s.k, s.k), w_es, w_cap) &&
+    return within(extent(bc, s.x_batch_stride, mc, s.x_row_stride, kc), 4, x_cap) &&
+           within(extent(bc, s.w_batch_stride, nc, s.k, kc), w_es, w_cap) &&
            within(extent(bc, s.y_batch_stride, mc, s.y_row_stride, nc), 4, storage_cap) &&  // y and residual
            (!ep.bias.defined() || within(nc, dtype_size(ep.bias.dtype()), storage_cap)) &&
            (!(ep.scale.defined() || ep.gate.defined()) || within(vec_elems, 4, storage_cap)) &&
@@ -180,20 +184,27 @@ struct Plan {
 
   // Chunk sizes: everything at once when it fits (the common case: one dispatch); else one batch item at a
   // time, columns only when a weight slice / Y row / the x grid needs it (whole tiles), then rows (whole tiles).
+  // K is split only when one row of X / W does not fit (never at model sizes: K <= 12288 floats, 48 KiB),
+  // and only for epilogues that stay exact as y = (r +) Σ partial sums: no activation, modulation or gate.
   Chunk sizes() const {
-    Chunk c{0, s.batch, 0, s.m, 0, s.n};
+    Chunk c{0, s.batch, 0, s.m, 0, s.n, 0, s.k};
     if (fits(s.batch, s.m, s.n)) return c;
     c.bc = largest(s.batch, [&](int64_t b) { return fits(b, s.m, s.n); });
     if (c.bc > 0) return c;
     c.bc = 1;
-    if (!fits(1, 1, s.n)) {
-      c.nc = largest(s.n, [&](int64_t n) { return fits(1, 1, n); });
-      if (c.nc == 0)
-        fail("one row of x (K = " + std::to_string(s.k) + ") does not fit one binding / texel view of the limits in " +
-             "force; a K split would break the fused epilogue (K at most 12288 in the models: 48 KiB per row)");
+    if (!fits(1, 1, 1)) {
+      if (ep.activation != Activation::none || ep.scale.defined() || ep.gate.defined())
+        fail("one row of x / w (K = " + std::to_string(s.k) + ") does not fit one binding / texel view of the limits " +
+             "in force, and a K split cannot apply an activation, modulation or gate (K at most 12288 in the models)");
+      c.kc = largest(s.k, [&](int64_t k) { return fits(1, 1, 1, k); });
+      if (vec) c.kc = c.kc / 8 * 8;
+      if (c.kc == 0) fail("not even one 8-value K step fits one binding / texel view");
+    }
+    if (!fits(1, 1, s.n, c.kc)) {
+      c.nc = largest(s.n, [&](int64_t n) { return fits(1, 1, n, c.kc); });
       if (c.nc > tile_n) c.nc = c.nc / tile_n * tile_n;
     }
-    c.mc = largest(s.m, [&](int64_t m) { return fits(1, m, c.nc); });
+    c.mc = largest(s.m, [&](int64_t m) { return fits(1, m, c.nc, c.kc); });
     if (c.mc < s.m && c.mc > tile_m) c.mc = c.mc / tile_m * tile_m;
     return c;
   }
@@ -220,6 +231,7 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   Push p{};
   p.K = u32(s.k, "K");
   p.ldx = u32(s.x_row_stride, "x row stride");
+  p.ldw = p.K;
   p.ldy = u32(s.y_row_stride, "y row stride");
   p.x_bs = u32(s.x_batch_stride, "x batch stride");
   p.w_bs = u32(s.w_batch_stride, "w batch stride");
@@ -283,39 +295,48 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
                   dtype_size(w.dtype()),
                   tile_m,
                   tile_n,
-                  {caps.max_workgroup_count[0], caps.max_workgroup_count[1], caps.max_workgroup_count[2]}};
+                  {caps.max_workgroup_count[0], caps.max_workgroup_count[1], caps.max_workgroup_count[2]},
+                  use_vec};
   const Chunk size = plan.sizes();
 
   // Each chunk binds only its own ranges: X rows, W rows (columns of Y), the Y/residual block, the vector
-  // columns; offsets in the shader are relative to those views.
+  // columns; offsets in the shader are relative to those views. K chunks after the first add their partial
+  // products to Y (residual = Y, no bias).
   auto record = [&](const Chunk& c) {
-    const int64_t x0 = c.b0 * s.x_batch_stride + c.m0 * s.x_row_stride, w0 = c.b0 * s.w_batch_stride + c.n0 * s.k;
+    const bool first_k = c.k0 == 0;
+    const int64_t x0 = c.b0 * s.x_batch_stride + c.m0 * s.x_row_stride + c.k0;
+    const int64_t w0 = c.b0 * s.w_batch_stride + c.n0 * s.k + c.k0;
     const int64_t y0 = c.b0 * s.y_batch_stride + c.m0 * s.y_row_stride + c.n0, v0 = c.b0 * s.vec_batch_stride + c.n0;
     const int64_t y_len = extent(c.bc, s.y_batch_stride, c.mc, s.y_row_stride, c.nc);
     const int64_t v_len = extent(c.bc, s.vec_batch_stride, 1, 0, c.nc);
     // K = 0 binds one element (the views must not be empty).
-    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, s.k), 1)),
+    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, c.kc), 1)),
                            align, xt);
-    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(extent(c.bc, s.w_batch_stride, c.nc, s.k, s.k), 1)), align, wt);
+    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(extent(c.bc, s.w_batch_stride, c.nc, s.k, c.kc), 1)), align, wt);
     Bound by = bind_storage(elems(y, y0, y_len), align);
     if ((use_vec && (bx.elem_off % 4 || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
       fail("a chunk's x/w offsets lost their alignment");
     Push q = p;
     q.M = u32(c.mc, "M");
     q.N = u32(c.nc, "N");
+    q.K = u32(c.kc, "K");
     q.x_off = bx.elem_off;
     q.w_off = bw.elem_off;
     q.y_off = by.elem_off;
     // Epilogue operands; absent ones bind x's storage (never read).
     Bound dummy = bind_storage(elems(x, x0, 1), align);
     Bound bbias = dummy, bscale = dummy, bshift = dummy, bgate = dummy, bres = dummy;
-    if (ep.bias.defined()) bbias = bind_storage(elems(ep.bias, c.n0, c.nc), align);
+    if (ep.bias.defined() && first_k) bbias = bind_storage(elems(ep.bias, c.n0, c.nc), align);
     if (ep.scale.defined()) {
       bscale = bind_storage(elems(ep.scale, v0, v_len), align);
       bshift = bind_storage(elems(ep.shift, v0, v_len), align);
     }
     if (ep.gate.defined()) bgate = bind_storage(elems(ep.gate, v0, v_len), align);
-    if (ep.residual.defined()) bres = bind_storage(elems(ep.residual, y0, y_len), align);
+    if (ep.residual.defined() && first_k) bres = bind_storage(elems(ep.residual, y0, y_len), align);
+    if (!first_k) {
+      q.flags = (q.flags & ~(4u | (3u << 6))) | 32u;
+      bres = by;
+    }
     q.bias_off = bbias.elem_off;
     q.scale_off = bscale.elem_off;
     q.shift_off = bshift.elem_off;
@@ -328,7 +349,12 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   };
   for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {
     for_each_chunk(s.n, size.nc, [&](int64_t n0, int64_t nc) {
-      for_each_chunk(s.m, size.mc, [&](int64_t m0, int64_t mc) { record({b0, bc, m0, mc, n0, nc}); });
+      for_each_chunk(s.m, size.mc, [&](int64_t m0, int64_t mc) {
+        // K = 0 still records one dispatch (the epilogue on a zero product).
+        for_each_chunk(std::max<int64_t>(s.k, 1), std::max<int64_t>(size.kc, 1), [&](int64_t k0, int64_t kc) {
+          record({b0, bc, m0, mc, n0, nc, k0, std::min(kc, s.k)});
+        });
+      });
     });
   });
 }
