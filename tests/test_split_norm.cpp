@@ -176,5 +176,18 @@ TEST_F(SplitNormTest, GroupNormPlanesByGrid) {
       "groups=64");
 }
 
+// A row wider than one binding would need split statistics (never at model sizes: rows of at most 16 KiB
+// against bindings of at least 128 MiB): a clear error, not a bad dispatch.
+TEST_F(SplitNormTest, RowWiderThanBindingIsAnError) {
+  Tensor x = random_tensor(ctx(), {2, 300}, DType::f32, 15);
+  test::ScopedLimits l(ctx(), "binding=1KiB");
+  try {
+    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::rmsnorm(rec, x, x, random_tensor(ctx(), {300}, DType::f32, 16)); });
+    ADD_FAILURE() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("does not fit one binding"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace dvs
