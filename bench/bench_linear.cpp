@@ -54,8 +54,11 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
   // linear itself (weight row chunks, Y column slices), as in the models.
   Tensor w = Tensor::upload(ctx, random_host({c.n, c.k}, wdt, 2), "bench w");
   Tensor y = Tensor::empty(ctx, {c.m, c.n}, DType::f32, "bench y");
+  uint32_t calls = 1;  // dispatches of the last recording (more than 1: linear split the weight)
   auto record = [&](vk::Recorder& r, const ops::LinearShape& sh, const ops::LinearKernel& kern) {
+    const uint32_t before = r.dispatch_count();
     ops::linear_batched_with(r, x, w, y, sh, ep, kern);
+    calls = r.dispatch_count() - before;
   };
   ops::LinearShape s;
   s.m = c.m;
@@ -99,7 +102,7 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
   char shape[64], note[200], wrate[64] = "";
   if (c.m == 1)  // GEMV is bound by streaming the weight
     std::snprintf(wrate, sizeof wrate, ", weight read %.2f GB/s", double(w.bytes()) / (ms * 1e6));
-  if (parts > 1) std::snprintf(wrate, sizeof wrate, ", weight split in %lld calls", (long long)parts);
+  if (calls > 1) std::snprintf(wrate, sizeof wrate, ", split in %u dispatches", calls);
   std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
   std::snprintf(note, sizeof note, "%s%s, tile %dx%d lanes %d %s; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second",
                 c.name, wrate, kern.rows, kern.cols, kern.lanes, kern.vectorized ? "vec8" : "scalar", per_cpu,
