@@ -101,6 +101,27 @@ TEST_F(SplitNormTest, LayerNormModulationAcrossBatches) {
   ops::set_row_mapping(ops::RowMapping::automatic);
 }
 
+// Short sequences (7 batches of 3 tokens, text 1): a chunk of 10 rows spans up to 4 batches' table rows.
+TEST_F(SplitNormTest, LayerNormModulationManyBatchesPerChunk) {
+  const int64_t B = 7, L = 3, D = 28, W = 4 * D + 4;
+  check(
+      [&](Op& op) {
+        Tensor x = random_tensor(ctx(), {B, L, D}, DType::f32, 17);
+        Tensor y = Tensor::empty(ctx(), {B, L, D}, DType::f32);
+        ops::Modulation mod;
+        mod.table = random_tensor(ctx(), {B, W}, DType::f32, 18);
+        mod.seq_len = L;
+        mod.split = 1;
+        mod.shift_col[0] = 4 + 3 * D;
+        mod.scale_col[0] = 4 + 2 * D;
+        mod.shift_col[1] = 4 + D;
+        mod.scale_col[1] = 4;
+        op = [=](vk::Recorder& rec) { ops::layernorm(rec, x, y, {}, {}, 1e-5f, &mod); };
+        return y;
+      },
+      "binding=2KiB");
+}
+
 // No modulation, in place, more rows than 64x64 workgroups hold (workgroup per row): split by the grid.
 TEST_F(SplitNormTest, LayerNormRowsByGrid) {
   ops::set_row_mapping(ops::RowMapping::workgroup_per_row);
