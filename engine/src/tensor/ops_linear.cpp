@@ -154,7 +154,6 @@ struct Plan {
   size_t w_es;
   int64_t tile_m, tile_n;
   uint32_t max_groups[3];
-
   bool vec;  // 8-value K steps: K chunks start on multiples of 8
 
   bool fits(int64_t bc, int64_t mc, int64_t nc) const { return fits(bc, mc, nc, s.k); }
