@@ -197,6 +197,25 @@ TEST_F(SplitNormTest, GroupNormPlanesByGrid) {
       "groups=64");
 }
 
+// Planes of 66,001 elements need 65 workgroups of 1024 elements: over 64, each plane's apply pass is split
+// into runs (the second plane's runs start unaligned: element offsets). The statistics must fit one binding
+// here (a group larger than one binding is reduce_segments' own split), so tiny DVS_LIMITS skip this.
+TEST_F(SplitNormTest, GroupNormRunsInsidePlanes) {
+  const Shape shape{1, 2, 66001};
+  if (ctx().caps().max_storage_buffer_range < uint64_t(shape_numel(shape)) * 4)
+    GTEST_SKIP() << "x exceeds one binding under the forced limits";
+  check(
+      [&](Op& op) {
+        Tensor x = random_tensor(ctx(), shape, DType::f32, 19, -2.f);
+        Tensor y = Tensor::empty(ctx(), shape, DType::f32);
+        Tensor g = random_tensor(ctx(), {2}, DType::f32, 20), b = random_tensor(ctx(), {2}, DType::f32, 21);
+        Tensor scratch = Tensor::empty(ctx(), {ops::groupnorm_scratch_elems(shape, 1)}, DType::f32);
+        op = [=](vk::Recorder& rec) { ops::groupnorm(rec, x, y, 1, g, b, 1e-6f, false, scratch); };
+        return y;
+      },
+      "groups=64");
+}
+
 // A row wider than one binding would need split statistics (never at model sizes: rows of at most 16 KiB
 // against bindings of at least 128 MiB): a clear error, not a bad dispatch.
 TEST_F(SplitNormTest, RowWiderThanBindingIsAnError) {
