@@ -222,7 +222,8 @@ TEST_F(SplitNormTest, RowWiderThanBindingIsAnError) {
   Tensor x = random_tensor(ctx(), {2, 300}, DType::f32, 15);
   test::ScopedLimits l(ctx(), "binding=1KiB");
   try {
-    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::rmsnorm(rec, x, x, random_tensor(ctx(), {300}, DType::f32, 16)); });
+    Tensor w = random_tensor(ctx(), {300}, DType::f32, 16);
+    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::rmsnorm(rec, x, x, w); });
     ADD_FAILURE() << "expected an error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("does not fit one binding"), std::string::npos) << e.what();

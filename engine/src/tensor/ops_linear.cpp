@@ -309,9 +309,10 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     const int64_t y_len = extent(c.bc, s.y_batch_stride, c.mc, s.y_row_stride, c.nc);
     const int64_t v_len = extent(c.bc, s.vec_batch_stride, 1, 0, c.nc);
     // K = 0 binds one element (the views must not be empty).
-    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, c.kc), 1)),
-                           align, xt);
-    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(extent(c.bc, s.w_batch_stride, c.nc, s.k, c.kc), 1)), align, wt);
+    const int64_t x_len = extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, c.kc);
+    const int64_t w_len = extent(c.bc, s.w_batch_stride, c.nc, s.k, c.kc);
+    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(x_len, 1)), align, xt);
+    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(w_len, 1)), align, wt);
     Bound by = bind_storage(elems(y, y0, y_len), align);
     if ((use_vec && (bx.elem_off % 4 || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
       fail("a chunk's x/w offsets lost their alignment");

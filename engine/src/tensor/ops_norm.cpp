@@ -212,7 +212,8 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
     p.rows = uint32_t(rc);
     p.col_offset = uint32_t(col_offset) + xr.off;  // the view's offset folds into the column offset
     Grid g = grid_1d(caps, rc * heads, 64);
-    rec.dispatch(pipe, {xv, row_view(caps, y, stride, r0, rc).view, wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
+    rec.dispatch(pipe, {xv, row_view(caps, y, stride, r0, rc).view, wv, bv}, &p, sizeof p, g.x, g.y, 1,
+                 "head_layernorm");
   });
 }
 
@@ -287,7 +288,8 @@ void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t grou
   if (!stats_fit && granule * group_bytes <= cap && granule <= std::min(max_gx, max_gy)) {
     gchunk = rows_per_chunk(caps, op, {RowOperand{group_bytes, 0}}, n_groups);
     gchunk = std::min<int64_t>(gchunk, int64_t(std::min(max_gx, max_gy) / granule * granule));
-    while (gchunk > int64_t(granule) && reduce_scratch_elems(gchunk, group_len) > part_elems) gchunk -= int64_t(granule);
+    while (gchunk > int64_t(granule) && reduce_scratch_elems(gchunk, group_len) > part_elems)
+      gchunk -= int64_t(granule);
   }
   for_each_chunk(n_groups, gchunk, [&](int64_t g0, int64_t gc) {
     const Tensor xs = gc == n_groups ? x
