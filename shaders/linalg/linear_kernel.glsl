@@ -48,7 +48,7 @@ layout(std430, binding = 6) readonly buffer Gate { float gate[]; };
 layout(std430, binding = 7) readonly buffer Res { float res[]; };
 
 layout(push_constant) uniform Push {
-  uint M, N, K, ldx, ldy;
+  uint M, N, K, ldx, ldy, ldw;  // ldw: W row stride (the whole K; K is a chunk of it when K is split)
   uint x_off, w_off, y_off;      // element offsets in the bound views
   uint x_bs, w_bs, y_bs;         // batch strides in elements (w_bs 0: shared weight)
   uint bias_off, scale_off, shift_off, gate_off, res_off;
@@ -143,7 +143,7 @@ void main() {
     uint m = DIRECT ? m0 + g : m0 + 8 * g + lane;
     xe[g] = p.x_off + b * p.x_bs + min(m, M - 1u) * p.ldx;
   }
-  [[unroll]] for (int c = 0; c < COLS; ++c) we[c] = p.w_off + b * p.w_bs + min(n0 + 8 * c + lane, N - 1u) * K;
+  [[unroll]] for (int c = 0; c < COLS; ++c) we[c] = p.w_off + b * p.w_bs + min(n0 + 8 * c + lane, N - 1u) * p.ldw;
 
   float acc[ROWS][COLS];
   [[unroll]] for (int r = 0; r < ROWS; ++r)

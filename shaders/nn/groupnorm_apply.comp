@@ -19,7 +19,10 @@ layout(std430, binding = 3) readonly buffer Bb { uint b[]; };
 layout(std430, binding = 4) readonly buffer Mean { float mean[]; };
 layout(std430, binding = 5) readonly buffer Var { float var[]; };
 
-layout(push_constant) uniform Push { uint C, S, channels_per_group; float eps; } p;
+// A dispatch covers planes [plane0, plane0 + gl_NumWorkGroups.y), a run of len elements of each (the host
+// splits x into binding-sized chunks: whole planes, or one plane's elements in runs); the bound views start
+// x_off elements before the chunk's first element (aligned-down binding offset).
+layout(push_constant) uniform Push { uint C, S, channels_per_group; float eps; uint plane0, x_off, len; } p;
 
 float unpack_weight(uint word, uint i) {
   if (WDTYPE == 0) return uintBitsToFloat(word);
@@ -31,7 +34,7 @@ float load_w(uint i) { return unpack_weight(w[WDTYPE == 0 ? i : i >> 1], i); }
 float load_b(uint i) { return unpack_weight(b[WDTYPE == 0 ? i : i >> 1], i); }
 
 void main() {
-  uint plane = gl_WorkGroupID.y;
+  uint local_plane = gl_WorkGroupID.y, plane = p.plane0 + local_plane;
   uint batch = plane / p.C, c = plane - batch * p.C;
   uint g = batch * (p.C / p.channels_per_group) + c / p.channels_per_group;
   float rstd = inversesqrt(var[g] + p.eps);
@@ -44,8 +47,9 @@ void main() {
   // Each invocation takes ITEMS consecutive units (vec4s with VEC4): contiguous per invocation is what CPU
   // drivers load fastest, and GPUs still see each workgroup cover one contiguous range.
   uint first = gl_WorkGroupID.x * (LOCAL * ITEMS) + gl_LocalInvocationID.x * ITEMS;
-  if (VEC4) {
-    uint base4 = (plane * p.S) >> 2, n4 = p.S >> 2;
+  uint base = p.x_off + local_plane * p.S;  // view element of the chunk's first element in this plane
+  if (VEC4) {  // S, the chunk start and x_off are multiples of 4
+    uint base4 = base >> 2, n4 = p.len >> 2;
     uint end = min(first + ITEMS, n4);
     for (uint i = first; i < end; ++i) {
       vec4 v = (x4[base4 + i] - mu) * k + m;
@@ -54,8 +58,7 @@ void main() {
     }
     return;
   }
-  uint base = plane * p.S;
-  uint end = min(first + ITEMS, p.S);
+  uint end = min(first + ITEMS, p.len);
   for (uint i = first; i < end; ++i) {
     uint e = base + i;
     float v = (x4[e >> 2][e & 3u] - mu) * k + m;

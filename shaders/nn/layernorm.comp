@@ -37,6 +37,10 @@ layout(push_constant) uniform Push {
   float eps;
   uint L, split, table_stride;
   uint shift0, scale0, shift1, scale1;  // column offsets into a table row
+  // Row chunks (one dispatch per binding-sized range of rows): row 0 of the bound x/y is row row0 of the
+  // whole tensor, x_off elements into the views (aligned-down binding offset); the bound table starts at
+  // table row table_row0, table_off elements into its view.
+  uint row0, table_row0, table_off, x_off;
 } p;
 
 // Weight element i, and weight elements 4j..4j+3, from packed storage.
@@ -89,10 +93,11 @@ void modulation_offsets(uint row, out uint scale_at, out uint shift_at) {
   scale_at = 0;
   shift_at = 0;
   if (MODULATE) {
-    uint batch = row / p.L, token = row - batch * p.L;
+    uint global = p.row0 + row, batch = global / p.L, token = global - batch * p.L;
     bool first_set = token < p.split;
-    scale_at = batch * p.table_stride + (first_set ? p.scale0 : p.scale1);
-    shift_at = batch * p.table_stride + (first_set ? p.shift0 : p.shift1);
+    uint at = p.table_off + (batch - p.table_row0) * p.table_stride;
+    scale_at = at + (first_set ? p.scale0 : p.scale1);
+    shift_at = at + (first_set ? p.shift0 : p.shift1);
   }
 }
 
@@ -107,7 +112,7 @@ void kahan_add(inout vec4 sum, inout vec4 comp, vec4 v) {
 float hsum(vec4 v) { return (v.x + v.y) + (v.z + v.w); }
 
 void row_per_invocation(uint row) {
-  uint base = row * p.D, scale_at, shift_at;
+  uint base = p.x_off + row * p.D, scale_at, shift_at;
   modulation_offsets(row, scale_at, shift_at);
   vec4 s = vec4(0.0), c = vec4(0.0);
   if (VEC4) {
@@ -150,7 +155,7 @@ void main() {
   uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (row >= p.rows) return;  // uniform per workgroup
   uint t = gl_LocalInvocationID.x;
-  uint base = row * p.D;
+  uint base = p.x_off + row * p.D;
 
   uint scale_at, shift_at;
   modulation_offsets(row, scale_at, shift_at);

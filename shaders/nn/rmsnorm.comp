@@ -17,7 +17,8 @@ layout(std430, binding = 0) readonly buffer X { vec4 x4[]; };
 layout(std430, binding = 1) writeonly buffer Y { vec4 y4[]; };
 layout(std430, binding = 2) readonly buffer W { uvec4 w4[]; };
 
-layout(push_constant) uniform Push { uint rows, D; float eps; } p;
+// x_off: element offset of row 0 in the bound views (row chunks are bound from aligned-down offsets).
+layout(push_constant) uniform Push { uint rows, D; float eps; uint x_off; } p;
 
 float half_bits_to_float(uint h) { return WDTYPE == 1 ? uintBitsToFloat(h << 16) : unpackHalf2x16(h).x; }
 float load_w1(uint i) {
@@ -59,7 +60,7 @@ void kahan_add(inout vec4 sum, inout vec4 comp, vec4 v) {
 }
 
 void row_per_invocation(uint row) {
-  uint base = row * p.D;
+  uint base = p.x_off + row * p.D;
   vec4 s = vec4(0.0), c = vec4(0.0);
   if (VEC4) {
     uint n4 = p.D >> 2, base4 = base >> 2;
@@ -85,7 +86,7 @@ void main() {
   uint row = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (row >= p.rows) return;  // uniform per workgroup
   uint t = gl_LocalInvocationID.x;
-  uint base = row * p.D;
+  uint base = p.x_off + row * p.D;
 
   if (VEC4) {
     uint n4 = p.D >> 2, base4 = base >> 2;

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
@@ -14,7 +15,7 @@ namespace {
 constexpr const char* kOp = "linear";
 
 struct Push {
-  uint32_t M, N, K, ldx, ldy;
+  uint32_t M, N, K, ldx, ldy, ldw;
   uint32_t x_off, w_off, y_off;
   uint32_t x_bs, w_bs, y_bs;
   uint32_t bias_off, scale_off, shift_off, gate_off, res_off;
@@ -130,6 +131,86 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   return k;
 }
 
+namespace {
+
+// One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc), the
+// products over k in [k0, k0+kc).
+struct Chunk {
+  int64_t b0 = 0, bc = 0, m0 = 0, mc = 0, n0 = 0, nc = 0, k0 = 0, kc = 0;
+};
+
+// Elements [first, first + count) of t as a tensor (bound later from an aligned-down offset).
+Tensor elems(const Tensor& t, int64_t first, int64_t count) {
+  const VkDeviceSize es = dtype_size(t.dtype());
+  return Tensor::on(t.buffer().sub(VkDeviceSize(first) * es, VkDeviceSize(count) * es), {count}, t.dtype());
+}
+
+// What a call binds, and the limits it must stay within; a chunk fits when every view it binds (counted with
+// the worst alignment slack) and its grid do.
+struct Plan {
+  const LinearShape& s;
+  const LinearEpilogue& ep;
+  uint64_t align, x_cap, w_cap, storage_cap;  // bytes
+  size_t w_es;
+  int64_t tile_m, tile_n;
+  uint32_t max_groups[3];
+  bool vec;  // 8-value K steps: K chunks start on multiples of 8
+
+  bool fits(int64_t bc, int64_t mc, int64_t nc) const { return fits(bc, mc, nc, s.k); }
+  bool fits(int64_t bc, int64_t mc, int64_t nc, int64_t kc) const {
+    const uint64_t slack = align + 4;
+    auto within = [&](int64_t count, uint64_t es, uint64_t cap) { return uint64_t(count) * es + slack <= cap; };
+    const int64_t vec_elems = extent(bc, s.vec_batch_stride, 1, 0, nc);
+    return within(extent(bc, s.x_batch_stride, mc, s.x_row_stride, kc), 4, x_cap) &&
+           within(extent(bc, s.w_batch_stride, nc, s.k, kc), w_es, w_cap) &&
+           within(extent(bc, s.y_batch_stride, mc, s.y_row_stride, nc), 4, storage_cap) &&  // y and residual
+           (!ep.bias.defined() || within(nc, dtype_size(ep.bias.dtype()), storage_cap)) &&
+           (!(ep.scale.defined() || ep.gate.defined()) || within(vec_elems, 4, storage_cap)) &&
+           div_up(nc, tile_n) <= max_groups[0] && div_up(mc, tile_m) <= max_groups[1] &&
+           uint64_t(bc) <= max_groups[2];
+  }
+
+  // Largest v in [1, hi] with ok(v) (ok monotone: true up to some v), 0 when not even 1.
+  template <class F>
+  static int64_t largest(int64_t hi, F&& ok) {
+    int64_t lo = 0;
+    while (lo < hi) {
+      int64_t mid = lo + (hi - lo + 1) / 2;
+      if (ok(mid)) lo = mid; else hi = mid - 1;
+    }
+    return lo;
+  }
+
+  // Chunk sizes: everything at once when it fits (the common case: one dispatch); else one batch item at a
+  // time, columns only when a weight slice / Y row / the x grid needs it (whole tiles), then rows (whole tiles).
+  // K is split only when one row of X / W does not fit (never at model sizes: K <= 12288 floats, 48 KiB),
+  // and only for epilogues that stay exact as y = (r +) Σ partial sums: no activation, modulation or gate.
+  Chunk sizes() const {
+    Chunk c{0, s.batch, 0, s.m, 0, s.n, 0, s.k};
+    if (fits(s.batch, s.m, s.n)) return c;
+    c.bc = largest(s.batch, [&](int64_t b) { return fits(b, s.m, s.n); });
+    if (c.bc > 0) return c;
+    c.bc = 1;
+    if (!fits(1, 1, 1)) {
+      if (ep.activation != Activation::none || ep.scale.defined() || ep.gate.defined())
+        fail("one row of x / w (K = " + std::to_string(s.k) + ") does not fit one binding / texel view of the limits " +
+             "in force, and a K split cannot apply an activation, modulation or gate (K at most 12288 in the models)");
+      c.kc = largest(s.k, [&](int64_t k) { return fits(1, 1, 1, k); });
+      if (vec) c.kc = c.kc / 8 * 8;
+      if (c.kc == 0) fail("not even one 8-value K step fits one binding / texel view");
+    }
+    if (!fits(1, 1, s.n, c.kc)) {
+      c.nc = largest(s.n, [&](int64_t n) { return fits(1, 1, n, c.kc); });
+      if (c.nc > tile_n) c.nc = c.nc / tile_n * tile_n;
+    }
+    c.mc = largest(s.m, [&](int64_t m) { return fits(1, m, c.nc, c.kc); });
+    if (c.mc < s.m && c.mc > tile_m) c.mc = c.mc / tile_m * tile_m;
+    return c;
+  }
+};
+
+}  // namespace
+
 void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape_in,
                          const LinearEpilogue& ep, LinearKernel kernel) {
   const LinearShape s = normalized(shape_in);
@@ -144,12 +225,12 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   expect_fits("y", y, extent(s.batch, s.y_batch_stride, s.m, s.y_row_stride, s.n));
 
   vk::Context& ctx = rec.context();
-  const VkDeviceSize align = ctx.allocator().alignment();
+  const vk::DeviceCaps& caps = ctx.caps();
+  const VkDeviceSize align = std::max<VkDeviceSize>(ctx.allocator().alignment(), binding_alignment(caps));
   Push p{};
-  p.M = u32(s.m, "M");
-  p.N = u32(s.n, "N");
   p.K = u32(s.k, "K");
   p.ldx = u32(s.x_row_stride, "x row stride");
+  p.ldw = p.K;
   p.ldy = u32(s.y_row_stride, "y row stride");
   p.x_bs = u32(s.x_batch_stride, "x batch stride");
   p.w_bs = u32(s.w_batch_stride, "w batch stride");
@@ -158,37 +239,22 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   p.flags = uint32_t(ep.activation);
 
   // K = 0: the product is zero, the epilogue still applies; a one-element zero view keeps bindings valid.
+  // The 8-value path also needs the X/W offsets on 4/8-element boundaries: every chunk's offset keeps the
+  // whole tensor's residue (chunk starts move by multiples of 8 elements), so the choice holds per chunk.
   const bool vec = kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
                    s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
-  Bound bx = bind_texels(x, align, vec ? 16 : 4);
-  Bound bw = bind_texels(w, align, vec ? 16 : dtype_size(w.dtype()));
-  Bound by = bind_storage(y, align);
-  p.x_off = bx.elem_off;
-  p.w_off = bw.elem_off;
-  p.y_off = by.elem_off;
-  bool use_vec = vec && p.x_off % 4 == 0 && p.w_off % 8 == 0;
-  if (!use_vec && vec) {  // offsets forced the scalar path: rebind with scalar texels
-    bx = bind_texels(x, align, 4);
-    bw = bind_texels(w, align, dtype_size(w.dtype()));
-  }
+  const bool use_vec = vec && bind_aligned(x, align).elem_off % 4 == 0 && bind_aligned(w, align).elem_off % 8 == 0;
   const VkFormat x_fmt = use_vec ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
   const VkFormat w_fmt = use_vec ? VK_FORMAT_R32G32B32A32_UINT
                                  : (w.dtype() == DType::f32 ? VK_FORMAT_R32_UINT : VK_FORMAT_R16_UINT);
-  const uint64_t max_texels = ctx.caps().max_texel_buffer_elements;
-  const VkDeviceSize xt = use_vec ? 16 : 4, wt = use_vec ? 16 : dtype_size(w.dtype());
-  if (max_texels && (bx.view.size / xt > max_texels || bw.view.size / wt > max_texels))
-    fail("x or w exceeds the device's maxTexelBufferElements; split the call");
+  const uint32_t xt = use_vec ? 16 : 4, wt = use_vec ? 16 : uint32_t(dtype_size(w.dtype()));
 
-  // Epilogue operands; absent ones bind x's storage (never read).
-  Bound dummy = bind_storage(x, align);
-  Bound bbias = dummy, bscale = dummy, bshift = dummy, bgate = dummy, bres = dummy;
   const int64_t vec_extent = extent(s.batch, s.vec_batch_stride, 1, 0, s.n);
+  uint32_t bias_code = 0;
   if (ep.bias.defined()) {
-    uint32_t code = dtype_code(ep.bias.dtype(), "bias");
+    bias_code = dtype_code(ep.bias.dtype(), "bias");
     expect_fits("bias", ep.bias, s.n);
-    bbias = bind_storage(ep.bias, align);
-    p.bias_off = bbias.elem_off;
-    p.flags |= 4u | (code << 6);
+    p.flags |= 4u | (bias_code << 6);
   }
   if (ep.scale.defined() != ep.shift.defined()) fail("modulation needs both scale and shift");
   if (ep.scale.defined()) {
@@ -196,24 +262,16 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     expect_f32("shift", ep.shift);
     expect_fits("scale", ep.scale, vec_extent);
     expect_fits("shift", ep.shift, vec_extent);
-    bscale = bind_storage(ep.scale, align);
-    bshift = bind_storage(ep.shift, align);
-    p.scale_off = bscale.elem_off;
-    p.shift_off = bshift.elem_off;
     p.flags |= 8u;
   }
   if (ep.gate.defined()) {
     expect_f32("gate", ep.gate);
     expect_fits("gate", ep.gate, vec_extent);
-    bgate = bind_storage(ep.gate, align);
-    p.gate_off = bgate.elem_off;
     p.flags |= 16u;
   }
   if (ep.residual.defined()) {
     expect_f32("residual", ep.residual);
     expect_fits("residual", ep.residual, extent(s.batch, s.y_batch_stride, s.m, s.y_row_stride, s.n));
-    bres = bind_storage(ep.residual, align);
-    p.res_off = bres.elem_off;
     p.flags |= 32u;
   }
 
@@ -226,12 +284,79 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
                            uint32_t(sg_m)};
   const vk::Pipeline& pipe = ctx.pipelines().get(kernel.lanes == 2 ? "linalg/linear_nosubgroup" : "linalg/linear", spec);
   const int64_t tile_m = int64_t(sg_m) * rows, tile_n = int64_t(8 / sg_m) * 8 * cols;
-  const uint32_t gx = div_up(s.n, tile_n), gy = div_up(s.m, tile_m), gz = u32(s.batch, "batch");
-  if (gy > 65535 || gz > 65535) fail("too many rows or batch items for one dispatch; split the call");
-  rec.dispatch(pipe,
-               {vk::Binding(bx.view, x_fmt), vk::Binding(bw.view, w_fmt), by.view, bbias.view, bscale.view,
-                bshift.view, bgate.view, bres.view},
-               &p, sizeof p, gx, gy, gz, "linear");
+
+  const Plan plan{s,
+                  ep,
+                  align,
+                  binding_capacity(caps, xt),
+                  binding_capacity(caps, wt),
+                  binding_capacity(caps, 0),
+                  dtype_size(w.dtype()),
+                  tile_m,
+                  tile_n,
+                  {caps.max_workgroup_count[0], caps.max_workgroup_count[1], caps.max_workgroup_count[2]},
+                  use_vec};
+  const Chunk size = plan.sizes();
+
+  // Each chunk binds only its own ranges: X rows, W rows (columns of Y), the Y/residual block, the vector
+  // columns; offsets in the shader are relative to those views. K chunks after the first add their partial
+  // products to Y (residual = Y, no bias).
+  auto record = [&](const Chunk& c) {
+    const bool first_k = c.k0 == 0;
+    const int64_t x0 = c.b0 * s.x_batch_stride + c.m0 * s.x_row_stride + c.k0;
+    const int64_t w0 = c.b0 * s.w_batch_stride + c.n0 * s.k + c.k0;
+    const int64_t y0 = c.b0 * s.y_batch_stride + c.m0 * s.y_row_stride + c.n0, v0 = c.b0 * s.vec_batch_stride + c.n0;
+    const int64_t y_len = extent(c.bc, s.y_batch_stride, c.mc, s.y_row_stride, c.nc);
+    const int64_t v_len = extent(c.bc, s.vec_batch_stride, 1, 0, c.nc);
+    // K = 0 binds one element (the views must not be empty).
+    const int64_t x_len = extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, c.kc);
+    const int64_t w_len = extent(c.bc, s.w_batch_stride, c.nc, s.k, c.kc);
+    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(x_len, 1)), align, xt);
+    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(w_len, 1)), align, wt);
+    Bound by = bind_storage(elems(y, y0, y_len), align);
+    if ((use_vec && (bx.elem_off % 4 || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
+      fail("a chunk's x/w offsets lost their alignment");
+    Push q = p;
+    q.M = u32(c.mc, "M");
+    q.N = u32(c.nc, "N");
+    q.K = u32(c.kc, "K");
+    q.x_off = bx.elem_off;
+    q.w_off = bw.elem_off;
+    q.y_off = by.elem_off;
+    // Epilogue operands; absent ones bind x's storage (never read).
+    Bound dummy = bind_storage(elems(x, x0, 1), align);
+    Bound bbias = dummy, bscale = dummy, bshift = dummy, bgate = dummy, bres = dummy;
+    if (ep.bias.defined() && first_k) bbias = bind_storage(elems(ep.bias, c.n0, c.nc), align);
+    if (ep.scale.defined()) {
+      bscale = bind_storage(elems(ep.scale, v0, v_len), align);
+      bshift = bind_storage(elems(ep.shift, v0, v_len), align);
+    }
+    if (ep.gate.defined()) bgate = bind_storage(elems(ep.gate, v0, v_len), align);
+    if (ep.residual.defined() && first_k) bres = bind_storage(elems(ep.residual, y0, y_len), align);
+    if (!first_k) {
+      q.flags = (q.flags & ~(4u | (3u << 6))) | 32u;
+      bres = by;
+    }
+    q.bias_off = bbias.elem_off;
+    q.scale_off = bscale.elem_off;
+    q.shift_off = bshift.elem_off;
+    q.gate_off = bgate.elem_off;
+    q.res_off = bres.elem_off;
+    rec.dispatch(pipe,
+                 {vk::Binding(bx.view, x_fmt), vk::Binding(bw.view, w_fmt), by.view, bbias.view, bscale.view,
+                  bshift.view, bgate.view, bres.view},
+                 &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"), "linear");
+  };
+  for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {
+    for_each_chunk(s.n, size.nc, [&](int64_t n0, int64_t nc) {
+      for_each_chunk(s.m, size.mc, [&](int64_t m0, int64_t mc) {
+        // K = 0 still records one dispatch (the epilogue on a zero product).
+        for_each_chunk(std::max<int64_t>(s.k, 1), std::max<int64_t>(size.kc, 1), [&](int64_t k0, int64_t kc) {
+          record({b0, bc, m0, mc, n0, nc, k0, std::min(kc, s.k)});
+        });
+      });
+    });
+  });
 }
 
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,

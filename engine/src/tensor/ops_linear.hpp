@@ -49,6 +49,10 @@ void linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y
 
 // Batched / strided form. Tensors are taken as flat element ranges; the shape says how to walk them
 // (every element addressed must lie inside its tensor, checked).
+// Operands larger than one binding / texel view, or grids over maxComputeWorkGroupCount, are split: batch
+// items, then weight rows (Y column slices) when W or a Y row does not fit, then rows of X/Y/residual; each
+// chunk is one dispatch of the same kernel (bitwise the unsplit result). K is split (partial sums added
+// into Y) only when one row of X/W exceeds a binding and the epilogue has no activation, modulation or gate.
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
                     const LinearEpilogue& ep = {});
 

@@ -1,8 +1,10 @@
 #include "tensor/ops_norm.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <string>
 
+#include "tensor/binding_split.hpp"
 #include "tensor/ops_reduce.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
@@ -73,6 +75,32 @@ void check_rows(const char* op, const Tensor& x, const Tensor& y) {
 // (the largest minStorageBufferOffsetAlignment Vulkan allows).
 int64_t stats_span(int64_t n) { return (n + 63) / 64 * 64; }
 
+// Rows per dispatch of a row-wise op whose x and y rows are `row_bytes` each: all of them when they fit one
+// binding, else as many as fit with the alignment slack of a chunk bound from an aligned-down offset; never
+// more than `max_rows` (the grid, or what else the op binds per row range). A row wider than a binding would
+// need split statistics: at real sizes rows are at most 16 KiB (T5, 4096 wide) against at least 128 MiB.
+int64_t row_chunk(const vk::DeviceCaps& caps, const char* op, uint64_t row_bytes, int64_t rows, int64_t max_rows) {
+  const uint64_t cap = binding_capacity(caps, 0);
+  if (uint64_t(rows) * row_bytes <= cap && rows <= max_rows) return rows;
+  const int64_t chunk = std::min<int64_t>(int64_t((cap - binding_alignment(caps)) / row_bytes), max_rows);
+  if (chunk < 1)
+    throw Error(std::string("internal: ") + op + ": a row of " + std::to_string(row_bytes) +
+                " bytes does not fit one binding of " + std::to_string(cap) +
+                " bytes with its alignment slack (or the grid / modulation table allow no row)");
+  return chunk;
+}
+
+// Rows [first, first + count) of a row-major [rows, row_elems] f32 tensor as one binding's view, from an
+// aligned-down offset: row `first` starts `off` elements into the view.
+struct RowView {
+  vk::BufferView view;
+  uint32_t off = 0;
+};
+RowView row_view(const vk::DeviceCaps& caps, const Tensor& t, int64_t row_elems, int64_t first, int64_t count) {
+  const uint64_t start = uint64_t(first * row_elems) * 4, delta = start % binding_alignment(caps);
+  return {vec4_view(t.buffer().sub(start - delta, uint64_t(count * row_elems) * 4 + delta)), uint32_t(delta / 4)};
+}
+
 }  // namespace
 
 void set_row_mapping(RowMapping mapping) { g_row_mapping = mapping; }
@@ -86,8 +114,12 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   struct {
     uint32_t rows, D;
     float eps;
-    uint32_t L, split, table_stride, shift0, scale0, shift1, scale1;
-  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0};
+    uint32_t L, split, table_stride;
+    uint32_t shift0, scale0, shift1, scale1;  // column offsets into a table row
+    uint32_t row0, table_row0, table_off;     // chunk: first row, first table row bound, its element offset
+    uint32_t x_off;                           // chunk: element offset of its first row in the x/y views
+  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  int64_t W = 0;
   if (mod) {
     expect_dtype(op, "modulation table", mod->table, DType::f32);
     if (mod->table.rank() != 2 || mod->seq_len < 1 || rows % mod->seq_len != 0 ||
@@ -95,7 +127,7 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
       throw Error("internal: layernorm: modulation table " + mod->table.describe() + " / seq_len " +
                   std::to_string(mod->seq_len) + " / split " + std::to_string(mod->split) + " do not fit " +
                   x.describe());
-    const int64_t W = mod->table.dim(1);
+    W = mod->table.dim(1);
     for (int s = 0; s < 2; ++s)
       if (mod->shift_col[s] < 0 || mod->scale_col[s] < 0 || mod->shift_col[s] + D > W || mod->scale_col[s] + D > W)
         throw Error("internal: layernorm: modulation columns outside the table " + mod->table.describe());
@@ -117,11 +149,40 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   uint32_t spec[] = {local,          code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u,
                      vec4 ? 1u : 0u, cache,                          per_invocation ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/layernorm", spec);
-  // Unused bindings get a harmless read-only view (x).
-  vk::BufferView xv = vec4_view(x), wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
-  vk::BufferView mv = mod ? vec4_view(mod->table) : xv;
-  Grid g = grid_1d(rows, per_invocation ? 64 : 1);
-  rec.dispatch(pipe, {xv, vec4_view(y), wv, bv, mv}, &p, sizeof p, g.x, g.y, 1, "layernorm");
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint32_t rows_per_group = per_invocation ? 64 : 1;
+  int64_t max_rows = int64_t(max_groups_1d(caps)) * rows_per_group;
+  int64_t col_lo = 0, col_hi = 0;  // table columns a row may read
+  if (mod) {
+    // A chunk of r rows touches at most 1 + ceil((r-1)/L) table rows; bound r so that their slice fits.
+    col_lo = std::min({p.shift0, p.scale0, p.shift1, p.scale1});
+    col_hi = std::max({p.shift0, p.scale0, p.shift1, p.scale1}) + D;
+    const int64_t room = int64_t((binding_capacity(caps, 0) - binding_alignment(caps)) / 4) - (col_hi - col_lo);
+    if (room < 0) throw Error("internal: layernorm: one modulation table row's slice exceeds a binding");
+    max_rows = std::min(max_rows, (room / W) * mod->seq_len + 1);
+  }
+  const int64_t chunk = row_chunk(caps, op, uint64_t(D) * 4, rows, max_rows);
+  // Unused bindings get a harmless read-only view (x's chunk).
+  vk::BufferView wv = code >= 0 ? vec4_view(weight) : vk::BufferView{}, bv = code >= 0 ? vec4_view(bias) : wv;
+  for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
+    const RowView xr = row_view(caps, x, D, r0, rc);
+    vk::BufferView xv = xr.view, mv = xv;
+    p.rows = uint32_t(rc);
+    p.row0 = uint32_t(r0);
+    p.x_off = xr.off;
+    if (mod) {
+      // The table rows of the batches this chunk touches (a chunk may start inside a batch), bound from an
+      // aligned-down offset: the shader adds table_off elements.
+      const int64_t t0 = r0 / mod->seq_len, t1 = (r0 + rc - 1) / mod->seq_len;
+      const uint64_t first = uint64_t(t0 * W + col_lo) * 4, delta = first % binding_alignment(caps);
+      mv = vec4_view(mod->table.buffer().sub(first - delta, uint64_t((t1 - t0) * W + col_hi - col_lo) * 4 + delta));
+      p.table_row0 = uint32_t(t0);
+      p.table_off = uint32_t(delta / 4) - uint32_t(col_lo);  // wraps; the shader adds the columns back
+    }
+    Grid g = grid_1d(caps, rc, rows_per_group);
+    rec.dispatch(pipe, {xv, row_view(caps, y, D, r0, rc).view, code >= 0 ? wv : xv, code >= 0 ? bv : xv, mv}, &p,
+                 sizeof p, g.x, g.y, 1, "layernorm");
+  });
 }
 
 void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads, int64_t head_dim,
@@ -142,9 +203,18 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
   uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, vec4 ? 1u : 0u,
                      vec4 ? uint32_t(head_dim / 4) : 1u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/headnorm", spec);
-  vk::BufferView xv = vec4_view(x), wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
-  Grid g = grid_1d(rows * heads, 64);
-  rec.dispatch(pipe, {xv, vec4_view(y), wv, bv}, &p, sizeof p, g.x, g.y, 1, "head_layernorm");
+  // Row chunks of the whole fused rows; one invocation per (row, head).
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const int64_t chunk = row_chunk(caps, op, uint64_t(stride) * 4, rows, int64_t(max_groups_1d(caps)) * 64 / heads);
+  for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
+    const RowView xr = row_view(caps, x, stride, r0, rc);
+    vk::BufferView xv = xr.view, wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
+    p.rows = uint32_t(rc);
+    p.col_offset = uint32_t(col_offset) + xr.off;  // the view's offset folds into the column offset
+    Grid g = grid_1d(caps, rc * heads, 64);
+    rec.dispatch(pipe, {xv, row_view(caps, y, stride, r0, rc).view, wv, bv}, &p, sizeof p, g.x, g.y, 1,
+                 "head_layernorm");
+  });
 }
 
 void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, float eps) {
@@ -155,7 +225,8 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   struct {
     uint32_t rows, D;
     float eps;
-  } p{uint32_t(rows), uint32_t(D), eps};
+    uint32_t x_off;  // chunk: element offset of its first row in the x/y views
+  } p{uint32_t(rows), uint32_t(D), eps, 0};
   const bool vec4 = D % 4 == 0;
   const int64_t n4 = vec4 ? D / 4 : D;
   const bool per_invocation = row_per_invocation(rec);
@@ -163,9 +234,18 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   const uint32_t cache =
       vec4 && !per_invocation ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
   uint32_t spec[] = {local, code, vec4 ? 1u : 0u, cache, per_invocation ? 1u : 0u};
-  Grid g = grid_1d(rows, per_invocation ? 64 : 1);
-  rec.dispatch(rec.context().pipelines().get("nn/rmsnorm", spec), {vec4_view(x), vec4_view(y), vec4_view(weight)}, &p,
-               sizeof p, g.x, g.y, 1, "rmsnorm");
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/rmsnorm", spec);
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint32_t rows_per_group = per_invocation ? 64 : 1;
+  const int64_t chunk = row_chunk(caps, op, uint64_t(D) * 4, rows, int64_t(max_groups_1d(caps)) * rows_per_group);
+  for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
+    const RowView xr = row_view(caps, x, D, r0, rc);
+    p.rows = uint32_t(rc);
+    p.x_off = xr.off;
+    Grid g = grid_1d(caps, rc, rows_per_group);
+    rec.dispatch(pipe, {xr.view, row_view(caps, y, D, r0, rc).view, vec4_view(weight)}, &p, sizeof p, g.x, g.y, 1,
+                 "rmsnorm");
+  });
 }
 
 int64_t groupnorm_scratch_elems(const Shape& s, int64_t groups) {
@@ -183,7 +263,6 @@ void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t grou
   if (groups < 1 || C % groups != 0)
     throw Error("internal: groupnorm: " + std::to_string(C) + " channels do not split into " + std::to_string(groups) +
                 " groups");
-  if (B * C > 65535) throw Error("internal: groupnorm: more than 65535 (batch, channel) planes");
   int code = affine_code(op, gamma, beta, C);
   expect_dtype(op, "scratch", scratch, DType::f32);
   const int64_t need = groupnorm_scratch_elems(x.shape(), groups);
@@ -196,21 +275,69 @@ void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t grou
   Tensor var = Tensor::on(scratch.buffer().sub(span * 4, n_groups * 4), {n_groups}, DType::f32);
   const int64_t part_elems = need - 2 * span;
   Tensor parts = Tensor::on(scratch.buffer().sub(2 * span * 4, part_elems * 4), {part_elems}, DType::f32);
-  reduce_segments(rec, x, {n_groups, group_len, group_len, group_len, 0}, ReduceMode::mean_var, mean, var, parts);
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t cap = binding_capacity(caps, 0), align = binding_alignment(caps);
+  const uint64_t max_gy = caps.max_workgroup_count[1], max_gx = caps.max_workgroup_count[0];
 
+  // Statistics: groups are contiguous runs of group_len elements; chunks of whole groups (aligned starts),
+  // each reduced by the same two-level partials + Chan merge into its slots of mean/var. A group larger than
+  // one binding is left to reduce_segments' own splitting.
+  const uint64_t group_bytes = uint64_t(group_len) * 4, granule = align / std::gcd(align, group_bytes);
+  const bool stats_fit = uint64_t(n_groups) * group_bytes <= cap && uint64_t(n_groups) <= std::min(max_gx, max_gy);
+  int64_t gchunk = n_groups;
+  if (!stats_fit && granule * group_bytes <= cap && granule <= std::min(max_gx, max_gy)) {
+    gchunk = rows_per_chunk(caps, op, {RowOperand{group_bytes, 0}}, n_groups);
+    gchunk = std::min<int64_t>(gchunk, int64_t(std::min(max_gx, max_gy) / granule * granule));
+    while (gchunk > int64_t(granule) && reduce_scratch_elems(gchunk, group_len) > part_elems)
+      gchunk -= int64_t(granule);
+  }
+  for_each_chunk(n_groups, gchunk, [&](int64_t g0, int64_t gc) {
+    const Tensor xs = gc == n_groups ? x
+                                     : Tensor::on(x.buffer().sub(VkDeviceSize(g0 * group_len) * 4,
+                                                                 VkDeviceSize(gc * group_len) * 4),
+                                                  {gc * group_len}, DType::f32);
+    reduce_segments(rec, xs, {gc, group_len, group_len, group_len, 0}, ReduceMode::mean_var, mean, var, parts, g0);
+  });
+
+  // Apply: chunks of whole (b, c) planes, or of one plane's elements when a plane exceeds a binding or the
+  // grid; each chunk bound from an aligned-down offset that the shader adds (x_off).
   struct {
     uint32_t C, S, channels_per_group;
     float eps;
-  } p{uint32_t(C), uint32_t(S), uint32_t(C / groups), eps};
+    uint32_t plane0, x_off, len;  // chunk: first plane, element offset in the views, elements per plane
+  } p{uint32_t(C), uint32_t(S), uint32_t(C / groups), eps, 0, 0, uint32_t(S)};
   const bool vec4 = S % 4 == 0;
   uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, silu ? 1u : 0u, vec4 ? 1u : 0u};
-  vk::BufferView wv = code >= 0 ? vec4_view(gamma) : x.buffer(), bv = code >= 0 ? vec4_view(beta) : x.buffer();
-  const uint32_t per_group = 64 * 16;  // LOCAL * ITEMS of groupnorm_apply.comp (vec4s with VEC4)
-  const uint32_t gx = div_up(vec4 ? S / 4 : S, per_group);
-  if (gx > 65535) throw Error("internal: groupnorm: planes of " + std::to_string(S) + " elements are too large");
-  rec.dispatch(rec.context().pipelines().get("nn/groupnorm_apply", spec),
-               {vec4_view(x), vec4_view(y), wv, bv, mean.buffer(), var.buffer()}, &p, sizeof p, gx, uint32_t(B * C), 1,
-               "groupnorm_apply");
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/groupnorm_apply", spec);
+  // Without affine, gamma/beta bind the (small) mean vector: never read.
+  vk::BufferView wv = code >= 0 ? vec4_view(gamma) : mean.buffer(), bv = code >= 0 ? vec4_view(beta) : mean.buffer();
+  const int64_t per_group = 64 * 16 * (vec4 ? 4 : 1);  // elements per workgroup: LOCAL * ITEMS (vec4s with VEC4)
+  const int64_t planes = B * C;
+  const uint64_t plane_bytes = uint64_t(S) * 4;
+  int64_t pc = planes, len = S;  // planes per chunk, elements per plane chunk
+  const bool plane_fits = plane_bytes + align <= cap && uint64_t(div_up(S, per_group)) <= max_gx;
+  if (!(uint64_t(planes) * plane_bytes <= cap && uint64_t(planes) <= max_gy && plane_fits)) {
+    if (plane_fits) {
+      pc = std::min<int64_t>(int64_t((cap - align) / plane_bytes), int64_t(max_gy));
+    } else {
+      pc = 1;
+      len = std::min<int64_t>(int64_t((cap - align) / 4), int64_t(max_gx) * per_group) / 4 * 4;
+      if (len < 4) throw Error("internal: groupnorm: a binding holds fewer than 4 elements");
+    }
+  }
+  for_each_chunk(planes, pc, [&](int64_t p0, int64_t np) {
+    for_each_chunk(S, len, [&](int64_t s0, int64_t n) {
+      const uint64_t first = uint64_t(p0 * S + s0) * 4, delta = first % align;
+      const uint64_t bytes = uint64_t((np - 1) * S + n) * 4 + delta;
+      p.plane0 = uint32_t(p0);
+      p.x_off = uint32_t(delta / 4);
+      p.len = uint32_t(n);
+      rec.dispatch(pipe,
+                   {vec4_view(x.buffer().sub(first - delta, bytes)), vec4_view(y.buffer().sub(first - delta, bytes)),
+                    wv, bv, mean.buffer(), var.buffer()},
+                   &p, sizeof p, div_up(n, per_group), uint32_t(np), 1, "groupnorm_apply");
+    });
+  });
 }
 
 }  // namespace dvs::ops

@@ -2,6 +2,9 @@
 // block partials merged with Chan's formula for GroupNorm's large groups). Weights and biases may be
 // stored f32, bf16 or f16 (both of one layer in the same dtype); activations are f32. Outputs are
 // allocated by the caller and may be the input tensor itself (in place).
+// Tensors larger than one binding or the grid are walked in chunks, one dispatch each with the same per-row /
+// per-group arithmetic: row chunks (layernorm, head_layernorm, rmsnorm; a row itself must fit one binding),
+// GroupNorm statistics over chunks of whole groups and its apply pass over chunks of (b, c) planes.
 #pragma once
 #include <cstdint>
 
