@@ -45,7 +45,7 @@ const int SG_N = 8 / SG_M;
 layout(binding = 0) uniform textureBuffer Xt;   // RGBA32F, packed input chunk + one zero pixel
 layout(binding = 1) uniform utextureBuffer Wt;  // RGBA32UI, packed weights
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };  // the weights' dtype (16-bit pairs)
-layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+layout(std430, binding = 3) buffer Y { float y[]; };  // read back only when accumulating
 
 layout(push_constant) uniform Push {
   uint M, N;                  // output pixels of the chunk, output channels
@@ -61,6 +61,8 @@ layout(push_constant) uniform Push {
   uint y_base;                // y element of (chunk's first frame, row 0, column 0, channel 0)
   uint ys_f, ys_h, ys_w, ys_c;
   uint has_bias;
+  uint n_base;      // first output channel of this dispatch (the bias index; y_base already points at it)
+  uint accumulate;  // 1: y += the sum (a later chunk of input channels); the bias came with the first
 } p;
 
 float w_bias(uint n) {
@@ -175,7 +177,8 @@ void main() {
       uint n = n0 + 8 * c + lane;
       if (n >= N) continue;
       float f = acc[r][c];
-      if (p.has_bias != 0u) f += w_bias(n);
+      if (p.accumulate != 0u) f = y[ybase + n * p.ys_c] + f;
+      else if (p.has_bias != 0u) f += w_bias(p.n_base + n);
       y[ybase + n * p.ys_c] = f;
     }
   }
