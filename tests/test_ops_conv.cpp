@@ -369,7 +369,7 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
   struct Reset {
     ~Reset() { ops::set_conv_chunk_bytes(0); }
   } reset;
-  const int64_t cin = 12, cout = 10, f = 5, h = 11, w = 9;
+  const int64_t cin = 12, cout = 9, f = 5, h = 11, w = 9;  // every tensor within the tiny alloc limit (256 KiB)
   Vid x = random_vid(2, cin, f, h, w, 130);
   Vid cache = random_vid(2, cin, 2, h, w, 131);
   Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 132);
@@ -407,7 +407,9 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
     const char* names[] = {"causal conv", "causal conv with cache", "stride 2", "upsample + conv"};
     for (size_t i = 0; i < split.size(); ++i)
       expect_equal(split[i], whole[i], std::string(names[i]) + " split at " + std::to_string(budget) + " bytes");
-    EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+    if (uint64_t(budget) < c.caps().max_storage_buffer_range) {  // else the limits in force (DVS_LIMITS) split already
+      EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+    }
     previous = dispatches;
   }
   // A budget below one row of one frame cannot be met: a clear error, not a wrong result.

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numeric>
 #include <string>
 
 #include "dvs/error.hpp"
@@ -111,7 +113,7 @@ vk::BufferView aligned_view(const vk::BufferView& whole, uint64_t first, uint64_
 
 // The limits one convolution plans against (the ones in force: the device's, or lower under DVS_LIMITS).
 struct ConvLimits {
-  uint64_t storage = 0, r32 = 0, rgba = 0, align = 4, groups_x = 0, groups_y = 0, groups_1d = 0;
+  uint64_t storage = 0, r32 = 0, rgba = 0, align = 4, groups_x = 0, groups_y = 0, groups_z = 0, groups_1d = 0;
 };
 ConvLimits conv_limits(const vk::DeviceCaps& caps) {
   ConvLimits l;
@@ -121,6 +123,7 @@ ConvLimits conv_limits(const vk::DeviceCaps& caps) {
   l.align = binding_alignment(caps);
   l.groups_x = caps.max_workgroup_count[0];
   l.groups_y = caps.max_workgroup_count[1];
+  l.groups_z = caps.max_workgroup_count[2];
   l.groups_1d = max_groups_1d(caps);
   return l;
 }
@@ -428,6 +431,31 @@ void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Te
   });
 }
 
+// Walks a plane-wise op (grid: x columns, y rows, z planes) in dispatches of planes [z0, z0 + nz) x rows
+// [r0, r0 + nr): every row of as many planes as fit, else one plane in as many rows as fit. fits(z0, nz, r0,
+// nr) says whether a dispatch's views fit one binding; the grid stays within maxComputeWorkGroupCount.
+template <class Fits, class Run>
+void for_each_plane_chunk(const char* op, const ConvLimits& l, int64_t planes, int64_t rows, Fits&& fits, Run&& run) {
+  const int64_t max_z = int64_t(l.groups_z), max_y = int64_t(l.groups_y);
+  for (int64_t z0 = 0; z0 < planes;) {
+    int64_t nz = std::min(planes - z0, max_z);
+    while (nz > 1 && !(rows <= max_y && fits(z0, nz, int64_t(0), rows))) --nz;
+    if (rows <= max_y && fits(z0, nz, int64_t(0), rows)) {
+      run(z0, nz, int64_t(0), rows);
+      z0 += nz;
+      continue;
+    }
+    int64_t nr = std::min(rows, max_y);
+    for (int64_t r0 = 0; r0 < rows; r0 += nr) {
+      nr = std::min({nr, rows - r0, max_y});
+      while (nr > 1 && !fits(z0, int64_t(1), r0, nr)) --nr;
+      expect(fits(z0, int64_t(1), r0, nr), op, "one row exceeds one binding");
+      run(z0, int64_t(1), r0, nr);
+    }
+    z0 += 1;
+  }
+}
+
 // Weight shape as (Cout, Cin, kt, kh, kw) from a 4-D or 5-D tensor.
 std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
   const Shape& s = w.shape();
@@ -553,22 +581,35 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
   expect(x.rank() == 5, op, "input must be [B, C, F, H, W], got " + x.describe());
-  int64_t fo = downsample_time_frames(x.dim(2));
+  const int64_t f = x.dim(2), fo = downsample_time_frames(f), hw = x.dim(3) * x.dim(4), bc = x.dim(0) * x.dim(1);
   expect_shape(op, "y", y, {x.dim(0), x.dim(1), fo, x.dim(3), x.dim(4)});
-  struct {
-    uint32_t hw, frames, frames_out, bc_begin;
-  } pc{u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo), 0};
-  int64_t bc = x.dim(0) * x.dim(1);
   if (y.numel() == 0) return;
-  bool vec4 = pc.hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
-  if (vec4) pc.hw /= 4;
-  expect(fo <= 65535 && div_up(pc.hw, 64) <= 65535, op, "frame count or plane too large: " + x.describe());
+  const ConvLimits l = conv_limits(rec.context().caps());
+  const bool vec4 = hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
+  const int64_t unit = vec4 ? 4 : 1, align = int64_t(std::lcm<uint64_t>(l.align, uint64_t(unit) * 4));
+  expect(uint64_t(div_up(hw / unit, 64)) <= l.groups_x, op, "plane too large: " + x.describe());
+  const bool odd = f % 2 == 1;
+  auto src_frame = [&](int64_t o) { return odd ? (o == 0 ? 0 : 2 * o - 1) : 2 * o; };  // first of the pair
+  // Elements of x and y that planes (b*C + c) [z0, z0 + nz) x output frames [r0, r0 + nr) touch.
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    const int64_t o_last = r0 + nr - 1, last = odd && o_last == 0 ? 0 : src_frame(o_last) + 1;
+    return std::array<uint64_t, 4>{uint64_t((z0 * f + src_frame(r0)) * hw), uint64_t(((z0 + nz - 1) * f + last + 1) * hw),
+                                   uint64_t((z0 * fo + r0) * hw), uint64_t(((z0 + nz - 1) * fo + r0 + nr) * hw)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get(vec4 ? "nn/avgpool_time_vec4" : "nn/avgpool_time");
-  for (int64_t first = 0; first < bc; first += 65535) {
-    pc.bc_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.hw, 64), uint32_t(fo),
-                 uint32_t(std::min<int64_t>(65535, bc - first)), op);
-  }
+  for_each_plane_chunk(op, l, bc, fo, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + uint64_t(align) <= l.storage && (s[3] - s[2]) * 4 + uint64_t(align) <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    struct {
+      uint32_t hw, frames, frames_out, bc_begin, fo_begin, x_base, y_base;
+    } pc{u32(op, hw / unit), u32(op, f), u32(op, fo), u32(op, z0), u32(op, r0), 0, 0};
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, uint64_t(align), uint32_t(unit * 4), pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, uint64_t(align), uint32_t(unit * 4), pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(hw / unit, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool keep_first_frame) {
@@ -582,18 +623,42 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
            "keep_first_frame needs at least 2 frames on both sides: " + x.describe() + " -> " + y.describe());
   expect(y.numel() == 0 || x.numel() > 0, op, "empty input");
   struct {
-    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin;
+    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin, row_begin, x_base, y_base;
   } pc{u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)),
-       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0};
+       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0, 0, 0, 0};
   if (y.numel() == 0) return;
-  expect(pc.ho <= 65535 && div_up(pc.wo, 64) <= 65535, op, "output too large: " + y.describe());
-  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const ConvLimits l = conv_limits(rec.context().caps());
+  expect(uint64_t(div_up(pc.wo, 64)) <= l.groups_x, op, "output too large: " + y.describe());
+  const int64_t f = x.dim(2), h = x.dim(3), w = x.dim(4), fo = y.dim(2), ho = y.dim(3), wo = y.dim(4);
+  // The shader's index rule in fp32 (PyTorch's), widened by a row / frame each way for safety in the spans.
+  auto near = [](int64_t dst, int64_t n_in, int64_t n_out) {
+    if (n_in == n_out) return dst;
+    return std::min<int64_t>(int64_t(std::floor(float(dst) * (float(n_in) / float(n_out)))), n_in - 1);
+  };
+  auto src_plane = [&](int64_t z) {
+    const int64_t o = z % fo, bcz = z / fo;
+    const int64_t s = pc.keep_first ? (o == 0 ? 0 : 1 + near(o - 1, f - 1, fo - 1)) : near(o, f, fo);
+    return bcz * f + s;
+  };
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    const int64_t ra = std::max<int64_t>(near(r0, h, ho) - 1, 0), rb = std::min<int64_t>(near(r0 + nr - 1, h, ho) + 2, h);
+    const bool all = r0 == 0 && nr == ho;
+    return std::array<uint64_t, 4>{uint64_t(src_plane(z0) * h * w + (all ? 0 : ra * w)),
+                                   uint64_t(src_plane(z0 + nz - 1) * h * w + (all ? h : rb) * w),
+                                   uint64_t((z0 * ho + r0) * wo), uint64_t(((z0 + nz - 1) * ho + r0 + nr) * wo)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample_nearest");
-  for (int64_t first = 0; first < zs; first += 65535) {
-    pc.z_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.wo, 64), pc.ho,
-                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
-  }
+  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, ho, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + l.align <= l.storage && (s[3] - s[2]) * 4 + l.align <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    pc.z_begin = uint32_t(z0), pc.row_begin = uint32_t(r0);
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, l.align, 4, pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, l.align, 4, pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(pc.wo, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 Shape upsample2x_shape(const Shape& x, bool compress_time) {
@@ -611,17 +676,34 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
   int64_t f = x.dim(2);
   uint32_t time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
   struct {
-    uint32_t frames, h, w, frames_out, time_mode, z_begin;
-  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0};
+    uint32_t frames, h, w, frames_out, time_mode, z_begin, row_begin, x_base, y_base;
+  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0, 0, 0, 0};
   if (y.numel() == 0) return;
-  expect(pc.h <= 65535 && div_up(pc.w, 64) <= 65535, op, "input too large: " + x.describe());
-  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const ConvLimits l = conv_limits(rec.context().caps());
+  expect(uint64_t(div_up(pc.w, 64)) <= l.groups_x, op, "input too large: " + x.describe());
+  const int64_t h = x.dim(3), w = x.dim(4), fo = y.dim(2);
+  const uint64_t align = std::lcm<uint64_t>(l.align, 8);  // y is bound as vec2s
+  auto src_plane = [&](int64_t z) {
+    const int64_t o = z % fo, bcz = z / fo;
+    return bcz * f + (time_mode == 0 ? o : time_mode == 1 ? (o == 0 ? 0 : 1 + (o - 1) / 2) : o / 2);
+  };
+  // Planes [z0, z0 + nz) of y x input rows [r0, r0 + nr): elements of x, then of y.
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    return std::array<uint64_t, 4>{uint64_t((src_plane(z0) * h + r0) * w), uint64_t((src_plane(z0 + nz - 1) * h + r0 + nr) * w),
+                                   uint64_t((z0 * h + r0) * 4 * w), uint64_t(((z0 + nz - 1) * h + r0 + nr) * 4 * w)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample2x");
-  for (int64_t first = 0; first < zs; first += 65535) {
-    pc.z_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.w, 64), pc.h,
-                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
-  }
+  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, h, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + align <= l.storage && (s[3] - s[2]) * 4 + align <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    pc.z_begin = uint32_t(z0), pc.row_begin = uint32_t(r0);
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, l.align, 4, pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, align, 8, pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(pc.w, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
