@@ -5,7 +5,7 @@
 // (CP = channels rounded up to 8, the extra channels zero) over `frames` frames of the time-padded axis
 // starting at tp0 and source rows [r0, r0 + rows), followed by one zero pixel (the target of every tap
 // that falls into the spatial padding). One invocation writes one vec4 (4 channels of one pixel).
-// The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
+// Only source columns [col0, col0 + wc) are packed (a row split into column chunks). The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
 // dispatch packs a sub-range (packed frames [q0, q0 + nq), channels [ca, cb) of the chunk) read through
 // sub-views of X and Cache starting at elements x_base / cache_base; `partial` dispatches (a channel range
 // that does not own whole vec4s) merge their channels into the vec4 already written.
@@ -35,17 +35,18 @@ layout(push_constant) uniform Push {
   uint c4a, nc4;       // vec4 columns of this dispatch
   uint x_base, cache_base;  // element of x / cache at the start of the bound views
   uint zero, partial;  // 1: also write the zero pixel; 1: merge into the existing vec4s
+  uint col0, wc;       // source columns [col0, col0 + wc) (w: x's width)
 } p;
 
 void main() {
   uint i = flat_index();
-  uint items = p.nq * p.rows * p.w * p.nc4;
+  uint items = p.nq * p.rows * p.wc * p.nc4;
   if (i >= items) {  // the zero pixel
     if (p.zero != 0u && i < items + p.cp4) o[p.texels + i - items] = vec4(0.0);
     return;
   }
   uint c4 = p.c4a + i % p.nc4, pix = i / p.nc4;
-  uint col = pix % p.w, t = pix / p.w;
+  uint pc = pix % p.wc, col = p.col0 + pc, t = pix / p.wc;
   uint row = p.r0 + t % p.rows, q = p.q0 + t / p.rows, tp = p.tp0 + q;
   bool from_cache = p.time_mode == 3u && tp < p.prefix;
   uint frame;
@@ -55,7 +56,7 @@ void main() {
   else frame = uint(max(int(tp) - int(p.prefix), 0));
   uint frames = from_cache ? p.prefix : p.src_frames;
   uint hw = p.h * p.w, inner = row * p.w + col;
-  uint out_i = ((q * p.rows + t % p.rows) * p.w + col) * p.cp4 + c4;
+  uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc) * p.cp4 + c4;
   vec4 v = p.partial != 0u ? o[out_i] : vec4(0.0);
   for (uint j = 0; j < 4u; ++j) {
     uint ch = c4 * 4u + j;

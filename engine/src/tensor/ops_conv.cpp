@@ -62,7 +62,7 @@ struct GemmPush {
   uint32_t m, n, cp, kt, kh, kw, stride, up, wo, rows, oh0;
   int32_t pad_top, pad_left;
   uint32_t in_h, in_w, src_r0, src_rows, src_w, zero_texel, y_base;
-  uint32_t ys_f, ys_h, ys_w, ys_c, has_bias, n_base, accumulate;
+  uint32_t ys_f, ys_h, ys_w, ys_c, has_bias, n_base, accumulate, ow0, src_c0;
 };
 static_assert(sizeof(GemmPush) <= 128);
 
@@ -88,13 +88,16 @@ ConvScratchSize scratch_size(int64_t frames_out, int64_t kt, int64_t h, int64_t 
 struct RowSpan {
   int64_t first = 0, end = 0;
 };
-RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) {
+RowSpan source_span(const ConvJob& j, int64_t o0, int64_t o1, int64_t pad, int64_t k, int64_t n) {
   int64_t up = j.upsample ? 2 : 1;
-  int64_t lo = std::max<int64_t>(oh0 * j.stride - j.pad_top, 0);
-  int64_t hi = std::min<int64_t>((oh1 - 1) * j.stride - j.pad_top + j.kh - 1, up * j.h - 1);
+  int64_t lo = std::max<int64_t>(o0 * j.stride - pad, 0);
+  int64_t hi = std::min<int64_t>((o1 - 1) * j.stride - pad + k - 1, up * n - 1);
   if (hi < lo) return {};
   return {lo / up, hi / up + 1};
 }
+RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) { return source_span(j, oh0, oh1, j.pad_top, j.kh, j.h); }
+// Source columns [first, end) that output columns [ow0, ow1) read.
+RowSpan source_cols(const ConvJob& j, int64_t ow0, int64_t ow1) { return source_span(j, ow0, ow1, j.pad_left, j.kw, j.w); }
 
 // A view of `whole` covering its bytes [first, end) that starts at the aligned-down offset. `base` receives
 // the element (of elem_bytes) of `whole` at the view's start, modulo 2^32 (the shaders subtract it in uint
@@ -139,9 +142,10 @@ std::pair<int64_t, bool> source_frame(const ConvJob& j, int64_t tp) {
 }
 
 // Elements [first, end) of x (cache = false) or of the cache that packing chunk channels [ca, cb) (absolute
-// channels), padded frames [tpa, tpb) and source rows [r0, r0 + rows) reads; empty: {0, 0}.
+// channels), padded frames [tpa, tpb), source rows [r0, r0 + rows) and columns [col0, col0 + wc) reads;
+// empty: {0, 0}.
 std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b, int64_t ca, int64_t cb, int64_t tpa,
-                                         int64_t tpb, int64_t r0, int64_t rows) {
+                                         int64_t tpb, int64_t r0, int64_t rows, int64_t col0, int64_t wc) {
   int64_t lo = -1, hi = -1;
   for (int64_t tp = tpa; tp < tpb; ++tp) {
     auto [f, from_cache] = source_frame(j, tp);
@@ -149,10 +153,10 @@ std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b
     lo = lo < 0 ? f : std::min(lo, f);
     hi = std::max(hi, f);
   }
-  if (lo < 0 || rows == 0) return {0, 0};
+  if (lo < 0 || rows == 0 || wc == 0) return {0, 0};
   const int64_t frames = cache ? j.prefix : j.frames, hw = j.h * j.w;
-  uint64_t first = uint64_t(((b * j.cin + ca) * frames + lo) * hw + r0 * j.w);
-  uint64_t end = uint64_t(((b * j.cin + cb - 1) * frames + hi) * hw + (r0 + rows) * j.w);
+  uint64_t first = uint64_t(((b * j.cin + ca) * frames + lo) * hw + r0 * j.w + col0);
+  uint64_t end = uint64_t(((b * j.cin + cb - 1) * frames + hi) * hw + (r0 + rows - 1) * j.w + col0 + wc);
   return {first, end};
 }
 
@@ -185,25 +189,25 @@ void pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Ten
 
 struct PackInputPush {
   uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
-  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial;
+  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc;
 };
 static_assert(sizeof(PackInputPush) <= 128);
 
-// Repacks input channels [c0, c0 + cc) of padded frames [tp0, tp0 + nframes) and source rows [r0, r0 + rows)
-// of batch item b into `packed` (+ the zero pixel): one dispatch when x's part fits one texel view, else one
+// Repacks input channels [c0, c0 + cc) of padded frames [tp0, tp0 + nframes), source rows [r0, r0 + rows) and
+// columns [col0, col0 + wc) of batch item b into `packed` (+ the zero pixel): one dispatch when x's part fits one texel view, else one
 // per group of channels (and of frames, when one channel's frames do not fit).
 void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const ConvLimits& l, int64_t b,
                 int64_t c0, int64_t cc, int64_t cpc, int64_t tp0, int64_t nframes, int64_t r0, int64_t rows,
-                const vk::BufferView& packed) {
-  const int64_t cp4 = cpc / 4, texels = nframes * rows * j.w * cp4;
+                int64_t col0, int64_t wc, const vk::BufferView& packed) {
+  const int64_t cp4 = cpc / 4, texels = nframes * rows * wc * cp4;
   const uint64_t cap = l.r32;  // bytes of one R32F view
   auto fits = [&](int64_t ca, int64_t cb, int64_t qa, int64_t qb) {
     for (bool cache : {false, true}) {
-      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows);
+      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows, col0, wc);
       if ((end - first) * 4 + l.align > cap) return false;
     }
     int64_t c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
-    return uint64_t((qb - qa) * rows * j.w * (c4b - c4a) + cp4) <= l.groups_1d * 64;
+    return uint64_t((qb - qa) * rows * wc * (c4b - c4a) + cp4) <= l.groups_1d * 64;
   };
   int64_t nc = cc, nq = nframes;
   while (nc > 1 && !fits(0, nc, 0, nq)) --nc;
@@ -218,16 +222,16 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
                        u32(op, b), u32(op, tp0), u32(op, nframes), u32(op, r0), u32(op, rows), u32(op, j.prefix),
                        j.time_mode, u32(op, c0), u32(op, cc), u32(op, qa), u32(op, q), u32(op, ca), u32(op, cb),
                        u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
-                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u};
+                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc)};
       // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
       vk::BufferView views[2];
       for (int k = 0; k < 2; ++k) {
         const Tensor& t = k == 1 && j.cache ? *j.cache : x;
-        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, r0, rows);
+        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, r0, rows, col0, wc);
         if (end == first) first = 0, end = 4;
         views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
       }
-      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * j.w * (c4b - c4a)) + (zero ? cp4 : 0), 64);
+      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * wc * (c4b - c4a)) + (zero ? cp4 : 0), 64);
       rec.dispatch(pipe,
                    {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT), vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed},
                    &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
@@ -241,7 +245,7 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
 //    channel's weights would not fit one binding; later chunks add into y (fp32, bias with the first);
 //  - output channels in groups of ng: y is bound per group (channels-first y spans ys_c per channel), the
 //    group's weights are repacked per group (a binding, a texel view, the scratch), gy within the grid limit;
-//  - per batch item, output frames and, when one frame is too large, output rows: the chunk's input repacked
+//  - per batch item, output frames and, when one frame is too large, output rows (then columns): the chunk's input repacked
 //    channels-last stays within one binding / texel view / the scratch, its pixels within the grid limit.
 // When everything fits (the default on real devices at small sizes) this is one weight pack, then one input
 // pack and one GEMM per chunk of frames, as before.
@@ -273,31 +277,34 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
 
   // Source rows of r output rows, wherever they lie (interior rows read the most: the span plus the kernel,
   // halved and rounded out when upsampling).
-  auto src_rows_of = [&](int64_t r) {
-    if (r == j.ho) return source_rows(j, 0, j.ho).end - source_rows(j, 0, j.ho).first;
-    int64_t span = (r - 1) * j.stride + j.kh;
-    return std::min(j.h, up == 1 ? span : (span - 1) / 2 + 2);
+  auto src_of = [&](int64_t r, int64_t total, int64_t k, int64_t n, RowSpan whole) {
+    if (r == total) return whole.end - whole.first;
+    int64_t span = (r - 1) * j.stride + k;
+    return std::min(n, up == 1 ? span : (span - 1) / 2 + 2);
   };
-  auto chunk_bytes = [&](int64_t nfo, int64_t r, int64_t cpc) {
-    return uint64_t(nfo + j.kt - 1) * uint64_t(src_rows_of(r)) * uint64_t(j.w) * uint64_t(cpc) * 4 + uint64_t(cpc) * 4;
+  const RowSpan all_rows = source_rows(j, 0, j.ho), all_cols = source_cols(j, 0, j.wo);
+  // Bytes of the repacked input of nfo output frames x r rows x c columns (+ the zero pixel).
+  auto chunk_bytes = [&](int64_t nfo, int64_t r, int64_t cpc, int64_t c) {
+    return uint64_t(nfo + j.kt - 1) * uint64_t(src_of(r, j.ho, j.kh, j.h, all_rows)) *
+               uint64_t(src_of(c, j.wo, j.kw, j.w, all_cols)) * uint64_t(cpc) * 4 + uint64_t(cpc) * 4;
   };
-  // Elements of y one dispatch of ng channels, nfo frames and r rows writes, first to last.
-  auto y_span = [&](int64_t ng, int64_t nfo, int64_t r) {
-    return uint64_t((ng - 1) * j.ys_c + (nfo - 1) * j.ys_f + (r - 1) * j.ys_h + (j.wo - 1) * j.ys_w + 1);
+  // Elements of y one dispatch of ng channels, nfo frames, r rows and c columns writes, first to last.
+  auto y_span = [&](int64_t ng, int64_t nfo, int64_t r, int64_t c) {
+    return uint64_t((ng - 1) * j.ys_c + (nfo - 1) * j.ys_f + (r - 1) * j.ys_h + (c - 1) * j.ys_w + 1);
   };
   auto round8 = [](int64_t c) { return (c + 7) / 8 * 8; };
 
-  // Input channels per chunk: all, unless one output row (one frame) or one output channel's weights do not fit.
+  // Input channels per chunk: all, unless one output pixel or one output channel's weights do not fit.
   int64_t cc = j.cin;
   auto cc_fits = [&](int64_t c) {
     int64_t cpc = round8(c);
-    return chunk_bytes(1, 1, cpc) <= in_cap && uint64_t(taps * cpc * wb) <= w_cap &&
+    return chunk_bytes(1, 1, cpc, 1) <= in_cap && uint64_t(taps * cpc * wb) <= w_cap &&
            uint64_t(c * taps * wb) + l.align + 4 <= l.storage;
   };
   if (!cc_fits(cc)) {
     cc = (cc - 1) / 8 * 8;
     while (cc > 8 && !cc_fits(cc)) cc -= 8;
-    expect(cc >= 1 && cc_fits(cc), op, "not even 8 input channels of one output row fit the limits in force");
+    expect(cc >= 1 && cc_fits(cc), op, "not even 8 input channels of one output pixel fit the limits in force");
   }
   const int64_t cpc = round8(cc);
 
@@ -305,29 +312,34 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   int64_t ng = j.cout;
   ng = std::min<int64_t>(ng, int64_t(w_cap / uint64_t(taps * cpc * wb)));
   ng = std::min<int64_t>(ng, int64_t(l.groups_y) * tile_n);
-  if (y_span(ng, 1, 1) * 4 > y_cap && j.ys_c > 0)
-    ng = std::min<int64_t>(ng, int64_t((y_cap / 4 - y_span(1, 1, 1)) / uint64_t(j.ys_c)) + 1);
-  expect(ng >= 1 && y_span(1, 1, 1) * 4 <= y_cap, op, "one output row exceeds one binding");
+  if (y_span(ng, 1, 1, 1) * 4 > y_cap && j.ys_c > 0)
+    ng = std::min<int64_t>(ng, int64_t((y_cap / 4 - y_span(1, 1, 1, 1)) / uint64_t(j.ys_c)) + 1);
+  expect(ng >= 1 && y_span(1, 1, 1, 1) * 4 <= y_cap, op, "one output pixel exceeds one binding");
   if (ng < j.cout && ng > tile_n) ng = ng / tile_n * tile_n;  // whole tiles per group
 
   // Output frames, then rows, per chunk.
   const uint64_t max_m = l.groups_x * uint64_t(tile_m);
-  auto chunk_fits = [&](int64_t nfo, int64_t r) {
-    return chunk_bytes(nfo, r, cpc) <= in_cap && uint64_t(nfo * r * j.wo) <= max_m && y_span(ng, nfo, r) * 4 <= y_cap;
+  auto chunk_fits = [&](int64_t nfo, int64_t r, int64_t c) {
+    return chunk_bytes(nfo, r, cpc, c) <= in_cap && uint64_t(nfo * r * c) <= max_m && y_span(ng, nfo, r, c) * 4 <= y_cap;
   };
-  int64_t chunk_frames = 0, chunk_rows = j.ho;
+  int64_t chunk_frames = 0, chunk_rows = j.ho, chunk_cols = j.wo;
   for (int64_t n = j.frames_out; n >= 1 && chunk_frames == 0; --n)
-    if (chunk_fits(n, j.ho)) chunk_frames = n;
-  if (chunk_frames == 0) {
+    if (chunk_fits(n, j.ho, j.wo)) chunk_frames = n;
+  if (chunk_frames == 0) {  // one frame at a time, in rows
     chunk_frames = 1;
     chunk_rows = 0;
     for (int64_t r = j.ho - 1; r >= 1 && chunk_rows == 0; --r)
-      if (chunk_fits(1, r)) chunk_rows = r;
-    expect(chunk_rows >= 1, op, "one output row of " + x.describe() + " does not fit the limits in force (" +
-                                    std::to_string(j.wo) + " columns)");
+      if (chunk_fits(1, r, j.wo)) chunk_rows = r;
+  }
+  if (chunk_rows == 0) {  // one row at a time, in columns
+    chunk_rows = 1;
+    chunk_cols = 0;
+    for (int64_t c = j.wo - 1; c >= 1 && chunk_cols == 0; --c)
+      if (chunk_fits(1, 1, c)) chunk_cols = c;
+    expect(chunk_cols >= 1, op, "one output pixel of " + x.describe() + " does not fit the limits in force");
   }
 
-  uint64_t packed_bytes_max = std::min<uint64_t>(chunk_bytes(chunk_frames, chunk_rows, cpc), in_cap);
+  uint64_t packed_bytes_max = std::min<uint64_t>(chunk_bytes(chunk_frames, chunk_rows, cpc, chunk_cols), in_cap);
   vk::BufferView packed_x_all = given ? given->input.buffer() : rec.scratch(0, packed_bytes_max, "convolution input chunk (repacked)");
   const uint64_t packed_w_bytes = uint64_t(ng * taps * cpc * wb);
   vk::BufferView packed_w = given ? given->weights.buffer() : rec.scratch(1, packed_w_bytes, "convolution weights (repacked)");
@@ -348,39 +360,42 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
       for (int64_t b = 0; b < j.b; ++b)
         for_each_chunk(j.frames_out, chunk_frames, [&](int64_t fo0, int64_t nfo) {
           for_each_chunk(j.ho, chunk_rows, [&](int64_t oh0, int64_t nr) {
-            const int64_t oh1 = oh0 + nr;
-            RowSpan rs = source_rows(j, oh0, oh1);
+           for_each_chunk(j.wo, chunk_cols, [&](int64_t ow0, int64_t nc) {
+            RowSpan rs = source_rows(j, oh0, oh0 + nr), cs = source_cols(j, ow0, ow0 + nc);
             const int64_t src_rows = std::max<int64_t>(rs.end - rs.first, 0), packed_frames = nfo + j.kt - 1;
-            const int64_t texels = packed_frames * src_rows * j.w * (cpc / 4);
+            const int64_t src_cols = std::max<int64_t>(cs.end - cs.first, 0);
+            const int64_t texels = packed_frames * src_rows * src_cols * (cpc / 4);
             vk::BufferView packed_x = packed_x_all;
             packed_x.size = uint64_t(texels + cpc / 4) * 16;
-            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, packed_x);
+            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first, src_cols, packed_x);
 
             GemmPush pc{};
-            const int64_t m = nfo * nr * j.wo;
+            const int64_t m = nfo * nr * nc;
             pc.m = u32(op, m);
             pc.n = u32(op, nn);
             pc.cp = u32(op, cpc);
             pc.kt = u32(op, j.kt), pc.kh = u32(op, j.kh), pc.kw = u32(op, j.kw);
             pc.stride = u32(op, j.stride), pc.up = u32(op, up);
-            pc.wo = u32(op, j.wo), pc.rows = u32(op, nr), pc.oh0 = u32(op, oh0);
+            pc.wo = u32(op, nc), pc.rows = u32(op, nr), pc.oh0 = u32(op, oh0);
+            pc.ow0 = u32(op, ow0), pc.src_c0 = u32(op, cs.first);
             pc.pad_top = int32_t(j.pad_top), pc.pad_left = int32_t(j.pad_left);
             pc.in_h = u32(op, up * j.h), pc.in_w = u32(op, up * j.w);
-            pc.src_r0 = u32(op, rs.first), pc.src_rows = u32(op, src_rows), pc.src_w = u32(op, j.w);
+            pc.src_r0 = u32(op, rs.first), pc.src_rows = u32(op, src_rows), pc.src_w = u32(op, src_cols);
             pc.zero_texel = u32(op, texels);
             pc.ys_f = u32(op, j.ys_f), pc.ys_h = u32(op, j.ys_h), pc.ys_w = u32(op, j.ys_w), pc.ys_c = u32(op, j.ys_c);
             pc.has_bias = bias ? 1 : 0;
             pc.n_base = u32(op, n0);
             pc.accumulate = c0 > 0 ? 1 : 0;
-            const uint64_t y0 = uint64_t(b * j.ys_b + fo0 * j.ys_f + oh0 * j.ys_h + n0 * j.ys_c);
+            const uint64_t y0 = uint64_t(b * j.ys_b + fo0 * j.ys_f + oh0 * j.ys_h + ow0 * j.ys_w + n0 * j.ys_c);
             uint32_t ybase = 0;
-            vk::BufferView yv = whole_y ? y.buffer() : aligned_view(y.buffer(), y0 * 4, (y0 + y_span(nn, nfo, nr)) * 4, l.align, 4, ybase);
+            vk::BufferView yv = whole_y ? y.buffer() : aligned_view(y.buffer(), y0 * 4, (y0 + y_span(nn, nfo, nr, nc)) * 4, l.align, 4, ybase);
             pc.y_base = uint32_t(y0) - ybase;
             uint32_t gx = div_up(m, tile_m), gy = div_up(nn, tile_n);
             rec.dispatch(gemm,
                          {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
                           vk::Binding(packed_w, VK_FORMAT_R32G32B32A32_UINT), bias_view, yv},
                          &pc, sizeof pc, gx, gy, 1, op);
+           });
           });
         });
     });
