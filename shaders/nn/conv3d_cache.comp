@@ -22,6 +22,8 @@ layout(push_constant) uniform Push {
   uint use_prev; // 0: the padding replicates x's frame 0
   uint bc0, s0, ns;
   uint x_base, prev_base, next_base;
+  uint j0, nj;  // cache slots of this dispatch (in increasing order across dispatches: in place, slot j reads
+                // old slot F + j > j, not yet overwritten)
 } p;
 
 void main() {
@@ -29,11 +31,11 @@ void main() {
   if (i >= p.columns) return;
   uint bc = p.bc0 + i / p.ns, s = p.s0 + i % p.ns;
   float v[MAXP];
-  for (uint j = 0; j < p.prefix; ++j) {
+  for (uint j = p.j0; j < p.j0 + p.nj; ++j) {
     uint t = p.frames + j;  // index on the padded axis of length P + F
     if (t >= p.prefix) v[j] = x[(bc * p.frames + t - p.prefix) * p.hw + s - p.x_base];
     else if (p.use_prev != 0) v[j] = prev[(bc * p.prefix + t) * p.hw + s - p.prev_base];
     else v[j] = x[bc * p.frames * p.hw + s - p.x_base];
   }
-  for (uint j = 0; j < p.prefix; ++j) next_cache[(bc * p.prefix + j) * p.hw + s - p.next_base] = v[j];
+  for (uint j = p.j0; j < p.j0 + p.nj; ++j) next_cache[(bc * p.prefix + j) * p.hw + s - p.next_base] = v[j];
 }

@@ -402,46 +402,63 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   });
 }
 
-// The conv cache update (conv3d_cache.comp) over chunks of (b, c) planes, or of one plane's elements, whose
-// x / cache parts each fit one binding: a column reads x's last P frames (frame 0 too when F < P).
+// The conv cache update (conv3d_cache.comp) in dispatches over (b, c) planes, elements of one plane and cache
+// slots whose x / old cache / new cache parts each fit one binding. Slot j is padded frame F + j: x frame
+// F + j - P, or (F + j < P) old slot F + j, or x frame 0 without an old cache.
 void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Tensor* cache_in, const Tensor& cache_out) {
   const char* op = "causal_conv3d";
   const ConvLimits l = conv_limits(rec.context().caps());
-  const int64_t hw = j.h * j.w, bcs = j.b * j.cin, fr = j.frames, pr = j.prefix, lo = std::max<int64_t>(fr - pr, 0);
+  const int64_t hw = j.h * j.w, bcs = j.b * j.cin, fr = j.frames, pr = j.prefix;
   const uint64_t cap = l.storage > l.align + 4 ? (l.storage - l.align - 4) / 4 : 0;  // elements per binding
-  auto x_range = [&](int64_t bc0, int64_t nbc, int64_t s0, int64_t ns) {
-    return std::pair<uint64_t, uint64_t>((bc0 * fr + lo) * hw + s0, ((bc0 + nbc - 1) * fr + fr - 1) * hw + s0 + ns);
+  using Range = std::pair<uint64_t, uint64_t>;
+  // Element ranges of x, the old and the new cache that planes [bc0, +nbc) x elements [s0, +ns) x slots [j0, +nj) touch.
+  auto ranges = [&](int64_t bc0, int64_t nbc, int64_t s0, int64_t ns, int64_t j0, int64_t nj) {
+    int64_t xlo = -1, xhi = -1, plo = -1, phi = -1;
+    auto add = [](int64_t& lo, int64_t& hi, int64_t v) { lo = lo < 0 ? v : std::min(lo, v), hi = std::max(hi, v); };
+    for (int64_t k = j0; k < j0 + nj; ++k) {
+      const int64_t t = fr + k;
+      if (t >= pr) add(xlo, xhi, t - pr);
+      else if (cache_in) add(plo, phi, t);
+      else add(xlo, xhi, 0);
+    }
+    auto span = [&](int64_t per, int64_t lo, int64_t hi) {
+      return lo < 0 ? Range{0, 0} : Range(uint64_t((bc0 * per + lo) * hw + s0), uint64_t(((bc0 + nbc - 1) * per + hi) * hw + s0 + ns));
+    };
+    return std::array<Range, 3>{span(fr, xlo, xhi), span(pr, plo, phi), span(pr, j0, j0 + nj - 1)};
   };
-  auto c_range = [&](int64_t bc0, int64_t nbc, int64_t s0, int64_t ns) {
-    return std::pair<uint64_t, uint64_t>(bc0 * pr * hw + s0, ((bc0 + nbc - 1) * pr + pr - 1) * hw + s0 + ns);
+  auto fits = [&](int64_t nbc, int64_t ns, int64_t nj) {
+    for (int64_t j0 = 0; j0 + nj <= pr; j0 += nj)
+      for (const Range& r : ranges(0, nbc, 0, ns, j0, nj))
+        if (r.second - r.first > cap) return false;
+    return uint64_t(nbc * ns) <= l.groups_1d * 64;
   };
-  auto fits = [&](int64_t nbc, int64_t ns) {
-    auto [xa, xb] = x_range(0, nbc, 0, ns);
-    auto [ca, cb] = c_range(0, nbc, 0, ns);
-    return xb - xa <= cap && cb - ca <= cap && uint64_t(nbc * ns) <= l.groups_1d * 64;
-  };
-  int64_t nbc = bcs, ns = hw;
-  if (!fits(nbc, ns)) {
+  int64_t nbc = bcs, ns = hw, nj = pr;
+  if (!fits(nbc, ns, nj)) {
     nbc = std::max<int64_t>(1, int64_t(cap / uint64_t(std::max(fr, pr) * hw)));
-    while (nbc > 1 && !fits(nbc, ns)) --nbc;
-    while (ns > 1 && !fits(nbc, ns)) ns = (ns + 1) / 2;
-    expect(fits(nbc, ns), op, "the conv cache of one plane element exceeds one binding");
+    while (nbc > 1 && !fits(nbc, ns, nj)) --nbc;
+    if (!fits(nbc, ns, nj)) nj = 1;
+    while (ns > 1 && !fits(nbc, ns, nj)) ns = (ns + 1) / 2;
+    expect(fits(nbc, ns, nj), op, "the conv cache of one plane element exceeds one binding");
   }
   std::array<uint32_t, 1> spec = {kMaxCachePrefix};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv3d_cache", spec);
   for_each_chunk(bcs, nbc, [&](int64_t bc0, int64_t nb) {
-    for_each_chunk(hw, ns, [&](int64_t s0, int64_t n) {
-      struct {
-        uint32_t columns, hw, frames, prefix, use_prev, bc0, s0, ns, x_base, prev_base, next_base;
-      } pc{u32(op, nb * n), u32(op, hw), u32(op, fr), u32(op, pr), cache_in ? 1u : 0u, u32(op, bc0), u32(op, s0), u32(op, n), 0, 0, 0};
-      auto [xa, xb] = x_range(bc0, nb, s0, n);
-      auto [ca, cb] = c_range(bc0, nb, s0, n);
-      vk::BufferView xv = aligned_view(x.buffer(), xa * 4, xb * 4, l.align, 4, pc.x_base);
-      vk::BufferView nv = aligned_view(cache_out.buffer(), ca * 4, cb * 4, l.align, 4, pc.next_base);
-      vk::BufferView pv = cache_in ? aligned_view(cache_in->buffer(), ca * 4, cb * 4, l.align, 4, pc.prev_base) : xv;
-      if (!cache_in) pc.prev_base = pc.x_base;
-      Grid g = grid_1d(rec.context().caps(), nb * n, 64);
-      rec.dispatch(pipe, {xv, pv, nv}, &pc, sizeof pc, g.x, g.y, 1, "causal_conv3d_cache");
+    for_each_chunk(pr, nj, [&](int64_t j0, int64_t njs) {
+      for_each_chunk(hw, ns, [&](int64_t s0, int64_t n) {
+        struct {
+          uint32_t columns, hw, frames, prefix, use_prev, bc0, s0, ns, x_base, prev_base, next_base, j0, nj;
+        } pc{u32(op, nb * n), u32(op, hw), u32(op, fr), u32(op, pr), cache_in ? 1u : 0u, u32(op, bc0), u32(op, s0),
+             u32(op, n), 0, 0, 0, u32(op, j0), u32(op, njs)};
+        auto r = ranges(bc0, nb, s0, n, j0, njs);
+        for (Range& q : r)
+          if (q.second == q.first) q = {0, 1};  // not read: any valid view
+        vk::BufferView xv = aligned_view(x.buffer(), r[0].first * 4, r[0].second * 4, l.align, 4, pc.x_base);
+        vk::BufferView nv = aligned_view(cache_out.buffer(), r[2].first * 4, r[2].second * 4, l.align, 4, pc.next_base);
+        vk::BufferView pv = cache_in ? aligned_view(cache_in->buffer(), r[1].first * 4, r[1].second * 4, l.align, 4, pc.prev_base) : xv;
+        if (!cache_in) pc.prev_base = pc.x_base;
+        Grid g = grid_1d(rec.context().caps(), nb * n, 64);
+        rec.dispatch(pipe, {xv, pv, nv}, &pc, sizeof pc, g.x, g.y, 1, "causal_conv3d_cache");
+      });
     });
   });
 }
