@@ -192,23 +192,33 @@ TEST_F(SplitConv, InputChannelChunksAccumulate) {
 }
 
 // The resampling ops: planes (z) and rows per dispatch within binding and grid limits; bitwise equal.
+// Many small planes (67 channels: over 64 workgroups in z) and a few large ones (a 26 x 22 upsampled plane
+// is 572 floats, over a 1 KiB binding: row chunks).
 TEST_F(SplitConv, ResamplingSplitsPlanesAndRows) {
   vk::Context& c = ctx();
-  const int64_t ch = 71;  // 71 (b, c) planes: over 64 workgroups in z
-  Tensor x = random_tensor(c, {1, ch, kF, kH, kW}, 21, 1.f);
-  const Shape up = ops::upsample2x_shape(x.shape(), true);
-  const Shape pooled = {1, ch, ops::downsample_time_frames(kF), kH, kW};
-  const Shape near = {1, ch, 3, 17, 9};
-  std::vector<std::function<void(vk::Recorder&, const Tensor&)>> ops_ = {
-      [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x(rec, x, o, true); },
-      [&](vk::Recorder& rec, const Tensor& o) { ops::avgpool_time_pairs(rec, x, o); },
-      [&](vk::Recorder& rec, const Tensor& o) { ops::upsample_nearest(rec, x, o, true); }};
-  const Shape shapes[] = {up, pooled, near};
-  const char* names[] = {"upsample2x", "avgpool_time_pairs", "upsample_nearest"};
-  for (const char* limits : {"binding=2KiB", "groups=64", "binding=4KiB,texels=1024,alloc=256KiB,groups=64"}) {
-    for (size_t i = 0; i < ops_.size(); ++i) {
-      Result whole = run(c, shapes[i], ops_[i]), split = run(c, shapes[i], ops_[i], limits);
-      expect_bitwise(whole, split, std::string(names[i]) + " under " + limits);
+  Tensor many = random_tensor(c, {1, 67, 3, 5, 7}, 21, 1.f), large = random_tensor(c, {1, 2, 3, kH, kW}, 22, 1.f);
+  struct Case {
+    const char* name;
+    Shape y;
+    std::function<void(vk::Recorder&, const Tensor&)> op;
+  };
+  const std::vector<Case> cases = {
+      {"upsample2x, many planes", ops::upsample2x_shape(many.shape(), true),
+       [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x(rec, many, o, true); }},
+      {"upsample2x, large planes", ops::upsample2x_shape(large.shape(), false),
+       [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x(rec, large, o, false); }},
+      {"avgpool_time_pairs, many planes", {1, 67, ops::downsample_time_frames(3), 5, 7},
+       [&](vk::Recorder& rec, const Tensor& o) { ops::avgpool_time_pairs(rec, many, o); }},
+      {"upsample_nearest, many planes", {1, 67, 2, 9, 11},
+       [&](vk::Recorder& rec, const Tensor& o) { ops::upsample_nearest(rec, many, o, true); }},
+      {"upsample_nearest, large planes", {1, 2, 3, 27, 17},
+       [&](vk::Recorder& rec, const Tensor& o) { ops::upsample_nearest(rec, large, o, false); }},
+  };
+  for (const char* limits : {"binding=1KiB", "groups=64", "binding=4KiB,texels=1024,alloc=256KiB,groups=64"}) {
+    for (const Case& k : cases) {
+      if (std::string(limits) == "groups=64" && k.y[1] < 64) continue;  // nothing over 64 workgroups to split
+      Result whole = run(c, k.y, k.op), split = run(c, k.y, k.op, limits);
+      expect_bitwise(whole, split, std::string(k.name) + " under " + limits);
     }
   }
 }
