@@ -369,7 +369,7 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
   struct Reset {
     ~Reset() { ops::set_conv_chunk_bytes(0); }
   } reset;
-  const int64_t cin = 12, cout = 10, f = 5, h = 11, w = 9;
+  const int64_t cin = 12, cout = 9, f = 5, h = 11, w = 9;  // every tensor within the tiny alloc limit (256 KiB)
   Vid x = random_vid(2, cin, f, h, w, 130);
   Vid cache = random_vid(2, cin, 2, h, w, 131);
   Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 132);
@@ -407,7 +407,9 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
     const char* names[] = {"causal conv", "causal conv with cache", "stride 2", "upsample + conv"};
     for (size_t i = 0; i < split.size(); ++i)
       expect_equal(split[i], whole[i], std::string(names[i]) + " split at " + std::to_string(budget) + " bytes");
-    EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+    if (uint64_t(budget) < c.caps().max_storage_buffer_range) {  // else the limits in force (DVS_LIMITS) split already
+      EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+    }
     previous = dispatches;
   }
   // A budget below one row of one frame cannot be met: a clear error, not a wrong result.
@@ -418,7 +420,7 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
 
 // Caller-provided staging (what the VAE passes so that its memory plan counts it): buffers of the sizes
 // *_scratch() gives are enough and give the recorder-scratch result bit for bit; a weights buffer one
-// element short is refused, not overrun.
+// element short makes the op repack its weights per group of output channels (same sums, bit for bit).
 TEST_F(ConvOps, CallerScratch) {
   vk::Context& c = ctx();
   Vid x = random_vid(1, 12, 3, 9, 11, 140);
@@ -446,7 +448,8 @@ TEST_F(ConvOps, CallerScratch) {
   };
   std::vector<Vid> own = run(false, 0), given = run(true, 0);
   for (size_t i = 0; i < own.size(); ++i) expect_equal(given[i], own[i], "caller scratch, op " + std::to_string(i));
-  EXPECT_THROW(run(true, 1), Error);
+  std::vector<Vid> grouped = run(true, 1);
+  for (size_t i = 0; i < own.size(); ++i) expect_equal(grouped[i], own[i], "short weights scratch, op " + std::to_string(i));
 }
 
 TEST_F(ConvOps, Conv1x1) {

@@ -12,15 +12,17 @@ layout(push_constant) uniform Push {
   uint hw;      // H * W
   uint frames;  // F
   uint frames_out;
-  uint bc_begin;  // first b*C + c of this dispatch (grids are split when B*C > 65535)
+  uint bc_begin;  // first b*C + c of this dispatch
+  uint fo_begin;  // first output frame of this dispatch
+  uint x_base, y_base;  // element (vec4 in the vec4 variant) of x / y at the start of the bound views  // first b*C + c of this dispatch (grids are split when B*C > 65535)
 } p;
 
 void main() {
   uint s = gl_GlobalInvocationID.x;
   if (s >= p.hw) return;
-  uint fo = gl_WorkGroupID.y;
+  uint fo = p.fo_begin + gl_WorkGroupID.y;
   uint bc = p.bc_begin + gl_WorkGroupID.z;
-  uint src = bc * p.frames * p.hw + s;
+  uint src = bc * p.frames * p.hw + s - p.x_base;
   bool odd = (p.frames & 1u) != 0u;
   float v;
   if (odd && fo == 0u) {
@@ -29,5 +31,5 @@ void main() {
     uint first = odd ? 2u * fo - 1u : 2u * fo;
     v = (x[src + first * p.hw] + x[src + (first + 1u) * p.hw]) / 2.0;
   }
-  y[(bc * p.frames_out + fo) * p.hw + s] = v;
+  y[(bc * p.frames_out + fo) * p.hw + s - p.y_base] = v;
 }

@@ -9,15 +9,17 @@ layout(push_constant) uniform Push {
   uint hw4;     // H * W / 4
   uint frames;  // F
   uint frames_out;
-  uint bc_begin;
+  uint bc_begin;  // first b*C + c of this dispatch
+  uint fo_begin;  // first output frame of this dispatch
+  uint x_base, y_base;  // element (vec4 in the vec4 variant) of x / y at the start of the bound views
 } p;
 
 void main() {
   uint s = gl_GlobalInvocationID.x;
   if (s >= p.hw4) return;
-  uint fo = gl_WorkGroupID.y;
+  uint fo = p.fo_begin + gl_WorkGroupID.y;
   uint bc = p.bc_begin + gl_WorkGroupID.z;
-  uint src = bc * p.frames * p.hw4 + s;
+  uint src = bc * p.frames * p.hw4 + s - p.x_base;
   bool odd = (p.frames & 1u) != 0u;
   vec4 v;
   if (odd && fo == 0u) {
@@ -26,5 +28,5 @@ void main() {
     uint first = odd ? 2u * fo - 1u : 2u * fo;
     v = (x[src + first * p.hw4] + x[src + (first + 1u) * p.hw4]) / 2.0;
   }
-  y[(bc * p.frames_out + fo) * p.hw4 + s] = v;
+  y[(bc * p.frames_out + fo) * p.hw4 + s - p.y_base] = v;
 }

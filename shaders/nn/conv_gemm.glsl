@@ -45,14 +45,14 @@ const int SG_N = 8 / SG_M;
 layout(binding = 0) uniform textureBuffer Xt;   // RGBA32F, packed input chunk + one zero pixel
 layout(binding = 1) uniform utextureBuffer Wt;  // RGBA32UI, packed weights
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };  // the weights' dtype (16-bit pairs)
-layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+layout(std430, binding = 3) buffer Y { float y[]; };  // read back only when accumulating
 
 layout(push_constant) uniform Push {
   uint M, N;                  // output pixels of the chunk, output channels
   uint cp;                    // packed channels (multiple of 8)
   uint kt, kh, kw;            // kernel extent
   uint stride, up;            // conv stride; 2: the input is read nearest-x2 upsampled (in H and W)
-  uint wo, rows;              // output columns; output rows in the chunk
+  uint wo, rows;              // output columns and rows in the chunk
   uint oh0;                   // first output row of the chunk
   int pad_top, pad_left;
   uint in_h, in_w;            // input size as the conv sees it (upsampled when up = 2)
@@ -61,6 +61,10 @@ layout(push_constant) uniform Push {
   uint y_base;                // y element of (chunk's first frame, row 0, column 0, channel 0)
   uint ys_f, ys_h, ys_w, ys_c;
   uint has_bias;
+  uint n_base;      // first output channel of this dispatch (the bias index; y_base already points at it)
+  uint accumulate;  // 1: y += the sum (a later chunk of input channels); the bias came with the first
+  uint ow0;         // first output column of the chunk (wo: its column count; y_base points at it)
+  uint src_c0;      // first source column packed (src_w: packed columns)
 } p;
 
 float w_bias(uint n) {
@@ -119,7 +123,7 @@ void main() {
     uint ow = m % p.wo, t = m / p.wo;
     pf[g] = t / p.rows;
     ph[g] = int((p.oh0 + t % p.rows) * p.stride) - p.pad_top;
-    pw[g] = int(ow * p.stride) - p.pad_left;
+    pw[g] = int((p.ow0 + ow) * p.stride) - p.pad_left;
   }
   uint we[COLS];
   const uint wrow = p.kt * p.kh * p.kw * cp;
@@ -138,7 +142,7 @@ void main() {
         [[unroll]] for (int g = 0; g < RG; ++g) {
           int ih = ph[g] + int(u), iw = pw[g] + int(v);
           bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-          uint pix = ((pf[g] + a) * p.src_rows + uint(ih) / up - p.src_r0) * p.src_w + uint(iw) / up;
+          uint pix = ((pf[g] + a) * p.src_rows + uint(ih) / up - p.src_r0) * p.src_w + uint(iw) / up - p.src_c0;
           xt[g] = inside ? pix * cp4 : p.zero_texel;
         }
         for (uint k0 = 0; k0 < cp; k0 += 8 * KU)
@@ -175,7 +179,8 @@ void main() {
       uint n = n0 + 8 * c + lane;
       if (n >= N) continue;
       float f = acc[r][c];
-      if (p.has_bias != 0u) f += w_bias(n);
+      if (p.accumulate != 0u) f = y[ybase + n * p.ys_c] + f;
+      else if (p.has_bias != 0u) f += w_bias(p.n_base + n);
       y[ybase + n * p.ys_c] = f;
     }
   }

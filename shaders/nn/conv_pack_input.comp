@@ -5,6 +5,10 @@
 // (CP = channels rounded up to 8, the extra channels zero) over `frames` frames of the time-padded axis
 // starting at tp0 and source rows [r0, r0 + rows), followed by one zero pixel (the target of every tap
 // that falls into the spatial padding). One invocation writes one vec4 (4 channels of one pixel).
+// Only source columns [col0, col0 + wc) are packed (a row split into column chunks). The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
+// dispatch packs a sub-range (packed frames [q0, q0 + nq), channels [ca, cb) of the chunk) read through
+// sub-views of X and Cache starting at elements x_base / cache_base; `partial` dispatches (a channel range
+// that does not own whole vec4s) merge their channels into the vec4 already written.
 //
 // Frame tp of the padded axis is, by time_mode:
 //   0: x frame max(tp - prefix, 0)  (causal conv without cache: the prefix replicates frame 0; plain conv2d: prefix 0)
@@ -16,7 +20,7 @@ layout(local_size_x = 64) in;
 
 layout(binding = 0) uniform textureBuffer X;      // R32F, [B, C, F, H, W]
 layout(binding = 1) uniform textureBuffer Cache;  // R32F, [B, C, prefix, H, W] (time_mode 3; else any)
-layout(std430, binding = 2) writeonly buffer Out { vec4 o[]; };
+layout(std430, binding = 2) buffer Out { vec4 o[]; };
 
 layout(push_constant) uniform Push {
   uint texels;        // frames * rows * w * cp4 (the zero pixel follows)
@@ -25,18 +29,25 @@ layout(push_constant) uniform Push {
   uint batch;         // batch item packed
   uint tp0, frames, r0, rows;
   uint prefix, time_mode;
+  uint c0, cc;         // the chunk's first input channel, its channel count
+  uint q0, nq;         // packed frames of this dispatch
+  uint ca, cb;         // chunk channels of this dispatch (cb == cc: also the zero channels up to cp)
+  uint c4a, nc4;       // vec4 columns of this dispatch
+  uint x_base, cache_base;  // element of x / cache at the start of the bound views
+  uint zero, partial;  // 1: also write the zero pixel; 1: merge into the existing vec4s
+  uint col0, wc;       // source columns [col0, col0 + wc) (w: x's width)
 } p;
 
 void main() {
   uint i = flat_index();
-  if (i >= p.texels + p.cp4) return;
-  if (i >= p.texels) {  // the zero pixel
-    o[i] = vec4(0.0);
+  uint items = p.nq * p.rows * p.wc * p.nc4;
+  if (i >= items) {  // the zero pixel
+    if (p.zero != 0u && i < items + p.cp4) o[p.texels + i - items] = vec4(0.0);
     return;
   }
-  uint c4 = i % p.cp4, pix = i / p.cp4;
-  uint col = pix % p.w, t = pix / p.w;
-  uint row = p.r0 + t % p.rows, tp = p.tp0 + t / p.rows;
+  uint c4 = p.c4a + i % p.nc4, pix = i / p.nc4;
+  uint pc = pix % p.wc, col = p.col0 + pc, t = pix / p.wc;
+  uint row = p.r0 + t % p.rows, q = p.q0 + t / p.rows, tp = p.tp0 + q;
   bool from_cache = p.time_mode == 3u && tp < p.prefix;
   uint frame;
   if (p.time_mode == 1u) frame = tp == 0u ? 0u : 1u + (tp - 1u) / 2u;
@@ -45,12 +56,17 @@ void main() {
   else frame = uint(max(int(tp) - int(p.prefix), 0));
   uint frames = from_cache ? p.prefix : p.src_frames;
   uint hw = p.h * p.w, inner = row * p.w + col;
-  vec4 v = vec4(0.0);
+  uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc) * p.cp4 + c4;
+  vec4 v = p.partial != 0u ? o[out_i] : vec4(0.0);
   for (uint j = 0; j < 4u; ++j) {
     uint ch = c4 * 4u + j;
-    if (ch >= p.c) break;
-    int e = int(((p.batch * p.c + ch) * frames + frame) * hw + inner);
-    v[j] = from_cache ? texelFetch(Cache, e).x : texelFetch(X, e).x;
+    if (ch < p.ca || (ch >= p.cb && p.cb != p.cc)) continue;  // another dispatch's channel
+    if (ch >= p.cc) {
+      v[j] = 0.0;
+      continue;
+    }
+    uint e = ((p.batch * p.c + p.c0 + ch) * frames + frame) * hw + inner;
+    v[j] = from_cache ? texelFetch(Cache, int(e - p.cache_base)).x : texelFetch(X, int(e - p.x_base)).x;
   }
-  o[i] = v;
+  o[out_i] = v;
 }

@@ -13,19 +13,21 @@ layout(push_constant) uniform Push {
   uint frames, h, w;
   uint frames_out;
   uint time_mode;  // 0: same frame, 1: keep_first, 2: double
-  uint z_begin;
+  uint z_begin;    // first z of this dispatch
+  uint row_begin;  // first input row of this dispatch
+  uint x_base, y_base;  // float of x / vec2 of y at the start of the bound views
 } p;
 
 void main() {
   uint iw = gl_GlobalInvocationID.x;
   if (iw >= p.w) return;
-  uint ih = gl_WorkGroupID.y;
+  uint ih = p.row_begin + gl_WorkGroupID.y;
   uint z = p.z_begin + gl_WorkGroupID.z;
   uint fo = z % p.frames_out;
   uint bc = z / p.frames_out;
   uint f = p.time_mode == 0u ? fo : (p.time_mode == 1u ? (fo == 0u ? 0u : 1u + ((fo - 1u) >> 1)) : fo >> 1);
-  float v = x[((bc * p.frames + f) * p.h + ih) * p.w + iw];
-  uint row0 = (z * 2u * p.h + 2u * ih) * p.w;  // in vec2 units: a row of 2W floats is W vec2
+  float v = x[((bc * p.frames + f) * p.h + ih) * p.w + iw - p.x_base];
+  uint row0 = (z * 2u * p.h + 2u * ih) * p.w - p.y_base;  // in vec2 units: a row of 2W floats is W vec2
   y[row0 + iw] = vec2(v);
   y[row0 + p.w + iw] = vec2(v);
 }

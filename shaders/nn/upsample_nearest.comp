@@ -12,7 +12,9 @@ layout(push_constant) uniform Push {
   uint frames, h, w;
   uint frames_out, ho, wo;
   uint keep_first;
-  uint z_begin;  // first z of this dispatch (grids are split when B*C*Fo > 65535)
+  uint z_begin;    // first z of this dispatch
+  uint row_begin;  // first output row of this dispatch
+  uint x_base, y_base;  // element of x / y at the start of the bound views
 } p;
 
 uint nearest(uint dst, uint n_in, uint n_out) {
@@ -25,7 +27,7 @@ uint nearest(uint dst, uint n_in, uint n_out) {
 void main() {
   uint ow = gl_GlobalInvocationID.x;
   if (ow >= p.wo) return;
-  uint oh = gl_WorkGroupID.y;
+  uint oh = p.row_begin + gl_WorkGroupID.y;
   uint z = p.z_begin + gl_WorkGroupID.z;
   uint fo = z % p.frames_out;
   uint bc = z / p.frames_out;
@@ -33,5 +35,5 @@ void main() {
   if (p.keep_first != 0u) f = fo == 0u ? 0u : 1u + nearest(fo - 1u, p.frames - 1u, p.frames_out - 1u);
   else f = nearest(fo, p.frames, p.frames_out);
   uint src_row = ((bc * p.frames + f) * p.h + nearest(oh, p.h, p.ho)) * p.w;
-  y[(z * p.ho + oh) * p.wo + ow] = x[src_row + nearest(ow, p.w, p.wo)];
+  y[(z * p.ho + oh) * p.wo + ow - p.y_base] = x[src_row + nearest(ow, p.w, p.wo) - p.x_base];
 }

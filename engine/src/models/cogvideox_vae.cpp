@@ -81,6 +81,7 @@ struct Run {
   std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
   Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
   uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0, dry_ids = 0;
+  uint64_t largest = 0;  // the largest single buffer allocated (an activation, a conv staging or a cache)
 
   explicit Run(vk::Context* c) : ctx(c) {}
 
@@ -94,6 +95,7 @@ struct Run {
       return Tensor::on(slots.at(k).owner.buffer(), s, DType::f32);
     }
     batch_bytes += need;
+    largest = std::max(largest, need);
     Tensor owner = ctx ? Tensor::empty(*ctx, {int64_t(need / 4)}, DType::f32, "vae activation")
                        : shape_only({int64_t(need / 4)}, ++dry_ids);
     slots.emplace(key_of(owner), Slot{owner, need});
@@ -114,6 +116,7 @@ struct Run {
   }
   Tensor new_cache(const std::string& name, const Shape& s) {
     cache_bytes += uint64_t(shape_numel(s)) * 4;
+    largest = std::max(largest, uint64_t(shape_numel(s)) * 4);
     Tensor c = ctx ? Tensor::empty(*ctx, s, DType::f32, name + " cache") : shape_only(s);
     cache.emplace(name, c);
     return c;
@@ -414,8 +417,20 @@ void check_video(const char* what, const Tensor& t, int64_t channels) {
 
 }  // namespace
 
+// Refuses, before any work, a call whose largest single buffer (its planner's figure) exceeds one allocation:
+// the ops split every binding, but one activation is one allocation (at 480 x 720 an untiled decode of a
+// 2-latent-frame batch holds 256 x 8 x 480 x 720 f32 = 2.6 GiB in one tensor).
+void CogVideoXVae::check_allocations(const char* what, const VaeFootprint& f) const {
+  const uint64_t limit = ctx_.caps().max_memory_allocation_size;
+  if (limit && f.largest_tensor > limit)
+    throw Error(std::string("CogVideoX VAE ") + what + ": one activation of this call needs " + vk::format_bytes(f.largest_tensor) +
+                ", more than the device allocates at once (maxMemoryAllocationSize " + vk::format_bytes(limit) +
+                "); use VAE tiling (--vae-tiling) with smaller tiles");
+}
+
 Tensor CogVideoXVae::encode_moments(const Tensor& video) {
   check_video("encode", video, cfg_.in_channels);
+  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch));
   const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
   std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
   Run run(&ctx_);
@@ -430,6 +445,7 @@ Tensor CogVideoXVae::encode_moments(const Tensor& video) {
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
+  last_footprint_ = {run.peak_bytes, run.largest};
   return concat_frames(ctx_, outs, "vae moments");
 }
 
@@ -447,6 +463,7 @@ VaePosterior CogVideoXVae::encode(const Tensor& video) { return posterior_of(enc
 
 Tensor CogVideoXVae::decode(const Tensor& z) {
   check_video("decode", z, cfg_.latent_channels);
+  check_allocations("decode", decode_footprint(weights_.config(), z.shape(), latent_frames_batch));
   const auto ranges = frame_batches(z.dim(2), latent_frames_batch);
   std::vector<Tensor> inputs = split_frames(ctx_, z, ranges);
   Run run(&ctx_);
@@ -461,6 +478,7 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
+  last_footprint_ = {run.peak_bytes, run.largest};
   return concat_frames(ctx_, outs, "vae frames");
 }
 
@@ -469,7 +487,7 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
 namespace {
 
 // The same layer code on shape-only tensors: the working set of every frame batch, from the config alone.
-uint64_t dry_run_peak(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
+VaeFootprint dry_run(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
   const VaeConfig cfg = VaeConfig::from_json(config);
   std::map<std::string, Shape> shapes;
   for (const auto& t : schema_for("AutoencoderKLCogVideoX", config, "vae config").tensors) shapes[t.name] = t.shape;
@@ -486,17 +504,25 @@ uint64_t dry_run_peak(const nlohmann::json& config, const Shape& input, bool enc
     else L.decoder(run, x);
     run.release_batch();
   }
-  return run.peak_bytes;
+  return {run.peak_bytes, run.largest};
 }
 
 }  // namespace
 
+VaeFootprint CogVideoXVae::encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
+  return dry_run(config, video, true, frames_batch);
+}
+
+VaeFootprint CogVideoXVae::decode_footprint(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
+  return dry_run(config, z, false, latent_batch);
+}
+
 uint64_t CogVideoXVae::encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
-  return dry_run_peak(config, video, true, frames_batch);
+  return encode_footprint(config, video, frames_batch).working;
 }
 
 uint64_t CogVideoXVae::decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
-  return dry_run_peak(config, z, false, latent_batch);
+  return decode_footprint(config, z, latent_batch).working;
 }
 
 // ---- tiling ---------------------------------------------------------------------------------------------------

@@ -52,6 +52,16 @@ struct VaePosterior {
   Tensor moments, mean, std;
 };
 
+// Memory of one VAE call from its working-set planner (CogVideoXVae::*_footprint): `working` is the largest
+// working set of one frame batch in bytes (every intermediate buffer plus the conv caches, as
+// *_working_bytes); `largest_tensor` is the largest single buffer among them (an activation, a convolution's
+// staging, a conv cache): it must be <= maxMemoryAllocationSize (each is one allocation). Every binding the
+// ops make of it is split to the device's limits by the ops themselves (tensor/ops_conv.hpp), so this is the
+// only VAE size a device limit bounds. Not counted: weights, the call's input and result.
+struct VaeFootprint {
+  uint64_t working = 0, largest_tensor = 0;
+};
+
 class CogVideoXVae {
  public:
   CogVideoXVae(vk::Context& ctx, const std::filesystem::path& vae_dir);
@@ -92,15 +102,22 @@ class CogVideoXVae {
   static uint64_t encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8);
   static uint64_t decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch = 2);
   uint64_t last_working_bytes() const { return last_peak_bytes_; }
+  // The same plans with the largest single buffer too (for `dvs plan` against maxMemoryAllocationSize); a live
+  // call's figures are last_footprint() after it.
+  static VaeFootprint encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8);
+  static VaeFootprint decode_footprint(const nlohmann::json& config, const Shape& z, int64_t latent_batch = 2);
+  VaeFootprint last_footprint() const { return last_footprint_; }
 
  private:
   Tensor encode_moments(const Tensor& video);
   VaePosterior posterior_of(const Tensor& moments);
+  void check_allocations(const char* what, const VaeFootprint& f) const;
 
   vk::Context& ctx_;
   ComponentWeights weights_;
   VaeConfig cfg_;
   uint64_t last_peak_bytes_ = 0;
+  VaeFootprint last_footprint_;
 };
 
 }  // namespace dvs::models

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numeric>
 #include <string>
 
 #include "dvs/error.hpp"
+#include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
@@ -59,29 +62,15 @@ struct GemmPush {
   uint32_t m, n, cp, kt, kh, kw, stride, up, wo, rows, oh0;
   int32_t pad_top, pad_left;
   uint32_t in_h, in_w, src_r0, src_rows, src_w, zero_texel, y_base;
-  uint32_t ys_f, ys_h, ys_w, ys_c, has_bias;
+  uint32_t ys_f, ys_h, ys_w, ys_c, has_bias, n_base, accumulate, ow0, src_c0;
 };
 static_assert(sizeof(GemmPush) <= 128);
 
-struct PackInputPush {
-  uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
-};
-
-struct PackWeightsPush {
-  uint32_t words, cin, taps, cp;
-};
 
 void check_bias(const char* op, const Tensor& w, const Tensor* bias, int64_t cout) {
   if (!bias) return;
   expect(bias->dtype() == w.dtype(), op, "bias " + bias->describe() + " must have the weights' dtype " + dtype_name(w.dtype()));
   expect(bias->numel() == cout, op, "bias " + bias->describe() + " must hold Cout = " + std::to_string(cout) + " values");
-}
-
-void check_texels(const char* op, const vk::Context& ctx, const Tensor& t, uint64_t texels) {
-  uint64_t max_texels = ctx.caps().max_texel_buffer_elements;
-  if (max_texels && texels > max_texels)
-    fail(op, t.describe() + " exceeds the device's texel-buffer limit of " + std::to_string(max_texels) +
-                 " elements; split the convolution (spatial tiles or fewer frames per batch)");
 }
 
 constexpr uint64_t kScratchInputCap = 128ull << 20;  // bytes; see ConvScratch
@@ -92,56 +81,182 @@ ConvScratchSize scratch_size(int64_t frames_out, int64_t kt, int64_t h, int64_t 
   const int64_t cp = (cin + 7) / 8 * 8;
   uint64_t input = uint64_t(frames_out + kt - 1) * uint64_t(h * w) * uint64_t(cp) * 4 + uint64_t(cp) * 4;
   uint64_t weights = uint64_t(cout * taps * cp) * 4;  // f32, the largest weight dtype
-  return {int64_t(std::min(input, kScratchInputCap) / 4), int64_t(weights / 4)};
+  return {int64_t(std::min(input, kScratchInputCap) / 4), int64_t(std::min(weights, kScratchInputCap) / 4)};
 }
 
 // Source rows [first, end) that output rows [oh0, oh1) read (empty when they read only padding).
 struct RowSpan {
   int64_t first = 0, end = 0;
 };
-RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) {
+RowSpan source_span(const ConvJob& j, int64_t o0, int64_t o1, int64_t pad, int64_t k, int64_t n) {
   int64_t up = j.upsample ? 2 : 1;
-  int64_t lo = std::max<int64_t>(oh0 * j.stride - j.pad_top, 0);
-  int64_t hi = std::min<int64_t>((oh1 - 1) * j.stride - j.pad_top + j.kh - 1, up * j.h - 1);
+  int64_t lo = std::max<int64_t>(o0 * j.stride - pad, 0);
+  int64_t hi = std::min<int64_t>((o1 - 1) * j.stride - pad + k - 1, up * n - 1);
   if (hi < lo) return {};
   return {lo / up, hi / up + 1};
 }
+RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) { return source_span(j, oh0, oh1, j.pad_top, j.kh, j.h); }
+// Source columns [first, end) that output columns [ow0, ow1) read.
+RowSpan source_cols(const ConvJob& j, int64_t ow0, int64_t ow1) { return source_span(j, ow0, ow1, j.pad_left, j.kw, j.w); }
 
-// Packed weights [Cout, taps, CP] in scratch slot 1, recorded once per call.
-vk::BufferView pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, int64_t cp,
-                            const ConvScratch* given) {
-  vk::Context& ctx = rec.context();
-  int64_t taps = j.kt * j.kh * j.kw;
-  int64_t words = j.cout * taps * cp / (wdt == 0 ? 1 : 2);
-  uint64_t bytes = uint64_t(words) * 4;
-  expect(bytes <= ctx.caps().max_storage_buffer_range, op,
-         "packed weights of " + w.describe() + " exceed maxStorageBufferRange");
-  check_texels(op, ctx, w, uint64_t(words) / 4);
-  if (given)
-    expect(uint64_t(given->weights.bytes()) >= bytes, op, "weights scratch " + given->weights.describe() + " is too small");
-  vk::BufferView packed = given ? given->weights.buffer() : rec.scratch(1, bytes, "convolution weights (repacked)");
-  packed.size = bytes;
-  PackWeightsPush pc{u32(op, words), u32(op, j.cin), u32(op, taps), u32(op, cp)};
-  std::array<uint32_t, 1> spec = {wdt};
-  Grid g = grid_1d(words, 64);
-  rec.dispatch(ctx.pipelines().get("nn/conv_pack_weights", spec), {word_view(w), packed}, &pc, sizeof pc, g.x, g.y, 1,
-               std::string(op) + "_pack_weights");
-  return packed;
+// A view of `whole` covering its bytes [first, end) that starts at the aligned-down offset. `base` receives
+// the element (of elem_bytes) of `whole` at the view's start, modulo 2^32 (the shaders subtract it in uint
+// arithmetic, so a start before whole's own offset works too).
+vk::BufferView aligned_view(const vk::BufferView& whole, uint64_t first, uint64_t end, uint64_t align,
+                            uint32_t elem_bytes, uint32_t& base) {
+  const uint64_t start = (whole.offset + first) / align * align;
+  vk::BufferView v = whole;
+  v.offset = start;
+  v.size = (whole.offset + end - start + 3) / 4 * 4;
+  if (whole.mapped) v.mapped = whole.mapped - whole.offset + start;
+  base = uint32_t(uint64_t(int64_t(start) - int64_t(whole.offset)) / elem_bytes);
+  if (start < whole.offset) base = uint32_t(-int64_t((whole.offset - start) / elem_bytes));
+  return v;
 }
 
-// The convolution: the weights are repacked once, then per batch item and chunk of output frames (and,
-// when one frame is too large, of output rows) the chunk's input is repacked channels-last and the GEMM
-// kernel runs over it. Chunks are sized so the packed input stays within one storage binding and one
-// texel view, and the grid within 65535 workgroups per dimension.
+// The limits one convolution plans against (the ones in force: the device's, or lower under DVS_LIMITS).
+struct ConvLimits {
+  uint64_t storage = 0, r32 = 0, rgba = 0, align = 4, groups_x = 0, groups_y = 0, groups_z = 0, groups_1d = 0;
+};
+ConvLimits conv_limits(const vk::DeviceCaps& caps) {
+  ConvLimits l;
+  l.storage = caps.max_storage_buffer_range;
+  l.r32 = binding_capacity(caps, 4);
+  l.rgba = binding_capacity(caps, 16);
+  l.align = binding_alignment(caps);
+  l.groups_x = caps.max_workgroup_count[0];
+  l.groups_y = caps.max_workgroup_count[1];
+  l.groups_z = caps.max_workgroup_count[2];
+  l.groups_1d = max_groups_1d(caps);
+  return l;
+}
+
+// Source frame of packed (time-padded) frame tp, and whether it comes from the cache (conv_pack_input.comp).
+std::pair<int64_t, bool> source_frame(const ConvJob& j, int64_t tp) {
+  switch (j.time_mode) {
+    case 1: return {tp == 0 ? 0 : 1 + (tp - 1) / 2, false};
+    case 2: return {tp / 2, false};
+    case 3: return tp < j.prefix ? std::pair<int64_t, bool>{tp, true} : std::pair<int64_t, bool>{tp - j.prefix, false};
+    default: return {std::max<int64_t>(tp - j.prefix, 0), false};
+  }
+}
+
+// Elements [first, end) of x (cache = false) or of the cache that packing chunk channels [ca, cb) (absolute
+// channels), padded frames [tpa, tpb), source rows [r0, r0 + rows) and columns [col0, col0 + wc) reads;
+// empty: {0, 0}.
+std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b, int64_t ca, int64_t cb, int64_t tpa,
+                                         int64_t tpb, int64_t r0, int64_t rows, int64_t col0, int64_t wc) {
+  int64_t lo = -1, hi = -1;
+  for (int64_t tp = tpa; tp < tpb; ++tp) {
+    auto [f, from_cache] = source_frame(j, tp);
+    if (from_cache != cache) continue;
+    lo = lo < 0 ? f : std::min(lo, f);
+    hi = std::max(hi, f);
+  }
+  if (lo < 0 || rows == 0 || wc == 0) return {0, 0};
+  const int64_t frames = cache ? j.prefix : j.frames, hw = j.h * j.w;
+  uint64_t first = uint64_t(((b * j.cin + ca) * frames + lo) * hw + r0 * j.w + col0);
+  uint64_t end = uint64_t(((b * j.cin + cb - 1) * frames + hi) * hw + (r0 + rows - 1) * j.w + col0 + wc);
+  return {first, end};
+}
+
+// Packed weights of output channels [co0, co0 + ng) and input channels [ci0, ci0 + cc) into `packed`
+// ([ng, taps, cpc] in the weights' dtype), in as many dispatches as the source sub-views need.
+void pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, const ConvLimits& l,
+                  int64_t co0, int64_t ng, int64_t ci0, int64_t cc, int64_t cpc, const vk::BufferView& packed) {
+  const int64_t taps = j.kt * j.kh * j.kw, per = wdt == 0 ? 1 : 2, eb = wdt == 0 ? 4 : 2;
+  const int64_t words_per_co = taps * cpc / per;
+  // Source bytes one dispatch of n output channels reads (plus the alignment slack of its start).
+  auto src_bytes = [&](int64_t n) { return uint64_t(((n - 1) * j.cin + cc) * taps * eb) + l.align + 4; };
+  int64_t step = ng;
+  while (step > 1 && (src_bytes(step) > l.storage || uint64_t(step * words_per_co) > l.groups_1d * 64)) --step;
+  expect(src_bytes(step) <= l.storage, op, "one output channel's weights exceed one binding");
+  std::array<uint32_t, 1> spec = {wdt};
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_weights", spec);
+  for_each_chunk(ng, step, [&](int64_t c0, int64_t n) {
+    const uint64_t first = uint64_t(((co0 + c0) * j.cin + ci0) * taps * eb);
+    const uint64_t end = uint64_t(((co0 + c0 + n - 1) * j.cin + ci0 + cc) * taps * eb);
+    uint32_t base = 0;
+    vk::BufferView src = aligned_view(w.buffer(), first, end, l.align, uint32_t(eb), base);
+    struct {
+      uint32_t words, cin, taps, cp, co0, ci0, cc, word0, src_base;
+    } pc{u32(op, n * words_per_co), u32(op, j.cin), u32(op, taps), u32(op, cpc), u32(op, co0), u32(op, ci0), u32(op, cc),
+         u32(op, c0 * words_per_co), base};
+    Grid g = grid_1d(rec.context().caps(), n * words_per_co, 64);
+    rec.dispatch(pipe, {src, packed}, &pc, sizeof pc, g.x, g.y, 1, std::string(op) + "_pack_weights");
+  });
+}
+
+struct PackInputPush {
+  uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
+  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc;
+};
+static_assert(sizeof(PackInputPush) <= 128);
+
+// Repacks input channels [c0, c0 + cc) of padded frames [tp0, tp0 + nframes), source rows [r0, r0 + rows) and
+// columns [col0, col0 + wc) of batch item b into `packed` (+ the zero pixel): one dispatch when x's part fits one texel view, else one
+// per group of channels (and of frames, when one channel's frames do not fit).
+void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const ConvLimits& l, int64_t b,
+                int64_t c0, int64_t cc, int64_t cpc, int64_t tp0, int64_t nframes, int64_t r0, int64_t rows,
+                int64_t col0, int64_t wc, const vk::BufferView& packed) {
+  const int64_t cp4 = cpc / 4, texels = nframes * rows * wc * cp4;
+  const uint64_t cap = l.r32;  // bytes of one R32F view
+  auto fits = [&](int64_t ca, int64_t cb, int64_t qa, int64_t qb) {
+    for (bool cache : {false, true}) {
+      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows, col0, wc);
+      if ((end - first) * 4 + l.align > cap) return false;
+    }
+    int64_t c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
+    return uint64_t((qb - qa) * rows * wc * (c4b - c4a) + cp4) <= l.groups_1d * 64;
+  };
+  int64_t nc = cc, nq = nframes;
+  while (nc > 1 && !fits(0, nc, 0, nq)) --nc;
+  while (nq > 1 && !fits(0, nc, 0, nq)) --nq;
+  expect(fits(0, nc, 0, nq), op, "one source row of one channel exceeds one texel view");
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input");
+  bool zero = true;
+  for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
+    for_each_chunk(cc, nc, [&](int64_t ca, int64_t n) {
+      const int64_t cb = ca + n, c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
+      PackInputPush pp{u32(op, texels), u32(op, cp4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
+                       u32(op, b), u32(op, tp0), u32(op, nframes), u32(op, r0), u32(op, rows), u32(op, j.prefix),
+                       j.time_mode, u32(op, c0), u32(op, cc), u32(op, qa), u32(op, q), u32(op, ca), u32(op, cb),
+                       u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
+                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc)};
+      // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
+      vk::BufferView views[2];
+      for (int k = 0; k < 2; ++k) {
+        const Tensor& t = k == 1 && j.cache ? *j.cache : x;
+        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, r0, rows, col0, wc);
+        if (end == first) first = 0, end = 4;
+        views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
+      }
+      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * wc * (c4b - c4a)) + (zero ? cp4 : 0), 64);
+      rec.dispatch(pipe,
+                   {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT), vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed},
+                   &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+      zero = false;
+    });
+  });
+}
+
+// The convolution, split so that every dispatch stays within the limits in force:
+//  - input channels in chunks of cc (a multiple of 8) when one output row's repacked input or one output
+//    channel's weights would not fit one binding; later chunks add into y (fp32, bias with the first);
+//  - output channels in groups of ng: y is bound per group (channels-first y spans ys_c per channel), the
+//    group's weights are repacked per group (a binding, a texel view, the scratch), gy within the grid limit;
+//  - per batch item, output frames and, when one frame is too large, output rows (then columns): the chunk's input repacked
+//    channels-last stays within one binding / texel view / the scratch, its pixels within the grid limit.
+// When everything fits (the default on real devices at small sizes) this is one weight pack, then one input
+// pack and one GEMM per chunk of frames, as before.
 void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const Tensor& w,
                  const Tensor* bias, const Tensor& y, const ConvScratch* given) {
   if (j.b == 0 || j.frames_out == 0 || j.ho == 0 || j.wo == 0 || j.cout == 0) return;
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
+  const ConvLimits l = conv_limits(caps);
   uint32_t wdt = weight_code(op, w.dtype());
-  check_texels(op, ctx, x, uint64_t(x.numel()));
-  if (j.cache) check_texels(op, ctx, *j.cache, uint64_t(j.cache->numel()));
-  const int64_t cp = (j.cin + 7) / 8 * 8, up = j.upsample ? 2 : 1;
+  const int64_t up = j.upsample ? 2 : 1, taps = j.kt * j.kh * j.kw, wb = wdt == 0 ? 4 : 2;
 
   GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo, j.cout);
   if (g_block_override.rows) tile.rows = g_block_override.rows;
@@ -149,88 +264,228 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   if (g_block_override.k_unroll) tile.k_unroll = g_block_override.k_unroll;
   if (g_block_override.lanes >= 0) tile.lanes = std::max(g_block_override.lanes, gemm_lanes(caps));
   const int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;
-  expect(div_up(j.cout, tile_n) <= 65535, op, "too many output channels for one dispatch");
 
-  // Chunk budget: one storage binding (the pack writes it), one texel view of RGBA32F texels.
-  uint64_t cap = caps.max_storage_buffer_range;
-  if (caps.max_texel_buffer_elements) cap = std::min<uint64_t>(cap, caps.max_texel_buffer_elements * 16);
-  cap = std::min(cap, kScratchInputCap);
-  if (given) cap = std::min<uint64_t>(cap, uint64_t(given->input.bytes()));
-  if (g_chunk_bytes_override) cap = std::min<uint64_t>(cap, g_chunk_bytes_override);
-  const uint64_t pixel_bytes = uint64_t(cp) * 4, max_m = uint64_t(65535) * uint64_t(tile_m);
-  // Bytes of a chunk of nfo output frames and r output rows, wherever the rows lie (interior rows read the
-  // most source rows: the span of r rows plus the kernel, halved and rounded out when upsampling).
-  auto chunk_bytes = [&](int64_t nfo, int64_t r) {
-    int64_t span = (r - 1) * j.stride + j.kh;
-    int64_t src_rows = r == j.ho ? source_rows(j, 0, j.ho).end - source_rows(j, 0, j.ho).first
-                                 : std::min(j.h, up == 1 ? span : (span - 1) / 2 + 2);
-    return uint64_t(nfo + j.kt - 1) * uint64_t(src_rows) * uint64_t(j.w) * pixel_bytes + pixel_bytes;
+  // Staging budgets: one binding and one RGBA texel view each, one allocation, the caller's buffer.
+  const uint64_t alloc = caps.max_memory_allocation_size ? caps.max_memory_allocation_size : UINT64_MAX;
+  uint64_t in_cap = std::min({l.rgba, alloc, kScratchInputCap});
+  uint64_t w_cap = std::min({l.rgba, alloc, kScratchInputCap});
+  if (given) in_cap = std::min<uint64_t>(in_cap, uint64_t(given->input.bytes()));
+  if (given) w_cap = std::min<uint64_t>(w_cap, uint64_t(given->weights.bytes()));
+  if (g_chunk_bytes_override) in_cap = std::min<uint64_t>(in_cap, g_chunk_bytes_override);
+  in_cap = std::min<uint64_t>(in_cap, l.groups_1d * 64 * 16);  // one pack dispatch's grid
+  const uint64_t y_cap = l.storage > l.align ? l.storage - l.align : 0;
+
+  // Source rows of r output rows, wherever they lie (interior rows read the most: the span plus the kernel,
+  // halved and rounded out when upsampling).
+  auto src_of = [&](int64_t r, int64_t total, int64_t k, int64_t n, RowSpan whole) {
+    if (r == total) return whole.end - whole.first;
+    int64_t span = (r - 1) * j.stride + k;
+    return std::min(n, up == 1 ? span : (span - 1) / 2 + 2);
   };
-  int64_t chunk_frames = 0, chunk_rows = j.ho;
+  const RowSpan all_rows = source_rows(j, 0, j.ho), all_cols = source_cols(j, 0, j.wo);
+  // Bytes of the repacked input of nfo output frames x r rows x c columns (+ the zero pixel).
+  auto chunk_bytes = [&](int64_t nfo, int64_t r, int64_t cpc, int64_t c) {
+    return uint64_t(nfo + j.kt - 1) * uint64_t(src_of(r, j.ho, j.kh, j.h, all_rows)) *
+               uint64_t(src_of(c, j.wo, j.kw, j.w, all_cols)) * uint64_t(cpc) * 4 + uint64_t(cpc) * 4;
+  };
+  // Elements of y one dispatch of ng channels, nfo frames, r rows and c columns writes, first to last.
+  auto y_span = [&](int64_t ng, int64_t nfo, int64_t r, int64_t c) {
+    return uint64_t((ng - 1) * j.ys_c + (nfo - 1) * j.ys_f + (r - 1) * j.ys_h + (c - 1) * j.ys_w + 1);
+  };
+  auto round8 = [](int64_t c) { return (c + 7) / 8 * 8; };
+
+  // Input channels per chunk: all, unless one output pixel or one output channel's weights do not fit.
+  int64_t cc = j.cin;
+  auto cc_fits = [&](int64_t c) {
+    int64_t cpc = round8(c);
+    return chunk_bytes(1, 1, cpc, 1) <= in_cap && uint64_t(taps * cpc * wb) <= w_cap &&
+           uint64_t(c * taps * wb) + l.align + 4 <= l.storage;
+  };
+  if (!cc_fits(cc)) {
+    cc = (cc - 1) / 8 * 8;
+    while (cc > 8 && !cc_fits(cc)) cc -= 8;
+    expect(cc >= 1 && cc_fits(cc), op, "not even 8 input channels of one output pixel fit the limits in force");
+  }
+  const int64_t cpc = round8(cc);
+
+  // Output channels per group.
+  int64_t ng = j.cout;
+  ng = std::min<int64_t>(ng, int64_t(w_cap / uint64_t(taps * cpc * wb)));
+  ng = std::min<int64_t>(ng, int64_t(l.groups_y) * tile_n);
+  if (y_span(ng, 1, 1, 1) * 4 > y_cap && j.ys_c > 0)
+    ng = std::min<int64_t>(ng, int64_t((y_cap / 4 - y_span(1, 1, 1, 1)) / uint64_t(j.ys_c)) + 1);
+  expect(ng >= 1 && y_span(1, 1, 1, 1) * 4 <= y_cap, op, "one output pixel exceeds one binding");
+  if (ng < j.cout && ng > tile_n) ng = ng / tile_n * tile_n;  // whole tiles per group
+
+  // Output frames, then rows, per chunk.
+  const uint64_t max_m = l.groups_x * uint64_t(tile_m);
+  auto chunk_fits = [&](int64_t nfo, int64_t r, int64_t c) {
+    return chunk_bytes(nfo, r, cpc, c) <= in_cap && uint64_t(nfo * r * c) <= max_m && y_span(ng, nfo, r, c) * 4 <= y_cap;
+  };
+  int64_t chunk_frames = 0, chunk_rows = j.ho, chunk_cols = j.wo;
   for (int64_t n = j.frames_out; n >= 1 && chunk_frames == 0; --n)
-    if (chunk_bytes(n, j.ho) <= cap && uint64_t(n * j.ho * j.wo) <= max_m) chunk_frames = n;
-  if (chunk_frames == 0) {  // one frame at a time, split over rows
+    if (chunk_fits(n, j.ho, j.wo)) chunk_frames = n;
+  if (chunk_frames == 0) {  // one frame at a time, in rows
     chunk_frames = 1;
     chunk_rows = 0;
-    for (int64_t r = j.ho; r >= 1 && chunk_rows == 0; --r)
-      if (chunk_bytes(1, r) <= cap && uint64_t(r * j.wo) <= max_m) chunk_rows = r;
-    expect(chunk_rows >= 1, op, "one output row of " + y.describe() + " needs more than the device's binding limit (" +
-                                    std::to_string(cap) + " bytes) of repacked input; tile the input spatially");
+    for (int64_t r = j.ho - 1; r >= 1 && chunk_rows == 0; --r)
+      if (chunk_fits(1, r, j.wo)) chunk_rows = r;
+  }
+  if (chunk_rows == 0) {  // one row at a time, in columns
+    chunk_rows = 1;
+    chunk_cols = 0;
+    for (int64_t c = j.wo - 1; c >= 1 && chunk_cols == 0; --c)
+      if (chunk_fits(1, 1, c)) chunk_cols = c;
+    expect(chunk_cols >= 1, op, "one output pixel of " + x.describe() + " does not fit the limits in force");
   }
 
-  vk::BufferView packed_w = pack_weights(rec, op, j, w, wdt, cp, given);
-  const vk::BufferView bias_view = bias ? word_view(*bias) : word_view(w);
-  const int64_t steps = cp / 8;
+  uint64_t packed_bytes_max = std::min<uint64_t>(chunk_bytes(chunk_frames, chunk_rows, cpc, chunk_cols), in_cap);
+  vk::BufferView packed_x_all = given ? given->input.buffer() : rec.scratch(0, packed_bytes_max, "convolution input chunk (repacked)");
+  const uint64_t packed_w_bytes = uint64_t(ng * taps * cpc * wb);
+  vk::BufferView packed_w = given ? given->weights.buffer() : rec.scratch(1, packed_w_bytes, "convolution weights (repacked)");
+  packed_w.size = packed_w_bytes;
+
+  const int64_t steps = cpc / 8;
   const uint32_t ku = steps % 4 == 0 ? std::min<uint32_t>(4, uint32_t(tile.k_unroll)) : (steps % 2 == 0 ? std::min<uint32_t>(2, uint32_t(tile.k_unroll)) : 1u);
   std::array<uint32_t, 6> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
                                        uint32_t(tile.sg_m), std::max(ku, 1u)};
   const vk::Pipeline& gemm =
       ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
-  const vk::Pipeline& pack = ctx.pipelines().get("nn/conv_pack_input");
-  const Tensor& cache_src = j.cache ? *j.cache : x;
+  const vk::BufferView bias_view = bias ? word_view(*bias) : packed_w;
+  const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 
-  for (int64_t b = 0; b < j.b; ++b)
-    for (int64_t fo0 = 0; fo0 < j.frames_out; fo0 += chunk_frames)
-      for (int64_t oh0 = 0; oh0 < j.ho; oh0 += chunk_rows) {
-        int64_t nfo = std::min(chunk_frames, j.frames_out - fo0), oh1 = std::min(j.ho, oh0 + chunk_rows);
-        RowSpan rs = source_rows(j, oh0, oh1);
-        int64_t src_rows = rs.end - rs.first, packed_frames = nfo + j.kt - 1;
-        int64_t texels = packed_frames * src_rows * j.w * (cp / 4);
-        expect(uint64_t(texels + cp / 4) * 16 <= cap, op, "chunk planning error");  // guards the bound above
-        const uint64_t packed_bytes = uint64_t(texels + cp / 4) * 16;
-        vk::BufferView packed_x = given ? given->input.buffer() : rec.scratch(0, packed_bytes, "convolution input chunk (repacked)");
-        packed_x.size = packed_bytes;
+  for_each_chunk(j.cin, cc, [&](int64_t c0, int64_t ncc) {
+    for_each_chunk(j.cout, ng, [&](int64_t n0, int64_t nn) {
+      pack_weights(rec, op, j, w, wdt, l, n0, nn, c0, ncc, cpc, packed_w);
+      for (int64_t b = 0; b < j.b; ++b)
+        for_each_chunk(j.frames_out, chunk_frames, [&](int64_t fo0, int64_t nfo) {
+          for_each_chunk(j.ho, chunk_rows, [&](int64_t oh0, int64_t nr) {
+           for_each_chunk(j.wo, chunk_cols, [&](int64_t ow0, int64_t nc) {
+            RowSpan rs = source_rows(j, oh0, oh0 + nr), cs = source_cols(j, ow0, ow0 + nc);
+            const int64_t src_rows = std::max<int64_t>(rs.end - rs.first, 0), packed_frames = nfo + j.kt - 1;
+            const int64_t src_cols = std::max<int64_t>(cs.end - cs.first, 0);
+            const int64_t texels = packed_frames * src_rows * src_cols * (cpc / 4);
+            vk::BufferView packed_x = packed_x_all;
+            packed_x.size = uint64_t(texels + cpc / 4) * 16;
+            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first, src_cols, packed_x);
 
-        PackInputPush pp{u32(op, texels), u32(op, cp / 4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
-                         u32(op, b), u32(op, fo0), u32(op, packed_frames), u32(op, rs.first), u32(op, src_rows),
-                         u32(op, j.prefix), j.time_mode};
-        Grid g = grid_1d(texels + cp / 4, 64);
-        rec.dispatch(pack,
-                     {vk::Binding(x.buffer(), VK_FORMAT_R32_SFLOAT), vk::Binding(cache_src.buffer(), VK_FORMAT_R32_SFLOAT),
-                      packed_x},
-                     &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+            GemmPush pc{};
+            const int64_t m = nfo * nr * nc;
+            pc.m = u32(op, m);
+            pc.n = u32(op, nn);
+            pc.cp = u32(op, cpc);
+            pc.kt = u32(op, j.kt), pc.kh = u32(op, j.kh), pc.kw = u32(op, j.kw);
+            pc.stride = u32(op, j.stride), pc.up = u32(op, up);
+            pc.wo = u32(op, nc), pc.rows = u32(op, nr), pc.oh0 = u32(op, oh0);
+            pc.ow0 = u32(op, ow0), pc.src_c0 = u32(op, cs.first);
+            pc.pad_top = int32_t(j.pad_top), pc.pad_left = int32_t(j.pad_left);
+            pc.in_h = u32(op, up * j.h), pc.in_w = u32(op, up * j.w);
+            pc.src_r0 = u32(op, rs.first), pc.src_rows = u32(op, src_rows), pc.src_w = u32(op, src_cols);
+            pc.zero_texel = u32(op, texels);
+            pc.ys_f = u32(op, j.ys_f), pc.ys_h = u32(op, j.ys_h), pc.ys_w = u32(op, j.ys_w), pc.ys_c = u32(op, j.ys_c);
+            pc.has_bias = bias ? 1 : 0;
+            pc.n_base = u32(op, n0);
+            pc.accumulate = c0 > 0 ? 1 : 0;
+            const uint64_t y0 = uint64_t(b * j.ys_b + fo0 * j.ys_f + oh0 * j.ys_h + ow0 * j.ys_w + n0 * j.ys_c);
+            uint32_t ybase = 0;
+            vk::BufferView yv = whole_y ? y.buffer() : aligned_view(y.buffer(), y0 * 4, (y0 + y_span(nn, nfo, nr, nc)) * 4, l.align, 4, ybase);
+            pc.y_base = uint32_t(y0) - ybase;
+            uint32_t gx = div_up(m, tile_m), gy = div_up(nn, tile_n);
+            rec.dispatch(gemm,
+                         {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
+                          vk::Binding(packed_w, VK_FORMAT_R32G32B32A32_UINT), bias_view, yv},
+                         &pc, sizeof pc, gx, gy, 1, op);
+           });
+          });
+        });
+    });
+  });
+}
 
-        GemmPush pc{};
-        int64_t m = nfo * (oh1 - oh0) * j.wo;
-        pc.m = u32(op, m);
-        pc.n = u32(op, j.cout);
-        pc.cp = u32(op, cp);
-        pc.kt = u32(op, j.kt), pc.kh = u32(op, j.kh), pc.kw = u32(op, j.kw);
-        pc.stride = u32(op, j.stride), pc.up = u32(op, up);
-        pc.wo = u32(op, j.wo), pc.rows = u32(op, oh1 - oh0), pc.oh0 = u32(op, oh0);
-        pc.pad_top = int32_t(j.pad_top), pc.pad_left = int32_t(j.pad_left);
-        pc.in_h = u32(op, up * j.h), pc.in_w = u32(op, up * j.w);
-        pc.src_r0 = u32(op, rs.first), pc.src_rows = u32(op, src_rows), pc.src_w = u32(op, j.w);
-        pc.zero_texel = u32(op, texels);
-        pc.y_base = u32(op, b * j.ys_b + fo0 * j.ys_f + oh0 * j.ys_h);
-        pc.ys_f = u32(op, j.ys_f), pc.ys_h = u32(op, j.ys_h), pc.ys_w = u32(op, j.ys_w), pc.ys_c = u32(op, j.ys_c);
-        pc.has_bias = bias ? 1 : 0;
-        uint32_t gx = div_up(m, tile_m), gy = div_up(j.cout, tile_n);
-        rec.dispatch(gemm,
-                     {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
-                      vk::Binding(packed_w, VK_FORMAT_R32G32B32A32_UINT), bias_view, y.buffer()},
-                     &pc, sizeof pc, gx, gy, 1, op);
-      }
+// The conv cache update (conv3d_cache.comp) in dispatches over (b, c) planes, elements of one plane and cache
+// slots whose x / old cache / new cache parts each fit one binding. Slot j is padded frame F + j: x frame
+// F + j - P, or (F + j < P) old slot F + j, or x frame 0 without an old cache.
+void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Tensor* cache_in, const Tensor& cache_out) {
+  const char* op = "causal_conv3d";
+  const ConvLimits l = conv_limits(rec.context().caps());
+  const int64_t hw = j.h * j.w, bcs = j.b * j.cin, fr = j.frames, pr = j.prefix;
+  const uint64_t cap = l.storage > l.align + 4 ? (l.storage - l.align - 4) / 4 : 0;  // elements per binding
+  using Range = std::pair<uint64_t, uint64_t>;
+  // Element ranges of x, the old and the new cache that planes [bc0, +nbc) x elements [s0, +ns) x slots [j0, +nj) touch.
+  auto ranges = [&](int64_t bc0, int64_t nbc, int64_t s0, int64_t ns, int64_t j0, int64_t nj) {
+    int64_t xlo = -1, xhi = -1, plo = -1, phi = -1;
+    auto add = [](int64_t& lo, int64_t& hi, int64_t v) { lo = lo < 0 ? v : std::min(lo, v), hi = std::max(hi, v); };
+    for (int64_t k = j0; k < j0 + nj; ++k) {
+      const int64_t t = fr + k;
+      if (t >= pr) add(xlo, xhi, t - pr);
+      else if (cache_in) add(plo, phi, t);
+      else add(xlo, xhi, 0);
+    }
+    auto span = [&](int64_t per, int64_t lo, int64_t hi) {
+      return lo < 0 ? Range{0, 0} : Range(uint64_t((bc0 * per + lo) * hw + s0), uint64_t(((bc0 + nbc - 1) * per + hi) * hw + s0 + ns));
+    };
+    return std::array<Range, 3>{span(fr, xlo, xhi), span(pr, plo, phi), span(pr, j0, j0 + nj - 1)};
+  };
+  auto fits = [&](int64_t nbc, int64_t ns, int64_t nj) {
+    for (int64_t j0 = 0; j0 + nj <= pr; j0 += nj)
+      for (const Range& r : ranges(0, nbc, 0, ns, j0, nj))
+        if (r.second - r.first > cap) return false;
+    return uint64_t(nbc * ns) <= l.groups_1d * 64;
+  };
+  int64_t nbc = bcs, ns = hw, nj = pr;
+  if (!fits(nbc, ns, nj)) {
+    nbc = std::max<int64_t>(1, int64_t(cap / uint64_t(std::max(fr, pr) * hw)));
+    while (nbc > 1 && !fits(nbc, ns, nj)) --nbc;
+    if (!fits(nbc, ns, nj)) nj = 1;
+    while (ns > 1 && !fits(nbc, ns, nj)) ns = (ns + 1) / 2;
+    expect(fits(nbc, ns, nj), op, "the conv cache of one plane element exceeds one binding");
+  }
+  std::array<uint32_t, 1> spec = {kMaxCachePrefix};
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv3d_cache", spec);
+  for_each_chunk(bcs, nbc, [&](int64_t bc0, int64_t nb) {
+    for_each_chunk(pr, nj, [&](int64_t j0, int64_t njs) {
+      for_each_chunk(hw, ns, [&](int64_t s0, int64_t n) {
+        struct {
+          uint32_t columns, hw, frames, prefix, use_prev, bc0, s0, ns, x_base, prev_base, next_base, j0, nj;
+        } pc{u32(op, nb * n), u32(op, hw), u32(op, fr), u32(op, pr), cache_in ? 1u : 0u, u32(op, bc0), u32(op, s0),
+             u32(op, n), 0, 0, 0, u32(op, j0), u32(op, njs)};
+        auto r = ranges(bc0, nb, s0, n, j0, njs);
+        for (Range& q : r)
+          if (q.second == q.first) q = {0, 1};  // not read: any valid view
+        vk::BufferView xv = aligned_view(x.buffer(), r[0].first * 4, r[0].second * 4, l.align, 4, pc.x_base);
+        vk::BufferView nv = aligned_view(cache_out.buffer(), r[2].first * 4, r[2].second * 4, l.align, 4, pc.next_base);
+        vk::BufferView pv = cache_in ? aligned_view(cache_in->buffer(), r[1].first * 4, r[1].second * 4, l.align, 4, pc.prev_base) : xv;
+        if (!cache_in) pc.prev_base = pc.x_base;
+        Grid g = grid_1d(rec.context().caps(), nb * n, 64);
+        rec.dispatch(pipe, {xv, pv, nv}, &pc, sizeof pc, g.x, g.y, 1, "causal_conv3d_cache");
+      });
+    });
+  });
+}
+
+// Walks a plane-wise op (grid: x columns, y rows, z planes) in dispatches of planes [z0, z0 + nz) x rows
+// [r0, r0 + nr): every row of as many planes as fit, else one plane in as many rows as fit. fits(z0, nz, r0,
+// nr) says whether a dispatch's views fit one binding; the grid stays within maxComputeWorkGroupCount.
+template <class Fits, class Run>
+void for_each_plane_chunk(const char* op, const ConvLimits& l, int64_t planes, int64_t rows, Fits&& fits, Run&& run) {
+  const int64_t max_z = int64_t(l.groups_z), max_y = int64_t(l.groups_y);
+  for (int64_t z0 = 0; z0 < planes;) {
+    int64_t nz = std::min(planes - z0, max_z);
+    while (nz > 1 && !(rows <= max_y && fits(z0, nz, int64_t(0), rows))) --nz;
+    if (rows <= max_y && fits(z0, nz, int64_t(0), rows)) {
+      run(z0, nz, int64_t(0), rows);
+      z0 += nz;
+      continue;
+    }
+    int64_t nr = std::min(rows, max_y);
+    for (int64_t r0 = 0; r0 < rows; r0 += nr) {
+      nr = std::min({nr, rows - r0, max_y});
+      while (nr > 1 && !fits(z0, int64_t(1), r0, nr)) --nr;
+      expect(fits(z0, int64_t(1), r0, nr), op, "one row exceeds one binding");
+      run(z0, int64_t(1), r0, nr);
+    }
+    z0 += 1;
+  }
 }
 
 // Weight shape as (Cout, Cin, kt, kh, kw) from a 4-D or 5-D tensor.
@@ -338,17 +593,7 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   j.cache = cache_in;
   record_conv(rec, op, j, x, w, bias, y, scratch);
 
-  if (cache_out && j.frames > 0) {
-    struct {
-      uint32_t columns, hw, frames, prefix, use_prev;
-    } pc{u32(op, j.b * j.cin * plane), u32(op, plane), u32(op, j.frames), u32(op, j.prefix), cache_in ? 1u : 0u};
-    std::array<uint32_t, 1> spec = {kMaxCachePrefix};
-    const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv3d_cache", spec);
-    Grid g = grid_1d(pc.columns, 64);
-    if (pc.columns == 0) return;
-    rec.dispatch(pipe, {x.buffer(), cache_in ? cache_in->buffer() : x.buffer(), cache_out->buffer()}, &pc, sizeof pc,
-                 g.x, g.y, 1, "causal_conv3d_cache");
-  }
+  if (cache_out && j.frames > 0) record_cache(rec, j, x, cache_in, *cache_out);
 }
 
 void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
@@ -368,22 +613,35 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   expect_dtype(op, "x", x, DType::f32);
   expect_dtype(op, "y", y, DType::f32);
   expect(x.rank() == 5, op, "input must be [B, C, F, H, W], got " + x.describe());
-  int64_t fo = downsample_time_frames(x.dim(2));
+  const int64_t f = x.dim(2), fo = downsample_time_frames(f), hw = x.dim(3) * x.dim(4), bc = x.dim(0) * x.dim(1);
   expect_shape(op, "y", y, {x.dim(0), x.dim(1), fo, x.dim(3), x.dim(4)});
-  struct {
-    uint32_t hw, frames, frames_out, bc_begin;
-  } pc{u32(op, x.dim(3) * x.dim(4)), u32(op, x.dim(2)), u32(op, fo), 0};
-  int64_t bc = x.dim(0) * x.dim(1);
   if (y.numel() == 0) return;
-  bool vec4 = pc.hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
-  if (vec4) pc.hw /= 4;
-  expect(fo <= 65535 && div_up(pc.hw, 64) <= 65535, op, "frame count or plane too large: " + x.describe());
+  const ConvLimits l = conv_limits(rec.context().caps());
+  const bool vec4 = hw % 4 == 0;  // whole vec4s per plane (and 16-byte aligned planes)
+  const int64_t unit = vec4 ? 4 : 1, align = int64_t(std::lcm<uint64_t>(l.align, uint64_t(unit) * 4));
+  expect(uint64_t(div_up(hw / unit, 64)) <= l.groups_x, op, "plane too large: " + x.describe());
+  const bool odd = f % 2 == 1;
+  auto src_frame = [&](int64_t o) { return odd ? (o == 0 ? 0 : 2 * o - 1) : 2 * o; };  // first of the pair
+  // Elements of x and y that planes (b*C + c) [z0, z0 + nz) x output frames [r0, r0 + nr) touch.
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    const int64_t o_last = r0 + nr - 1, last = odd && o_last == 0 ? 0 : src_frame(o_last) + 1;
+    return std::array<uint64_t, 4>{uint64_t((z0 * f + src_frame(r0)) * hw), uint64_t(((z0 + nz - 1) * f + last + 1) * hw),
+                                   uint64_t((z0 * fo + r0) * hw), uint64_t(((z0 + nz - 1) * fo + r0 + nr) * hw)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get(vec4 ? "nn/avgpool_time_vec4" : "nn/avgpool_time");
-  for (int64_t first = 0; first < bc; first += 65535) {
-    pc.bc_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.hw, 64), uint32_t(fo),
-                 uint32_t(std::min<int64_t>(65535, bc - first)), op);
-  }
+  for_each_plane_chunk(op, l, bc, fo, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + uint64_t(align) <= l.storage && (s[3] - s[2]) * 4 + uint64_t(align) <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    struct {
+      uint32_t hw, frames, frames_out, bc_begin, fo_begin, x_base, y_base;
+    } pc{u32(op, hw / unit), u32(op, f), u32(op, fo), u32(op, z0), u32(op, r0), 0, 0};
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, uint64_t(align), uint32_t(unit * 4), pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, uint64_t(align), uint32_t(unit * 4), pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(hw / unit, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool keep_first_frame) {
@@ -397,18 +655,42 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
            "keep_first_frame needs at least 2 frames on both sides: " + x.describe() + " -> " + y.describe());
   expect(y.numel() == 0 || x.numel() > 0, op, "empty input");
   struct {
-    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin;
+    uint32_t frames, h, w, frames_out, ho, wo, keep_first, z_begin, row_begin, x_base, y_base;
   } pc{u32(op, x.dim(2)), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), u32(op, y.dim(3)), u32(op, y.dim(4)),
-       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0};
+       keep_first_frame && x.dim(2) != y.dim(2) ? 1u : 0u, 0, 0, 0, 0};
   if (y.numel() == 0) return;
-  expect(pc.ho <= 65535 && div_up(pc.wo, 64) <= 65535, op, "output too large: " + y.describe());
-  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const ConvLimits l = conv_limits(rec.context().caps());
+  expect(uint64_t(div_up(pc.wo, 64)) <= l.groups_x, op, "output too large: " + y.describe());
+  const int64_t f = x.dim(2), h = x.dim(3), w = x.dim(4), fo = y.dim(2), ho = y.dim(3), wo = y.dim(4);
+  // The shader's index rule in fp32 (PyTorch's), widened by a row / frame each way for safety in the spans.
+  auto near = [](int64_t dst, int64_t n_in, int64_t n_out) {
+    if (n_in == n_out) return dst;
+    return std::min<int64_t>(int64_t(std::floor(float(dst) * (float(n_in) / float(n_out)))), n_in - 1);
+  };
+  auto src_plane = [&](int64_t z) {
+    const int64_t o = z % fo, bcz = z / fo;
+    const int64_t s = pc.keep_first ? (o == 0 ? 0 : 1 + near(o - 1, f - 1, fo - 1)) : near(o, f, fo);
+    return bcz * f + s;
+  };
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    const int64_t ra = std::max<int64_t>(near(r0, h, ho) - 1, 0), rb = std::min<int64_t>(near(r0 + nr - 1, h, ho) + 2, h);
+    const bool all = r0 == 0 && nr == ho;
+    return std::array<uint64_t, 4>{uint64_t(src_plane(z0) * h * w + (all ? 0 : ra * w)),
+                                   uint64_t(src_plane(z0 + nz - 1) * h * w + (all ? h : rb) * w),
+                                   uint64_t((z0 * ho + r0) * wo), uint64_t(((z0 + nz - 1) * ho + r0 + nr) * wo)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample_nearest");
-  for (int64_t first = 0; first < zs; first += 65535) {
-    pc.z_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.wo, 64), pc.ho,
-                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
-  }
+  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, ho, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + l.align <= l.storage && (s[3] - s[2]) * 4 + l.align <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    pc.z_begin = uint32_t(z0), pc.row_begin = uint32_t(r0);
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, l.align, 4, pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, l.align, 4, pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(pc.wo, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 Shape upsample2x_shape(const Shape& x, bool compress_time) {
@@ -426,17 +708,34 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
   int64_t f = x.dim(2);
   uint32_t time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
   struct {
-    uint32_t frames, h, w, frames_out, time_mode, z_begin;
-  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0};
+    uint32_t frames, h, w, frames_out, time_mode, z_begin, row_begin, x_base, y_base;
+  } pc{u32(op, f), u32(op, x.dim(3)), u32(op, x.dim(4)), u32(op, y.dim(2)), time_mode, 0, 0, 0, 0};
   if (y.numel() == 0) return;
-  expect(pc.h <= 65535 && div_up(pc.w, 64) <= 65535, op, "input too large: " + x.describe());
-  int64_t zs = y.dim(0) * y.dim(1) * y.dim(2);
+  const ConvLimits l = conv_limits(rec.context().caps());
+  expect(uint64_t(div_up(pc.w, 64)) <= l.groups_x, op, "input too large: " + x.describe());
+  const int64_t h = x.dim(3), w = x.dim(4), fo = y.dim(2);
+  const uint64_t align = std::lcm<uint64_t>(l.align, 8);  // y is bound as vec2s
+  auto src_plane = [&](int64_t z) {
+    const int64_t o = z % fo, bcz = z / fo;
+    return bcz * f + (time_mode == 0 ? o : time_mode == 1 ? (o == 0 ? 0 : 1 + (o - 1) / 2) : o / 2);
+  };
+  // Planes [z0, z0 + nz) of y x input rows [r0, r0 + nr): elements of x, then of y.
+  auto spans = [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    return std::array<uint64_t, 4>{uint64_t((src_plane(z0) * h + r0) * w), uint64_t((src_plane(z0 + nz - 1) * h + r0 + nr) * w),
+                                   uint64_t((z0 * h + r0) * 4 * w), uint64_t(((z0 + nz - 1) * h + r0 + nr) * 4 * w)};
+  };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample2x");
-  for (int64_t first = 0; first < zs; first += 65535) {
-    pc.z_begin = uint32_t(first);
-    rec.dispatch(pipe, {x.buffer(), y.buffer()}, &pc, sizeof pc, div_up(pc.w, 64), pc.h,
-                 uint32_t(std::min<int64_t>(65535, zs - first)), op);
-  }
+  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, h, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    return (s[1] - s[0]) * 4 + align <= l.storage && (s[3] - s[2]) * 4 + align <= l.storage;
+  }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+    auto s = spans(z0, nz, r0, nr);
+    pc.z_begin = uint32_t(z0), pc.row_begin = uint32_t(r0);
+    const bool whole = uint64_t(x.bytes()) <= l.storage && uint64_t(y.bytes()) <= l.storage;
+    vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), s[0] * 4, s[1] * 4, l.align, 4, pc.x_base);
+    vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), s[2] * 4, s[3] * 4, align, 8, pc.y_base);
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, div_up(pc.w, 64), uint32_t(nr), uint32_t(nz), op);
+  });
 }
 
 void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
