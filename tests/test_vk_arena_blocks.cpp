@@ -150,12 +150,12 @@ class ArenaModels : public GpuTest {
  protected:
   std::filesystem::path pack() const { return std::filesystem::path(test::golden_dir()); }
   Tensor upload(const std::string& rel) { return Tensor::upload(ctx(), read_npy(pack() / rel)); }
-  // The smallest allocation limit (a multiple of 4 KiB) under which counting(limit) succeeds: every activation
-  // tensor fits one allocation. The golden model is tiny: 256 KiB holds its whole arena, so the tests cut
+  // The smallest allocation limit (a multiple of 4 KiB) under which counting() succeeds: every activation
+  // tensor fits one allocation. The golden model is tiny: 256 KiB holds its whole arena, so the test cuts
   // blocks this small to make the arena span several.
   template <class F>
   std::string tightest_limit(F&& counting) {
-    for (int kib = 4; kib <= 4096; kib += 4) {
+    for (int kib = 64; kib <= 4096; kib += 4) {  // DVS_LIMITS' floor: 64 KiB
       const std::string spec = "alloc=" + std::to_string(kib) + "KiB";
       test::ScopedLimits limits(ctx(), spec);
       try {
@@ -169,14 +169,29 @@ class ArenaModels : public GpuTest {
   }
 };
 
+// Rows of `t` [1, ...] repeated `n` times: [n, ...].
+HostTensor repeat_rows(const HostTensor& t, int64_t n) {
+  HostTensor r = t;
+  r.shape[0] = n;
+  r.data.clear();
+  for (int64_t i = 0; i < n; ++i) r.data.insert(r.data.end(), t.data.begin(), t.data.end());
+  return r;
+}
+
 TEST_F(ArenaModels, TransformerOverArenaBlocksIsBitwiseTheSame) {
   models::CogVideoXTransformer tr(ctx(), pack() / "model" / "transformer");  // weights under the device's limits
-  const Tensor latent = upload("transformer/hidden_states.npy");
-  const Tensor text = upload("transformer/encoder_hidden_states.npy");
-  const float t = 999.0f;
-  const HostTensor ref = tr.forward(latent, text, std::span<const float>(&t, 1)).download(ctx());
-  const Shape& s = latent.shape();  // [B, F, C, H, W]
-  auto count = [&] { return tr.arena_bytes(s[0], s[1], s[3], s[4], text.dim(1)); };
+  const HostTensor lat = read_npy(pack() / "transformer/hidden_states.npy");  // [1, F, C, H, W]
+  const HostTensor txt = read_npy(pack() / "transformer/encoder_hidden_states.npy");
+  const Shape& s = lat.shape;
+  const int64_t L = txt.shape[1];
+  // A batch large enough that the arena is several times DVS_LIMITS' smallest allocation (64 KiB).
+  int64_t B = 1;
+  while (tr.arena_bytes(B, s[1], s[3], s[4], L) < 4 * 64 * KiB) B += 2;
+  const Tensor latent = Tensor::upload(ctx(), repeat_rows(lat, B));
+  const Tensor text = Tensor::upload(ctx(), repeat_rows(txt, B));
+  const std::vector<float> t(size_t(B), 999.0f);
+  const HostTensor ref = tr.forward(latent, text, t).download(ctx());
+  auto count = [&] { return tr.arena_bytes(B, s[1], s[3], s[4], L); };
   const VkDeviceSize one_block = count();
   const std::string tight = tightest_limit(count);
   for (const std::string& spec : {std::string("alloc=256KiB"), tight}) {
@@ -190,7 +205,7 @@ TEST_F(ArenaModels, TransformerOverArenaBlocksIsBitwiseTheSame) {
       EXPECT_GT(bytes, limit) << spec << ": several blocks";
       EXPECT_GE(bytes, one_block);
     }
-    const HostTensor got = tr.forward(latent, text, std::span<const float>(&t, 1)).download(ctx());
+    const HostTensor got = tr.forward(latent, text, t).download(ctx());
     ASSERT_EQ(got.shape, ref.shape);
     EXPECT_EQ(got.data, ref.data) << spec << ": the forward over arena blocks differs from the one-block forward";
   }
