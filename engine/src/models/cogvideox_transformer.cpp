@@ -231,14 +231,15 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTran
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
-                                           int64_t F, int64_t H, int64_t W, int64_t L, int64_t lora_rank) {
-  ActivationPlan p(alignment);
+                                           int64_t F, int64_t H, int64_t W, int64_t L, int64_t lora_rank,
+                                           uint64_t alloc_limit) {
+  ActivationPlan p(alignment, alloc_limit, "transformer activation arena");
   plan(config, p, B, F, H, W, L, lora_rank);
   return p.bytes();
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
-  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_);
+  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_, ctx_.allocator().max_allocation());
 }
 
 void CogVideoXTransformer::set_lora(std::map<std::string, LoraAdapter> adapters) {

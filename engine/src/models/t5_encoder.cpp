@@ -144,14 +144,15 @@ T5Encoder::Activations T5Encoder::plan(const T5EncoderConfig& cfg, bool embeddin
 }
 
 uint64_t T5Encoder::arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
-                                int64_t len) {
-  ActivationPlan p(alignment);
+                                int64_t len, uint64_t alloc_limit) {
+  ActivationPlan p(alignment, alloc_limit, "T5 activation arena");
   plan(config, embedding_16bit, p, batch, len);
   return p.bytes();
 }
 
 uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const {
-  return arena_bytes(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len);
+  return arena_bytes(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len,
+                     ctx_.allocator().max_allocation());
 }
 
 void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask,

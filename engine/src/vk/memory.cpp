@@ -67,8 +67,6 @@ Allocator::Allocator(Context& ctx) : ctx_(ctx) {
   vkGetPhysicalDeviceProperties(ctx.physical_device(), &p);
   alignment_ = std::max<VkDeviceSize>({64, c.min_storage_buffer_offset_alignment, p.limits.minTexelBufferOffsetAlignment,
                                        p.limits.nonCoherentAtomSize});
-  // Blocks big enough that weights and arenas rarely need their own, small enough to fit any limit.
-  block_size_ = std::min<VkDeviceSize>(256ull << 20, c.max_memory_allocation_size);
   // Host RAM available now on a CPU device, the heap budget or size on a GPU (memory_budget.hpp).
   budget_ = query_memory_budget(ctx.physical_device(), c.type, c.memory_budget_ext);
 }
@@ -113,6 +111,17 @@ Allocator::~Allocator() {
 }
 
 VkDeviceSize Allocator::max_binding() const { return ctx_.caps().max_storage_buffer_range; }
+
+VkDeviceSize Allocator::max_allocation() const { return ctx_.caps().max_memory_allocation_size; }
+
+// Big enough that weights and arenas rarely need their own block, small enough to fit any limit. Read at each
+// allocation: ScopedLimits / override_limits may lower the limit while the allocator lives.
+VkDeviceSize Allocator::block_size() const { return std::min<VkDeviceSize>(256ull << 20, max_allocation()); }
+
+void Allocator::reset_peak() {
+  stats_.peak_bytes_in_use = stats_.bytes_in_use;
+  stats_.peak_bytes_reserved = stats_.bytes_reserved;
+}
 
 bool Allocator::device_memory_is_mapped() const {
   VkPhysicalDeviceMemoryProperties mp{};
@@ -201,6 +210,7 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
   }
   block->free_ranges[0] = size;
   stats_.bytes_reserved += size;
+  stats_.peak_bytes_reserved = std::max(stats_.peak_bytes_reserved, stats_.bytes_reserved);
   stats_.blocks++;
   blocks_.push_back(std::move(block));
   return blocks_.back().get();
@@ -227,7 +237,7 @@ Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string&
     if (block) break;
   }
   if (!block) {
-    block = new_block(std::max(need, block_size_), use, what);
+    block = new_block(std::max(need, block_size()), use, what);
     offset = 0;
   }
   VkDeviceSize range = block->free_ranges[offset];
@@ -268,22 +278,95 @@ void Allocator::release(Buffer& b) {
   b.owner_ = nullptr;
   b.block_ = nullptr;
   b.view_ = {};
+  if (fr.size() == 1 && fr.begin()->first == 0 && fr.begin()->second == block->size) return_free_blocks(block->use);
+}
+
+// Entirely free blocks of `use` go back to the driver, except one of the standard size. Why one spare: small
+// buffers (recorder scratch, per-step tensors, staging) come and go every op or step; if the last of them
+// emptied a standard block that was then freed, the next would allocate (and map) a fresh one each time. One
+// spare per use bounds what stays held unused to one standard block (≤ 256 MiB); blocks of any other size
+// (dedicated to weights, arenas, big tensors: a phase's memory) and spares cut for an older limit always go.
+void Allocator::return_free_blocks(MemoryUse use) {
+  const VkDeviceSize standard = block_size();
+  bool kept = false;
+  for (size_t i = blocks_.size(); i-- > 0;) {
+    MemoryBlock& b = *blocks_[i];
+    const bool free = b.free_ranges.size() == 1 && b.free_ranges.begin()->second == b.size;
+    if (b.use != use || !free) continue;
+    if (!kept && b.size == standard) {
+      kept = true;
+      continue;
+    }
+    free_block(i);
+  }
+}
+
+void Allocator::free_block(size_t index) {
+  VkDevice dev = ctx_.device();
+  MemoryBlock& b = *blocks_[index];
+  vkDestroyBuffer(dev, b.buffer, nullptr);
+  vkFreeMemory(dev, b.memory, nullptr);  // unmaps too
+  if (b.heap == budget_.heap) heap_reserved_ -= b.bytes;
+  stats_.bytes_reserved -= b.size;
+  stats_.blocks--;
+  blocks_.erase(blocks_.begin() + std::ptrdiff_t(index));
 }
 
 // ---- Arena -------------------------------------------------------------------------------------------
 
+VkDeviceSize ArenaPacking::aligned(VkDeviceSize bytes) const {
+  return align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
+}
+
+ArenaPacking::Place ArenaPacking::place(VkDeviceSize bytes) {
+  const VkDeviceSize need = aligned(bytes);
+  if (offset_ > 0 && offset_ + need > block_) {  // does not fit the rest: the next block
+    ++block_index_;
+    offset_ = 0;
+  }
+  Place p{block_index_, offset_};
+  offset_ += need;
+  return p;
+}
+
 Arena::Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what)
-    : buffer_(alloc.allocate(capacity, MemoryUse::device, what)), what_(what), alignment_(alloc.alignment()) {}
+    : what_(what),
+      alignment_(alloc.alignment()),
+      limit_(ArenaPacking::block_limit(alloc.max_allocation(), alignment_)),
+      capacity_(align_up(std::max<VkDeviceSize>(capacity, 4), alignment_)),
+      packing_(alignment_, std::min(limit_, capacity_)) {
+  if (limit_ == 0)
+    throw Error("internal: maxMemoryAllocationSize " + format_bytes(alloc.max_allocation()) + " is below the " +
+                format_bytes(alignment_) + " alignment of a buffer");
+  const VkDeviceSize block = packing_.block();
+  const size_t count = size_t((capacity_ + block - 1) / block);
+  blocks_.reserve(count);
+  for (VkDeviceSize left = capacity_; left > 0;) {
+    const VkDeviceSize b = std::min(block, left);
+    std::string name = what_;
+    if (count > 1) name += " (block " + std::to_string(blocks_.size() + 1) + " of " + std::to_string(count) + ")";
+    blocks_.push_back(alloc.allocate(b, MemoryUse::device, name));
+    left -= b;
+  }
+}
+
+void Arena::reset() { packing_ = ArenaPacking(alignment_, packing_.block()); }
 
 BufferView Arena::alloc(VkDeviceSize bytes) {
-  VkDeviceSize need = align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
-  if (need > buffer_.size() - used_)
-    throw Error("The " + what_ + " of " + format_bytes(buffer_.size()) + " is full: " + format_bytes(used_) +
-                " used, " + format_bytes(bytes) + " more requested. Use a smaller size or tiling.");
-  BufferView v = buffer_.view().sub(used_, std::max<VkDeviceSize>(bytes, 4));
-  used_ += need;
-  peak_ = std::max(peak_, used_);
-  return v;
+  const VkDeviceSize need = packing_.aligned(bytes);
+  if (need > limit_)
+    throw Error("A tensor of " + format_bytes(bytes) + " in the " + what_ + " is larger than one allocation on this "
+                "device (maxMemoryAllocationSize " + format_bytes(limit_) + "). Use a smaller size or tiling.");
+  const VkDeviceSize before = used();
+  const ArenaPacking saved = packing_;
+  const ArenaPacking::Place p = need <= packing_.block() ? packing_.place(bytes) : ArenaPacking::Place{blocks_.size(), 0};
+  if (p.block >= blocks_.size() || p.offset + need > blocks_[p.block].size()) {
+    packing_ = saved;
+    throw Error("The " + what_ + " of " + format_bytes(capacity_) + " is full: " + format_bytes(before) + " used, " +
+                format_bytes(bytes) + " more requested. Use a smaller size or tiling.");
+  }
+  peak_ = std::max(peak_, used());
+  return blocks_[p.block].view().sub(p.offset, std::max<VkDeviceSize>(bytes, 4));
 }
 
 }  // namespace dvs::vk

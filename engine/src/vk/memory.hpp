@@ -1,5 +1,6 @@
 // Device memory: large VkDeviceMemory blocks (each ≤ maxMemoryAllocationSize, with one VkBuffer covering
-// it) suballocated first-fit into Buffers. A Buffer may be larger than one descriptor binds
+// it) suballocated first-fit into Buffers; a block entirely free again goes back to the driver (one spare
+// per use kept, see Allocator::release). A Buffer may be larger than one descriptor binds
 // (maxStorageBufferRange): ops that meet such a tensor bind bounded sub-ranges of it (Recorder::dispatch
 // refuses any binding over the limit). A request larger than one allocation (maxMemoryAllocationSize) is
 // refused with an error that says so.
@@ -75,6 +76,7 @@ struct MemoryStats {
   uint64_t bytes_in_use = 0;
   uint64_t peak_bytes_in_use = 0;
   uint64_t bytes_reserved = 0;  // in VkDeviceMemory blocks
+  uint64_t peak_bytes_reserved = 0;  // high-water mark of bytes_reserved (since reset_peak)
   uint32_t blocks = 0;
 };
 
@@ -87,10 +89,14 @@ class Allocator {
   Buffer allocate(VkDeviceSize bytes, MemoryUse use = MemoryUse::device, const std::string& what = "buffer");
 
   const MemoryStats& stats() const { return stats_; }
+  // Restarts both peaks from what is held now, so the next peaks measure one call (benchmarks, dvs run).
+  void reset_peak();
   VkDeviceSize alignment() const { return alignment_; }
-  VkDeviceSize block_size() const { return block_size_; }
+  // The standard block: 256 MiB, or less where the allocation limit in force (DVS_LIMITS included) is lower.
+  VkDeviceSize block_size() const;
   bool device_memory_is_mapped() const;  // unified memory: uploads are plain memcpy
   VkDeviceSize max_binding() const;      // maxStorageBufferRange
+  VkDeviceSize max_allocation() const;   // maxMemoryAllocationSize in force (DVS_LIMITS included)
 
   // Device memory this allocator may hold in the device heap (memory_budget.hpp: host RAM available on a CPU
   // device, the heap budget or size on a GPU); a new block beyond it is refused with an error naming the
@@ -104,12 +110,13 @@ class Allocator {
   friend class Buffer;
   void release(Buffer& b);
   MemoryBlock* new_block(VkDeviceSize size, MemoryUse use, const std::string& what);
+  void return_free_blocks(MemoryUse use);  // see memory.cpp for the policy
+  void free_block(size_t index);
   uint32_t memory_type_for(MemoryUse use, uint32_t type_bits) const;
   void check_budget(VkDeviceSize size, uint32_t heap, const std::string& what) const;  // throws when over
 
   Context& ctx_;
   VkDeviceSize alignment_ = 256;
-  VkDeviceSize block_size_ = 0;
   std::vector<std::unique_ptr<MemoryBlock>> blocks_;
   MemoryStats stats_;
   DeviceMemoryBudget budget_;
@@ -118,22 +125,59 @@ class Allocator {
   int device_type_ = -1;  // memory type chosen for MemoryUse::device
 };
 
-// Bump allocator over one Buffer for the activations of a model call: alloc() during planning/recording,
-// reset() before the next call. Views never straddle a binding limit.
+// How an arena places its tensors, shared by Arena and the counting pass (models/activation_plan.hpp) so that
+// the bytes a plan counts are the bytes the arena reserves: tensors are bump-allocated in order within a block
+// of `block` bytes; one that does not fit the rest of a block starts the next. Alignment applies to every
+// tensor (a sub-view start must be a binding offset).
+class ArenaPacking {
+ public:
+  ArenaPacking(VkDeviceSize alignment, VkDeviceSize block) : alignment_(alignment), block_(block) {}
+  // The block an arena uses under an allocation limit: the limit aligned down (one block is one allocation).
+  static VkDeviceSize block_limit(VkDeviceSize alloc_limit, VkDeviceSize alignment) {
+    return alloc_limit / alignment * alignment;
+  }
+  VkDeviceSize aligned(VkDeviceSize bytes) const;  // bytes a tensor takes (≥ 4, rounded up to the alignment)
+  struct Place {
+    size_t block;
+    VkDeviceSize offset;
+  };
+  // Where the next tensor goes; the caller checks aligned(bytes) ≤ block.
+  Place place(VkDeviceSize bytes);
+  // Bytes reserved to hold everything placed so far: full blocks before the last, then the last block's fill.
+  VkDeviceSize reserved() const { return VkDeviceSize(block_index_) * block_ + offset_; }
+  VkDeviceSize block() const { return block_; }
+
+ private:
+  VkDeviceSize alignment_, block_;
+  size_t block_index_ = 0;
+  VkDeviceSize offset_ = 0;  // fill of the current block
+};
+
+// Bump allocator for the activations of a model call: alloc() during planning/recording, reset() before the
+// next call. Its memory is as many Buffers ("blocks") as needed, each at most one allocation
+// (maxMemoryAllocationSize in force when the arena is made): `capacity` bytes, as a counting pass
+// (ActivationPlan) gives them, in blocks of min(capacity, limit) (the last one smaller), so a call whose
+// activations fit one allocation has one block. Views never straddle blocks.
 class Arena {
  public:
   Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what = "activation arena");
   BufferView alloc(VkDeviceSize bytes);
-  void reset() { used_ = 0; }
-  VkDeviceSize used() const { return used_; }
+  void reset();  // rewinds to block 0; keeps the blocks
+  VkDeviceSize used() const { return packing_.reserved(); }  // blocks left behind count whole
   VkDeviceSize peak() const { return peak_; }
-  VkDeviceSize capacity() const { return buffer_.size(); }
+  VkDeviceSize capacity() const { return capacity_; }
+  size_t blocks() const { return blocks_.size(); }
+  const Buffer& block(size_t i) const { return blocks_.at(i); }
+  VkDeviceSize block_size() const { return packing_.block(); }
+  // The allocation limit the blocks were cut for: a plan counted under another limit may pack differently.
+  VkDeviceSize alloc_limit() const { return limit_; }
 
  private:
-  Buffer buffer_;
+  std::vector<Buffer> blocks_;
   std::string what_;
-  VkDeviceSize alignment_;
-  VkDeviceSize used_ = 0, peak_ = 0;
+  VkDeviceSize alignment_, limit_, capacity_ = 0;
+  ArenaPacking packing_;
+  VkDeviceSize peak_ = 0;
 };
 
 std::string format_bytes(uint64_t bytes);
