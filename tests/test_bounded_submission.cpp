@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 
 class BoundedSubmission : public test::GpuTest {
  protected:
-  static constexpr int64_t kN = 1037;  // odd on purpose
+  static constexpr int64_t kN = 1013;  // odd on purpose; under the tiny-limits profile's 4 KiB binding
 
   void SetUp() override {
     test::GpuTest::SetUp();
@@ -94,7 +94,9 @@ TEST_F(BoundedSubmission, BoundariesGiveOneSubmissionPerSegmentAndTheSameResult)
   EXPECT_EQ(ctx().submission_count() - c1, 4u);
   EXPECT_EQ(y(), ref) << "splitting into segments must not change the result (barriers across the cut)";
   EXPECT_EQ(cut.dispatch_count(), whole.dispatch_count());
-  EXPECT_EQ(cut.barrier_count(), whole.barrier_count()) << "segment barriers are not hazard barriers";
+  // Steps 2-4 read the previous step's result: in one command buffer each needs a hazard barrier; cut after
+  // each step, the barrier opening every segment orders it instead (segment barriers are not counted).
+  EXPECT_EQ(whole.barrier_count() - cut.barrier_count(), 3u);
 
   // A replay runs every segment again.
   cut.submit();
