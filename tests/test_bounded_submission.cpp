@@ -15,6 +15,7 @@
 #include "io/npy.hpp"
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
+#include "models/t5_encoder.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
@@ -268,6 +269,28 @@ TEST_F(BoundedSubmission, TransformerSubmitsOncePerBlockAndMatchesGolden) {
   }
   const Tensor again = tr.forward(latent, text, std::span<const float>(&t, 1));
   test::expect_close("transformer t999 after a stop", again.download(ctx()), golden, 1e-5, 1e-4);
+}
+
+// T5 submits once per layer and still matches its golden output (case t5_nomask).
+TEST_F(BoundedSubmission, T5SubmitsOncePerLayerAndMatchesGolden) {
+  const fs::path pack = test::golden_dir();
+  models::T5Encoder t5(ctx(), pack / "model" / "text_encoder");
+  const HostTensor id_tensor = read_npy(pack / "t5/masked_input_ids.npy");
+  const int64_t len = id_tensor.shape.back();
+  const std::vector<float> flat = id_tensor.to_f32();
+  std::vector<std::vector<int32_t>> ids(flat.size() / size_t(len));
+  for (size_t i = 0; i < flat.size(); ++i) ids[i / size_t(len)].push_back(int32_t(flat[i]));
+  std::vector<std::string> labels;
+  Tensor out;
+  {
+    vk::ScopedSegmentHook hook(ctx(), [&](const vk::SegmentProgress& p) { labels.push_back(p.label); });
+    out = t5.encode(ids);
+  }
+  test::expect_close("t5 nomask (bounded submissions)", out.download(ctx()),
+                     read_npy(pack / "t5/nomask_last_hidden_state.npy"), 1e-5, 1e-4);
+  const int64_t K = t5.config().num_layers;
+  ASSERT_EQ(labels.size(), size_t(K));
+  EXPECT_EQ(labels.back(), "T5 layer " + std::to_string(K) + "/" + std::to_string(K));
 }
 
 // The VAE decoder submits once per resnet / upsampler of each frame batch and still matches its golden output.
