@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
@@ -19,6 +20,7 @@
 #include "pipeline/stage_tracker.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
+#include "support/pipeline_inputs.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/context.hpp"
@@ -335,6 +337,32 @@ TEST(BoundedSubmissionStages, StageTrackerHookCancelsAndReportsProgress) {
   EXPECT_EQ(notes, (std::vector<std::string>{"step 3: transformer block 2/2"}));
   cancel = true;
   EXPECT_THROW(hook({1, 3, "transformer block 1/2"}), Cancelled);
+}
+
+// Ctrl-C inside a VAE call: run_pipeline's hook polls the CancelFn between the VAE's submissions. The CancelFn
+// says yes at its second poll in the encode stage; without polls inside the VAE call, the next poll would come
+// only at the text stage's start (the first in encode), and the run would go on to the end.
+TEST(BoundedSubmissionPipeline, CancellationTakesEffectInsideTheVaeEncode) {
+  test::PipelineInputs in;
+  RunOptions o;
+  o.render.video = in.video;
+  o.render.depth = in.depth;
+  o.render.metric_depth = true;
+  o.render.frames = 9;
+  o.render.height = o.render.width = 64;
+  o.render.out_dir = in.dir / "out";
+  o.model = in.model;
+  o.prompt = "a red fox";
+  o.steps = 4;
+  o.inversion_steps = 3;
+  o.cache_dir = in.cache;
+  std::string stage;
+  int polls_in_encode = 0;
+  const auto progress = [&](const std::string& s, int, int, const std::string&) { stage = s; };
+  const auto cancelled = [&] { return stage == "encode" && ++polls_in_encode == 2; };
+  EXPECT_THROW(run_pipeline(o, progress, cancelled), Cancelled);
+  EXPECT_EQ(stage, "encode");
+  EXPECT_EQ(polls_in_encode, 2);
 }
 
 }  // namespace
