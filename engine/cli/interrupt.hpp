@@ -1,5 +1,5 @@
-// Ctrl-C and SIGTERM: the first one sets a flag that long jobs poll (at stage boundaries and before every
-// diffusion step) so they stop cleanly and remove their partial outputs. Another signal within half a second of
+// Ctrl-C and SIGTERM: the first one sets a flag that long jobs poll (at stage boundaries, before every
+// diffusion step and between the bounded GPU submissions of one recording) so they stop cleanly and remove their partial outputs. Another signal within half a second of
 // the first is the same interruption (two often arrive together); one after that ends the process at once.
 #pragma once
 

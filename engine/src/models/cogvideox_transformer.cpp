@@ -457,6 +457,8 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     ops::linear(rec, a.xn, w(b + "ff.net.0.proj.weight"), a.ff, e);
     gated_residual(a.ff, 4 * D, b + "ff.net.2", mod2);
     tap(a.h);
+    // One submission per block (Recorder::boundary): progress and Ctrl-C between blocks.
+    rec.boundary("transformer block " + std::to_string(i + 1) + "/" + std::to_string(cfg_.num_layers));
   }
 
   // norm_final and norm_out are per-token: run them on the whole sequence, keep the video rows.

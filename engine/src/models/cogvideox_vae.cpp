@@ -263,6 +263,7 @@ struct Layers {
     } else if (rec) {
       ops::add(*rec, out, x, out);
     }
+    if (rec) rec->boundary("VAE " + p);  // one submission per resnet step of one frame batch
     return out;
   }
 
@@ -294,6 +295,7 @@ struct Layers {
         put_scratch(run, cs);
         run.put(h);
         h = y;
+        if (rec) rec->boundary("VAE " + p + ".downsamplers");
       }
     }
     for (int j = 0; j < 2; ++j) {
@@ -351,6 +353,7 @@ struct Layers {
         put_scratch(run, cs);
         run.put(u);
         h = y;
+        if (rec) rec->boundary("VAE " + p + ".upsamplers");
       }
     }
     Tensor nrm = spatial_norm(run, h, "decoder.norm_out");

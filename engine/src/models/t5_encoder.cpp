@@ -225,6 +225,7 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
     }
     ops::linear(rec, a.ff_a, weights_.get(ff + "wo.weight"), a.h, res);
     if (i + 1 < cfg_.num_layers) tap(size_t(i + 1), a.h);
+    rec.boundary("T5 layer " + std::to_string(i + 1) + "/" + std::to_string(cfg_.num_layers));  // one submission per layer
   }
   ops::rmsnorm(rec, a.h, out, weights_.get("encoder.final_layer_norm.weight"), cfg_.eps);
   tap(size_t(cfg_.num_layers), out);

@@ -20,6 +20,8 @@ InversionReport invert_stages(const RunOptions& o, StageTracker& stages) {
   vk::ContextOptions copt;
   copt.device = o.render.device;
   vk::Context ctx(copt);
+  // Ctrl-C and progress between the bounded submissions inside a forward or a VAE call, not only between steps.
+  const vk::ScopedSegmentHook between_submissions(ctx, stages.segment_hook());
 
   RenderedInput in = render_for_model(ctx, o, stages);
   const int F = int(in.rgb.shape[0]);

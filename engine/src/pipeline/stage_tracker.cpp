@@ -1,5 +1,7 @@
 #include "pipeline/stage_tracker.hpp"
 
+#include <memory>
+
 namespace dvs {
 
 const char* const kNonFiniteHint =
@@ -21,7 +23,25 @@ void StageTracker::end() {
 }
 
 void StageTracker::say(int step, int total, const std::string& note) const {
+  last_step_ = step;
+  last_total_ = total;
+  last_note_ = note;
   if (progress_) progress_(stage_, step, total, note);
+}
+
+vk::SegmentHook StageTracker::segment_hook() const {
+  auto last = std::make_shared<std::chrono::steady_clock::time_point>(std::chrono::steady_clock::now());
+  return [this, last](const vk::SegmentProgress& p) {
+    check_cancelled();
+    const auto now = std::chrono::steady_clock::now();
+    if (!progress_ || std::chrono::duration<double>(now - *last).count() < kSegmentProgressS) return;
+    *last = now;
+    // Inside a stepped loop the work belongs to the step after the last one reported.
+    const std::string note = last_total_ > 0 ? "step " + std::to_string(last_step_ + 1) + ": " + p.label
+                             : last_note_.empty() ? p.label
+                                                  : last_note_ + " · " + p.label;
+    progress_(stage_, last_step_, last_total_, note);
+  };
 }
 
 bool StageTracker::cancel_requested() const { return cancelled_ && cancelled_(); }

@@ -11,6 +11,7 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "tensor/ops_check.hpp"
+#include "vk/context.hpp"
 
 namespace dvs {
 
@@ -29,6 +30,11 @@ class StageTracker {
   // Progress and cancellation for a diffusion loop run in the current stage. With `check`, the scans each step
   // recorded into it (see TransformerDenoiser::watch) are read after the step and a NaN/Inf stops the job.
   diffusion::LoopCallbacks loop_callbacks(ops::NonFiniteCheck* check = nullptr) const;
+  // For vk::ScopedSegmentHook: between the bounded submissions of one recording (a transformer block, a T5
+  // layer, a VAE step) it polls for cancellation and, at most every kSegmentProgressS, repeats the last
+  // progress line with where the work is ("step 3: transformer block 17/42").
+  vk::SegmentHook segment_hook() const;
+  static constexpr double kSegmentProgressS = 0.5;
   const std::vector<StageTime>& times() const { return times_; }
 
   // Runs the whole job: diffusion::Cancelled becomes dvs::Cancelled, any other dvs::Error thrown inside a
@@ -53,6 +59,9 @@ class StageTracker {
   ProgressFn progress_;
   CancelFn cancelled_;
   std::string stage_;
+  // The last say(), which segment progress repeats with its own note.
+  mutable int last_step_ = 0, last_total_ = 0;
+  mutable std::string last_note_;
   std::chrono::steady_clock::time_point start_;
   std::vector<StageTime> times_;
 };

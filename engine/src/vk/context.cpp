@@ -143,16 +143,9 @@ Context::Context(const ContextOptions& options) {
       throw Error("Device '" + caps_.name + "' supports Vulkan " + version_string(caps_.api_version) +
                   "; dvs needs 1.2. Choose another device with --device or update its driver.");
 
-    // A queue family with compute.
-    uint32_t nq = 0;
-    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &nq, nullptr);
-    std::vector<VkQueueFamilyProperties> qf(nq);
-    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &nq, qf.data());
-    bool found = false;
-    for (uint32_t i = 0; i < nq && !found; ++i)
-      if (qf[i].queueFlags & VK_QUEUE_COMPUTE_BIT) { queue_family_ = i; found = true; }
-    if (!found) throw Error("Device '" + caps_.name + "' has no compute queue.");
-    if (qf[queue_family_].timestampValidBits == 0) caps_.timestamps = false;
+    // The queue family query_device_caps picked (a compute-only one where the device has one).
+    if (!caps_.has_compute_queue) throw Error("Device '" + caps_.name + "' has no compute queue.");
+    queue_family_ = caps_.queue_family;
 
     // Enable every optional feature the device has and dvs may use.
     VkPhysicalDeviceVulkan11Features f11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
@@ -292,6 +285,7 @@ void Context::submit_and_wait(VkCommandBuffer cmd) {
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cmd;
   VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence_));
+  ++submissions_;
   VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
   VK_CHECK(vkResetFences(device_, 1, &fence_));
 }

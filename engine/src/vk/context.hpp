@@ -1,12 +1,15 @@
 // The Vulkan context: instance (with validation layers on request), the chosen physical device, a logical
-// device with one compute queue and every optional feature dvs can use enabled, and the per-device
+// device with one compute queue (a compute-only family where there is one) and every optional feature dvs can use enabled, and the per-device
 // services built on it (memory, pipelines, profiling).
 #pragma once
 #include <vulkan/vulkan.h>
 
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "vk/device_info.hpp"
@@ -24,6 +27,16 @@ struct ContextOptions {
   bool validation = false;         // also on when DVS_VALIDATION=1
   std::string pipeline_cache_file; // empty: $DVS_CACHE_DIR or $XDG_CACHE_HOME/dvs or ~/.cache/dvs; "-": none
 };
+
+// Where a recording split by Recorder::boundary stands after one of its submissions: `done` of `total`
+// segments have run; `label` names the work the last one held ("transformer block 17/42").
+struct SegmentProgress {
+  uint32_t done = 0, total = 0;
+  std::string label;
+};
+// Called between two submissions of one recording (never after the last): reports progress, and may throw
+// (dvs::Cancelled on Ctrl-C) to stop the recording there.
+using SegmentHook = std::function<void(const SegmentProgress&)>;
 
 // Lists every device the loader sees (creates and destroys a private instance).
 std::vector<DeviceCaps> list_devices();
@@ -59,6 +72,11 @@ class Context {
 
   // Submits one command buffer and waits for it (used by Transfer and Recorder).
   void submit_and_wait(VkCommandBuffer cmd);
+  uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls so far
+  // The hook every Recorder without its own calls between segments (empty: none). Set for a job's duration
+  // with ScopedSegmentHook.
+  const SegmentHook& segment_hook() const { return segment_hook_; }
+  void set_segment_hook(SegmentHook hook) { segment_hook_ = std::move(hook); }
   VkCommandPool command_pool() const { return command_pool_; }
   VkCommandBuffer allocate_command_buffer();  // primary, from the context's pool
 
@@ -73,6 +91,8 @@ class Context {
   uint32_t queue_family_ = 0;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
+  uint64_t submissions_ = 0;
+  SegmentHook segment_hook_;
   DeviceCaps caps_;
   bool validation_ = false;
 
@@ -83,6 +103,21 @@ class Context {
   std::unique_ptr<Transfer> transfer_;
   std::unique_ptr<PipelineCache> pipelines_;
   std::unique_ptr<Profiler> profiler_;
+};
+
+// Installs a context's segment hook for one scope, restoring the previous one after.
+class ScopedSegmentHook {
+ public:
+  ScopedSegmentHook(Context& ctx, SegmentHook hook) : ctx_(ctx), previous_(ctx.segment_hook()) {
+    ctx_.set_segment_hook(std::move(hook));
+  }
+  ~ScopedSegmentHook() { ctx_.set_segment_hook(std::move(previous_)); }
+  ScopedSegmentHook(const ScopedSegmentHook&) = delete;
+  ScopedSegmentHook& operator=(const ScopedSegmentHook&) = delete;
+
+ private:
+  Context& ctx_;
+  SegmentHook previous_;
 };
 
 }  // namespace dvs::vk

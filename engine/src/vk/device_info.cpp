@@ -87,6 +87,19 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
   apply_limit_overrides(c, limit_overrides_from_env());
   c.timestamp_period_ns = L.timestampPeriod;
   c.timestamps = L.timestampComputeAndGraphics;
+  {
+    uint32_t nq = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(pd, &nq, nullptr);
+    std::vector<VkQueueFamilyProperties> qf(nq);
+    vkGetPhysicalDeviceQueueFamilyProperties(pd, &nq, qf.data());
+    const int q = pick_compute_queue_family(qf);
+    c.has_compute_queue = q >= 0;
+    if (q >= 0) {
+      c.queue_family = uint32_t(q);
+      c.queue_compute_only = !(qf[size_t(q)].queueFlags & VK_QUEUE_GRAPHICS_BIT);
+      if (qf[size_t(q)].timestampValidBits == 0) c.timestamps = false;
+    }
+  }
 
   // Features chain.
   VkPhysicalDeviceVulkan11Features f11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
@@ -159,6 +172,17 @@ uint32_t select_device(const std::vector<DeviceCaps>& devices, const std::string
               "\nGive an index or part of a name.");
 }
 
+int pick_compute_queue_family(const std::vector<VkQueueFamilyProperties>& families) {
+  int first = -1;
+  for (size_t i = 0; i < families.size(); ++i) {
+    const VkQueueFlags f = families[i].queueFlags;
+    if (!(f & VK_QUEUE_COMPUTE_BIT) || families[i].queueCount == 0) continue;
+    if (!(f & VK_QUEUE_GRAPHICS_BIT)) return int(i);
+    if (first < 0) first = int(i);
+  }
+  return first;
+}
+
 std::string describe_device(const DeviceCaps& c) {
   std::ostringstream o;
   auto forced = [](bool is, const std::string& device_value) { return is ? " * [" + device_value + "]" : std::string(); };
@@ -178,6 +202,11 @@ std::string describe_device(const DeviceCaps& c) {
     << "  cooperative matrix:   " << yes(c.cooperative_matrix) << "\n"
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"
+    << "  compute queue:        "
+    << (!c.has_compute_queue ? std::string("none")
+                             : "family " + std::to_string(c.queue_family) +
+                                   (c.queue_compute_only ? " (compute-only)" : " (graphics + compute; no compute-only family)"))
+    << "\n"
     << "  limits in force" << (c.forced_limits.any() ? " (* lowered by DVS_LIMITS; the device's value in brackets)" : "")
     << ":\n"
     << "  maxStorageBufferRange:      " << format_bytes(c.max_storage_buffer_range)

@@ -60,6 +60,11 @@ struct DeviceCaps {
   float timestamp_period_ns = 0;
   bool timestamps = false;
 
+  // The queue family dvs submits to (pick_compute_queue_family); compute_only: it has no graphics.
+  uint32_t queue_family = 0;
+  bool queue_compute_only = false;
+  bool has_compute_queue = false;
+
   std::vector<MemoryHeapInfo> heaps;
   DeviceMemoryBudget memory_budget;  // what dvs may hold (memory_budget.hpp: host RAM on CPU devices)
   bool memory_budget_ext = false;    // VK_EXT_memory_budget
@@ -72,6 +77,10 @@ const char* device_type_name(VkPhysicalDeviceType t);
 std::string version_string(uint32_t v);
 
 DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index);
+
+// A family with COMPUTE but not GRAPHICS where the device has one (NVIDIA/AMD: an async compute queue that a
+// desktop's graphics work does not share), else the first with COMPUTE; -1 when none has COMPUTE.
+int pick_compute_queue_family(const std::vector<VkQueueFamilyProperties>& families);
 
 // Picks a device: `spec` is an index ("0") or a case-insensitive name substring ("llvmpipe"); empty means
 // the DVS_DEVICE environment variable, else the first discrete GPU, else integrated, else anything.

@@ -16,7 +16,8 @@ constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
 }  // namespace
 
 Recorder::Recorder(Context& ctx) : ctx_(ctx) {
-  cmd_ = ctx.allocate_command_buffer();
+  cmds_.push_back(ctx.allocate_command_buffer());
+  cmd_ = cmds_[0];
   VkPhysicalDeviceProperties p{};
   vkGetPhysicalDeviceProperties(ctx.physical_device(), &p);
   texel_alignment_ = p.limits.minTexelBufferOffsetAlignment;
@@ -27,7 +28,7 @@ Recorder::~Recorder() {
   VkDevice dev = ctx_.device();
   for (VkDescriptorPool p : pools_) vkDestroyDescriptorPool(dev, p, nullptr);
   for (VkQueryPool q : query_pools_) vkDestroyQueryPool(dev, q, nullptr);
-  if (cmd_) vkFreeCommandBuffers(dev, ctx_.command_pool(), 1, &cmd_);
+  if (!cmds_.empty()) vkFreeCommandBuffers(dev, ctx_.command_pool(), uint32_t(cmds_.size()), cmds_.data());
 }
 
 void Recorder::release_resources() {
@@ -59,14 +60,45 @@ void Recorder::begin() {
   writes_.clear();
   query_labels_.clear();
   dispatches_ = barriers_ = 0;
+  segments_ = 0;
+  segment_labels_.clear();
+  segment_query_end_.clear();
   recorded_ = false;
+  open_segment();
+  recording_ = true;
+}
+
+void Recorder::open_segment() {
+  if (segments_ == cmds_.size()) cmds_.push_back(ctx_.allocate_command_buffer());
+  cmd_ = cmds_[segments_++];
   VK_CHECK(vkResetCommandBuffer(cmd_, 0));
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   VK_CHECK(vkBeginCommandBuffer(cmd_, &bi));
-  recording_ = true;
-  // Host writes to parameter buffers and earlier submissions must be visible to this one.
-  barrier();
-  barriers_ = 0;
+  // Host writes to parameter buffers, earlier submissions and the earlier segments of this recording must be
+  // visible to this one. A pipeline barrier's first scope covers every command earlier in submission order,
+  // other command buffers included, so this one barrier orders the whole previous segment before this one
+  // (the tracker's ranges are cleared: nothing before it is pending).
+  full_barrier();
+  segment_empty_ = true;
+}
+
+void Recorder::close_segment(const std::string& label) {
+  // Results must be visible to the host (a segment hook may read them) and to later submissions.
+  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_HOST_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+  vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
+  VK_CHECK(vkEndCommandBuffer(cmd_));
+  segment_labels_.push_back(label);
+  segment_query_end_.push_back(uint32_t(query_labels_.size()));
+}
+
+void Recorder::boundary(const std::string& label) {
+  if (!recording_) throw Error("internal: Recorder::boundary outside begin()/end()");
+  if (segment_empty_) return;  // no empty submissions
+  close_segment(label);
+  open_segment();
 }
 
 VkDescriptorSet Recorder::allocate_set(VkDescriptorSetLayout layout) {
@@ -108,6 +140,11 @@ void Recorder::track(const Range& r, bool writes) {
 }
 
 void Recorder::barrier() {
+  full_barrier();
+  barriers_++;
+}
+
+void Recorder::full_barrier() {
   VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
   mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
@@ -117,7 +154,6 @@ void Recorder::barrier() {
                        nullptr);
   reads_.clear();
   writes_.clear();
-  barriers_++;
 }
 
 void Recorder::dispatch(const Pipeline& p, std::initializer_list<Binding> bindings, const void* push,
@@ -212,6 +248,7 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
   vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0, nullptr);
   if (push_bytes) vkCmdPushConstants(cmd_, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
   vkCmdDispatch(cmd_, gx, gy, gz);
+  segment_empty_ = false;
   if (timed)
     vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool],
                         q % kQueriesPerPool + 1);
@@ -225,6 +262,7 @@ void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize b
   track({dst.buffer, dst.offset, dst.offset + bytes}, true);
   VkBufferCopy region{src.offset, dst.offset, bytes};
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, 1, &region);
+  segment_empty_ = false;
 }
 
 void Recorder::copy_regions(const BufferView& src, const BufferView& dst, std::span<const VkBufferCopy> regions) {
@@ -240,23 +278,26 @@ void Recorder::copy_regions(const BufferView& src, const BufferView& dst, std::s
   track({src.buffer, src.offset, src.offset + src.size}, false);
   track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, uint32_t(absolute.size()), absolute.data());
+  segment_empty_ = false;
 }
 
 void Recorder::fill_zero(const BufferView& dst) {
   if (!recording_) throw Error("internal: fill outside begin()/end()");
   track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
   vkCmdFillBuffer(cmd_, dst.buffer, dst.offset, (dst.size + 3) / 4 * 4, 0);
+  segment_empty_ = false;
 }
 
 void Recorder::end() {
   if (!recording_) throw Error("internal: Recorder::end without begin");
-  // Results must be visible to the host and to later submissions.
-  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-  mb.dstAccessMask = VK_ACCESS_HOST_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-  vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                       VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
-  VK_CHECK(vkEndCommandBuffer(cmd_));
+  if (segment_empty_ && segments_ > 1) {
+    // A boundary just before end(): the opened segment holds only its barrier; drop it (the previous one
+    // already ends with the host-visibility barrier).
+    VK_CHECK(vkEndCommandBuffer(cmd_));
+    --segments_;
+  } else {
+    close_segment("end");
+  }
   recording_ = false;
   recorded_ = true;
 }
@@ -264,19 +305,34 @@ void Recorder::end() {
 void Recorder::submit() {
   if (recording_) end();
   if (!recorded_) throw Error("internal: Recorder::submit with nothing recorded");
-  ctx_.submit_and_wait(cmd_);
-  if (!query_labels_.empty()) {
-    uint32_t total = uint32_t(query_labels_.size()) * 2;
-    std::vector<uint64_t> ts(total);
-    for (uint32_t first = 0; first < total; first += kQueriesPerPool) {
-      uint32_t n = std::min(kQueriesPerPool, total - first);
-      VK_CHECK(vkGetQueryPoolResults(ctx_.device(), query_pools_[first / kQueriesPerPool], 0, n, n * 8, &ts[first], 8,
-                                     VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  const SegmentHook hook = hook_ ? hook_ : ctx_.segment_hook();
+  for (uint32_t i = 0; i < segments_; ++i) {
+    ctx_.submit_and_wait(cmds_[i]);
+    ++submissions_;
+    if (i + 1 == segments_ || !hook) continue;
+    try {
+      hook(SegmentProgress{i + 1, segments_, segment_labels_[i]});
+    } catch (...) {
+      // Stopped between segments: the queue is idle (each submission was waited for); keep the GPU times of
+      // what ran.
+      collect_timestamps(segment_query_end_[i]);
+      throw;
     }
-    double period = ctx_.caps().timestamp_period_ns;
-    for (size_t i = 0; i < query_labels_.size(); ++i)
-      ctx_.profiler().add(query_labels_[i], double(ts[2 * i + 1] - ts[2 * i]) * period);
   }
+  collect_timestamps(uint32_t(query_labels_.size()));
+}
+
+void Recorder::collect_timestamps(uint32_t pairs) {
+  if (pairs == 0) return;
+  const uint32_t total = pairs * 2;
+  std::vector<uint64_t> ts(total);
+  for (uint32_t first = 0; first < total; first += kQueriesPerPool) {
+    uint32_t n = std::min(kQueriesPerPool, total - first);
+    VK_CHECK(vkGetQueryPoolResults(ctx_.device(), query_pools_[first / kQueriesPerPool], 0, n, n * 8, &ts[first], 8,
+                                   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  }
+  const double period = ctx_.caps().timestamp_period_ns;
+  for (uint32_t i = 0; i < pairs; ++i) ctx_.profiler().add(query_labels_[i], double(ts[2 * i + 1] - ts[2 * i]) * period);
 }
 
 }  // namespace dvs::vk

@@ -1,16 +1,24 @@
-// Records many dispatches into one command buffer, inserting a barrier only where a dispatch touches a
-// buffer range that an earlier, unbarriered dispatch wrote (or writes one it read). The recording can be
-// submitted any number of times; only parameter buffers the caller updates change between replays.
+// Records many dispatches, inserting a barrier only where a dispatch touches a buffer range that an earlier,
+// unbarriered dispatch wrote (or writes one it read). The recording can be submitted any number of times;
+// only parameter buffers the caller updates change between replays.
 // With profiling on, each dispatch is bracketed by timestamps and its GPU time goes to the Profiler.
+//
+// Bounded submissions: boundary() closes the current command buffer ("segment") and starts the next; submit()
+// submits the segments one by one, each waited for, and between two of them calls the segment hook (progress,
+// cancellation). No submission then holds more than the work between two boundaries: the models place one
+// after every transformer block, every T5 layer and every VAE resnet/resampling step of one frame batch.
+// A recording without boundaries stays one submission.
 #pragma once
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <functional>
 #include <initializer_list>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "vk/context.hpp"
 #include "vk/memory.hpp"
 #include "vk/pipeline.hpp"
 
@@ -49,13 +57,24 @@ class Recorder {
   // orders the reuse); a larger request gets a new buffer and the old one stays alive, as recorded
   // commands use it. Freed when the recording is dropped (begin, destructor).
   BufferView scratch(uint32_t slot, VkDeviceSize bytes, const std::string& what);
+  // Ends the current segment here (it is labelled `label`, e.g. "transformer block 3/42") and starts the next.
+  // Ignored when the current segment holds no command yet. The next segment starts with a full barrier, so
+  // no dependency is lost across the cut.
+  void boundary(const std::string& label);
   void end();
-  void submit();   // submit and wait; may be called again to replay
+  // Submits the segments in order, waiting for each; may be called again to replay. Between two segments it
+  // calls the recorder's segment hook, else the context's. When a hook throws, nothing more is submitted, the
+  // queue is idle and the exception propagates; the recording stays valid (submit replays it from the start,
+  // begin drops it).
+  void submit();
+  void set_segment_hook(SegmentHook hook) { hook_ = std::move(hook); }  // empty: use the context's
 
   Context& context() { return ctx_; }
   bool recording() const { return recording_; }
   uint32_t dispatch_count() const { return dispatches_; }
-  uint32_t barrier_count() const { return barriers_; }
+  uint32_t barrier_count() const { return barriers_; }  // hazard barriers (not the one opening each segment)
+  uint32_t segment_count() const { return segments_; }  // command buffers in the recording so far
+  uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls by this recorder, ever
 
  private:
   struct Range {
@@ -63,11 +82,22 @@ class Recorder {
     VkDeviceSize begin, end;
   };
   void track(const Range& r, bool writes);
+  void open_segment();
+  void close_segment(const std::string& label);
+  void full_barrier();
+  void collect_timestamps(uint32_t pairs);
   VkDescriptorSet allocate_set(VkDescriptorSetLayout layout);
   void release_resources();
 
   Context& ctx_;
-  VkCommandBuffer cmd_ = VK_NULL_HANDLE;
+  VkCommandBuffer cmd_ = VK_NULL_HANDLE;      // the segment being recorded
+  std::vector<VkCommandBuffer> cmds_;          // one per segment, kept for later recordings
+  std::vector<std::string> segment_labels_;    // per closed segment
+  std::vector<uint32_t> segment_query_end_;    // timestamp pairs recorded up to the end of each segment
+  uint32_t segments_ = 0;
+  bool segment_empty_ = true;                  // no command since the segment's opening barrier
+  uint64_t submissions_ = 0;
+  SegmentHook hook_;
   bool recording_ = false, recorded_ = false;
   std::vector<VkDescriptorPool> pools_;
   size_t pool_in_use_ = 0;
