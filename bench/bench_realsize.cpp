@@ -14,6 +14,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <functional>
 #include <iostream>
 #include <random>
 #include <string>
@@ -56,15 +58,29 @@ struct Progress {
   }
 };
 
+// Restarts the allocator's peak where the allocator can (Allocator::reset_peak); false where it cannot.
+template <class A>
+bool reset_peak(A& a) {
+  if constexpr (requires { a.reset_peak(); }) {
+    a.reset_peak();
+    return true;
+  } else {
+    return false;
+  }
+}
+
 // One device call: wall time, device memory above what was allocated before it, the largest binding.
-// The allocator keeps only a since-start peak: when the call raised it, peak - in_use_before is the call's
-// peak; otherwise the growth of the reserved blocks is reported (a lower bound, flagged).
+// peak_bytes = peak in use during the call - in use before it. Without Allocator::reset_peak the peak is
+// since start: when the call did not raise it, the growth of the reserved blocks is reported instead (a lower
+// bound, flagged).
 struct Meter {
   vk::Context& ctx;
   Clock::time_point t0;
   uint64_t in_use0, peak0, reserved0;
+  bool reset;
   explicit Meter(vk::Context& c) : ctx(c) {
     ctx.reset_largest_binding();
+    reset = reset_peak(ctx.allocator());
     const auto& s = ctx.allocator().stats();
     in_use0 = s.bytes_in_use;
     peak0 = s.peak_bytes_in_use;
@@ -74,7 +90,7 @@ struct Meter {
   void finish(CallResult& r) const {
     r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     const auto& s = ctx.allocator().stats();
-    if (s.peak_bytes_in_use > peak0) r.peak_bytes = s.peak_bytes_in_use - in_use0;
+    if (reset || s.peak_bytes_in_use > peak0) r.peak_bytes = s.peak_bytes_in_use - in_use0;
     else {
       r.peak_bytes = s.bytes_reserved > reserved0 ? s.bytes_reserved - reserved0 : 0;
       r.peak_exact = false;
@@ -122,6 +138,15 @@ Tensor random_tensor(vk::Context& ctx, const Shape& shape, uint32_t stream, bool
     else ops::random_normal(rec, t, {7, stream, 0});
   });
   return t;
+}
+
+// DVS_REALSIZE_CALLS: a comma list of calls to run (t5, transformer, vae_encode, vae_encode_tiled, vae_decode,
+// vae_decode_tiled; "transformer" is both batches); unset: all.
+bool wanted(const std::string& call) {
+  const char* env = std::getenv("DVS_REALSIZE_CALLS");
+  if (!env || !*env) return true;
+  const std::string list = std::string(",") + env + ",";
+  return list.find("," + call + ",") != std::string::npos;
 }
 
 // ---- T5 ---------------------------------------------------------------------------------------------------------
@@ -247,7 +272,10 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
   const models::TilePlan dec_plan = models::TilePlan::for_decode(vae.config(), tiling);
 
   auto encode_ref = [&](const HostTensor& v) {  // moments of one frame
-    HostTensor m({1, 2 * Cl, 1, (v.shape[3] + r - 1) / r, (v.shape[4] + r - 1) / r}, DType::f32);
+    // Each downsampler pads (0, 1) and runs a 3x3 stride-2 conv: h -> floor(h / 2).
+    int64_t hl = v.shape[3], wl = v.shape[4];
+    for (int64_t s = 1; s < r; s *= 2) hl /= 2, wl /= 2;
+    HostTensor m({1, 2 * Cl, 1, hl, wl}, DType::f32);
     const std::vector<float> y = vae_encode_reference(hw, cfg, v.to_f32(), v.shape[3], v.shape[4]);
     if (int64_t(y.size()) != m.numel()) throw Error("realsize: VAE encode reference size mismatch");
     std::copy(y.begin(), y.end(), m.as<float>());
@@ -264,6 +292,7 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
   const Shape dec_tile{1, Cl, Fl, std::min(zshape[3], dec_plan.tile_in_h), std::min(zshape[4], dec_plan.tile_in_w)};
 
   for (int tiled = 0; tiled < 2; ++tiled) {
+    if (!wanted(tiled ? "vae_encode_tiled" : "vae_encode")) continue;
     CallResult e;
     e.op = tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode";
     e.plan_bytes = pipeline::plan_vae_encode_stage(cfg, align, tiled ? enc_tile : vshape).total();
@@ -283,6 +312,7 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
     out.push_back(e);
   }
   for (int tiled = 0; tiled < 2; ++tiled) {
+    if (!wanted(tiled ? "vae_decode_tiled" : "vae_decode")) continue;
     CallResult d;
     d.op = tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode";
     d.plan_bytes = pipeline::plan_vae_decode_stage(cfg, align, tiled ? dec_tile : zshape).total();
@@ -323,15 +353,16 @@ void realsize(Bench& b) {
     }
   };
   HostTensor text;
-  guarded("t5", [&] { text = run_t5(ctx, sc, progress, calls); });
-  if (text.numel() == 0) {  // T5 failed: the transformer still runs on random text embeddings
+  if (wanted("t5")) guarded("t5", [&] { text = run_t5(ctx, sc, progress, calls); });
+  if (text.numel() == 0 && wanted("transformer")) {  // no T5 output: random text embeddings
     text = HostTensor({2, sc.text_len, t5_config(sc)["d_model"].get<int64_t>()}, DType::f32);
     std::mt19937 rng(3);
     std::normal_distribution<float> nd;
     for (int64_t i = 0; i < text.numel(); ++i) text.as<float>()[i] = nd(rng);
   }
-  guarded("transformer", [&] { run_transformer(ctx, sc, progress, text, calls); });
-  guarded("vae", [&] { run_vae(ctx, sc, progress, calls); });
+  if (wanted("transformer")) guarded("transformer", [&] { run_transformer(ctx, sc, progress, text, calls); });
+  if (wanted("vae_encode") || wanted("vae_encode_tiled") || wanted("vae_decode") || wanted("vae_decode_tiled"))
+    guarded("vae", [&] { run_vae(ctx, sc, progress, calls); });
   progress("done");
   std::printf("\n");
   for (const CallResult& r : calls) std::printf("%s\n", json_line(r).c_str());
