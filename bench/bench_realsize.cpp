@@ -149,6 +149,21 @@ bool wanted(const std::string& call) {
   return list.find("," + call + ",") != std::string::npos;
 }
 
+// Runs one call's body; a failure is printed and recorded as that call (max_abs_err inf, JSON null) and the
+// run goes on: the other calls still prove something.
+void guarded(std::vector<CallResult>& calls, const Progress& progress, const std::string& op,
+             const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const Error& e) {
+    progress(op + " FAILED: " + e.what());
+    CallResult r;
+    r.op = op;
+    r.max_abs_err = INFINITY;
+    calls.push_back(r);
+  }
+}
+
 // ---- T5 ---------------------------------------------------------------------------------------------------------
 // Returns the device's last_hidden_state on the host (the transformer's text input).
 HostTensor run_t5(vk::Context& ctx, const Scale& sc, const Progress& progress, std::vector<CallResult>& out) {
@@ -293,43 +308,47 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
 
   for (int tiled = 0; tiled < 2; ++tiled) {
     if (!wanted(tiled ? "vae_encode_tiled" : "vae_encode")) continue;
-    CallResult e;
-    e.op = tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode";
-    e.plan_bytes = pipeline::plan_vae_encode_stage(cfg, align, tiled ? enc_tile : vshape).total();
-    progress("VAE: encode of one " + std::to_string(H) + "x" + std::to_string(W) + " frame" +
-             (tiled ? " in " + std::to_string(sc.tile_height) + "x" + std::to_string(sc.tile_width) + " tiles" : ""));
-    HostTensor dev;
-    {
-      Meter m(ctx);
-      models::VaePosterior post = tiled ? vae.encode_tiled(video, tiling) : vae.encode(video);
-      m.finish(e);
-      dev = post.moments.download(ctx);
-    }
-    progress("VAE: encode CPU reference");
-    const HostTensor ref = tiled ? models::run_tiled(enc_plan, video_host, encode_ref) : encode_ref(video_host);
-    compare(e, dev.to_f32(), ref.to_f32());
-    print_call(e);
-    out.push_back(e);
+    guarded(out, progress, tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode", [&] {
+      CallResult e;
+      e.op = tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode";
+      e.plan_bytes = pipeline::plan_vae_encode_stage(cfg, align, tiled ? enc_tile : vshape).total();
+      progress("VAE: encode of one " + std::to_string(H) + "x" + std::to_string(W) + " frame" +
+               (tiled ? " in " + std::to_string(sc.tile_height) + "x" + std::to_string(sc.tile_width) + " tiles" : ""));
+      HostTensor dev;
+      {
+        Meter m(ctx);
+        models::VaePosterior post = tiled ? vae.encode_tiled(video, tiling) : vae.encode(video);
+        m.finish(e);
+        dev = post.moments.download(ctx);
+      }
+      progress("VAE: encode CPU reference");
+      const HostTensor ref = tiled ? models::run_tiled(enc_plan, video_host, encode_ref) : encode_ref(video_host);
+      compare(e, dev.to_f32(), ref.to_f32());
+      print_call(e);
+      out.push_back(e);
+    });
   }
   for (int tiled = 0; tiled < 2; ++tiled) {
     if (!wanted(tiled ? "vae_decode_tiled" : "vae_decode")) continue;
-    CallResult d;
-    d.op = tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode";
-    d.plan_bytes = pipeline::plan_vae_decode_stage(cfg, align, tiled ? dec_tile : zshape).total();
-    progress("VAE: decode of " + std::to_string(Fl) + " latent frame(s) " + std::to_string(zshape[3]) + "x" +
-             std::to_string(zshape[4]) + (tiled ? " in tiles" : ""));
-    HostTensor dev;
-    {
-      Meter m(ctx);
-      Tensor y = tiled ? vae.decode_tiled(z, tiling) : vae.decode(z);
-      m.finish(d);
-      dev = y.download(ctx);
-    }
-    progress("VAE: decode CPU reference");
-    const HostTensor ref = tiled ? models::run_tiled(dec_plan, z_host, decode_ref) : decode_ref(z_host);
-    compare(d, dev.to_f32(), ref.to_f32());
-    print_call(d);
-    out.push_back(d);
+    guarded(out, progress, tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode", [&] {
+      CallResult d;
+      d.op = tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode";
+      d.plan_bytes = pipeline::plan_vae_decode_stage(cfg, align, tiled ? dec_tile : zshape).total();
+      progress("VAE: decode of " + std::to_string(Fl) + " latent frame(s) " + std::to_string(zshape[3]) + "x" +
+               std::to_string(zshape[4]) + (tiled ? " in tiles" : ""));
+      HostTensor dev;
+      {
+        Meter m(ctx);
+        Tensor y = tiled ? vae.decode_tiled(z, tiling) : vae.decode(z);
+        m.finish(d);
+        dev = y.download(ctx);
+      }
+      progress("VAE: decode CPU reference");
+      const HostTensor ref = tiled ? models::run_tiled(dec_plan, z_host, decode_ref) : decode_ref(z_host);
+      compare(d, dev.to_f32(), ref.to_f32());
+      print_call(d);
+      out.push_back(d);
+    });
   }
 }
 
@@ -341,28 +360,18 @@ void realsize(Bench& b) {
               "tolerance max|err| <= %.0e * max|ref|\n",
               sc.name.c_str(), kTolerance);
   std::vector<CallResult> calls;
-  auto guarded = [&](const char* what, const std::function<void()>& fn) {
-    try {
-      fn();
-    } catch (const Error& e) {  // report and go on: the other components' calls still prove something
-      progress(std::string(what) + " FAILED: " + e.what());
-      CallResult r;
-      r.op = std::string("realsize_") + what;
-      r.max_abs_err = INFINITY;
-      calls.push_back(r);
-    }
-  };
   HostTensor text;
-  if (wanted("t5")) guarded("t5", [&] { text = run_t5(ctx, sc, progress, calls); });
+  if (wanted("t5")) guarded(calls, progress, "realsize_t5", [&] { text = run_t5(ctx, sc, progress, calls); });
   if (text.numel() == 0 && wanted("transformer")) {  // no T5 output: random text embeddings
     text = HostTensor({2, sc.text_len, t5_config(sc)["d_model"].get<int64_t>()}, DType::f32);
     std::mt19937 rng(3);
     std::normal_distribution<float> nd;
     for (int64_t i = 0; i < text.numel(); ++i) text.as<float>()[i] = nd(rng);
   }
-  if (wanted("transformer")) guarded("transformer", [&] { run_transformer(ctx, sc, progress, text, calls); });
+  if (wanted("transformer"))
+    guarded(calls, progress, "realsize_transformer", [&] { run_transformer(ctx, sc, progress, text, calls); });
   if (wanted("vae_encode") || wanted("vae_encode_tiled") || wanted("vae_decode") || wanted("vae_decode_tiled"))
-    guarded("vae", [&] { run_vae(ctx, sc, progress, calls); });
+    guarded(calls, progress, "realsize_vae", [&] { run_vae(ctx, sc, progress, calls); });
   progress("done");
   std::printf("\n");
   for (const CallResult& r : calls) std::printf("%s\n", json_line(r).c_str());
