@@ -362,7 +362,7 @@ void realsize(Bench& b) {
   std::vector<CallResult> calls;
   HostTensor text;
   if (wanted("t5")) guarded(calls, progress, "realsize_t5", [&] { text = run_t5(ctx, sc, progress, calls); });
-  if (text.numel() == 0 && wanted("transformer")) {  // no T5 output: random text embeddings
+  if (text.shape.empty() && wanted("transformer")) {  // no T5 output: random text embeddings
     text = HostTensor({2, sc.text_len, t5_config(sc)["d_model"].get<int64_t>()}, DType::f32);
     std::mt19937 rng(3);
     std::normal_distribution<float> nd;
