@@ -82,9 +82,12 @@ struct CogVideoXTransformer::Activations {
 };
 
 CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& dir)
+    : CogVideoXTransformer(ctx, ComponentWeights(ctx, dir)) {}
+
+CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights)
     : ctx_(ctx),
-      weights_(ctx, dir),
-      cfg_(CogVideoXTransformerConfig::from_json(weights_.config(), (dir / "config.json").string())) {
+      weights_(std::move(weights)),
+      cfg_(CogVideoXTransformerConfig::from_json(weights_.config(), (weights_.dir() / "config.json").string())) {
   check_weights();
 }
 

@@ -72,6 +72,8 @@ class CogVideoXTransformer {
  public:
   // `transformer_dir`: <model>/transformer (config.json + single or sharded safetensors).
   CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& transformer_dir);
+  // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks).
+  CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights);
 
   const CogVideoXTransformerConfig& config() const { return cfg_; }
   ComponentWeights& weights() { return weights_; }

@@ -370,7 +370,10 @@ struct Layers {
 // ---- model ----------------------------------------------------------------------------------------------------
 
 CogVideoXVae::CogVideoXVae(vk::Context& ctx, const std::filesystem::path& vae_dir)
-    : ctx_(ctx), weights_(ctx, vae_dir), cfg_(VaeConfig::from_json(weights_.config())) {}
+    : CogVideoXVae(ctx, ComponentWeights(ctx, vae_dir)) {}
+
+CogVideoXVae::CogVideoXVae(vk::Context& ctx, ComponentWeights weights)
+    : ctx_(ctx), weights_(std::move(weights)), cfg_(VaeConfig::from_json(weights_.config())) {}
 
 CogVideoXVae::~CogVideoXVae() = default;
 

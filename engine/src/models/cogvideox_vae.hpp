@@ -65,6 +65,8 @@ struct VaeFootprint {
 class CogVideoXVae {
  public:
   CogVideoXVae(vk::Context& ctx, const std::filesystem::path& vae_dir);
+  // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks).
+  CogVideoXVae(vk::Context& ctx, ComponentWeights weights);
   ~CogVideoXVae();
 
   const VaeConfig& config() const { return cfg_; }

@@ -85,12 +85,15 @@ struct T5Encoder::Activations {
 };
 
 T5Encoder::T5Encoder(vk::Context& ctx, const std::filesystem::path& dir)
-    : ctx_(ctx), weights_(ctx, dir), cfg_(T5EncoderConfig::from_json(weights_.config(), (dir / "config.json").string())) {
+    : T5Encoder(ctx, ComponentWeights(ctx, dir)) {}
+
+T5Encoder::T5Encoder(vk::Context& ctx, ComponentWeights weights)
+    : ctx_(ctx), weights_(std::move(weights)), cfg_(T5EncoderConfig::from_json(weights_.config(), (weights_.dir() / "config.json").string())) {
   embedding_ = weights_.get("shared.weight", {cfg_.vocab_size, cfg_.d_model});
   if (embedding_.dtype() != DType::f32 && embedding_.dtype() != DType::bf16 && embedding_.dtype() != DType::f16)
-    throw Error(dir.string() + ": shared.weight must be f32, bf16 or f16, got " + embedding_.describe());
+    throw Error(weights_.dir().string() + ": shared.weight must be f32, bf16 or f16, got " + embedding_.describe());
   if (embedding_.dtype() != DType::f32 && cfg_.d_model % 2 != 0)
-    throw Error(dir.string() + ": 16-bit token embeddings need an even d_model");
+    throw Error(weights_.dir().string() + ": 16-bit token embeddings need an even d_model");
   const int64_t D = cfg_.d_model, I = cfg_.inner(), F = cfg_.d_ff;
   // Upload (and shape-check) every tensor now, so a bad checkpoint fails at load and not mid-recording.
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {

@@ -50,6 +50,8 @@ class T5Encoder {
  public:
   // `text_encoder_dir`: <model>/text_encoder (config.json + single or sharded safetensors).
   T5Encoder(vk::Context& ctx, const std::filesystem::path& text_encoder_dir);
+  // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks).
+  T5Encoder(vk::Context& ctx, ComponentWeights weights);
 
   const T5EncoderConfig& config() const { return cfg_; }
   ComponentWeights& weights() { return weights_; }

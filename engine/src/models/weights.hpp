@@ -21,6 +21,11 @@ class ComponentWeights {
  public:
   // `component_dir` is e.g. <model>/transformer; its config.json picks the schema.
   ComponentWeights(vk::Context& ctx, const std::filesystem::path& component_dir);
+  // Weights already on the device (benchmarks build random weights there; no folder, nothing on disk):
+  // `config` is the component's config.json content, `tensors` every tensor by name (shape-checked against
+  // the schema `config` implies, as a folder is). `origin` names the set in error messages.
+  ComponentWeights(vk::Context& ctx, nlohmann::json config, std::map<std::string, Tensor> tensors,
+                   const std::string& origin);
 
   const nlohmann::json& config() const { return config_; }
   const std::filesystem::path& dir() const { return dir_; }

@@ -4,6 +4,7 @@
 #pragma once
 #include <vulkan/vulkan.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -59,6 +60,11 @@ class Context {
   // blocks are kept; new ones follow the new alloc limit.
   void override_limits(const LimitOverrides& extra);
   bool validation_enabled() const { return validation_; }
+  // The largest buffer range any dispatch has bound since the last reset (storage or texel binding; Recorder
+  // notes every one): benchmarks print it next to maxStorageBufferRange.
+  void note_binding(VkDeviceSize bytes) { largest_binding_ = std::max(largest_binding_, bytes); }
+  VkDeviceSize largest_binding() const { return largest_binding_; }
+  void reset_largest_binding() { largest_binding_ = 0; }
 
   Allocator& allocator() { return *allocator_; }
   PipelineCache& pipelines() { return *pipelines_; }
@@ -95,6 +101,7 @@ class Context {
   SegmentHook segment_hook_;
   DeviceCaps caps_;
   bool validation_ = false;
+  VkDeviceSize largest_binding_ = 0;
 
   mutable std::mutex messages_mutex_;
   std::vector<std::string> messages_;

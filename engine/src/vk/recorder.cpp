@@ -199,6 +199,7 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
                   " (" + std::to_string(v.size) + " B), over maxStorageBufferRange " +
                   format_bytes(caps.max_storage_buffer_range) + (caps.forced_limits.binding ? " (DVS_LIMITS)" : ""));
     }
+    ctx_.note_binding(v.size);
     if (align && v.offset % align)
       throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " starts at offset " +
                   std::to_string(v.offset) + ", not a multiple of the device's " + std::to_string(align) +
