@@ -26,10 +26,11 @@ constexpr VkDeviceSize KiB = 1024;
 const std::vector<int64_t> kElems = {10243, 7681, 12801};
 
 // Counts kElems as a model's plan would, under the allocation limit in force.
-VkDeviceSize counted_bytes(vk::Allocator& a) {
+vk::ArenaLayout counted(vk::Allocator& a) {
   models::ActivationPlan p(a.alignment(), a.max_allocation(), "test arena");
   for (int64_t n : kElems) p.make({n});
-  return p.bytes();
+  EXPECT_EQ(p.bytes(), p.layout().bytes());
+  return p.layout();
 }
 
 // The block of `arena` holding `v`, or -1; fails when `v` leaves that block.
@@ -50,19 +51,20 @@ TEST_F(GpuTest, ArenaSpansBlocksUnderTheAllocationLimit) {
   const VkDeviceSize al = a.alignment();
   auto aligned = [&](int64_t n) { return (VkDeviceSize(n) * 4 + al - 1) / al * al; };
   {  // Under the device's limits the tensors fit one allocation: one block, no packing loss.
-    const VkDeviceSize one = counted_bytes(a);
-    EXPECT_EQ(one, aligned(kElems[0]) + aligned(kElems[1]) + aligned(kElems[2]));
+    const vk::ArenaLayout one = counted(a);
+    EXPECT_EQ(one.blocks, std::vector<VkDeviceSize>{aligned(kElems[0]) + aligned(kElems[1]) + aligned(kElems[2])});
     vk::Arena single(a, one, "test arena");
     EXPECT_EQ(single.blocks(), 1u);
   }
   test::ScopedLimits limits(ctx(), "alloc=64KiB");
   ASSERT_EQ(a.max_allocation(), 64 * KiB);
-  // 40 + 30 KiB exceed one 64 KiB block, 30 + 50 KiB too: three blocks, the last as large as its tensor.
-  const VkDeviceSize bytes = counted_bytes(a);
-  EXPECT_EQ(bytes, 2 * 64 * KiB + aligned(kElems[2]));
+  // 40 + 30 KiB exceed one 64 KiB block, 30 + 50 KiB too: three blocks, each as large as its tensor.
+  const vk::ArenaLayout layout = counted(a);
+  EXPECT_EQ(layout.blocks, (std::vector<VkDeviceSize>{aligned(kElems[0]), aligned(kElems[1]), aligned(kElems[2])}));
+  const VkDeviceSize bytes = layout.bytes();
 
   const uint64_t in_use = a.stats().bytes_in_use;
-  vk::Arena arena(a, bytes, "test arena");
+  vk::Arena arena(a, layout, "test arena");
   ASSERT_EQ(arena.blocks(), 3u);
   EXPECT_EQ(arena.capacity(), bytes);
   EXPECT_EQ(a.stats().bytes_in_use - in_use, bytes) << "the arena reserves exactly what the plan counted";
@@ -110,8 +112,8 @@ TEST_F(GpuTest, FreedBlocksGoBackToTheDriver) {
     ASSERT_EQ(a.block_size(), block) << "the standard block follows the limit in force";
     vk::Buffer small = a.allocate(1000, vk::MemoryUse::device, "small");
     EXPECT_EQ(a.stats().blocks, 1u);
-    auto arena = std::make_unique<vk::Arena>(a, counted_bytes(a), "test arena");
-    // Two new blocks for the arena's full blocks; its 50 KiB last block fits beside the small buffer.
+    auto arena = std::make_unique<vk::Arena>(a, counted(a), "test arena");
+    // The arena's 40 KiB block fits beside the small buffer; its 30 and 50 KiB blocks need a block each.
     EXPECT_EQ(a.stats().blocks, 3u);
     EXPECT_EQ(a.stats().bytes_reserved, 3 * block);
     EXPECT_EQ(a.stats().peak_bytes_reserved, 3 * block);

@@ -20,45 +20,39 @@ namespace dvs::models {
 
 class ActivationPlan {
  public:
-  // Counting pass; alloc_limit: maxMemoryAllocationSize in force (no limit: the bytes of one block).
+  // Counting pass; alloc_limit: maxMemoryAllocationSize in force (no limit: one block).
   explicit ActivationPlan(VkDeviceSize alignment, VkDeviceSize alloc_limit = std::numeric_limits<VkDeviceSize>::max(),
                           std::string what = "activation arena")
-      : alignment_(alignment),
-        limit_(vk::ArenaPacking::block_limit(alloc_limit, alignment)),
-        what_(std::move(what)) {}
+      : limit_(vk::ArenaPacking::block_limit(alloc_limit, alignment)),
+        what_(std::move(what)),
+        packing_(alignment, {}, limit_) {}
   // Allocating pass.
-  explicit ActivationPlan(vk::Arena& arena) : arena_(&arena) {}
+  explicit ActivationPlan(vk::Arena& arena) : arena_(&arena), packing_(1, {}, 0) {}
 
   Tensor make(Shape shape, DType dtype = DType::f32) {
     const VkDeviceSize bytes = VkDeviceSize(shape_numel(shape)) * dtype_size(dtype);
     if (!arena_) {
-      const VkDeviceSize need = vk::ArenaPacking(alignment_, limit_).aligned(bytes);
-      if (need > limit_)
+      if (packing_.aligned(bytes) > limit_)
         throw Error("The " + what_ + " needs a tensor of " + shape_str(shape) + " " + dtype_name(dtype) + " (" +
                     vk::format_bytes(bytes) + "), more than one allocation on this device (maxMemoryAllocationSize " +
                     vk::format_bytes(limit_) + "). Use a smaller --height/--width or fewer --frames, or a device "
                     "that allocates more at once (dvs plan --device shows each stage's largest tensor).");
-      sizes_.push_back(need);
-      total_ += need;
+      packing_.place(bytes);
       return {};
     }
     return Tensor::on(arena_->alloc(bytes), std::move(shape), dtype);
   }
   bool counting() const { return arena_ == nullptr; }
-  // The arena's capacity for what was counted: one block when it fits one allocation, else full blocks of the
-  // limit and a last one as large as its contents (vk::Arena cuts the same blocks from this figure).
-  VkDeviceSize bytes() const {
-    vk::ArenaPacking packing(alignment_, std::min(limit_, total_));
-    for (VkDeviceSize s : sizes_) packing.place(s);
-    return packing.reserved();
-  }
+  // The arena's blocks for what was counted: one block when it fits one allocation, else each block as full
+  // as the tensors that went into it (vk::Arena places them the same way).
+  const vk::ArenaLayout& layout() const { return packing_.filled(); }
+  VkDeviceSize bytes() const { return layout().bytes(); }
 
  private:
   vk::Arena* arena_ = nullptr;
-  VkDeviceSize alignment_ = 256, limit_ = 0;
+  VkDeviceSize limit_ = 0;
   std::string what_;
-  std::vector<VkDeviceSize> sizes_;  // aligned, in order
-  VkDeviceSize total_ = 0;
+  vk::ArenaPacking packing_;
 };
 
 // A flat f32 view of `count` elements of `t` starting at element `first` (for strided linear layouts).
@@ -67,14 +61,12 @@ inline Tensor element_range(const Tensor& t, int64_t first, int64_t count) {
   return Tensor::on(t.buffer().sub(VkDeviceSize(first) * es, VkDeviceSize(count) * es), {count}, t.dtype());
 }
 
-// Keeps an arena big enough for the largest call seen so far (re-created when a call needs more, or when the
-// allocation limit changed: `bytes`, counted under today's limit, then assumes other blocks).
-inline vk::Arena& arena_for(vk::Context& ctx, std::unique_ptr<vk::Arena>& arena, VkDeviceSize bytes,
+// Keeps an arena big enough for the largest call seen so far (re-created when a call needs more).
+inline vk::Arena& arena_for(vk::Context& ctx, std::unique_ptr<vk::Arena>& arena, const vk::ArenaLayout& layout,
                             const char* what) {
-  const VkDeviceSize limit = vk::ArenaPacking::block_limit(ctx.allocator().max_allocation(), ctx.allocator().alignment());
-  if (!arena || arena->capacity() < bytes || arena->alloc_limit() != limit) {
+  if (!arena || !arena->layout().holds(layout)) {
     arena.reset();
-    arena = std::make_unique<vk::Arena>(ctx.allocator(), std::max<VkDeviceSize>(bytes, 256), what);
+    arena = std::make_unique<vk::Arena>(ctx.allocator(), layout, what);
   }
   arena->reset();
   return *arena;

@@ -233,16 +233,26 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTran
   return a;
 }
 
+vk::ArenaLayout CogVideoXTransformer::arena_layout(const CogVideoXTransformerConfig& config, uint64_t alignment,
+                                                  int64_t B, int64_t F, int64_t H, int64_t W, int64_t L,
+                                                  int64_t lora_rank, uint64_t alloc_limit) {
+  ActivationPlan p(alignment, alloc_limit, "transformer activation arena");
+  plan(config, p, B, F, H, W, L, lora_rank);
+  return p.layout();
+}
+
 uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
                                            int64_t F, int64_t H, int64_t W, int64_t L, int64_t lora_rank,
                                            uint64_t alloc_limit) {
-  ActivationPlan p(alignment, alloc_limit, "transformer activation arena");
-  plan(config, p, B, F, H, W, L, lora_rank);
-  return p.bytes();
+  return arena_layout(config, alignment, B, F, H, W, L, lora_rank, alloc_limit).bytes();
+}
+
+vk::ArenaLayout CogVideoXTransformer::arena_layout(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
+  return arena_layout(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_, ctx_.allocator().max_allocation());
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
-  return arena_bytes(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_, ctx_.allocator().max_allocation());
+  return arena_layout(B, F, H, W, L).bytes();
 }
 
 void CogVideoXTransformer::set_lora(std::map<std::string, LoraAdapter> adapters) {
@@ -513,7 +523,7 @@ Tensor CogVideoXTransformer::forward(const Tensor& latent, const Tensor& text, s
     for (int64_t i = 0; i < cfg_.num_layers + 2; ++i) tap_t.push_back(Tensor::empty(ctx_, {B, S, D}, DType::f32, "tap"));
     tap_t.push_back(Tensor::empty(ctx_, {B, N, ps * ps * cfg_.out_channels}, DType::f32, "tap"));
   }
-  vk::Arena& arena = arena_for(ctx_, arena_, arena_bytes(B, F, H, W, L), "transformer activation arena");
+  vk::Arena& arena = arena_for(ctx_, arena_, arena_layout(B, F, H, W, L), "transformer activation arena");
   vk::Recorder rec(ctx_);
   rec.begin();
   record(rec, arena, latent, text, dev_t, out, taps ? &tap_t : nullptr);

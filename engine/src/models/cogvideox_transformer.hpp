@@ -92,11 +92,16 @@ class CogVideoXTransformer {
   void record(vk::Recorder& rec, vk::Arena& arena, const Tensor& latent, const Tensor& text, const Tensor& timesteps,
               const Tensor& out, const std::vector<Tensor>* taps = nullptr);
   uint64_t arena_bytes(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
+  // Its blocks under the allocation limit in force (what the arena of that call is made of).
+  vk::ArenaLayout arena_layout(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
   // The same from a config alone (memory planning without weights); `alignment`: the allocator's;
   // alloc_limit: maxMemoryAllocationSize the arena's blocks are cut for (vk::Arena).
   static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
                               int64_t frames, int64_t height, int64_t width, int64_t text_len, int64_t lora_rank = 0,
                               uint64_t alloc_limit = UINT64_MAX);
+  static vk::ArenaLayout arena_layout(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
+                                      int64_t frames, int64_t height, int64_t width, int64_t text_len,
+                                      int64_t lora_rank, uint64_t alloc_limit);
 
   // LoRA on the attention projections (transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}), applied as two
   // extra GEMMs per adapted projection (see models/lora.hpp). Replaces any previous set; an adapter on another

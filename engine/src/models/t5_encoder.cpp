@@ -146,17 +146,24 @@ T5Encoder::Activations T5Encoder::plan(const T5EncoderConfig& cfg, bool embeddin
   return a;
 }
 
-uint64_t T5Encoder::arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
-                                int64_t len, uint64_t alloc_limit) {
+vk::ArenaLayout T5Encoder::arena_layout(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment,
+                                       int64_t batch, int64_t len, uint64_t alloc_limit) {
   ActivationPlan p(alignment, alloc_limit, "T5 activation arena");
   plan(config, embedding_16bit, p, batch, len);
-  return p.bytes();
+  return p.layout();
 }
 
-uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const {
-  return arena_bytes(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len,
-                     ctx_.allocator().max_allocation());
+uint64_t T5Encoder::arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
+                                int64_t len, uint64_t alloc_limit) {
+  return arena_layout(config, embedding_16bit, alignment, batch, len, alloc_limit).bytes();
 }
+
+vk::ArenaLayout T5Encoder::arena_layout(int64_t batch, int64_t len) const {
+  return arena_layout(cfg_, embedding_.dtype() != DType::f32, ctx_.allocator().alignment(), batch, len,
+                      ctx_.allocator().max_allocation());
+}
+
+uint64_t T5Encoder::arena_bytes(int64_t batch, int64_t len) const { return arena_layout(batch, len).bytes(); }
 
 void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask,
                        const Tensor& out, const std::vector<Tensor>* taps) {
@@ -265,7 +272,7 @@ Tensor T5Encoder::encode(const std::vector<std::vector<int32_t>>& ids, const std
   std::vector<Tensor> taps;
   if (hidden_states)
     for (int64_t i = 0; i <= cfg_.num_layers; ++i) taps.push_back(Tensor::empty(ctx_, {B, L, D}, DType::f32, "T5 hidden state"));
-  vk::Arena& arena = arena_for(ctx_, arena_, arena_bytes(B, L), "T5 activation arena");
+  vk::Arena& arena = arena_for(ctx_, arena_, arena_layout(B, L), "T5 activation arena");
   vk::Recorder rec(ctx_);
   rec.begin();
   record(rec, arena, dev_ids, dev_mask.defined() ? &dev_mask : nullptr, out, hidden_states ? &taps : nullptr);

@@ -74,10 +74,13 @@ class T5Encoder {
   void record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, const Tensor* key_mask, const Tensor& out,
               const std::vector<Tensor>* taps = nullptr);
   uint64_t arena_bytes(int64_t batch, int64_t len) const;
+  vk::ArenaLayout arena_layout(int64_t batch, int64_t len) const;  // its blocks under the limit in force
   // The same from a config alone (memory planning without weights); embedding_16bit: shared.weight is bf16/f16;
   // alloc_limit: maxMemoryAllocationSize the arena's blocks are cut for (vk::Arena).
   static uint64_t arena_bytes(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment, int64_t batch,
                               int64_t len, uint64_t alloc_limit = UINT64_MAX);
+  static vk::ArenaLayout arena_layout(const T5EncoderConfig& config, bool embedding_16bit, uint64_t alignment,
+                                      int64_t batch, int64_t len, uint64_t alloc_limit);
 
   // f32 [heads, L, L]: bias[h][i][j] = relative_attention_bias[bucket(j - i)][h] (cached per L).
   const Tensor& position_bias(int64_t len);

@@ -15,7 +15,7 @@ TransformerDenoiser::TransformerDenoiser(vk::Context& ctx, models::CogVideoXTran
   timesteps_ = Tensor::empty(ctx, {batch}, DType::f32, "timesteps");
   model.rope_tables(s[0], s[2], s[3]);
   model.positional_embedding(s[0], s[2], s[3], text.dim(1));
-  arena_ = std::make_unique<vk::Arena>(ctx.allocator(), model.arena_bytes(batch, s[0], s[2], s[3], text.dim(1)),
+  arena_ = std::make_unique<vk::Arena>(ctx.allocator(), model.arena_layout(batch, s[0], s[2], s[3], text.dim(1)),
                                        "transformer activations");
   // The image half of every row never changes: written once here, so a step only copies x in (no concat).
   ops::run_now(ctx, [&](vk::Recorder& rec) { rec.copy_regions(image_.buffer(), input_.buffer(), frame_regions(1)); });

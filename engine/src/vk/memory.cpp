@@ -314,55 +314,80 @@ void Allocator::free_block(size_t index) {
 
 // ---- Arena -------------------------------------------------------------------------------------------
 
+VkDeviceSize ArenaLayout::bytes() const {
+  VkDeviceSize n = 0;
+  for (VkDeviceSize b : blocks) n += b;
+  return n;
+}
+
+bool ArenaLayout::holds(const ArenaLayout& other) const {
+  if (other.blocks.size() > blocks.size()) return false;
+  for (size_t i = 0; i < other.blocks.size(); ++i)
+    if (other.blocks[i] > blocks[i]) return false;
+  return true;
+}
+
 VkDeviceSize ArenaPacking::aligned(VkDeviceSize bytes) const {
   return align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
 }
 
 ArenaPacking::Place ArenaPacking::place(VkDeviceSize bytes) {
   const VkDeviceSize need = aligned(bytes);
-  if (offset_ > 0 && offset_ + need > block_) {  // does not fit the rest: the next block
-    ++block_index_;
-    offset_ = 0;
+  if (filled_.blocks.empty()) filled_.blocks.push_back(0);
+  size_t k = filled_.blocks.size() - 1;
+  if (filled_.blocks[k] > 0 && filled_.blocks[k] + need > capacity(k)) {  // not the rest of this block: the next
+    filled_.blocks.push_back(0);
+    ++k;
   }
-  Place p{block_index_, offset_};
-  offset_ += need;
+  Place p{k, filled_.blocks[k], filled_.blocks[k] + need <= capacity(k)};
+  filled_.blocks[k] += need;
   return p;
 }
 
+// Blocks for `capacity` bytes: one where one allocation holds them, else as many of the limit as needed.
+static ArenaLayout blocks_for(VkDeviceSize capacity, VkDeviceSize limit) {
+  ArenaLayout l;
+  for (VkDeviceSize left = std::max<VkDeviceSize>(capacity, 4); left > 0;) {
+    l.blocks.push_back(std::min(limit, left));
+    left -= l.blocks.back();
+  }
+  return l;
+}
+
 Arena::Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what)
-    : what_(what),
-      alignment_(alloc.alignment()),
-      limit_(ArenaPacking::block_limit(alloc.max_allocation(), alignment_)),
-      capacity_(align_up(std::max<VkDeviceSize>(capacity, 4), alignment_)),
-      packing_(alignment_, std::min(limit_, capacity_)) {
+    : Arena(alloc, blocks_for(align_up(capacity, alloc.alignment()),
+                              ArenaPacking::block_limit(alloc.max_allocation(), alloc.alignment())), what) {}
+
+Arena::Arena(Allocator& alloc, const ArenaLayout& layout, const std::string& what)
+    : layout_(layout),
+      what_(what),
+      limit_(ArenaPacking::block_limit(alloc.max_allocation(), alloc.alignment())),
+      packing_(alloc.alignment(), {}, 0) {
   if (limit_ == 0)
     throw Error("internal: maxMemoryAllocationSize " + format_bytes(alloc.max_allocation()) + " is below the " +
-                format_bytes(alignment_) + " alignment of a buffer");
-  const VkDeviceSize block = packing_.block();
-  const size_t count = size_t((capacity_ + block - 1) / block);
+                format_bytes(alloc.alignment()) + " alignment of a buffer");
+  if (layout_.blocks.empty()) layout_.blocks.push_back(4);
+  const size_t count = layout_.blocks.size();
   blocks_.reserve(count);
-  for (VkDeviceSize left = capacity_; left > 0;) {
-    const VkDeviceSize b = std::min(block, left);
+  for (VkDeviceSize& b : layout_.blocks) {
+    b = align_up(std::max<VkDeviceSize>(b, 4), alloc.alignment());
     std::string name = what_;
     if (count > 1) name += " (block " + std::to_string(blocks_.size() + 1) + " of " + std::to_string(count) + ")";
     blocks_.push_back(alloc.allocate(b, MemoryUse::device, name));
-    left -= b;
   }
+  packing_ = ArenaPacking(alloc.alignment(), layout_.blocks, 0);
 }
-
-void Arena::reset() { packing_ = ArenaPacking(alignment_, packing_.block()); }
 
 BufferView Arena::alloc(VkDeviceSize bytes) {
   const VkDeviceSize need = packing_.aligned(bytes);
   if (need > limit_)
     throw Error("A tensor of " + format_bytes(bytes) + " in the " + what_ + " is larger than one allocation on this "
                 "device (maxMemoryAllocationSize " + format_bytes(limit_) + "). Use a smaller size or tiling.");
-  const VkDeviceSize before = used();
   const ArenaPacking saved = packing_;
-  const ArenaPacking::Place p = need <= packing_.block() ? packing_.place(bytes) : ArenaPacking::Place{blocks_.size(), 0};
-  if (p.block >= blocks_.size() || p.offset + need > blocks_[p.block].size()) {
+  const ArenaPacking::Place p = packing_.place(bytes);
+  if (!p.fits) {
     packing_ = saved;
-    throw Error("The " + what_ + " of " + format_bytes(capacity_) + " is full: " + format_bytes(before) + " used, " +
+    throw Error("The " + what_ + " of " + format_bytes(capacity()) + " is full: " + format_bytes(used()) + " used, " +
                 format_bytes(bytes) + " more requested. Use a smaller size or tiling.");
   }
   peak_ = std::max(peak_, used());

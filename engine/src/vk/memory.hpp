@@ -125,57 +125,71 @@ class Allocator {
   int device_type_ = -1;  // memory type chosen for MemoryUse::device
 };
 
-// How an arena places its tensors, shared by Arena and the counting pass (models/activation_plan.hpp) so that
-// the bytes a plan counts are the bytes the arena reserves: tensors are bump-allocated in order within a block
-// of `block` bytes; one that does not fit the rest of a block starts the next. Alignment applies to every
-// tensor (a sub-view start must be a binding offset).
+// The blocks of an arena, in bytes (each at most one allocation). A model's counting pass
+// (models/activation_plan.hpp) gives the blocks its tensors fill, so the arena reserves no more than they use.
+struct ArenaLayout {
+  std::vector<VkDeviceSize> blocks;
+  VkDeviceSize bytes() const;
+  // Whether an arena of these blocks can take what `other` was counted for: as many blocks, each as large.
+  // (Placing in order, each tensor then lands no later than the counting put it.)
+  bool holds(const ArenaLayout& other) const;
+};
+
+// How an arena places its tensors, shared by Arena and the counting pass so that the bytes a plan counts are
+// the bytes the arena reserves: tensors bump-allocated in order within a block; one that does not fit the
+// rest of a block starts the next. Block k holds `caps[k]` bytes, blocks past `caps` hold `then` (counting:
+// no blocks yet, then the allocation limit; an arena: its blocks, then none). Each tensor is aligned (a
+// sub-view start must be a binding offset).
 class ArenaPacking {
  public:
-  ArenaPacking(VkDeviceSize alignment, VkDeviceSize block) : alignment_(alignment), block_(block) {}
+  ArenaPacking(VkDeviceSize alignment, std::vector<VkDeviceSize> caps, VkDeviceSize then)
+      : alignment_(alignment), caps_(std::move(caps)), then_(then) {}
   // The block an arena uses under an allocation limit: the limit aligned down (one block is one allocation).
   static VkDeviceSize block_limit(VkDeviceSize alloc_limit, VkDeviceSize alignment) {
     return alloc_limit / alignment * alignment;
   }
   VkDeviceSize aligned(VkDeviceSize bytes) const;  // bytes a tensor takes (≥ 4, rounded up to the alignment)
+  VkDeviceSize capacity(size_t block) const { return block < caps_.size() ? caps_[block] : then_; }
   struct Place {
     size_t block;
     VkDeviceSize offset;
+    bool fits;  // within its block's capacity
   };
-  // Where the next tensor goes; the caller checks aligned(bytes) ≤ block.
   Place place(VkDeviceSize bytes);
-  // Bytes reserved to hold everything placed so far: full blocks before the last, then the last block's fill.
-  VkDeviceSize reserved() const { return VkDeviceSize(block_index_) * block_ + offset_; }
-  VkDeviceSize block() const { return block_; }
+  const ArenaLayout& filled() const { return filled_; }  // bytes each block holds so far
+  void rewind() { *this = ArenaPacking(alignment_, std::move(caps_), then_); }
 
  private:
-  VkDeviceSize alignment_, block_;
-  size_t block_index_ = 0;
-  VkDeviceSize offset_ = 0;  // fill of the current block
+  VkDeviceSize alignment_;
+  std::vector<VkDeviceSize> caps_;
+  VkDeviceSize then_;
+  ArenaLayout filled_;
 };
 
 // Bump allocator for the activations of a model call: alloc() during planning/recording, reset() before the
-// next call. Its memory is as many Buffers ("blocks") as needed, each at most one allocation
-// (maxMemoryAllocationSize in force when the arena is made): `capacity` bytes, as a counting pass
-// (ActivationPlan) gives them, in blocks of min(capacity, limit) (the last one smaller), so a call whose
-// activations fit one allocation has one block. Views never straddle blocks.
+// next call. Its memory is one Buffer per block of its layout, each at most one allocation
+// (maxMemoryAllocationSize); a call whose activations fit one allocation has one block. Views never straddle
+// blocks.
 class Arena {
  public:
+  // The blocks a counting pass gave (models::ActivationPlan::layout()).
+  Arena(Allocator& alloc, const ArenaLayout& layout, const std::string& what = "activation arena");
+  // `capacity` bytes: one block where one allocation holds them, else blocks of the limit in force.
   Arena(Allocator& alloc, VkDeviceSize capacity, const std::string& what = "activation arena");
   BufferView alloc(VkDeviceSize bytes);
-  void reset();  // rewinds to block 0; keeps the blocks
-  VkDeviceSize used() const { return packing_.reserved(); }  // blocks left behind count whole
+  void reset() { packing_.rewind(); }  // back to block 0; keeps the blocks
+  VkDeviceSize used() const { return packing_.filled().bytes(); }
   VkDeviceSize peak() const { return peak_; }
-  VkDeviceSize capacity() const { return capacity_; }
+  VkDeviceSize capacity() const { return layout_.bytes(); }
+  const ArenaLayout& layout() const { return layout_; }
   size_t blocks() const { return blocks_.size(); }
   const Buffer& block(size_t i) const { return blocks_.at(i); }
-  VkDeviceSize block_size() const { return packing_.block(); }
-  // The allocation limit the blocks were cut for: a plan counted under another limit may pack differently.
-  VkDeviceSize alloc_limit() const { return limit_; }
 
  private:
   std::vector<Buffer> blocks_;
+  ArenaLayout layout_;
   std::string what_;
-  VkDeviceSize alignment_, limit_, capacity_ = 0;
+  VkDeviceSize limit_;
   ArenaPacking packing_;
   VkDeviceSize peak_ = 0;
 };
