@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -65,6 +66,11 @@ class Context {
   void note_binding(VkDeviceSize bytes) { largest_binding_ = std::max(largest_binding_, bytes); }
   VkDeviceSize largest_binding() const { return largest_binding_; }
   void reset_largest_binding() { largest_binding_ = 0; }
+  // Which ops took a split path (their work over several bounded dispatches because one would exceed a limit
+  // in force), and how often, since the last reset: tests check that forced limits really split each op.
+  void note_split(const std::string& op) { ++splits_[op]; }
+  const std::map<std::string, uint64_t>& splits() const { return splits_; }
+  void reset_splits() { splits_.clear(); }
 
   Allocator& allocator() { return *allocator_; }
   PipelineCache& pipelines() { return *pipelines_; }
@@ -102,6 +108,7 @@ class Context {
   DeviceCaps caps_;
   bool validation_ = false;
   VkDeviceSize largest_binding_ = 0;
+  std::map<std::string, uint64_t> splits_;
 
   mutable std::mutex messages_mutex_;
   std::vector<std::string> messages_;
