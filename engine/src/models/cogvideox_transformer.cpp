@@ -255,6 +255,12 @@ uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int6
   return arena_layout(B, F, H, W, L).bytes();
 }
 
+void CogVideoXTransformer::release_call_memory() {
+  arena_.reset();
+  rope_.clear();
+  pos_.clear();
+}
+
 void CogVideoXTransformer::set_lora(std::map<std::string, LoraAdapter> adapters) {
   const int64_t D = cfg_.dim();
   int64_t rank = 0;

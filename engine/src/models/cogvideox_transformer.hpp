@@ -109,6 +109,10 @@ class CogVideoXTransformer {
   void set_lora(std::map<std::string, LoraAdapter> adapters);
   void clear_lora();
 
+  // Gives a call's memory back: the activation arena and the cached RoPE / positional tables (the next call
+  // makes them again). For a caller done with one call size, and for measuring one call from nothing.
+  void release_call_memory();
+
   // Device RoPE tables (cos, sin) f32 [F*Hp*Wp, head_dim] for a latent F×H×W (cached).
   const std::pair<Tensor, Tensor>& rope_tables(int64_t frames, int64_t height, int64_t width);
   // The f32 positional embedding [L + N, D] added after the patch embedding for latent F×H×W, as diffusers'
