@@ -8,6 +8,7 @@
 
 #include "io/npy.hpp"
 #include "support/gpu.hpp"
+#include "support/scoped_limits.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
@@ -94,6 +95,7 @@ TEST_P(LayoutOpsPaths, PermuteMatchesReference) {
       {{4500, 2, 128}, {1, 0, 2}},          // long rows (one row per y step), more rows than the grid
   };
   for (const Case& c : cases) {
+    if (test::over_allocation_limit(ctx(), uint64_t(shape_numel(c.s)) * 4, "permute [" + shape_str(c.s) + "]")) continue;
     auto in = iota_values(shape_numel(c.s));
     Shape os(c.s.size());
     for (size_t d = 0; d < os.size(); ++d) os[d] = c.s[size_t(c.perm[d])];

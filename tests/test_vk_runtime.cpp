@@ -124,7 +124,7 @@ TEST_F(GpuTest, CopyRoundTrips) {
     }
   }
   // Larger than the staging buffer: moved in chunks.
-  size_t big = vk::Transfer::kStagingBytes + 12345;
+  size_t big = ctx().transfer().staging_bytes() + 12345;
   std::vector<uint8_t> in(big), out(big);
   for (size_t i = 0; i < big; ++i) in[i] = uint8_t(i * 2654435761u >> 24);
   vk::Buffer buf = ctx().allocator().allocate(big);
@@ -185,8 +185,8 @@ std::vector<float> run_probe(vk::Context& ctx, const std::vector<float>& x, floa
 }
 
 TEST_F(GpuTest, DispatchWithSpecializationConstants) {
-  std::vector<float> x(1001);
-  std::iota(x.begin(), x.end(), -500.0f);
+  std::vector<float> x(501);  // 63 groups of 8: within the smallest forced grid limit (groups=64)
+  std::iota(x.begin(), x.end(), -250.0f);
   for (auto [scale, offset, local] : {std::tuple{2.5f, 3, 64u}, std::tuple{-1.0f, -7, 8u}}) {
     auto y = run_probe(ctx(), x, scale, offset, 0.25f, local);
     for (size_t i = 0; i < x.size(); ++i) ASSERT_FLOAT_EQ(y[i], x[i] * scale + float(offset) + 0.25f) << i;

@@ -1,6 +1,7 @@
 #include "tensor/ops_elementwise.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <map>
 #include <string>
 
@@ -176,22 +177,69 @@ BcastPlan plan_broadcast(Broadcast bc, int64_t n, bool same, bool vec4, uint32_t
   return pl;
 }
 
-// A broadcast op walked in flat chunks of x: a same-shape second operand is chunked along; any other stays
-// bound whole (row vectors and per-channel vectors are small) with the chunk's start in its period as `base`.
-// fn(x_first, count, same, base) runs one chunk.
+// One chunk of a broadcast op: x's elements [first, first + count); the operand is bound as its elements
+// [y_first, y_first + bc.C) (the whole operand unless it is larger than one binding), read as
+// y[((e + base) / bc.inner) % bc.C].
+struct BroadcastChunk {
+  int64_t first = 0, count = 0;
+  bool same = false;
+  uint32_t base = 0;
+  Broadcast bc;
+  int64_t y_first = 0;
+  bool y_whole = true;
+};
+
+// A broadcast op walked in flat chunks of x: a same-shape operand is chunked along; a smaller one stays bound
+// whole (row and per-channel vectors) with the chunk's start in its period as `base`. An operand larger than
+// one binding (the transformer's positional table added over the batch) is bound per chunk as the window of
+// its elements the chunk reads: chunks then stop at period ends, so that window is contiguous.
+// Whether the op runs vec4 shaders: x whole vec4s, and a windowed operand's period too (its chunks stop at
+// period ends).
+bool broadcast_vec4(const vk::DeviceCaps& caps, const char* op, int64_t n, const Broadcast& bc, const Tensor& operand) {
+  if (n % 4 != 0) return false;
+  const bool windowed = !(bc.inner == 1 && bc.C == n) && flat_chunk(caps, op, n) < n &&
+                        operand.bytes() > binding_capacity(caps, 0);
+  return !windowed || (bc.C * bc.inner) % 4 == 0;
+}
+
 template <class F>
 void for_each_broadcast_chunk(vk::Context& ctx, const char* op, int64_t n, const Broadcast& bc,
-                              const Tensor& operand, F&& fn) {
+                              const Tensor& operand, bool vec4, F&& fn) {
   const bool same = bc.inner == 1 && bc.C == n;
   const int64_t chunk = flat_chunk(ctx.caps(), op, n);
-  if (chunk >= n) return fn(0, n, same, 0u);
-  if (!same && operand.bytes() > binding_capacity(ctx.caps(), 0))
-    throw Error(std::string("internal: ") + op + ": broadcast operand " + operand.describe() +
-                " is larger than one binding (" + std::to_string(ctx.caps().max_storage_buffer_range) + " bytes)");
+  if (chunk >= n) return fn(BroadcastChunk{0, n, same, 0u, bc, 0, true});
+  ctx.note_split(op);
   const int64_t period = bc.C * bc.inner;
-  for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
-    fn(first, count, same, same ? 0u : uint32_t(first % period));  // a same-shape operand is chunked along
-  });
+  if (same || operand.bytes() <= binding_capacity(ctx.caps(), 0)) {
+    for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
+      fn(BroadcastChunk{first, count, same, same ? 0u : uint32_t(first % period), bc, 0, true});
+    });
+    return;
+  }
+  // Window starts aligned for a binding offset and for vec4 reads of the operand; x's chunks start at period
+  // ends, so those must be binding offsets too (true of every real shape: widths are multiples of 4).
+  const int64_t align = std::lcm<int64_t>(int64_t(binding_alignment(ctx.caps()) / 4), 4);
+  if (period % align != 0)
+    throw Error(std::string("internal: ") + op + ": broadcast operand " + operand.describe() + " is larger than one "
+                "binding and its period of " + std::to_string(period) + " elements is not a multiple of " +
+                std::to_string(align) + " (the binding alignment)");
+  const int64_t window_most = int64_t(binding_capacity(ctx.caps(), 0) / 4) / align * align;
+  for (int64_t pos = 0; pos < n;) {
+    const int64_t in_period = pos % period;
+    const int64_t c0 = in_period / bc.inner, c0a = c0 / align * align;
+    int64_t count = std::min({chunk, period - in_period, n - pos, (c0a + window_most) * bc.inner - in_period});
+    if (vec4) count = count / 4 * 4;  // whole vec4s (period and window ends are multiples of 4)
+    const int64_t c_last = (in_period + count - 1) / bc.inner;
+    const int64_t window = std::min(bc.C - c0a, (c_last - c0a + 1 + 3) / 4 * 4);
+    fn(BroadcastChunk{pos, count, false, uint32_t(in_period - c0a * bc.inner), Broadcast{window, bc.inner}, c0a, false});
+    pos += count;
+  }
+}
+
+// The operand as one chunk binds it.
+Tensor operand_of(const BroadcastChunk& c, const Tensor& y) {
+  if (c.same) return flat_sub(y, c.first, c.count);
+  return c.y_whole ? y : flat_sub(y, c.y_first, c.bc.C);
 }
 
 enum class BinaryOp : uint32_t { axpby = 0, mul = 1 };
@@ -234,11 +282,12 @@ void binary(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha, const
   const Broadcast bc = broadcast_of(op, x.shape(), y.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
-  const bool vec4 = n % 4 == 0;  // decided for the whole tensor: every chunk runs the same shader
-  for_each_broadcast_chunk(rec.context(), op, n, bc, y, [&](int64_t first, int64_t count, bool same, uint32_t base) {
-    if (count == n) return binary_range(rec, op, kind, alpha, x, beta, y, z, bc, same, vec4, base);
-    binary_range(rec, op, kind, alpha, flat_sub(x, first, count), beta, same ? flat_sub(y, first, count) : y,
-                 flat_sub(z, first, count), bc, same, vec4, base);
+  // Decided for the whole tensor: every chunk runs the same shader.
+  const bool vec4 = broadcast_vec4(rec.context().caps(), op, n, bc, y);
+  for_each_broadcast_chunk(rec.context(), op, n, bc, y, vec4, [&](const BroadcastChunk& c) {
+    if (c.count == n) return binary_range(rec, op, kind, alpha, x, beta, y, z, bc, c.same, vec4, c.base);
+    binary_range(rec, op, kind, alpha, flat_sub(x, c.first, c.count), beta, operand_of(c, y),
+                 flat_sub(z, c.first, c.count), c.bc, c.same, vec4, c.base);
   });
 }
 
@@ -283,12 +332,11 @@ void affine(vk::Recorder& rec, const char* op, const Tensor& x, const Tensor& s,
   const Broadcast bc = broadcast_of(op, x.shape(), s.shape());
   const int64_t n = x.numel();
   if (n == 0) return;
-  const bool vec4 = n % 4 == 0;
-  for_each_broadcast_chunk(rec.context(), op, n, bc, s, [&](int64_t first, int64_t count, bool same, uint32_t base) {
-    if (count == n) return affine_range(rec, op, x, s, t, z, s_offset, bc, same, vec4, base);
-    auto st = [&](const Tensor& v) { return same ? flat_sub(v, first, count) : v; };
-    affine_range(rec, op, flat_sub(x, first, count), st(s), st(t), flat_sub(z, first, count), s_offset, bc, same,
-                 vec4, base);
+  const bool vec4 = broadcast_vec4(rec.context().caps(), op, n, bc, s);
+  for_each_broadcast_chunk(rec.context(), op, n, bc, s, vec4, [&](const BroadcastChunk& c) {
+    if (c.count == n) return affine_range(rec, op, x, s, t, z, s_offset, bc, c.same, vec4, c.base);
+    affine_range(rec, op, flat_sub(x, c.first, c.count), operand_of(c, s), operand_of(c, t),
+                 flat_sub(z, c.first, c.count), s_offset, c.bc, c.same, vec4, c.base);
   });
 }
 

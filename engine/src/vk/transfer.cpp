@@ -49,16 +49,21 @@ void record_fill(VkCommandBuffer cmd, void* user) {
 }
 }  // namespace
 
+size_t Transfer::staging_bytes() const {
+  return size_t(std::min<VkDeviceSize>(kStagingBytes, ctx_.allocator().max_allocation() / 16 * 4));
+}
+
 void Transfer::upload(const BufferView& dst, const void* src, size_t bytes) {
   if (bytes > dst.size) throw Error("internal: upload of " + std::to_string(bytes) + " bytes into a smaller buffer");
   if (dst.mapped && !force_staging_) {
     std::memcpy(dst.mapped, src, bytes);
     return;
   }
-  if (!upload_staging_.valid()) upload_staging_ = ctx_.allocator().allocate(kStagingBytes, MemoryUse::upload, "upload staging");
+  if (!upload_staging_.valid())
+    upload_staging_ = ctx_.allocator().allocate(staging_bytes(), MemoryUse::upload, "upload staging");
   const uint8_t* p = static_cast<const uint8_t*>(src);
   for (size_t done = 0; done < bytes;) {
-    size_t n = std::min(bytes - done, kStagingBytes);
+    size_t n = std::min<size_t>(bytes - done, upload_staging_.size());
     std::memcpy(upload_staging_.mapped(), p + done, n);
     CopyArgs a{upload_staging_.view().buffer, dst.buffer, {upload_staging_.view().offset, dst.offset + done, n}};
     run(record_copy, &a);
@@ -73,10 +78,10 @@ void Transfer::download(const BufferView& src, void* dst, size_t bytes) {
     return;
   }
   if (!readback_staging_.valid())
-    readback_staging_ = ctx_.allocator().allocate(kStagingBytes, MemoryUse::readback, "readback staging");
+    readback_staging_ = ctx_.allocator().allocate(staging_bytes(), MemoryUse::readback, "readback staging");
   uint8_t* p = static_cast<uint8_t*>(dst);
   for (size_t done = 0; done < bytes;) {
-    size_t n = std::min(bytes - done, kStagingBytes);
+    size_t n = std::min<size_t>(bytes - done, readback_staging_.size());
     CopyArgs a{src.buffer, readback_staging_.view().buffer, {src.offset + done, readback_staging_.view().offset, n}};
     run(record_copy, &a);
     std::memcpy(p + done, readback_staging_.mapped(), n);

@@ -21,6 +21,9 @@ class Transfer {
   void fill_zero(const BufferView& dst);
 
   static constexpr size_t kStagingBytes = 32u << 20;
+  // The staging buffers' size: kStagingBytes, or a quarter of one allocation where the limit in force is
+  // lower (a copy then goes in more pieces).
+  size_t staging_bytes() const;
   // Tests: route even mapped memory through the staging path that discrete GPUs use.
   void set_force_staging(bool on) { force_staging_ = on; }
 
