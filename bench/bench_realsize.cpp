@@ -232,8 +232,8 @@ void run_transformer(vk::Context& ctx, const Scale& sc, const Progress& progress
   r2.op = "realsize_transformer_b2";
   r1.op = "realsize_transformer_b1";
   const uint64_t align = ctx.allocator().alignment();
-  r2.plan_bytes = pipeline::plan_transformer_stage(cfg, align, 2, F, H, W, L).total();
-  r1.plan_bytes = pipeline::plan_transformer_stage(cfg, align, 1, F, H, W, L).total();
+  r2.plan_bytes = pipeline::plan_transformer_stage(cfg, align, 2, F, H, W, L, 2, &ctx.caps()).total();
+  r1.plan_bytes = pipeline::plan_transformer_stage(cfg, align, 1, F, H, W, L, 2, &ctx.caps()).total();
   // One call measured from nothing: the model's arena and tables released, its inputs made inside the meter
   // (device copies of the shared inputs), as the plan counts them.
   auto call = [&](int64_t batch, CallResult& r, HostTensor& dev) {

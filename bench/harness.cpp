@@ -49,13 +49,15 @@ FmaPeakRun::FmaPeakRun(vk::Context& ctx) : recorder(ctx) {
 }
 
 CopyRun::CopyRun(vk::Context& ctx) : recorder(ctx) {
-  const uint64_t n = 64ull << 20;
+  // 64 MiB, or one binding / allocation where DVS_LIMITS forces them lower.
+  const uint64_t n = std::min<uint64_t>({64ull << 20, ctx.caps().max_storage_buffer_range / 16 * 16,
+                                         ctx.allocator().max_allocation() / 16 * 16});
   src = ctx.allocator().allocate(n);
   dst = ctx.allocator().allocate(n);
   ctx.transfer().fill_zero(src.view());
   recorder.begin();
   const uint32_t n4 = uint32_t(n / 16);
-  recorder.dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min(4096u, (n4 + 63) / 64));
+  recorder.dispatch(ctx.pipelines().get("bench/copy"), {src.view(), dst.view()}, &n4, 4, std::min({4096u, (n4 + 63) / 64, ctx.caps().max_workgroup_count[0]}));
   recorder.end();
   bytes = 2.0 * double(n);
 }

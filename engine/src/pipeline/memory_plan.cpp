@@ -12,6 +12,7 @@
 #include "models/cogvideox_transformer.hpp"
 #include "models/t5_encoder.hpp"
 #include "pipeline/job_stages.hpp"
+#include "tensor/ops_attention.hpp"
 
 namespace dvs::pipeline {
 
@@ -259,7 +260,7 @@ StageMemory plan_t5_stage(const json& t5_config, bool embedding_16bit, uint64_t 
 }
 
 StageMemory plan_transformer_stage(const json& config, uint64_t alignment, int64_t batch, int64_t F, int64_t H, int64_t W,
-                                   int64_t L, int weight_bytes) {
+                                   int64_t L, int weight_bytes, const vk::DeviceCaps* caps) {
   const auto cfg = models::CogVideoXTransformerConfig::from_json(config);
   const int64_t p = cfg.patch_size, N = F * (H / p) * (W / p);
   StageMemory m;
@@ -271,6 +272,9 @@ StageMemory plan_transformer_stage(const json& config, uint64_t alignment, int64
          tensor_bytes({batch}, alignment) /* timesteps */ + tensor_bytes({batch, F, cfg.out_channels, H, W}, alignment);
   if (cfg.rotary) m.io += 2 * tensor_bytes({N, cfg.head_dim}, alignment);           // RoPE cos, sin
   if (cfg.learned_pos || !cfg.rotary) m.io += tensor_bytes({L + N, cfg.dim()}, alignment);  // positional table
+  // Attention split over bindings: head-major K/V and running-state scratch of the recording.
+  if (caps)
+    m.io += ops::attention_split_plan_fused(*caps, {batch, cfg.heads, cfg.head_dim, L + N, L + N}).scratch_bytes;
   // diffusers' FeedForward: inner width 4 x dim (12288 for the 5B model).
   consider(m, {cfg.dim(), 4 * cfg.dim()}, uint64_t(weight_bytes), "FFN weight");
   consider(m, {batch, L + N, 3 * cfg.dim()}, 4, "q, k, v");
@@ -339,10 +343,23 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   const int64_t Fl = plan.latent_frames, Hl = plan.latent_height, Wl = plan.latent_width, L = plan.text_len;
   const bool emb16 = model.assumed_dtype_bytes == 2;
   plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L));
-  StageMemory cfg2 = plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes);
+  // The limits the calls split under, where the request names them (the attention's scratch follows them).
+  std::optional<vk::DeviceCaps> caps;
+  if (req.limits) {
+    caps.emplace();
+    caps->max_storage_buffer_range = req.limits->binding;
+    caps->max_texel_buffer_elements = req.limits->texels;
+    caps->max_memory_allocation_size = req.limits->alloc;
+    for (uint32_t& g : caps->max_workgroup_count) g = req.limits->groups;
+    caps->min_storage_buffer_offset_alignment = caps->min_texel_buffer_offset_alignment = req.alignment;
+  }
+  const vk::DeviceCaps* limits = caps ? &*caps : nullptr;
+  StageMemory cfg2 =
+      plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
   cfg2.name = "transformer_cfg";
   cfg2.what += " (CFG: negative + positive)";
-  StageMemory inv = plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes);
+  StageMemory inv =
+      plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
   inv.name = "transformer_inversion";
   inv.what += " (inversion)";
   plan.stages.push_back(cfg2);

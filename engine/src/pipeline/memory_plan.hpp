@@ -17,6 +17,7 @@
 #include "io/host_tensor.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/vae_tiling.hpp"
+#include "vk/device_info.hpp"
 
 namespace dvs::pipeline {
 
@@ -106,8 +107,10 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& request);
 // The stage figures on their own (tests compare them with live allocations).
 StageMemory plan_t5_stage(const nlohmann::json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch,
                           int64_t len);
+// `caps`: the limits the call runs under (the attention's split scratch depends on them); none: unsplit.
 StageMemory plan_transformer_stage(const nlohmann::json& config, uint64_t alignment, int64_t batch, int64_t latent_frames,
-                                   int64_t latent_height, int64_t latent_width, int64_t text_len, int weight_bytes = 2);
+                                   int64_t latent_height, int64_t latent_width, int64_t text_len, int weight_bytes = 2,
+                                   const vk::DeviceCaps* caps = nullptr);
 StageMemory plan_vae_encode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& video);
 StageMemory plan_vae_decode_stage(const nlohmann::json& config, uint64_t alignment, const Shape& z);
 

@@ -357,6 +357,21 @@ AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionS
   return prepare(caps, shape, q, k, v, out, options).split;
 }
 
+AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& s) {
+  // Placeholder views at offset 0 with the operands' sizes: planning reads sizes and offsets, never binds.
+  const int64_t width = s.heads * s.head_dim;
+  auto placeholder = [](const Shape& shape) {
+    vk::BufferView v;
+    v.buffer = reinterpret_cast<VkBuffer>(uintptr_t(1));
+    v.size = VkDeviceSize(shape_numel(shape)) * 4;
+    return Tensor::on(v, shape, DType::f32);
+  };
+  const Tensor qkv = placeholder({s.batch, s.q_len, 3 * width}), out = placeholder({s.batch, s.q_len, width});
+  return attention_split_plan(caps, s, fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
+                              fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
+                              fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out});
+}
+
 void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
                const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
   vk::Context& ctx = rec.context();

@@ -77,6 +77,10 @@ AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionS
                                     const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
                                     const AttentionOptions& options = {});
 
+// The same for the transformer's layout (q|k|v fused [B, Lq, 3·H·D], out contiguous [B, Lq, H·D], Lq = Lk),
+// from shapes alone: memory planners add its scratch_bytes to a call's figure.
+AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& shape);
+
 // Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,
                int64_t heads, const AttentionOptions& options = {});
