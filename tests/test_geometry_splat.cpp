@@ -274,7 +274,12 @@ TEST_F(GpuTest, GeometrySplatClipValidation) {
   EXPECT_THROW(render_clip(ctx(), rgb, depth, constant(glm::dmat4(1.0), F), Intrinsics::official_default(16, 8)), Error);
   HostTensor bad_rgb = random_rgb(F, H, W + 1, 1);
   EXPECT_THROW(render_clip(ctx(), bad_rgb, depth, constant(glm::dmat4(1.0), F), K), Error);
-  EXPECT_GE(SplatRenderer::frames_per_binding(ctx(), 576, 1024), 13);  // 128 MiB binding limit: ≥ 13 frames
+  // Frames of 576x1024 take 9 MiB of accumulation each: a 128 MiB binding (lavapipe, the Vulkan minimum)
+  // holds 14; under a forced lower limit, as many as fit, and at least one.
+  const uint64_t binding = ctx().caps().max_storage_buffer_range, per_frame = 576ull * 1024 * 16;
+  const int fit = SplatRenderer::frames_per_binding(ctx(), 576, 1024);
+  if (binding >= (128ull << 20)) EXPECT_GE(fit, 13);
+  EXPECT_TRUE(uint64_t(fit) * per_frame <= binding || fit == 1) << fit;
 }
 
 // Chunked rendering (what a 49-frame 576×1024 clip needs) gives the same frames as one chunk.

@@ -13,6 +13,7 @@
 #include "diffusion/slm.hpp"
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
+#include "support/scoped_limits.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/philox.hpp"
 
@@ -443,6 +444,39 @@ TEST_F(Slm, PlanFromMasksModulatesX0AndEpsIndependently) {
   const auto empty = diffusion::make_slm_index_plan(ctx(), none, all, kFl, kLh, kLw, kC,
                                                     SlmOptions::Scope::global, "empty");
   EXPECT_EQ(run_slm(ctx(), empty, {1, 1, 0}), index_latent());
+}
+
+}  // namespace
+}  // namespace dvs
+
+namespace dvs {
+namespace {
+
+// A clip over one binding: frame maxima in windows of whole frames, footprints in windows of latent frames.
+// binding=30KiB holds 5 of the 32x48 frames (6 KiB each): two frame-max windows, one latent frame per
+// footprint window (frame 0 alone, then 4 pixel frames each). Both presets, bitwise the unsplit masks.
+TEST_F(Slm, MasksOverOneBindingSplitInFrameWindows) {
+  const HostTensor mt = pixel_tensor(odd_mask()), dt = pixel_tensor(object_depth());
+  for (auto preset : {SlmOptions::Preset::paper, SlmOptions::Preset::official}) {
+    SlmOptions o;
+    o.preset = preset;
+    const auto whole = diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, o);
+    ctx().reset_splits();
+    diffusion::SlmMasks split;
+    {
+      test::ScopedLimits limits(ctx(), "binding=30KiB");
+      split = diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, o);
+    }
+    EXPECT_EQ(ctx().splits().count("slm"), 1u);
+    EXPECT_EQ(split.hole_fraction, whole.hole_fraction);
+    EXPECT_EQ(split.background_mean, whole.background_mean);
+    EXPECT_EQ(split.x0_target, whole.x0_target);
+    EXPECT_EQ(split.x0_source, whole.x0_source);
+    EXPECT_EQ(split.eps_target, whole.eps_target);
+  }
+  // Four frames (one latent frame's footprint) must fit one binding: 18 KiB holds three.
+  test::ScopedLimits limits(ctx(), "binding=18KiB");
+  EXPECT_THROW(diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, SlmOptions{}), Error);
 }
 
 }  // namespace

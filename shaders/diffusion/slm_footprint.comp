@@ -8,7 +8,9 @@
 //   bottom by 1, 3x3 average pool with stride 2". All stages are linear, so each latent cell is the sum over
 //   the 27x27 (row path, column path) combinations of the pixel they reach, divided by 9^3; paths through
 //   the zero padding contribute nothing. With masks in {0, 1/4, ..., 1} the sum is exact. out[0] = V.
-// One invocation per latent cell; out is [2, Fl, Hl, Wl] (MODE 1 writes the first plane only).
+// One invocation per latent cell of latent frames [first_latent, end_latent); out is [2, Fl, Hl, Wl] (MODE 1
+// writes the first plane only). mask and depth are bound from pixel frame pixel_frame0 on (a window of whole
+// frames: clips over one binding run in windows of latent frames); frame_max is bound whole.
 #extension GL_GOOGLE_include_directive : require
 
 layout(constant_id = 0) const uint MODE = 0;
@@ -23,6 +25,7 @@ layout(push_constant) uniform Push {
   uint latent_frames, lh, lw;  // latent grid
   uint height, width;          // pixel size (multiples of 8)
   uint has_depth, metric;
+  uint first_latent, end_latent, pixel_frame0;
 } p;
 
 float disparity(float x) {
@@ -44,9 +47,9 @@ uint path_pixel(uint i, uint t, uint n) {
 }
 
 void main() {
-  uint cell = flat_index();
   uint cells = p.latent_frames * p.lh * p.lw;
-  if (cell >= cells) return;
+  uint cell = p.first_latent * p.lh * p.lw + flat_index();
+  if (cell >= p.end_latent * p.lh * p.lw) return;
   uint w = cell % p.lw, h = (cell / p.lw) % p.lh, f = cell / (p.lw * p.lh);
   uint first = f == 0u ? 0u : 4u * f - 3u;
   uint nf = f == 0u ? 1u : 4u;
@@ -55,7 +58,7 @@ void main() {
   if (MODE == 0u) {
     float holes = 0.0, disp = 0.0;
     for (uint t = 0u; t < nf; ++t) {
-      uint fb = (first + t) * plane;
+      uint fb = (first + t - p.pixel_frame0) * plane;
       float fm = p.has_depth != 0u ? frame_max[first + t] : 0.0;
       for (uint y = 0u; y < 8u; ++y) {
         uint row = fb + (8u * h + y) * p.width + 8u * w;
@@ -77,12 +80,12 @@ void main() {
       for (uint tx = 0u; tx < 27u; ++tx) {
         uint x = path_pixel(w, tx, p.width);
         if (x == ~0u) continue;
-        uint o = y * p.width + x;
+        uint o = y * p.width + x + (first - p.pixel_frame0) * plane;
         float m;
         if (f == 0u) {
           m = mask[o];
         } else {  // pairs first, as the encoder's two time-compressing calls do
-          uint b = first * plane + o;
+          uint b = o;
           m = ((mask[b] + mask[b + plane]) * 0.5 + (mask[b + 2u * plane] + mask[b + 3u * plane]) * 0.5) * 0.5;
         }
         acc += m;

@@ -5,12 +5,13 @@
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 256) in;
-layout(std430, binding = 0) readonly buffer Depth { float depth[]; };  // [Fp, H, W]
+layout(std430, binding = 0) readonly buffer Depth { float depth[]; };  // [frames, H, W] from first_frame
 layout(std430, binding = 1) writeonly buffer FrameMax { float frame_max[]; };  // [Fp]
 layout(push_constant) uniform Push {
   uint frames;
   uint pixels;  // H·W
   uint metric;  // 1: depth holds metric z, disparity = 1/z
+  uint first_frame;  // depth is bound from this frame on (clips over one binding run in frame windows)
 } p;
 
 shared float partial[256];
@@ -33,5 +34,5 @@ void main() {
       partial[gl_LocalInvocationID.x] = max(partial[gl_LocalInvocationID.x], partial[gl_LocalInvocationID.x + s]);
     barrier();
   }
-  if (gl_LocalInvocationID.x == 0u) frame_max[f] = partial[0];
+  if (gl_LocalInvocationID.x == 0u) frame_max[p.first_frame + f] = partial[0];
 }

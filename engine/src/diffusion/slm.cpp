@@ -12,9 +12,10 @@ namespace {
 
 struct FootprintPush {
   uint32_t latent_frames, lh, lw, height, width, has_depth, metric;
+  uint32_t first_latent, end_latent, pixel_frame0;  // this dispatch's latent frames; its window's first pixel frame
 };
 struct FrameMaxPush {
-  uint32_t frames, pixels, metric;
+  uint32_t frames, pixels, metric, first_frame;
 };
 struct SamplePush {
   uint32_t n_targets, seed_lo, seed_hi, stream, base_lo, base_hi;
@@ -86,19 +87,43 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const Tensor& pixel_mask, const Ten
   const Tensor& depth_t = with_depth ? *depth : pixel_mask;  // unread without depth
   const Tensor frame_max = Tensor::zeros(ctx, {fp}, DType::f32, "slm frame max");
   const Tensor stats = Tensor::empty(ctx, {2, cells}, DType::f32, "slm footprint stats");
+  // Pixel frames are bound in windows of whole frames that fit one binding (a frame's bytes are a multiple of
+  // 256: h, w are multiples of 8), so a clip larger than one binding splits over frames; frame_max and the
+  // stats (1/64 and 1/128 of a mask) stay bound whole.
+  const vk::DeviceCaps& caps = ctx.caps();
+  const uint64_t frame_bytes = uint64_t(h * w) * 4;
+  const int64_t frames_per_window = int64_t(caps.max_storage_buffer_range / frame_bytes);
+  if (frames_per_window < 4)
+    throw Error("SLM: four " + std::to_string(h) + "x" + std::to_string(w) + " mask frames (one latent frame's "
+                "footprint) exceed one storage binding (maxStorageBufferRange " +
+                vk::format_bytes(caps.max_storage_buffer_range) + ")");
+  auto frames_view = [&](const Tensor& t, int64_t first, int64_t count) {
+    return t.buffer().sub(VkDeviceSize(first) * frame_bytes, VkDeviceSize(count) * frame_bytes);
+  };
   ops::run_now(ctx, [&](vk::Recorder& rec) {
+    if (fp > frames_per_window) rec.context().note_split("slm");
     if (with_depth) {
-      FrameMaxPush p{uint32_t(fp), uint32_t(h * w), depth_is_metric ? 1u : 0u};
-      rec.dispatch(rec.context().pipelines().get("diffusion/slm_frame_max"), {depth_t.buffer(), frame_max.buffer()},
-                   &p, sizeof p, uint32_t(fp), 1, 1, "slm_frame_max");
+      ops::for_each_chunk(fp, frames_per_window, [&](int64_t f0, int64_t n) {
+        FrameMaxPush p{uint32_t(n), uint32_t(h * w), depth_is_metric ? 1u : 0u, uint32_t(f0)};
+        rec.dispatch(rec.context().pipelines().get("diffusion/slm_frame_max"),
+                     {frames_view(depth_t, f0, n), frame_max.buffer()}, &p, sizeof p, uint32_t(n), 1, 1,
+                     "slm_frame_max");
+      });
     }
-    FootprintPush p{uint32_t(latent_frames), uint32_t(m.height), uint32_t(m.width), uint32_t(h), uint32_t(w),
-                    with_depth ? 1u : 0u, depth_is_metric ? 1u : 0u};
     const uint32_t spec[] = {paper ? 0u : 1u};
-    const ops::Grid g = ops::grid_1d(rec.context().caps(), cells, 64);
-    rec.dispatch(rec.context().pipelines().get("diffusion/slm_footprint", spec),
-                 {mask_t.buffer(), depth_t.buffer(), frame_max.buffer(), stats.buffer()}, &p, sizeof p, g.x, g.y, g.z,
-                 "slm_footprint");
+    // Latent frame j >= 1 reads pixel frames 4j-3 .. 4j: (frames_per_window - 1) / 4 of them fit a window
+    // with room for frame 0 in the first.
+    const int64_t latent_per_window = (frames_per_window - 1) / 4;
+    ops::for_each_chunk(latent_frames, latent_per_window, [&](int64_t k0, int64_t kn) {
+      const int64_t pf0 = k0 == 0 ? 0 : 4 * k0 - 3, pf1 = 4 * (k0 + kn - 1) + 1;
+      FootprintPush p{uint32_t(latent_frames), uint32_t(m.height), uint32_t(m.width), uint32_t(h), uint32_t(w),
+                      with_depth ? 1u : 0u, depth_is_metric ? 1u : 0u, uint32_t(k0), uint32_t(k0 + kn), uint32_t(pf0)};
+      const ops::Grid g = ops::grid_1d(rec.context().caps(), kn * m.height * m.width, 64);
+      rec.dispatch(rec.context().pipelines().get("diffusion/slm_footprint", spec),
+                   {frames_view(mask_t, pf0, pf1 - pf0), frames_view(depth_t, pf0, pf1 - pf0), frame_max.buffer(),
+                    stats.buffer()},
+                   &p, sizeof p, g.x, g.y, g.z, "slm_footprint");
+    });
   });
   const std::vector<float> s = stats.download(ctx).to_f32();
 

@@ -45,6 +45,12 @@ int SplatRenderer::frames_per_binding(const vk::Context& ctx, int height, int wi
 SplatRenderer::SplatRenderer(vk::Context& ctx, int height, int width, int max_frames, const SplatOptions& options)
     : ctx_(ctx), H_(height), W_(width), max_frames_(max_frames), options_(options) {
   if (height < 1 || width < 1 || max_frames < 1) throw Error("splat renderer: size and frame count must be positive");
+  const uint64_t frame_bytes = uint64_t(height) * uint64_t(width) * 16;
+  if (frame_bytes > ctx.caps().max_storage_buffer_range)
+    throw Error("splat renderer: one " + std::to_string(height) + "x" + std::to_string(width) + " frame needs " +
+                vk::format_bytes(frame_bytes) + " of accumulation, over one storage binding (maxStorageBufferRange " +
+                vk::format_bytes(ctx.caps().max_storage_buffer_range) + "); the renderer splits a clip over frames, "
+                "not a frame (the real 480x720 takes 5.3 MiB)");
   if (max_frames > frames_per_binding(ctx, height, width))
     throw Error("splat renderer: " + std::to_string(max_frames) + " frames of " + std::to_string(height) + "x" +
                 std::to_string(width) + " exceed one storage binding; render in chunks of at most " +
