@@ -474,6 +474,15 @@ TEST_F(Slm, MasksOverOneBindingSplitInFrameWindows) {
     EXPECT_EQ(split.x0_source, whole.x0_source);
     EXPECT_EQ(split.eps_target, whole.eps_target);
   }
+  // Exactly four frames per binding (24 KiB): one latent frame per window.
+  {
+    SlmOptions o;
+    const auto whole = diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, o);
+    test::ScopedLimits limits(ctx(), "binding=24KiB");
+    const auto split = diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, o);
+    EXPECT_EQ(split.hole_fraction, whole.hole_fraction);
+    EXPECT_EQ(split.background_mean, whole.background_mean);
+  }
   // Four frames (one latent frame's footprint) must fit one binding: 18 KiB holds three.
   test::ScopedLimits limits(ctx(), "binding=18KiB");
   EXPECT_THROW(diffusion::compute_slm_masks(ctx(), mt, &dt, true, kFl, SlmOptions{}), Error);

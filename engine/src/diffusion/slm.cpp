@@ -112,8 +112,8 @@ SlmMasks compute_slm_masks(vk::Context& ctx, const Tensor& pixel_mask, const Ten
     }
     const uint32_t spec[] = {paper ? 0u : 1u};
     // Latent frame j >= 1 reads pixel frames 4j-3 .. 4j: (frames_per_window - 1) / 4 of them fit a window
-    // with room for frame 0 in the first.
-    const int64_t latent_per_window = (frames_per_window - 1) / 4;
+    // with room for frame 0 in the first; at least one (four frames fit, checked above).
+    const int64_t latent_per_window = std::max<int64_t>(1, (frames_per_window - 1) / 4);
     ops::for_each_chunk(latent_frames, latent_per_window, [&](int64_t k0, int64_t kn) {
       const int64_t pf0 = k0 == 0 ? 0 : 4 * k0 - 3, pf1 = 4 * (k0 + kn - 1) + 1;
       FootprintPush p{uint32_t(latent_frames), uint32_t(m.height), uint32_t(m.width), uint32_t(h), uint32_t(w),
