@@ -51,30 +51,13 @@ class AttentionTest : public GpuTest {
                 << c.kv_len << ": a tensor over the allocation limit in force\n";
       return;
     }
-    HostOperand hq, hk, hv;
     Tensor tq, tk, tv;
-    AttentionOperand q, k, v;
     if (c.fused) {
       ASSERT_EQ(c.q_len, c.kv_len);
-      std::vector<float> all = random_values(size_t(c.batch * c.q_len * 3 * W), seed);
-      hq = {all, 0, 3 * W};
-      hk = {all, W, 3 * W};
-      hv = {all, 2 * W, 3 * W};
-      Tensor qkv = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, c.q_len, 3 * W}, all));
-      q = ops::fused_qkv_operand(qkv, 0, c.heads, c.head_dim);
-      k = ops::fused_qkv_operand(qkv, 1, c.heads, c.head_dim);
-      v = ops::fused_qkv_operand(qkv, 2, c.heads, c.head_dim);
-    } else {
-      const int64_t pad = c.pad_columns, stride = W + 2 * pad;
-      auto make = [&](int64_t len, uint32_t sd, HostOperand& h, AttentionOperand& op) {
-        h = {random_values(size_t(c.batch * len * stride), sd), pad, stride};
-        Tensor t = Tensor::upload(ctx(), HostTensor::from_f32({c.batch, len, stride}, h.data));
-        op = {t, pad, stride};
-      };
-      make(c.q_len, seed, hq, q);
-      make(c.kv_len, seed + 1, hk, k);
-      make(c.kv_len, seed + 2, hv, v);
     }
+    const attention_ref::Operands ops_in = attention_ref::random_operands(ctx(), s, c.fused, c.pad_columns, seed);
+    const HostOperand &hq = ops_in.hq, &hk = ops_in.hk, &hv = ops_in.hv;
+    const AttentionOperand &q = ops_in.q, &k = ops_in.k, &v = ops_in.v;
     std::vector<float> bias, mask;
     Tensor tbias, tmask;
     AttentionOptions opt;

@@ -10,6 +10,7 @@
 
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
+#include "support/texel_paths.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_check.hpp"
 #include "tensor/ops_elementwise.hpp"
@@ -53,19 +54,8 @@ std::vector<ops::NonFiniteHit> scan(vk::Context& ctx, const std::vector<std::vec
 }
 
 // Both shader variants: texel-buffer reads (the default where views allow) and the storage-buffer fallback.
-class OpsCheck : public GpuTest, public ::testing::WithParamInterface<bool> {
- protected:
-  void SetUp() override {
-    GpuTest::SetUp();
-    ops::use_texel_inputs(GetParam());
-  }
-  void TearDown() override {
-    ops::use_texel_inputs(true);
-    GpuTest::TearDown();
-  }
-};
-INSTANTIATE_TEST_SUITE_P(Paths, OpsCheck, ::testing::Bool(),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+class OpsCheck : public test::TexelPathsTest {};
+DVS_TEXEL_PATHS(Paths, OpsCheck);
 
 TEST_P(OpsCheck, CountsAndLocatesNonFiniteValues) {
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();

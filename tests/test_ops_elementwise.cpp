@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "support/gpu.hpp"
+#include "support/texel_paths.hpp"
 #include "support/scoped_limits.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
@@ -21,19 +22,8 @@ class ElementwiseOps : public test::GpuTest {};
 
 // The f32 ops run twice: with texel-buffer inputs (the default where views allow) and forced onto the
 // storage-buffer shaders, so both variants of every op are checked.
-class ElementwiseOpsPaths : public test::GpuTest, public ::testing::WithParamInterface<bool> {
- protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    ops::use_texel_inputs(GetParam());
-  }
-  void TearDown() override {
-    ops::use_texel_inputs(true);
-    test::GpuTest::TearDown();
-  }
-};
-INSTANTIATE_TEST_SUITE_P(ElementwiseOps, ElementwiseOpsPaths, ::testing::Bool(),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+class ElementwiseOpsPaths : public test::TexelPathsTest {};
+DVS_TEXEL_PATHS(ElementwiseOps, ElementwiseOpsPaths);
 
 std::vector<float> random_values(int64_t n, uint32_t seed, float lo = -4.0f, float hi = 4.0f) {
   std::mt19937 rng(seed);

@@ -8,6 +8,7 @@
 
 #include "io/npy.hpp"
 #include "support/gpu.hpp"
+#include "support/texel_paths.hpp"
 #include "support/scoped_limits.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
@@ -19,19 +20,8 @@ namespace {
 class LayoutOps : public test::GpuTest {};
 
 // Permute and concat/split run twice: texel-buffer inputs (default) and forced storage buffers.
-class LayoutOpsPaths : public test::GpuTest, public ::testing::WithParamInterface<bool> {
- protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    ops::use_texel_inputs(GetParam());
-  }
-  void TearDown() override {
-    ops::use_texel_inputs(true);
-    test::GpuTest::TearDown();
-  }
-};
-INSTANTIATE_TEST_SUITE_P(LayoutOps, LayoutOpsPaths, ::testing::Bool(),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+class LayoutOpsPaths : public test::TexelPathsTest {};
+DVS_TEXEL_PATHS(LayoutOps, LayoutOpsPaths);
 
 // Distinct values so any misplaced element shows.
 std::vector<float> iota_values(int64_t n, float start = 0.5f) {

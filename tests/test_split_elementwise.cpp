@@ -10,6 +10,7 @@
 
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
+#include "support/texel_paths.hpp"
 #include "support/scoped_limits.hpp"
 #include "support/split_check.hpp"
 #include "tensor/ops_check.hpp"
@@ -23,16 +24,8 @@ namespace {
 // is left alone here (texel views are chosen per chunk and covered by TexelLimitFallsBackPerChunk).
 constexpr const char* kSplitLimits = "binding=1KiB,groups=64";
 
-class SplitElementwise : public test::GpuTest, public ::testing::WithParamInterface<bool> {
+class SplitElementwise : public test::TexelPathsTest {
  protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    ops::use_texel_inputs(GetParam());
-  }
-  void TearDown() override {
-    ops::use_texel_inputs(true);
-    test::GpuTest::TearDown();
-  }
 
   uint32_t run(const std::function<void(vk::Recorder&)>& record) { return test::run_counted(ctx(), record); }
 
@@ -41,8 +34,7 @@ class SplitElementwise : public test::GpuTest, public ::testing::WithParamInterf
     test::expect_split_equal(ctx(), kSplitLimits, out_shape, dtype, op, what);
   }
 };
-INSTANTIATE_TEST_SUITE_P(SplitElementwise, SplitElementwise, ::testing::Bool(),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+DVS_TEXEL_PATHS(SplitElementwise, SplitElementwise);
 
 Tensor random_tensor(vk::Context& ctx, const Shape& s, uint32_t seed) {
   std::mt19937 rng(seed);

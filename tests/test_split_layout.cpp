@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "support/gpu.hpp"
+#include "support/texel_paths.hpp"
 #include "support/split_check.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
@@ -18,23 +19,14 @@ namespace {
 
 constexpr const char* kSplitLimits = "binding=1KiB,groups=64";
 
-class SplitLayout : public test::GpuTest, public ::testing::WithParamInterface<bool> {
+class SplitLayout : public test::TexelPathsTest {
  protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    ops::use_texel_inputs(GetParam());
-  }
-  void TearDown() override {
-    ops::use_texel_inputs(true);
-    test::GpuTest::TearDown();
-  }
   void expect_split_equal(const Shape& shape, DType dtype, const std::function<void(vk::Recorder&, const Tensor&)>& op,
                           const std::string& what, const HostTensor* init = nullptr) {
     test::expect_split_equal(ctx(), kSplitLimits, shape, dtype, op, what, init);
   }
 };
-INSTANTIATE_TEST_SUITE_P(SplitLayout, SplitLayout, ::testing::Bool(),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "texel" : "storage"; });
+DVS_TEXEL_PATHS(SplitLayout, SplitLayout);
 
 HostTensor random_host(const Shape& s, uint32_t seed) {
   std::mt19937 rng(seed);

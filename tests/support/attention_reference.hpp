@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "tensor/ops_attention.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/context.hpp"
 
 namespace dvs::test::attention_ref {
 
@@ -57,6 +59,39 @@ inline std::vector<double> reference(const AttentionShape& s, const HostOperand&
         }
       }
   return out;
+}
+
+// Random q, k, v for `s` on the host and the device: fused (column slices of one [B, L, 3·H·D] tensor; needs
+// Lq == Lk) or three [B, L, H·D + 2·pad] tensors holding their operand at column `pad`. Seeds: one for the
+// fused tensor, else seed, seed + 1, seed + 2.
+struct Operands {
+  HostOperand hq, hk, hv;
+  ops::AttentionOperand q, k, v;
+};
+
+inline Operands random_operands(vk::Context& ctx, const AttentionShape& s, bool fused, int64_t pad, uint32_t seed) {
+  const int64_t W = s.heads * s.head_dim;
+  Operands o;
+  if (fused) {
+    std::vector<float> all = random_values(size_t(s.batch * s.q_len * 3 * W), seed);
+    o.hq = {all, 0, 3 * W};
+    o.hk = {all, W, 3 * W};
+    o.hv = {all, 2 * W, 3 * W};
+    const Tensor qkv = Tensor::upload(ctx, HostTensor::from_f32({s.batch, s.q_len, 3 * W}, all));
+    o.q = ops::fused_qkv_operand(qkv, 0, s.heads, s.head_dim);
+    o.k = ops::fused_qkv_operand(qkv, 1, s.heads, s.head_dim);
+    o.v = ops::fused_qkv_operand(qkv, 2, s.heads, s.head_dim);
+    return o;
+  }
+  const int64_t stride = W + 2 * pad;
+  auto make = [&](int64_t len, uint32_t sd, HostOperand& h, ops::AttentionOperand& op) {
+    h = {random_values(size_t(s.batch * len * stride), sd), pad, stride};
+    op = {Tensor::upload(ctx, HostTensor::from_f32({s.batch, len, stride}, h.data)), pad, stride};
+  };
+  make(s.q_len, seed, o.hq, o.q);
+  make(s.kv_len, seed + 1, o.hk, o.k);
+  make(s.kv_len, seed + 2, o.hv, o.v);
+  return o;
 }
 
 }  // namespace dvs::test::attention_ref
