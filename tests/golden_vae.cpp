@@ -18,6 +18,7 @@
 #include "io/npy.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/vae_tiling.hpp"
+#include "pipeline/memory_plan.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/profiler.hpp"
@@ -138,13 +139,7 @@ TEST(VaeTilePlan, MatchesDiffusersArithmetic) {
 // Working-set plan of the real CogVideoX-5B-I2V VAE (its config values) at 49 x 480 x 720, whole frame and
 // with diffusers' default 240 x 360 tiles: printed for the memory plan; a dry run, no device work.
 TEST(VaeMemoryPlan, Real5BSizes) {
-  const nlohmann::json real = {{"_class_name", "AutoencoderKLCogVideoX"},
-                               {"block_out_channels", {128, 256, 256, 512}},
-                               {"latent_channels", 16},
-                               {"layers_per_block", 3},
-                               {"norm_num_groups", 32},
-                               {"temporal_compression_ratio", 4},
-                               {"scaling_factor", 0.7}};
+  const nlohmann::json real = dvs::pipeline::builtin_plan_model("cogvideox-5b-i2v").vae;
   const double gib = 1024.0 * 1024.0 * 1024.0;
   const uint64_t enc = CogVideoXVae::encode_working_bytes(real, {1, 3, 49, 480, 720});
   const uint64_t dec = CogVideoXVae::decode_working_bytes(real, {1, 16, 13, 60, 90});

@@ -344,18 +344,7 @@ TEST(BoundedSubmissionStages, StageTrackerHookCancelsAndReportsProgress) {
 // only at the text stage's start (the first in encode), and the run would go on to the end.
 TEST(BoundedSubmissionPipeline, CancellationTakesEffectInsideTheVaeEncode) {
   test::PipelineInputs in;
-  RunOptions o;
-  o.render.video = in.video;
-  o.render.depth = in.depth;
-  o.render.metric_depth = true;
-  o.render.frames = 9;
-  o.render.height = o.render.width = 64;
-  o.render.out_dir = in.dir / "out";
-  o.model = in.model;
-  o.prompt = "a red fox";
-  o.steps = 4;
-  o.inversion_steps = 3;
-  o.cache_dir = in.cache;
+  const RunOptions o = in.run_options(in.dir / "out", in.cache);
   std::string stage;
   int polls_in_encode = 0;
   const auto progress = [&](const std::string& s, int, int, const std::string&) { stage = s; };

@@ -24,19 +24,7 @@ using nlohmann::json;
 
 // The options PipelineInputs::command gives on the command line.
 RunOptions options(const test::PipelineInputs& in, const fs::path& cache, const fs::path& out) {
-  RunOptions o;
-  o.render.video = in.video;
-  o.render.depth = in.depth;
-  o.render.metric_depth = true;
-  o.render.frames = 9;
-  o.render.height = o.render.width = 64;
-  o.render.out_dir = out;
-  o.model = in.model;
-  o.steps = 4;
-  o.inversion_steps = 3;
-  o.cache_dir = cache;
-  o.prompt = "a red fox";
-  return o;
+  return in.run_options(out, cache);
 }
 
 struct RunResult {

@@ -13,6 +13,7 @@
 #include <cstdio>
 
 #include "models/cogvideox_vae.hpp"
+#include "pipeline/memory_plan.hpp"
 
 namespace dvs {
 namespace {
@@ -21,13 +22,7 @@ using models::CogVideoXVae;
 using models::VaeFootprint;
 
 const nlohmann::json& real_config() {
-  static const nlohmann::json j = {{"_class_name", "AutoencoderKLCogVideoX"},
-                                   {"block_out_channels", {128, 256, 256, 512}},
-                                   {"latent_channels", 16},
-                                   {"layers_per_block", 3},
-                                   {"norm_num_groups", 32},
-                                   {"temporal_compression_ratio", 4},
-                                   {"scaling_factor", 0.7}};
+  static const nlohmann::json j = pipeline::builtin_plan_model("cogvideox-5b-i2v").vae;
   return j;
 }
 

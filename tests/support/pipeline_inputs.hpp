@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "dvs/pipeline.hpp"
 #include "geometry/synthetic_scene.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
@@ -39,6 +40,22 @@ struct PipelineInputs {
     spec.width = 64;
     spec.K = geometry::Intrinsics::official_default(64, 64);
     write_npy(file, geometry::render_synthetic(spec).depth);
+  }
+  // The same options for run_pipeline (RunOptions), writing to `out`, caching in `cache_dir`.
+  RunOptions run_options(const std::filesystem::path& out, const std::filesystem::path& cache_dir) const {
+    RunOptions o;
+    o.render.video = video;
+    o.render.depth = depth;
+    o.render.metric_depth = true;
+    o.render.frames = 9;
+    o.render.height = o.render.width = 64;
+    o.render.out_dir = out;
+    o.model = model;
+    o.steps = 4;
+    o.inversion_steps = 3;
+    o.cache_dir = cache_dir;
+    o.prompt = "a red fox";
+    return o;
   }
   std::string command(const std::filesystem::path& out, const std::string& extra = "") const {
     return program("dvs") + " run" + inputs() + " --prompt 'a red fox' --progress json --out " + out.string() + " " + extra;
