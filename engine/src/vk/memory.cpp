@@ -368,6 +368,7 @@ Arena::Arena(Allocator& alloc, const ArenaLayout& layout, const std::string& wha
                 format_bytes(alloc.alignment()) + " alignment of a buffer");
   if (layout_.blocks.empty()) layout_.blocks.push_back(4);
   const size_t count = layout_.blocks.size();
+  if (count > 1) alloc.context().note_split("arena blocks");
   blocks_.reserve(count);
   for (VkDeviceSize& b : layout_.blocks) {
     b = align_up(std::max<VkDeviceSize>(b, 4), alloc.alignment());
