@@ -92,7 +92,6 @@ class Allocator {
   // Restarts both peaks from what is held now, so the next peaks measure one call (benchmarks, dvs run).
   void reset_peak();
   VkDeviceSize alignment() const { return alignment_; }
-  Context& context() const { return ctx_; }
   // The standard block: 256 MiB, or less where the allocation limit in force (DVS_LIMITS included) is lower.
   VkDeviceSize block_size() const;
   bool device_memory_is_mapped() const;  // unified memory: uploads are plain memcpy
