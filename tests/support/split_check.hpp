@@ -28,6 +28,12 @@ inline uint64_t split_notes(const vk::Context& ctx) {
   return n;
 }
 
+// How many calls of `op` have noted a split so far.
+inline uint64_t split_count(const vk::Context& ctx, const std::string& op) {
+  const auto it = ctx.splits().find(op);
+  return it == ctx.splits().end() ? 0 : it->second;
+}
+
 // `op(rec, out)` into two outputs of `shape` (zeroed, or copies of `init` when given): first under the limits
 // in force, then under `limits`. Expects identical bytes and more dispatches under `limits`.
 inline void expect_split_equal(vk::Context& ctx, const std::string& limits, const Shape& shape, DType dtype,
