@@ -18,6 +18,7 @@
 #include "support/attention_reference.hpp"
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/split_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_attention.hpp"
 
@@ -98,7 +99,9 @@ class SplitAttentionTest : public GpuTest {
     {
       ScopedLimits l(ctx(), c.limits);
       plan = ops::attention_split_plan(ctx().caps(), s, q, k, v, {out}, opt);
+      const uint64_t noted = test::split_count(ctx(), "attention");
       got = run(split_dispatches);
+      EXPECT_EQ(test::split_count(ctx(), "attention") - noted, 1u) << "a split call notes \"attention\" once";
     }
     const std::string what = "B" + std::to_string(c.batch) + " H" + std::to_string(c.heads) + " D" +
                              std::to_string(c.head_dim) + " Lq" + std::to_string(c.q_len) + " Lk" +

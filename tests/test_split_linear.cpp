@@ -13,6 +13,7 @@
 
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/split_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
@@ -50,6 +51,7 @@ struct Case {
 struct Result {
   std::vector<float> y;
   uint32_t dispatches = 0;
+  uint64_t noted = 0;  // "linear" splits this call noted
 };
 
 class SplitLinearTest : public test::GpuTest {
@@ -87,10 +89,12 @@ class SplitLinearTest : public test::GpuTest {
     {
       std::optional<test::ScopedLimits> scope;
       if (!limits.empty()) scope.emplace(c, limits);
+      const uint64_t noted = test::split_count(c, "linear");
       ops::run_now(c, [&](vk::Recorder& rec) {
         ops::linear_batched_with(rec, x, w, y, s, ep, kern);
         r.dispatches = rec.dispatch_count();
       });
+      r.noted = test::split_count(c, "linear") - noted;
     }
     r.y = y.download(c).to_f32();
     return r;
@@ -101,10 +105,13 @@ class SplitLinearTest : public test::GpuTest {
                                     << " w=" << dtype_name(cs.w_dtype) << " limits " << cs.limits);
     Result plain = run(cs, ""), split = run(cs, cs.limits);
     // Without DVS_LIMITS the plain call is one dispatch; under a DVS_LIMITS profile it may split already.
-    if (plain.dispatches == 1)
+    if (plain.dispatches == 1) {
       EXPECT_GT(split.dispatches, 1u) << "the forced limits did not split the call";
+      EXPECT_EQ(plain.noted, 0u) << "the unsplit call noted a split";
+    }
     else
       EXPECT_GE(split.dispatches, plain.dispatches);
+    EXPECT_EQ(split.noted, 1u) << "a split call notes \"linear\" exactly once";
     ASSERT_EQ(plain.y.size(), split.y.size());
     EXPECT_EQ(std::memcmp(plain.y.data(), split.y.data(), plain.y.size() * 4), 0) << "split result differs";
   }

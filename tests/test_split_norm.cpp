@@ -14,6 +14,7 @@
 
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/split_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_norm.hpp"
 #include "tensor/tensor.hpp"
@@ -39,6 +40,7 @@ class SplitNormTest : public test::GpuTest {
   struct Result {
     std::vector<float> y;
     uint32_t dispatches = 0;
+    uint64_t noted = 0;  // splits this call noted (all ops)
   };
 
   // make() builds fresh inputs and returns the output tensor and the op to record on them.
@@ -50,10 +52,12 @@ class SplitNormTest : public test::GpuTest {
     {
       std::optional<test::ScopedLimits> scope;
       if (!limits.empty()) scope.emplace(ctx(), limits);
+      const uint64_t noted = test::split_notes(ctx());
       ops::run_now(ctx(), [&](vk::Recorder& rec) {
         op(rec);
         r.dispatches = rec.dispatch_count();
       });
+      r.noted = test::split_notes(ctx()) - noted;
     }
     r.y = y.download(ctx()).to_f32();
     return r;
@@ -65,8 +69,11 @@ class SplitNormTest : public test::GpuTest {
     // Without DVS_LIMITS the plain call takes its usual dispatches; under a DVS_LIMITS profile it may split.
     if (ctx().caps().forced_limits.binding || ctx().caps().forced_limits.groups)
       EXPECT_GE(split.dispatches, plain.dispatches);
-    else
+    else {
       EXPECT_GT(split.dispatches, plain.dispatches) << "the forced limits did not split the op";
+      EXPECT_EQ(plain.noted, 0u) << "the unsplit op noted a split";
+    }
+    EXPECT_GT(split.noted, 0u) << "the split op did not note it (ctx.note_split)";
     ASSERT_EQ(plain.y.size(), split.y.size());
     EXPECT_EQ(std::memcmp(plain.y.data(), split.y.data(), plain.y.size() * 4), 0) << "split result differs";
   }

@@ -55,6 +55,7 @@ void adain_per_channel(vk::Recorder& rec, const Tensor& content, const Tensor& s
   const uint64_t plane = uint64_t(inner) * 4;
   const int64_t planes = content.numel() / inner;
   const int64_t per = ops::rows_per_chunk(caps, "adain_apply", {ops::RowOperand{plane, 0}}, planes);
+  if (per < planes) rec.context().note_split("adain");
   ops::for_each_chunk(planes, per, [&](int64_t p0, int64_t np) {
     auto part = [&](const Tensor& t) { return np == planes ? t.buffer() : t.buffer().sub(p0 * plane, np * plane); };
     push.n = uint32_t(np * inner);
@@ -79,6 +80,7 @@ void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps,
   const int64_t n = x0.numel();
   const vk::Pipeline& pipe = rec.context().pipelines().get("diffusion/krnr_official");
   const int64_t per = ops::rows_per_chunk(caps, "krnr_official", {ops::RowOperand{4, 0}}, n);
+  if (per < n) rec.context().note_split("krnr");
   ops::for_each_chunk(n, per, [&](int64_t f, int64_t m) {
     auto part = [&](const Tensor& t) { return m == n ? t.buffer() : t.buffer().sub(f * 4, m * 4); };
     push.n = uint32_t(m);

@@ -55,6 +55,7 @@ void record_step(vk::Recorder& rec, const Denoiser& model, const Guidance& g, Lo
                  &push, sizeof push, grid.x, grid.y, 1, "guided_step");
     return;
   }
+  rec.context().note_split("guided step");
   // Larger than one binding: element ranges of every tensor; v's second row (at element n, maybe unaligned)
   // bound from the aligned element at or before the range, the rest as v1_off.
   const int64_t align = int64_t(ops::binding_alignment(caps) / 4);

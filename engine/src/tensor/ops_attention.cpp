@@ -378,7 +378,10 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
   const vk::DeviceCaps& caps = ctx.caps();
   const Prepared pr = prepare(caps, s, q, k, v, out, opt);
   if (s.batch == 0 || s.q_len == 0) return;
-  if (!pr.split.whole) return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
+  if (!pr.split.whole) {
+    ctx.note_split("attention");
+    return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
+  }
   const Blocking blk = pr.blk;
   const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
 

@@ -71,6 +71,8 @@ void NonFiniteCheck::record(vk::Recorder& rec, const Tensor& t, const std::strin
     per = std::min(per, std::max(align, int64_t(range_bytes / sizeof(float)) / align * align));
   }
   const vk::Pipeline& storage = ctx_.pipelines().get("nn/nonfinite");
+  if (per < n) ctx_.note_split("nonfinite");
+  bool fallback = false;  // noted once per call
   for (int64_t first = 0; first < n;) {
     const int64_t count = std::min<int64_t>(n - first, per);
     vk::BufferView range = t.buffer().sub(VkDeviceSize(first) * sizeof(float), VkDeviceSize(count) * sizeof(float));
@@ -82,8 +84,11 @@ void NonFiniteCheck::record(vk::Recorder& rec, const Tensor& t, const std::strin
     if (texel_inputs_enabled() && texel_view_ok(ctx_, range, 16))
       rec.dispatch(ctx_.pipelines().get("nn/nonfinite_tex4"), {vk::Binding(range, VK_FORMAT_R32G32B32A32_UINT), result_.view()},
                    &push, sizeof push, g.x, g.y, 1, "nonfinite");
-    else
+    else {
+      if (texel_inputs_enabled() && !fallback) ctx_.note_split("nonfinite (storage fallback)");
+      fallback = true;
       rec.dispatch(storage, {range, result_.view()}, &push, sizeof push, g.x, g.y, 1, "nonfinite");
+    }
     first += count;
   }
 }

@@ -354,6 +354,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   const vk::BufferView bias_view = bias ? word_view(*bias) : packed_w;
   const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 
+  if (cc < j.cin || ng < j.cout || chunk_frames < j.frames_out || chunk_rows < j.ho || chunk_cols < j.wo)
+    ctx.note_split(op);  // once per call: the GEMM runs in several chunks
   for_each_chunk(j.cin, cc, [&](int64_t c0, int64_t ncc) {
     for_each_chunk(j.cout, ng, [&](int64_t n0, int64_t nn) {
       pack_weights(rec, op, j, w, wdt, l, n0, nn, c0, ncc, cpc, packed_w);
@@ -442,6 +444,7 @@ void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Te
   }
   std::array<uint32_t, 1> spec = {kMaxCachePrefix};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv3d_cache", spec);
+  if (nbc < bcs || ns < hw || nj < pr) rec.context().note_split("conv cache");
   for_each_chunk(bcs, nbc, [&](int64_t bc0, int64_t nb) {
     for_each_chunk(pr, nj, [&](int64_t j0, int64_t njs) {
       for_each_chunk(hw, ns, [&](int64_t s0, int64_t n) {
@@ -466,18 +469,27 @@ void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Te
 // Walks a plane-wise op (grid: x columns, y rows, z planes) in dispatches of planes [z0, z0 + nz) x rows
 // [r0, r0 + nr): every row of as many planes as fit, else one plane in as many rows as fit. fits(z0, nz, r0,
 // nr) says whether a dispatch's views fit one binding; the grid stays within maxComputeWorkGroupCount.
+// Notes a split of `op` (once) when it takes more than one dispatch.
 template <class Fits, class Run>
-void for_each_plane_chunk(const char* op, const ConvLimits& l, int64_t planes, int64_t rows, Fits&& fits, Run&& run) {
+void for_each_plane_chunk(vk::Context& ctx, const char* op, const ConvLimits& l, int64_t planes, int64_t rows,
+                          Fits&& fits, Run&& run) {
   const int64_t max_z = int64_t(l.groups_z), max_y = int64_t(l.groups_y);
+  bool noted = false;
+  auto note = [&] {
+    if (!noted) ctx.note_split(op);
+    noted = true;
+  };
   for (int64_t z0 = 0; z0 < planes;) {
     int64_t nz = std::min(planes - z0, max_z);
     while (nz > 1 && !(rows <= max_y && fits(z0, nz, int64_t(0), rows))) --nz;
     if (rows <= max_y && fits(z0, nz, int64_t(0), rows)) {
+      if (nz < planes) note();
       run(z0, nz, int64_t(0), rows);
       z0 += nz;
       continue;
     }
     int64_t nr = std::min(rows, max_y);
+    note();
     for (int64_t r0 = 0; r0 < rows; r0 += nr) {
       nr = std::min({nr, rows - r0, max_y});
       while (nr > 1 && !fits(z0, int64_t(1), r0, nr)) --nr;
@@ -629,7 +641,7 @@ void avgpool_time_pairs(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
                                    uint64_t((z0 * fo + r0) * hw), uint64_t(((z0 + nz - 1) * fo + r0 + nr) * hw)};
   };
   const vk::Pipeline& pipe = rec.context().pipelines().get(vec4 ? "nn/avgpool_time_vec4" : "nn/avgpool_time");
-  for_each_plane_chunk(op, l, bc, fo, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+  for_each_plane_chunk(rec.context(), op, l, bc, fo, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
     auto s = spans(z0, nz, r0, nr);
     return (s[1] - s[0]) * 4 + uint64_t(align) <= l.storage && (s[3] - s[2]) * 4 + uint64_t(align) <= l.storage;
   }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
@@ -680,7 +692,7 @@ void upsample_nearest(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool 
                                    uint64_t((z0 * ho + r0) * wo), uint64_t(((z0 + nz - 1) * ho + r0 + nr) * wo)};
   };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample_nearest");
-  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, ho, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+  for_each_plane_chunk(rec.context(), op, l, y.dim(0) * y.dim(1) * fo, ho, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
     auto s = spans(z0, nz, r0, nr);
     return (s[1] - s[0]) * 4 + l.align <= l.storage && (s[3] - s[2]) * 4 + l.align <= l.storage;
   }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
@@ -725,7 +737,7 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
                                    uint64_t((z0 * h + r0) * 4 * w), uint64_t(((z0 + nz - 1) * h + r0 + nr) * 4 * w)};
   };
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/upsample2x");
-  for_each_plane_chunk(op, l, y.dim(0) * y.dim(1) * fo, h, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
+  for_each_plane_chunk(rec.context(), op, l, y.dim(0) * y.dim(1) * fo, h, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {
     auto s = spans(z0, nz, r0, nr);
     return (s[1] - s[0]) * 4 + align <= l.storage && (s[3] - s[2]) * 4 + align <= l.storage;
   }, [&](int64_t z0, int64_t nz, int64_t r0, int64_t nr) {

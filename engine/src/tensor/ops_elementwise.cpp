@@ -106,6 +106,7 @@ void unary(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& x, con
   const bool vec4_body = n % 4 == 0 || n >= 4 * int64_t(kLocal);  // small odd tensors: one scalar dispatch
   const int64_t chunk = flat_chunk(rec.context().caps(), op, n);
   if (chunk >= n) return unary_range(rec, op, kind, x, y, a, b, vec4_body);
+  rec.context().note_split(op);
   for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
     unary_range(rec, op, kind, flat_sub(x, first, count), flat_sub(y, first, count), a, b, vec4_body);
   });
@@ -418,6 +419,7 @@ void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   const int64_t chunk =
       rows_per_chunk(rec.context().caps(), "cast", {RowOperand{8 * sx, 0}, RowOperand{8 * sy, 0}}, (n + 7) / 8) * 8;
   if (chunk >= n) return cast_range(rec, x, y, src, dst);
+  rec.context().note_split("cast");
   for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
     cast_range(rec, Tensor::on(x.buffer().sub(first * sx, count * sx), {count}, x.dtype()),
                Tensor::on(y.buffer().sub(first * sy, count * sy), {count}, y.dtype()), src, dst);

@@ -81,11 +81,15 @@ std::pair<vk::BufferView, int64_t> word_window(const vk::BufferView& v, int64_t 
 
 // record_copy2d in pieces whose source and destination windows each fit one binding: blocks of whole rows,
 // and rows longer than a binding in column pieces. Windows start aligned down, the offsets go to the shader.
-void copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::BufferView& dst, Copy2d c, const char* label) {
+// Returns whether it took more than one window (the caller notes its op's split once).
+bool copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::BufferView& dst, Copy2d c, const char* label) {
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint64_t cap = binding_capacity(caps, 0);
-  if (c.rows == 0 || c.len == 0) return;
-  if (src.size <= cap && dst.size <= cap) return record_copy2d(rec, src, dst, c, label);
+  if (c.rows == 0 || c.len == 0) return false;
+  if (src.size <= cap && dst.size <= cap) {
+    record_copy2d(rec, src, dst, c, label);
+    return false;
+  }
   const int64_t align = int64_t(binding_alignment(caps) / 4), room = int64_t(cap / 4) - align;
   // Column pieces: multiples of 4 words keep the vec4 shader where the whole copy has it.
   int64_t cols = std::min(c.len, room / 4 * 4);
@@ -99,7 +103,7 @@ void copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::BufferView& 
       const auto [dv, dof] = word_window(dst, d0, d0 + (nr - 1) * c.dst_stride + nk, align);
       record_copy2d(rec, sv, dv, Copy2d{nr, nk, c.src_stride, so, c.dst_stride, dof}, label);
     });
-  });
+  });  return rows < c.rows || cols < c.len;
 }
 
 // Shared by concat and split: `whole` is cut along `axis` into `parts`.
@@ -126,6 +130,7 @@ void bands(vk::Recorder& rec, const char* op, const Tensor& whole, const std::ve
                  std::to_string(whole.shape()[size_t(axis)]));
   const int64_t row = total * inner;
   int64_t offset = 0;
+  bool split = false;
   for (const Tensor& t : parts) {
     const int64_t len = t.shape()[size_t(axis)] * inner;
     Copy2d c = into_whole ? Copy2d{outer, len, len, 0, row, offset} : Copy2d{outer, len, row, offset, len, 0};
@@ -135,9 +140,9 @@ void bands(vk::Recorder& rec, const char* op, const Tensor& whole, const std::ve
         fail(op, "16-bit tensors need every band to hold an even number of elements");
       c = {c.rows, c.len / 2, c.src_stride / 2, c.src_off / 2, c.dst_stride / 2, c.dst_off / 2};
     }
-    if (into_whole) copy2d(rec, t.buffer(), whole.buffer(), c, op);
-    else copy2d(rec, whole.buffer(), t.buffer(), c, op);
+    split |= into_whole ? copy2d(rec, t.buffer(), whole.buffer(), c, op) : copy2d(rec, whole.buffer(), t.buffer(), c, op);
   }
+  if (split) rec.context().note_split(op);
 }
 
 // Output axes as (size, input stride), outermost first, after merging.
@@ -192,6 +197,7 @@ void permute_split(vk::Recorder& rec, const char* op, const vk::BufferView& in, 
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint64_t cap = binding_capacity(caps, 0);
   if (in.size <= cap && out.size <= cap) return record_permute(rec, op, in, out, axes, 0, 0);
+  rec.context().note_split(op);
   const int64_t align = std::lcm<int64_t>(int64_t(binding_alignment(caps) / 4), 4), room = int64_t(cap / 4) - align;
   const int64_t R = int64_t(axes.size());
   // k = R-1 (pieces of one output row) always fits; a transpose whose rows read far apart ends there.
@@ -289,6 +295,7 @@ void record_patches(vk::Recorder& rec, const char* op, bool inverse, const vk::B
   const uint64_t frame = uint64_t(C * Hp * Wp * p * p) * 4;
   const int64_t per = rows_per_chunk(rec.context().caps(), op, {RowOperand{frame, 0}}, BF);
   if (per >= BF) return record_patches_range(rec, op, inverse, in, out, BF, C, Hp, Wp, p);
+  rec.context().note_split(op);
   for_each_chunk(BF, per, [&](int64_t f0, int64_t nf) {
     record_patches_range(rec, op, inverse, in.sub(f0 * frame, nf * frame), out.sub(f0 * frame, nf * frame), nf, C, Hp,
                          Wp, p);
@@ -334,6 +341,7 @@ void record_rows(vk::Recorder& rec, const char* op, const Tensor& src, const Ten
   auto ids_of = [&](const Tensor* idx, int64_t first, int64_t count) {
     return count == m ? idx->buffer() : idx->buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4);
   };
+  if (per_i < m || per_src < src_rows || per_dst < dst_rows) rec.context().note_split(op);
   for_each_chunk(m, per_i, [&](int64_t i0, int64_t mi) {
     // An empty source table still runs once: every index is outside it and reads zeros.
     for_each_chunk(src_idx ? std::max<int64_t>(src_rows, 1) : 1, src_idx ? per_src : 1, [&](int64_t s0, int64_t ns) {

@@ -347,6 +347,7 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
                   bshift.view, bgate.view, bres.view},
                  &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"), "linear");
   };
+  if (size.bc < s.batch || size.nc < s.n || size.mc < s.m || size.kc < s.k) rec.context().note_split("linear");
   for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {
     for_each_chunk(s.n, size.nc, [&](int64_t n0, int64_t nc) {
       for_each_chunk(s.m, size.mc, [&](int64_t m0, int64_t mc) {

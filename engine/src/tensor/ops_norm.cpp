@@ -164,6 +164,7 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   const int64_t chunk = row_chunk(caps, op, uint64_t(D) * 4, rows, max_rows);
   // Unused bindings get a harmless read-only view (x's chunk).
   vk::BufferView wv = code >= 0 ? vec4_view(weight) : vk::BufferView{}, bv = code >= 0 ? vec4_view(bias) : wv;
+  if (chunk < rows) rec.context().note_split(op);  // once per call, not per chunk
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
     const RowView xr = row_view(caps, x, D, r0, rc);
     vk::BufferView xv = xr.view, mv = xv;
@@ -206,6 +207,7 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
   // Row chunks of the whole fused rows; one invocation per (row, head).
   const vk::DeviceCaps& caps = rec.context().caps();
   const int64_t chunk = row_chunk(caps, op, uint64_t(stride) * 4, rows, int64_t(max_groups_1d(caps)) * 64 / heads);
+  if (chunk < rows) rec.context().note_split(op);  // once per call, not per chunk
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
     const RowView xr = row_view(caps, x, stride, r0, rc);
     vk::BufferView xv = xr.view, wv = code >= 0 ? vec4_view(weight) : xv, bv = code >= 0 ? vec4_view(bias) : xv;
@@ -238,6 +240,7 @@ void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& 
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint32_t rows_per_group = per_invocation ? 64 : 1;
   const int64_t chunk = row_chunk(caps, op, uint64_t(D) * 4, rows, int64_t(max_groups_1d(caps)) * rows_per_group);
+  if (chunk < rows) rec.context().note_split(op);  // once per call, not per chunk
   for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
     const RowView xr = row_view(caps, x, D, r0, rc);
     p.rows = uint32_t(rc);
@@ -325,6 +328,8 @@ void groupnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t grou
       if (len < 4) throw Error("internal: groupnorm: a binding holds fewer than 4 elements");
     }
   }
+  // One note per call: split statistics (rows of groups over several bindings) or a split apply.
+  if (!stats_fit || pc < planes || len < S) rec.context().note_split(op);
   for_each_chunk(planes, pc, [&](int64_t p0, int64_t np) {
     for_each_chunk(S, len, [&](int64_t s0, int64_t n) {
       const uint64_t first = uint64_t(p0 * S + s0) * 4, delta = first % align;

@@ -136,6 +136,7 @@ void rope(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t batch, in
       per = (int64_t(cap / row_bytes) - lead + 1) / step * step;
     }
     if (per < 1) throw Error("internal: rope: a row of " + x.describe() + " leaves no room in one binding");
+    rec.context().note_split(op);  // the chunks below recurse into the unsplit path
     for (int64_t b = 0; b < batch; ++b)
       for_each_chunk(n, per, [&](int64_t t0, int64_t nt) {
         const int64_t row = b * seq_len + first + t0, base = row / lead * lead;

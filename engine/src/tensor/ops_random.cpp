@@ -49,6 +49,7 @@ void fill(vk::Recorder& rec, const char* op, const Tensor& out, const RandomStre
   if (n > int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": tensor " + out.describe() + " is too large");
   const int64_t chunk = rows_per_chunk(rec.context().caps(), op, {RowOperand{4, 0}}, n);
   if (chunk >= n) return fill_range(rec, op, out, s, dist, a, b, range);
+  rec.context().note_split(op);
   for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
     const Tensor part =
         Tensor::on(out.buffer().sub(VkDeviceSize(first) * 4, VkDeviceSize(count) * 4), {count}, out.dtype());

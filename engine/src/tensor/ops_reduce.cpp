@@ -128,6 +128,8 @@ void reduce_segments(vk::Recorder& rec, const Tensor& x, const Segments& segs, R
     rec.dispatch(partials, {xv, scratch.buffer()}, &p1, sizeof p1, div_up(nc, 64), uint32_t(ns), 1, "reduce_partials");
   };
   const vk::BufferView whole = widen(x.buffer());
+  if (whole.size > binding_capacity(caps, 0) || segs.count > max_segs || blocks > max_blocks)
+    rec.context().note_split("reduce");
   if (whole.size <= binding_capacity(caps, 0)) {
     for_each_chunk(segs.count, max_segs, [&](int64_t s0, int64_t ns) {
       for_each_chunk(blocks, max_blocks, [&](int64_t c0, int64_t nc) { dispatch(whole, 0, s0, ns, c0, nc); });

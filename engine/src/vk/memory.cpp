@@ -218,6 +218,8 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
 
 Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string& what) {
   const DeviceCaps& c = ctx_.caps();
+  // An Arena over several blocks names its first one "<what> (block 1 of N)": that arena took the split path.
+  if (what.size() > 12 && what.find(" (block 1 of ") != std::string::npos) ctx_.note_split("arena blocks");
   if (bytes == 0) bytes = 4;  // zero-size tensors still get a valid binding
   if (bytes > c.max_memory_allocation_size)
     throw Error("Buffer for " + what + " needs " + format_bytes(bytes) + ", more than this device can allocate at "
