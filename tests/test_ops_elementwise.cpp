@@ -68,6 +68,11 @@ TEST_P(ElementwiseOpsPaths, UnaryOpsMatchReference) {
        [k](double v) { return 0.5 * v * (1.0 + std::tanh(k * (v + 0.044715 * v * v * v))); }, 2e-6, 1e-5},
       {"clamp", [](vk::Recorder& r, const Tensor& x, const Tensor& y) { ops::clamp(r, x, y, -1.5f, 2.25f); },
        [](double v) { return std::clamp(v, -1.5, 2.25); }, 0, 0},
+      // erf has no GLSL built-in: the shader's fitted erfc is good to ~1.2e-7 relative.
+      {"gelu_erf", [](vk::Recorder& r, const Tensor& x, const Tensor& y) { ops::gelu_erf(r, x, y); },
+       [](double v) { return 0.5 * v * (1.0 + std::erf(v / std::sqrt(2.0))); }, 2e-6, 1e-5},
+      {"relu", [](vk::Recorder& r, const Tensor& x, const Tensor& y) { ops::relu(r, x, y); },
+       [](double v) { return std::max(v, 0.0); }, 0, 0},
   };
   uint32_t seed = 1;
   for (const UnaryCase& c : cases) {

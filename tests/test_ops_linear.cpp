@@ -65,6 +65,7 @@ struct Options {
 double activate(double f, Activation a) {
   if (a == Activation::gelu_tanh) return 0.5 * f * (1 + std::tanh(0.7978845608028654 * (f + 0.044715 * f * f * f)));
   if (a == Activation::silu) return f / (1 + std::exp(-f));
+  if (a == Activation::gelu_erf) return 0.5 * f * (1 + std::erf(f / std::sqrt(2.0)));
   return f;
 }
 
@@ -220,6 +221,8 @@ TEST_F(LinearTest, Epilogues) {
   o.bias_dtype = DType::f16;
   o.act = Activation::silu;
   check(10, 37, 16, o);
+  o.act = Activation::gelu_erf;  // DINOv2's MLP: the exact GELU, with LayerScale as the gate (below)
+  check(13, 41, 24, o);
   Options g;
   g.w_dtype = DType::bf16;
   g.bias = true;
@@ -233,6 +236,9 @@ TEST_F(LinearTest, Epilogues) {
   g.residual = false;
   g.gate = true;
   check(6, 11, 8, g);    // gate alone
+  g.act = Activation::gelu_erf;
+  g.gate = g.residual = true;
+  check(9, 27, 40, g);
   Options m;
   m.modulation = true;
   m.bias = true;

@@ -7,7 +7,7 @@
 #extension GL_KHR_shader_subgroup_shuffle : require
 #endif
 // Linear layer: Y[b] = epilogue(X[b] · W[b]ᵀ), X f32 [M,K] (row stride ldx), W [N,K] stored f32, f16 or bf16,
-// Y f32 [M,N] (row stride ldy), fp32 accumulation. Epilogue, in order: + bias[n]; GELU(tanh) or SiLU;
+// Y f32 [M,N] (row stride ldy), fp32 accumulation. Epilogue, in order: + bias[n]; GELU (tanh or erf) or SiLU;
 // modulation f·(1 + scale[n]) + shift[n]; then residual: y = r + gate[n]·f, or r + f without a gate
 // (gate without residual: y = gate[n]·f). The residual may alias Y: each element is read before it is
 // written, by the same invocation.
@@ -20,6 +20,7 @@
 // COLS + ROWS/8 fetches (and ROWS shuffles). A K step is 8 values (texels RGBA32F for X, RGBA32UI for W:
 // two texels of f32 or one of eight packed 16-bit values, so no 16-bit storage is needed), or 1 value in
 // the scalar variant used when K or offsets are not multiples of 8. No shared memory, no barriers.
+#include "../common/erf.glsl"
 layout(local_size_x = 64) in;
 
 layout(constant_id = 0) const int ROWS = 8;   // rows per cluster tile: 8 or 16 shuffled from lanes; < 8: fetched by every lane
@@ -53,7 +54,7 @@ layout(push_constant) uniform Push {
   uint x_bs, w_bs, y_bs;         // batch strides in elements (w_bs 0: shared weight)
   uint bias_off, scale_off, shift_off, gate_off, res_off;
   uint vec_bs;                   // batch stride of scale, shift and gate (0: shared)
-  uint flags;                    // bits 0-1 activation (1 GELU-tanh, 2 SiLU), 2 bias, 3 modulation, 4 gate,
+  uint flags;                    // bits 0-1 activation (1 GELU-tanh, 2 SiLU, 3 GELU-erf), 2 bias, 3 modulation, 4 gate,
                                  // 5 residual, 6-7 bias dtype (0 f32, 1 f16, 2 bf16)
 } p;
 
@@ -102,6 +103,7 @@ float activate(float f, uint act) {
     return 0.5 * f * (2.0 - 2.0 / (exp(2.0 * u) + 1.0));
   }
   if (act == 2u) return f / (1.0 + exp(-f));
+  if (act == 3u) return gelu_erf(f);
   return f;
 }
 

@@ -2,7 +2,8 @@
 // that are multiples of 4) and nn/eltwise_unary_tex4 (TEXEL: as VEC4 but x read through an RGBA32F texel
 // buffer, ~2-3x faster than a storage-buffer load on lavapipe). y = f(x); y may be x itself (in place).
 // OP 0: a·x + b (scale/shift); 1: SiLU; 2: GELU, tanh approximation (PyTorch approximate='tanh');
-//    3: clamp(x, a, b).
+//    3: clamp(x, a, b); 4: GELU, exact erf form (PyTorch nn.GELU()).
+#include "../common/erf.glsl"
 layout(constant_id = 0) const uint OP = 0;
 layout(local_size_x = 64) in;
 #if defined(VEC4) || defined(TEXEL)
@@ -35,6 +36,7 @@ T apply(T v) {
   if (OP == 0u) return p.a * v + p.b;
   if (OP == 1u) return v / (1.0 + exp(-v));
   if (OP == 2u) return 0.5 * v * (1.0 + tanh_safe(0.7978845608028654 * (v + 0.044715 * v * v * v)));
+  if (OP == 4u) return gelu_erf(v);
   return clamp(v, p.a, p.b);
 }
 

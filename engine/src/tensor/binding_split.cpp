@@ -57,4 +57,19 @@ Grid grid_1d(const vk::DeviceCaps& caps, int64_t items, uint32_t local) {
   return g;
 }
 
+// A view of `whole` covering its bytes [first, end) that starts at the aligned-down offset. `base` receives
+// the element (of elem_bytes) of `whole` at the view's start, modulo 2^32 (the shaders subtract it in uint
+// arithmetic, so a start before whole's own offset works too).
+vk::BufferView aligned_view(const vk::BufferView& whole, uint64_t first, uint64_t end, uint64_t align,
+                            uint32_t elem_bytes, uint32_t& base) {
+  const uint64_t start = (whole.offset + first) / align * align;
+  vk::BufferView v = whole;
+  v.offset = start;
+  v.size = (whole.offset + end - start + 3) / 4 * 4;
+  if (whole.mapped) v.mapped = whole.mapped - whole.offset + start;
+  base = uint32_t(uint64_t(int64_t(start) - int64_t(whole.offset)) / elem_bytes);
+  if (start < whole.offset) base = uint32_t(-int64_t((whole.offset - start) / elem_bytes));
+  return v;
+}
+
 }  // namespace dvs::ops

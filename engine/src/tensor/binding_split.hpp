@@ -45,4 +45,10 @@ uint64_t max_groups_1d(const vk::DeviceCaps& caps);
 // error when `items` need more than max_groups_1d() groups (the op must split first).
 Grid grid_1d(const vk::DeviceCaps& caps, int64_t items, uint32_t local);
 
+// A view of `whole` covering its bytes [first, end) that starts at the aligned-down offset (for chunks whose
+// start cannot be aligned). `base` receives the element (of elem_bytes) of `whole` at the view's start, modulo
+// 2^32 (shaders subtract it in uint arithmetic, so a start before whole's own offset works too).
+vk::BufferView aligned_view(const vk::BufferView& whole, uint64_t first, uint64_t end, uint64_t align,
+                            uint32_t elem_bytes, uint32_t& base);
+
 }  // namespace dvs::ops

@@ -99,21 +99,6 @@ RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) { return source_
 // Source columns [first, end) that output columns [ow0, ow1) read.
 RowSpan source_cols(const ConvJob& j, int64_t ow0, int64_t ow1) { return source_span(j, ow0, ow1, j.pad_left, j.kw, j.w); }
 
-// A view of `whole` covering its bytes [first, end) that starts at the aligned-down offset. `base` receives
-// the element (of elem_bytes) of `whole` at the view's start, modulo 2^32 (the shaders subtract it in uint
-// arithmetic, so a start before whole's own offset works too).
-vk::BufferView aligned_view(const vk::BufferView& whole, uint64_t first, uint64_t end, uint64_t align,
-                            uint32_t elem_bytes, uint32_t& base) {
-  const uint64_t start = (whole.offset + first) / align * align;
-  vk::BufferView v = whole;
-  v.offset = start;
-  v.size = (whole.offset + end - start + 3) / 4 * 4;
-  if (whole.mapped) v.mapped = whole.mapped - whole.offset + start;
-  base = uint32_t(uint64_t(int64_t(start) - int64_t(whole.offset)) / elem_bytes);
-  if (start < whole.offset) base = uint32_t(-int64_t((whole.offset - start) / elem_bytes));
-  return v;
-}
-
 // The limits one convolution plans against (the ones in force: the device's, or lower under DVS_LIMITS).
 struct ConvLimits {
   uint64_t storage = 0, r32 = 0, rgba = 0, align = 4, groups_x = 0, groups_y = 0, groups_z = 0, groups_1d = 0;

@@ -1,3 +1,4 @@
+#include <limits>
 #include "tensor/ops_elementwise.hpp"
 
 #include <algorithm>
@@ -63,7 +64,7 @@ namespace {
 vk::Binding rgba(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32G32B32A32_SFLOAT); }
 vk::Binding r32(const Tensor& t) { return vk::Binding(t.buffer(), VK_FORMAT_R32_SFLOAT); }
 
-enum class UnaryOp : uint32_t { affine = 0, silu = 1, gelu_tanh = 2, clamp = 3 };
+enum class UnaryOp : uint32_t { affine = 0, silu = 1, gelu_tanh = 2, clamp = 3, gelu_erf = 4 };
 
 // `vec4_body`: run whole vec4s through the vec4 shader (decided for the whole tensor, so that every chunk of
 // a split call computes each element with the same shader as the unsplit call).
@@ -380,9 +381,15 @@ void silu(vk::Recorder& rec, const Tensor& x, const Tensor& y) { unary(rec, "sil
 void gelu_tanh(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
   unary(rec, "gelu_tanh", UnaryOp::gelu_tanh, x, y, 0, 0);
 }
+void gelu_erf(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
+  unary(rec, "gelu_erf", UnaryOp::gelu_erf, x, y, 0, 0);
+}
 void clamp(vk::Recorder& rec, const Tensor& x, const Tensor& y, float lo, float hi) {
   if (!(lo <= hi)) throw Error("internal: clamp: lo " + std::to_string(lo) + " > hi " + std::to_string(hi));
   unary(rec, "clamp", UnaryOp::clamp, x, y, lo, hi);
+}
+void relu(vk::Recorder& rec, const Tensor& x, const Tensor& y) {
+  unary(rec, "relu", UnaryOp::clamp, x, y, 0.0f, std::numeric_limits<float>::infinity());
 }
 
 void add(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& z) {

@@ -16,6 +16,8 @@ namespace dvs::ops {
 void scale(vk::Recorder& rec, const Tensor& x, const Tensor& y, float a, float b = 0.0f);  // y = a·x + b
 void silu(vk::Recorder& rec, const Tensor& x, const Tensor& y);                            // x·sigmoid(x)
 void gelu_tanh(vk::Recorder& rec, const Tensor& x, const Tensor& y);  // PyTorch gelu(approximate='tanh')
+void gelu_erf(vk::Recorder& rec, const Tensor& x, const Tensor& y);   // PyTorch nn.GELU(): 0.5·x·(1 + erf(x/√2))
+void relu(vk::Recorder& rec, const Tensor& x, const Tensor& y);       // max(x, 0)
 void clamp(vk::Recorder& rec, const Tensor& x, const Tensor& y, float lo, float hi);
 
 // Binary, f32, y broadcast as described above; z has x's shape.

@@ -13,11 +13,12 @@
 
 namespace dvs::ops {
 
-enum class Activation : uint32_t { none = 0, gelu_tanh = 1, silu = 2 };
+enum class Activation : uint32_t { none = 0, gelu_tanh = 1, silu = 2, gelu_erf = 3 };
 
 // Optional steps applied to f = X·Wᵀ, each only when its tensor is defined / its option set, in this order:
 //   1. f += bias[n]                         bias [N]: f32, f16 or bf16
-//   2. f = act(f)                           GELU (tanh approximation, as diffusers' "gelu-approximate") or SiLU
+//   2. f = act(f)                           GELU (tanh approximation, as diffusers' "gelu-approximate";
+//                                           or the exact erf form of nn.GELU()) or SiLU
 //   3. f = f · (1 + scale[n]) + shift[n]    modulation; scale and shift f32 [N] or [batch, N] (both required)
 //   4. f = gate[n] · f                      gate f32 [N] or [batch, N]
 //   5. y = residual + f                     residual f32 with Y's shape and layout
