@@ -1,0 +1,67 @@
+// Video-Depth-Anything (DINOv2 ViT encoder + DPT head with four temporal modules) as GLSL compute: one forward of
+// a window of T frames [T, 3, H, W] (H, W multiples of the patch size, ImageNet-normalised) to disparity [T, H, W].
+// Exact to github:DepthAnything/Video-Depth-Anything (see tests/golden/vda-A/README.md for every detail).
+//
+// Layouts inside: frames in the batch ("BT"); ViT tokens [BT, 1 + h*w, D]; head feature maps [BT, C, H, W];
+// a temporal module works on [B, H*W, T, C] (one sequence of T frames per spatial position), so its LayerNorms,
+// Linears, attention and the position table's broadcast all run on contiguous rows.
+// Every stage records into its own submission (bounded work per submission) and its temporaries are freed after.
+#pragma once
+#include <array>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+
+#include "io/vda_config.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/context.hpp"
+
+namespace dvs {
+
+class VdaModel {
+ public:
+  // Reads the checkpoint (.pth or .safetensors written by `dvs-weights convert`), resolves its architecture
+  // (config.json beside it, else the released sizes) and uploads every tensor. Throws dvs::Error naming the file.
+  static VdaModel load(vk::Context& ctx, const std::filesystem::path& checkpoint);
+
+  const VdaConfig& config() const { return cfg_; }
+  uint64_t weight_bytes() const { return weight_bytes_; }
+
+  // Called with named intermediates (the conformance pack's file stems, e.g. "encoder/block0", "head/layer1",
+  // "temporal/m0_attn0_q") after their stage has run; tests compare them. Unset: nothing extra is computed.
+  using Probe = std::function<void(const std::string& name, const Tensor& t)>;
+  void set_probe(Probe p) { probe_ = std::move(p); }
+
+  // x: f32 [T, 3, H, W] -> disparity f32 [T, H, W] (>= 0), H and W multiples of the patch size.
+  Tensor forward(const Tensor& x);
+
+  // The stages, for tests and for the long-video driver.
+  std::array<Tensor, 4> encode(const Tensor& x);                                  // taps [BT, h*w, D]
+  Tensor temporal(int module, const Tensor& x, int64_t frames);                   // [BT, C, H, W] -> same
+  Tensor head(const std::array<Tensor, 4>& taps, int64_t h, int64_t w, int64_t frames);  // -> [BT, 1, 14h, 14w]
+
+ private:
+  VdaModel(vk::Context& ctx, VdaConfig cfg) : ctx_(&ctx), cfg_(std::move(cfg)) {}
+  const Tensor& w(const std::string& name) const;
+  void probe(const std::string& name, const Tensor& t) const {
+    if (probe_) probe_(name, t);
+  }
+  Tensor vit_block(int index, const Tensor& x, int64_t frames, int64_t tokens);
+  Tensor reassemble(int index, const Tensor& tap, int64_t h, int64_t w);
+  Tensor conv(const std::string& prefix, const Tensor& x, int stride, int pad, bool bias);
+  Tensor residual_conv_unit(const std::string& prefix, const Tensor& x);
+  Tensor fusion(int index, const Tensor& x0, const Tensor* x1, int64_t out_h, int64_t out_w);
+  const Tensor& pos_embed(int64_t h, int64_t w);
+
+  vk::Context* ctx_;
+  VdaConfig cfg_;
+  std::filesystem::path file_;
+  std::map<std::string, Tensor> weights_;
+  std::map<std::pair<int64_t, int64_t>, Tensor> pos_embed_;  // resampled tables per patch grid
+  HostTensor pos_table_;
+  uint64_t weight_bytes_ = 0;
+  Probe probe_;
+};
+
+}  // namespace dvs
