@@ -107,6 +107,26 @@ TEST_F(BoundedSubmission, BoundariesGiveOneSubmissionPerSegmentAndTheSameResult)
   EXPECT_EQ(y(), ref);
 }
 
+// A recording of more dispatches than the Recorder keeps descriptor sets for (the VAE decode under 64 KiB
+// bindings made ~90,000 and crashed Mesa 25's lavapipe) is submitted in parts while it is recorded: every
+// dispatch still runs once, in order (each adds 1 to the same value), and the parts are separate submissions.
+TEST_F(BoundedSubmission, LongRecordingsAreSubmittedInPartsInOrder) {
+  const int dispatches = 20000;
+  Tensor x = Tensor::zeros(ctx(), {3}, DType::f32);
+  vk::Recorder rec(ctx());
+  const uint64_t before = rec.submission_count();
+  rec.begin();
+  for (int i = 0; i < dispatches; ++i) ops::scale(rec, x, x, 1.0f, 1.0f);
+  rec.submit();
+  EXPECT_GT(rec.submission_count() - before, 1u) << "never flushed early";
+  for (float v : x.download(ctx()).to_f32()) EXPECT_EQ(v, float(dispatches));
+  // The recorder stays usable.
+  rec.begin();
+  ops::scale(rec, x, x, 2.0f, 0.0f);
+  rec.submit();
+  EXPECT_EQ(x.download(ctx()).to_f32()[0], 2.0f * dispatches);
+}
+
 TEST_F(BoundedSubmission, EmptySegmentsAreNotSubmitted) {
   vk::Recorder rec(ctx());
   rec.begin();

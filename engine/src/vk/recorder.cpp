@@ -11,6 +11,10 @@
 namespace dvs::vk {
 namespace {
 constexpr uint32_t kSetsPerPool = 512;
+// Descriptor sets one recording keeps alive at most. Mesa 25's lavapipe maps memory for every set, so a recording
+// of ~90,000 dispatches (the VAE decode split under 64 KiB bindings) ran into the kernel's 65,530 memory maps and
+// crashed inside vkAllocateDescriptorSets; past this many sets the segments closed so far are submitted early.
+constexpr uint32_t kMaxLiveSets = 8192;
 constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
 
 }  // namespace
@@ -37,6 +41,7 @@ void Recorder::release_resources() {
   texel_views_.clear();
   for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
   pool_in_use_ = 0;
+  live_sets_ = 0;
   scratch_.clear();
   scratch_slot_.clear();
 }
@@ -61,6 +66,7 @@ void Recorder::begin() {
   query_labels_.clear();
   dispatches_ = barriers_ = 0;
   segments_ = 0;
+  flushed_segments_ = 0;
   segment_labels_.clear();
   segment_query_end_.clear();
   recorded_ = false;
@@ -92,6 +98,25 @@ void Recorder::close_segment(const std::string& label) {
   VK_CHECK(vkEndCommandBuffer(cmd_));
   segment_labels_.push_back(label);
   segment_query_end_.push_back(uint32_t(query_labels_.size()));
+}
+
+// Submits (and waits for) every segment closed so far, then recycles their descriptor sets and texel views; the
+// recording goes on in a new segment. Scratch buffers and timestamp queries stay (later segments and submit()
+// use them). Progress hooks run only in submit(): an early flush is an implementation detail of long recordings.
+void Recorder::flush_early() {
+  close_segment("descriptor flush");
+  for (uint32_t i = flushed_segments_; i < segments_; ++i) {
+    ctx_.submit_and_wait(cmds_[i]);
+    ++submissions_;
+  }
+  flushed_segments_ = segments_;
+  VkDevice dev = ctx_.device();
+  for (VkBufferView v : texel_views_) vkDestroyBufferView(dev, v, nullptr);
+  texel_views_.clear();
+  for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
+  pool_in_use_ = 0;
+  live_sets_ = 0;
+  open_segment();
 }
 
 void Recorder::boundary(const std::string& label) {
@@ -179,7 +204,9 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
                 std::to_string(caps.max_workgroup_count[2]) + (caps.forced_limits.groups ? " (DVS_LIMITS)" : ""));
   if (push_bytes > 128 || push_bytes % 4) throw Error("internal: push constants must be ≤ 128 bytes, multiple of 4");
 
+  if (live_sets_ >= kMaxLiveSets) flush_early();
   VkDescriptorSet set = allocate_set(p.set_layout);
+  ++live_sets_;
   std::vector<VkWriteDescriptorSet> writes(decl.size());
   std::vector<VkDescriptorBufferInfo> infos(decl.size());
   std::vector<VkBufferView> views(decl.size());
@@ -307,7 +334,7 @@ void Recorder::submit() {
   if (recording_) end();
   if (!recorded_) throw Error("internal: Recorder::submit with nothing recorded");
   const SegmentHook hook = hook_ ? hook_ : ctx_.segment_hook();
-  for (uint32_t i = 0; i < segments_; ++i) {
+  for (uint32_t i = flushed_segments_; i < segments_; ++i) {
     ctx_.submit_and_wait(cmds_[i]);
     ++submissions_;
     if (i + 1 == segments_ || !hook) continue;

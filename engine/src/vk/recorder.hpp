@@ -83,6 +83,7 @@ class Recorder {
   };
   void track(const Range& r, bool writes);
   void open_segment();
+  void flush_early();
   void close_segment(const std::string& label);
   void full_barrier();
   void collect_timestamps(uint32_t pairs);
@@ -101,6 +102,8 @@ class Recorder {
   bool recording_ = false, recorded_ = false;
   std::vector<VkDescriptorPool> pools_;
   size_t pool_in_use_ = 0;
+  uint32_t live_sets_ = 0;          // descriptor sets allocated since the last flush
+  uint32_t flushed_segments_ = 0;   // segments already submitted by flush_early()
   std::vector<VkBufferView> texel_views_;
   std::vector<Buffer> scratch_;        // every scratch buffer of the recording
   std::vector<size_t> scratch_slot_;   // slot -> index in scratch_ + 1 (0: none yet)
