@@ -1,6 +1,7 @@
-// Video-Depth-Anything against the vda conformance pack (DVS_VDA_GOLDEN_DIR, default tests/golden/vda-A):
-// position-embedding resampling per grid, and one window forward compared stage by stage (every intermediate the
-// model exposes under the pack's file name), with each case's tolerance from cases.json. Sizes, file names and
+// Video-Depth-Anything against the vda conformance pack (DVS_VDA_GOLDEN_DIR, default tests/golden/vda-A): the
+// input size rule, the preprocessing, position-embedding resampling per grid, one window forward compared stage by
+// stage (every intermediate the model exposes under the pack's file name) and the whole clip (windows, alignment,
+// blending; relative and metric), with each case's tolerance from cases.json. Sizes, file names and
 // layouts come from the pack, so another pack of the same format runs unchanged.
 #include <gtest/gtest.h>
 
@@ -11,6 +12,8 @@
 #include "io/npy.hpp"
 #include "models/vda_model.hpp"
 #include "models/vda_pos_embed.hpp"
+#include "models/vda_preprocess.hpp"
+#include "models/vda_video.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "support/vda_pack.hpp"
@@ -102,6 +105,98 @@ TEST_F(VdaWindow, ForwardMatchesThePackStageByStage) {
   for (int j = 0; j < 4; ++j) required.push_back("temporal/m" + std::to_string(j) + "_out");
   for (const auto& r : required) EXPECT_TRUE(compared.count(r)) << r << " was not compared";
   std::printf("  compared %zu of the pack's %zu tensors for these cases\n", compared.size(), files.size());
+}
+
+// The clip of the preprocess / e2e cases as the u8 RGB frames the driver takes.
+HostTensor pack_clip() {
+  const HostTensor f = read_npy(vda_golden_path() / "preprocess" / "frames_uint8.npy");
+  HostTensor u8(f.shape, DType::u8);
+  const std::vector<float> v = f.to_f32();
+  for (size_t i = 0; i < v.size(); ++i) u8.as<uint8_t>()[i] = uint8_t(v[i]);
+  return u8;
+}
+
+TEST(VdaGolden, InputSizeRuleForEveryRecordedFrameSize) {
+  const auto table = test::vda_read_json(vda_golden_path() / "preprocess" / "size_rule.json");
+  ASSERT_FALSE(table.empty());
+  const int patch = test::vda_model_config().at("encoder").at("patch_size");
+  for (const auto& e : table) {
+    const VdaInputSize s = vda_input_size(e.at("frame_height"), e.at("frame_width"), e.at("input_size"), patch);
+    EXPECT_EQ(s.height, e.at("model_height").get<int64_t>()) << e.dump();
+    EXPECT_EQ(s.width, e.at("model_width").get<int64_t>()) << e.dump();
+  }
+}
+
+TEST(VdaGolden, PreprocessingOfEveryFrame) {
+  const auto& c = test::vda_case("preprocess");
+  const HostTensor clip = pack_clip();
+  const HostTensor golden = read_npy(vda_golden_path() / "preprocess" / "normalised.npy");  // [L, 3, h, w]
+  const int64_t L = clip.shape[0], H = clip.shape[1], W = clip.shape[2];
+  const VdaConfig cfg = vda_config_from_json(test::vda_model_config(), "pack config");
+  const VdaInputSize size = vda_input_size(H, W, c.at("input_size_argument"), cfg.patch_size);
+  ASSERT_EQ(size.height, golden.shape[2]);
+  ASSERT_EQ(size.width, golden.shape[3]);
+  HostTensor ours({L, 3, size.height, size.width}, DType::f32);
+  for (int64_t f = 0; f < L; ++f)
+    vda_preprocess_frame(clip.as<uint8_t>() + f * H * W * 3, H, W, size, cfg, ours.as<float>() + f * 3 * size.height * size.width);
+  test::expect_close("preprocess/normalised", ours, golden, c.at("tolerance").at("atol"), c.at("tolerance").at("rtol"));
+}
+
+// The whole clip through the production driver: window frame indices (exact), each window's forward and its
+// upsampling, the scale/shift of each later window, and the stitched clip; then the metric mode's clip.
+class VdaVideo : public test::GpuTest {};
+
+TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
+  const auto& c = test::vda_case("e2e");
+  const double atol = c.at("tolerance").at("atol"), rtol = c.at("tolerance").at("rtol");
+  VdaModel model = VdaModel::load(ctx(), test::vda_checkpoint_path());
+  model.set_micro_batch(3);  // chunks that do not divide the window: the chunking must not matter
+  const HostTensor clip = pack_clip();
+  const HostTensor indices = read_npy(vda_golden_path() / "e2e" / "window_frame_indices.npy");
+  const HostTensor windows = read_npy(vda_golden_path() / "e2e" / "window_depth.npy");
+  const HostTensor upsampled = read_npy(vda_golden_path() / "e2e" / "window_depth_upsampled.npy");
+  VdaVideoOptions o;
+  o.input_size = c.at("input_size");
+  int probed = 0;
+  o.probe = [&](int k, const std::vector<int64_t>& frames, const HostTensor& model_size, const HostTensor& frame_size) {
+    ASSERT_LT(k, indices.shape[0]);
+    ASSERT_EQ(int64_t(frames.size()), indices.shape[1]);
+    const auto idx = indices.to_f32();
+    for (size_t i = 0; i < frames.size(); ++i)
+      EXPECT_EQ(frames[i], int64_t(idx[size_t(k) * frames.size() + i])) << "window " << k << " position " << i;
+    const int64_t per = windows.numel() / windows.shape[0], per_up = upsampled.numel() / upsampled.shape[0];
+    const auto wv = windows.to_f32(), uv = upsampled.to_f32();
+    const std::string w = "window " + std::to_string(k);
+    test::expect_close_values(w + " depth", model_size.shape, model_size.to_f32(), Shape(windows.shape.begin() + 1, windows.shape.end()),
+                              {wv.begin() + k * per, wv.begin() + (k + 1) * per}, atol, rtol);
+    test::expect_close_values(w + " upsampled", frame_size.shape, frame_size.to_f32(),
+                              Shape(upsampled.shape.begin() + 1, upsampled.shape.end()), {uv.begin() + k * per_up, uv.begin() + (k + 1) * per_up},
+                              atol, rtol);
+    ++probed;
+  };
+  int progress = 0;
+  o.on_window = [&](int done, int total) {
+    EXPECT_EQ(done, ++progress);
+    EXPECT_EQ(total, indices.shape[0]);
+  };
+  const VdaVideoResult r = vda_video_depth(model, clip, o);
+  EXPECT_EQ(probed, indices.shape[0]);
+  const HostTensor st = read_npy(vda_golden_path() / "e2e" / "align_scale_shift.npy");
+  std::vector<float> ours_st;
+  for (const auto& p : r.scale_shift) ours_st.insert(ours_st.end(), p.begin(), p.end());
+  test::expect_close_values("e2e/align_scale_shift", {int64_t(r.scale_shift.size()), 2}, ours_st, st.shape, st.to_f32(),
+                            atol, rtol);
+  test::expect_close("e2e/depth", r.depth, read_npy(vda_golden_path() / "e2e" / "depth.npy"), atol, rtol);
+
+  const auto& m = test::vda_case("e2e_metric");
+  model.set_metric(true);
+  o.probe = nullptr;
+  progress = 0;
+  const VdaVideoResult metric = vda_video_depth(model, clip, o);
+  EXPECT_TRUE(metric.scale_shift.size() == r.scale_shift.size());
+  for (const auto& p : metric.scale_shift) EXPECT_TRUE(p[0] == 1.0f && p[1] == 0.0f);
+  test::expect_close("e2e/depth_metric_mode", metric.depth, read_npy(vda_golden_path() / "e2e" / "depth_metric_mode.npy"),
+                     m.at("tolerance").at("atol"), m.at("tolerance").at("rtol"));
 }
 
 }  // namespace

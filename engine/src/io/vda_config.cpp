@@ -219,7 +219,7 @@ VdaConfig vda_config_from_json(const nlohmann::json& j, const std::string& origi
         for (const char* key : {"mean", "std"}) {
           const auto& a = inf["normalize"][key];
           if (!a.is_array() || a.size() != 3) throw Error(origin + ": inference.normalize." + key + " must be 3 numbers");
-          for (size_t i = 0; i < 3; ++i) (key[0] == 'm' ? c.mean : c.std)[i] = a[i].get<float>();
+          for (size_t i = 0; i < 3; ++i) (key[0] == 'm' ? c.mean : c.std)[i] = a[i].get<double>();
         }
     }
     if (c.temporal_max_len < c.infer_len)

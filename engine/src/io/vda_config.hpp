@@ -41,7 +41,7 @@ struct VdaConfig {
   // Long-video inference
   int infer_len = 32, overlap = 10, interp_len = 8, input_size = 518;
   std::vector<int> keyframes{0, 12, 24, 25, 26, 27, 28, 29, 30, 31};
-  std::array<float, 3> mean{0.485f, 0.456f, 0.406f}, std{0.229f, 0.224f, 0.225f};
+  std::array<double, 3> mean{0.485, 0.456, 0.406}, std{0.229, 0.224, 0.225};  // Python floats: numpy normalises in double
   bool metric = false;  // metric checkpoints skip the scale/shift alignment
 };
 

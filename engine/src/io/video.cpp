@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -52,32 +53,47 @@ class FilledAllocations {
   FilledAllocations& operator=(const FilledAllocations&) = delete;
 };
 
-}  // namespace
-
-HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& o, VideoInfo* info) {
+// Opens the file and reads what its container says (size, fps, frame count); errors name the file.
+cv::VideoCapture open_video(const std::filesystem::path& path, VideoInfo& vi) {
   const std::string name = path.string();
   if (!std::filesystem::is_regular_file(path)) throw Error(name + ": no such video file");
   cv::VideoCapture cap(name, cv::CAP_FFMPEG);
   if (!cap.isOpened())
     throw Error(name + ": cannot open the video (unknown container or codec; re-encode it to H.264 .mp4, e.g. "
                 "ffmpeg -i IN -c:v libx264 OUT.mp4)");
-  VideoInfo vi;
   vi.width = int(cap.get(cv::CAP_PROP_FRAME_WIDTH));
   vi.height = int(cap.get(cv::CAP_PROP_FRAME_HEIGHT));
   vi.fps = cap.get(cv::CAP_PROP_FPS);
   vi.frames_in_file = std::max(0, int(cap.get(cv::CAP_PROP_FRAME_COUNT)));
   if (!(vi.fps > 0 && vi.fps < 1000)) vi.fps = 30;
-  const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
+  return cap;
+}
+
+// Decodes up to max_frames (0 = all) BGR frames, each passed through `fit`; records the count in vi.
+std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& name, int max_frames, VideoInfo& vi,
+                                   const std::function<cv::Mat(const cv::Mat&)>& fit) {
   std::vector<cv::Mat> frames;
   cv::Mat bgr;
-  while ((o.max_frames <= 0 || int(frames.size()) < o.max_frames) && cap.read(bgr)) {
+  while ((max_frames <= 0 || int(frames.size()) < max_frames) && cap.read(bgr)) {
     if (bgr.empty()) break;
     if (bgr.channels() == 1) cv::cvtColor(bgr, bgr, cv::COLOR_GRAY2BGR);
-    frames.push_back(fit_frame(bgr, w, h, o.resize).clone());
+    frames.push_back(fit(bgr).clone());
   }
   if (frames.empty()) throw Error(name + ": the video has no decodable frames");
   vi.frames = int(frames.size());
-  if (o.max_frames <= 0 || vi.frames < o.max_frames) vi.frames_in_file = vi.frames;  // read to the end: exact
+  if (max_frames <= 0 || vi.frames < max_frames) vi.frames_in_file = vi.frames;  // read to the end: exact
+  return frames;
+}
+
+}  // namespace
+
+HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& o, VideoInfo* info) {
+  const std::string name = path.string();
+  VideoInfo vi;
+  cv::VideoCapture cap = open_video(path, vi);
+  const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
+  const std::vector<cv::Mat> frames =
+      decode_frames(cap, name, o.max_frames, vi, [&](const cv::Mat& m) { return fit_frame(m, w, h, o.resize); });
   if (info) *info = vi;
 
   HostTensor out({int64_t(frames.size()), 3, h, w}, DType::f32);
@@ -91,6 +107,33 @@ HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions&
         for (int c = 0; c < 3; ++c)  // BGR -> RGB planes
           dst[(f * 3 + size_t(c)) * plane + size_t(y) * w + x] = float(row[3 * x + (2 - c)]) / 127.5f - 1.0f;
     }
+  }
+  return out;
+}
+
+HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames, int max_long_side, VideoInfo* info) {
+  VideoInfo vi;
+  cv::VideoCapture cap = open_video(path, vi);
+  int w = vi.width, h = vi.height;
+  if (max_long_side > 0 && std::max(w, h) > max_long_side) {
+    // Video-Depth-Anything's run.py (OpenCV reader): both sides scaled by max_res / long side, Python round.
+    const double s = double(max_long_side) / std::max(w, h);
+    w = int(std::nearbyint(vi.width * s));
+    h = int(std::nearbyint(vi.height * s));
+  }
+  const std::vector<cv::Mat> frames = decode_frames(cap, path.string(), max_frames, vi, [&](const cv::Mat& m) {
+    if (m.cols == w && m.rows == h) return m;
+    cv::Mat out;
+    cv::resize(m, out, cv::Size(w, h));  // cv2.resize's default (bilinear), as run.py calls it
+    return out;
+  });
+  if (info) *info = vi;
+  HostTensor out({int64_t(frames.size()), h, w, 3}, DType::u8);
+  uint8_t* dst = out.as<uint8_t>();
+  for (size_t f = 0; f < frames.size(); ++f) {
+    cv::Mat rgb;
+    cv::cvtColor(frames[f], rgb, cv::COLOR_BGR2RGB);
+    for (int y = 0; y < h; ++y) std::memcpy(dst + ((f * h + size_t(y)) * w) * 3, rgb.ptr<uint8_t>(y), size_t(w) * 3);
   }
   return out;
 }

@@ -31,6 +31,11 @@ struct VideoInfo {
 // frames.
 HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& options = {}, VideoInfo* info = nullptr);
 
+// The decoded frames as they are, u8 RGB [F,H,W,3] (what Video-Depth-Anything takes). max_frames 0 = all;
+// when the long side exceeds max_long_side (> 0), frames are scaled to fit it as VDA's run.py does (--max_res).
+HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames = 0, int max_long_side = 0,
+                           VideoInfo* info = nullptr);
+
 // Frames [F,3,H,W] (RGB) or [F,1,H,W] / [F,H,W] (gray, written as RGB) in [−1,1] (values are clamped).
 // H.264 when the FFmpeg build has an encoder for it, else MPEG-4 part 2. The same frames always give the
 // same bytes (the encoder's uninitialised reads see a fixed fill, video.cpp).

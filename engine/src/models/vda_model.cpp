@@ -381,20 +381,45 @@ Tensor VdaModel::head(const std::array<Tensor, 4>& taps, int64_t h, int64_t wd, 
   Tensor path3 = fusion(3, path4, &rn[2], rn[1].dim(2), rn[1].dim(3));
   probe("head/refinenet3", path3);
   path3 = temporal(3, path3, frames);
-  Tensor path2 = fusion(2, path3, &rn[1], rn[0].dim(2), rn[0].dim(3));
-  probe("head/refinenet2", path2);
-  Tensor path1 = fusion(1, path2, &rn[0], 2 * rn[0].dim(2), 2 * rn[0].dim(3));
-  probe("head/refinenet1", path1);
-  Tensor out1 = conv("head.scratch.output_conv1.", path1, 1, 1, true);
-  probe("head/output_conv1", out1);
+  // refinenet2, refinenet1 and the output convolutions run a few frames at a time, as the reference does: at the
+  // real size their maps are the model's largest (32 channels at 14h x 14w, ~61 MiB a frame). Frames are
+  // independent there, so the chunking changes no value.
   const int64_t ps = cfg_.patch_size;
-  Tensor up = empty(*ctx_, {out1.dim(0), out1.dim(1), h * ps, wd * ps}, "head output resize");
-  run(*ctx_, [&](vk::Recorder& r) { ops::resize_bilinear(r, out1, up, true); });
-  probe("head/output_interp_frame0", up.rows(0, 1));
-  Tensor hidden = conv("head.scratch.output_conv2.0.", up, 1, 1, true);
-  run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, hidden, hidden); });
-  Tensor out = conv("head.scratch.output_conv2.2.", hidden, 1, 0, true);
-  run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, out, out); });
+  const int64_t chunk = micro_batch_ > 0 ? std::min<int64_t>(micro_batch_, frames) : frames;
+  Tensor out = empty(*ctx_, {frames, 1, h * ps, wd * ps}, "head output");
+  std::map<std::string, Tensor> whole;  // the chunked stages reassembled for the probe (only when probing)
+  auto keep = [&](const std::string& name, const Tensor& part, int64_t first) {
+    if (!probe_) return;
+    auto it = whole.find(name);
+    if (it == whole.end()) {
+      Shape s = part.shape();
+      s[0] = frames;
+      it = whole.emplace(name, empty(*ctx_, s, "probe copy")).first;
+    }
+    run(*ctx_, [&](vk::Recorder& r) { ops::scale(r, part, it->second.rows(first, part.dim(0)), 1.0f); });
+  };
+  for (int64_t f0 = 0; f0 < frames; f0 += chunk) {
+    const int64_t n = std::min(chunk, frames - f0);
+    const Tensor rn0 = rn[0].rows(f0, n), rn1 = rn[1].rows(f0, n);
+    Tensor path2 = fusion(2, path3.rows(f0, n), &rn1, rn0.dim(2), rn0.dim(3));
+    keep("head/refinenet2", path2, f0);
+    Tensor path1 = fusion(1, path2, &rn0, 2 * rn0.dim(2), 2 * rn0.dim(3));
+    path2 = Tensor();
+    keep("head/refinenet1", path1, f0);
+    Tensor out1 = conv("head.scratch.output_conv1.", path1, 1, 1, true);
+    path1 = Tensor();
+    keep("head/output_conv1", out1, f0);
+    Tensor up = empty(*ctx_, {n, out1.dim(1), h * ps, wd * ps}, "head output resize");
+    run(*ctx_, [&](vk::Recorder& r) { ops::resize_bilinear(r, out1, up, true); });
+    out1 = Tensor();
+    if (f0 == 0) probe("head/output_interp_frame0", up.rows(0, 1));
+    Tensor hidden = conv("head.scratch.output_conv2.0.", up, 1, 1, true);
+    up = Tensor();
+    run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, hidden, hidden); });
+    Tensor part = conv("head.scratch.output_conv2.2.", hidden, 1, 0, true);
+    run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, part, out.rows(f0, n)); });
+  }
+  for (const auto& [name, t] : whole) probe(name, t);
   probe("head/output", out);
   return out;
 }

@@ -26,12 +26,20 @@ class VdaModel {
   static VdaModel load(vk::Context& ctx, const std::filesystem::path& checkpoint);
 
   const VdaConfig& config() const { return cfg_; }
+  vk::Context& context() const { return *ctx_; }
+  // Metric mode (no scale/shift alignment between windows): recognised from the released metric checkpoints'
+  // file names or a config's inference.metric; this overrides it.
+  void set_metric(bool metric) { cfg_.metric = metric; }
   uint64_t weight_bytes() const { return weight_bytes_; }
 
   // Called with named intermediates (the conformance pack's file stems, e.g. "encoder/block0", "head/layer1",
   // "temporal/m0_attn0_q") after their stage has run; tests compare them. Unset: nothing extra is computed.
   using Probe = std::function<void(const std::string& name, const Tensor& t)>;
   void set_probe(Probe p) { probe_ = std::move(p); }
+
+  // Frames per pass through the head's full-resolution stages (refinenet2 on); 0 = all at once. The reference
+  // uses 4; the value changes memory, never results.
+  void set_micro_batch(int frames) { micro_batch_ = frames; }
 
   // x: f32 [T, 3, H, W] -> disparity f32 [T, H, W] (>= 0), H and W multiples of the patch size.
   Tensor forward(const Tensor& x);
@@ -62,6 +70,7 @@ class VdaModel {
   HostTensor pos_table_;
   uint64_t weight_bytes_ = 0;
   Probe probe_;
+  int micro_batch_ = 4;
 };
 
 }  // namespace dvs
