@@ -15,6 +15,9 @@
 #include "dvs/usage_error.hpp"
 #include "io/model_folder.hpp"
 #include "models/tiny_model.hpp"
+#include "models/vda_random.hpp"
+#include "io/safetensors_writer.hpp"
+#include "io/vda_config.hpp"
 #include "io/model_schema.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors.hpp"
@@ -49,6 +52,11 @@ commands:
                     defaults are the conformance pack's sizes. DIR is a folder (created; not a file).
                     --sample is the transformer's sample size in LATENT units: latent height x latent width
                     (pixels / 8, the VAE's scale) x video frames; e.g. 8x8x9 suits --size 64x64 --frames 9
+  make-vda --size vits|vitb|vitl --out FILE.safetensors [--seed N]
+                    write a random-weight Video-Depth-Anything checkpoint of a released size (every tensor
+                    of the released .pth, same names and shapes; metric mode when FILE's name starts with
+                    "metric_", as the released metric files) for measurements without downloads; dvs reads
+                    it wherever it reads a .pth (--depth-model)
   convert IN.pth OUT.safetensors
                     write the checkpoint's tensors (names, dtypes, shapes, bytes) as safetensors
   merge-lora --model DIR --lora FILE[:SCALE] --out DIR2 [--prefix P]
@@ -405,6 +413,40 @@ int make_tiny(const std::vector<std::string>& args) {
   return 0;
 }
 
+// `make-vda`: a random-weight Video-Depth-Anything checkpoint of a released size.
+int make_vda(const std::vector<std::string>& args) {
+  std::string size, out;
+  uint64_t seed = 0;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a != "--size" && a != "--out" && a != "--seed") throw dvs::UsageError("make-vda: unknown option " + a + " (see dvs-weights --help)");
+    if (i + 1 >= args.size()) throw dvs::UsageError("make-vda: " + a + " needs a value");
+    const std::string v = args[++i];
+    if (a == "--size") size = v;
+    else if (a == "--out") out = v;
+    else {
+      try {
+        size_t used = 0;
+        seed = std::stoull(v, &used);
+        if (used != v.size()) throw std::invalid_argument(v);
+      } catch (const std::exception&) {
+        throw dvs::UsageError("make-vda: --seed must be a whole number, got '" + v + "'");
+      }
+    }
+  }
+  if (size.empty() || out.empty()) throw dvs::UsageError("make-vda: --size vits|vitb|vitl and --out FILE.safetensors are required");
+  if (fs::path(out).extension() != ".safetensors") throw dvs::UsageError("make-vda: --out must end in .safetensors, got " + out);
+  if (size != "vits" && size != "vitb" && size != "vitl") throw dvs::UsageError("make-vda: --size must be vits, vitb or vitl, got '" + size + "'");
+  const dvs::VdaConfig cfg = dvs::released_vda_config(size);
+  const auto tensors = dvs::vda_random_checkpoint(cfg, seed);
+  uint64_t bytes = 0;
+  for (const auto& t : tensors) bytes += t.second.bytes();
+  dvs::write_safetensors(out, tensors, {{"format", "pt"}, {"dvs", "random-weight Video-Depth-Anything " + size + ", seed " + std::to_string(seed)}});
+  std::cout << "wrote a random-weight Video-Depth-Anything " << size << " (" << tensors.size() << " tensors, "
+            << human_bytes(bytes) << ", seed " << seed << ") to " << out << "\n";
+  return 0;
+}
+
 int main(int argc, char** argv) {
   std::vector<std::string> args;
   bool verbose = false;
@@ -431,6 +473,17 @@ int main(int argc, char** argv) {
       std::cerr << "dvs-weights: " << e.what() << "\n";
       return 2;
     } catch (const std::exception& e) {  // dvs::Error, and filesystem errors while writing the folder
+      std::cerr << "dvs-weights: error: " << e.what() << "\n";
+      return 1;
+    }
+  }
+  if (cmd == "make-vda") {
+    try {
+      return make_vda(args);
+    } catch (const dvs::UsageError& e) {
+      std::cerr << "dvs-weights: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
       std::cerr << "dvs-weights: error: " << e.what() << "\n";
       return 1;
     }

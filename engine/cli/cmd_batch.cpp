@@ -145,8 +145,10 @@ int run_batch(const std::vector<std::string>& argv) {
       args.insert(args.end(), own.begin(), own.end());
       Args a("batch", args, kRunOptions, kRunFlags);
       std::string missing;
-      for (const char* key : {"video", "depth", "model", "prompt", "out"})
+      for (const char* key : {"video", "model", "prompt", "out"})
         if (a.str(key).empty()) missing += std::string(missing.empty() ? "" : ", ") + "\"" + key + "\"";
+      if (a.str("depth").empty() && a.str("depth-model").empty())
+        missing += std::string(missing.empty() ? "" : ", ") + "\"depth\" (or \"depth-model\")";
       if (!missing.empty()) {
         problems.push_back(where + ": missing required " + missing + " (a key of the job or a --option of dvs batch)");
         continue;

@@ -3,13 +3,14 @@
 
 #include "args.hpp"
 #include "commands.hpp"
+#include "depth_args.hpp"
 #include "dvs/error.hpp"
 #include "dvs/render.hpp"
 
 namespace dvs::cli {
 
 static const char* kRenderHelp =
-    "usage: dvs render --video V --depth D --out DIR [options]\n"
+    "usage: dvs render --video V (--depth D | --depth-model FILE.pth) --out DIR [options]\n"
     "\n"
     "Lifts every frame of V with its depth to a point cloud, moves it along the camera path and splats it into\n"
     "the new view. Writes DIR/render.mp4, mask.mp4, mask.npy ([F,H,W] f32, 1 = visible), poses.json and\n"
@@ -19,6 +20,10 @@ static const char* kRenderHelp =
     "  --depth D             per-frame depth: .npy/.npz [N,H,W] (or [N,H,W,1]; float or 16-bit; FILE.npz:KEY\n"
     "                        picks an array, default key 'depths'), a folder of 16-bit PNG/EXR frames (natural\n"
     "                        name order: d_2 before d_10) or a grayscale video\n"
+    "  --depth-model FILE    instead of --depth: estimate the depth with Video-Depth-Anything (video_depth_anything_\n"
+    "                        vits.pth etc., see README); cached in $DVS_CACHE_DIR or ~/.cache/dvs (--cache-dir DIR)\n"
+    "                        by the video's bytes, the model and the settings; --no-cache estimates again\n"
+    "  --depth-input-size N  its network input's short side (default 518)\n"
     "  --metric-depth        D holds metric depth (default: disparity, as Video-Depth-Anything writes)\n"
     "  --trim-depth          allow D to have more frames than the video uses\n"
     "  --depth-fit error|stretch|crop  depth of another aspect ratio (or orientation) than the video: refuse\n"
@@ -38,15 +43,18 @@ static const char* kRenderHelp =
 
 int run_render(const std::vector<std::string>& argv) {
   Args a("render", argv,
-         {"video", "depth", "trajectory", "out", "frames", "size", "resize", "intrinsics", "device", "depth-fit"},
-         {"metric-depth", "trim-depth", "points", "no-glb"});
+         {"video", "depth", "depth-model", "depth-input-size", "cache-dir", "trajectory", "out", "frames", "size", "resize",
+          "intrinsics", "device", "depth-fit"},
+         {"metric-depth", "trim-depth", "points", "no-glb", "no-cache"});
   if (a.help()) {
     std::cout << kRenderHelp;
     return 0;
   }
   RenderJob job;
   job.video = a.required("video");
-  job.depth = a.required("depth");
+  parse_depth_source(a, job);
+  job.depth_cache_dir = a.str("cache-dir");
+  job.depth_cache = !a.has("no-cache");
   job.out_dir = a.required("out");
   job.trajectory = a.str("trajectory", job.trajectory);
   job.frames = a.integer("frames", job.frames, 0, 100000);

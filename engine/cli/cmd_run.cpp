@@ -14,6 +14,7 @@
 #include "pipeline/preflight.hpp"
 #include "pipeline/run_record.hpp"
 #include "interrupt.hpp"
+#include "depth_args.hpp"
 #include "progress.hpp"
 #include "prompt_length.hpp"
 #include "run_command.hpp"
@@ -21,13 +22,17 @@
 namespace dvs::cli {
 
 const char* kRunHelp =
-    "usage: dvs run --video V --depth D --model DIR --prompt TEXT --out DIR [options]\n"
+    "usage: dvs run --video V (--depth D | --depth-model FILE.pth) --model DIR --prompt TEXT --out DIR [options]\n"
     "\n"
     "Re-renders V along a new camera path: renders the input with its depth, VAE-encodes the render, inverts it\n"
     "with the transformer, fills occluded latents (SLM), initialises the noise (adaptive K-RNR) and samples the\n"
     "new view. Writes DIR/output.mp4, render.mp4, mask.mp4, comparison.mp4 (input | render | output) and run.json.\n"
     "\n"
     "inputs (as dvs render): --video --depth --metric-depth --trim-depth --depth-fit --trajectory\n"
+    "  --depth-model FILE    instead of --depth: estimate the depth with Video-Depth-Anything (video_depth_anything_\n"
+    "                        vits.pth etc., see README) before the diffusion models load; cached in the cache folder\n"
+    "                        by the video's bytes, the model and the settings (--no-cache: estimate again)\n"
+    "  --depth-input-size N  its network input's short side (default 518)\n"
     "  --frames N            4k+1, default 49\n"
     "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
     "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
@@ -66,7 +71,7 @@ const char* kRunHelp =
     "that fails or is cancelled leaves the files of an earlier run in DIR as they were.\n"
     "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n";
 
-const std::set<std::string> kRunOptions = {"video", "depth", "trajectory", "out", "frames", "size", "resize",
+const std::set<std::string> kRunOptions = {"video", "depth", "depth-model", "depth-input-size", "trajectory", "out", "frames", "size", "resize",
                                            "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
                                            "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
                                            "dynamic-cfg", "preservation-scale",
@@ -109,7 +114,7 @@ double explicit_number(const Args& a, const std::string& name, double fallback, 
 RunOptions parse_run_options(const Args& a) {
   RunOptions o;
   o.render.video = a.required("video");
-  o.render.depth = a.required("depth");
+  parse_depth_source(a, o.render);
   o.render.out_dir = a.required("out");
   o.model = a.required("model");
   o.prompt = a.str("prompt");

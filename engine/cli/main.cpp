@@ -30,6 +30,7 @@ const char* kUsage =
     "  demo            run the whole pipeline on a generated scene with a tiny random model\n"
     "  run             re-render a video along a new camera path (the whole pipeline)\n"
     "  info            list the Vulkan devices, their features, memory and limits\n"
+    "  depth           per-frame disparity of a video (Video-Depth-Anything), as .npz for --depth\n"
     "  render          geometry only: a video seen along a new camera path, plus its visibility mask\n"
     "  invert          render, encode and DDIM-invert only: writes eps_inv.npy and fills run's cache\n"
     "  encode-prompt   T5 embeddings of a prompt as .npy\n"
@@ -104,6 +105,7 @@ int main(int argc, char** argv) {
     else if (cmd == "encode-prompt") code = dvs::cli::run_encode_prompt(rest);
     else if (cmd == "batch") code = dvs::cli::run_batch(rest);
     else if (cmd == "plan") code = dvs::cli::run_plan(rest);
+    else if (cmd == "depth") code = dvs::cli::run_depth(rest);
     if (code < 0) {
       std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
       return finish(json, 2, "unknown command '" + cmd + "'");

@@ -85,6 +85,24 @@ std::string arr(const std::array<int, 4>& a) {
 
 }  // namespace
 
+VdaConfig released_vda_config(const std::string& name) {
+  for (const auto& r : kReleased) {
+    if (name != r.name) continue;
+    VdaConfig c;
+    c.name = r.name;
+    c.origin = std::string("released size ") + r.name;
+    c.embed_dim = r.embed_dim;
+    c.depth = r.depth;
+    c.num_heads = r.num_heads;
+    c.taps = r.taps;
+    c.features = r.features;
+    c.out_channels = r.out_channels;
+    derive(c);
+    return c;
+  }
+  throw Error("'" + name + "' is not a released Video-Depth-Anything size (vits, vitb or vitl)");
+}
+
 VdaConfig recognise_vda_size(const std::map<std::string, Shape>& shapes, const std::filesystem::path& file) {
   const Observed o = observe(shapes, file.string());
   for (const auto& r : kReleased) {
@@ -95,17 +113,9 @@ VdaConfig recognise_vda_size(const std::map<std::string, Shape>& shapes, const s
                   " and out_channels " + arr(o.out_channels) + " instead of " + std::to_string(r.features) + " and " +
                   arr(r.out_channels) + ": not a released size; put a config.json (schema of the conformance pack's "
                   "model/config.json) beside the checkpoint to describe it");
-    VdaConfig c;
-    c.name = r.name;
+    VdaConfig c = released_vda_config(r.name);
     c.origin = "recognised from the tensors of " + file.string();
-    c.embed_dim = r.embed_dim;
-    c.depth = r.depth;
-    c.num_heads = r.num_heads;
-    c.taps = r.taps;
-    c.features = r.features;
-    c.out_channels = r.out_channels;
     c.metric = file.filename().string().rfind("metric_", 0) == 0;
-    derive(c);
     if (o.pe_len > 0) c.temporal_max_len = o.pe_len;
     return c;
   }

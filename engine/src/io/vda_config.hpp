@@ -45,6 +45,9 @@ struct VdaConfig {
   bool metric = false;  // metric checkpoints skip the scale/shift alignment
 };
 
+// A released size by name ("vits", "vitb", "vitl"); dvs::Error otherwise.
+VdaConfig released_vda_config(const std::string& name);
+
 // The released size whose embed dim / depth / features match, else a dvs::Error telling the user to add a
 // config.json. `shapes` maps tensor names to shapes (only shapes are needed); `file` names the checkpoint.
 // metric is set when the file name starts with "metric_" (the released metric checkpoints' names).

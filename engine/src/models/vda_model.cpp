@@ -82,6 +82,18 @@ Tensor empty(vk::Context& ctx, Shape s, const char* what) { return Tensor::empty
 
 }  // namespace
 
+VdaConfig VdaModel::inspect(const std::filesystem::path& checkpoint) {
+  std::map<std::string, Shape> shapes;
+  if (checkpoint.extension() == ".safetensors") {
+    const SafetensorsFile f = SafetensorsFile::open(checkpoint);
+    for (const auto& t : f.tensors()) shapes[t.name] = t.shape;
+  } else {
+    const PthFile f = PthFile::open(checkpoint);
+    for (const auto& t : f.tensors()) shapes[t.name] = t.shape;
+  }
+  return resolve_vda_config(checkpoint, shapes);
+}
+
 VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoint) {
   std::map<std::string, Shape> shapes;
   std::map<std::string, HostTensor> host = read_checkpoint(checkpoint, shapes);

@@ -24,6 +24,8 @@ class VdaModel {
   // Reads the checkpoint (.pth or .safetensors written by `dvs-weights convert`), resolves its architecture
   // (config.json beside it, else the released sizes) and uploads every tensor. Throws dvs::Error naming the file.
   static VdaModel load(vk::Context& ctx, const std::filesystem::path& checkpoint);
+  // The architecture alone, from the tensors' names and shapes (no weights read): a cheap check before long work.
+  static VdaConfig inspect(const std::filesystem::path& checkpoint);
 
   const VdaConfig& config() const { return cfg_; }
   vk::Context& context() const { return *ctx_; }

@@ -10,6 +10,7 @@
 
 #include "diffusion/schedule.hpp"
 #include "dvs/error.hpp"
+#include "models/vda_model.hpp"
 #include "geometry/trajectory.hpp"
 #include "io/lora_file.hpp"
 #include "io/model_folder.hpp"
@@ -94,7 +95,19 @@ void check_inputs(const RunOptions& o, Checker& c) {
       c.note("video " + j.video.string() + ": " + std::to_string(vi.frames_in_file) + " frames of " + hw(vi.height, vi.width));
     });
   }
-  if (!std::filesystem::exists(j.depth)) c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE)");
+  if (!j.depth_model.empty()) {
+    if (!std::filesystem::is_regular_file(j.depth_model))
+      c.problem(j.depth_model.string() + ": no such depth model (give --depth-model video_depth_anything_vits.pth)");
+    else
+      c.attempt("--depth-model " + j.depth_model.string(), [&] {
+        const VdaConfig v = VdaModel::inspect(j.depth_model);
+        c.note("depth model " + j.depth_model.string() + ": Video-Depth-Anything " + v.name + (v.metric ? " (metric)" : ""));
+      });
+    if (j.depth_input_size < 14 || j.depth_input_size > 4096)
+      c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
+  } else if (!std::filesystem::exists(j.depth)) {
+    c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE, or --depth-model FILE.pth to estimate it)");
+  }
   // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
   c.attempt("--trajectory " + j.trajectory, [&] { geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0); });
   // The output folder: an existing folder we may write into, or creatable below one.

@@ -9,6 +9,7 @@
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
 #include "io/depth.hpp"
+#include "pipeline/depth_source.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
 #include "vk/context.hpp"
@@ -111,7 +112,19 @@ HostTensor mask_as_video(const HostTensor& mask) {
   return v;
 }
 
-RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress) {
+RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress) {
+  RenderJob job = job_in;
+  if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
+    const nlohmann::json d = resolve_depth_model(
+        job, job.depth_cache_dir, !job.depth_cache,
+        [&](const std::string&, int step, int total, const std::string&) {
+          if (progress) progress("depth: window " + std::to_string(step) + "/" + std::to_string(total));
+        },
+        {});
+    if (progress)
+      progress(std::string(d.at("from_cache").get<bool>() ? "depth from the cache: " : "depth estimated: ") +
+               d.at("file").get<std::string>());
+  }
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);

@@ -25,6 +25,11 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                  {"depth_values", o.render.metric_depth ? "depth" : "disparity"},
                  {"trajectory", traj_file ? abs(traj) : traj}, {"trajectory_poses_hash", x.poses_hash},
                  {"model", abs(o.model)}, {"model_hash", x.model_hash}, {"out", abs(o.render.out_dir)}};
+  if (!o.render.depth_model.empty()) {
+    j["inputs"]["depth_model"] = abs(o.render.depth_model);
+    j["inputs"]["depth_input_size"] = o.render.depth_input_size;
+    j["depth_estimate"] = nlohmann::ordered_json::parse(x.depth_estimate.dump());
+  }
   j["settings"] = {{"preset", o.preset},
                    {"prompt", o.prompt},
                    {"negative_prompt", x.negative_prompt},
@@ -117,7 +122,12 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
     if (obj.contains(key) && obj[key].is_boolean() && obj[key].get<bool>()) args.push_back(std::string("--") + option);
   };
   text(in, "video", "video");
-  text(in, "depth", "depth");
+  if (in.contains("depth_model")) {  // the depth was estimated: estimate it again (or find it in the cache)
+    text(in, "depth_model", "depth-model");
+    if (in.contains("depth_input_size")) text(in, "depth_input_size", "depth-input-size");
+  } else {
+    text(in, "depth", "depth");
+  }
   if (in.value("depth_values", "") == "depth") args.push_back("--metric-depth");
   text(in, "trajectory", "trajectory");
   text(in, "model", "model");

@@ -33,6 +33,8 @@ struct RunRecordExtras {
   std::string cache_dir;                        // the inversion cache folder used
   // The sampled latent in the cache: {"path", "key", "reused", "encoded_with"} (null without the cache).
   nlohmann::json latent;
+  // --depth-model: where the depth came from (depth_source.hpp); null with --depth.
+  nlohmann::json depth_estimate;
 };
 
 // A run.json turned back into `dvs run` arguments ("--video", "/abs/v.mp4", ...): every input and setting the

@@ -1,0 +1,17 @@
+// `--depth-model` for run, invert and render: the clip's depth estimated with Video-Depth-Anything (or taken from
+// the depth cache, keyed by the video's bytes, the model file and the settings) in a Vulkan context of its own
+// that is gone before the diffusion models load; the job then reads the cached file as if given with --depth.
+#pragma once
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "dvs/pipeline.hpp"
+
+namespace dvs {
+
+// Nothing when job.depth_model is empty. Otherwise sets job.depth to the estimate and returns its provenance
+// for run.json: {"model", "input_size", "file", "key", "from_cache", "seconds"}.
+nlohmann::json resolve_depth_model(RenderJob& job, const std::filesystem::path& cache_dir, bool refresh,
+                                   const ProgressFn& progress, const CancelFn& cancelled);
+
+}  // namespace dvs
