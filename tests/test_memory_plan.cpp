@@ -18,6 +18,7 @@
 #include "models/cogvideox_transformer.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/t5_encoder.hpp"
+#include "models/tiny_model.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/files.hpp"
 #include "support/process.hpp"
@@ -96,6 +97,32 @@ TEST(MemoryPlanLive, T5StageEqualsWhatTheCallAllocates) {
   const auto plan = pipeline::plan_t5_stage(t5.weights().config(), emb16, ctx->allocator().alignment(), 2, L);
   EXPECT_EQ(plan.total(), m.delta());
   EXPECT_GT(plan.working, 0u);
+}
+
+// A d_kv that is not a multiple of 4 (6): the attention runs on head-padded copies in recording scratch,
+// which the stage's figure counts (no pack needed: a generated tiny T5, batch 2, 9 tokens).
+TEST(MemoryPlanLive, T5StageWithPaddedHeadsEqualsWhatTheCallAllocates) {
+  test::TempDir dir;
+  models::TinyModelSpec spec;
+  spec.seed = 3;
+  spec.t5_d_kv = 6;
+  models::write_tiny_model(dir.path, spec);
+  auto ctx = fresh_context();
+  models::T5Encoder t5(*ctx, dir.path / "text_encoder");
+  preload(t5.weights());
+  const int64_t L = 9;
+  std::vector<std::vector<int32_t>> ids(2, std::vector<int32_t>(size_t(L), 0));
+  for (int64_t i = 0; i < L; ++i) ids[0][size_t(i)] = int32_t(i % 7 + 3), ids[1][size_t(i)] = int32_t(i % 5 + 1);
+  Measure m(*ctx);
+  const Tensor out = t5.encode(ids);
+  const auto plan = pipeline::plan_t5_stage(t5.weights().config(), false, ctx->allocator().alignment(), 2, L);
+  EXPECT_EQ(plan.total(), m.delta());
+  const auto unpadded = [&] {
+    json cfg = t5.weights().config();
+    cfg["d_kv"] = 8;
+    return pipeline::plan_t5_stage(cfg, false, ctx->allocator().alignment(), 2, L);
+  }();
+  EXPECT_GT(plan.io, unpadded.io) << "the padded copies are counted";
 }
 
 TEST(MemoryPlanLive, TransformerStagesEqualWhatTheCallsAllocate) {

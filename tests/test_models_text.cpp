@@ -280,6 +280,34 @@ TEST_F(ModelsText, T5OtherSizesWithMaskAgainstReference) {
   fs::remove_all(dir);
 }
 
+// T5 with a d_kv that is not a multiple of 4 (6 and 5): the attention runs on head-padded copies of the fused
+// q|k|v rows, whose column slices start at 3·d_kv·k (not multiples of 4), with the relative bias and the mask.
+TEST_F(ModelsText, T5HeadDimNotMultipleOf4AgainstReference) {
+  for (int64_t d_kv : {6, 5}) {
+    const json config = {{"architectures", {"T5EncoderModel"}}, {"d_model", 20},     {"d_kv", d_kv},
+                         {"d_ff", 28},                          {"num_heads", 3},    {"num_layers", 2},
+                         {"vocab_size", 40},                    {"relative_attention_num_buckets", 8},
+                         {"relative_attention_max_distance", 12}, {"feed_forward_proj", "gated-gelu"},
+                         {"layer_norm_epsilon", 1e-6},          {"model_type", "t5"}};
+    const dvs::Schema schema = dvs::t5_encoder_schema(config);
+    Weights w = random_weights(schema, uint32_t(20 + d_kv));
+    const fs::path dir = tmp_dir("t5_dkv" + std::to_string(d_kv));
+    write_component(dir, config, w, schema);
+    dvs::models::T5Encoder t5(ctx(), dir);
+    std::mt19937 rng{uint32_t(d_kv)};
+    std::vector<std::vector<int32_t>> ids(2, std::vector<int32_t>(11));
+    for (auto& row : ids)
+      for (auto& id : row) id = int32_t(rng() % 40);
+    std::vector<std::vector<float>> mask = {std::vector<float>(11, 1.0f), std::vector<float>(11, 1.0f)};
+    for (int j = 7; j < 11; ++j) mask[1][size_t(j)] = 0.0f;
+    const auto cfg = t5.config();
+    const std::string what = "t5 d_kv " + std::to_string(d_kv);
+    expect_near_ref(what + " masked", t5.encode(ids, mask).download(ctx()).to_f32(), t5_reference(cfg, w, ids, mask));
+    expect_near_ref(what + " no mask", t5.encode(ids).download(ctx()).to_f32(), t5_reference(cfg, w, ids, {}));
+    fs::remove_all(dir);
+  }
+}
+
 TEST_F(ModelsText, TransformerNonSquareOtherHeadsBatch2AgainstReference) {
   // 3 heads of 16 (D = 48), latent 2 x 6 x 10 (3 x 5 patches per frame), text 5 x 20, 6 -> 3 channels,
   // time_embed 20, batch 2 with different text and timesteps.

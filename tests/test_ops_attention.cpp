@@ -1,6 +1,8 @@
 // Attention (shaders/nn/attention.comp) against a plain double-precision softmax(q·kᵀ·scale + bias + mask)·v.
 // Tolerance: |gpu − ref| ≤ 2e-5 + 2e-5·max|v| per element (fp32 accumulation over ≤ a few hundred keys,
-// lavapipe's exp2 approximation; the output is a convex combination of v rows).
+// lavapipe's exp2 approximation; the output is a convex combination of v rows). A head_dim that is not a
+// multiple of 4 runs on head-padded copies (ops_attention.hpp): same tolerance, and the output's columns
+// outside its heads must keep what they held.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,6 +13,7 @@
 #include <vector>
 
 #include "support/attention_reference.hpp"
+#include "support/expect_error.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_attention.hpp"
@@ -35,26 +38,29 @@ struct Case {
   bool mask_whole_batch0 = false;  // every key of batch 0 masked
   uint32_t rows_per_invocation = 0;  // 0: the device's default blocking
   bool workspace = false;            // repack K/V head-major first
+  int64_t out_offset = 0, out_extra = 0;  // out at this column of rows of H·D + out_extra columns
 };
+
+constexpr float kUntouched = 1234.5f;  // what the output's other columns hold before and after the call
 
 class AttentionTest : public GpuTest {
  protected:
-  void check(const Case& c, uint32_t seed) {
+  // Returns the largest error against the reference.
+  double check(const Case& c, uint32_t seed) {
     AttentionShape s{c.batch, c.heads, c.head_dim, c.q_len, c.kv_len};
     const int64_t W = c.heads * c.head_dim;
     // Under a low allocation limit (DVS_LIMITS) the largest cases cannot even be uploaded: skip those.
-    const int64_t rows = c.batch * std::max(c.q_len, c.kv_len) * (c.fused ? 3 * W : W + 2 * c.pad_columns);
+    const int64_t rows = c.batch * std::max(c.q_len, c.kv_len) * (c.fused ? 3 * W : W + 2 * c.pad_columns + c.out_extra);
     const int64_t most = std::max({rows, c.bias ? c.heads * c.q_len * c.kv_len : 0,
                                    c.workspace ? ops::attention_workspace_elements(s) : 0});
     if (uint64_t(most) * 4 > ctx().caps().max_memory_allocation_size) {
       std::cout << "[ SKIPPED  ] B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
                 << c.kv_len << ": a tensor over the allocation limit in force\n";
-      return;
+      return 0;
     }
     Tensor tq, tk, tv;
-    if (c.fused) {
-      ASSERT_EQ(c.q_len, c.kv_len);
-    }
+    EXPECT_TRUE(!c.fused || c.q_len == c.kv_len);
+    EXPECT_LE(c.out_offset, c.out_extra);
     const attention_ref::Operands ops_in = attention_ref::random_operands(ctx(), s, c.fused, c.pad_columns, seed);
     const HostOperand &hq = ops_in.hq, &hk = ops_in.hk, &hv = ops_in.hv;
     const AttentionOperand &q = ops_in.q, &k = ops_in.k, &v = ops_in.v;
@@ -82,29 +88,103 @@ class AttentionTest : public GpuTest {
       ws = Tensor::empty(ctx(), {ops::attention_workspace_elements(s)}, DType::f32);
       opt.workspace = &ws;
     }
-    Tensor out = Tensor::empty(ctx(), {c.batch, c.q_len, W}, DType::f32);
-    ops::run_now(ctx(), [&](vk::Recorder& rec) { ops::attention(rec, s, q, k, v, {out}, opt); });
+    const int64_t os = W + c.out_extra;  // out's row stride
+    const Tensor out = Tensor::upload(
+        ctx(), HostTensor::from_f32({c.batch, c.q_len, os}, std::vector<float>(size_t(c.batch * c.q_len * os), kUntouched)));
+    ops::run_now(ctx(), [&](vk::Recorder& rec) {
+      ops::attention(rec, s, q, k, v, {out, c.out_offset, c.out_extra ? os : 0}, opt);
+    });
     std::vector<float> got = out.download(ctx()).to_f32();
     std::vector<double> ref = reference(s, hq, hk, hv, c.scale, c.bias ? &bias : nullptr, c.mask ? &mask : nullptr);
-    ASSERT_EQ(got.size(), ref.size());
+    EXPECT_EQ(got.size(), size_t(c.batch * c.q_len * os));
+    EXPECT_EQ(ref.size(), size_t(c.batch * c.q_len * W));
     double vmax = 0;
     for (float x : hv.data) vmax = std::max(vmax, double(std::fabs(x)));
     const double tol = 2e-5 + 2e-5 * vmax;
     double worst = 0;
-    size_t bad = 0;
-    for (size_t i = 0; i < got.size(); ++i) {
-      double e = std::fabs(double(got[i]) - ref[i]);
-      if (!(e <= tol)) ++bad;
-      if (!(e <= worst)) worst = e;
-    }
-    EXPECT_EQ(bad, 0u) << "B" << c.batch << " H" << c.heads << " D" << c.head_dim << " Lq" << c.q_len << " Lk"
-                       << c.kv_len << ": worst error " << worst << " (tolerance " << tol << ")";
+    size_t bad = 0, touched = 0;
+    for (int64_t row = 0; row < c.batch * c.q_len; ++row)
+      for (int64_t col = 0; col < os; ++col) {
+        const float x = got[size_t(row * os + col)];
+        if (col < c.out_offset || col >= c.out_offset + W) {
+          touched += x != kUntouched;
+          continue;
+        }
+        double e = std::fabs(double(x) - ref[size_t(row * W + col - c.out_offset)]);
+        if (!(e <= tol)) ++bad;
+        if (!(e <= worst)) worst = e;
+      }
+    const std::string what = "B" + std::to_string(c.batch) + " H" + std::to_string(c.heads) + " D" +
+                             std::to_string(c.head_dim) + " Lq" + std::to_string(c.q_len) + " Lk" +
+                             std::to_string(c.kv_len) + (c.fused ? " fused" : "") + (c.bias ? " bias" : "") +
+                             (c.mask ? " mask" : "") + " scale " + std::to_string(c.scale);
+    EXPECT_EQ(bad, 0u) << what << ": worst error " << worst << " (tolerance " << tol << ")";
+    EXPECT_EQ(touched, 0u) << what << ": output columns outside the heads were written";
+    return worst;
   }
 };
 
 TEST_F(AttentionTest, HeadDimsFromFourTo128) {
   uint32_t seed = 10;
   for (int64_t d : {4, 8, 12, 16, 36, 64, 128}) check({1, 2, d, 7, 33, 1.0f / std::sqrt(float(d))}, seed++);
+}
+
+// head_dim not a multiple of 4 (run on head-padded copies) and heads over 128 (one query row per invocation,
+// up to 64 vec4 accumulators): 3 heads, batch 2, Lq ≠ Lk; operands at odd column offsets of wider rows (padded
+// dims) and the output inside wider rows; with bias and mask; fused QKV; scale 1/sqrt(D) and 1.
+TEST_F(AttentionTest, EveryHeadDimUpTo256) {
+  uint32_t seed = 200;
+  for (int64_t d : {1, 2, 3, 5, 6, 7, 13, 130, 255, 256}) {
+    const float inv_sqrt = 1.0f / std::sqrt(float(d));
+    const bool aligned = d % 4 == 0;  // 256: in place, offsets must stay multiples of 4
+    Case plain{2, 3, d, 7, 11, inv_sqrt};
+    plain.pad_columns = aligned ? 4 : 3;
+    plain.out_offset = aligned ? 4 : 5;
+    plain.out_extra = aligned ? 8 : 7;
+    Case biased{2, 3, d, 7, 11, 1.0f, true, true};  // T5-like: unscaled, relative bias, key mask
+    biased.pad_columns = aligned ? 0 : 1;
+    Case fused{2, 3, d, 11, 11, inv_sqrt, false, true, true};
+    fused.out_offset = aligned ? 0 : 1;
+    fused.out_extra = aligned ? 0 : 2;
+    Case fused_bias{2, 3, d, 9, 9, 1.0f, true, false, true};
+    double worst[4] = {};
+    const Case* cases[4] = {&plain, &biased, &fused, &fused_bias};
+    for (int i = 0; i < 4; ++i) worst[i] = check(*cases[i], seed++);
+    std::cout << "head_dim " << d << ": max error " << worst[0] << " (strided), " << worst[1] << " (bias + mask), "
+              << worst[2] << " (fused + mask), " << worst[3] << " (fused + bias)\n";
+  }
+}
+
+// Every head_dim from 1 to 24 and a few odd ones above (small shapes, odd offsets and strides everywhere).
+TEST_F(AttentionTest, HeadDimSweep) {
+  uint32_t seed = 300;
+  double worst = 0;
+  for (int64_t d = 1; d <= 24; ++d) {
+    Case c{2, 2, d, 5, 6, 1.0f / std::sqrt(float(d)), d % 3 == 0, d % 2 == 0};
+    c.pad_columns = d % 4 ? d % 5 : 4;
+    c.out_offset = d % 4 ? 3 : 0;
+    c.out_extra = d % 4 ? 6 : 0;
+    worst = std::max(worst, check(c, seed++));
+  }
+  for (int64_t d : {33, 61, 66, 127, 129, 131, 190, 253}) {
+    Case c{1, 2, d, 3, 5, 1.0f / std::sqrt(float(d)), false, true};
+    c.pad_columns = d % 4 ? 1 : 0;
+    worst = std::max(worst, check(c, seed++));
+  }
+  std::cout << "head_dim sweep: max error " << worst << "\n";
+}
+
+// Padded heads with the head-major workspace (sized for the padded head_dim) and with other register blockings.
+TEST_F(AttentionTest, PaddedHeadDimWorkspaceAndBlockings) {
+  Case ws{2, 3, 6, 9, 21, 0.4f, true, true};
+  ws.workspace = true;
+  ws.pad_columns = 2;
+  std::cout << "head_dim 6, workspace: max error " << check(ws, 400) << "\n";
+  for (uint32_t rows : {1u, 3u}) {
+    Case c{2, 2, 130, 70, 13, 1.0f / std::sqrt(130.0f), true, true};
+    c.rows_per_invocation = rows;
+    std::cout << "head_dim 130, " << rows << " rows per invocation: max error " << check(c, 410 + rows) << "\n";
+  }
 }
 
 TEST_F(AttentionTest, OddLengthsAndBatches) {
@@ -167,7 +247,10 @@ TEST_F(AttentionTest, RejectsBadLayouts) {
   EXPECT_THROW(run(s, {t, 2, 32}), Error);                 // offset not a multiple of 4
   EXPECT_THROW(run(s, {t, 16, 32}), Error);                // columns past the row
   EXPECT_THROW(run({1, 2, 16, 5, 4}, {t}), Error);          // too few rows
-  EXPECT_THROW(run({1, 2, 6, 4, 4}, {t}), Error);           // head_dim not a multiple of 4
+  EXPECT_THROW(run({1, 2, 6, 4, 4}, {t, 21, 32}), Error);   // head_dim 6 (padded, any offset): columns past the row
+  EXPECT_THROW(run({1, 2, 6, 4, 4}, {t, -1, 32}), Error);   // negative offset
+  expect_error([&] { run({1, 2, 0, 4, 4}, {t}); }, {"head_dim 0", "from 1 to 256"});
+  expect_error([&] { run({1, 1, 257, 4, 4}, {t}); }, {"head_dim 257", "from 1 to 256"});
   EXPECT_THROW(run({1, 2, 16, 4, 0}, {t}), Error);          // no keys
   Tensor small = Tensor::zeros(ctx(), {10}, DType::f32);
   AttentionOptions opt;

@@ -64,7 +64,7 @@ TEST(ShaderPortability, NoEmbeddedShaderUsesCombinedTexelBufferSamplers) {
 TEST(ShaderPortability, ConvertedShadersKeepUniformTexelBufferBindings) {
   struct Expect { const char* shader; std::vector<uint32_t> texel_bindings; };
   const Expect expects[] = {
-      {"nn/attention", {0, 1, 2, 4, 5}}, {"nn/attention_pack", {0, 1}}, {"linalg/linear", {0, 1}},
+      {"nn/attention", {0, 1, 2, 4, 5}}, {"nn/attention_pack", {0, 1}}, {"nn/attention_pad", {0}}, {"linalg/linear", {0, 1}},
       {"linalg/linear_nosubgroup", {0, 1}}, {"nn/eltwise_binary_tex4", {0, 1}}, {"nn/eltwise_affine_tex4", {0, 1, 2}},
       {"nn/eltwise_unary_tex4", {0}}, {"nn/permute_tex4", {0}}, {"nn/concat_copy_tex4", {0}},
   };

@@ -43,8 +43,23 @@ struct SplitCase {
 int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
 // Dispatches a split plan records: per batch element and head group, the repack chunks and the
-// query-row × key chunks.
+// query-row × key chunks. A head-padded call: its copies, plus per group (all of one size here) the
+// attention of that group on the padded copies (one dispatch, plus the repack with a workspace, when that
+// attention is not split itself: head_group 0).
 int64_t planned_dispatches(const SplitCase& c, const AttentionSplit& p) {
+  if (p.padded_head_dim) {
+    EXPECT_EQ(c.batch % p.pad_batch, 0);
+    EXPECT_EQ(c.heads % p.pad_heads, 0);
+    EXPECT_EQ(c.q_len % p.pad_q_rows, 0);
+    SplitCase g = c;
+    g.batch = p.pad_batch;
+    g.heads = p.pad_heads;
+    g.q_len = p.pad_q_rows;
+    AttentionSplit inner = p;
+    inner.padded_head_dim = 0;
+    const int64_t groups = (c.batch / p.pad_batch) * (c.heads / p.pad_heads) * (c.q_len / p.pad_q_rows);
+    return p.pad_copies + groups * (p.head_group ? planned_dispatches(g, inner) : 1 + (c.workspace ? 1 : 0));
+  }
   const int64_t pack = p.repack ? ceil_div(c.kv_len, p.pack_rows) : 0;
   return c.batch * ceil_div(c.heads, p.head_group) * (pack + ceil_div(c.q_len, p.q_rows) * ceil_div(c.kv_len, p.keys));
 }
@@ -132,8 +147,16 @@ class SplitAttentionTest : public GpuTest {
                                                              c.mask ? &mask : nullptr);
     const double tol = 2e-5 + 2e-5 * vmax;
     size_t bad = 0;
-    for (size_t i = 0; i < got.size() && i < ref.size(); ++i) bad += !(std::fabs(double(got[i]) - ref[i]) <= tol);
+    double worst = 0;
+    for (size_t i = 0; i < got.size() && i < ref.size(); ++i) {
+      const double e = std::fabs(double(got[i]) - ref[i]);
+      bad += !(e <= tol);
+      worst = std::max(worst, e);
+    }
     EXPECT_EQ(bad, 0u) << what << ": elements off the reference by more than " << tol;
+    if (plan.padded_head_dim)
+      std::cout << what << ": " << split_dispatches << " dispatches (" << plan.pad_copies << " copies), max error "
+                << worst << "\n";
     return plan;
   }
 };
@@ -185,6 +208,45 @@ TEST_F(SplitAttentionTest, GridLimits) {
   check({65, 1, 4, 5, 3, false, false, true, false, 0, "groups=64"}, 51);
   const AttentionSplit rows = check({1, 1, 4, 4100, 5, false, false, false, false, 1, "groups=64"}, 52);
   EXPECT_LT(rows.q_rows, 4100);
+}
+
+// Head-padded calls (head_dim 6, 5, 7: q, k, v copied with each head widened to 8 columns, the output
+// copied back into the first columns of each head). Under 2 KiB bindings the copies of 37 token rows go in
+// chunks of rows (more than the 4 copies of an unsplit call) and the attention on the padded copies splits
+// as in (a)-(c); under 300 texels the R32F source windows of the copies are the limit; under 64 workgroups
+// per grid dimension the copies' grids (at most 64·64·64 elements each: 70000 rows × 2 heads of 4 padded
+// columns take 3 dispatches, 70000 × 2 × 3 back take 2).
+TEST_F(SplitAttentionTest, PaddedHeadDimCopies) {
+  const AttentionSplit p = check({2, 3, 6, 37, 29, false, true, true, false, 0, "binding=2KiB"}, 60);
+  EXPECT_EQ(p.padded_head_dim, 8);
+  EXPECT_GT(p.pad_copies, 4);
+  EXPECT_EQ(p.pad_batch, 2) << "the padded copies fit one allocation: one group";
+  const AttentionSplit pf = check({2, 3, 5, 37, 37, true, true, true, false, 0, "binding=2KiB"}, 61);  // fused
+  EXPECT_GT(pf.pad_copies, 4);
+  const AttentionSplit pw = check({2, 3, 7, 37, 37, true, false, true, true, 0, "binding=2KiB"}, 62);  // workspace
+  EXPECT_GT(pw.pad_copies, 4);
+  const AttentionSplit pt = check({2, 3, 6, 37, 29, false, false, false, false, 0, "texels=300"}, 63);
+  EXPECT_GT(pt.pad_copies, 4);
+  const AttentionSplit pg = check({1, 2, 3, 70000, 5, false, false, true, false, 1, "groups=64"}, 64);
+  EXPECT_GE(pg.pad_copies, 3 + 1 + 1 + 2);  // exactly that unless DVS_LIMITS cuts the copies further
+}
+
+// The padded copies of the whole call do not fit one allocation (each is one Recorder scratch; head_dim 255
+// padded to 256: 1 KiB per token row and head) under 64 KiB allocations: groups of batch elements (20 rows
+// × 3 heads of one batch element fit), of heads (40 rows: one head), of query rows of one head (126 query
+// rows, 63 at a time: 64 KiB less the 256 B alignment room; the head's 16 keys fit). Each group's attention runs unsplit on its copies, with its
+// bias rows and mask rows.
+TEST_F(SplitAttentionTest, PaddedHeadDimGroups) {
+  const AttentionSplit pb = check({2, 3, 255, 20, 20, false, true, true, false, 0, "alloc=64KiB"}, 70);
+  EXPECT_EQ(pb.pad_batch, 1);
+  EXPECT_EQ(pb.pad_heads, 3);
+  const AttentionSplit ph = check({2, 3, 255, 40, 40, true, true, true, false, 0, "alloc=64KiB"}, 71);
+  EXPECT_EQ(ph.pad_batch, 1);
+  EXPECT_EQ(ph.pad_heads, 1);
+  const AttentionSplit pq = check({2, 3, 255, 126, 16, false, true, true, false, 0, "alloc=64KiB"}, 72);
+  EXPECT_EQ(pq.pad_heads, 1);
+  EXPECT_EQ(pq.pad_q_rows, 63);
+  EXPECT_LE(pq.scratch_bytes, 4u * 64 * 1024) << "four padded regions of at most one allocation each";
 }
 
 // The real sizes under lavapipe's limits (128 MiB bindings), planned only (nothing allocated: the operands

@@ -244,7 +244,8 @@ PlanModel plan_model_from_folder(const std::filesystem::path& dir) {
 
 // ---- stages ---------------------------------------------------------------------------------------------------
 
-StageMemory plan_t5_stage(const json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch, int64_t len) {
+StageMemory plan_t5_stage(const json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch, int64_t len,
+                          const vk::DeviceCaps* caps) {
   const auto cfg = models::T5EncoderConfig::from_json(t5_config);
   StageMemory m;
   m.name = "t5_encode";
@@ -252,6 +253,17 @@ StageMemory plan_t5_stage(const json& t5_config, bool embedding_16bit, uint64_t 
   m.working = models::T5Encoder::arena_bytes(cfg, embedding_16bit, alignment, batch, len);
   m.io = tensor_bytes({batch, len}, alignment) /* ids, i32 */ + tensor_bytes({cfg.num_heads, len, len}, alignment) /* bias */ +
          tensor_bytes({batch, len, cfg.d_model}, alignment) /* last_hidden_state */;
+  // Attention scratch of the recording: a d_kv that is not a multiple of 4 is copied head-padded (under any
+  // limits); split calls (under `caps`) repack K/V and carry running state.
+  if (caps || cfg.d_kv % 4 != 0) {
+    vk::DeviceCaps unlimited;  // no limits named: nothing splits, only the padded copies
+    unlimited.max_storage_buffer_range = unlimited.max_texel_buffer_elements = 1ull << 40;
+    unlimited.max_memory_allocation_size = 1ull << 50;
+    unlimited.min_storage_buffer_offset_alignment = unlimited.min_texel_buffer_offset_alignment = alignment;
+    for (uint32_t& g : unlimited.max_workgroup_count) g = UINT32_MAX;
+    m.io += ops::attention_split_plan_fused(caps ? *caps : unlimited, {batch, cfg.num_heads, cfg.d_kv, len, len}, true)
+                .scratch_bytes;
+  }
   consider(m, {cfg.vocab_size, cfg.d_model}, embedding_16bit ? 2 : 4, "token embedding");
   consider(m, {cfg.d_ff, cfg.d_model}, embedding_16bit ? 2 : 4, "FFN weight");
   consider(m, {batch, len, cfg.d_ff}, 4, "FFN activation");
@@ -342,7 +354,6 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   // Stages, untiled.
   const int64_t Fl = plan.latent_frames, Hl = plan.latent_height, Wl = plan.latent_width, L = plan.text_len;
   const bool emb16 = model.assumed_dtype_bytes == 2;
-  plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L));
   // The limits the calls split under, where the request names them (the attention's scratch follows them).
   std::optional<vk::DeviceCaps> caps;
   if (req.limits) {
@@ -354,6 +365,7 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     caps->min_storage_buffer_offset_alignment = caps->min_texel_buffer_offset_alignment = req.alignment;
   }
   const vk::DeviceCaps* limits = caps ? &*caps : nullptr;
+  plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits));
   StageMemory cfg2 =
       plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
   cfg2.name = "transformer_cfg";

@@ -105,8 +105,10 @@ struct MemoryPlan {
 MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& request);
 
 // The stage figures on their own (tests compare them with live allocations).
+// `caps` as for the transformer below; a d_kv that is not a multiple of 4 adds the attention's padded copies
+// (ops_attention.hpp) in any case.
 StageMemory plan_t5_stage(const nlohmann::json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch,
-                          int64_t len);
+                          int64_t len, const vk::DeviceCaps* caps = nullptr);
 // `caps`: the limits the call runs under (the attention's split scratch depends on them); none: unsplit.
 StageMemory plan_transformer_stage(const nlohmann::json& config, uint64_t alignment, int64_t batch, int64_t latent_frames,
                                    int64_t latent_height, int64_t latent_width, int64_t text_len, int weight_bytes = 2,

@@ -14,7 +14,8 @@ namespace {
 // keys taken `keys` at a time). On CPU devices (lavapipe) every texel fetch is a per-lane loop, so each
 // fetched K/V chunk should feed several rows: about 512 floats of q rows and accumulators per invocation
 // measured best (more rows spill more than they save; keys 4 and 8 per block run alike, 4 compiles faster).
-// GPUs keep one row per invocation (registers are the limit there).
+// GPUs keep one row per invocation (registers are the limit there). Heads over 128 (up to 64 vec4s of q and
+// of accumulators per row) keep one row per invocation everywhere.
 struct Blocking {
   uint32_t rows, keys;
 };
@@ -22,11 +23,16 @@ Blocking blocking_for(const vk::DeviceCaps& caps, int64_t head_dim) {
   if (caps.type != VK_PHYSICAL_DEVICE_TYPE_CPU) return {1, 4};
   if (head_dim <= 16) return {8, 4};
   if (head_dim <= 64) return {4, 4};
-  return {2, 4};
+  if (head_dim <= 128) return {2, 4};
+  return {1, 4};
 }
+constexpr int64_t kMaxHeadDim = 256;
 constexpr uint32_t kWorkgroupSize = 64;
 constexpr VkDeviceSize kTexelOffsetAlign = 256;  // the largest minTexelBufferOffsetAlignment Vulkan allows
 constexpr uint32_t kScratchSlot = 2;  // Recorder::scratch slots 2 (K/V) and 3 (state); the convolutions use 0 and 1
+constexpr uint32_t kPadSlot = 4;      // slots 4..7: head-padded q, k, v and out (head_dim not a multiple of 4)
+
+int64_t padded_dim(int64_t head_dim) { return (head_dim + 3) / 4 * 4; }
 
 [[noreturn]] void fail(const std::string& what) { throw Error("internal: attention: " + what); }
 
@@ -52,13 +58,20 @@ struct Bound {
 };
 
 // Validates an operand against the shape: defined f32, aligned columns inside the row stride, large enough.
-void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width) {
+// `vec4`: read or written in place as vec4s (head_dim a multiple of 4); else only copied element-wise.
+void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
+                   bool vec4 = true) {
   if (!a.t.defined()) fail(std::string(name) + " is not given");
   expect_dtype("attention", name, a.t, DType::f32);
   // Read and written as vec4s from (aligned-down) windows: the shift must be whole vec4s.
-  if (a.t.buffer().offset % 16) fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
+  if (vec4 && a.t.buffer().offset % 16)
+    fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
+  if (a.t.buffer().offset % 4) fail(std::string(name) + " starts at a byte offset that is not a multiple of 4");
   int64_t stride = a.row_stride ? a.row_stride : width;
-  if (a.column_offset < 0 || a.column_offset % 4 || stride % 4)
+  if (a.column_offset < 0 || stride < 0)
+    fail(std::string(name) + ": negative column offset " + std::to_string(a.column_offset) + " or row stride " +
+         std::to_string(stride));
+  if (vec4 && (a.column_offset % 4 || stride % 4))
     fail(std::string(name) + ": column offset " + std::to_string(a.column_offset) + " and row stride " +
          std::to_string(stride) + " must be non-negative multiples of 4");
   if (a.column_offset + width > stride)
@@ -301,31 +314,152 @@ bool fits_whole(const vk::DeviceCaps& caps, const AttentionShape& s, const Atten
   return true;
 }
 
+// ---- head_dim not a multiple of 4: padded copies (shaders/nn/attention_pad.comp) ----
+
+// A head-padded call runs in groups: batch elements × heads × query rows whose padded copies each fit one
+// allocation (Recorder scratch slots kPadSlot..kPadSlot + 3).
+struct PadPlan {
+  int64_t dp = 0;                            // padded head_dim; 0: no padding
+  int64_t batch = 0, heads = 0, q_rows = 0;  // one group
+  int64_t copies = 0;                        // copy dispatches of the whole call
+  uint64_t bytes = 0;                        // the four padded regions of one (the largest) group
+};
+
+struct PadPush {
+  uint32_t count, heads, d, dp, pad;
+  uint32_t src_off, src_stride, dst_off, dst_stride;
+};
+
+// The most heads × token rows one copy dispatch may cover: the source window (R32F texels) and the
+// destination window (storage) each within one binding (with the worst-case alignment shift), the
+// elements written within one grid. Widths are columns per head, strides elements per token row.
+struct CopyChunk {
+  int64_t heads = 0, rows = 0;
+};
+CopyChunk copy_chunk(const vk::DeviceCaps& caps, int64_t rows, int64_t heads, int64_t src_stride, int64_t src_w,
+                     int64_t dst_stride, int64_t dst_w) {
+  const int64_t slack = int64_t(binding_alignment(caps)) / 4;
+  const int64_t cap_src = int64_t(binding_capacity(caps, 4) / 4) - slack;
+  const int64_t cap_dst = int64_t(binding_capacity(caps, 0) / 4) - slack;
+  const int64_t items = int64_t(std::min<uint64_t>(max_groups_1d(caps) * kWorkgroupSize, UINT32_MAX));
+  CopyChunk c;
+  c.heads = std::min({heads, cap_src / src_w, cap_dst / dst_w, items / dst_w});
+  if (c.heads < 1)
+    fail("the padding copy of one head (" + std::to_string(src_w) + " -> " + std::to_string(dst_w) +
+         " columns) does not fit the limits in force");
+  c.rows = std::min({rows, div_floor_pos(cap_src - c.heads * src_w, src_stride) + 1,
+                     div_floor_pos(cap_dst - c.heads * dst_w, dst_stride) + 1, items / (c.heads * dst_w)});
+  return c;
+}
+int64_t copy_dispatches(const CopyChunk& c, int64_t rows, int64_t heads) {
+  return (heads + c.heads - 1) / c.heads * ((rows + c.rows - 1) / c.rows);
+}
+
+// fn(b0, bn, h0, hn, q0, qn) for every group of a padded call.
+template <class F>
+void for_each_group(const AttentionShape& s, const PadPlan& pp, F&& fn) {
+  for_each_chunk(s.batch, pp.batch, [&](int64_t b0, int64_t bn) {
+    for_each_chunk(s.heads, pp.heads, [&](int64_t h0, int64_t hn) {
+      for_each_chunk(s.q_len, pp.q_rows, [&](int64_t q0, int64_t qn) { fn(b0, bn, h0, hn, q0, qn); });
+    });
+  });
+}
+
+// The query (and output) token rows of a group as runs of consecutive rows: fn(model_row0, padded_row0, n).
+// One run of bn·Lq rows when the group has every query row, else one run of qn rows per batch element.
+template <class F>
+void for_each_q_run(int64_t b0, int64_t bn, int64_t q_len, int64_t q0, int64_t qn, F&& fn) {
+  if (qn == q_len) return fn(b0 * q_len, int64_t(0), bn * q_len);
+  for (int64_t b = 0; b < bn; ++b) fn((b0 + b) * q_len + q0, b * qn, qn);
+}
+
+PadPlan plan_pad(const vk::DeviceCaps& caps, const AttentionShape& s, const Geometry& g) {
+  const int64_t D = s.head_dim, Dp = padded_dim(D), B = s.batch, H = s.heads, Lq = s.q_len, Lk = s.kv_len;
+  const int64_t align = int64_t(binding_alignment(caps));
+  // Each region starts kTexelOffsetAlign-aligned inside its scratch (so that the plan of the attention on it,
+  // made on placeholders at offset 0, is what runs): up to that much more per allocation.
+  const int64_t alloc =
+      int64_t(std::min<uint64_t>(caps.max_memory_allocation_size, INT64_MAX / 2)) - int64_t(kTexelOffsetAlign);
+  const int64_t per_head = std::max(Lq, Lk) * Dp * 4;  // bytes of the larger padded region, one head and batch
+  PadPlan pp;
+  pp.dp = Dp;
+  if (H * per_head <= alloc) {  // every head: as many batch elements as fit
+    pp.batch = std::min(B, alloc / (H * per_head));
+    pp.heads = H;
+    pp.q_rows = Lq;
+  } else if (per_head <= alloc) {  // one batch element, a head group
+    pp.batch = 1;
+    pp.heads = alloc / per_head;
+    pp.q_rows = Lq;
+  } else {  // one head of one batch element, query rows in chunks (the bias rows of one head stay contiguous)
+    if (Lk * Dp * 4 > alloc)
+      fail("the keys of one head padded to " + std::to_string(Dp) + " columns (" + std::to_string(Lk * Dp * 4) +
+           " bytes) do not fit one allocation of " + std::to_string(alloc) + " bytes");
+    pp.batch = 1;
+    pp.heads = 1;
+    pp.q_rows = std::min(Lq, alloc / (Dp * 4));
+  }
+  // Evened out: the same number of groups, less scratch (48 heads by at most 29: 24 + 24, not 29 + 19).
+  pp.batch = div_up(B, div_up(B, pp.batch));
+  pp.heads = div_up(H, div_up(H, pp.heads));
+  pp.q_rows = div_up(Lq, div_up(Lq, pp.q_rows));
+  auto region = [&](int64_t elems) {
+    return uint64_t((elems * 4 + int64_t(kTexelOffsetAlign) + align - 1) / align * align);
+  };
+  const int64_t W = pp.heads * Dp;
+  pp.bytes = 2 * region(pp.batch * pp.q_rows * W) + 2 * region(pp.batch * Lk * W);
+  for_each_group(s, pp, [&](int64_t, int64_t bn, int64_t, int64_t hn, int64_t, int64_t qn) {
+    const int64_t w = hn * Dp;
+    for_each_q_run(0, bn, Lq, 0, qn, [&](int64_t, int64_t, int64_t n) {
+      pp.copies += copy_dispatches(copy_chunk(caps, n, hn, g.qs, D, w, Dp), n, hn);   // q in
+      pp.copies += copy_dispatches(copy_chunk(caps, n, hn, w, Dp, g.os, D), n, hn);   // out back
+    });
+    for (int64_t kvs : {g.ks, g.vs})  // k, v in
+      pp.copies += copy_dispatches(copy_chunk(caps, bn * Lk, hn, kvs, D, w, Dp), bn * Lk, hn);
+  });
+  return pp;
+}
+
+// The options of one group's padded call: the bias rows of its heads (and query rows), the mask rows of its
+// batch elements. `bias` and `mask` hold the views the returned options point to.
+AttentionOptions group_options(const AttentionOptions& opt, const AttentionShape& s, int64_t b0, int64_t bn,
+                               int64_t h0, int64_t hn, int64_t q0, int64_t qn, Tensor& bias, Tensor& mask) {
+  AttentionOptions o = opt;
+  if (opt.bias) {
+    bias = *opt.bias;
+    if (hn < s.heads) bias = bias.rows(h0, hn);
+    if (qn < s.q_len) {  // one head at a time (plan_pad)
+      if (hn != 1) fail("query rows split over a group of several heads");
+      bias = bias.reshape({s.q_len, s.kv_len}).rows(q0, qn).reshape({1, qn, s.kv_len});
+    }
+    o.bias = &bias;
+  }
+  if (opt.key_mask) {
+    mask = bn < s.batch ? opt.key_mask->rows(b0, bn) : *opt.key_mask;
+    o.key_mask = &mask;
+  }
+  return o;
+}
+
+// A tensor over a placeholder buffer handle: planning reads sizes and offsets, never binds.
+Tensor placeholder(const Shape& shape) {
+  vk::BufferView v;
+  v.buffer = reinterpret_cast<VkBuffer>(uintptr_t(1));
+  v.size = VkDeviceSize(std::max<int64_t>(shape_numel(shape), 1)) * 4;
+  return Tensor::on(v, shape, DType::f32);
+}
+
+// ---- validation and planning ----
+
 // Validates a call and decides how it runs.
 struct Prepared {
   Blocking blk{1, 4};
   Geometry geo{};
   AttentionSplit split;
+  PadPlan pad;  // pad.dp > 0: head_dim is padded (pad.copies == 0 when there is nothing to do)
 };
-Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
-                 const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
-                 const AttentionOptions& opt) {
-  if (s.head_dim < 4 || s.head_dim > 128 || s.head_dim % 4)
-    fail("head_dim " + std::to_string(s.head_dim) + " is not a multiple of 4 in [4, 128]");
-  if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
-  if (s.kv_len == 0 && s.batch > 0 && s.q_len > 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
-  Prepared pr;
-  pr.blk = blocking_for(caps, s.head_dim);
-  if (opt.rows_per_invocation) {
-    if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
-    pr.blk.rows = opt.rows_per_invocation;
-  }
-  if (s.batch == 0 || s.q_len == 0) return pr;
-  const int64_t width = s.heads * s.head_dim;
-  check_operand("q", q, s.batch, s.q_len, width);
-  check_operand("k", k, s.batch, s.kv_len, width);
-  check_operand("v", v, s.batch, s.kv_len, width);
-  check_operand("out", out, s.batch, s.q_len, width);
+
+void check_options(const AttentionShape& s, const AttentionOptions& opt) {
   if (opt.bias) {
     expect_dtype("attention", "bias", *opt.bias, DType::f32);
     expect_shape("attention", "bias", *opt.bias, {s.heads, s.q_len, s.kv_len});
@@ -341,6 +475,33 @@ Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const Atte
       fail("workspace " + opt.workspace->describe() + " is smaller than the " +
            std::to_string(attention_workspace_elements(s)) + " elements needed");
   }
+}
+
+void check_sizes(const AttentionShape& s) {
+  if (s.head_dim < 1 || s.head_dim > kMaxHeadDim)
+    fail("head_dim " + std::to_string(s.head_dim) + " is not supported: it must be from 1 to " +
+         std::to_string(kMaxHeadDim) + " (the kernel keeps a query row's head in registers)");
+  if (s.batch < 0 || s.heads < 1 || s.q_len < 0 || s.kv_len < 0) fail("negative or zero size");
+  if (s.kv_len == 0 && s.batch > 0 && s.q_len > 0) fail("no keys (kv_len = 0): softmax over nothing is undefined");
+}
+
+// A call whose head_dim is a multiple of 4: the kernel reads the operands in place.
+Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
+                         const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                         const AttentionOptions& opt) {
+  Prepared pr;
+  pr.blk = blocking_for(caps, s.head_dim);
+  if (opt.rows_per_invocation) {
+    if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
+    pr.blk.rows = opt.rows_per_invocation;
+  }
+  if (s.batch == 0 || s.q_len == 0) return pr;
+  const int64_t width = s.heads * s.head_dim;
+  check_operand("q", q, s.batch, s.q_len, width);
+  check_operand("k", k, s.batch, s.kv_len, width);
+  check_operand("v", v, s.batch, s.kv_len, width);
+  check_operand("out", out, s.batch, s.q_len, width);
+  check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
   pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
   const AttentionOperand* all[4] = {&q, &k, &v, &out};
@@ -349,39 +510,56 @@ Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const Atte
   return pr;
 }
 
-}  // namespace
-
-AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
-                                    const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
-                                    const AttentionOptions& options) {
-  return prepare(caps, shape, q, k, v, out, options).split;
-}
-
-AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& s) {
-  // Placeholder views at offset 0 with the operands' sizes: planning reads sizes and offsets, never binds.
+Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
+                 const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                 const AttentionOptions& opt) {
+  check_sizes(s);
+  if (s.head_dim % 4 == 0) return prepare_aligned(caps, s, q, k, v, out, opt);
+  if (opt.rows_per_invocation > 16) fail("rows_per_invocation must be at most 16");
+  Prepared pr;
+  pr.pad.dp = padded_dim(s.head_dim);
+  if (s.batch == 0 || s.q_len == 0) return pr;
   const int64_t width = s.heads * s.head_dim;
-  auto placeholder = [](const Shape& shape) {
-    vk::BufferView v;
-    v.buffer = reinterpret_cast<VkBuffer>(uintptr_t(1));
-    v.size = VkDeviceSize(shape_numel(shape)) * 4;
-    return Tensor::on(v, shape, DType::f32);
-  };
-  const Tensor qkv = placeholder({s.batch, s.q_len, 3 * width}), out = placeholder({s.batch, s.q_len, width});
-  return attention_split_plan(caps, s, fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
-                              fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
-                              fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out});
+  check_operand("q", q, s.batch, s.q_len, width, false);
+  check_operand("k", k, s.batch, s.kv_len, width, false);
+  check_operand("v", v, s.batch, s.kv_len, width, false);
+  check_operand("out", out, s.batch, s.q_len, width, false);
+  check_options(s, opt);
+  auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
+  pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
+  pr.pad = plan_pad(caps, s, pr.geo);
+  const PadPlan& pp = pr.pad;
+  // The first (largest) group's attention, planned on placeholders laid out as its padded scratch.
+  const AttentionShape gs{pp.batch, pp.heads, pp.dp, pp.q_rows, s.kv_len};
+  const int64_t W = pp.heads * pp.dp;
+  Tensor bias, mask;
+  const AttentionOptions go = group_options(opt, s, 0, pp.batch, 0, pp.heads, 0, pp.q_rows, bias, mask);
+  const Prepared inner = prepare_aligned(caps, gs, {placeholder({gs.batch, gs.q_len, W})},
+                                         {placeholder({gs.batch, gs.kv_len, W})},
+                                         {placeholder({gs.batch, gs.kv_len, W})},
+                                         {placeholder({gs.batch, gs.q_len, W})}, go);
+  pr.blk = inner.blk;
+  pr.split = inner.split;
+  const bool one_group = pp.batch == s.batch && pp.heads == s.heads && pp.q_rows == s.q_len;
+  pr.split.whole = inner.split.whole && one_group && pp.copies == 4;
+  pr.split.scratch_bytes += pp.bytes;
+  pr.split.padded_head_dim = pp.dp;
+  pr.split.pad_batch = pp.batch;
+  pr.split.pad_heads = pp.heads;
+  pr.split.pad_q_rows = pp.q_rows;
+  pr.split.pad_copies = pp.copies;
+  return pr;
 }
 
-void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
-               const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
+// ---- recording ----
+
+// Records a call prepared by prepare_aligned (head_dim a multiple of 4, nothing empty).
+void attention_aligned(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q,
+                       const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                       const AttentionOptions& opt, const Prepared& pr) {
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
-  const Prepared pr = prepare(caps, s, q, k, v, out, opt);
-  if (s.batch == 0 || s.q_len == 0) return;
-  if (!pr.split.whole) {
-    ctx.note_split("attention");
-    return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
-  }
+  if (!pr.split.whole) return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
   const Blocking blk = pr.blk;
   const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
 
@@ -444,6 +622,103 @@ void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperan
                "attention");
 }
 
+// Copies `heads` heads of `rows` token rows between a model layout (head_dim columns per head) and the
+// head-padded one (pad: model -> padded; else padded -> model), in chunks within the limits in force.
+// Positions are elements: the first row's first head at src_first / dst_first, rows src_stride / dst_stride apart.
+void pad_copy(vk::Recorder& rec, bool pad, int64_t D, int64_t Dp, const vk::BufferView& src, int64_t src_first,
+              int64_t src_stride, const vk::BufferView& dst, int64_t dst_first, int64_t dst_stride, int64_t rows,
+              int64_t heads) {
+  vk::Context& ctx = rec.context();
+  const vk::DeviceCaps& caps = ctx.caps();
+  const uint64_t align = binding_alignment(caps);
+  const int64_t src_w = pad ? D : Dp, dst_w = pad ? Dp : D;
+  const CopyChunk c = copy_chunk(caps, rows, heads, src_stride, src_w, dst_stride, dst_w);
+  for_each_chunk(heads, c.heads, [&](int64_t h0, int64_t hn) {
+    for_each_chunk(rows, c.rows, [&](int64_t r0, int64_t rn) {
+      const Window sw = window(src, src_first + r0 * src_stride + h0 * src_w, (rn - 1) * src_stride + hn * src_w, align);
+      const Window dw = window(dst, dst_first + r0 * dst_stride + h0 * dst_w, (rn - 1) * dst_stride + hn * dst_w, align);
+      const int64_t count = rn * hn * dst_w;
+      PadPush pp{uint32_t(count),      uint32_t(hn), uint32_t(D), uint32_t(Dp),         pad ? 1u : 0u,
+                 sw.shift,             uint32_t(src_stride),      dw.shift,             uint32_t(dst_stride)};
+      const Grid g = grid_1d(caps, count, kWorkgroupSize);
+      rec.dispatch(ctx.pipelines().get("nn/attention_pad"), {vk::Binding(sw.view, VK_FORMAT_R32_SFLOAT), dw.view},
+                   &pp, sizeof pp, g.x, g.y, 1, pad ? "attention_pad" : "attention_unpad");
+    });
+  });
+}
+
+// Records a call prepared with a padded head_dim: per group, q, k, v into head-padded scratch, the attention
+// there (head_dim Dp; the logits' scale is options.scale, and the zero columns add nothing), the first D
+// columns of each head back into out.
+void attention_padded(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q,
+                      const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                      const AttentionOptions& opt, const Prepared& pr) {
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const PadPlan& pp = pr.pad;
+  const Geometry& g = pr.geo;
+  const int64_t D = s.head_dim, Dp = pp.dp, Lq = s.q_len, Lk = s.kv_len;
+  for_each_group(s, pp, [&](int64_t b0, int64_t bn, int64_t h0, int64_t hn, int64_t q0, int64_t qn) {
+    const int64_t W = hn * Dp;
+    const AttentionShape gs{bn, hn, Dp, qn, Lk};
+    // Each padded operand starts kTexelOffsetAlign-aligned, as the placeholders prepare() planned on.
+    auto scratch = [&](uint32_t i, int64_t len, const char* what) {
+      const VkDeviceSize bytes = VkDeviceSize(bn * len * W) * 4;
+      vk::BufferView view = rec.scratch(kPadSlot + i, bytes + kTexelOffsetAlign, what);
+      const VkDeviceSize lead = (kTexelOffsetAlign - view.offset % kTexelOffsetAlign) % kTexelOffsetAlign;
+      return Tensor::on(view.sub(lead, bytes), {bn, len, W}, DType::f32);
+    };
+    const Tensor tq = scratch(0, qn, "attention q (head-padded)"), tk = scratch(1, Lk, "attention k (head-padded)");
+    const Tensor tv = scratch(2, Lk, "attention v (head-padded)"), to = scratch(3, qn, "attention out (head-padded)");
+    for_each_q_run(b0, bn, Lq, q0, qn, [&](int64_t row0, int64_t prow0, int64_t n) {
+      pad_copy(rec, true, D, Dp, q.t.buffer(), row0 * g.qs + q.column_offset + h0 * D, g.qs, tq.buffer(), prow0 * W, W,
+               n, hn);
+    });
+    pad_copy(rec, true, D, Dp, k.t.buffer(), b0 * Lk * g.ks + k.column_offset + h0 * D, g.ks, tk.buffer(), 0, W, bn * Lk,
+             hn);
+    pad_copy(rec, true, D, Dp, v.t.buffer(), b0 * Lk * g.vs + v.column_offset + h0 * D, g.vs, tv.buffer(), 0, W, bn * Lk,
+             hn);
+    Tensor bias, mask;
+    const AttentionOptions go = group_options(opt, s, b0, bn, h0, hn, q0, qn, bias, mask);
+    const Prepared inner = prepare_aligned(caps, gs, {tq}, {tk}, {tv}, {to}, go);
+    attention_aligned(rec, gs, {tq}, {tk}, {tv}, {to}, go, inner);
+    for_each_q_run(b0, bn, Lq, q0, qn, [&](int64_t row0, int64_t prow0, int64_t n) {
+      pad_copy(rec, false, D, Dp, to.buffer(), prow0 * W, W, out.t.buffer(), row0 * g.os + out.column_offset + h0 * D,
+               g.os, n, hn);
+    });
+  });
+}
+
+}  // namespace
+
+AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
+                                    const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                                    const AttentionOptions& options) {
+  return prepare(caps, shape, q, k, v, out, options).split;
+}
+
+AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& s, bool bias,
+                                          bool key_mask) {
+  // Placeholder views at offset 0 with the operands' sizes: planning reads sizes and offsets, never binds.
+  const int64_t width = s.heads * s.head_dim;
+  const Tensor qkv = placeholder({s.batch, s.q_len, 3 * width}), out = placeholder({s.batch, s.q_len, width});
+  const Tensor tbias = placeholder({s.heads, s.q_len, s.kv_len}), tmask = placeholder({s.batch, s.kv_len});
+  AttentionOptions opt;
+  if (bias) opt.bias = &tbias;
+  if (key_mask) opt.key_mask = &tmask;
+  return attention_split_plan(caps, s, fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
+                              fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
+                              fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out}, opt);
+}
+
+void attention(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand& q, const AttentionOperand& k,
+               const AttentionOperand& v, const AttentionOperand& out, const AttentionOptions& opt) {
+  vk::Context& ctx = rec.context();
+  const Prepared pr = prepare(ctx.caps(), s, q, k, v, out, opt);
+  if (s.batch == 0 || s.q_len == 0) return;
+  if (!pr.split.whole) ctx.note_split("attention");  // once per call, whatever is cut
+  if (pr.pad.dp) return attention_padded(rec, s, q, k, v, out, opt, pr);
+  attention_aligned(rec, s, q, k, v, out, opt, pr);
+}
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,
                int64_t heads, const AttentionOptions& options) {
   if (q.rank() != 3 || k.rank() != 3 || v.rank() != 3 || out.rank() != 3)
@@ -458,8 +733,9 @@ void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor
 }
 
 int64_t attention_workspace_elements(const AttentionShape& s) {
-  // One batch element's K and V (the split path repacks one at a time), plus room to align both.
-  return 2 * s.heads * s.kv_len * s.head_dim + 2 * int64_t(kTexelOffsetAlign / 4);
+  // One batch element's K and V (the split path repacks one at a time), plus room to align both; a head_dim
+  // that is not a multiple of 4 is repacked padded.
+  return 2 * s.heads * s.kv_len * padded_dim(s.head_dim) + 2 * int64_t(kTexelOffsetAlign / 4);
 }
 
 bool attention_workspace_helps(const vk::DeviceCaps& caps, const AttentionShape& s) {

@@ -5,6 +5,12 @@
 // element (b, l, h, d) lives at (b·L + l)·row_stride + column_offset + h·D + d. A fused QKV GEMM output
 // [B, L, 3·H·D] is used in place by giving q, k, v as column slices of it (offsets 0, H·D, 2·H·D, row
 // stride 3·H·D). The output is written in the same layout (usually a contiguous [B, Lq, H·D]).
+//
+// head_dim: any value from 1 to 256. The kernel reads whole vec4s of each head, so a head_dim that is not a
+// multiple of 4 is padded: q, k and v are copied into recording scratch with each head widened to
+// Dp = D rounded up to 4 columns (zeros in the padding, which change neither q·k nor p·v; the scale is
+// options.scale, never derived from D), the attention runs there and the first D columns of each head are
+// copied back into out. A multiple of 4 runs in place, as always.
 #pragma once
 #include <cstdint>
 
@@ -17,14 +23,16 @@ namespace dvs::ops {
 // Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset.
 struct AttentionOperand {
   Tensor t;
-  int64_t column_offset = 0;  // elements; multiple of 4
-  int64_t row_stride = 0;     // elements between consecutive tokens; 0 = H·D (contiguous); multiple of 4
+  // Elements. Multiples of 4 (and the tensor's byte offset a multiple of 16) when head_dim is a multiple of
+  // 4; any values otherwise (the operands are then copied, see above).
+  int64_t column_offset = 0;
+  int64_t row_stride = 0;  // elements between consecutive tokens; 0 = H·D (contiguous)
 };
 
 struct AttentionShape {
   int64_t batch = 1;
   int64_t heads = 1;
-  int64_t head_dim = 64;  // any multiple of 4 from 4 to 128
+  int64_t head_dim = 64;  // any value from 1 to 256 (not a multiple of 4: padded, see above)
   int64_t q_len = 0;
   int64_t kv_len = 0;
 };
@@ -42,9 +50,9 @@ struct AttentionOptions {
   const Tensor* workspace = nullptr;
 };
 
-// Elements the caller must provide as a workspace: one batch element's K and V head-major (2·H·Lk·D) plus
-// alignment room; never more, whatever the batch. A workspace of 2·B·H·Lk·D repacks the whole batch at once
-// when it fits one binding.
+// Elements the caller must provide as a workspace: one batch element's K and V head-major (2·H·Lk·D, with D
+// rounded up to a multiple of 4) plus alignment room; never more, whatever the batch. A workspace of
+// 2·B·H·Lk·D repacks the whole batch at once when it fits one binding.
 int64_t attention_workspace_elements(const AttentionShape& shape);
 
 // Whether giving a workspace is expected to pay on this device: CPU devices with several heads and long
@@ -68,18 +76,31 @@ void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOp
 // head's keys, strided through the token-major rows, do not fit a binding. Without a workspace, the repack
 // goes to Recorder scratch of at most 2 bindings (within the allocation limit): `scratch_bytes` (with the
 // running state of split keys), for memory planners.
+//
+// A head_dim that is not a multiple of 4 (padded_head_dim > 0) runs as: padded copies of q, k, v (Recorder
+// scratch, one allocation each, `scratch_bytes` counts them too), the attention on those, the copy back into
+// out. When the padded copies of the whole call do not fit one allocation each, the call runs in groups of
+// `pad_batch` batch elements × `pad_heads` heads × `pad_q_rows` query rows (query rows are cut only one head
+// at a time); each copy is cut into chunks that fit one binding and one grid. `pad_copies`: the copy
+// dispatches of the whole call (4 when nothing is cut). The fields above then describe the attention of one
+// (the first, largest) group on its padded operands; `whole` says that nothing at all is cut: one group,
+// 4 copies, one attention dispatch (plus a repack with a workspace).
 struct AttentionSplit {
   bool whole = true, repack = false;
   int64_t head_group = 0, q_rows = 0, keys = 0, pack_rows = 0;
   uint64_t scratch_bytes = 0;
+  int64_t padded_head_dim = 0;  // 0: head_dim is a multiple of 4, no padding
+  int64_t pad_batch = 0, pad_heads = 0, pad_q_rows = 0, pad_copies = 0;
 };
 AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
                                     const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
                                     const AttentionOptions& options = {});
 
-// The same for the transformer's layout (q|k|v fused [B, Lq, 3·H·D], out contiguous [B, Lq, H·D], Lq = Lk),
-// from shapes alone: memory planners add its scratch_bytes to a call's figure.
-AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& shape);
+// The same for the transformer's and T5's layout (q|k|v fused [B, Lq, 3·H·D], out contiguous [B, Lq, H·D],
+// Lq = Lk; T5 with a bias [H, Lq, Lk] and a key mask [B, Lk]), from shapes alone: memory planners add its
+// scratch_bytes to a call's figure.
+AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& shape, bool bias = false,
+                                          bool key_mask = false);
 
 // Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,
