@@ -150,7 +150,9 @@ TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
   const auto& c = test::vda_case("e2e");
   const double atol = c.at("tolerance").at("atol"), rtol = c.at("tolerance").at("rtol");
   VdaModel model = VdaModel::load(ctx(), test::vda_checkpoint_path());
-  model.set_micro_batch(3);  // chunks that do not divide the window: the chunking must not matter
+  model.set_micro_batch(3);                // chunks that do not divide the window: the chunking must not matter
+  model.set_temporal_chunk_positions(5);   // nor the temporal modules' chunks of positions
+  model.set_encoder_chunk_frames(7);       // nor the encoder's chunks of frames
   const HostTensor clip = pack_clip();
   const HostTensor indices = read_npy(vda_golden_path() / "e2e" / "window_frame_indices.npy");
   const HostTensor windows = read_npy(vda_golden_path() / "e2e" / "window_depth.npy");

@@ -6,6 +6,7 @@
 #include "args.hpp"
 #include "commands.hpp"
 #include "dvs/error.hpp"
+#include "models/vda_model.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
@@ -17,6 +18,7 @@ namespace dvs::cli {
 static const char* kPlanHelp =
     "usage: dvs plan --model DIR|cogvideox-5b-i2v [--frames 49] [--height 480] [--width 720] [--budget SIZE]\n"
     "                [--device N|NAME | --limits PROFILE] [--alignment 256] [--json]\n"
+    "                [--depth-model FILE|vits|vitb|vitl [--depth-input-size 518] [--video-size HxW]]\n"
     "\n"
     "Plans device memory from the config.json files (safetensors headers are read for the stored weight bytes\n"
     "when present; no tensor data is read, no device is opened). Prints the weight bytes per component, the\n"
@@ -38,11 +40,18 @@ static const char* kPlanHelp =
     "                     specification's minimums; DVS_LIMITS lowers them); without --budget, the profile's memory\n"
     "  --alignment N      the allocator's alignment in bytes (default 256; dvs info shows the device's limits)\n"
     "  --json             one JSON object instead of the table\n"
+    "  --depth-model M    include the depth estimate of run --depth-model (it runs first, alone): a checkpoint\n"
+    "                     (only its tensor list is read) or a released size vits, vitb, vitl\n"
+    "  --depth-input-size N   its network input's short side (default 518)\n"
+    "  --video-size HxW   the video's frames, which the depth is estimated at (default: the clip size)\n"
     "\n"
     "Exit status 1 when a budget, --device or --limits is given and no setting runs within them.\n";
 
 int run_plan(const std::vector<std::string>& argv) {
-  Args a("plan", argv, {"model", "frames", "height", "width", "budget", "alignment", "device", "limits"}, {"json"});
+  Args a("plan", argv,
+         {"model", "frames", "height", "width", "budget", "alignment", "device", "limits", "depth-model",
+          "depth-input-size", "video-size"},
+         {"json"});
   if (a.help()) {
     std::cout << kPlanHelp;
     return 0;
@@ -59,6 +68,15 @@ int run_plan(const std::vector<std::string>& argv) {
     } catch (const Error& e) {
       a.fail(e.what());  // a malformed option value is a usage error (exit 2)
     }
+  }
+  if (a.has("depth-model")) {
+    const std::string m = a.str("depth-model");
+    req.depth_model = (m == "vits" || m == "vitb" || m == "vitl") ? released_vda_config(m) : VdaModel::inspect(m);
+    req.depth_input_size = a.integer("depth-input-size", 518, 14, 4096);
+    const auto [vh, vw] = a.size("video-size", {0, 0});
+    req.depth_frame_height = vh, req.depth_frame_width = vw;
+  } else if (a.has("depth-input-size") || a.has("video-size")) {
+    a.fail("--depth-input-size and --video-size need --depth-model");
   }
   if (a.has("device") && a.has("limits")) a.fail("give --device or --limits, not both");
   uint64_t limits_heap = 0;

@@ -1,5 +1,6 @@
 #include "models/vda_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -126,7 +127,12 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
   }
   m.pos_table_ = need("pretrained.pos_embed");
   for (auto& [name, t] : host) {
-    if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;
+    if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;  // host table / unused
+    // Replaced by their derived layouts above (the transposed convs' Linear form, the GEGLU halves).
+    if (name.rfind("head.resize_layers.", 0) == 0 && name.rfind("head.resize_layers.3.", 0) != 0 &&
+        name.find("linear_") == std::string::npos)
+      continue;
+    if (name.find("ff.net.0.proj.weight") != std::string::npos || name.find("ff.net.0.proj.bias") != std::string::npos) continue;
     m.weight_bytes_ += t.bytes();
     m.weights_.emplace(name, Tensor::upload(ctx, t, "vda " + name));
   }
@@ -192,36 +198,44 @@ std::array<Tensor, 4> VdaModel::encode(const Tensor& x) {
                 ", got " + x.describe());
   const int64_t frames = x.dim(0), h = x.dim(2) / cfg_.patch_size, wd = x.dim(3) / cfg_.patch_size, d = cfg_.embed_dim;
   const int64_t tokens = 1 + h * wd;
-  Tensor patches = empty(ctx, {frames, h, wd, d}, "vit patches");
-  Tensor tok = empty(ctx, {frames, tokens, d}, "vit tokens");
-  // CLS token repeated over the frames (concatenated in front of each frame's patches).
-  HostTensor cls_rows({frames, 1, d}, DType::f32);
-  const HostTensor cls = w("pretrained.cls_token").download(ctx);
-  for (int64_t f = 0; f < frames; ++f) std::copy(cls.as<float>(), cls.as<float>() + d, cls_rows.as<float>() + f * d);
-  Tensor cls_t = Tensor::upload(ctx, cls_rows, "vit cls");
   const Tensor& pe = pos_embed(h, wd);
-  ops::Conv2dParams patch{int(cfg_.patch_size), 0, 0, 0, 0, true};
-  run(ctx, [&](vk::Recorder& r) {
-    ops::conv2d(r, x, w("pretrained.patch_embed.proj.weight"), &w("pretrained.patch_embed.proj.bias"), patches, patch);
-    ops::concat(r, {cls_t, patches.reshape({frames, h * wd, d})}, tok, 1);
-    ops::add(r, tok, pe, tok);
-  });
-  probe("encoder/patch_embed", patches.reshape({frames, h * wd, d}));
-  probe("encoder/tokens", tok);
+  const HostTensor cls = w("pretrained.cls_token").download(ctx);
   std::array<Tensor, 4> taps;
-  for (int b = 0; b < cfg_.depth; ++b) {
-    vit_block(b, tok, frames, tokens);
-    for (int t = 0; t < 4; ++t) {
-      if (cfg_.taps[size_t(t)] != b) continue;
-      Tensor normed = empty(ctx, {frames, tokens, d}, "vit tap");
-      Tensor cls_out = empty(ctx, {frames, 1, d}, "vit tap cls");
-      taps[size_t(t)] = empty(ctx, {frames, h * wd, d}, "vit tap");
-      run(ctx, [&](vk::Recorder& r) {
-        ops::layernorm(r, tok, normed, w("pretrained.norm.weight"), w("pretrained.norm.bias"), cfg_.vit_layer_norm_eps);
-        ops::split(r, normed, {cls_out, taps[size_t(t)]}, 1);
-      });
-      probe("encoder/tap" + std::to_string(t), taps[size_t(t)]);
-      probe("encoder/tap" + std::to_string(t) + "_cls", cls_out.reshape({frames, d}));
+  for (auto& t : taps) t = empty(ctx, {frames, h * wd, d}, "vit tap");
+  // Frames are independent in the ViT: it runs a few at a time, so its temporaries (qkv, MLP hidden) stay the
+  // size of a chunk. Probing runs every frame at once (whole tensors).
+  const int64_t chunk = probe_ ? frames : std::clamp<int64_t>(encoder_chunk_frames_, 1, frames);
+  for (int64_t f0 = 0; f0 < frames; f0 += chunk) {
+    const int64_t n = std::min(chunk, frames - f0);
+    Tensor patches = empty(ctx, {n, h, wd, d}, "vit patches");
+    Tensor tok = empty(ctx, {n, tokens, d}, "vit tokens");
+    // CLS token repeated over the frames (concatenated in front of each frame's patches).
+    HostTensor cls_rows({n, 1, d}, DType::f32);
+    for (int64_t f = 0; f < n; ++f) std::copy(cls.as<float>(), cls.as<float>() + d, cls_rows.as<float>() + f * d);
+    Tensor cls_t = Tensor::upload(ctx, cls_rows, "vit cls");
+    ops::Conv2dParams patch{int(cfg_.patch_size), 0, 0, 0, 0, true};
+    run(ctx, [&](vk::Recorder& r) {
+      ops::conv2d(r, x.rows(f0, n), w("pretrained.patch_embed.proj.weight"), &w("pretrained.patch_embed.proj.bias"), patches, patch);
+      ops::concat(r, {cls_t, patches.reshape({n, h * wd, d})}, tok, 1);
+      ops::add(r, tok, pe, tok);
+    });
+    probe("encoder/patch_embed", patches.reshape({n, h * wd, d}));
+    probe("encoder/tokens", tok);
+    patches = Tensor();
+    for (int b = 0; b < cfg_.depth; ++b) {
+      vit_block(b, tok, n, tokens);
+      for (int t = 0; t < 4; ++t) {
+        if (cfg_.taps[size_t(t)] != b) continue;
+        Tensor normed = empty(ctx, {n, tokens, d}, "vit tap");
+        Tensor cls_out = empty(ctx, {n, 1, d}, "vit tap cls");
+        const Tensor tap = taps[size_t(t)].rows(f0, n);
+        run(ctx, [&](vk::Recorder& r) {
+          ops::layernorm(r, tok, normed, w("pretrained.norm.weight"), w("pretrained.norm.bias"), cfg_.vit_layer_norm_eps);
+          ops::split(r, normed, {cls_out, tap}, 1);
+        });
+        probe("encoder/tap" + std::to_string(t), tap);
+        probe("encoder/tap" + std::to_string(t) + "_cls", cls_out.reshape({n, d}));
+      }
     }
   }
   return taps;
@@ -249,60 +263,74 @@ Tensor VdaModel::temporal(int j, const Tensor& x, int64_t frames) {
   };
   Tensor gn = empty(ctx, x.shape(), "temporal groupnorm");
   Tensor scratch = empty(ctx, {ops::groupnorm_scratch_elems(x.shape(), cfg_.group_norm_groups)}, "groupnorm scratch");
-  Tensor hidden = empty(ctx, seq, "temporal hidden"), norm = empty(ctx, seq, "temporal norm");
   Tensor tokens = empty(ctx, seq, "temporal tokens");
   run(ctx, [&](vk::Recorder& r) {
     ops::groupnorm(r, x, gn, cfg_.group_norm_groups, w(p + "norm.weight"), w(p + "norm.bias"), cfg_.group_norm_eps, false, scratch);
     ops::permute(r, gn.reshape({batch, frames, c, hw}), tokens, {0, 3, 1, 2});
-    ops::linear(r, tokens, w(p + "proj_in.weight"), hidden, {.bias = w(p + "proj_in.bias")});
   });
   probe(name + "groupnorm", gn);
-  probe_frame_major("proj_in", hidden);
-  Tensor q = empty(ctx, seq, "temporal q"), k = empty(ctx, seq, "temporal k"), v = empty(ctx, seq, "temporal v");
-  Tensor context = empty(ctx, seq, "temporal context");
+  gn = Tensor();
+  scratch = Tensor();
+  // Every spatial position is its own sequence of frames, so the block runs on chunks of positions: its working
+  // set (~14 sequence-sized tensors) stays small whatever the map size. Probing runs one chunk (whole tensors).
+  const int64_t positions = batch * hw, per_position = frames * c * 4 * 14;
+  const int64_t chunk = probe_ ? positions
+                               : std::clamp<int64_t>(temporal_chunk_positions_ > 0 ? temporal_chunk_positions_
+                                                                                  : kTemporalChunkBytes / per_position,
+                                                     1, positions);
+  const std::string fp = p + "transformer_blocks.0.";
+  const int64_t ff = w(fp + "ff.net.0.proj.value_weight").dim(0);
   ops::AttentionOptions ao;
   ao.scale = float(1.0 / std::sqrt(double(hd)));
-  for (int a = 0; a < 2; ++a) {
-    const std::string ap = attention_block(j, a), an = "attn" + std::to_string(a) + "_";
-    const std::string np = p + "transformer_blocks.0.norms." + std::to_string(a) + ".";
-    const Tensor pe = w(ap + "pos_encoder.pe").reshape({w(ap + "pos_encoder.pe").dim(1), c}).rows(0, frames);
+  for (int64_t p0 = 0; p0 < positions; p0 += chunk) {
+    const int64_t n = std::min(chunk, positions - p0);
+    const Shape s3{n, frames, c};
+    const Tensor part = tokens.reshape({positions, frames, c}).rows(p0, n);
+    Tensor hidden = empty(ctx, s3, "temporal hidden"), norm = empty(ctx, s3, "temporal norm");
+    run(ctx, [&](vk::Recorder& r) { ops::linear(r, part, w(p + "proj_in.weight"), hidden, {.bias = w(p + "proj_in.bias")}); });
+    probe_frame_major("proj_in", hidden);
+    Tensor q = empty(ctx, s3, "temporal q"), k = empty(ctx, s3, "temporal k"), v = empty(ctx, s3, "temporal v");
+    Tensor context = empty(ctx, s3, "temporal context");
+    for (int a = 0; a < 2; ++a) {
+      const std::string ap = attention_block(j, a), an = "attn" + std::to_string(a) + "_";
+      const std::string np = fp + "norms." + std::to_string(a) + ".";
+      const Tensor pe = w(ap + "pos_encoder.pe").reshape({w(ap + "pos_encoder.pe").dim(1), c}).rows(0, frames);
+      run(ctx, [&](vk::Recorder& r) {
+        ops::layernorm(r, hidden, norm, w(np + "weight"), w(np + "bias"), cfg_.temporal_layer_norm_eps);
+      });
+      probe_frame_major(an + "norm", norm);
+      run(ctx, [&](vk::Recorder& r) {
+        ops::add(r, norm, pe, norm);  // the position embedding reaches q, k and v
+        ops::linear(r, norm, w(ap + "to_q.weight"), q);
+        ops::linear(r, norm, w(ap + "to_k.weight"), k);
+        ops::linear(r, norm, w(ap + "to_v.weight"), v);
+        ops::attention(r, q, k, v, context, heads, ao);
+        ops::linear(r, context, w(ap + "to_out.0.weight"), hidden, {.bias = w(ap + "to_out.0.bias"), .residual = hidden});
+      });
+      probe(name + an + "pe", norm);
+      probe(name + an + "q", q);
+      probe(name + an + "k", k);
+      probe(name + an + "v", v);
+      probe(name + an + "context", context);
+    }
+    q = k = v = context = Tensor();
+    // GEGLU feed-forward: value · GELU_erf(gate), the halves of one projection (split at load).
+    Tensor value = empty(ctx, {n, frames, ff}, "geglu value"), gate = empty(ctx, {n, frames, ff}, "geglu gate");
     run(ctx, [&](vk::Recorder& r) {
-      ops::layernorm(r, hidden, norm, w(np + "weight"), w(np + "bias"), cfg_.temporal_layer_norm_eps);
+      ops::layernorm(r, hidden, norm, w(fp + "ff_norm.weight"), w(fp + "ff_norm.bias"), cfg_.temporal_layer_norm_eps);
+      ops::linear(r, norm, w(fp + "ff.net.0.proj.value_weight"), value, {.bias = w(fp + "ff.net.0.proj.value_bias")});
+      ops::linear(r, norm, w(fp + "ff.net.0.proj.gate_weight"), gate,
+                  {.bias = w(fp + "ff.net.0.proj.gate_bias"), .activation = ops::Activation::gelu_erf});
+      ops::mul(r, value, gate, value);
+      ops::linear(r, value, w(fp + "ff.net.2.weight"), hidden, {.bias = w(fp + "ff.net.2.bias"), .residual = hidden});
+      ops::linear(r, hidden, w(p + "proj_out.weight"), part, {.bias = w(p + "proj_out.bias")});  // in place: read
     });
-    probe_frame_major(an + "norm", norm);
-    run(ctx, [&](vk::Recorder& r) {
-      ops::add(r, norm, pe, norm);  // the position embedding reaches q, k and v
-      ops::linear(r, norm, w(ap + "to_q.weight"), q);
-      ops::linear(r, norm, w(ap + "to_k.weight"), k);
-      ops::linear(r, norm, w(ap + "to_v.weight"), v);
-      const Shape s{batch * hw, frames, c};
-      ops::attention(r, q.reshape(s), k.reshape(s), v.reshape(s), context.reshape(s), heads, ao);
-      ops::linear(r, context, w(ap + "to_out.0.weight"), hidden, {.bias = w(ap + "to_out.0.bias"), .residual = hidden});
-    });
-    probe(name + an + "pe", norm.reshape({batch * hw, frames, c}));
-    probe(name + an + "q", q.reshape({batch * hw, frames, c}));
-    probe(name + an + "k", k.reshape({batch * hw, frames, c}));
-    probe(name + an + "v", v.reshape({batch * hw, frames, c}));
-    probe(name + an + "context", context.reshape({batch * hw, frames, c}));
+    probe_frame_major("ff_norm", norm);
+    probe_frame_major("geglu", value);
+    probe_frame_major("block_out", hidden);
   }
-  // GEGLU feed-forward: value · GELU_erf(gate), the halves of one projection (split at load).
-  const std::string fp = p + "transformer_blocks.0.";
-  const Shape wide{batch, hw, frames, w(fp + "ff.net.0.proj.value_weight").dim(0)};
-  Tensor value = empty(ctx, wide, "geglu value"), gate = empty(ctx, wide, "geglu gate");
-  run(ctx, [&](vk::Recorder& r) {
-    ops::layernorm(r, hidden, norm, w(fp + "ff_norm.weight"), w(fp + "ff_norm.bias"), cfg_.temporal_layer_norm_eps);
-    ops::linear(r, norm, w(fp + "ff.net.0.proj.value_weight"), value, {.bias = w(fp + "ff.net.0.proj.value_bias")});
-    ops::linear(r, norm, w(fp + "ff.net.0.proj.gate_weight"), gate,
-                {.bias = w(fp + "ff.net.0.proj.gate_bias"), .activation = ops::Activation::gelu_erf});
-    ops::mul(r, value, gate, value);
-    ops::linear(r, value, w(fp + "ff.net.2.weight"), hidden, {.bias = w(fp + "ff.net.2.bias"), .residual = hidden});
-  });
-  probe_frame_major("ff_norm", norm);
-  probe_frame_major("geglu", value);
-  probe_frame_major("block_out", hidden);
   Tensor out = empty(ctx, x.shape(), "temporal out");
   run(ctx, [&](vk::Recorder& r) {
-    ops::linear(r, hidden, w(p + "proj_out.weight"), tokens, {.bias = w(p + "proj_out.bias")});
     ops::permute(r, tokens, out.reshape({batch, frames, c, hw}), {0, 2, 3, 1});
     ops::add(r, out, x, out);
   });
@@ -338,7 +366,8 @@ Tensor VdaModel::reassemble(int i, const Tensor& tap, int64_t h, int64_t wd) {
   // ConvTranspose2d, kernel = stride = k: a Linear to (Cout, a, b) per token, then each token's k x k block is
   // put in place: [BT, h, w, Cout, k, k] -> [BT, Cout, h, k, w, k].
   const std::string rp = "head.resize_layers." + std::to_string(i) + ".";
-  const int64_t k = w(rp + "weight").dim(2);
+  const int64_t kk = w(rp + "linear_weight").dim(0) / oc;  // k x k outputs per channel (kernel = stride = k)
+  const int64_t k = std::lround(std::sqrt(double(kk)));
   Tensor up = empty(ctx, {bt, h * wd, oc * k * k}, "head transposed conv");
   Tensor y = empty(ctx, {bt, oc, h * k, wd * k}, "head resize");
   run(ctx, [&](vk::Recorder& r) {
@@ -374,10 +403,11 @@ Tensor VdaModel::fusion(int i, const Tensor& x0, const Tensor* x1, int64_t out_h
   return conv(p + "out_conv.", resized, 1, 0, true);
 }
 
-Tensor VdaModel::head(const std::array<Tensor, 4>& taps, int64_t h, int64_t wd, int64_t frames) {
+Tensor VdaModel::head(std::array<Tensor, 4> taps, int64_t h, int64_t wd, int64_t frames) {
   std::array<Tensor, 4> layer;
   for (int i = 0; i < 4; ++i) {
     layer[size_t(i)] = reassemble(i, taps[size_t(i)], h, wd);
+    taps[size_t(i)] = Tensor();  // freed as soon as it is reassembled
     probe("head/layer" + std::to_string(i + 1), layer[size_t(i)]);
   }
   layer[2] = temporal(0, layer[2], frames);
@@ -386,6 +416,7 @@ Tensor VdaModel::head(const std::array<Tensor, 4>& taps, int64_t h, int64_t wd, 
   for (int i = 0; i < 4; ++i) {
     rn[size_t(i)] = conv("head.scratch.layer" + std::to_string(i + 1) + "_rn.", layer[size_t(i)], 1, 1, false);
     probe("head/layer" + std::to_string(i + 1) + "_rn", rn[size_t(i)]);
+    layer[size_t(i)] = Tensor();  // the reassembled maps are not read again
   }
   Tensor path4 = fusion(4, rn[3], nullptr, rn[2].dim(2), rn[2].dim(3));
   probe("head/refinenet4", path4);
@@ -439,8 +470,7 @@ Tensor VdaModel::head(const std::array<Tensor, 4>& taps, int64_t h, int64_t wd, 
 Tensor VdaModel::forward(const Tensor& x) {
   const int64_t frames = x.dim(0), ps = cfg_.patch_size;
   const int64_t h = x.dim(2) / ps, wd = x.dim(3) / ps;
-  std::array<Tensor, 4> taps = encode(x);
-  Tensor out = head(taps, h, wd, frames);
+  Tensor out = head(encode(x), h, wd, frames);
   // forward() resizes to the input size (the head's 14h x 14w already is) and applies ReLU again: both identities
   // on a ReLU output of the input's size.
   return out.reshape({frames, h * ps, wd * ps});

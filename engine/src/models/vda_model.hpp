@@ -40,8 +40,16 @@ class VdaModel {
   void set_probe(Probe p) { probe_ = std::move(p); }
 
   // Frames per pass through the head's full-resolution stages (refinenet2 on); 0 = all at once. The reference
-  // uses 4; the value changes memory, never results.
+  // uses 4; 2 halves that stage's memory (~0.7 GiB for vits at 518x784); the value changes memory, never results.
   void set_micro_batch(int frames) { micro_batch_ = frames; }
+  static constexpr int kHeadMicroBatch = 2;
+  // Spatial positions per pass through a temporal module's block (0 = as many as fit kTemporalChunkBytes); the
+  // value changes memory, never results. Tests force small chunks.
+  void set_temporal_chunk_positions(int64_t positions) { temporal_chunk_positions_ = positions; }
+  static constexpr int64_t kTemporalChunkBytes = int64_t(64) << 20;
+  // Frames per pass through the ViT encoder (frames are independent there); changes memory, never results.
+  void set_encoder_chunk_frames(int64_t frames) { encoder_chunk_frames_ = frames; }
+  static constexpr int64_t kEncoderChunkFrames = 4;
 
   // x: f32 [T, 3, H, W] -> disparity f32 [T, H, W] (>= 0), H and W multiples of the patch size.
   Tensor forward(const Tensor& x);
@@ -49,7 +57,7 @@ class VdaModel {
   // The stages, for tests and for the long-video driver.
   std::array<Tensor, 4> encode(const Tensor& x);                                  // taps [BT, h*w, D]
   Tensor temporal(int module, const Tensor& x, int64_t frames);                   // [BT, C, H, W] -> same
-  Tensor head(const std::array<Tensor, 4>& taps, int64_t h, int64_t w, int64_t frames);  // -> [BT, 1, 14h, 14w]
+  Tensor head(std::array<Tensor, 4> taps, int64_t h, int64_t w, int64_t frames);  // -> [BT, 1, 14h, 14w]; frees the taps
 
  private:
   VdaModel(vk::Context& ctx, VdaConfig cfg) : ctx_(&ctx), cfg_(std::move(cfg)) {}
@@ -72,7 +80,9 @@ class VdaModel {
   HostTensor pos_table_;
   uint64_t weight_bytes_ = 0;
   Probe probe_;
-  int micro_batch_ = 4;
+  int micro_batch_ = kHeadMicroBatch;
+  int64_t temporal_chunk_positions_ = 0;
+  int64_t encoder_chunk_frames_ = kEncoderChunkFrames;
 };
 
 }  // namespace dvs

@@ -6,6 +6,9 @@
 #include <cstdio>
 #include <sstream>
 
+#include "models/vda_memory.hpp"
+#include "models/vda_model.hpp"
+#include "models/vda_preprocess.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
 #include "io/model_schema.hpp"
@@ -365,6 +368,24 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     caps->min_storage_buffer_offset_alignment = caps->min_texel_buffer_offset_alignment = req.alignment;
   }
   const vk::DeviceCaps* limits = caps ? &*caps : nullptr;
+  if (req.depth_model) {
+    const VdaConfig& dc = *req.depth_model;
+    const int64_t fh = req.depth_frame_height > 0 ? req.depth_frame_height : req.height;
+    const int64_t fw = req.depth_frame_width > 0 ? req.depth_frame_width : req.width;
+    const VdaInputSize in = vda_input_size(fh, fw, req.depth_input_size, dc.patch_size);
+    const VdaMemory vm = plan_vda_memory(dc, dc.infer_len, in.height, in.width, fh, fw, VdaModel::kHeadMicroBatch, req.alignment);
+    StageMemory d;
+    d.name = "depth_estimate";
+    d.what = "Video-Depth-Anything " + dc.name + ", windows of " + std::to_string(dc.infer_len) + " frames at " +
+             std::to_string(in.height) + "x" + std::to_string(in.width) + " for " + std::to_string(fh) + "x" +
+             std::to_string(fw) + " frames (weights " + gib(vm.weights) + ", peak in " + vm.peak_phase + ")";
+    d.working = vm.activations;
+    d.largest_bytes = vm.largest_tensor;
+    d.largest_elements = int64_t(vm.largest_tensor / 4);
+    d.largest_what = vm.largest_what;
+    plan.stages.push_back(d);
+    plan.depth_weights = vm.weights;
+  }
   plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits));
   StageMemory cfg2 =
       plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
@@ -405,7 +426,9 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   const uint64_t transformer_phase =
       vae_w + weights_of("transformer") + std::max(stage_of("transformer_cfg"), stage_of("transformer_inversion"));
   auto run_peak = [&](const StageMemory& e, const StageMemory& d) {
-    return plan.carried + std::max({text_phase, transformer_phase, vae_w + e.total(), vae_w + d.total()});
+    // The depth estimate runs alone, before anything else is loaded.
+    return std::max(plan.depth_weights + stage_of("depth_estimate"),
+                    plan.carried + std::max({text_phase, transformer_phase, vae_w + e.total(), vae_w + d.total()}));
   };
   plan.run_peak = run_peak(enc, dec);
 

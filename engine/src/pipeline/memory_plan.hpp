@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/host_tensor.hpp"
+#include "io/vda_config.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/vae_tiling.hpp"
 #include "vk/device_info.hpp"
@@ -53,6 +54,10 @@ struct PlanRequest {
   std::optional<uint64_t> budget;                  // bytes
   uint64_t alignment = 256;                        // the device allocator's (dvs info; 256 covers common GPUs)
   std::optional<PlanLimits> limits;                // checked when given: a setting runs only within them
+  // --depth-model: the depth estimate runs first, alone (its own context, freed before the models load).
+  std::optional<VdaConfig> depth_model;
+  int depth_input_size = 518;
+  int64_t depth_frame_height = 0, depth_frame_width = 0;  // the video's frames; 0 = the clip size
 };
 
 struct ComponentWeightBytes {
@@ -92,7 +97,8 @@ struct MemoryPlan {
   int64_t latent_frames = 0, latent_height = 0, latent_width = 0, text_len = 0;
   std::vector<ComponentWeightBytes> weights;
   uint64_t weights_total = 0;
-  std::vector<StageMemory> stages;   // untiled
+  std::vector<StageMemory> stages;   // untiled ("depth_estimate" first with --depth-model)
+  uint64_t depth_weights = 0;        // the depth model's, resident during its stage only
   uint64_t carried = 0;              // tensors kept across stages (text embeddings, latents)
   uint64_t run_peak = 0;             // untiled
   std::vector<TilingOption> tilings; // [0] untiled, then smaller and smaller tiles

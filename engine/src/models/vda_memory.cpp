@@ -1,0 +1,85 @@
+#include "models/vda_memory.hpp"
+
+#include <algorithm>
+#include <vector>
+
+#include "models/vda_model.hpp"
+#include "models/vda_random.hpp"
+
+namespace dvs {
+
+VdaMemory plan_vda_memory(const VdaConfig& c, int64_t T, int64_t input_h, int64_t input_w, int64_t frame_h,
+                          int64_t frame_w, int micro_batch, uint64_t alignment) {
+  VdaMemory m;
+  auto bytes = [&](int64_t elements) {
+    const uint64_t b = uint64_t(elements) * 4;
+    return (b + alignment - 1) / alignment * alignment;
+  };
+  auto note = [&](int64_t elements, const std::string& what) {
+    if (bytes(elements) > m.largest_tensor) m.largest_tensor = bytes(elements), m.largest_what = what;
+    return bytes(elements);
+  };
+  for (const auto& [name, shape] : vda_checkpoint_schema(c)) {
+    if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;
+    int64_t n = 1;
+    for (int64_t d : shape) n *= d;
+    if (name == "head.resize_layers.0.bias") n *= 16;  // repeated over the 4x4 outputs of the Linear form
+    if (name == "head.resize_layers.1.bias") n *= 4;
+    if (name.find("ff.net.0.proj") != std::string::npos) {  // split into two halves
+      m.weights += 2 * bytes(n / 2);
+      continue;
+    }
+    m.weights += note(n, name);
+  }
+  const int64_t ps = c.patch_size, h = input_h / ps, w = input_w / ps, hw = h * w, N = 1 + hw, D = c.embed_dim;
+  const int64_t P1 = 16 * hw, P2 = 4 * hw, P3 = hw, P4 = ((h + 1) / 2) * ((w + 1) / 2), Pf = input_h * input_w;
+  const auto& oc = c.out_channels;
+  const int64_t F = c.features, F2 = c.output_conv1_out, chunk = micro_batch > 0 ? std::min<int64_t>(micro_batch, T) : T;
+  const uint64_t input = note(T * 3 * Pf, "window input"), pos = bytes(N * D), out = note(T * Pf, "window disparity");
+  struct Phase {
+    std::string name;
+    uint64_t bytes;
+  };
+  std::vector<Phase> phases;
+  // Encoder, VdaModel::kEncoderChunkFrames frames at a time: the chunk's patches, tokens and block temporaries
+  // (norm, qkv, attention, MLP hidden), and the four taps of the whole window.
+  const int64_t e = std::min<int64_t>(VdaModel::kEncoderChunkFrames, T);
+  const uint64_t taps = 4 * note(T * hw * D, "encoder tap");
+  phases.push_back({"encoder", input + pos + bytes(e * hw * D) + note(e * N * D, "encoder tokens") * 4 +
+                                   note(e * N * 3 * D, "encoder qkv") + note(e * N * c.mlp_hidden_dim, "encoder MLP hidden") +
+                                   taps});
+  // A temporal module on a [T, C, P] map: its input, the group norm (or the output) and the position-major
+  // tokens, plus one chunk of positions' working set (hidden, norm, q, k, v, context: C each; the GEGLU halves:
+  // 4C each), chunked as VdaModel::temporal does.
+  auto temporal = [&](int64_t C, int64_t P, const char* what) {
+    const int64_t per_position = T * C * 4 * 14;
+    const int64_t n = std::clamp<int64_t>(VdaModel::kTemporalChunkBytes / per_position, 1, P);
+    return 3 * bytes(T * C * P) + 6 * bytes(n * T * C) + 2 * note(n * T * 4 * C, what);
+  };
+  const uint64_t layers = bytes(T * oc[0] * P1) + bytes(T * oc[1] * P2) + bytes(T * oc[2] * P3) + bytes(T * oc[3] * P4);
+  note(T * oc[0] * P1, "head layer1");
+  // Reassembly and temporal modules 0-1: taps, the four reassembled maps, one module's working set.
+  phases.push_back({"head (reassemble, temporal 0-1)",
+                    input + taps + layers + bytes(T * hw * oc[0] * 16) +
+                        std::max(temporal(oc[2], P3, "temporal module 0 GEGLU"), temporal(oc[3], P4, "temporal module 1 GEGLU"))});
+  // Fusion of the coarse levels and temporal modules 2-3: the F-channel maps of every level, a fusion block's
+  // temporaries (3 residual-unit maps, the sum, the resized map), one module's working set.
+  const uint64_t rn = bytes(T * F * P1) + bytes(T * F * P2) + bytes(T * F * P3) + bytes(T * F * P4);
+  note(T * F * P1, "head layer1_rn");
+  phases.push_back({"head (fusion 4-3, temporal 2-3)", input + rn + 2 * bytes(T * F * P2) + 5 * bytes(T * F * P2) +
+                                                           std::max(temporal(F, P3, "temporal module 2 GEGLU"),
+                                                                    temporal(F, P2, "temporal module 3 GEGLU"))});
+  // The full-resolution tail, `chunk` frames at a time: fusion 2 and 1 (residual units, resize to 2x), output
+  // convolutions, the upsampled map and the 32-channel hidden map; the window's disparity is being filled.
+  const uint64_t tail = 6 * bytes(chunk * F * P1) + 3 * bytes(chunk * F * 4 * P1) + bytes(chunk * F2 * 4 * P1) +
+                        note(chunk * F2 * Pf, "head output resize (one chunk)") +
+                        note(chunk * 32 * Pf, "head output_conv2 hidden (one chunk)") + bytes(chunk * Pf);
+  phases.push_back({"head (full-resolution tail)", input + rn + bytes(T * F * P2) + out + tail});
+  // The window resized to the frame size (and downloaded).
+  phases.push_back({"upsampling to the frame size", input + out + note(T * frame_h * frame_w, "window at the frame size")});
+  for (const auto& p : phases)
+    if (p.bytes > m.activations) m.activations = p.bytes, m.peak_phase = p.name;
+  return m;
+}
+
+}  // namespace dvs
