@@ -16,6 +16,7 @@
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
 #include "tensor/ops_random.hpp"
+#include "tensor/ops_resize.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/recorder.hpp"
 #include "vk/transfer.hpp"
@@ -77,6 +78,8 @@ void elementwise(Bench& b) {
   measure(b, copy, "scale", sn, 2 * f, [&](vk::Recorder& r) { ops::scale(r, x, z, 0.7f, 0.1f); });
   measure(b, copy, "silu", sn, 2 * f, [&](vk::Recorder& r) { ops::silu(r, x, z); });
   measure(b, copy, "gelu_tanh", sn, 2 * f, [&](vk::Recorder& r) { ops::gelu_tanh(r, x, z); });
+  measure(b, copy, "gelu_erf", sn, 2 * f, [&](vk::Recorder& r) { ops::gelu_erf(r, x, z); });
+  measure(b, copy, "relu", sn, 2 * f, [&](vk::Recorder& r) { ops::relu(r, x, z); });
   measure(b, copy, "clamp", sn, 2 * f, [&](vk::Recorder& r) { ops::clamp(r, x, z, -1.0f, 1.0f); });
   measure(b, copy, "add", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
   Tensor one = filled(ctx, {1});
@@ -102,6 +105,15 @@ void elementwise(Bench& b) {
   Tensor odd_x = Tensor::on(x.buffer(), {n - 1}, DType::f32), odd_z = Tensor::on(z.buffer(), {n - 1}, DType::f32);
   measure(b, copy, "silu_odd_count", std::to_string(n - 1) + " f32", 2 * f, [&](vk::Recorder& r) { ops::silu(r, odd_x, odd_z); },
           "vec4 body + scalar tail");
+  // Bilinear resize (align_corners, as the depth head): the VDA head's 2x upsample of 4 frames x 32 channels
+  // and its output resize to 518x784; bytes = input read + output written.
+  {
+    const int64_t ih = b.quick() ? 64 : 140, iw = b.quick() ? 96 : 220;  // output within the 64 MiB buffers
+    Tensor rin = Tensor::on(x.buffer(), {4, 32, ih, iw}, DType::f32);
+    Tensor rout = Tensor::on(z.buffer(), {4, 32, ih * 2, iw * 2}, DType::f32);
+    measure(b, copy, "resize_bilinear_2x", shape_str(rin.shape()) + "->" + std::to_string(ih * 2) + "x" + std::to_string(iw * 2),
+            4.0 * double(rin.numel() + rout.numel()), [&](vk::Recorder& r) { ops::resize_bilinear(r, rin, rout, true); });
+  }
   Tensor h = filled(ctx, {n}, DType::bf16);
   measure(b, copy, "cast_f32_bf16", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, x, h); });
   measure(b, copy, "cast_bf16_f32", sn, f + f / 2, [&](vk::Recorder& r) { ops::cast(r, h, z); });

@@ -14,14 +14,14 @@ namespace dvs::cli {
 namespace {
 
 const char* kInvertHelp =
-    "usage: dvs invert --video V --depth D --model DIR --out DIR [options]\n"
+    "usage: dvs invert --video V (--depth D | --depth-model FILE.pth) --model DIR --out DIR [options]\n"
     "\n"
     "Stages 1-5 of dvs run: renders V along the camera path, VAE-encodes the render and DDIM-inverts it with the\n"
     "transformer up to the start timestep t0. Writes DIR/eps_inv.npy ([latent frames, C, h, w] f32) and stores\n"
     "the result in the inversion cache, where dvs run with the same inputs, model, LoRA, tiling, --preset,\n"
     "--steps, --strength and --inversion-steps finds it (any --prompt, --guidance, --k, --delta or --seed).\n"
     "\n"
-    "Takes dvs run's input, model, schedule, cache and memory options (dvs run --help): --video --depth\n"
+    "Takes dvs run's input, model, schedule, cache and memory options (dvs run --help): --video --depth --depth-model\n"
     "--metric-depth --trim-depth --trajectory --frames --size|--height/--width --resize --intrinsics --points\n"
     "--model --preset --steps --strength --inversion-steps --lora --vae-tiling --vae-tile --cache-dir --no-cache\n"
     "--device --progress --quiet\n";

@@ -59,14 +59,16 @@ void resize_bilinear(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool a
     const auto first_src = source_rows(row0 % ho, p0 == p1 ? (row1 - 1) % ho + 1 : ho, h, pc.scale_h, align_corners);
     const auto last_src = source_rows(p0 == p1 ? row0 % ho : 0, (row1 - 1) % ho + 1, h, pc.scale_h, align_corners);
     const uint64_t xs = uint64_t((p0 * h + first_src.first) * w), xe = uint64_t((p1 * h + last_src.second + 1) * w);
-    pc.first = uint32_t(row0 * wo);
-    pc.n = uint32_t((row1 - row0) * wo);
+    pc.first = uint32_t(row0);
+    pc.n = uint32_t(row1 - row0);
     vk::BufferView xv = whole ? x.buffer() : aligned_view(x.buffer(), xs * 4, xe * 4, align, 4, pc.x_base);
     vk::BufferView yv = whole ? y.buffer() : aligned_view(y.buffer(), uint64_t(row0 * wo) * 4, uint64_t(row1 * wo) * 4,
                                                           align, 4, pc.y_base);
     if (xv.size > range || yv.size > range) fail("internal chunking error: a view exceeds one binding");
-    const uint32_t groups = uint32_t(std::min<int64_t>(div_up(pc.n, 64), caps.max_workgroup_count[0]));
-    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, groups, 1, 1, kOp);
+    // Columns across x (64 per group), rows across y; both grid-stride within the group-count limits.
+    const uint32_t gx = uint32_t(std::min<int64_t>(div_up(wo, 64), caps.max_workgroup_count[0]));
+    const uint32_t gy = uint32_t(std::min<int64_t>(row1 - row0, caps.max_workgroup_count[1]));
+    rec.dispatch(pipe, {xv, yv}, &pc, sizeof pc, gx, gy, 1, kOp);
   };
   if (uint64_t(x.bytes()) <= range && uint64_t(y.bytes()) <= range) return run(0, planes * ho, true);
   ctx.note_split(kOp);
