@@ -125,6 +125,19 @@ TEST_F(BoundedSubmission, LongRecordingsAreSubmittedInPartsInOrder) {
   ops::scale(rec, x, x, 2.0f, 0.0f);
   rec.submit();
   EXPECT_EQ(x.download(ctx()).to_f32()[0], 2.0f * dispatches);
+  // Progress reports the recording's own boundaries exactly once each, in order, and never the flush's cuts.
+  std::vector<std::string> labels;
+  {
+    vk::ScopedSegmentHook hook(ctx(), [&](const vk::SegmentProgress& p) { labels.push_back(p.label); });
+    rec.begin();
+    for (int i = 0; i < dispatches; ++i) {
+      ops::scale(rec, x, x, 1.0f, 1.0f);
+      if ((i + 1) % 5000 == 0) rec.boundary("part " + std::to_string((i + 1) / 5000));
+    }
+    rec.submit();
+  }
+  EXPECT_EQ(labels, (std::vector<std::string>{"part 1", "part 2", "part 3"}));
+  EXPECT_EQ(x.download(ctx()).to_f32()[0], 2.0f * dispatches + dispatches);
 }
 
 TEST_F(BoundedSubmission, EmptySegmentsAreNotSubmitted) {

@@ -7,7 +7,6 @@
 #include "pipeline/job_stages.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
-#include "pipeline/depth_source.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "vk/context.hpp"
@@ -20,19 +19,7 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   require_preflight(o, JobKind::invert);  // every problem knowable now, before any device work
   JobPlan jp = plan_job(o);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
-  nlohmann::json depth_estimate;
-  if (!o.render.depth_model.empty()) {
-    stages.begin("depth", "estimating depth with " + o.render.depth_model.filename().string());
-    depth_estimate = resolve_depth_model(o.render, o.cache_dir, !o.use_cache,
-                                         [&](const std::string&, int step, int total, const std::string& note) {
-                                           stages.say(step, total, note);
-                                         },
-                                         [&] {
-                                           stages.check_cancelled();
-                                           return false;
-                                         });
-    stages.end();
-  }
+  depth_stage(o, stages);
   vk::ContextOptions copt;
   copt.device = o.render.device;
   vk::Context ctx(copt);

@@ -1,3 +1,4 @@
+#include "pipeline/depth_source.hpp"
 #include "pipeline/job_stages.hpp"
 
 #include <unistd.h>
@@ -52,6 +53,20 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
     throw Error("--vae-tile " + std::to_string(enc.tile_in_h) + "x" + std::to_string(enc.tile_in_w) +
                 ": tiles of this size do not join exactly (the tile stride, 5/6 of the height and 4/5 of the width, "
                 "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
+}
+
+nlohmann::json depth_stage(RunOptions& o, StageTracker& stages) {
+  if (o.render.depth_model.empty()) return nullptr;
+  stages.begin("depth", "estimating depth with " + o.render.depth_model.filename().string());
+  nlohmann::json d = resolve_depth_model(
+      o.render, o.cache_dir, !o.use_cache,
+      [&](const std::string&, int step, int total, const std::string& note) { stages.say(step, total, note); },
+      [&] {
+        stages.check_cancelled();
+        return false;
+      });
+  stages.end();
+  return d;
 }
 
 RenderedInput render_for_model(vk::Context& ctx, const RunOptions& o, StageTracker& stages) {

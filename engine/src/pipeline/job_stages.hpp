@@ -32,6 +32,10 @@ struct JobPlan {
 JobPlan plan_job(const RunOptions& o);
 
 // Stages 1–2: decode and render, checking that the model can take the frame count (4k+1).
+// --depth-model: stage "depth" estimates the clip's depth (or finds it in the cache) and points o.render.depth at
+// it; returns its provenance for run.json (null without --depth-model).
+nlohmann::json depth_stage(RunOptions& o, StageTracker& stages);
+
 RenderedInput render_for_model(vk::Context& ctx, const RunOptions& o, StageTracker& stages);
 
 // The render in latent space (diffusion layout [Fl, C, h, w]).

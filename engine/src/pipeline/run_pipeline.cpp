@@ -27,7 +27,6 @@
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
-#include "pipeline/depth_source.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
@@ -45,19 +44,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   require_preflight(o, JobKind::run);  // every problem knowable now, before any device work
   JobPlan jp = plan_job(o);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
-  nlohmann::json depth_estimate;
-  if (!o.render.depth_model.empty()) {
-    stages.begin("depth", "estimating depth with " + o.render.depth_model.filename().string());
-    depth_estimate = resolve_depth_model(o.render, o.cache_dir, !o.use_cache,
-                                         [&](const std::string&, int step, int total, const std::string& note) {
-                                           stages.say(step, total, note);
-                                         },
-                                         [&] {
-                                           stages.check_cancelled();
-                                           return false;
-                                         });
-    stages.end();
-  }
+  const nlohmann::json depth_estimate = depth_stage(o, stages);
   const Settings& st = jp.settings;
   const bool dynamic_cfg = o.dynamic_cfg.value_or(st.official);  // the official code always uses it
   if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))

@@ -16,6 +16,7 @@ constexpr uint32_t kSetsPerPool = 512;
 // crashed inside vkAllocateDescriptorSets; past this many sets the segments closed so far are submitted early.
 constexpr uint32_t kMaxLiveSets = 8192;
 constexpr uint32_t kQueriesPerPool = 1024;  // 512 timestamp pairs
+constexpr const char* kFlushLabel = "descriptor flush";  // segments cut by flush_early(), not by boundary()
 
 }  // namespace
 
@@ -35,13 +36,17 @@ Recorder::~Recorder() {
   if (!cmds_.empty()) vkFreeCommandBuffers(dev, ctx_.command_pool(), uint32_t(cmds_.size()), cmds_.data());
 }
 
-void Recorder::release_resources() {
+void Recorder::recycle_descriptors() {
   VkDevice dev = ctx_.device();
   for (VkBufferView v : texel_views_) vkDestroyBufferView(dev, v, nullptr);
   texel_views_.clear();
   for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
   pool_in_use_ = 0;
   live_sets_ = 0;
+}
+
+void Recorder::release_resources() {
+  recycle_descriptors();
   scratch_.clear();
   scratch_slot_.clear();
 }
@@ -104,18 +109,16 @@ void Recorder::close_segment(const std::string& label) {
 // recording goes on in a new segment. Scratch buffers and timestamp queries stay (later segments and submit()
 // use them). Progress hooks run only in submit(): an early flush is an implementation detail of long recordings.
 void Recorder::flush_early() {
-  close_segment("descriptor flush");
+  close_segment(kFlushLabel);
+  const SegmentHook hook = hook_ ? hook_ : ctx_.segment_hook();
   for (uint32_t i = flushed_segments_; i < segments_; ++i) {
     ctx_.submit_and_wait(cmds_[i]);
     ++submissions_;
+    // The recording's own boundaries are reported as submit() reports them; the flush's cut is not one.
+    if (hook && segment_labels_[i] != kFlushLabel) hook(SegmentProgress{i + 1, segments_, segment_labels_[i]});
   }
   flushed_segments_ = segments_;
-  VkDevice dev = ctx_.device();
-  for (VkBufferView v : texel_views_) vkDestroyBufferView(dev, v, nullptr);
-  texel_views_.clear();
-  for (VkDescriptorPool p : pools_) vkResetDescriptorPool(dev, p, 0);
-  pool_in_use_ = 0;
-  live_sets_ = 0;
+  recycle_descriptors();
   open_segment();
 }
 
@@ -337,7 +340,7 @@ void Recorder::submit() {
   for (uint32_t i = flushed_segments_; i < segments_; ++i) {
     ctx_.submit_and_wait(cmds_[i]);
     ++submissions_;
-    if (i + 1 == segments_ || !hook) continue;
+    if (i + 1 == segments_ || !hook || segment_labels_[i] == kFlushLabel) continue;
     try {
       hook(SegmentProgress{i + 1, segments_, segment_labels_[i]});
     } catch (...) {

@@ -84,6 +84,7 @@ class Recorder {
   void track(const Range& r, bool writes);
   void open_segment();
   void flush_early();
+  void recycle_descriptors();  // texel views destroyed, descriptor pools reset (their work must be done)
   void close_segment(const std::string& label);
   void full_barrier();
   void collect_timestamps(uint32_t pairs);
