@@ -47,7 +47,7 @@ VdaMemory plan_vda_memory(const VdaConfig& c, int64_t T, int64_t input_h, int64_
   const uint64_t taps = 4 * note(T * hw * D, "encoder tap");
   phases.push_back({"encoder", input + pos + bytes(e * hw * D) + note(e * N * D, "encoder tokens") * 4 +
                                    note(e * N * 3 * D, "encoder qkv") + note(e * N * c.mlp_hidden_dim, "encoder MLP hidden") +
-                                   taps});
+                                   taps + bytes(2 * N * D + 1024)});  // + the attention's K/V workspace on CPUs
   // A temporal module on a [T, C, P] map: its input, the group norm (or the output) and the position-major
   // tokens, plus one chunk of positions' working set (hidden, norm, q, k, v, context: C each; the GEGLU halves:
   // 4C each), chunked as VdaModel::temporal does.

@@ -165,6 +165,11 @@ Tensor VdaModel::vit_block(int i, const Tensor& x, int64_t frames, int64_t token
   ops::AttentionShape as{frames, heads, hd, tokens, tokens};
   ops::AttentionOptions ao;
   ao.scale = float(1.0 / std::sqrt(double(hd)));
+  Tensor workspace;  // K/V repacked head-major: pays on CPU devices at these lengths (ops_attention.hpp)
+  if (ops::attention_workspace_helps(ctx.caps(), as)) {
+    workspace = empty(ctx, {ops::attention_workspace_elements(as)}, "vit attention workspace");
+    ao.workspace = &workspace;
+  }
   const ops::AttentionOperand out{attn, 0, 0};
   run(ctx, [&](vk::Recorder& r) {
     ops::layernorm(r, x, n, w(p + "norm1.weight"), w(p + "norm1.bias"), cfg_.vit_layer_norm_eps);
