@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <filesystem>
 
@@ -121,9 +122,17 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
           if (progress) progress("depth: window " + std::to_string(step) + "/" + std::to_string(total));
         },
         {});
-    if (progress)
-      progress(std::string(d.at("from_cache").get<bool>() ? "depth from the cache: " : "depth estimated: ") +
-               d.at("file").get<std::string>());
+    if (progress) {
+      if (d.at("from_cache").get<bool>()) {
+        progress("depth from the cache: " + d.at("file").get<std::string>());
+      } else {
+        const double sec = d.at("seconds").get<double>();
+        const int frames = d.at("estimate").at("frames").get<int>();
+        char rate[96];
+        std::snprintf(rate, sizeof rate, " in %.1f s (%.2f frames/s)", sec, frames / std::max(sec, 1e-9));
+        progress("depth estimated" + std::string(rate) + ": " + d.at("file").get<std::string>());
+      }
+    }
   }
   vk::ContextOptions copt;
   copt.device = job.device;
