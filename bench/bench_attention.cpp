@@ -89,7 +89,7 @@ void run_shape(Bench& b, const Shape& sh) {
 void attention(Bench& b) {
   std::vector<Shape> shapes;
   if (b.quick()) {
-    shapes = {{1, 2, 1024, 64}, {1, 12, 226, 64, true}, {1, 4, 512, 16}};
+    shapes = {{1, 2, 1024, 64}, {1, 12, 226, 64, true}, {1, 4, 512, 16}, {1, 4, 512, 6}};
   } else {
     shapes = {{1, 2, 1024, 64},
               {1, 8, 1024, 64},
@@ -101,6 +101,9 @@ void attention(Bench& b) {
               {1, 2, 1024, 128},
               {1, 4, 1024, 16},
               {1, 8, 256, 8, true},
+              {1, 8, 256, 6, true},                  // a head dim not a multiple of 4 (zero-padded copies)
+              {1, 2, 1024, 200},                     // a head dim over 128
+              {1, 6, 2406, 64, false, true, true},   // Video-Depth-Anything Small's ViT at 518x910, one frame
               {1, 1, 17776, 64}};  // the real video sequence length, one head: memory stays O(L)
   }
   for (const Shape& s : shapes) run_shape(b, s);
