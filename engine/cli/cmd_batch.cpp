@@ -145,12 +145,13 @@ int run_batch(const std::vector<std::string>& argv) {
       args.insert(args.end(), own.begin(), own.end());
       Args a("batch", args, kRunOptions, kRunFlags);
       std::string missing;
-      for (const char* key : {"video", "model", "prompt", "out"})
-        if (a.str(key).empty()) missing += std::string(missing.empty() ? "" : ", ") + "\"" + key + "\"";
-      if (a.str("depth").empty() && a.str("depth-model").empty())
-        missing += std::string(missing.empty() ? "" : ", ") + "\"depth\" (or \"depth-model\")";
+      const bool no_depth = a.str("depth").empty() && a.str("depth-model").empty();  // either gives the depth
+      for (const char* key : {"video", "depth", "model", "prompt", "out"})
+        if (key == std::string("depth") ? no_depth : a.str(key).empty())
+          missing += std::string(missing.empty() ? "" : ", ") + "\"" + key + "\"";
       if (!missing.empty()) {
-        problems.push_back(where + ": missing required " + missing + " (a key of the job or a --option of dvs batch)");
+        problems.push_back(where + ": missing required " + missing + " (a key of the job or a --option of dvs batch" +
+                           (no_depth ? "; \"depth-model\": FILE.pth estimates the depth instead of \"depth\")" : ")"));
         continue;
       }
       Planned p{&job, where, parse_run_options(a), progress_mode(a)};
