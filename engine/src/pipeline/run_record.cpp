@@ -128,7 +128,8 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
   } else {
     text(in, "depth", "depth");
   }
-  if (in.value("depth_values", "") == "depth") args.push_back("--metric-depth");
+  // With --depth-model the checkpoint decides depth or disparity (--metric-depth is refused there).
+  if (in.value("depth_values", "") == "depth" && !in.contains("depth_model")) args.push_back("--metric-depth");
   text(in, "trajectory", "trajectory");
   text(in, "model", "model");
   text(in, "out", "out");
