@@ -447,6 +447,19 @@ int make_vda(const std::vector<std::string>& args) {
   return 0;
 }
 
+// Runs a command: a usage error exits 2, any other failure (dvs::Error, filesystem errors while writing) 1.
+int exit_status(int (*command)(const std::vector<std::string>&), const std::vector<std::string>& args) {
+  try {
+    return command(args);
+  } catch (const dvs::UsageError& e) {
+    std::cerr << "dvs-weights: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "dvs-weights: error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
 int main(int argc, char** argv) {
   std::vector<std::string> args;
   bool verbose = false;
@@ -466,28 +479,8 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (cmd == "inspect") return inspect(args);
-  if (cmd == "make-tiny") {
-    try {
-      return make_tiny(args);
-    } catch (const dvs::UsageError& e) {
-      std::cerr << "dvs-weights: " << e.what() << "\n";
-      return 2;
-    } catch (const std::exception& e) {  // dvs::Error, and filesystem errors while writing the folder
-      std::cerr << "dvs-weights: error: " << e.what() << "\n";
-      return 1;
-    }
-  }
-  if (cmd == "make-vda") {
-    try {
-      return make_vda(args);
-    } catch (const dvs::UsageError& e) {
-      std::cerr << "dvs-weights: " << e.what() << "\n";
-      return 2;
-    } catch (const std::exception& e) {
-      std::cerr << "dvs-weights: error: " << e.what() << "\n";
-      return 1;
-    }
-  }
+  if (cmd == "make-tiny") return exit_status(make_tiny, args);
+  if (cmd == "make-vda") return exit_status(make_vda, args);
   if (cmd == "convert") return dvs::weights_tools::convert_command(args);
   if (cmd == "merge-lora") return dvs::weights_tools::merge_lora_command(args);
   std::cerr << "dvs-weights: unknown command '" << cmd << "'\n" << kUsage;
