@@ -4,6 +4,7 @@
 // resampling (memory-bound: GB/s); and group "conv_vae": a whole VAE encode and decode at a fixed size,
 // in seconds per frame. On a CPU device the machine is usually shared: the ratio per CPU-second (conv and
 // peak both measured as work per CPU-second of this process) is the figure that survives other load.
+// DVS_BENCH_CONV_TILE tries a register block, DVS_BENCH_CONV_LOOP keeps one shape running for a profiler.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -111,6 +112,24 @@ double cpu_im2col_sgemm_gflops(const CpuConv& c) {
 #endif
 }
 
+// DVS_BENCH_CONV_LOOP=SECONDS (a profiling aid): submits the first convolution measured over and over for that
+// long, so that a sampling profiler (perf record -p PID) sees nothing else, then ends the program.
+[[noreturn]] void profile_loop(vk::Recorder& rec, const std::string& op, const std::string& shape, const char* value) {
+  char* end = nullptr;
+  const double seconds = std::strtod(value, &end);
+  if (end == value || *end != '\0' || !(seconds > 0)) {
+    std::cerr << "DVS_BENCH_CONV_LOOP must be a number of seconds above 0, got '" << value << "'\n";
+    std::exit(2);
+  }
+  std::cout << "DVS_BENCH_CONV_LOOP: submitting " << op << " " << shape << " for " << seconds << " s (pid " << getpid()
+            << ")" << std::endl;
+  const auto t0 = std::chrono::steady_clock::now();
+  int64_t submits = 0;
+  while (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < seconds) rec.submit(), ++submits;
+  std::cout << submits << " submissions" << std::endl;
+  std::exit(0);
+}
+
 // Times one recorded convolution and reports it with: its ratio to the FMA peak measured just before (wall
 // clock) and per CPU-second, and the CPU's im2col + sgemm rate for the same convolution.
 void measure(Bench& b, FmaPeakRun& peak, const std::string& op, const std::string& shape, double flops,
@@ -119,6 +138,7 @@ void measure(Bench& b, FmaPeakRun& peak, const std::string& op, const std::strin
   rec.begin();
   record(rec);
   rec.end();
+  if (const char* loop = std::getenv("DVS_BENCH_CONV_LOOP")) profile_loop(rec, op, shape, loop);
   double peak_ms = Bench::time_ms([&] { peak.recorder.submit(); }, 0.3);
   double peak_now = peak.flops / (peak_ms * 1e6);
   double ms = Bench::time_ms([&] { rec.submit(); }, 0.3);

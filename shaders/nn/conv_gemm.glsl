@@ -19,9 +19,12 @@
 // Register blocking (the linear kernel's scheme, tuned for CPU drivers where an 8-lane subgroup is one
 // SIMD register and per-lane loads are the expensive part): a cluster of 8 lanes computes ROWS pixels x
 // 8*COLS channels. Lane l owns channels n0 + l + 8c and, per 8-channel step, fetches its COLS weight
-// texels and the X texels of ONE pixel (m0 + 8g + l); subgroup shuffles with constant lane indices (one
-// register permute each on lavapipe) hand every pixel's values to all lanes: ROWS*COLS*8 FMAs per
-// COLS + 2*ROWS/8 fetches. DIRECT (small ROWS, or no subgroup shuffles): every lane fetches every pixel.
+// texels and the X texels of ONE pixel (m0 + 8g + l); rotations of the cluster (subgroup shuffles, one
+// register permute each on lavapipe, where a broadcast of one lane takes two) hand every pixel's values to
+// every lane, lane l meeting pixel 8g + (l + i) mod 8 in rotation i: ROWS*COLS*8 FMAs per COLS + 2*ROWS/8
+// fetches. DIRECT (small ROWS, or no subgroup shuffles): every lane fetches every pixel.
+// On lavapipe every texel fetch is an out-of-line call that clobbers the vector registers (a quarter to a
+// third of the time, with the accumulators' spills), and fma() is a multiply and an add.
 // The tile shapes come from engine/src/tensor/kernel_tuning.cpp.
 layout(local_size_x = 64) in;
 
@@ -93,12 +96,14 @@ void w_step(uint e, out float w[8]) {
   }
 }
 
-float bcast(float v, int r) {
+// The value of the cluster lane r places further on (a rotation of the cluster by r): lane l gets lane
+// (l + r) mod 8's value. CPU drivers turn this into one register permute, where a broadcast of one lane
+// (the same for every lane) takes two.
+float rotate(float v, int r) {
 #ifdef CONV_NO_SUBGROUPS
   return v;  // unused: this variant always fetches every pixel directly
 #else
-  if (LANES == 0) return subgroupShuffle(v, uint(r));
-  return subgroupShuffle(v, (gl_SubgroupInvocationID & ~7u) + uint(r));
+  return subgroupShuffle(v, (gl_SubgroupInvocationID & ~7u) | ((gl_SubgroupInvocationID + uint(r)) & 7u));
 #endif
 }
 
@@ -155,24 +160,25 @@ void main() {
               xv[g][4] = hi.x; xv[g][5] = hi.y; xv[g][6] = hi.z; xv[g][7] = hi.w;
             }
             [[unroll]] for (int c = 0; c < COLS; ++c) w_step(we[c] + wk + k, wv[c]);
-            [[unroll]] for (int j = 0; j < 8; ++j) {
-              if (DIRECT) {
+            if (DIRECT) {
+              [[unroll]] for (int j = 0; j < 8; ++j)
                 [[unroll]] for (int r = 0; r < ROWS; ++r)
                   [[unroll]] for (int c = 0; c < COLS; ++c) acc[r][c] = fma(xv[r][j], wv[c][j], acc[r][c]);
-              } else {
+            } else {
+              [[unroll]] for (int j = 0; j < 8; ++j)
                 [[unroll]] for (int g = 0; g < RG; ++g)
                   [[unroll]] for (int i = 0; i < 8; ++i) {
-                    float xb = bcast(xv[g][j], i);
+                    float xb = i == 0 ? xv[g][j] : rotate(xv[g][j], i);
                     [[unroll]] for (int c = 0; c < COLS; ++c) acc[8 * g + i][c] = fma(xb, wv[c][j], acc[8 * g + i][c]);
                   }
-              }
             }
           }
       }
 
+  // Shuffled tiles hold pixel 8g + (lane + i) mod 8 of the tile in acc[8g + i] (the rotations above).
   [[unroll]] for (int r = 0; r < ROWS; ++r) {
-    uint m = m0 + r;
-    if (m >= M) break;
+    uint m = m0 + (DIRECT ? uint(r) : uint(r & ~7) + ((lane + uint(r)) & 7u));
+    if (m >= M) continue;
     uint ow = m % p.wo, t = m / p.wo;
     uint ybase = p.y_base + (t / p.rows) * p.ys_f + (t % p.rows) * p.ys_h + ow * p.ys_w;
     [[unroll]] for (int c = 0; c < COLS; ++c) {

@@ -20,6 +20,8 @@ struct TuningEntry {
 // (lavapipe on a 2-core Zen 5, per CPU-second of the FMA peak: 8x2 0.30-0.45, 8x3 0.20-0.30, 16x2 ~0.31,
 // 8x4 ~0.33, 16x1 ~0.28; longer channel-loop trips (k_unroll 4) did not help). 8 x 2 (64 channels per
 // workgroup with sg_m 2) also divides the VAE's 128/256/512 channels, where 8 x 3 wastes a third at 128.
+// With rotations instead of broadcasts (conv_gemm.glsl) 8x2 and 8x4 measured interleaved, twice each, over
+// the VAE shapes: 0.28-0.33 and 0.21-0.36, 8x4 ahead on some shapes in one run and behind in the other.
 bool cpu_simd(const vk::DeviceCaps& c) { return c.type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
 // Anything else: a GPU. Few accumulators per thread keep occupancy; GPUs broadcast uniform loads.
 bool any_device(const vk::DeviceCaps&) { return true; }
