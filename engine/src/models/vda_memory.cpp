@@ -1,6 +1,7 @@
 #include "models/vda_memory.hpp"
 
 #include <algorithm>
+#include <map>
 #include <vector>
 
 #include "models/vda_model.hpp"
@@ -19,12 +20,17 @@ VdaMemory plan_vda_memory(const VdaConfig& c, int64_t T, int64_t input_h, int64_
     if (bytes(elements) > m.largest_tensor) m.largest_tensor = bytes(elements), m.largest_what = what;
     return bytes(elements);
   };
-  for (const auto& [name, shape] : vda_checkpoint_schema(c)) {
+  const std::vector<std::pair<std::string, Shape>> schema = vda_checkpoint_schema(c);
+  std::map<std::string, Shape> shape_of(schema.begin(), schema.end());
+  for (const auto& [name, shape] : schema) {
     if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;
     int64_t n = 1;
     for (int64_t d : shape) n *= d;
-    if (name == "head.resize_layers.0.bias") n *= 16;  // repeated over the 4x4 outputs of the Linear form
-    if (name == "head.resize_layers.1.bias") n *= 4;
+    // The transposed convs' bias is repeated over the k x k outputs of their Linear form (VdaModel::load).
+    if (name == "head.resize_layers.0.bias" || name == "head.resize_layers.1.bias") {
+      const Shape& k = shape_of.at(name.substr(0, name.size() - 4) + "weight");
+      n *= k[2] * k[3];
+    }
     if (name.find("ff.net.0.proj") != std::string::npos) {  // split into two halves
       m.weights += 2 * bytes(n / 2);
       continue;

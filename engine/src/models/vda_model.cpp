@@ -100,7 +100,6 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
   std::map<std::string, HostTensor> host = read_checkpoint(checkpoint, shapes);
   VdaModel m(ctx, resolve_vda_config(checkpoint, shapes));
   m.file_ = checkpoint;
-  const VdaConfig& c = m.cfg_;
   auto need = [&](const std::string& name) -> HostTensor& {
     auto it = host.find(name);
     if (it == host.end())
@@ -114,6 +113,8 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
     const HostTensor& wt = need(p + "weight");
     host[p + "linear_weight"] = transposed_conv_as_linear(wt);
     host[p + "linear_bias"] = repeat_each(need(p + "bias"), wt.shape[2] * wt.shape[3]);
+    host.erase(p + "weight");  // replaced by the Linear form: never uploaded
+    host.erase(p + "bias");
   }
   for (int j = 0; j < 4; ++j) {
     const std::string p = motion(j) + "transformer_blocks.0.ff.net.0.proj.";
@@ -124,19 +125,15 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
     host[p + "gate_weight"] = rows_of(w1, half, half);
     host[p + "value_bias"] = rows_of(b1, 0, half);
     host[p + "gate_bias"] = rows_of(b1, half, half);
+    host.erase(p + "weight");  // replaced by the halves: never uploaded
+    host.erase(p + "bias");
   }
   m.pos_table_ = need("pretrained.pos_embed");
   for (auto& [name, t] : host) {
     if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;  // host table / unused
-    // Replaced by their derived layouts above (the transposed convs' Linear form, the GEGLU halves).
-    if (name.rfind("head.resize_layers.", 0) == 0 && name.rfind("head.resize_layers.3.", 0) != 0 &&
-        name.find("linear_") == std::string::npos)
-      continue;
-    if (name.find("ff.net.0.proj.weight") != std::string::npos || name.find("ff.net.0.proj.bias") != std::string::npos) continue;
     m.weight_bytes_ += t.bytes();
     m.weights_.emplace(name, Tensor::upload(ctx, t, "vda " + name));
   }
-  (void)c;
   return m;
 }
 

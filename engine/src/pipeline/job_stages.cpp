@@ -1,4 +1,3 @@
-#include "pipeline/depth_source.hpp"
 #include "pipeline/job_stages.hpp"
 
 #include <unistd.h>
@@ -13,6 +12,7 @@
 #include "models/lora.hpp"
 #include "models/vae_tiling.hpp"
 #include "pipeline/denoise_stages.hpp"
+#include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "tensor/ops_check.hpp"

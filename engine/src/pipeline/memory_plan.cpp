@@ -6,14 +6,14 @@
 #include <cstdio>
 #include <sstream>
 
-#include "models/vda_memory.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_preprocess.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
 #include "io/model_schema.hpp"
 #include "models/cogvideox_transformer.hpp"
 #include "models/t5_encoder.hpp"
+#include "models/vda_memory.hpp"
+#include "models/vda_model.hpp"
+#include "models/vda_preprocess.hpp"
 #include "pipeline/job_stages.hpp"
 #include "tensor/ops_attention.hpp"
 
