@@ -56,12 +56,14 @@ double cpu_seconds();
 // GFLOP per CPU-second of `fn` doing `flops` per call: one warm-up call, then calls until ~0.5 CPU-seconds.
 double gflop_per_cpu_second(const std::function<void()>& fn, double flops);
 
-// The FMA-peak shader (shaders/bench/fma_peak.comp) recorded once: `flops` per submit of `recorder`.
+// The FMA-peak shader (shaders/bench/fma_peak.comp) in the fastest of a few shapes on this device (chains x
+// unroll), recorded once: `flops` per submit of `recorder`.
 struct FmaPeakRun {
   FmaPeakRun(vk::Context& ctx);
   vk::Buffer out;
   vk::Recorder recorder;
   double flops = 0;
+  uint32_t chains = 0, unroll = 0;
 };
 
 // The copy shader (shaders/bench/copy.comp) over 64 MiB, recorded once: `bytes` read + written per submit.

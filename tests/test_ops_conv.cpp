@@ -358,6 +358,52 @@ TEST_F(ConvOps, OtherRegisterBlocks) {
   ops::set_conv_register_block({});
 }
 
+// The four convolution paths that a split or a repack variant must leave bit-identical: the causal conv
+// without and with a cache, the stride-2 downsample and the fused upsample + conv, on one random input.
+struct FourConvs {
+  vk::Context& c;
+  int64_t b, cin, cout, f, h, w;
+  bool compress_time;
+  Vid x, cache;
+  Conv3dWeights cw;
+  std::vector<float> wr;
+  Tensor w2, xt, ct;
+  uint32_t dispatches = 0;  // of the last run: more chunks, more dispatches
+  FourConvs(vk::Context& ctx, int64_t b_, int64_t cin_, int64_t cout_, int64_t f_, int64_t h_, int64_t w_, DType w2_dtype,
+            bool compress_time_, uint32_t seed)
+      : c(ctx), b(b_), cin(cin_), cout(cout_), f(f_), h(h_), w(w_), compress_time(compress_time_),
+        x(random_vid(b, cin, f, h, w, seed)), cache(random_vid(b, cin, 2, h, w, seed + 1)),
+        cw(make_conv3d(ctx, cout, cin, 3, DType::bf16, seed + 2)),
+        w2(Tensor::upload(ctx, make_weights({cout, cin, 3, 3}, w2_dtype, seed + 3, 0.2f, wr))), xt(up(ctx, x)),
+        ct(up(ctx, cache)) {}
+  std::vector<Vid> run() {
+    Shape down_s = ops::conv2d_shape(xt.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
+    Shape up_s = ops::upsample2x_shape(xt.shape(), compress_time);
+    up_s[1] = cout;
+    Tensor y1 = Tensor::empty(c, {b, cout, f, h, w}, DType::f32), y2 = Tensor::empty(c, y1.shape(), DType::f32);
+    Tensor y3 = Tensor::empty(c, down_s, DType::f32), y4 = Tensor::empty(c, up_s, DType::f32);
+    ops::run_now(c, [&](vk::Recorder& rec) {
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y1);
+      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y2, &ct);
+      ops::conv2d(rec, xt, w2, nullptr, y3, ops::Conv2dParams::downsample3x3());
+      ops::upsample2x_conv3x3(rec, xt, w2, nullptr, y4, compress_time);
+      dispatches = rec.dispatch_count();
+    });
+    std::vector<Vid> r;
+    for (const Tensor* t : {&y1, &y2, &y3, &y4}) r.push_back(down(c, *t));
+    return r;
+  }
+  // The causal convs against the independent reference.
+  void expect_reference(const std::vector<Vid>& got, const std::string& what) {
+    expect_close(got[0], causal_ref(x, nullptr, cw, cout, 3, nullptr), "causal conv, " + what);
+    expect_close(got[1], causal_ref(x, &cache, cw, cout, 3, nullptr), "causal conv with cache, " + what);
+  }
+  static void expect_same(const std::vector<Vid>& got, const std::vector<Vid>& want, const std::string& what) {
+    const char* names[] = {"causal conv", "causal conv with cache", "stride 2", "upsample + conv"};
+    for (size_t i = 0; i < got.size(); ++i) expect_equal(got[i], want[i], std::string(names[i]) + ", " + what);
+  }
+};
+
 // Large inputs are split into chunks of output frames, and single frames into chunks of output rows,
 // each repacked separately (set_conv_chunk_bytes forces the splits the real size needs). Every split must
 // give the unsplit result bit for bit (same values, same summation order), which the tests above check
@@ -370,52 +416,52 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
     ~Reset() { ops::set_conv_chunk_bytes(0); }
   } reset;
   const int64_t cin = 12, cout = 9, f = 5, h = 11, w = 9;  // every tensor within the tiny alloc limit (256 KiB)
-  Vid x = random_vid(2, cin, f, h, w, 130);
-  Vid cache = random_vid(2, cin, 2, h, w, 131);
-  Conv3dWeights cw = make_conv3d(c, cout, cin, 3, DType::bf16, 132);
-  std::vector<float> wr;
-  Tensor w2 = Tensor::upload(c, make_weights({cout, cin, 3, 3}, DType::bf16, 133, 0.2f, wr));
-  Tensor xt = up(c, x), ct = up(c, cache);
-  Shape down_s = ops::conv2d_shape(xt.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
-  Shape up_s = ops::upsample2x_shape(xt.shape(), true);
-  up_s[1] = cout;
-  uint32_t dispatches = 0;  // of the last run_all: more chunks, more dispatches
-  auto run_all = [&] {
-    std::vector<Vid> r;
-    Tensor y1 = Tensor::empty(c, {2, cout, f, h, w}, DType::f32), y2 = Tensor::empty(c, y1.shape(), DType::f32);
-    Tensor y3 = Tensor::empty(c, down_s, DType::f32), y4 = Tensor::empty(c, up_s, DType::f32);
-    ops::run_now(c, [&](vk::Recorder& rec) {
-      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y1);
-      ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y2, &ct);
-      ops::conv2d(rec, xt, w2, nullptr, y3, ops::Conv2dParams::downsample3x3());
-      ops::upsample2x_conv3x3(rec, xt, w2, nullptr, y4, true);
-      dispatches = rec.dispatch_count();
-    });
-    for (const Tensor* t : {&y1, &y2, &y3, &y4}) r.push_back(down(c, *t));
-    return r;
-  };
-  std::vector<Vid> whole = run_all();
-  expect_close(whole[0], causal_ref(x, nullptr, cw, cout, 3, nullptr), "unsplit causal conv");
-  expect_close(whole[1], causal_ref(x, &cache, cw, cout, 3, nullptr), "unsplit causal conv with cache");
-  uint32_t previous = dispatches;
+  FourConvs convs(c, 2, cin, cout, f, h, w, DType::bf16, true, 130);
+  std::vector<Vid> whole = convs.run();
+  convs.expect_reference(whole, "unsplit");
+  uint32_t previous = convs.dispatches;
   const int64_t cp_bytes = 16 * 4;  // 12 channels pad to 16, f32
   // One frame of the padded axis is h*w pixels: room for 4 padded frames (2 output frames + the prefix),
   // then for 9 source rows of padded frames (the causal conv: 3 frames x 3 rows = one output row per chunk).
   for (int64_t budget : {4 * h * w * cp_bytes + cp_bytes, 9 * w * cp_bytes + cp_bytes}) {
     ops::set_conv_chunk_bytes(uint64_t(budget));
-    std::vector<Vid> split = run_all();
-    const char* names[] = {"causal conv", "causal conv with cache", "stride 2", "upsample + conv"};
-    for (size_t i = 0; i < split.size(); ++i)
-      expect_equal(split[i], whole[i], std::string(names[i]) + " split at " + std::to_string(budget) + " bytes");
+    FourConvs::expect_same(convs.run(), whole, "split at " + std::to_string(budget) + " bytes");
     if (uint64_t(budget) < c.caps().max_storage_buffer_range) {  // else the limits in force (DVS_LIMITS) split already
-      EXPECT_GT(dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
+      EXPECT_GT(convs.dispatches, previous) << "the budget of " << budget << " bytes did not split the convolutions further";
     }
-    previous = dispatches;
+    previous = convs.dispatches;
   }
   // A budget below one row of one frame cannot be met: a clear error, not a wrong result.
   ops::set_conv_chunk_bytes(uint64_t(w * cp_bytes));
   Tensor y = Tensor::empty(c, {2, cout, f, h, w}, DType::f32);
-  EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, xt, cw.wt, &cw.bt, y); }), Error);
+  EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::causal_conv3d(rec, convs.xt, convs.cw.wt, &convs.cw.bt, y); }),
+               Error);
+}
+
+// The input repack writes `pack_columns` pixels of a row per invocation (kernel_tuning.cpp: whole rows on
+// CPU drivers, a few pixels on GPUs): segment lengths that divide the row or not, alone and with the row and
+// column chunks of a split, must give the whole-row result bit for bit (a wrong segment start or end would
+// leave pixels unpacked or shifted).
+TEST_F(ConvOps, InputRepackSegments) {
+  struct Reset {
+    ~Reset() {
+      ops::set_conv_chunk_bytes(0);
+      ops::set_conv_register_block({});
+    }
+  } reset;
+  FourConvs convs(ctx(), 1, 5, 7, 3, 6, 11, DType::f32, false, 140);
+  ops::set_conv_register_block({0, 0, -1, 0, 1000});  // whole rows
+  std::vector<Vid> whole = convs.run();
+  convs.expect_reference(whole, "whole-row repack");
+  const int64_t cp_bytes = 8 * 4;  // 5 channels pad to 8, f32
+  for (int64_t budget : {int64_t(0), 9 * 4 * cp_bytes + cp_bytes}) {  // unsplit; 3 frames x 3 rows x 4 columns
+    ops::set_conv_chunk_bytes(uint64_t(budget));
+    for (int seg : {1, 3, 4, 11}) {
+      ops::set_conv_register_block({0, 0, -1, 0, seg});
+      FourConvs::expect_same(convs.run(), whole,
+                             std::to_string(seg) + " pixels per repack invocation" + (budget ? ", split" : ""));
+    }
+  }
 }
 
 // Caller-provided staging (what the VAE passes so that its memory plan counts it): buffers of the sizes

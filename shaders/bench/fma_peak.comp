@@ -4,7 +4,8 @@
 // ITERS rounds in all. Few chains, so that every accumulator stays in a register on a CPU device (lavapipe
 // runs 8 invocations per AVX2 register: CHAINS·4 accumulators must fit in its 16 registers) yet enough to
 // hide the FMA latency; the unrolled block amortises the per-trip loop-mask work of a SIMD-on-CPU driver.
-// One result per invocation keeps the work alive.
+// One result per invocation keeps the work alive. Drivers differ in which CHAINS x UNROLL they run fastest,
+// so the host (bench/harness.cpp) tries a few and keeps the fastest.
 layout(local_size_x = 64) in;
 layout(constant_id = 0) const int ITERS = 1024;
 layout(constant_id = 1) const int CHAINS = 3;

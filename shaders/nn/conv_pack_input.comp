@@ -1,10 +1,13 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_samplerless_texture_functions : require
+#extension GL_EXT_control_flow_attributes : require
 // The input of one convolution chunk, repacked channels-last for conv_gemm: out[frame][row][col][CP]
 // (CP = channels rounded up to 8, the extra channels zero) over `frames` frames of the time-padded axis
 // starting at tp0 and source rows [r0, r0 + rows), followed by one zero pixel (the target of every tap
-// that falls into the spatial padding). One invocation writes one vec4 (4 channels of one pixel).
+// that falls into the spatial padding). One invocation writes one vec4 (4 channels) of `seg` consecutive
+// pixels of one row (kernel_tuning.cpp: the whole row on CPU drivers, where the index arithmetic's integer
+// divisions are a scalar loop per lane, a few pixels on GPUs).
 // Only source columns [col0, col0 + wc) are packed (a row split into column chunks). The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
 // dispatch packs a sub-range (packed frames [q0, q0 + nq), channels [ca, cb) of the chunk) read through
 // sub-views of X and Cache starting at elements x_base / cache_base; `partial` dispatches (a channel range
@@ -36,17 +39,18 @@ layout(push_constant) uniform Push {
   uint x_base, cache_base;  // element of x / cache at the start of the bound views
   uint zero, partial;  // 1: also write the zero pixel; 1: merge into the existing vec4s
   uint col0, wc;       // source columns [col0, col0 + wc) (w: x's width)
+  uint seg, nseg;      // pixels of a row per invocation, segments per row (wc / seg rounded up)
 } p;
 
 void main() {
   uint i = flat_index();
-  uint items = p.nq * p.rows * p.wc * p.nc4;
+  uint items = p.nq * p.rows * p.nseg * p.nc4;
   if (i >= items) {  // the zero pixel
     if (p.zero != 0u && i < items + p.cp4) o[p.texels + i - items] = vec4(0.0);
     return;
   }
-  uint c4 = p.c4a + i % p.nc4, pix = i / p.nc4;
-  uint pc = pix % p.wc, col = p.col0 + pc, t = pix / p.wc;
+  uint c4 = p.c4a + i % p.nc4, s = i / p.nc4, t = s / p.nseg;
+  uint pc0 = (s % p.nseg) * p.seg, pc1 = min(pc0 + p.seg, p.wc);
   uint row = p.r0 + t % p.rows, q = p.q0 + t / p.rows, tp = p.tp0 + q;
   bool from_cache = p.time_mode == 3u && tp < p.prefix;
   uint frame;
@@ -55,18 +59,22 @@ void main() {
   else if (p.time_mode == 3u) frame = from_cache ? tp : tp - p.prefix;
   else frame = uint(max(int(tp) - int(p.prefix), 0));
   uint frames = from_cache ? p.prefix : p.src_frames;
-  uint hw = p.h * p.w, inner = row * p.w + col;
-  uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc) * p.cp4 + c4;
-  vec4 v = p.partial != 0u ? o[out_i] : vec4(0.0);
-  for (uint j = 0; j < 4u; ++j) {
+  uint hw = p.h * p.w, inner = row * p.w + p.col0;
+  // Per channel of the vec4: 0 another dispatch's channel (kept), 1 zero (past the chunk's channels), 2 read.
+  uint mode[4], e[4];
+  [[unroll]] for (uint j = 0; j < 4u; ++j) {
     uint ch = c4 * 4u + j;
-    if (ch < p.ca || (ch >= p.cb && p.cb != p.cc)) continue;  // another dispatch's channel
-    if (ch >= p.cc) {
-      v[j] = 0.0;
-      continue;
-    }
-    uint e = ((p.batch * p.c + p.c0 + ch) * frames + frame) * hw + inner;
-    v[j] = from_cache ? texelFetch(Cache, int(e - p.cache_base)).x : texelFetch(X, int(e - p.x_base)).x;
+    mode[j] = (ch < p.ca || (ch >= p.cb && p.cb != p.cc)) ? 0u : (ch >= p.cc ? 1u : 2u);
+    e[j] = ((p.batch * p.c + p.c0 + min(ch, p.cc - 1u)) * frames + frame) * hw + inner;
+    e[j] -= from_cache ? p.cache_base : p.x_base;
   }
-  o[out_i] = v;
+  uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc0) * p.cp4 + c4;
+  for (uint pc = pc0; pc < pc1; ++pc, out_i += p.cp4) {
+    vec4 v = p.partial != 0u ? o[out_i] : vec4(0.0);
+    [[unroll]] for (uint j = 0; j < 4u; ++j) {
+      if (mode[j] == 1u) v[j] = 0.0;
+      else if (mode[j] == 2u) v[j] = from_cache ? texelFetch(Cache, int(e[j] + pc)).x : texelFetch(X, int(e[j] + pc)).x;
+    }
+    o[out_i] = v;
+  }
 }

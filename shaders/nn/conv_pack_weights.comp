@@ -3,10 +3,12 @@
 // Convolution weights [Cout, Cin, taps] (taps = kt*kh*kw, any of f32/f16/bf16) repacked for conv_gemm to
 // [Cout, taps, CP] in the same dtype (CP = Cin rounded up to 8, the extra channels zero), so that 8
 // consecutive input channels of one tap are one RGBA32UI texel (16-bit) or two (f32). One invocation
-// writes one 32-bit word: two 16-bit values or one f32. Values are copied bit for bit.
+// writes one 32-bit word column (two 16-bit values or one f32) for every tap of one output channel: one
+// division per invocation instead of three per word (a vector integer division is a scalar loop on CPU
+// drivers, and it was what bounded this shader). Values are copied bit for bit.
 // Packed here: output channels [co0, co0 + groups' count) and input channels [ci0, ci0 + cc) (CP = cc rounded
-// up to 8); one dispatch writes packed words [word0, word0 + words) and reads W through a sub-view starting at
-// source element src_base (even for 16-bit weights).
+// up to 8); one dispatch writes the columns [item0, item0 + items) (output channel * CP / per + word) and
+// reads W through a sub-view starting at source element src_base (even for 16-bit weights).
 layout(local_size_x = 64) in;
 #include "index.glsl"
 layout(constant_id = 0) const uint WDT = 2;  // 0 f32, 1 f16, 2 bf16
@@ -15,14 +17,12 @@ layout(std430, binding = 0) readonly buffer W { uint w[]; };
 layout(std430, binding = 1) writeonly buffer Out { uint o[]; };
 
 layout(push_constant) uniform Push {
-  uint words;  // words of this dispatch
+  uint items;  // word columns of this dispatch
   uint cin, taps, cp;
-  uint co0, ci0, cc, word0, src_base;
+  uint co0, ci0, cc, item0, src_base;
 } p;
 
-uint element_bits(uint co, uint tap, uint ci) {  // source element (co, ci, tap), 0 past Cin
-  if (ci >= p.cc) return 0u;
-  uint e = ((p.co0 + co) * p.cin + p.ci0 + ci) * p.taps + tap;
+uint element_bits(uint e) {  // source element e (relative to the whole W), as its bits
   if (WDT == 0) return w[e - p.src_base];
   uint word = w[(e - p.src_base) >> 1];
   return (e & 1u) == 0u ? (word & 0xffffu) : (word >> 16);
@@ -30,12 +30,16 @@ uint element_bits(uint co, uint tap, uint ci) {  // source element (co, ci, tap)
 
 void main() {
   uint i = flat_index();
-  if (i >= p.words) return;
-  i += p.word0;
-  uint per = WDT == 0 ? 1u : 2u;
-  uint e = i * per;  // first packed element of this word (cp is a multiple of 8, so a word never crosses a tap)
-  uint ci = e % p.cp, t = e / p.cp;
-  uint tap = t % p.taps, co = t / p.taps;
-  if (WDT == 0) o[i] = element_bits(co, tap, ci);
-  else o[i] = element_bits(co, tap, ci) | (element_bits(co, tap, ci + 1u) << 16);
+  if (i >= p.items) return;
+  i += p.item0;
+  const uint per = WDT == 0 ? 1u : 2u, cpw = p.cp / per;  // words per tap
+  uint co = i / cpw, cw = i % cpw, ci = cw * per;
+  uint src = ((p.co0 + co) * p.cin + p.ci0 + ci) * p.taps;  // element (co, ci, tap 0)
+  uint dst = co * p.taps * cpw + cw;                         // word (co, tap 0, ci)
+  bool lo = ci < p.cc, hi = ci + 1u < p.cc;                  // past Cin: zero
+  for (uint tap = 0; tap < p.taps; ++tap, dst += cpw) {
+    uint bits = lo ? element_bits(src + tap) : 0u;
+    if (WDT != 0u && hi) bits |= element_bits(src + p.taps + tap) << 16;
+    o[dst] = bits;
+  }
 }

@@ -12,6 +12,7 @@ struct TuningEntry {
   bool (*matches)(const vk::DeviceCaps&);
   GemmTile conv_f32_weights, conv_16bit_weights;  // large convolutions
   GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
+  int pack_columns;  // conv_pack_input: pixels of a row per invocation (0: the whole row)
 };
 
 // CPU drivers (lavapipe, SwiftShader): an 8- or 16-lane subgroup is one SIMD register and every per-lane
@@ -23,12 +24,15 @@ struct TuningEntry {
 // With rotations instead of broadcasts (conv_gemm.glsl) 8x2 and 8x4 measured interleaved, twice each, over
 // the VAE shapes: 0.28-0.33 and 0.21-0.36, 8x4 ahead on some shapes in one run and behind in the other.
 bool cpu_simd(const vk::DeviceCaps& c) { return c.type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
+// Input repack (conv_pack_input.comp): on a CPU driver a vector integer division is a scalar loop per lane,
+// so one invocation per whole row keeps the index arithmetic out of the per-pixel work (11.1 -> 5.1 ms per
+// call in dvs-bench --filter conv_vae at 9x64x96, Mesa 22.3); a GPU wants many threads, so a few pixels each.
 // Anything else: a GPU. Few accumulators per thread keep occupancy; GPUs broadcast uniform loads.
 bool any_device(const vk::DeviceCaps&) { return true; }
 
 const std::array<TuningEntry, 2> kTable = {{
-    {"cpu-simd", cpu_simd, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 4, 1, 0, 1}},
-    {"gpu", any_device, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 2, 1, 0, 1}},
+    {"cpu-simd", cpu_simd, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 4, 1, 0, 1}, 0},
+    {"gpu", any_device, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 2, 1, 0, 1}, 4},
 }};
 
 }  // namespace
@@ -56,6 +60,12 @@ GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64
     return t;
   }
   return {};
+}
+
+int conv_pack_columns(const vk::DeviceCaps& caps) {
+  for (const TuningEntry& e : kTable)
+    if (e.matches(caps)) return e.pack_columns;
+  return 0;
 }
 
 }  // namespace dvs::ops

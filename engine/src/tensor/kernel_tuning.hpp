@@ -27,4 +27,8 @@ GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64
 // How the lanes of a cluster talk on this device (GemmTile::lanes): a property of its subgroups.
 int gemm_lanes(const vk::DeviceCaps& caps);
 
+// Output pixels of one row that one invocation of the convolution's input repack (conv_pack_input.comp)
+// writes; 0: the whole row segment of the chunk.
+int conv_pack_columns(const vk::DeviceCaps& caps);
+
 }  // namespace dvs::ops

@@ -150,11 +150,11 @@ std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b
 void pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, const ConvLimits& l,
                   int64_t co0, int64_t ng, int64_t ci0, int64_t cc, int64_t cpc, const vk::BufferView& packed) {
   const int64_t taps = j.kt * j.kh * j.kw, per = wdt == 0 ? 1 : 2, eb = wdt == 0 ? 4 : 2;
-  const int64_t words_per_co = taps * cpc / per;
+  const int64_t items_per_co = cpc / per;  // one invocation per output channel and packed word of one tap
   // Source bytes one dispatch of n output channels reads (plus the alignment slack of its start).
   auto src_bytes = [&](int64_t n) { return uint64_t(((n - 1) * j.cin + cc) * taps * eb) + l.align + 4; };
   int64_t step = ng;
-  while (step > 1 && (src_bytes(step) > l.storage || uint64_t(step * words_per_co) > l.groups_1d * 64)) --step;
+  while (step > 1 && (src_bytes(step) > l.storage || uint64_t(step * items_per_co) > l.groups_1d * 64)) --step;
   expect(src_bytes(step) <= l.storage, op, "one output channel's weights exceed one binding");
   std::array<uint32_t, 1> spec = {wdt};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_weights", spec);
@@ -164,17 +164,17 @@ void pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Ten
     uint32_t base = 0;
     vk::BufferView src = aligned_view(w.buffer(), first, end, l.align, uint32_t(eb), base);
     struct {
-      uint32_t words, cin, taps, cp, co0, ci0, cc, word0, src_base;
-    } pc{u32(op, n * words_per_co), u32(op, j.cin), u32(op, taps), u32(op, cpc), u32(op, co0), u32(op, ci0), u32(op, cc),
-         u32(op, c0 * words_per_co), base};
-    Grid g = grid_1d(rec.context().caps(), n * words_per_co, 64);
+      uint32_t items, cin, taps, cp, co0, ci0, cc, item0, src_base;
+    } pc{u32(op, n * items_per_co), u32(op, j.cin), u32(op, taps), u32(op, cpc), u32(op, co0), u32(op, ci0), u32(op, cc),
+         u32(op, c0 * items_per_co), base};
+    Grid g = grid_1d(rec.context().caps(), n * items_per_co, 64);
     rec.dispatch(pipe, {src, packed}, &pc, sizeof pc, g.x, g.y, 1, std::string(op) + "_pack_weights");
   });
 }
 
 struct PackInputPush {
   uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
-  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc;
+  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc, seg, nseg;
 };
 static_assert(sizeof(PackInputPush) <= 128);
 
@@ -186,13 +186,15 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
                 int64_t col0, int64_t wc, const vk::BufferView& packed) {
   const int64_t cp4 = cpc / 4, texels = nframes * rows * wc * cp4;
   const uint64_t cap = l.r32;  // bytes of one R32F view
+  const int64_t tuned = g_block_override.pack_columns ? g_block_override.pack_columns : conv_pack_columns(rec.context().caps());
+  const int64_t seg = tuned > 0 && tuned < wc ? tuned : wc, nseg = (wc + seg - 1) / seg;  // pixels per invocation
   auto fits = [&](int64_t ca, int64_t cb, int64_t qa, int64_t qb) {
     for (bool cache : {false, true}) {
       auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows, col0, wc);
       if ((end - first) * 4 + l.align > cap) return false;
     }
     int64_t c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
-    return uint64_t((qb - qa) * rows * wc * (c4b - c4a) + cp4) <= l.groups_1d * 64;
+    return uint64_t((qb - qa) * rows * nseg * (c4b - c4a) + cp4) <= l.groups_1d * 64;
   };
   int64_t nc = cc, nq = nframes;
   while (nc > 1 && !fits(0, nc, 0, nq)) --nc;
@@ -207,7 +209,8 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
                        u32(op, b), u32(op, tp0), u32(op, nframes), u32(op, r0), u32(op, rows), u32(op, j.prefix),
                        j.time_mode, u32(op, c0), u32(op, cc), u32(op, qa), u32(op, q), u32(op, ca), u32(op, cb),
                        u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
-                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc)};
+                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc),
+                       u32(op, seg), u32(op, nseg)};
       // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
       vk::BufferView views[2];
       for (int k = 0; k < 2; ++k) {
@@ -216,7 +219,7 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
         if (end == first) first = 0, end = 4;
         views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
       }
-      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * wc * (c4b - c4a)) + (zero ? cp4 : 0), 64);
+      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * nseg * (c4b - c4a)) + (zero ? cp4 : 0), 64);
       rec.dispatch(pipe,
                    {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT), vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed},
                    &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
@@ -498,8 +501,9 @@ std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
 
 void set_conv_register_block(const ConvRegisterBlock& block) {
   if (block.rows < 0 || block.rows > 16 || block.cols < 0 || block.cols > 8 || block.lanes > 2 ||
-      !(block.k_unroll == 0 || block.k_unroll == 1 || block.k_unroll == 2 || block.k_unroll == 4))
-    fail("set_conv_register_block", "block out of range (rows 1..16, cols 1..8, lanes -1..2, k_unroll 0, 1, 2, 4)");
+      !(block.k_unroll == 0 || block.k_unroll == 1 || block.k_unroll == 2 || block.k_unroll == 4) || block.pack_columns < 0)
+    fail("set_conv_register_block",
+         "block out of range (rows 1..16, cols 1..8, lanes -1..2, k_unroll 0, 1, 2, 4, pack_columns >= 0)");
   g_block_override = block;
 }
 

@@ -90,9 +90,10 @@ ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool 
 // Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.glsl; defaults come from
 // tensor/kernel_tuning.cpp). Register block: `rows` output pixels x 8*`cols` output channels per 8-lane
 // cluster (0 = automatic), `lanes` -1 automatic, else GemmTile::lanes (2 = no subgroup shuffles),
-// `k_unroll` 8-channel steps per loop trip (0 automatic; 1, 2 or 4).
+// `k_unroll` 8-channel steps per loop trip (0 automatic; 1, 2 or 4). `pack_columns`: pixels of a row per
+// invocation of the input repack (shaders/nn/conv_pack_input.comp; 0 automatic).
 struct ConvRegisterBlock {
-  int rows = 0, cols = 0, lanes = -1, k_unroll = 0;
+  int rows = 0, cols = 0, lanes = -1, k_unroll = 0, pack_columns = 0;
 };
 void set_conv_register_block(const ConvRegisterBlock& block);
 // Largest repacked input chunk in bytes (0 = the device's limits): smaller values force the frame and row
