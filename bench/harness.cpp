@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -68,15 +69,14 @@ FmaPeakRun::FmaPeakRun(vk::Context& ctx) : recorder(ctx) {
     }
     shapes = {{c, u}};
   }
+  std::tie(chains, unroll) = shapes[0];
   double best = 0;
-  for (auto [c, u] : shapes) {
-    double rate = 0;
-    if (shapes.size() > 1) {
-      vk::Recorder trial(ctx);
-      record_fma_peak(ctx, trial, out, c, u);
-      rate = fma_peak_flops(c) / Bench::time_ms([&] { trial.submit(); }, 0.15);
-    }
-    if (shapes.size() == 1 || rate > best) best = rate, chains = c, unroll = u;
+  for (size_t i = 0; shapes.size() > 1 && i < shapes.size(); ++i) {  // one shape: nothing to compare
+    auto [c, u] = shapes[i];
+    vk::Recorder trial(ctx);
+    record_fma_peak(ctx, trial, out, c, u);
+    const double rate = fma_peak_flops(c) / Bench::time_ms([&] { trial.submit(); }, 0.15);
+    if (rate > best) best = rate, chains = c, unroll = u;
   }
   record_fma_peak(ctx, recorder, out, chains, unroll);
   flops = fma_peak_flops(chains);

@@ -12,7 +12,11 @@ struct TuningEntry {
   bool (*matches)(const vk::DeviceCaps&);
   GemmTile conv_f32_weights, conv_16bit_weights;  // large convolutions
   GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
-  int pack_columns;  // conv_pack_input: pixels of a row per invocation (0: the whole row)
+  // conv_pack_input: pixels of a row per invocation (0: the whole row). On a CPU driver a vector integer
+  // division is a scalar loop per lane, so one invocation per whole row keeps the index arithmetic out of the
+  // per-pixel work (11.1 -> 5.1 ms per call in dvs-bench --filter conv_vae at 9x64x96, Mesa 22.3); a GPU
+  // wants many threads, so a few pixels each.
+  int pack_columns;
 };
 
 // CPU drivers (lavapipe, SwiftShader): an 8- or 16-lane subgroup is one SIMD register and every per-lane
@@ -24,9 +28,6 @@ struct TuningEntry {
 // With rotations instead of broadcasts (conv_gemm.glsl) 8x2 and 8x4 measured interleaved, twice each, over
 // the VAE shapes: 0.28-0.33 and 0.21-0.36, 8x4 ahead on some shapes in one run and behind in the other.
 bool cpu_simd(const vk::DeviceCaps& c) { return c.type == VK_PHYSICAL_DEVICE_TYPE_CPU; }
-// Input repack (conv_pack_input.comp): on a CPU driver a vector integer division is a scalar loop per lane,
-// so one invocation per whole row keeps the index arithmetic out of the per-pixel work (11.1 -> 5.1 ms per
-// call in dvs-bench --filter conv_vae at 9x64x96, Mesa 22.3); a GPU wants many threads, so a few pixels each.
 // Anything else: a GPU. Few accumulators per thread keep occupancy; GPUs broadcast uniform loads.
 bool any_device(const vk::DeviceCaps&) { return true; }
 
@@ -34,6 +35,13 @@ const std::array<TuningEntry, 2> kTable = {{
     {"cpu-simd", cpu_simd, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 4, 1, 0, 1}, 0},
     {"gpu", any_device, {8, 2, 2, 0, 1}, {8, 2, 2, 0, 1}, {4, 2, 1, 0, 1}, 4},
 }};
+
+// The first entry that matches the device (the last one matches every device).
+const TuningEntry& entry_for(const vk::DeviceCaps& caps) {
+  for (const TuningEntry& e : kTable)
+    if (e.matches(caps)) return e;
+  return kTable.back();
+}
 
 }  // namespace
 
@@ -45,27 +53,20 @@ int gemm_lanes(const vk::DeviceCaps& c) {
 
 GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64_t out_channels,
                    std::string* device_class) {
-  for (const TuningEntry& e : kTable) {
-    if (!e.matches(caps)) continue;
-    GemmTile t = wdt == DType::f32 ? e.conv_f32_weights : e.conv_16bit_weights;
-    if (outputs < 8 * t.rows) t = e.conv_small;
-    t.lanes = gemm_lanes(caps);
-    // Few output channels (the decoder's conv_out has 3): all 8 clusters along the pixels and one or two
-    // 8-channel columns, instead of a 64-channel tile that is mostly padding.
-    if (out_channels <= 16) {
-      t.sg_m = 8;
-      t.cols = out_channels <= 8 ? 1 : 2;
-    }
-    if (device_class) *device_class = e.name;
-    return t;
+  const TuningEntry& e = entry_for(caps);
+  GemmTile t = wdt == DType::f32 ? e.conv_f32_weights : e.conv_16bit_weights;
+  if (outputs < 8 * t.rows) t = e.conv_small;
+  t.lanes = gemm_lanes(caps);
+  // Few output channels (the decoder's conv_out has 3): all 8 clusters along the pixels and one or two
+  // 8-channel columns, instead of a 64-channel tile that is mostly padding.
+  if (out_channels <= 16) {
+    t.sg_m = 8;
+    t.cols = out_channels <= 8 ? 1 : 2;
   }
-  return {};
+  if (device_class) *device_class = e.name;
+  return t;
 }
 
-int conv_pack_columns(const vk::DeviceCaps& caps) {
-  for (const TuningEntry& e : kTable)
-    if (e.matches(caps)) return e.pack_columns;
-  return 0;
-}
+int conv_pack_columns(const vk::DeviceCaps& caps) { return entry_for(caps).pack_columns; }
 
 }  // namespace dvs::ops
