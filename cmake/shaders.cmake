@@ -8,7 +8,12 @@
 # current driver stacks (Mesa 25, Vulkan 1.3+ validation) reject it; use textureBuffer +
 # GL_EXT_samplerless_texture_functions + texelFetch(tex, i) (same uniform-texel-buffer descriptor).
 if(CMAKE_SCRIPT_MODE_FILE)
-  execute_process(COMMAND ${GLSLC} -E -I ${INCLUDE_DIR} ${SHADER}
+  if(PREPROCESSOR)  # the cooperative-matrix compiler (glslangValidator -E) for the shaders it compiles
+    set(preprocess ${PREPROCESSOR} -E -I${INCLUDE_DIR} ${SHADER})
+  else()
+    set(preprocess ${GLSLC} -E -I ${INCLUDE_DIR} ${SHADER})
+  endif()
+  execute_process(COMMAND ${preprocess}
                   OUTPUT_VARIABLE expanded ERROR_VARIABLE err RESULT_VARIABLE rc)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "glslc -E ${SHADER} failed:\n${err}")
@@ -24,6 +29,16 @@ endif()
 
 set(DVS_SHADERS_CMAKE ${CMAKE_CURRENT_LIST_FILE})
 
+# Shaders that enable GL_KHR_cooperative_matrix or GL_NV_cooperative_matrix2 (tensor cores) need a newer
+# glslang than Debian 12's: .ci/deps unpacks Debian 13's into /opt/dvs-glslang15 (DVS_GLSLANG_DIR), whose
+# spirv-val then checks each such module for Vulkan 1.3. Every other shader keeps the system's glslc.
+set(DVS_GLSLANG_DIR "$ENV{DVS_GLSLANG_DIR}")
+if(NOT DVS_GLSLANG_DIR)
+  set(DVS_GLSLANG_DIR /opt/dvs-glslang15)
+endif()
+find_program(DVS_COOPMAT_GLSLANG glslangValidator PATHS ${DVS_GLSLANG_DIR}/bin NO_DEFAULT_PATH)
+find_program(DVS_COOPMAT_SPIRV_VAL spirv-val PATHS ${DVS_GLSLANG_DIR}/bin NO_DEFAULT_PATH)
+
 function(dvs_embed_shaders target shader_root)
   file(GLOB_RECURSE sources CONFIGURE_DEPENDS ${shader_root}/*.comp)
   file(GLOB_RECURSE includes CONFIGURE_DEPENDS ${shader_root}/*.glsl)
@@ -35,6 +50,25 @@ function(dvs_embed_shaders target shader_root)
     string(REGEX REPLACE "\\.comp$" "" name ${rel})
     set(spv ${CMAKE_CURRENT_BINARY_DIR}/spv/${name}.spv)
     get_filename_component(spv_dir ${spv} DIRECTORY)
+    file(STRINGS ${src} coopmat REGEX "^#extension +GL_(KHR_cooperative_matrix|NV_cooperative_matrix2)")
+    if(coopmat)
+      if(NOT DVS_COOPMAT_GLSLANG OR NOT DVS_COOPMAT_SPIRV_VAL)
+        message(FATAL_ERROR "${rel} uses cooperative matrices, which Debian 12's glslc cannot compile: run "
+          "bash .ci/deps (it unpacks Debian 13's glslang into ${DVS_GLSLANG_DIR}; DVS_GLSLANG_DIR moves it)")
+      endif()
+      add_custom_command(
+        OUTPUT ${spv}
+        COMMAND ${CMAKE_COMMAND} -E make_directory ${spv_dir}
+        COMMAND ${CMAKE_COMMAND} -DPREPROCESSOR=${DVS_COOPMAT_GLSLANG} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src} -P ${DVS_SHADERS_CMAKE}
+        COMMAND ${DVS_COOPMAT_GLSLANG} -V --quiet --target-env vulkan1.3 -I${shader_root}/common -o ${spv} ${src}
+        COMMAND ${DVS_COOPMAT_SPIRV_VAL} --target-env vulkan1.3 ${spv}
+        DEPENDS ${src} ${includes} ${DVS_SHADERS_CMAKE}
+        COMMENT "glslangValidator (cooperative matrix) ${rel}"
+        VERBATIM)
+      list(APPEND spv_files ${spv})
+      list(APPEND names ${name})
+      continue()
+    endif()
     add_custom_command(
       OUTPUT ${spv}
       COMMAND ${CMAKE_COMMAND} -E make_directory ${spv_dir}

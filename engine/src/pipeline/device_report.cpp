@@ -1,5 +1,6 @@
 #include "dvs/info.hpp"
 
+#include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 
 namespace dvs {
@@ -13,7 +14,10 @@ std::string device_report(const std::string& device_spec) {
                     (devices.size() == 1 ? "" : "s") + "\n\n";
   for (const auto& d : devices) {
     out += vk::describe_device(d);
-    if (d.index == chosen) out += "  (selected: dvs uses this device)\n";
+    if (d.index == chosen) {
+      out += "  (selected: dvs uses this device)\n";
+      out += ops::describe_tuning(ops::device_tuning(d));
+    }
     out += "\n";
   }
   out += "Choose a device with --device INDEX|NAME or the DVS_DEVICE environment variable.\n";

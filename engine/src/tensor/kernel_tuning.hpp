@@ -1,9 +1,19 @@
-// Per-device kernel choices (tile shapes, register blocking) of the GEMM-shaped shaders, kept in one table
-// (kernel_tuning.cpp) so that op files hold no device-type checks and a new device's variant is a table
-// entry. Today it serves the convolutions (shaders/nn/conv_gemm.glsl).
+// The device-tuning seam: every device-dependent choice of the ops (kernel variant, tiles, lanes, rows per
+// invocation, texel or storage inputs, chunk sizes, cooperative-matrix shapes) lives in one table
+// (kernel_tuning.cpp), keyed by what the device reports (type, vendor, subgroup size, shared memory,
+// cooperative-matrix properties). Op files ask `device_tuning(caps)` and hold no device-type, vendor or
+// subgroup-size checks of their own.
+//
+// One override mechanism for A/B runs: the environment variable DVS_TUNING picks an entry and/or fields,
+//   DVS_TUNING=gpu                                  the "gpu" entry on any device (e.g. forced on lavapipe)
+//   DVS_TUNING=linear=tiled,attention=flash         fields of the entry the device would get
+//   DVS_TUNING=gpu,coopmat=off                      an entry, then fields
+// (tuning_field_names() lists the fields; a bad name or value is an error that lists them). Tests and
+// benchmarks use ScopedTuningOverride, the same string in-process. `dvs info` prints the entry chosen.
 #pragma once
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "tensor/tensor.hpp"
 #include "vk/device_info.hpp"
@@ -18,17 +28,90 @@ struct GemmTile {
   int rows = 8, cols = 3, sg_m = 2, lanes = 0, k_unroll = 1;
 };
 
+// Which kernel family an op records.
+//   texel:   register-blocked kernels reading inputs through uniform texel buffers (shaped for CPU drivers,
+//            where a texel fetch is ~3x cheaper than a storage load; what every device ran before GPUs)
+//   tiled:   shared-memory tiles over storage buffers, fp32 FMA (what GPUs without tensor cores want)
+//   coopmat: shared-memory tiles feeding VK_KHR_cooperative_matrix (fp16 operands, fp32 accumulation)
+enum class KernelFamily : uint8_t { texel = 0, tiled = 1, coopmat = 2 };
+const char* kernel_family_name(KernelFamily k);
+
+// A cooperative-matrix shape the device offers at subgroup scope for fp16 A/B and fp32 C/result.
+struct CoopmatShape {
+  uint32_t m = 0, n = 0, k = 0;
+  bool defined() const { return m && n && k; }
+};
+
+struct DeviceTuning {
+  std::string entry;  // table entry name ("cpu-simd", "gpu", "gpu-coopmat", ...)
+  std::string overrides;  // the DVS_TUNING / ScopedTuningOverride string applied ("" when none)
+
+  // Subgroup use of the GEMM-shaped texel kernels (GemmTile::lanes): a property of the device's subgroups.
+  int gemm_lanes = 0;
+
+  // linear (tensor/ops_linear.cpp)
+  KernelFamily linear = KernelFamily::texel;
+  bool linear_f32_weights_16x2 = true;  // texel family: 16x2 tile for f32 weights at M >= 64
+  int linear_tile_m = 64, linear_tile_n = 64, linear_tile_k = 16;  // tiled / coopmat workgroup tile
+
+  // attention (tensor/ops_attention.cpp)
+  KernelFamily attention = KernelFamily::texel;
+  bool attention_rows_by_head_dim = true;  // texel family: several query rows per invocation (CPU drivers)
+  bool attention_kv_workspace = true;      // repack K/V head-major when the caller offers a workspace
+  int attention_block_q = 64, attention_block_k = 64;  // tiled / coopmat: query rows x keys per tile
+
+  // convolutions (tensor/ops_conv.cpp)
+  KernelFamily conv = KernelFamily::texel;
+  GemmTile conv_f32_weights, conv_16bit_weights;  // large convolutions (texel family)
+  GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
+  int conv_pack_columns = 0;  // pixels of a row per invocation of the input repack (0: the whole row)
+
+  // norms, reductions, elementwise
+  bool norm_row_per_invocation = false;  // layernorm/rmsnorm: one invocation per row (else a workgroup)
+  int64_t reduce_min_chunk = 1024;       // elements per first-level partial of a reduction, at least
+  bool eltwise_texel_inputs = true;      // vec4 elementwise ops read inputs through texel buffers
+
+  // tensor cores: the shape the coopmat kernels use (undefined: the device has none usable; then no
+  // family above may be coopmat)
+  CoopmatShape coopmat;
+};
+
+// The tuning for a device: its table entry, then the DVS_TUNING environment variable, then the in-process
+// override (ScopedTuningOverride). Cached per device and override string; cheap to call per op.
+const DeviceTuning& device_tuning(const vk::DeviceCaps& caps);
+
+// The same as a pure function of the device's properties and an override string (unit tests on faked
+// property lists). Throws dvs::Error naming the field and the accepted values on a bad override.
+DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overrides);
+
+// The fields DVS_TUNING may set, with their accepted values, one per line (for errors and `dvs info`).
+std::string tuning_field_names();
+
+// Human-readable report of a tuning (dvs info, dvs-bench).
+std::string describe_tuning(const DeviceTuning& t);
+
+// While alive, device_tuning() applies `overrides` after DVS_TUNING (tests and benchmarks: A/B a field or
+// force an entry in-process). Not thread-safe; one at a time.
+class ScopedTuningOverride {
+ public:
+  explicit ScopedTuningOverride(std::string overrides);
+  ~ScopedTuningOverride();
+  ScopedTuningOverride(const ScopedTuningOverride&) = delete;
+  ScopedTuningOverride& operator=(const ScopedTuningOverride&) = delete;
+
+ private:
+  std::string previous_;
+};
+
 // The tile for a convolution with `outputs` output pixels, `out_channels` output channels and weights
-// stored as `wdt`, on the device described by `caps`. `device_class` (optional) receives the name of the
-// table entry used.
+// stored as `wdt` (texel family), from the device's tuning. `device_class` (optional) receives the entry.
 GemmTile conv_tile(const vk::DeviceCaps& caps, DType wdt, int64_t outputs, int64_t out_channels,
                    std::string* device_class = nullptr);
 
-// How the lanes of a cluster talk on this device (GemmTile::lanes): a property of its subgroups.
+// How the lanes of a cluster talk on this device (GemmTile::lanes).
 int gemm_lanes(const vk::DeviceCaps& caps);
 
-// Output pixels of one row that one invocation of the convolution's input repack (conv_pack_input.comp)
-// writes; 0: the whole row segment of the chunk.
+// Output pixels of one row that one invocation of the convolution's input repack writes; 0: the whole row.
 int conv_pack_columns(const vk::DeviceCaps& caps);
 
 }  // namespace dvs::ops

@@ -6,6 +6,7 @@
 #include "dvs/error.hpp"
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
 
@@ -103,14 +104,9 @@ LinearShape normalized(const LinearShape& s) {
 
 LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape_in, DType w_dtype) {
   const LinearShape s = normalized(shape_in);
-  const vk::DeviceCaps& caps = ctx.caps();
+  const DeviceTuning& tune = device_tuning(ctx.caps());
   LinearKernel k;
-  if (caps.subgroup_shuffle && caps.subgroup_size == 8)
-    k.lanes = 0;
-  else if (caps.subgroup_shuffle && caps.subgroup_size >= 8 && caps.subgroup_size <= 64 && caps.subgroup_size % 8 == 0)
-    k.lanes = 1;
-  else
-    k.lanes = 2;
+  k.lanes = tune.gemm_lanes;
   // Few rows: every lane fetches the rows itself (GEMV-like); otherwise broadcast 8-row groups.
   // (Rows 2 also exists; M = 2..4 share the 4-row variant to keep the pipelines that LLVM compiles few.)
   if (s.m <= 1) k.rows = 1;
@@ -120,7 +116,7 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   // f32 weights cost two texel fetches per 8 K values: a 16x2 tile (16 FMAs per fetch instead of 12)
   // measured ~10% faster on lavapipe; for 16-bit weights (one fetch per 8 values) 8x3 is as good and wastes
   // fewer rows on small M.
-  if (w_dtype == DType::f32 && s.m >= 64) {
+  if (tune.linear_f32_weights_16x2 && w_dtype == DType::f32 && s.m >= 64) {
     k.rows = 16;
     k.cols = 2;
   }

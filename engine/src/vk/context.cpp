@@ -107,7 +107,7 @@ std::vector<DeviceCaps> list_devices() {
   std::vector<DeviceCaps> out;
   try {
     auto pds = physical_devices(instance);
-    for (uint32_t i = 0; i < pds.size(); ++i) out.push_back(query_device_caps(pds[i], i));
+    for (uint32_t i = 0; i < pds.size(); ++i) out.push_back(query_device_caps(pds[i], i, instance));
   } catch (...) {
     vkDestroyInstance(instance, nullptr);
     throw;
@@ -135,7 +135,7 @@ Context::Context(const ContextOptions& options) {
 
     auto pds = physical_devices(instance_);
     std::vector<DeviceCaps> all;
-    for (uint32_t i = 0; i < pds.size(); ++i) all.push_back(query_device_caps(pds[i], i));
+    for (uint32_t i = 0; i < pds.size(); ++i) all.push_back(query_device_caps(pds[i], i, instance_));
     uint32_t chosen = select_device(all, options.device);
     physical_ = pds[chosen];
     caps_ = all[chosen];
@@ -175,6 +175,16 @@ Context::Context(const ContextOptions& options) {
       *tail = &fat;
       tail = &fat.pNext;
       exts.push_back("VK_EXT_shader_atomic_float");
+    }
+    // Tensor cores: the coopmat shaders are SPIR-V 1.6 with the Vulkan memory model.
+    VkPhysicalDeviceCooperativeMatrixFeaturesKHR fcm{};
+    fcm.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR;
+    if (caps_.vulkan_memory_model) f12.vulkanMemoryModel = VK_TRUE;
+    if (caps_.cooperative_matrix) {
+      fcm.cooperativeMatrix = VK_TRUE;
+      *tail = &fcm;
+      tail = &fcm.pNext;
+      exts.push_back(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
     }
     if (caps_.has_extension("VK_KHR_portability_subset")) exts.push_back("VK_KHR_portability_subset");
     if (caps_.memory_budget_ext) exts.push_back(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);  // the Allocator reads heap budgets

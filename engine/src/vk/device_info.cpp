@@ -31,7 +31,30 @@ std::string version_string(uint32_t v) {
          std::to_string(VK_API_VERSION_PATCH(v));
 }
 
-DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
+const char* component_type_name(VkComponentTypeKHR t) {
+  switch (t) {
+    case VK_COMPONENT_TYPE_FLOAT16_KHR: return "f16";
+    case VK_COMPONENT_TYPE_FLOAT32_KHR: return "f32";
+    case VK_COMPONENT_TYPE_FLOAT64_KHR: return "f64";
+    case VK_COMPONENT_TYPE_SINT8_KHR: return "s8";
+    case VK_COMPONENT_TYPE_SINT16_KHR: return "s16";
+    case VK_COMPONENT_TYPE_SINT32_KHR: return "s32";
+    case VK_COMPONENT_TYPE_SINT64_KHR: return "s64";
+    case VK_COMPONENT_TYPE_UINT8_KHR: return "u8";
+    case VK_COMPONENT_TYPE_UINT16_KHR: return "u16";
+    case VK_COMPONENT_TYPE_UINT32_KHR: return "u32";
+    case VK_COMPONENT_TYPE_UINT64_KHR: return "u64";
+    default: break;
+  }
+  switch (int(t)) {  // values newer headers name (bfloat16, fp8)
+    case 1000141000: return "bf16";
+    case 1000491002: return "e4m3";
+    case 1000491003: return "e5m2";
+    default: return "other";
+  }
+}
+
+DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance instance) {
   DeviceCaps c;
   c.index = index;
 
@@ -106,11 +129,15 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
   VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   VkPhysicalDeviceSubgroupSizeControlFeatures fsg{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_SIZE_CONTROL_FEATURES};
   VkPhysicalDeviceShaderAtomicFloatFeaturesEXT fat{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SHADER_ATOMIC_FLOAT_FEATURES_EXT};
+  VkPhysicalDeviceCooperativeMatrixFeaturesKHR fcm{};
+  fcm.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR;
   VkPhysicalDeviceFeatures2 feats{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   feats.pNext = &f11;
   f11.pNext = &f12;
   void** tail = &f12.pNext;
   if (has_sgctl) { *tail = &fsg; tail = &fsg.pNext; }
+  const bool has_coopmat = c.has_extension(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
+  if (has_coopmat) { *tail = &fcm; tail = &fcm.pNext; }
   bool has_atomic_float = c.has_extension("VK_EXT_shader_atomic_float");
   if (has_atomic_float) { *tail = &fat; tail = &fat.pNext; }
   vkGetPhysicalDeviceFeatures2(pd, &feats);
@@ -120,7 +147,27 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index) {
   c.int8_arithmetic = f12.shaderInt8;
   c.subgroup_size_control = has_sgctl && fsg.subgroupSizeControl && fsg.computeFullSubgroups;
   c.float32_atomic_add = has_atomic_float && fat.shaderBufferFloat32AtomicAdd;
-  c.cooperative_matrix = c.has_extension("VK_KHR_cooperative_matrix");
+  c.vulkan_memory_model = f12.vulkanMemoryModel;
+  c.cooperative_matrix2 = c.has_extension("VK_NV_cooperative_matrix2");
+  if (has_coopmat && fcm.cooperativeMatrix && instance != VK_NULL_HANDLE) {
+    auto get = reinterpret_cast<PFN_vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR>(
+        vkGetInstanceProcAddr(instance, "vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR"));
+    uint32_t n = 0;
+    if (get && get(pd, &n, nullptr) == VK_SUCCESS && n > 0) {
+      VkCooperativeMatrixPropertiesKHR blank{};
+      blank.sType = VK_STRUCTURE_TYPE_COOPERATIVE_MATRIX_PROPERTIES_KHR;
+      std::vector<VkCooperativeMatrixPropertiesKHR> props(n, blank);
+      if (get(pd, &n, props.data()) == VK_SUCCESS) {
+        props.resize(n);
+        for (const auto& p : props)
+          c.cooperative_matrix_shapes.push_back({p.MSize, p.NSize, p.KSize, p.AType, p.BType, p.CType, p.ResultType,
+                                                 p.saturatingAccumulation != VK_FALSE, p.scope});
+      }
+    }
+  }
+  // Usable only with the shapes known and the memory model the coopmat shaders are compiled for.
+  c.cooperative_matrix = !c.cooperative_matrix_shapes.empty() && c.vulkan_memory_model &&
+                         c.api_version >= VK_API_VERSION_1_3;
   c.push_descriptor = c.has_extension("VK_KHR_push_descriptor");
 
   VkPhysicalDeviceMemoryProperties mem{};
@@ -199,7 +246,15 @@ std::string describe_device(const DeviceCaps& c) {
     << "  fp16 arithmetic:      " << yes(c.float16_arithmetic) << "\n"
     << "  int8 arithmetic:      " << yes(c.int8_arithmetic) << "\n"
     << "  float32 atomic add:   " << yes(c.float32_atomic_add) << "\n"
-    << "  cooperative matrix:   " << yes(c.cooperative_matrix) << "\n"
+    << "  cooperative matrix:   " << yes(c.cooperative_matrix)
+    << (c.has_extension(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME) ? " (VK_KHR_cooperative_matrix)" : "")
+    << (c.cooperative_matrix2 ? ", VK_NV_cooperative_matrix2" : "") << "\n";
+  for (const CooperativeMatrixShape& s : c.cooperative_matrix_shapes)
+    o << "    " << s.m << "x" << s.n << "x" << s.k << " " << component_type_name(s.a) << "*" << component_type_name(s.b)
+      << "+" << component_type_name(s.c) << "->" << component_type_name(s.result)
+      << (s.scope == VK_SCOPE_SUBGROUP_KHR ? " subgroup" : s.scope == VK_SCOPE_WORKGROUP_KHR ? " workgroup" : " other-scope")
+      << (s.saturating ? " saturating" : "") << "\n";
+  o
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"
     << "  compute queue:        "

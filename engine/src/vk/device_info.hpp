@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "vk/cooperative_matrix_khr.hpp"
 #include "vk/memory_budget.hpp"
 
 namespace dvs::vk {
@@ -27,6 +28,16 @@ struct ForcedLimits {
   bool any() const { return binding || texels || alloc || groups; }
 };
 
+// One entry of vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR: C/Result = A·B + C with A MxK, B KxN.
+struct CooperativeMatrixShape {
+  uint32_t m = 0, n = 0, k = 0;
+  VkComponentTypeKHR a = VK_COMPONENT_TYPE_FLOAT16_KHR, b = VK_COMPONENT_TYPE_FLOAT16_KHR,
+                     c = VK_COMPONENT_TYPE_FLOAT32_KHR, result = VK_COMPONENT_TYPE_FLOAT32_KHR;
+  bool saturating = false;
+  VkScopeKHR scope = VK_SCOPE_SUBGROUP_KHR;
+};
+const char* component_type_name(VkComponentTypeKHR t);
+
 struct DeviceCaps {
   uint32_t index = 0;
   std::string name;
@@ -41,7 +52,10 @@ struct DeviceCaps {
   bool storage_16bit = false, storage_8bit = false;
   bool float16_arithmetic = false, int8_arithmetic = false;
   bool float32_atomic_add = false;   // VK_EXT_shader_atomic_float, buffer add
-  bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix
+  bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix with its cooperativeMatrix feature
+  std::vector<CooperativeMatrixShape> cooperative_matrix_shapes;  // what the device offers (empty without)
+  bool cooperative_matrix2 = false;  // VK_NV_cooperative_matrix2 exposed (reported; no kernel uses it yet)
+  bool vulkan_memory_model = false;  // Vulkan 1.2 vulkanMemoryModel (the coopmat shaders' memory model)
   bool push_descriptor = false;
 
   // The limits every op and allocation honours: the device's, lowered by DVS_LIMITS where it says so
@@ -76,7 +90,8 @@ struct DeviceCaps {
 const char* device_type_name(VkPhysicalDeviceType t);
 std::string version_string(uint32_t v);
 
-DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index);
+// `instance` resolves the extension queries (cooperative-matrix shapes); VK_NULL_HANDLE skips them.
+DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance instance = VK_NULL_HANDLE);
 
 // A family with COMPUTE but not GRAPHICS where the device has one (NVIDIA/AMD: an async compute queue that a
 // desktop's graphics work does not share), else the first with COMPUTE; -1 when none has COMPUTE.
