@@ -139,8 +139,11 @@ const std::vector<Field>& fields() {
       family_field("linear", &DeviceTuning::linear),
       family_field("attention", &DeviceTuning::attention),
       family_field("conv", &DeviceTuning::conv),
-      {"coopmat", "off (every coopmat family becomes tiled)",
+      // A forced shape is for testing: sid's lavapipe lists only 8x8x8 but computes 16x16 correctly (the
+      // validation layer then reports the unlisted shape; tests/run_on_mesa_coopmat.sh filters that one).
+      {"coopmat", "off (every coopmat family becomes tiled) | 16x16x16 | 16x16x8 (forced, even if unlisted)",
        [](DeviceTuning& t, const std::string& v) {
+         if (v == "16x16x16" || v == "16x16x8") return t.coopmat = {16, 16, v == "16x16x16" ? 16u : 8u}, true;
          bool on;
          if (!parse_bool(v, on) || on) return false;
          t.coopmat = {};
@@ -245,6 +248,7 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
       throw Error("DVS_TUNING: " + name + "=" + value + " is not one of " + f->values);
   }
   // Tensor cores only where the device has a usable shape: a coopmat family becomes tiled without one.
+  if (!caps.cooperative_matrix) t.coopmat = {};  // a forced shape needs the extension all the same
   if (!t.coopmat.defined())
     for (KernelFamily* k : {&t.linear, &t.attention, &t.conv})
       if (*k == KernelFamily::coopmat) *k = KernelFamily::tiled;

@@ -8,6 +8,8 @@
 //   DVS_TUNING=gpu                                  the "gpu" entry on any device (e.g. forced on lavapipe)
 //   DVS_TUNING=linear=tiled,attention=flash         fields of the entry the device would get
 //   DVS_TUNING=gpu,coopmat=off                      an entry, then fields
+//   DVS_TUNING=gpu-coopmat,coopmat=16x16x16         tensor cores with a forced shape (testing on sid's
+//                                                   lavapipe, which lists only 8x8x8: tests/run_on_mesa_coopmat.sh)
 // (tuning_field_names() lists the fields; a bad name or value is an error that lists them). Tests and
 // benchmarks use ScopedTuningOverride, the same string in-process. `dvs info` prints the entry chosen.
 #pragma once

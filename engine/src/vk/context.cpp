@@ -186,6 +186,14 @@ Context::Context(const ContextOptions& options) {
       tail = &fcm.pNext;
       exts.push_back(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
     }
+    // glslang compiles local_size_x_id for Vulkan 1.3 as LocalSizeId, which needs maintenance4 (every 1.3
+    // device has it; cooperative_matrix implies 1.3).
+    VkPhysicalDeviceMaintenance4Features fm4{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_4_FEATURES};
+    if (caps_.cooperative_matrix) {
+      fm4.maintenance4 = VK_TRUE;
+      *tail = &fm4;
+      tail = &fm4.pNext;
+    }
     if (caps_.has_extension("VK_KHR_portability_subset")) exts.push_back("VK_KHR_portability_subset");
     if (caps_.memory_budget_ext) exts.push_back(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);  // the Allocator reads heap budgets
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
