@@ -179,7 +179,16 @@ Context::Context(const ContextOptions& options) {
     // Tensor cores: the coopmat shaders are SPIR-V 1.6 with the Vulkan memory model.
     VkPhysicalDeviceCooperativeMatrixFeaturesKHR fcm{};
     fcm.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR;
-    if (caps_.vulkan_memory_model) f12.vulkanMemoryModel = VK_TRUE;
+    if (caps_.vulkan_memory_model) {
+      f12.vulkanMemoryModel = VK_TRUE;
+      // With the memory model on, Device-scope barriers (every glslc shader's memoryBarrier()) need the
+      // device-scope feature too.
+      VkPhysicalDeviceVulkan12Features s12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+      VkPhysicalDeviceFeatures2 s2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+      s2.pNext = &s12;
+      vkGetPhysicalDeviceFeatures2(physical_, &s2);
+      f12.vulkanMemoryModelDeviceScope = s12.vulkanMemoryModelDeviceScope;
+    }
     if (caps_.cooperative_matrix) {
       fcm.cooperativeMatrix = VK_TRUE;
       *tail = &fcm;
