@@ -81,6 +81,9 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
 void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   fill_gpu(t, c);
   t.linear = t.attention = t.conv = KernelFamily::coopmat;
+  // attention_flash_coopmat.comp lays its 128 invocations out as 4 subgroups x 16 query rows, 2 lanes per
+  // row: subgroups of 32 (NVIDIA) only; other devices run the tiled kernel.
+  if (c.subgroup_size != 32) t.attention = KernelFamily::tiled;
   t.linear_tile_m = t.linear_tile_n = 128;
   t.linear_tile_k = 32;
 }
