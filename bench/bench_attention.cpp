@@ -85,7 +85,7 @@ void run_shape(Bench& b, const Shape& sh) {
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
   {
     char fam[96];
-    std::snprintf(fam, sizeof fam, ", %s kernel%s, %.2f TFLOP/s", ops::kernel_family_name(ran),
+    std::snprintf(fam, sizeof fam, ", %s kernel%s, %.3g TFLOP/s", ops::kernel_family_name(ran),
                   sh.family ? " (forced)" : "", flops / (ms * 1e9));
     note += fam;
   }
