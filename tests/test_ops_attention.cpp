@@ -321,6 +321,35 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
   std::cout << "coopmat family: max error " << worst << "\n";
 }
 
+// The coopmat kernel's fp32 twin (attention_flash_coopmat_twin.comp: the same main(), staging, fp16 rounding,
+// softmax and epilogue, the products as fp32 FMA), on lavapipe: what the coopmat kernel does besides its
+// cooperative-matrix calls, by value. Tiles that fit 32 KiB with the twin's extra Q copy: D 16 with 64 or 32
+// keys, D 32 with 32 keys; lengths with partial tiles and rows; fused QKV; D 30 padded to 32.
+TEST_F(AttentionTest, CoopmatTwinByValue) {
+  if (!ctx().caps().float16_arithmetic) GTEST_SKIP() << "no shaderFloat16";
+  const bool forced = ctx().caps().forced_limits.any();
+  fp16_tolerance_ = 5e-3;
+  uint32_t seed = 700;
+  double worst = 0;
+  const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}, {64, 200}};
+  for (auto [d, bk] : {std::pair<int64_t, int>{16, 64}, {16, 32}, {32, 32}}) {
+    ops::ScopedTuningOverride twin("attention=tiled,attention_coopmat_twin=on,attention_block_k=" + std::to_string(bk));
+    for (int64_t heads : {1, 3})
+      for (auto [lq, lk] : lengths) {
+        Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
+        c.pad_columns = 4;
+        c.out_offset = 4;
+        c.out_extra = 8;
+        worst = std::max(worst, check(c, seed++));
+        if (!forced) EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+      }
+    Case fused{2, 3, d == 32 ? 30 : d, 130, 130, 0.2f, false, false, true};
+    worst = std::max(worst, check(fused, seed++));
+  }
+  fp16_tolerance_ = 0;
+  std::cout << "coopmat twin: max error " << worst << "\n";
+}
+
 TEST_F(AttentionTest, RejectsBadLayouts) {
   Tensor t = Tensor::zeros(ctx(), {1, 4, 32}, DType::f32);
   AttentionShape s{1, 2, 16, 4, 4};

@@ -157,6 +157,7 @@ const std::vector<Field>& fields() {
       int_field("attention_block_k", &DeviceTuning::attention_block_k, 16, 256, "16..256"),
       bool_field("attention_rows_by_head_dim", &DeviceTuning::attention_rows_by_head_dim),
       bool_field("attention_kv_workspace", &DeviceTuning::attention_kv_workspace),
+      bool_field("attention_coopmat_twin", &DeviceTuning::attention_coopmat_twin),
       int_field("conv_pack_columns", &DeviceTuning::conv_pack_columns, 0, 1 << 20, "0 (whole rows) or pixels"),
       bool_field("norm_row_per_invocation", &DeviceTuning::norm_row_per_invocation),
       bool_field("eltwise_texel_inputs", &DeviceTuning::eltwise_texel_inputs),

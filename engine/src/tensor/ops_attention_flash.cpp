@@ -1,6 +1,7 @@
 #include "tensor/ops_attention_flash.hpp"
 
 #include <algorithm>
+#include <span>
 #include <string>
 
 #include "tensor/binding_split.hpp"
@@ -53,6 +54,8 @@ uint64_t coopmat_shared_bytes(int64_t D, int64_t bk) {
   return uint64_t(2 * bk * D * 2 + 4 * 16 * std::max(bk, D) * 4 + 4 * 16 * bk * 2);
 }
 
+uint64_t coopmat_twin_shared_bytes(int64_t D, int64_t bk) { return coopmat_shared_bytes(D, bk) + 4 * 16 * D * 2 + 128 * 4; }
+
 Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand* const ops[4],
           const int64_t strides[4], const AttentionOptions& opt) {
   const DeviceTuning& t = device_tuning(caps);
@@ -71,6 +74,14 @@ Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOp
     if (D <= int64_t(bk) && coopmat_shared_bytes(D, bk) <= caps.max_compute_shared_memory &&
         caps.max_workgroup_invocations >= 128 && fits_grid(caps, s, kCoopmatRows))
       return {KernelFamily::coopmat, kCoopmatRows, bk};
+  }
+
+  // Tests on devices without tensor cores: the coopmat kernel's twin, where it fits.
+  if (t.attention_coopmat_twin && caps.float16_arithmetic && D % 16 == 0) {
+    const uint32_t bk = uint32_t(std::max(16, t.attention_block_k / 16 * 16));
+    if (D <= int64_t(bk) && coopmat_twin_shared_bytes(D, bk) <= caps.max_compute_shared_memory &&
+        caps.max_workgroup_invocations >= 128 && fits_grid(caps, s, kCoopmatRows))
+      return {KernelFamily::tiled, kCoopmatRows, bk, true};
   }
 
   // Tiled: one query row per invocation; the K and V tiles (fp32) within shared memory, in steps of 4 keys.
@@ -105,10 +116,12 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const bool coop = plan.family == KernelFamily::coopmat;
   const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k};
   const uint32_t spec_coop[] = {uint32_t(s.head_dim), plan.block_k};
-  const vk::Pipeline& pipe = coop ? ctx.pipelines().get("nn/attention_flash_coopmat", spec_coop)
-                                  : ctx.pipelines().get("nn/attention_flash", spec_tiled);
+  const char* name = coop ? "attention_flash_coopmat" : plan.twin ? "attention_flash_coopmat_twin" : "attention_flash";
+  const vk::Pipeline& pipe = ctx.pipelines().get(std::string("nn/") + name, coop || plan.twin
+                                                                              ? std::span<const uint32_t>(spec_coop)
+                                                                              : std::span<const uint32_t>(spec_tiled));
   rec.dispatch(pipe, {views[0], views[1], views[2], views[3]}, &push, sizeof push, div_up(s.q_len, plan.block_q),
-               uint32_t(s.heads), uint32_t(s.batch), coop ? "attention_flash_coopmat" : "attention_flash");
+               uint32_t(s.heads), uint32_t(s.batch), name);
 }
 
 }  // namespace dvs::ops::flash

@@ -17,6 +17,7 @@ namespace dvs::ops::flash {
 struct Plan {
   KernelFamily family = KernelFamily::texel;  // texel: the flash kernels do not take this call
   uint32_t block_q = 0, block_k = 0;          // query rows per workgroup, keys per shared tile
+  bool twin = false;  // family tiled, kernel attention_flash_coopmat_twin.comp (DeviceTuning::attention_coopmat_twin)
 };
 
 // ops: q, k, v, out (already checked against the shape); strides: their row strides in elements.
@@ -28,5 +29,7 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
 
 // Shared memory of the coopmat kernel at head_dim D and block_k keys (bytes), for the plan and the tests.
 uint64_t coopmat_shared_bytes(int64_t head_dim, int64_t block_k);
+// The same for its fp32 twin (plus its own copy of Q and the lane-pair exchange).
+uint64_t coopmat_twin_shared_bytes(int64_t head_dim, int64_t block_k);
 
 }  // namespace dvs::ops::flash
