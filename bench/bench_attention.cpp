@@ -84,9 +84,10 @@ void run_shape(Bench& b, const Shape& sh) {
                 sh.workspace ? " workspace" : "");
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
   {
-    char fam[96];
-    std::snprintf(fam, sizeof fam, ", %s kernel%s, %.3g TFLOP/s", ops::kernel_family_name(ran),
-                  sh.family ? " (forced)" : "", flops / (ms * 1e9));
+    char fam[128];
+    std::snprintf(fam, sizeof fam, ", %s kernel%s%s%s, %.3g TFLOP/s", ops::kernel_family_name(ran),
+                  sh.family ? " (attention=" : "", sh.family ? sh.family : "", sh.family ? " forced)" : "",
+                  flops / (ms * 1e9));
     note += fam;
   }
   if (sh.fused) note += ", fused QKV";
