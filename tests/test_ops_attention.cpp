@@ -261,12 +261,16 @@ TEST_F(AttentionTest, TiledFamilyOddSizes) {
         c.out_offset = 4;
         c.out_extra = 8;
         worst = std::max(worst, check(c, seed++));
-        if (!forced) EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "D" << d << " H" << heads << " Lq" << lq;
+        if (!forced) {
+          EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "D" << d << " H" << heads << " Lq" << lq;
+        }
       }
   for (int64_t d : {38, 70, 64}) {  // fused QKV (Lq = Lk), one padded
     Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
     worst = std::max(worst, check(c, seed++));
-    if (!forced) EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "fused D" << d;
+    if (!forced) {
+      EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "fused D" << d;
+    }
   }
   std::cout << "tiled family: max error " << worst << "\n";
 }
@@ -286,7 +290,9 @@ TEST_F(AttentionTest, TiledFamilyFallbacks) {
   if (!ops::device_tuning(ctx().caps()).coopmat.defined()) {
     ops::ScopedTuningOverride coop("attention=coopmat");
     check({2, 3, 64, 37, 45, 0.125f}, 523);
-    if (!ctx().caps().forced_limits.any()) EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+    if (!ctx().caps().forced_limits.any()) {
+      EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+    }
   }
 }
 
@@ -311,7 +317,9 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
         c.out_extra = 8;
         worst = std::max(worst, check(c, seed++));
         const ops::KernelFamily want = d % 16 == 0 && d <= 64 ? ops::KernelFamily::coopmat : ops::KernelFamily::tiled;
-        if (!forced) EXPECT_EQ(last_family_, want) << "D" << d << " H" << heads << " Lq" << lq << " Lk" << lk;
+        if (!forced) {
+          EXPECT_EQ(last_family_, want) << "D" << d << " H" << heads << " Lq" << lq << " Lk" << lk;
+        }
       }
   for (int64_t d : {64, 62}) {  // fused QKV; 62 padded to 64
     Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
@@ -341,7 +349,9 @@ TEST_F(AttentionTest, CoopmatTwinByValue) {
         c.out_offset = 4;
         c.out_extra = 8;
         worst = std::max(worst, check(c, seed++));
-        if (!forced) EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+        if (!forced) {
+          EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+        }
       }
     Case fused{2, 3, d == 32 ? 30 : d, 130, 130, 0.2f, false, false, true};
     worst = std::max(worst, check(fused, seed++));
