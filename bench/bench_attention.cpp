@@ -1,14 +1,18 @@
-// Attention throughput: GFLOP/s counted as 4·B·H·Lq·Lk·D (q·kᵀ and p·v), printed next to the device FMA
+// Attention throughput: GFLOP/s counted as 4·B·H·Lq·Lk·D (q·kᵀ and p·v; the note gives TFLOP/s and the kernel
+// family that ran: attention_f32 rows are the texel kernel, attention_tiled / attention_coopmat the GPU
+// families, forced per row), printed next to the device FMA
 // peak and OpenBLAS sgemm. Shapes: square self-attention at D = 64 over a range of heads and lengths, the
 // T5-like 226-token case with relative-position bias, a fused-QKV case, and the small head dims of the
 // tiny models.
 #include <chrono>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
 
 #include "harness.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/recorder.hpp"
@@ -19,10 +23,13 @@ namespace {
 struct Shape {
   int64_t batch, heads, len, head_dim;
   bool bias = false, fused = false, workspace = false;
+  const char* family = nullptr;  // DeviceTuning::attention forced for this row (nullptr: the device's own)
 };
 
 void run_shape(Bench& b, const Shape& sh) {
   vk::Context& ctx = b.ctx();
+  std::unique_ptr<ops::ScopedTuningOverride> forced;
+  if (sh.family) forced = std::make_unique<ops::ScopedTuningOverride>(std::string("attention=") + sh.family);
   const int64_t W = sh.heads * sh.head_dim;
   ops::AttentionShape s{sh.batch, sh.heads, sh.head_dim, sh.len, sh.len};
   Tensor qkv, q, k, v, bias;
@@ -52,6 +59,8 @@ void run_shape(Bench& b, const Shape& sh) {
     ws = Tensor::empty(ctx, {ops::attention_workspace_elements(s)}, DType::f32);
     opt.workspace = &ws;
   }
+  // The family that really runs (coopmat becomes tiled without tensor cores; bias and split calls run texel).
+  const ops::KernelFamily ran = ops::attention_split_plan(ctx.caps(), s, oq, ok, ov, {out}, opt).family;
   vk::Recorder rec(ctx);
   rec.begin();
   ops::attention(rec, s, oq, ok, ov, {out}, opt);
@@ -74,6 +83,13 @@ void run_shape(Bench& b, const Shape& sh) {
                 (long long)sh.len, (long long)sh.head_dim, sh.bias ? " bias" : "", sh.fused ? " fusedQKV" : "",
                 sh.workspace ? " workspace" : "");
   std::string note = sh.bias ? "bias, scale 1 (T5)" : "no bias";
+  {
+    char fam[128];
+    std::snprintf(fam, sizeof fam, ", %s kernel%s%s%s, %.3g TFLOP/s", ops::kernel_family_name(ran),
+                  sh.family ? " (attention=" : "", sh.family ? sh.family : "", sh.family ? " forced)" : "",
+                  flops / (ms * 1e9));
+    note += fam;
+  }
   if (sh.fused) note += ", fused QKV";
   if (sh.workspace) note += ", K/V repacked head-major (workspace)";
   if (cpu_device) {
@@ -83,7 +99,10 @@ void run_shape(Bench& b, const Shape& sh) {
                   peak > 0 ? per_cpu / peak : 0.0);
     note += extra;
   }
-  b.report({"attention_f32", shape, ms, flops / (ms * 1e6), 0, note});
+  const std::string op = ran == ops::KernelFamily::coopmat ? "attention_coopmat"
+                         : ran == ops::KernelFamily::tiled  ? "attention_tiled"
+                                                            : "attention_f32";
+  b.report({op, shape, ms, flops / (ms * 1e6), 0, note});
 }
 
 void attention(Bench& b) {
@@ -105,6 +124,19 @@ void attention(Bench& b) {
               {1, 2, 1024, 200},                     // a head dim over 128
               {1, 6, 2406, 64, false, true, true},   // Video-Depth-Anything Small's ViT at 518x910, one frame
               {1, 1, 17776, 64}};  // the real video sequence length, one head: memory stays O(L)
+  }
+  // The GPU families (shaders/nn/attention_flash*.comp), forced: on lavapipe they show what the GPU kernels
+  // cost there; on a GPU, CogVideoX-5B's real size (49x480x720: B2 H48 L17776 D64, fused QKV).
+  const bool cpu_device = b.ctx().caps().type == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  for (const char* family : {"tiled", "coopmat"}) {
+    if (b.quick()) {
+      shapes.push_back({1, 2, 1024, 64, false, false, false, family});
+      continue;
+    }
+    shapes.push_back({1, 2, 1024, 64, false, false, false, family});
+    shapes.push_back({1, 48, 2048, 64, false, true, false, family});
+    shapes.push_back({1, 2, 1024, 128, false, false, false, family});
+    if (!cpu_device) shapes.push_back({2, 48, 17776, 64, false, true, false, family});
   }
   for (const Shape& s : shapes) run_shape(b, s);
 }

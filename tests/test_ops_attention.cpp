@@ -10,12 +10,14 @@
 #include <iostream>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "support/attention_reference.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 
 namespace dvs::test {
@@ -94,13 +96,14 @@ class AttentionTest : public GpuTest {
     ops::run_now(ctx(), [&](vk::Recorder& rec) {
       ops::attention(rec, s, q, k, v, {out, c.out_offset, c.out_extra ? os : 0}, opt);
     });
+    last_family_ = ops::attention_split_plan(ctx().caps(), s, q, k, v, {out, c.out_offset, c.out_extra ? os : 0}, opt).family;
     std::vector<float> got = out.download(ctx()).to_f32();
     std::vector<double> ref = reference(s, hq, hk, hv, c.scale, c.bias ? &bias : nullptr, c.mask ? &mask : nullptr);
     EXPECT_EQ(got.size(), size_t(c.batch * c.q_len * os));
     EXPECT_EQ(ref.size(), size_t(c.batch * c.q_len * W));
     double vmax = 0;
     for (float x : hv.data) vmax = std::max(vmax, double(std::fabs(x)));
-    const double tol = 2e-5 + 2e-5 * vmax;
+    const double tol = fp16_tolerance_ ? fp16_tolerance_ * (1 + vmax) : 2e-5 + 2e-5 * vmax;
     double worst = 0;
     size_t bad = 0, touched = 0;
     for (int64_t row = 0; row < c.batch * c.q_len; ++row)
@@ -122,6 +125,8 @@ class AttentionTest : public GpuTest {
     EXPECT_EQ(touched, 0u) << what << ": output columns outside the heads were written";
     return worst;
   }
+  ops::KernelFamily last_family_ = ops::KernelFamily::texel;  // the kernel family of the last check()
+  double fp16_tolerance_ = 0;  // > 0: tolerance fp16_tolerance_·(1 + max|v|) (tensor-core operands)
 };
 
 TEST_F(AttentionTest, HeadDimsFromFourTo128) {
@@ -236,6 +241,123 @@ TEST_F(AttentionTest, HeadMajorWorkspace) {
   Case big{1, 2, 64, 5, 300, 0.125f};
   big.workspace = true;
   check(big, 92);
+}
+
+// The tiled family (shaders/nn/attention_flash.comp) forced on lavapipe, on odd sizes: 64 query rows per
+// workgroup, K/V tiles of 64 keys at D <= 64 and 32 at D = 72 and 128 (32 KiB of shared memory), so every
+// length here ends in a partial tile; head_dim 40 and 72 as they are, 38 and 70 padded to 40 and 72.
+// Under DVS_LIMITS the larger calls do not fit one storage binding and run on the texel kernel's splits.
+TEST_F(AttentionTest, TiledFamilyOddSizes) {
+  ops::ScopedTuningOverride tiled("attention=tiled");
+  const bool forced = ctx().caps().forced_limits.any();
+  uint32_t seed = 500;
+  double worst = 0;
+  const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}};
+  for (int64_t d : {40, 64, 72, 128})
+    for (int64_t heads : {1, 3})
+      for (auto [lq, lk] : lengths) {
+        Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
+        c.pad_columns = 4;
+        c.out_offset = 4;
+        c.out_extra = 8;
+        worst = std::max(worst, check(c, seed++));
+        if (!forced) {
+          EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "D" << d << " H" << heads << " Lq" << lq;
+        }
+      }
+  for (int64_t d : {38, 70, 64}) {  // fused QKV (Lq = Lk), one padded
+    Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
+    worst = std::max(worst, check(c, seed++));
+    if (!forced) {
+      EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << "fused D" << d;
+    }
+  }
+  std::cout << "tiled family: max error " << worst << "\n";
+}
+
+// Calls the tiled kernel does not take (bias, key mask: T5) run on the texel kernel under attention=tiled;
+// so does attention=coopmat on a device without cooperative matrices (it becomes tiled).
+TEST_F(AttentionTest, TiledFamilyFallbacks) {
+  {
+    ops::ScopedTuningOverride tiled("attention=tiled");
+    check({2, 4, 64, 37, 37, 1.0f, true, true}, 520);
+    EXPECT_EQ(last_family_, ops::KernelFamily::texel);
+    check({1, 2, 64, 45, 45, 1.0f, true, false, true}, 521);
+    EXPECT_EQ(last_family_, ops::KernelFamily::texel);
+    check({2, 2, 16, 35, 70, 0.25f, false, true}, 522);
+    EXPECT_EQ(last_family_, ops::KernelFamily::texel);
+  }
+  if (!ops::device_tuning(ctx().caps()).coopmat.defined()) {
+    ops::ScopedTuningOverride coop("attention=coopmat");
+    check({2, 3, 64, 37, 45, 0.125f}, 523);
+    if (!ctx().caps().forced_limits.any()) {
+      EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+    }
+  }
+}
+
+// The coopmat family (shaders/nn/attention_flash_coopmat.comp) by value, where the device has tensor cores
+// (skipped on lavapipe). fp16 operands (q pre-scaled, k, v, p; 11-bit significands) with fp32 accumulation:
+// tolerance 5e-3·(1 + max|v|) (the scores' rounding moves the weights by ~1e-3 relative at these sizes).
+// head_dim 16..64 (multiples of 16) run on tensor cores; 40, 72 and 128 on the tiled kernel.
+TEST_F(AttentionTest, CoopmatFamilyByValue) {
+  if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
+  ops::ScopedTuningOverride coop("attention=coopmat");
+  const bool forced = ctx().caps().forced_limits.any();
+  fp16_tolerance_ = 5e-3;
+  uint32_t seed = 600;
+  double worst = 0;
+  const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}, {64, 64}, {200, 1000}};
+  for (int64_t d : {16, 48, 64, 40, 72, 128})
+    for (int64_t heads : {1, 3})
+      for (auto [lq, lk] : lengths) {
+        Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
+        c.pad_columns = 4;
+        c.out_offset = 4;
+        c.out_extra = 8;
+        worst = std::max(worst, check(c, seed++));
+        const ops::KernelFamily want = d % 16 == 0 && d <= 64 ? ops::KernelFamily::coopmat : ops::KernelFamily::tiled;
+        if (!forced) {
+          EXPECT_EQ(last_family_, want) << "D" << d << " H" << heads << " Lq" << lq << " Lk" << lk;
+        }
+      }
+  for (int64_t d : {64, 62}) {  // fused QKV; 62 padded to 64
+    Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
+    worst = std::max(worst, check(c, seed++));
+  }
+  fp16_tolerance_ = 0;
+  std::cout << "coopmat family: max error " << worst << "\n";
+}
+
+// The coopmat kernel's fp32 twin (attention_flash_coopmat_twin.comp: the same main(), staging, fp16 rounding,
+// softmax and epilogue, the products as fp32 FMA), on lavapipe: what the coopmat kernel does besides its
+// cooperative-matrix calls, by value. Tiles that fit 32 KiB with the twin's extra Q copy: D 16 with 64 or 32
+// keys, D 32 with 32 keys; lengths with partial tiles and rows; fused QKV; D 30 padded to 32.
+TEST_F(AttentionTest, CoopmatTwinByValue) {
+  if (!ctx().caps().float16_arithmetic) GTEST_SKIP() << "no shaderFloat16";
+  const bool forced = ctx().caps().forced_limits.any();
+  fp16_tolerance_ = 5e-3;
+  uint32_t seed = 700;
+  double worst = 0;
+  const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}, {64, 200}};
+  for (auto [d, bk] : {std::pair<int64_t, int>{16, 64}, {16, 32}, {32, 32}}) {
+    ops::ScopedTuningOverride twin("attention=tiled,attention_coopmat_twin=on,attention_block_k=" + std::to_string(bk));
+    for (int64_t heads : {1, 3})
+      for (auto [lq, lk] : lengths) {
+        Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
+        c.pad_columns = 4;
+        c.out_offset = 4;
+        c.out_extra = 8;
+        worst = std::max(worst, check(c, seed++));
+        if (!forced) {
+          EXPECT_EQ(last_family_, ops::KernelFamily::tiled);
+        }
+      }
+    Case fused{2, 3, d == 32 ? 30 : d, 130, 130, 0.2f, false, false, true};
+    worst = std::max(worst, check(fused, seed++));
+  }
+  fp16_tolerance_ = 0;
+  std::cout << "coopmat twin: max error " << worst << "\n";
 }
 
 TEST_F(AttentionTest, RejectsBadLayouts) {

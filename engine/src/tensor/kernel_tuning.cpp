@@ -81,6 +81,9 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
 void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   fill_gpu(t, c);
   t.linear = t.attention = t.conv = KernelFamily::coopmat;
+  // attention_flash_coopmat.comp lays its 128 invocations out as 4 subgroups x 16 query rows, 2 lanes per
+  // row: subgroups of 32 (NVIDIA) only; other devices run the tiled kernel.
+  if (c.subgroup_size != 32) t.attention = KernelFamily::tiled;
   t.linear_tile_m = t.linear_tile_n = 128;
   t.linear_tile_k = 32;
 }
@@ -157,6 +160,7 @@ const std::vector<Field>& fields() {
       int_field("attention_block_k", &DeviceTuning::attention_block_k, 16, 256, "16..256"),
       bool_field("attention_rows_by_head_dim", &DeviceTuning::attention_rows_by_head_dim),
       bool_field("attention_kv_workspace", &DeviceTuning::attention_kv_workspace),
+      bool_field("attention_coopmat_twin", &DeviceTuning::attention_coopmat_twin),
       int_field("conv_pack_columns", &DeviceTuning::conv_pack_columns, 0, 1 << 20, "0 (whole rows) or pixels"),
       bool_field("norm_row_per_invocation", &DeviceTuning::norm_row_per_invocation),
       bool_field("eltwise_texel_inputs", &DeviceTuning::eltwise_texel_inputs),

@@ -61,6 +61,9 @@ struct DeviceTuning {
   bool attention_rows_by_head_dim = true;  // texel family: several query rows per invocation (CPU drivers)
   bool attention_kv_workspace = true;      // repack K/V head-major when the caller offers a workspace
   int attention_block_q = 64, attention_block_k = 64;  // tiled / coopmat: query rows x keys per tile
+  // Tests: where the tiled kernel would run, run the coopmat kernel's fp32 twin instead
+  // (attention_flash_coopmat_twin.comp; head_dim a multiple of 16, its tiles within shared memory).
+  bool attention_coopmat_twin = false;
 
   // convolutions (tensor/ops_conv.cpp)
   KernelFamily conv = KernelFamily::texel;

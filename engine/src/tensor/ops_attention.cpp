@@ -5,6 +5,8 @@
 
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_attention_flash.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -15,12 +17,13 @@ namespace {
 // fetched K/V chunk should feed several rows: about 512 floats of q rows and accumulators per invocation
 // measured best (more rows spill more than they save; keys 4 and 8 per block run alike, 4 compiles faster).
 // GPUs keep one row per invocation (registers are the limit there). Heads over 128 (up to 64 vec4s of q and
-// of accumulators per row) keep one row per invocation everywhere.
+// of accumulators per row) keep one row per invocation everywhere. Which applies is the device's tuning
+// (DeviceTuning::attention_rows_by_head_dim).
 struct Blocking {
   uint32_t rows, keys;
 };
 Blocking blocking_for(const vk::DeviceCaps& caps, int64_t head_dim) {
-  if (caps.type != VK_PHYSICAL_DEVICE_TYPE_CPU) return {1, 4};
+  if (!device_tuning(caps).attention_rows_by_head_dim) return {1, 4};
   if (head_dim <= 16) return {8, 4};
   if (head_dim <= 64) return {4, 4};
   if (head_dim <= 128) return {2, 4};
@@ -454,6 +457,7 @@ Tensor placeholder(const Shape& shape) {
 // Validates a call and decides how it runs.
 struct Prepared {
   Blocking blk{1, 4};
+  flash::Plan flash;  // family texel: attention.comp (with its split paths) runs the call
   Geometry geo{};
   AttentionSplit split;
   PadPlan pad;  // pad.dp > 0: head_dim is padded (pad.copies == 0 when there is nothing to do)
@@ -505,6 +509,10 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
   pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
   const AttentionOperand* all[4] = {&q, &k, &v, &out};
+  const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
+  pr.flash = flash::plan(caps, s, all, strides, opt);
+  pr.split.family = pr.flash.family;
+  if (pr.flash.family != KernelFamily::texel) return pr;  // one dispatch, nothing cut (split stays whole)
   if (!fits_whole(caps, s, all, pr.geo, opt, pr.blk))
     pr.split = plan_split(caps, s, pr.geo, opt, pr.blk, opt.workspace ? VkDeviceSize(opt.workspace->numel()) * 4 : 0);
   return pr;
@@ -559,6 +567,11 @@ void attention_aligned(vk::Recorder& rec, const AttentionShape& s, const Attenti
                        const AttentionOptions& opt, const Prepared& pr) {
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
+  if (pr.flash.family != KernelFamily::texel) {
+    const AttentionOperand* all[4] = {&q, &k, &v, &out};
+    const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
+    return flash::record(rec, s, all, strides, opt, pr.flash);
+  }
   if (!pr.split.whole) return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
   const Blocking blk = pr.blk;
   const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;
@@ -740,7 +753,8 @@ int64_t attention_workspace_elements(const AttentionShape& s) {
 
 bool attention_workspace_helps(const vk::DeviceCaps& caps, const AttentionShape& s) {
   // Measured: no change at H ≤ 2 or short sequences, +15% at H=8/L=1024, ×1.8 at H=48/L=2048.
-  return caps.type == VK_PHYSICAL_DEVICE_TYPE_CPU && s.heads >= 4 && s.kv_len >= 512;
+  // Whether the device wants it at all is its tuning (DeviceTuning::attention_kv_workspace: CPU drivers).
+  return device_tuning(caps).attention_kv_workspace && s.heads >= 4 && s.kv_len >= 512;
 }
 
 AttentionOperand fused_qkv_operand(const Tensor& qkv, int which, int64_t heads, int64_t head_dim) {

@@ -14,6 +14,7 @@
 #pragma once
 #include <cstdint>
 
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/device_info.hpp"
 #include "vk/recorder.hpp"
@@ -85,7 +86,12 @@ void attention(vk::Recorder& rec, const AttentionShape& shape, const AttentionOp
 // dispatches of the whole call (4 when nothing is cut). The fields above then describe the attention of one
 // (the first, largest) group on its padded operands; `whole` says that nothing at all is cut: one group,
 // 4 copies, one attention dispatch (plus a repack with a workspace).
+//
+// `family`: the kernel that runs the call (of the first group, when padded). tiled / coopmat
+// (DeviceTuning::attention, shaders/nn/attention_flash*.comp) take only calls without bias or key mask that
+// fit one dispatch (storage bindings): always `whole`. Every other call runs on the texel kernel.
 struct AttentionSplit {
+  KernelFamily family = KernelFamily::texel;
   bool whole = true, repack = false;
   int64_t head_group = 0, q_rows = 0, keys = 0, pack_rows = 0;
   uint64_t scratch_bytes = 0;

@@ -1,0 +1,35 @@
+// The GPU families of ops::attention (DeviceTuning::attention): `tiled` (shaders/nn/attention_flash.comp,
+// shared-memory K/V tiles, fp32 FMA) and `coopmat` (shaders/nn/attention_flash_coopmat.comp, tensor cores).
+// Internal to ops_attention.cpp: it validates the operands and asks plan() which kernel runs a call whose
+// head_dim is a multiple of 4 (a padded head_dim arrives here on its padded copies).
+//
+// These kernels take whole calls only: no bias, no key mask, one dispatch within the limits in force. Every
+// other call (T5's bias and mask, calls the texel path would split) runs on the texel kernel
+// (shaders/nn/attention.comp) with its split paths, so every split keeps working on every device.
+#pragma once
+#include <cstdint>
+
+#include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_attention.hpp"
+
+namespace dvs::ops::flash {
+
+struct Plan {
+  KernelFamily family = KernelFamily::texel;  // texel: the flash kernels do not take this call
+  uint32_t block_q = 0, block_k = 0;          // query rows per workgroup, keys per shared tile
+  bool twin = false;  // family tiled, kernel attention_flash_coopmat_twin.comp (DeviceTuning::attention_coopmat_twin)
+};
+
+// ops: q, k, v, out (already checked against the shape); strides: their row strides in elements.
+Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand* const ops[4],
+          const int64_t strides[4], const AttentionOptions& opt);
+
+void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* const ops[4], const int64_t strides[4],
+            const AttentionOptions& opt, const Plan& plan);
+
+// Shared memory of the coopmat kernel at head_dim D and block_k keys (bytes), for the plan and the tests.
+uint64_t coopmat_shared_bytes(int64_t head_dim, int64_t block_k);
+// The same for its fp32 twin (plus its own copy of Q and the lane-pair exchange).
+uint64_t coopmat_twin_shared_bytes(int64_t head_dim, int64_t block_k);
+
+}  // namespace dvs::ops::flash

@@ -1,0 +1,84 @@
+// Which attention kernel family runs a call (ops_attention_flash.cpp's plan), from faked device properties:
+// nothing is allocated or dispatched, so the coopmat choice is checked here although lavapipe has no tensor
+// cores (the coopmat kernel itself runs only on a device that has them).
+#include <gtest/gtest.h>
+
+#include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_attention.hpp"
+#include "tensor/ops_attention_flash.hpp"
+
+namespace dvs::test {
+namespace {
+
+using ops::AttentionShape;
+using ops::KernelFamily;
+
+// An H100-like device: 48 KiB of shared memory, subgroups of 32, an fp16 16x16x16 tensor-core shape.
+vk::DeviceCaps gpu_caps(uint32_t subgroup, bool coopmat) {
+  vk::DeviceCaps caps;
+  caps.name = "fake GPU, subgroup " + std::to_string(subgroup) + (coopmat ? ", coopmat" : "");
+  caps.type = VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU;
+  caps.subgroup_size = subgroup;
+  caps.subgroup_shuffle = caps.float16_arithmetic = caps.vulkan_memory_model = true;
+  caps.max_storage_buffer_range = 0xffffffffull;
+  caps.max_texel_buffer_elements = 1ull << 27;
+  caps.max_memory_allocation_size = 64ull << 30;
+  caps.min_storage_buffer_offset_alignment = caps.min_texel_buffer_offset_alignment = 16;
+  caps.max_compute_shared_memory = 48 << 10;
+  caps.max_workgroup_invocations = 1024;
+  caps.max_workgroup_count[0] = 0x7fffffff;
+  caps.max_workgroup_count[1] = caps.max_workgroup_count[2] = 65535;
+  if (coopmat) {
+    caps.cooperative_matrix = true;
+    vk::CooperativeMatrixShape s;
+    s.m = s.n = s.k = 16;
+    caps.cooperative_matrix_shapes.push_back(s);
+  }
+  return caps;
+}
+
+TEST(AttentionFlashPlan, TuningPicksTheFamily) {
+  EXPECT_EQ(ops::select_tuning(gpu_caps(32, true), "").attention, KernelFamily::coopmat);
+  EXPECT_EQ(ops::select_tuning(gpu_caps(64, true), "").attention, KernelFamily::tiled);  // 4 x 32-lane layout only
+  EXPECT_EQ(ops::select_tuning(gpu_caps(32, false), "").attention, KernelFamily::tiled);
+  EXPECT_EQ(ops::select_tuning(gpu_caps(32, true), "coopmat=off").attention, KernelFamily::tiled);
+  EXPECT_FALSE(ops::select_tuning(gpu_caps(32, true), "").attention_kv_workspace);
+  EXPECT_FALSE(ops::attention_workspace_helps(gpu_caps(32, true), {2, 48, 64, 2048, 2048}));
+  vk::DeviceCaps cpu = gpu_caps(8, false);
+  cpu.type = VK_PHYSICAL_DEVICE_TYPE_CPU;
+  EXPECT_EQ(ops::select_tuning(cpu, "").attention, KernelFamily::texel);
+  EXPECT_TRUE(ops::attention_workspace_helps(cpu, {2, 48, 64, 2048, 2048}));
+}
+
+TEST(AttentionFlashPlan, CogVideoXRealSizeOnTensorCores) {
+  const vk::DeviceCaps caps = gpu_caps(32, true);
+  EXPECT_LE(ops::flash::coopmat_shared_bytes(64, 64), caps.max_compute_shared_memory);
+  // 49x480x720: fused QKV [2, 17776, 9216] (1.31 GB) in one storage binding, one dispatch.
+  const ops::AttentionSplit p = ops::attention_split_plan_fused(caps, {2, 48, 64, 17776, 17776});
+  EXPECT_EQ(p.family, KernelFamily::coopmat);
+  EXPECT_TRUE(p.whole);
+  // head_dim not a multiple of 16, or above the 64-key tile: the tiled kernel.
+  EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 3, 40, 37, 37}).family, KernelFamily::tiled);
+  EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 3, 72, 37, 37}).family, KernelFamily::tiled);
+  EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 3, 128, 37, 37}).family, KernelFamily::tiled);
+  EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 3, 38, 37, 37}).family, KernelFamily::tiled);  // padded to 40
+  // T5 (bias and key mask): the texel kernel.
+  EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 64, 64, 226, 226}, true, true).family, KernelFamily::texel);
+}
+
+TEST(AttentionFlashPlan, CallsOverOneBindingFallBackToTheTexelSplits) {
+  vk::DeviceCaps caps = gpu_caps(32, true);
+  caps.name += ", 128 MiB bindings";
+  caps.max_storage_buffer_range = 128ull << 20;
+  const ops::AttentionSplit p = ops::attention_split_plan_fused(caps, {2, 48, 64, 17776, 17776});
+  EXPECT_EQ(p.family, KernelFamily::texel);
+  EXPECT_FALSE(p.whole);
+  // The tiled kernel's key tile shrinks with head_dim to fit shared memory (2·BK·D·4 bytes).
+  vk::DeviceCaps small = gpu_caps(32, false);
+  small.name += ", 32 KiB shared";
+  small.max_compute_shared_memory = 32 << 10;
+  EXPECT_EQ(ops::attention_split_plan_fused(small, {1, 1, 256, 5, 5}).family, KernelFamily::tiled);
+}
+
+}  // namespace
+}  // namespace dvs::test
