@@ -4,10 +4,13 @@
 # by `dvs-weights make-tiny --real-size`, on a synthetic clip handed over as frame arrays (.npy: the bundle has
 # no video I/O; output.mp4 then holds the output frames as an .npy). Writes one JSON line per step: model made,
 # `dvs plan`'s peak, then run.json's seconds per stage, total and measured peak device memory beside the plan.
-# DVS_GPU_E2E_LAYERS (42) and DVS_GPU_E2E_T5_LAYERS (2: T5 runs once per run, its 24 layers only cost the
-# weights' making) size the model; DVS_GPU_E2E_STEPS (2) sampling steps at strength 1 and
-# DVS_GPU_E2E_INVERSION_STEPS (2). make-tiny draws every weight on one CPU core (Box-Muller): about 5.6e9
-# values at 42 blocks, minutes; fewer layers make the per-step figure per layer (scale by 42 / layers).
+# DVS_GPU_E2E_LAYERS and DVS_GPU_E2E_T5_LAYERS (2: T5 runs once per run, its 24 layers would only cost weight
+# making) size the model; DVS_GPU_E2E_STEPS (3: the paper preset's strength 0.95 samples 2) and
+# DVS_GPU_E2E_INVERSION_STEPS (2). make-tiny draws every weight on one CPU core (Box-Muller, measured here about
+# 2e7 values per CPU second): the 42 real blocks are 5.6e9 values, minutes before anything runs. So the layer
+# count defaults to 42 only when the stage has DVS_GPU_E2E_BUDGET >= 480 s (run.sh passes its timeout; e.g.
+# DVS_GPU_STAGES=e DVS_GPU_T_E=540 for a run of this stage alone), else 4 blocks at the real widths and token
+# count: the per-step and per-stage seconds then scale by 42 / layers for the transformer stages.
 # Smoke (DVS_GPU_SMOKE=1): the conformance pack's tiny sizes on a 9 x 64 x 64 clip.
 set -u
 BIN="${DVS_GPU_BIN_DIR:?run from bench/gpu/run.sh}"
@@ -17,10 +20,12 @@ note() { python3 -c 'import json,sys; d={"stage":"e","case":sys.argv[1]}; d.upda
 since() { python3 -c "import time,sys; print(round(time.time()-float(sys.argv[1]),2))" "$1"; }
 
 if [ "${DVS_GPU_SMOKE:-0}" = 1 ]; then
-  F=9 H=64 Wd=64 make=(--sample 8x8x9 --text-len 16) steps=1 inv=1
+  F=9 H=64 Wd=64 make=(--sample 8x8x9 --text-len 16) steps=2 inv=1
 else
-  F=49 H=480 Wd=720 steps="${DVS_GPU_E2E_STEPS:-2}" inv="${DVS_GPU_E2E_INVERSION_STEPS:-2}"
-  make=(--real-size --layers "${DVS_GPU_E2E_LAYERS:-42}" --t5-layers "${DVS_GPU_E2E_T5_LAYERS:-2}")
+  F=49 H=480 Wd=720 steps="${DVS_GPU_E2E_STEPS:-3}" inv="${DVS_GPU_E2E_INVERSION_STEPS:-2}"
+  layers=4
+  [ "${DVS_GPU_E2E_BUDGET:-0}" -ge 480 ] && layers=42
+  make=(--real-size --layers "${DVS_GPU_E2E_LAYERS:-$layers}" --t5-layers "${DVS_GPU_E2E_T5_LAYERS:-2}")
 fi
 
 t0=$(date +%s.%N)
@@ -69,15 +74,26 @@ PY
 
 t0=$(date +%s.%N)
 "$BIN/dvs" run --video "$W/clip.npy" --depth "$W/depth.npy" --metric-depth --model "$W/model" \
-  --prompt "a corridor of coloured stripes" --frames "$F" --size "${H}x${Wd}" --steps "$steps" --strength 1 \
-  --inversion-steps "$inv" --no-cache --out "$W/out" --progress json
-rc=$?
+  --prompt "a corridor of coloured stripes" --frames "$F" --size "${H}x${Wd}" --steps "$steps" \
+  --inversion-steps "$inv" --no-cache --out "$W/out" --progress json | while IFS= read -r line; do
+  echo "$line"
+  # Each diffusion step's progress event (elapsed_s since its stage began) as it happens: a timeout keeps them.
+  ev="${line#\{}"
+  case "$line" in *'"step":'[1-9]*) echo "{\"stage\":\"e\",\"case\":\"step\",${ev//\"stage\":/\"pipeline_stage\":}" >> "$RESULTS" ;; esac
+done
+rc=${PIPESTATUS[0]}
 note run "{\"rc\":$rc,\"seconds\":$(since "$t0")}"
 [ -f "$W/out/run.json" ] && note run-json "$(python3 - "$W/out/run.json" "$W/plan.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 out = {k: r.get(k) for k in ("seconds", "seconds_total", "peak_device_bytes", "peak_host_bytes", "device", "driver")}
 out["steps"] = r.get("settings", {}).get("steps")
+try:
+    plan = json.load(open(sys.argv[2]))["run_peak_bytes"]
+    out["plan_peak_bytes"] = plan
+    out["peak_over_plan"] = round(r["peak_device_bytes"] / plan, 4)
+except Exception:
+    pass
 print(json.dumps(out))
 PY
 )"

@@ -65,14 +65,31 @@ HostTensor read_frames_npy(const std::filesystem::path& path, int max_frames, Vi
   return out;
 }
 
-// read_video of a frame array.
+// read_video of a frame array. A different working size is taken by nearest-neighbour sampling (no filtering:
+// enough for preflight's probe and for arrays made at another size; give arrays at the working size for real runs)
+// after the crop rule's centre cut.
 HostTensor read_video_npy(const std::filesystem::path& path, const VideoReadOptions& o, VideoInfo* info) {
   VideoInfo vi;
-  HostTensor out = read_frames_npy(path, o.max_frames, vi);
-  if ((o.height > 0 && o.height != vi.height) || (o.width > 0 && o.width != vi.width))
-    no_video_io(path, "cannot resize " + std::to_string(vi.width) + "x" + std::to_string(vi.height) + " frames to " +
-                          std::to_string(o.width) + "x" + std::to_string(o.height));
+  HostTensor in = read_frames_npy(path, o.max_frames, vi);
   if (info) *info = vi;
+  const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
+  if (w == vi.width && h == vi.height) return in;
+  double x0 = 0, y0 = 0, sw = vi.width, sh = vi.height;  // the source window
+  if (o.resize == ResizeMode::crop) {
+    const double s = std::max(double(w) / vi.width, double(h) / vi.height);
+    sw = std::min<double>(vi.width, w / s), sh = std::min<double>(vi.height, h / s);
+    x0 = (vi.width - sw) / 2, y0 = (vi.height - sh) / 2;
+  }
+  const int64_t F = in.shape[0];
+  HostTensor out({F, 3, h, w}, DType::f32);
+  for (int64_t fc = 0; fc < F * 3; ++fc)
+    for (int y = 0; y < h; ++y) {
+      const int sy = std::min(vi.height - 1, int(y0 + (y + 0.5) * sh / h));
+      for (int x = 0; x < w; ++x) {
+        const int sx = std::min(vi.width - 1, int(x0 + (x + 0.5) * sw / w));
+        out.as<float>()[(fc * h + y) * w + x] = in.as<float>()[(fc * vi.height + sy) * vi.width + sx];
+      }
+    }
   return out;
 }
 
