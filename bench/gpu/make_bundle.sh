@@ -44,18 +44,33 @@ done | sort -u | while read -r soname path; do
 done
 strip --strip-unneeded "$stage"/lib/*.so* 2>/dev/null || true
 
-# The loader and the validation layer as Debian 12 packages, fetched with a private amd64 apt state (cached).
+# The loader and the validation layer as Debian packages, fetched with private amd64 apt states (cached in
+# .gpu/debs): Debian 12's libvulkan1 and vulkan-validationlayers 1.3.239, and Debian 13's validation layer
+# 1.4.309 (glibc >= 2.38, libstdc++ 14: the device's Ubuntu 24.04 has them, this Debian 12 does not), which knows
+# VK_KHR_cooperative_matrix (1.3.255) where 1.3.239 would report the tensor-core shaders as unknown. run.sh uses
+# trixie's layer and falls back to bookworm's when it does not load.
 debs="$DEST/debs"
 mkdir -p "$debs"
-if ! ls "$debs"/libvulkan1_*.deb "$debs"/vulkan-validationlayers_*.deb >/dev/null 2>&1; then
+fetch() {  # fetch SUITE PACKAGE...
+  local suite="$1" state archive
+  shift
   state="$(mktemp -d)"
-  mkdir -p "$state/partial"
-  o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 "-oDir::State::Lists=$state")
+  mkdir -p "$state/lists/partial" "$state/cache/archives/partial"
+  archive="$( { grep -hE '^URIs:' /etc/apt/sources.list.d/*.sources 2>/dev/null || true
+                grep -hE '^deb ' /etc/apt/sources.list /etc/apt/sources.list.d/*.list 2>/dev/null || true
+              } | awk '{print $2}' | { grep -v -- '-security' || true; } | head -n1)"
+  echo "deb ${archive:-http://deb.debian.org/debian} $suite main" > "$state/sources.list"
+  local o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 "-oDir::Etc::SourceList=$state/sources.list"
+           -oDir::Etc::SourceParts=/dev/null "-oDir::State::Lists=$state/lists" "-oDir::Cache=$state/cache")
   apt-get "${o[@]}" update -qq
-  (cd "$debs" && apt-get "${o[@]}" download -qq libvulkan1 vulkan-validationlayers 2>&1 | grep -v unsandboxed || true)
+  (cd "$debs" && apt-get "${o[@]}" download -qq "$@" 2>&1 | { grep -v unsandboxed || true; })
   rm -rf "$state"
-fi
-cp "$debs"/libvulkan1_*.deb "$debs"/vulkan-validationlayers_*.deb "$stage/debs/"
+}
+ls "$debs"/libvulkan1_1.3.*.deb "$debs"/vulkan-validationlayers_1.3.*.deb >/dev/null 2>&1 ||
+  fetch bookworm libvulkan1 vulkan-validationlayers
+ls "$debs"/vulkan-validationlayers_1.4.*.deb >/dev/null 2>&1 || fetch trixie vulkan-validationlayers
+cp "$debs"/libvulkan1_1.3.*.deb "$debs"/vulkan-validationlayers_1.3.*.deb "$debs"/vulkan-validationlayers_1.4.*.deb \
+  "$stage/debs/"
 
 {
   echo "dvs GPU bundle, made $(date -u +%Y-%m-%dT%H:%M:%SZ) on $(uname -n)"

@@ -55,6 +55,8 @@ note() {
   echo "$line}" >> "$RESULTS"
   echo "[$stage] $name: $*"
 }
+# dvs-bench's JSON lines (stdin) into the results, tagged with the stage.
+bench_json() { grep -E '^\{' | sed "s/^{/{\"stage\":\"$1\",/" >> "$RESULTS"; }
 now() { date +%s.%N; }
 elapsed() { awk -v a="$1" -v b="$(now)" 'BEGIN{printf "%.1f", b-a}'; }
 # Runs "$@" under `timeout T`; records the stage case's exit status and seconds. Status 124 = timed out.
@@ -80,8 +82,10 @@ elif [ -f "$BUNDLE" ]; then
   BIN="$BIN_ROOT/bin"
   head -n 2 "$BIN_ROOT/MANIFEST.txt"
   if [ "$SMOKE" != 1 ]; then
-    # The device image has no Vulkan loader: Debian 12's, and the validation layer the tests enable.
-    for f in "$BIN_ROOT"/debs/*.deb; do dpkg -x "$f" /; done
+    # The device image has no Vulkan loader: Debian 12's, and the validation layer the tests enable (Debian 13's,
+    # which knows VK_KHR_cooperative_matrix; Debian 12's when that one does not load, checked in stage a).
+    dpkg -x "$BIN_ROOT"/debs/libvulkan1_*.deb /
+    dpkg -x "$(ls "$BIN_ROOT"/debs/vulkan-validationlayers_1.4.*.deb "$BIN_ROOT"/debs/vulkan-validationlayers_*.deb 2>/dev/null | head -n1)" /
     ldconfig
   fi
 else
@@ -118,8 +122,15 @@ timed a dvs-info "$T_A" "$DVS" info > "$OUT/info.txt" 2>&1
 cat "$OUT/info.txt"
 tuning=$(sed -n 's/^Kernel tuning: entry "\([^"]*\)".*/\1/p' "$OUT/info.txt" | head -n 1)
 note a tuning entry="${tuning:-unknown}"
-bench_json() { grep -E '^\{' | sed "s/^{/{\"stage\":\"$1\",/" >> "$RESULTS"; }
-timed a dvs-bench-limits "$T_A" "$BENCH" --filter limits --quick > "$OUT/limits.tmp" 2>&1
+# With the validation layer on: the tests enable it and fail without it, so it must load here (Debian 13's, which
+# knows VK_KHR_cooperative_matrix; when it does not load, Debian 12's 1.3.239 replaces it and this runs again).
+timed a dvs-bench-limits "$T_A" env DVS_VALIDATION=1 "$BENCH" --filter limits --quick > "$OUT/limits.tmp" 2>&1
+if [ $? != 0 ] && grep -qi "validation" "$OUT/limits.tmp" && [ -n "${BIN_ROOT:-}" ] && [ "$SMOKE" != 1 ]; then
+  cat "$OUT/limits.tmp"
+  note a validation-layer loads=false fallback="Debian 12 layer 1.3.239"
+  dpkg -x "$(ls "$BIN_ROOT"/debs/vulkan-validationlayers_1.3.*.deb | head -n1)" / && ldconfig
+  timed a dvs-bench-limits-layer-1.3 "$T_A" env DVS_VALIDATION=1 "$BENCH" --filter limits --quick > "$OUT/limits.tmp" 2>&1
+fi
 cat "$OUT/limits.tmp"; bench_json a < "$OUT/limits.tmp"; rm -f "$OUT/limits.tmp"
 fi
 
