@@ -28,7 +28,7 @@ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DDVS_VIDEO_IO=OFF "${la
 nice cmake --build "$BUILD" -j"$JOBS" --target dvs dvs-bench dvs-weights dvs_tests dvs_golden_tests
 
 stage="$DEST/stage"
-rm -rf "$stage" "$DEST/bundle.tar.xz"
+rm -rf "$stage" "$DEST/bundle.tar.xz" "$DEST/debs"
 mkdir -p "$stage/bin" "$stage/lib" "$stage/debs"
 programs=(dvs bench/dvs-bench dvs-weights tests/dvs_tests tests/dvs_golden_tests)
 for p in "${programs[@]}"; do strip -s -o "$stage/bin/$(basename "$p")" "$BUILD/$p"; done
@@ -45,11 +45,11 @@ done
 strip --strip-unneeded "$stage"/lib/*.so* 2>/dev/null || true
 
 # The loader and the validation layer as Debian packages, fetched with private amd64 apt states (cached in
-# .gpu/debs): Debian 12's libvulkan1 and vulkan-validationlayers 1.3.239, and Debian 13's validation layer
+# ~/.cache/dvs/gpu-debs, outside .gpu so that .gpu holds only what travels): Debian 12's libvulkan1 and vulkan-validationlayers 1.3.239, and Debian 13's validation layer
 # 1.4.309 (glibc >= 2.38, libstdc++ 14: the device's Ubuntu 24.04 has them, this Debian 12 does not), which knows
 # VK_KHR_cooperative_matrix (1.3.255) where 1.3.239 would report the tensor-core shaders as unknown. run.sh uses
 # trixie's layer and falls back to bookworm's when it does not load.
-debs="$DEST/debs"
+debs="${XDG_CACHE_HOME:-$HOME/.cache}/dvs/gpu-debs"
 mkdir -p "$debs"
 fetch() {  # fetch SUITE PACKAGE...
   local suite="$1" state archive
@@ -85,6 +85,7 @@ unpacked=$(du -sb "$stage" | cut -f1)
 echo "bundle: $DEST/bundle.tar.xz $((packed / 1024)) KiB packed ($(awk "BEGIN{printf \"%.1f\", $packed/1048576}") MiB)," \
      "$(awk "BEGIN{printf \"%.1f\", $unpacked/1048576}") MiB unpacked"
 (cd "$stage" && du -sh bin lib debs | tr '\n' ' '; echo)
+rm -rf "$stage"  # only bundle.tar.xz travels (carry .gpu or .gpu/bundle.tar.xz)
 
 [ "$CHECK" = 1 ] || exit 0
 # The check: from a temporary copy, with an empty environment.
