@@ -6,11 +6,12 @@
 # `dvs plan`'s peak, then run.json's seconds per stage, total and measured peak device memory beside the plan.
 # DVS_GPU_E2E_LAYERS and DVS_GPU_E2E_T5_LAYERS (2: T5 runs once per run, its 24 layers would only cost weight
 # making) size the model; DVS_GPU_E2E_STEPS (3: the paper preset's strength 0.95 samples 2) and
-# DVS_GPU_E2E_INVERSION_STEPS (2). make-tiny draws every weight on one CPU core (Box-Muller, measured here about
-# 2e7 values per CPU second): the 42 real blocks are 5.6e9 values, minutes before anything runs. So the layer
-# count defaults to 42 only when the stage has DVS_GPU_E2E_BUDGET >= 480 s (run.sh passes its timeout; e.g.
-# DVS_GPU_STAGES=e DVS_GPU_T_E=540 for a run of this stage alone), else 4 blocks at the real widths and token
-# count: the per-step and per-stage seconds then scale by 42 / layers for the transformer stages.
+# DVS_GPU_E2E_INVERSION_STEPS (2). make-tiny draws the weights on every CPU core (Box-Muller; about 2e7 values per
+# core-second measured here), then writes them (about 11 GB for the 42 real blocks in bf16) and dvs loads them:
+# that takes a good part of a minute before anything runs. So the layer count defaults to 42 only when the stage
+# has DVS_GPU_E2E_BUDGET >= 480 s (run.sh passes its timeout; e.g. DVS_GPU_STAGES=e DVS_GPU_T_E=540 for a run of
+# this stage alone), else 4 blocks at the real widths and token count: the transformer stages' seconds per step
+# then scale by about 42 / layers.
 # Smoke (DVS_GPU_SMOKE=1): the conformance pack's tiny sizes on a 9 x 64 x 64 clip.
 set -u
 BIN="${DVS_GPU_BIN_DIR:?run from bench/gpu/run.sh}"
