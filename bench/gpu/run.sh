@@ -78,6 +78,7 @@ if [ -n "${DVS_GPU_BIN:-}" ]; then
   BIN="$DVS_GPU_BIN"
 elif [ -f "$BUNDLE" ]; then
   BIN_ROOT="$(mktemp -d /tmp/dvs-gpu.XXXXXX)"
+  [ "$SMOKE" = 1 ] && trap 'rm -rf "$BIN_ROOT"' EXIT  # 83 MiB unpacked; on the device /tmp goes with the machine
   tar -C "$BIN_ROOT" -xJf "$BUNDLE" || { note setup unpack rc=1 error="cannot unpack $BUNDLE"; exit 1; }
   BIN="$BIN_ROOT/bin"
   head -n 2 "$BIN_ROOT/MANIFEST.txt"
