@@ -5,6 +5,13 @@
 // layouts come from the pack, so another pack of the same format runs unchanged.
 #include <gtest/gtest.h>
 
+#ifndef DVS_VIDEO_IO
+#define DVS_VIDEO_IO 1  // tests/CMakeLists.txt defines it as 0 for this file in a DVS_VIDEO_IO=OFF build
+#endif
+// The preprocessing is OpenCV's cubic resize, absent without video I/O.
+#define DVS_SKIP_WITHOUT_VIDEO_IO() \
+  if (!DVS_VIDEO_IO) GTEST_SKIP() << "built without video I/O (DVS_VIDEO_IO=OFF): no OpenCV resize"
+
 #include <map>
 #include <set>
 #include <string>
@@ -128,6 +135,7 @@ TEST(VdaGolden, InputSizeRuleForEveryRecordedFrameSize) {
 }
 
 TEST(VdaGolden, PreprocessingOfEveryFrame) {
+  DVS_SKIP_WITHOUT_VIDEO_IO();
   const auto& c = test::vda_case("preprocess");
   const HostTensor clip = pack_clip();
   const HostTensor golden = read_npy(vda_golden_path() / "preprocess" / "normalised.npy");  // [L, 3, h, w]
@@ -147,6 +155,7 @@ TEST(VdaGolden, PreprocessingOfEveryFrame) {
 class VdaVideo : public test::GpuTest {};
 
 TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
+  DVS_SKIP_WITHOUT_VIDEO_IO();
   const auto& c = test::vda_case("e2e");
   const double atol = c.at("tolerance").at("atol"), rtol = c.at("tolerance").at("rtol");
   VdaModel model = VdaModel::load(ctx(), test::vda_checkpoint_path());

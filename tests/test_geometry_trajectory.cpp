@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "support/expect_error.hpp"
+#include "support/source_dir.hpp"
 #include "dvs/error.hpp"
 #include "geometry/camera.hpp"
 #include "geometry/trajectory.hpp"
@@ -109,7 +110,7 @@ TEST(GeometryTrajectory, OfficialClosedFormEqualsMatrixConstruction) {
 
 // The embedded tables equal tests/data/official-code-trajectories.tsv (a copy of the reference file).
 TEST(GeometryTrajectory, OfficialPresetsMatchTsv) {
-  std::ifstream f(fs::path(DVS_SOURCE_DIR) / "tests/data/official-code-trajectories.tsv");
+  std::ifstream f(test::source_dir() / "tests/data/official-code-trajectories.tsv");
   ASSERT_TRUE(f) << "missing tests/data/official-code-trajectories.tsv";
   std::map<std::string, OrbitAngles> tsv;
   std::string line;

@@ -11,6 +11,7 @@
 
 #include "support/expect_error.hpp"
 #include "support/files.hpp"
+#include "support/process.hpp"
 #include "dvs/error.hpp"
 #include "io/model_folder.hpp"
 #include "io/model_schema.hpp"
@@ -55,7 +56,7 @@ struct RunResult {
 
 RunResult run(const std::string& args) {
   RunResult r;
-  const std::string cmd = std::string(DVS_BIN_DIR) + "/dvs-weights " + args + " 2>&1";
+  const std::string cmd = dvs::test::program("dvs-weights") + " " + args + " 2>&1";
   FILE* p = ::popen(cmd.c_str(), "r");
   if (!p) return r;
   char buf[4096];
@@ -318,7 +319,7 @@ TEST(ModelFolderSchema, ReportsEveryMismatch) {
 // ---- the dvs-weights program ---------------------------------------------------------------------------------
 
 TEST(IoWeightsTool, InspectsThePackAndRejectsACorruptFile) {
-  ASSERT_TRUE(fs::exists(fs::path(DVS_BIN_DIR) / "dvs-weights")) << "build the dvs-weights target first";
+  ASSERT_TRUE(fs::exists(dvs::test::program("dvs-weights"))) << "build the dvs-weights target first";
   for (const char* folder : {"model", "model_bf16"}) {
     const auto r = run("inspect '" + (golden_path() / folder).string() + "'");
     EXPECT_EQ(r.status, 0) << r.output;

@@ -9,6 +9,7 @@
 
 #include "support/expect_error.hpp"
 #include "support/files.hpp"
+#include "support/source_dir.hpp"
 #include "dvs/error.hpp"
 #include "models/tokenizer.hpp"
 
@@ -22,7 +23,7 @@ struct TokenizerDir : dvs::test::TempDir {
 namespace {
 
 // The in-repo pack A (not DVS_GOLDEN_DIR): these expectations are about its tiny vocabulary.
-fs::path model_dir() { return fs::path(DVS_DEFAULT_GOLDEN_DIR) / "model"; }
+fs::path model_dir() { return dvs::test::source_dir() / "tests/golden/A/model"; }
 
 using dvs::test::error_of;
 

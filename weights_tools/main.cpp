@@ -45,11 +45,14 @@ commands:
       --values   also read every floating-point weight and fail (exit 1) on NaN or Inf, naming the tensor
                  and its first bad element (flat index and [i,j,...]); reads all the data, so it takes
                  about as long as reading the files once.
-  make-tiny --out DIR [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
-            [--t5-layers N] [--t5-d-model N] [--vocab N] [--text-len N] [--sample LHxLWxF]
-            [--vae-channels a,b,c,d] [--latent-channels N]
+  make-tiny --out DIR [--real-size] [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
+            [--time-embed-dim N] [--t5-layers N] [--t5-d-model N] [--t5-heads N] [--t5-d-kv N] [--t5-d-ff N]
+            [--vocab N] [--text-len N] [--sample LHxLWxF] [--vae-channels a,b,c,d] [--vae-layers-per-block N]
+            [--vae-groups N] [--latent-channels N]
                     write a random-weight CogVideoX-5B-I2V folder of tiny (or any) size that dvs loads;
-                    defaults are the conformance pack's sizes. DIR is a folder (created; not a file).
+                    defaults are the conformance pack's sizes; --real-size starts from the real model's
+                    (THUDM/CogVideoX-5b-I2V: 42 blocks of 48x64, T5-XXL 24 layers, 480x720x49; about 20 GB
+                    in bf16), the other options then change single sizes. DIR is a folder (created; not a file).
                     --sample is the transformer's sample size in LATENT units: latent height x latent width
                     (pixels / 8, the VAE's scale) x video frames; e.g. 8x8x9 suits --size 64x64 --frames 9
   make-vda --size vits|vitb|vitl --out FILE.safetensors [--seed N]
@@ -363,12 +366,23 @@ int make_tiny(const std::vector<std::string>& args) {
     throw dvs::UsageError("make-tiny: " + name + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
                      "], got '" + v + "'");
   };
+  // --real-size first, wherever it is given, so that the other options change single sizes of it.
+  if (std::find(args.begin(), args.end(), "--real-size") != args.end()) {
+    spec.dtype = dvs::DType::bf16;
+    spec.t5_layers = 24, spec.t5_heads = 64, spec.t5_d_kv = 64, spec.t5_d_model = 4096, spec.t5_d_ff = 10240;
+    spec.vocab = 32128;
+    spec.layers = 42, spec.heads = 48, spec.head_dim = 64, spec.time_embed_dim = 512, spec.text_len = 226;
+    spec.sample_frames = 49, spec.sample_height = 60, spec.sample_width = 90;
+    spec.vae_channels = {128, 256, 256, 512};
+    spec.vae_layers_per_block = 3, spec.vae_groups = 32, spec.latent_channels = 16;
+  }
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "-h" || a == "--help") {
       std::cout << kUsage;
       return 0;
     }
+    if (a == "--real-size") continue;
     if (a == "--out") out = value(i);
     else if (a == "--seed") spec.seed = uint64_t(integer(i, 0, 1 << 30));
     else if (a == "--dtype") {
@@ -381,6 +395,12 @@ int make_tiny(const std::vector<std::string>& args) {
     else if (a == "--head-dim") spec.head_dim = integer(i, 16, 256);
     else if (a == "--t5-layers") spec.t5_layers = integer(i, 1, 48);
     else if (a == "--t5-d-model") spec.t5_d_model = integer(i, 8, 4096);
+    else if (a == "--t5-heads") spec.t5_heads = integer(i, 1, 128);
+    else if (a == "--t5-d-kv") spec.t5_d_kv = integer(i, 1, 256);
+    else if (a == "--t5-d-ff") spec.t5_d_ff = integer(i, 1, 65536);
+    else if (a == "--time-embed-dim") spec.time_embed_dim = integer(i, 1, 4096);
+    else if (a == "--vae-layers-per-block") spec.vae_layers_per_block = integer(i, 1, 8);
+    else if (a == "--vae-groups") spec.vae_groups = integer(i, 1, 512);
     else if (a == "--vocab") spec.vocab = integer(i, 16, 32128);
     else if (a == "--text-len") spec.text_len = integer(i, 2, 512);
     else if (a == "--latent-channels") spec.latent_channels = integer(i, 1, 64);

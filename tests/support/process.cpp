@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 
 namespace dvs::test {
 
@@ -35,6 +36,11 @@ int wait_command(int pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
-std::string program(const std::string& name) { return std::string(DVS_BIN_DIR) + "/" + name; }
+// DVS_BIN_DIR in the environment: where the programs are when the tests run from a relocated bundle
+// (bench/gpu/run.sh); else this build's folder.
+std::string program(const std::string& name) {
+  const char* e = std::getenv("DVS_BIN_DIR");
+  return std::string(e && *e ? e : DVS_BIN_DIR) + "/" + name;
+}
 
 }  // namespace dvs::test

@@ -1,5 +1,9 @@
 #include "io/depth_images.hpp"
 
+#ifndef DVS_VIDEO_IO
+#define DVS_VIDEO_IO 1  // CMake defines it as 0 for this file in a DVS_VIDEO_IO=OFF build
+#endif
+
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -7,8 +11,10 @@
 #include <string>
 #include <vector>
 
+#if DVS_VIDEO_IO
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#endif
 
 #include "dvs/error.hpp"
 
@@ -27,6 +33,9 @@ std::string lower_ext(const std::filesystem::path& p) {
 HostTensor read_single_channel(const std::filesystem::path& file, const char* kind) {
   const std::string name = file.string();
   if (!std::filesystem::is_regular_file(file)) throw Error(name + ": cannot open the depth image (no such file)");
+#if !DVS_VIDEO_IO
+  throw Error(name + ": cannot read " + kind + " depth images: built without video I/O (DVS_VIDEO_IO=OFF)");
+#else
   cv::Mat img;
   try {
     img = cv::imread(name, cv::IMREAD_UNCHANGED | cv::IMREAD_ANYDEPTH);
@@ -42,6 +51,7 @@ HostTensor read_single_channel(const std::filesystem::path& file, const char* ki
   HostTensor out({int64_t(f.rows), int64_t(f.cols)}, DType::f32);
   for (int y = 0; y < f.rows; ++y) std::memcpy(out.as<float>() + size_t(y) * f.cols, f.ptr<float>(y), size_t(f.cols) * 4);
   return out;
+#endif
 }
 
 }  // namespace

@@ -1,11 +1,17 @@
 #include "io/third_party_logs.hpp"
 
+#ifndef DVS_VIDEO_IO
+#define DVS_VIDEO_IO 1  // CMake defines it as 0 for this file in a DVS_VIDEO_IO=OFF build
+#endif
+
 #include <fcntl.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
+#if DVS_VIDEO_IO
 #include <opencv2/core/utils/logger.hpp>
+#endif
 
 namespace dvs {
 namespace {
@@ -16,6 +22,7 @@ bool g_verbose = false;
 
 void set_third_party_logs(bool verbose) {
   g_verbose = verbose;
+#if DVS_VIDEO_IO
   if (verbose) {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_INFO);
     return;
@@ -24,6 +31,7 @@ void set_third_party_logs(bool verbose) {
   // (AV_LOG_QUIET = −8); without it FFmpeg's error lines reach stderr.
   setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+#endif
 }
 
 bool third_party_logs_verbose() { return g_verbose; }

@@ -4,8 +4,12 @@
 
 #include "io/third_party_logs.hpp"
 
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <fstream>
+#include <mutex>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
@@ -122,11 +126,41 @@ HostTensor random_tensor(const TensorSpec& spec, Normal& normal, DType dtype) {
   return out;
 }
 
-void write_weights(const std::filesystem::path& file, const Schema& schema, Normal& normal, DType dtype) {
-  std::vector<std::pair<std::string, HostTensor>> tensors;
+// Above this many values a component is drawn on every core, one seeded stream per tensor (the seed, the
+// tensor's index), instead of one stream through all tensors: the real model's 5.6e9 transformer values take
+// minutes on one core (Box-Muller). Still one model per seed; the tiny sizes keep their single stream and values.
+constexpr int64_t kParallelValues = int64_t(1) << 28;
+
+void write_weights(const std::filesystem::path& file, const Schema& schema, Normal& normal, DType dtype, uint64_t seed) {
+  std::vector<const TensorSpec*> specs;
+  int64_t values = 0;
   for (const TensorSpec& spec : schema.tensors) {
     if (spec.optional) continue;  // tied weights (T5's encoder.embed_tokens) are not stored
-    tensors.emplace_back(spec.name, random_tensor(spec, normal, dtype));
+    specs.push_back(&spec);
+    values += shape_numel(spec.shape);
+  }
+  std::vector<std::pair<std::string, HostTensor>> tensors(specs.size());
+  if (values <= kParallelValues) {
+    for (size_t i = 0; i < specs.size(); ++i) tensors[i] = {specs[i]->name, random_tensor(*specs[i], normal, dtype)};
+  } else {
+    std::atomic<size_t> next{0};
+    std::exception_ptr failure;
+    std::mutex failure_mutex;
+    auto work = [&] {
+      for (size_t i = next++; i < specs.size(); i = next++) {
+        try {
+          Normal own(seed * 0x9E3779B97F4A7C15ull + i + 1);
+          tensors[i] = {specs[i]->name, random_tensor(*specs[i], own, dtype)};
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(failure_mutex);
+          failure = std::current_exception();
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 0; t < std::max(1u, std::thread::hardware_concurrency()); ++t) pool.emplace_back(work);
+    for (std::thread& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
   }
   std::filesystem::create_directories(file.parent_path());
   write_safetensors(file, tensors);
@@ -202,13 +236,13 @@ void write_tiny_model(const std::filesystem::path& dir, const TinyModelSpec& s) 
   const json t5 = t5_config(s), tr = transformer_config(s), vae = vae_config(s);
   write_json(dir / "text_encoder" / "config.json", t5);
   write_weights(dir / "text_encoder" / "model.safetensors", schema_for("T5EncoderModel", nlohmann::json::parse(t5.dump())),
-                normal, s.dtype);
+                normal, s.dtype, s.seed);
   write_json(dir / "transformer" / "config.json", tr);
   write_weights(dir / "transformer" / "diffusion_pytorch_model.safetensors",
-                schema_for("CogVideoXTransformer3DModel", nlohmann::json::parse(tr.dump())), normal, s.dtype);
+                schema_for("CogVideoXTransformer3DModel", nlohmann::json::parse(tr.dump())), normal, s.dtype, s.seed);
   write_json(dir / "vae" / "config.json", vae);
   write_weights(dir / "vae" / "diffusion_pytorch_model.safetensors",
-                schema_for("AutoencoderKLCogVideoX", nlohmann::json::parse(vae.dump())), normal, DType::f32);
+                schema_for("AutoencoderKLCogVideoX", nlohmann::json::parse(vae.dump())), normal, DType::f32, s.seed);
 }
 
 }  // namespace dvs::models

@@ -1,9 +1,15 @@
 #include "models/vda_preprocess.hpp"
 
+#ifndef DVS_VIDEO_IO
+#define DVS_VIDEO_IO 1  // CMake defines it as 0 for this file in a DVS_VIDEO_IO=OFF build
+#endif
+
 #include <algorithm>
 #include <cmath>
+#if DVS_VIDEO_IO
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#endif
 #include <string>
 
 #include "dvs/error.hpp"
@@ -44,6 +50,10 @@ VdaInputSize vda_input_size(int64_t frame_h, int64_t frame_w, int input_size, in
 
 void vda_preprocess_frame(const uint8_t* rgb, int64_t frame_h, int64_t frame_w, VdaInputSize size, const VdaConfig& cfg,
                           float* out) {
+#if !DVS_VIDEO_IO
+  throw Error("depth: Video-Depth-Anything's preprocessing (OpenCV's cubic resize) is missing: built without video "
+              "I/O (DVS_VIDEO_IO=OFF)");
+#else
   // frame.astype(float32) / 255.0 (a float32 division), then cv2.resize INTER_CUBIC on the float32 HxWx3 image.
   const cv::Mat u8(int(frame_h), int(frame_w), CV_8UC3, const_cast<uint8_t*>(rgb));
   cv::Mat f32(int(frame_h), int(frame_w), CV_32FC3);
@@ -62,6 +72,7 @@ void vda_preprocess_frame(const uint8_t* rgb, int64_t frame_h, int64_t frame_w, 
         out[size_t(c) * plane + size_t(y) * size.width + size_t(x)] = float((double(row[3 * x + c]) - mean) / sd);
       }
   }
+#endif
 }
 
 }  // namespace dvs
