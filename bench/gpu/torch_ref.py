@@ -138,10 +138,18 @@ def apply_rope(x, cos, sin):
 
 
 def sdpa(q, k, v):
-    if hasattr(F, "scaled_dot_product_attention"):
+    """16-bit: SDPA (what diffusers runs). fp32/fp64 (the reference, and torch 1.13 without SDPA): the plain
+    formula softmax(q k^T / sqrt(d)) v in chunks of query rows, so the reference never depends on which SDPA
+    backend a build picks (an fp32 math fallback would need B*H*S^2 scores: 121 GB at the real size)."""
+    if q.dtype in (torch.float16, torch.bfloat16) and hasattr(F, "scaled_dot_product_attention"):
         return F.scaled_dot_product_attention(q, k, v)
-    s = torch.matmul(q, k.transpose(-1, -2)) / math.sqrt(q.shape[-1])  # torch 1.13: the plain formula
-    return torch.matmul(torch.softmax(s, dim=-1), v)
+    scale = 1.0 / math.sqrt(q.shape[-1])
+    rows = max(1, (1 << 28) // max(1, q.shape[0] * q.shape[1] * k.shape[2]))  # ~1 GiB of fp32 scores
+    out = []
+    for i in range(0, q.shape[2], rows):
+        s = torch.matmul(q[:, :, i:i + rows], k.transpose(-1, -2)) * scale
+        out.append(torch.matmul(torch.softmax(s, dim=-1), v))
+    return torch.cat(out, dim=2)
 
 
 def layer_norm(x, w, b, eps):
