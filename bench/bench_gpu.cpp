@@ -165,11 +165,20 @@ Timing time_recorded(vk::Context& ctx, const std::function<void(vk::Recorder&)>&
   const double first = std::chrono::duration<double, std::milli>(clock::now() - w0).count();
   Timing t;
   std::set<std::string> labels;
-  for (const auto& [label, e] : prof.entries()) labels.insert(label);
+  double first_ns = 0;
+  for (const auto& [label, e] : prof.entries()) labels.insert(label), first_ns += e.total_ns;
   for (const auto& l : labels) t.shaders += (t.shaders.empty() ? "" : " ") + l;
+  if (first > 1500) {  // a slow old kernel: its first run is the figure (~5 s cap per case)
+    t.gpu_ms = ctx.caps().timestamps && first_ns > 0 ? first_ns * 1e-6 : first;
+    t.wall_ms = first;
+    t.runs = 1;
+    prof.clear();
+    prof.set_enabled(was);
+    return t;
+  }
   std::vector<double> gpu, wall;
   const auto start = clock::now();
-  const int max_runs = first > 1500 ? 1 : first > 300 ? 2 : 5;  // the old kernels' rows stay short
+  const int max_runs = first > 300 ? 2 : 5;  // the old kernels' rows stay short
   while (int(gpu.size()) < max_runs && (gpu.size() < 2 || std::chrono::duration<double>(clock::now() - start).count() < 1.0)) {
     prof.clear();
     auto a = clock::now();
@@ -480,8 +489,11 @@ void block_case(Bench& b) {
       try {
         std::unique_ptr<ops::ScopedTuningOverride> ov;
         if (fam != "default") ov = std::make_unique<ops::ScopedTuningOverride>("linear=" + fam + ",attention=" + fam + ",conv=" + fam);
+        auto w0 = std::chrono::steady_clock::now();
         Tensor out = model.forward(dl, dt, steps);  // warm: pipelines, RoPE / positional tables, arena
+        const double warm_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
         write_npy(dir / ("out_dvs_" + fam + ".npy"), out.download(ctx));
+        const int max_runs = warm_ms > 3000 ? 1 : 5;  // slow old kernels: one timed run
         // Timestamps around each dispatch of whole forward calls (recording included in the wall time).
         vk::Profiler& prof = ctx.profiler();
         const bool was = prof.enabled();
@@ -489,7 +501,7 @@ void block_case(Bench& b) {
         std::vector<double> gpu, wall;
         std::set<std::string> labels;
         const auto start = std::chrono::steady_clock::now();
-        while (gpu.size() < 5 && (gpu.size() < 2 || std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < 3.0)) {
+        while (int(gpu.size()) < max_runs && (gpu.size() < 2 || std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < 3.0)) {
           prof.clear();
           auto a = std::chrono::steady_clock::now();
           out = model.forward(dl, dt, steps);

@@ -11,22 +11,23 @@
 # Each step runs under its own timeout (env STAGE_T_TORCH / STAGE_T_DVS, seconds); JSON lines are written
 # as each case ends, so a timeout keeps what finished. Whole stage <= ~150 s on an H100.
 # --smoke: tiny shapes, no PyTorch (the python files are only byte-compiled); runs on lavapipe in seconds.
-# Three files in $OUT: torch.jsonl, dvs.jsonl, summary.md (the device returns at most 8 in all).
+# Three files in $OUT: torch.jsonl, dvs.jsonl, summary.md (the device returns at most 8 in all); every line is
+# also appended to $DVS_GPU_RESULTS when run.sh sets it. $DVS_BIN or $DVS_GPU_BIN_DIR: the folder of dvs-bench.
 set -u
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
-SMOKE=0
+SMOKE=${DVS_GPU_SMOKE:-0}  # bench/gpu/run.sh exports DVS_GPU_SMOKE, DVS_GPU_OUT, DVS_GPU_BIN_DIR, DVS_GPU_BENCH
 for a in "$@"; do
   case "$a" in
     --smoke) SMOKE=1 ;;
     *) echo "usage: stage_bench.sh [--smoke]" >&2; exit 2 ;;
   esac
 done
-OUT=${OUT:-$(mktemp -d)}
+OUT=${OUT:-${DVS_GPU_OUT:-$(mktemp -d)}}
 mkdir -p "$OUT"
 TMPD=${TMPDIR:-/tmp}
-BIN=${DVS_BIN:-$ROOT/build/bench}
-BENCH=$BIN/dvs-bench
+BIN=${DVS_BIN:-${DVS_GPU_BIN_DIR:-$ROOT/build/bench}}
+BENCH=${DVS_GPU_BENCH:-$BIN/dvs-bench}
 [ -x "$BENCH" ] || { echo "stage_bench: no dvs-bench at $BENCH (set DVS_BIN)" >&2; exit 1; }
 PY=${PYTHON:-python3}
 BLOCK=${STAGE_BLOCK_DIR:-$TMPD/dvs_gpu_block}
@@ -56,7 +57,7 @@ if [ $SMOKE -eq 1 ]; then
 else
   rm -rf "$BLOCK"
   # torch first, so both see the same clocks.
-  step torch_ref "${STAGE_T_TORCH:-60}" "$PY" "$HERE/torch_ref.py" --seed 0 --out "$BLOCK" --json "$TJ"
+  step torch_ref "${STAGE_T_TORCH:-55}" "$PY" "$HERE/torch_ref.py" --seed 0 --out "$BLOCK" --json "$TJ"
   if [ -f "$BLOCK/transformer/config.json" ] && [ -f "$BLOCK/out_torch_fp32.npy" ]; then
     export DVS_GPU_BENCH_DIR=$BLOCK
   else
@@ -65,12 +66,14 @@ else
 fi
 
 export DVS_GPU_BENCH_JSON=$DJ
-step dvs_bench "${STAGE_T_DVS:-80}" "$BENCH" --filter gpu
+step dvs_bench "${STAGE_T_DVS:-75}" "$BENCH" --filter gpu
 if [ -n "${DVS_GPU_BENCH_DIR:-}" ]; then
-  step compare_block 15 "$PY" "$HERE/compare_block.py" "$DVS_GPU_BENCH_DIR" --json "$DJ"
+  step compare_block 10 "$PY" "$HERE/compare_block.py" "$DVS_GPU_BENCH_DIR" --json "$DJ"
 fi
-timeout 10 "$PY" "$HERE/summarize.py" "$TJ" "$DJ" > "$OUT/summary.md" || status=1
+timeout 5 "$PY" "$HERE/summarize.py" "$TJ" "$DJ" > "$OUT/summary.md" || status=1
 cat "$OUT/summary.md"
+# run.sh's results file gets every line too (its own copy of the stage, beside the three files here).
+[ -n "${DVS_GPU_RESULTS:-}" ] && cat "$TJ" "$DJ" >> "$DVS_GPU_RESULTS"
 # A wrong kernel is a failure of the stage (smoke: of the ctest), not a timing.
 if grep -q '"check": *"FAIL"\|"error":' "$DJ"; then
   echo "stage_bench: some dvs cases failed their check or errored (see $DJ)"
