@@ -76,7 +76,7 @@ def main():
             shapes.append(k)
     for case, shape in shapes:
         want, g1, g2, higher = GOALS[case]
-        cells, best = [case, shape], None
+        cells, best, best_f = [case, shape], None, ""
         mine = [r for r in dvs_rows if r.get("case") == case and r.get("shape") == shape]
         other = not any(r.get("family") in families for r in mine)  # copy: one row, no family; first column
         for i, f in enumerate(families):
@@ -92,11 +92,11 @@ def main():
             elif case == "block":
                 cells.append("%.1f ms (wall %.1f)" % (r["ms"], r.get("ms_wall", 0)))
                 if best is None or r["ms"] < best:
-                    best = r["ms"]
+                    best, best_f = r["ms"], f
             else:
                 cells.append("%.4g" % rate(r) + (" GB/s" if "gbps" in r else ""))
                 if best is None or rate(r) > best:
-                    best = rate(r)
+                    best, best_f = rate(r), f
         t = torch_row(torch_rows, case, shape, want)
         if t is None:
             cells += ["", "", "", ""]
@@ -107,7 +107,7 @@ def main():
                 cells += ["", "miss", "miss"]
             else:
                 ratio = best / tv
-                cells.append("%.2fx" % ratio)
+                cells.append("%.2fx (%s)" % (ratio, best_f) if best_f and len(families) > 1 else "%.2fx" % ratio)
                 ok = (lambda g: ratio >= g) if higher else (lambda g: ratio <= g)
                 cells += ["%s (%s%g)" % ("pass" if ok(g1) else "miss", ">=" if higher else "<=", g1),
                           "%s (%s%g)" % ("pass" if ok(g2) else "miss", ">=" if higher else "<=", g2)]
