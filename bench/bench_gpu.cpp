@@ -147,8 +147,9 @@ struct Timing {
   std::string shaders;  // the profiler labels of the dispatches (which shaders ran)
 };
 
-// Records with timestamps around each dispatch, submits once (warm: first touch), then times submits:
-// at most 5, or until ~1 s, or a single one when it takes over 1.5 s. GPU time = the sum of the dispatches'
+// Records with timestamps around each dispatch, submits once (warm: first touch; two more warm-ups when
+// that took under 0.3 s), then times submits: at most 10 (2 when a run takes over 0.3 s), or until ~1 s, or
+// the first run alone when it took over 1.5 s. GPU time = the sum of the dispatches'
 // timestamp pairs of one submit (wall time where the device has no timestamps).
 Timing time_recorded(vk::Context& ctx, const std::function<void(vk::Recorder&)>& record) {
   vk::Profiler& prof = ctx.profiler();
@@ -176,9 +177,10 @@ Timing time_recorded(vk::Context& ctx, const std::function<void(vk::Recorder&)>&
     prof.set_enabled(was);
     return t;
   }
+  if (first <= 300) rec.submit(), rec.submit();  // 3 warm-ups in all where they are cheap
   std::vector<double> gpu, wall;
   const auto start = clock::now();
-  const int max_runs = first > 300 ? 2 : 5;  // the old kernels' rows stay short
+  const int max_runs = first > 300 ? 2 : 10;  // the old kernels' rows stay short
   while (int(gpu.size()) < max_runs && (gpu.size() < 2 || std::chrono::duration<double>(clock::now() - start).count() < 1.0)) {
     prof.clear();
     auto a = clock::now();
