@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# The device stage "dvs beside PyTorch": bench/gpu/run.sh calls it on the GPU machine with $OUT set (the folder
+# whose files come back) and $DVS_BIN holding dvs-bench; ctest runs `stage_bench.sh --smoke` on lavapipe.
+#
+#   1. torch_ref.py    PyTorch baselines (GEMM, SDPA, conv3d, copy, matmul ceiling) + the 1-layer real-size
+#                      transformer folder, inputs and torch's bf16 / fp32 outputs in $BLOCK   -> $OUT/torch.jsonl
+#   2. dvs-bench       --filter gpu: the same cases per kernel family, checked by value, and the block from
+#                      $BLOCK through the production loader                                   -> $OUT/dvs.jsonl
+#   3. compare_block   dvs's block output(s) and torch bf16's vs the fp32 reference (relative L2) -> $OUT/dvs.jsonl
+#   4. summarize       the table: each case, dvs per family, torch, ratio, goals             -> $OUT/summary.md
+# Each step runs under its own timeout (env STAGE_T_TORCH / STAGE_T_DVS, seconds); JSON lines are written
+# as each case ends, so a timeout keeps what finished. Whole stage <= ~150 s on an H100.
+# --smoke: tiny shapes, no PyTorch (the python files are only byte-compiled); runs on lavapipe in seconds.
+# Three files in $OUT: torch.jsonl, dvs.jsonl, summary.md (the device returns at most 8 in all); every line is
+# also appended to $DVS_GPU_RESULTS when run.sh sets it. $DVS_BIN or $DVS_GPU_BIN_DIR: the folder of dvs-bench.
+set -u
+HERE=$(cd "$(dirname "$0")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+SMOKE=${DVS_GPU_SMOKE:-0}  # bench/gpu/run.sh exports DVS_GPU_SMOKE, DVS_GPU_OUT, DVS_GPU_BIN_DIR, DVS_GPU_BENCH
+for a in "$@"; do
+  case "$a" in
+    --smoke) SMOKE=1 ;;
+    *) echo "usage: stage_bench.sh [--smoke]" >&2; exit 2 ;;
+  esac
+done
+OUT=${OUT:-${DVS_GPU_OUT:-$(mktemp -d)}}
+mkdir -p "$OUT"
+TMPD=${TMPDIR:-/tmp}
+BIN=${DVS_BIN:-${DVS_GPU_BIN_DIR:-$ROOT/build/bench}}
+BENCH=${DVS_GPU_BENCH:-$BIN/dvs-bench}
+[ -x "$BENCH" ] || { echo "stage_bench: no dvs-bench at $BENCH (set DVS_BIN)" >&2; exit 1; }
+PY=${PYTHON:-python3}
+BLOCK=${STAGE_BLOCK_DIR:-$TMPD/dvs_gpu_block}
+TJ=$OUT/torch.jsonl DJ=$OUT/dvs.jsonl
+: > "$TJ"; : > "$DJ"
+status=0
+step() {  # step NAME SECONDS CMD...: runs under timeout, notes a timeout or failure, never stops the stage
+  local name=$1 secs=$2; shift 2
+  local t0=$SECONDS
+  echo "== stage_bench: $name (timeout ${secs}s)"
+  timeout --kill-after=5 "$secs" "$@"
+  local rc=$?
+  echo "== stage_bench: $name rc=$rc in $((SECONDS - t0)) s"
+  [ $rc -eq 124 ] && echo "{\"source\":\"stage\",\"step\":\"$name\",\"timed_out\":true,\"limit_s\":$secs}" >> "$DJ"
+  [ $rc -ne 0 ] && status=1
+  return 0
+}
+
+# Byte-compile the python files first (cheap; a syntax error must not cost a device run).
+PYTHONPYCACHEPREFIX=$TMPD/dvs_pycache "$PY" -m py_compile "$HERE/torch_ref.py" "$HERE/compare_block.py" \
+  "$HERE/summarize.py" || { echo "stage_bench: python files do not compile" >&2; exit 1; }
+
+if [ $SMOKE -eq 1 ]; then
+  export DVS_GPU_BENCH_SMOKE=1
+  unset DVS_GPU_BENCH_DIR  # no torch: no block folder (set STAGE_SMOKE_BLOCK to a torch_ref.py --quick folder)
+  [ -n "${STAGE_SMOKE_BLOCK:-}" ] && export DVS_GPU_BENCH_DIR=$STAGE_SMOKE_BLOCK BLOCK=$STAGE_SMOKE_BLOCK
+else
+  rm -rf "$BLOCK"
+  # torch first, so both see the same clocks.
+  step torch_ref "${STAGE_T_TORCH:-55}" "$PY" "$HERE/torch_ref.py" --seed 0 --out "$BLOCK" --json "$TJ"
+  if [ -f "$BLOCK/transformer/config.json" ] && [ -f "$BLOCK/out_torch_fp32.npy" ]; then
+    export DVS_GPU_BENCH_DIR=$BLOCK
+  else
+    echo "stage_bench: no block folder from torch_ref.py: dvs skips the block case"
+  fi
+fi
+
+export DVS_GPU_BENCH_JSON=$DJ
+step dvs_bench "${STAGE_T_DVS:-75}" "$BENCH" --filter gpu
+if [ -n "${DVS_GPU_BENCH_DIR:-}" ]; then
+  step compare_block 10 "$PY" "$HERE/compare_block.py" "$DVS_GPU_BENCH_DIR" --json "$DJ"
+fi
+timeout 5 "$PY" "$HERE/summarize.py" "$TJ" "$DJ" > "$OUT/summary.md" || status=1
+cat "$OUT/summary.md"
+# run.sh's results file gets every line too (its own copy of the stage, beside the three files here).
+[ -n "${DVS_GPU_RESULTS:-}" ] && cat "$TJ" "$DJ" >> "$DVS_GPU_RESULTS"
+# A wrong kernel is a failure of the stage (smoke: of the ctest), not a timing.
+if grep -q '"check": *"FAIL"\|"error":' "$DJ"; then
+  echo "stage_bench: some dvs cases failed their check or errored (see $DJ)"
+  status=1
+fi
+exit $status
