@@ -18,6 +18,7 @@
 #include "harness.hpp"
 #include "models/cogvideox_vae.hpp"
 #include "models/tiny_model.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
 #include "vk/recorder.hpp"
 
@@ -68,6 +69,7 @@ struct CpuConv {
 
 double cpu_im2col_sgemm_gflops(const CpuConv& c) {
 #ifdef DVS_HAVE_BLAS
+  if (c.cout == 0) return 0;  // not asked for (the family rows)
   int64_t up = c.upsample ? 2 : 1, hu = up * c.h, wu = up * c.w;
   int64_t ho = (hu + 2 * c.pad_t - c.kh) / c.stride + 1, wo = (wu + 2 * c.pad_l - c.kw) / c.stride + 1;
   int64_t frames_in = c.frames_out + c.kt - 1;
@@ -132,8 +134,13 @@ double cpu_im2col_sgemm_gflops(const CpuConv& c) {
 
 // Times one recorded convolution and reports it with: its ratio to the FMA peak measured just before (wall
 // clock) and per CPU-second, and the CPU's im2col + sgemm rate for the same convolution.
-void measure(Bench& b, FmaPeakRun& peak, const std::string& op, const std::string& shape, double flops,
-             const std::function<void(vk::Recorder&)>& record, const CpuConv& cpu, const std::string& note) {
+// Set by the family rows (conv_families_group): appended to the op's name; no CPU im2col baseline then.
+std::string g_family_suffix;
+
+void measure(Bench& b, FmaPeakRun& peak, const std::string& op_name, const std::string& shape, double flops,
+             const std::function<void(vk::Recorder&)>& record, CpuConv cpu, const std::string& note) {
+  const std::string op = op_name + g_family_suffix;
+  if (!g_family_suffix.empty()) cpu.cout = 0;
   vk::Recorder rec(b.ctx());
   rec.begin();
   record(rec);
@@ -281,6 +288,35 @@ void conv_group(Bench& b) {
 }
 
 Registration reg("conv", 10, conv_group);
+
+// The GPU kernel families of the convolutions (kernel_tuning.hpp) forced in turn at the VAE's shapes:
+// "tiled" (shared-memory tiles, fp32) on any device, "coopmat" (tensor cores, fp16 operands) where the
+// device has them. Rows are named op[family]; the default family's rows are group "conv".
+void conv_families_group(Bench& b) {
+  const bool q = b.quick();
+  std::vector<std::string> families = {"tiled"};
+  if (ops::device_tuning(b.ctx().caps()).coopmat.defined()) families.push_back("coopmat");
+  FmaPeakRun peak(b.ctx());
+  for (const std::string& fam : families) {
+    ops::ScopedTuningOverride scope("conv=" + fam);
+    g_family_suffix = "[" + fam + "]";
+    conv3d(b, peak, 128, 128, 3, 60, 90, DType::bf16, false);
+    conv3d(b, peak, 256, 256, 3, 30, 45, DType::bf16, false);
+    if (!q) {
+      conv3d(b, peak, 512, 512, 3, 16, 24, DType::bf16, false);
+      conv3d(b, peak, 128, 128, 3, 60, 90, DType::f32, true);
+      conv3d(b, peak, 3, 128, 3, 60, 90, DType::bf16, false);
+      conv3d(b, peak, 128, 3, 3, 60, 90, DType::bf16, false);
+      conv2d(b, peak, "conv2d_3x3_s2_down", 128, 128, 1, 120, 180, 3, ops::Conv2dParams::downsample3x3(), DType::bf16);
+      conv2d(b, peak, "conv2d_patch_2x2", 32, 3072, 1, 60, 90, 2, ops::Conv2dParams::patch(true), DType::bf16);
+      conv1x1(b, peak, 128, 256, 3, 60, 90);
+      upsample_conv(b, peak, 256, 3, 30, 45);
+    }
+    g_family_suffix.clear();
+  }
+}
+
+Registration reg_families("conv_families", 12, conv_families_group);
 
 // A whole VAE encode of a 9-frame clip and the decode of its latent, with a random-weight VAE of the real
 // channel widths (written once to a temporary folder; DVS_BENCH_VAE_DIR=folder/vae uses another VAE).

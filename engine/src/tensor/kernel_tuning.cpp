@@ -77,6 +77,7 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.linear_tile_m = t.linear_tile_n = 64;
   t.linear_tile_k = 16;
   t.attention_block_q = t.attention_block_k = 64;
+  t.conv_tile_m = 128, t.conv_tile_n = 64;  // 8 x 4 fp32 accumulators per invocation
 }
 void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   fill_gpu(t, c);
@@ -161,6 +162,18 @@ const std::vector<Field>& fields() {
       bool_field("attention_rows_by_head_dim", &DeviceTuning::attention_rows_by_head_dim),
       bool_field("attention_kv_workspace", &DeviceTuning::attention_kv_workspace),
       bool_field("attention_coopmat_twin", &DeviceTuning::attention_coopmat_twin),
+      {"conv_tile_m", "32|64|128", [](DeviceTuning& t, const std::string& v) {
+         int64_t x;
+         if (!parse_int(v, 32, 128, x) || (x != 32 && x != 64 && x != 128)) return false;
+         t.conv_tile_m = int(x);
+         return true;
+       }},
+      {"conv_tile_n", "32|64|128", [](DeviceTuning& t, const std::string& v) {
+         int64_t x;
+         if (!parse_int(v, 32, 128, x) || (x != 32 && x != 64 && x != 128)) return false;
+         t.conv_tile_n = int(x);
+         return true;
+       }},
       int_field("conv_pack_columns", &DeviceTuning::conv_pack_columns, 0, 1 << 20, "0 (whole rows) or pixels"),
       bool_field("norm_row_per_invocation", &DeviceTuning::norm_row_per_invocation),
       bool_field("eltwise_texel_inputs", &DeviceTuning::eltwise_texel_inputs),
@@ -256,6 +269,8 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
   if (!t.coopmat.defined())
     for (KernelFamily* k : {&t.linear, &t.attention, &t.conv})
       if (*k == KernelFamily::coopmat) *k = KernelFamily::tiled;
+  // The coopmat convolution splits its workgroup into 8 subgroups of 32 lanes (shaders/nn/conv_coopmat.glsl).
+  if (t.conv == KernelFamily::coopmat && caps.subgroup_size != 32) t.conv = KernelFamily::tiled;
   return t;
 }
 
@@ -286,7 +301,8 @@ std::string describe_tuning(const DeviceTuning& t) {
   if (t.attention != KernelFamily::texel) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
   o << (t.attention_kv_workspace ? ", K/V repacked head-major when offered a workspace" : "") << "\n"
     << "  conv:       " << kernel_family_name(t.conv) << ", texel tiles " << tile(t.conv_16bit_weights) << " (small "
-    << tile(t.conv_small) << "), repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
+    << tile(t.conv_small) << ")" << (t.conv == KernelFamily::tiled ? ", tiled " + std::to_string(t.conv_tile_m) + "x" + std::to_string(t.conv_tile_n) : std::string())
+    << ", repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
     << " per invocation\n"
     << "  norms:      " << (t.norm_row_per_invocation ? "one invocation per row" : "one workgroup per row") << "\n"
     << "  elementwise: " << (t.eltwise_texel_inputs ? "texel-buffer inputs" : "storage-buffer inputs")

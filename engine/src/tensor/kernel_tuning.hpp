@@ -70,6 +70,10 @@ struct DeviceTuning {
   GemmTile conv_f32_weights, conv_16bit_weights;  // large convolutions (texel family)
   GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
   int conv_pack_columns = 0;  // pixels of a row per invocation of the input repack (0: the whole row)
+  // tiled family (shaders/nn/conv_tiled.comp): workgroup tile of pixels x output channels, each 32, 64 or
+  // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's tile is fixed
+  // by its shader (128 x 128 x 32, shaders/nn/conv_coopmat.glsl).
+  int conv_tile_m = 64, conv_tile_n = 64;
 
   // norms, reductions, elementwise
   bool norm_row_per_invocation = false;  // layernorm/rmsnorm: one invocation per row (else a workgroup)

@@ -8,6 +8,10 @@
 // maxStorageBufferRange and maxTexelBufferElements); the weights are repacked once per call. x and a cache
 // are read through texel buffers: each must start at an allocation-aligned offset (whole tensors and arena
 // views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
+// The GEMM itself is one of three kernel families (kernel_tuning.hpp, DeviceTuning::conv): texel
+// (conv_gemm.glsl, CPU drivers), tiled (conv_tiled.comp: shared-memory tiles over storage buffers, fp32) or
+// coopmat (conv_coopmat.glsl: tensor cores, fp16 operands, fp32 sums); each serves every op below.
+// (The resampling ops are implemented in ops_resample.cpp.)
 #pragma once
 #include <cstdint>
 
@@ -92,8 +96,12 @@ ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool 
 // cluster (0 = automatic), `lanes` -1 automatic, else GemmTile::lanes (2 = no subgroup shuffles),
 // `k_unroll` 8-channel steps per loop trip (0 automatic; 1, 2 or 4). `pack_columns`: pixels of a row per
 // invocation of the input repack (shaders/nn/conv_pack_input.comp; 0 automatic).
+// `coopmat_twin`: run the coopmat family's tiling, loads and epilogue with its fp32 twin shader
+// (shaders/nn/conv_coopmat_twin.comp, no tensor cores) whatever the device's family: tests the coopmat
+// kernel's every part but the MMA on devices without cooperative matrices.
 struct ConvRegisterBlock {
   int rows = 0, cols = 0, lanes = -1, k_unroll = 0, pack_columns = 0;
+  bool coopmat_twin = false;
 };
 void set_conv_register_block(const ConvRegisterBlock& block);
 // Largest repacked input chunk in bytes (0 = the device's limits): smaller values force the frame and row
