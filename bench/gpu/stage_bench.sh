@@ -8,7 +8,7 @@
 #                      $BLOCK through the production loader                                   -> $OUT/dvs.jsonl
 #   3. compare_block   dvs's block output(s) and torch bf16's vs the fp32 reference (relative L2) -> $OUT/dvs.jsonl
 #   4. summarize       the table: each case, dvs per family, torch, ratio, goals             -> $OUT/summary.md
-# Each step runs under its own timeout (env STAGE_T_TORCH / STAGE_T_DVS, seconds); JSON lines are written
+# Each step runs under its own timeout (env STAGE_T_TORCH / STAGE_T_DVS, seconds; STAGE_TORCH_ARGS adds torch_ref.py options); JSON lines are written
 # as each case ends, so a timeout keeps what finished. Whole stage <= ~150 s on an H100.
 # --smoke: tiny shapes, no PyTorch (the python files are only byte-compiled); runs on lavapipe in seconds.
 # Three files in $OUT: torch.jsonl, dvs.jsonl, summary.md (the device returns at most 8 in all); every line is
@@ -57,7 +57,9 @@ if [ $SMOKE -eq 1 ]; then
 else
   rm -rf "$BLOCK"
   # torch first, so both see the same clocks.
-  step torch_ref "${STAGE_T_TORCH:-55}" "$PY" "$HERE/torch_ref.py" --seed 0 --out "$BLOCK" --json "$TJ"
+  # STAGE_TORCH_ARGS: extra torch_ref.py options (e.g. --no-block for a short device run)
+  # shellcheck disable=SC2086
+  step torch_ref "${STAGE_T_TORCH:-55}" "$PY" "$HERE/torch_ref.py" --seed 0 --out "$BLOCK" --json "$TJ" ${STAGE_TORCH_ARGS:-}
   if [ -f "$BLOCK/transformer/config.json" ] && [ -f "$BLOCK/out_torch_fp32.npy" ]; then
     export DVS_GPU_BENCH_DIR=$BLOCK
   else
