@@ -1,6 +1,8 @@
 // Linear / GEMM throughput: fp32, bf16 and f16 weights on square, model-class and GEMV shapes, with the
-// epilogue cost on one shape. FLOPs = 2·M·N·K. DVS_LINEAR_KERNEL=rows,cols,sg_m pins a kernel variant
-// (for tuning).
+// epilogue cost on one shape. FLOPs = 2·M·N·K. DVS_LINEAR_KERNEL=rows,cols,sg_m pins a texel kernel
+// variant (for tuning). The main rows run the family the device's tuning picks (DVS_TUNING=linear=... moves
+// them); rows named linear_tiled_* / linear_coopmat_* then force the tiled family (every device) and the
+// coopmat family (devices with a cooperative-matrix shape) on a few shapes.
 
 #include <chrono>
 #include <cstdio>
@@ -13,6 +15,7 @@
 
 #include "harness.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/pipeline.hpp"
@@ -40,7 +43,7 @@ struct Case {
   bool quick;  // also in --quick runs
 };
 
-void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
+void run_case(Bench& b, const Case& c, DType wdt, bool epilogue, const char* family_row = "") {
   vk::Context& ctx = b.ctx();
   Tensor x = Tensor::upload(ctx, random_host({c.m, c.k}, DType::f32, 1), "bench x");
   ops::LinearEpilogue ep;
@@ -98,15 +101,21 @@ void run_case(Bench& b, const Case& c, DType wdt, bool epilogue) {
     per_cpu = flops / ((cpu_seconds() - c0) * 1e9);
   }
   double gflops = flops / (ms * 1e6);
-  std::string op = std::string("linear_") + dtype_name(wdt) + (epilogue ? "_bias_gelu_gated_res" : "");
+  std::string op = std::string("linear_") + family_row + dtype_name(wdt) + (epilogue ? "_bias_gelu_gated_res" : "");
   char shape[64], note[200], wrate[64] = "";
   if (c.m == 1)  // GEMV is bound by streaming the weight
     std::snprintf(wrate, sizeof wrate, ", weight read %.2f GB/s", double(w.bytes()) / (ms * 1e6));
   if (calls > 1) std::snprintf(wrate, sizeof wrate, ", split in %u dispatches", calls);
   std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
-  std::snprintf(note, sizeof note, "%s%s, tile %dx%d lanes %d %s; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second",
-                c.name, wrate, kern.rows, kern.cols, kern.lanes, kern.vectorized ? "vec8" : "scalar", per_cpu,
-                b.limits().fma_peak_per_cpu_second > 0 ? per_cpu / b.limits().fma_peak_per_cpu_second : 0.0);
+  char tile[64];
+  if (kern.family == ops::KernelFamily::texel)
+    std::snprintf(tile, sizeof tile, "tile %dx%d lanes %d %s", kern.rows, kern.cols, kern.lanes,
+                  kern.vectorized ? "vec8" : "scalar");
+  else
+    std::snprintf(tile, sizeof tile, "%s %dx%dx%d", ops::kernel_family_name(kern.family), kern.tile_m, kern.tile_n,
+                  kern.tile_k);
+  std::snprintf(note, sizeof note, "%s%s, %s; %.1f GFLOP per CPU-second = %.2fx fma_peak per CPU-second", c.name, wrate,
+                tile, per_cpu, b.limits().fma_peak_per_cpu_second > 0 ? per_cpu / b.limits().fma_peak_per_cpu_second : 0.0);
   b.report({op, shape, ms, gflops, 0, note});
 }
 
@@ -181,6 +190,21 @@ void linear(Bench& b) {
   }
   if (!only || std::string("1024x1024x1024").find(only) != std::string::npos)
     run_case(b, cases[0], DType::bf16, true);
+
+  // The storage-buffer families, forced, where the device has them (rows beside the device's own family).
+  const Case family_cases[] = {cases[0], cases[2], cases[1]};
+  const bool has_coopmat = ops::device_tuning(b.ctx().caps()).coopmat.defined();
+  for (const char* family : {"tiled", "coopmat"}) {
+    if (std::string(family) == "coopmat" && !has_coopmat) continue;
+    ops::ScopedTuningOverride force(std::string("linear=") + family);
+    for (const Case& c : family_cases) {
+      if (b.quick() && !c.quick) continue;
+      char shape[64];
+      std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)c.m, (long long)c.n, (long long)c.k);
+      if (only && std::string(shape).find(only) == std::string::npos) continue;
+      for (DType wdt : {DType::f32, DType::bf16}) run_case(b, c, wdt, false, (std::string(family) + "_").c_str());
+    }
+  }
 }
 
 Registration reg("linear", 10, linear);

@@ -4,15 +4,19 @@
 // are compared with a reference that uses the same rounded weights, so the tolerance is the same.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
 #include <optional>
 #include <random>
 #include <vector>
 
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
+#include "vk/shader_registry.hpp"
 
 namespace dvs {
 namespace {
@@ -69,8 +73,22 @@ double activate(double f, Activation a) {
   return f;
 }
 
-class LinearTest : public test::GpuTest {
+// Every test runs for the kernel family the device picks (texel on lavapipe) and for the tiled family
+// (storage buffers, shared-memory tiles: what GPUs run) forced with a tuning override.
+class LinearTest : public test::GpuTest, public testing::WithParamInterface<const char*> {
  protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    tuning_.emplace(GetParam());
+  }
+  void TearDown() override {
+    tuning_.reset();
+    test::GpuTest::TearDown();
+  }
+  bool tiled() const { return std::string(GetParam()) == "linear=tiled"; }
+
+  std::optional<ops::ScopedTuningOverride> tuning_;
+
   // Runs one configuration and compares every element of Y with the reference.
   void check(int64_t M, int64_t N, int64_t K, const Options& o) {
     SCOPED_TRACE(testing::Message() << "M=" << M << " N=" << N << " K=" << K << " w=" << dtype_name(o.w_dtype)
@@ -127,6 +145,7 @@ class LinearTest : public test::GpuTest {
     s.x_row_stride = ldx;
     s.y_row_stride = ldy;
     LinearKernel kern = o.kernel ? *o.kernel : ops::choose_linear_kernel(c, s, o.w_dtype);
+    if (!o.kernel && tiled()) EXPECT_EQ(kern.family, ops::KernelFamily::tiled);
     ops::run_now(c, [&](vk::Recorder& rec) { ops::linear_batched_with(rec, x, w, y, s, ep, kern); });
     std::vector<float> got = yt.download(c).to_f32();
 
@@ -176,14 +195,14 @@ class LinearTest : public test::GpuTest {
   }
 };
 
-TEST_F(LinearTest, OddShapesF32) {
+TEST_P(LinearTest, OddShapesF32) {
   const int64_t shapes[][3] = {{1, 1, 1},   {7, 33, 129}, {33, 7, 64},  {129, 33, 40}, {1, 100, 256},
                                {2, 17, 72}, {3, 9, 16},   {4, 65, 24},  {5, 40, 7},    {17, 49, 8},
                                {40, 100, 96}};
   for (auto& s : shapes) check(s[0], s[1], s[2], {});
 }
 
-TEST_F(LinearTest, SixteenBitWeights) {
+TEST_P(LinearTest, SixteenBitWeights) {
   // (Each weight type x tile is a pipeline LLVM compiles on first use: the f16 cases stay few.)
   for (DType dt : {DType::bf16, DType::f16}) {
     Options o;
@@ -197,20 +216,20 @@ TEST_F(LinearTest, SixteenBitWeights) {
   }
 }
 
-TEST_F(LinearTest, LargeKSmallN) {
+TEST_P(LinearTest, LargeKSmallN) {
   check(3, 2, 5000, {});
   Options o;
   o.w_dtype = DType::bf16;
   check(1, 5, 4104, o);
 }
 
-TEST_F(LinearTest, ZeroK) {
+TEST_P(LinearTest, ZeroK) {
   Options o;
   o.bias = true;
   check(5, 9, 0, o);
 }
 
-TEST_F(LinearTest, Epilogues) {
+TEST_P(LinearTest, Epilogues) {
   Options o;
   o.bias = true;
   check(19, 35, 48, o);
@@ -249,7 +268,7 @@ TEST_F(LinearTest, Epilogues) {
   check(12, 23, 40, m);
 }
 
-TEST_F(LinearTest, ResidualInPlace) {
+TEST_P(LinearTest, ResidualInPlace) {
   Options o;
   o.residual = true;
   o.in_place = true;
@@ -260,7 +279,7 @@ TEST_F(LinearTest, ResidualInPlace) {
   check(1, 27, 32, o);
 }
 
-TEST_F(LinearTest, BatchedStrided) {
+TEST_P(LinearTest, BatchedStrided) {
   Options o;
   o.batch = 3;
   check(9, 20, 24, o);  // shared weight
@@ -283,7 +302,7 @@ TEST_F(LinearTest, BatchedStrided) {
   check(10, 13, 16, p);
 }
 
-TEST_F(LinearTest, UnalignedSlices) {
+TEST_P(LinearTest, UnalignedSlices) {
   Options o;
   o.x_lead = 3;
   o.w_lead = 5;
@@ -296,10 +315,11 @@ TEST_F(LinearTest, UnalignedSlices) {
   check(11, 19, 16, o);  // offsets on texel boundaries but not on allocation boundaries: vectorised
 }
 
-TEST_F(LinearTest, KernelVariants) {
+TEST_P(LinearTest, KernelVariants) {
   // Variants the selector picks on other devices (cluster shuffles for wider subgroups, no subgroup
   // operations) and the 16-row tile, pinned here so lavapipe tests them all. Few rows (1, 2, 4) are
   // covered by the small-M shapes above.
+  if (tiled()) GTEST_SKIP() << "texel variants only";
   const LinearKernel kernels[] = {{8, 2, 1, 2, true}, {8, 2, 2, 2, true}, {16, 2, 0, 2, true}};
   for (const LinearKernel& k : kernels) {
     Options o;
@@ -314,7 +334,7 @@ TEST_F(LinearTest, KernelVariants) {
   }
 }
 
-TEST_F(LinearTest, PlainApi) {
+TEST_P(LinearTest, PlainApi) {
   vk::Context& c = ctx();
   std::vector<float> xv = random_values(2 * 3 * 16, 1), wv = random_values(5 * 16, 2), bv = random_values(5, 3);
   Tensor x = Tensor::upload(c, make_host({2, 3, 16}, DType::f32, xv));
@@ -334,6 +354,101 @@ TEST_F(LinearTest, PlainApi) {
   EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x, w, bad, ep); }), Error);
   Tensor wbad = Tensor::empty(c, {5, 15}, DType::f32);
   EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x, wbad, y, ep); }), Error);
+}
+
+// The storage-buffer families on every combination of odd sizes (no multiple of a tile, K not a multiple of
+// 4 or 8), then 16-bit weights and the model epilogues on the odd 37 x 45 x 24 / 130 x 129 x 131 shapes.
+TEST_P(LinearTest, TiledOddShapeGrid) {
+  if (!tiled()) GTEST_SKIP() << "tiled family only (the texel family has its own shape list)";
+  for (int64_t m : {1, 7, 37, 130})
+    for (int64_t n : {3, 45, 129})
+      for (int64_t k : {1, 5, 24, 100, 131}) check(m, n, k, {});
+  for (DType dt : {DType::bf16, DType::f16}) {
+    Options o;
+    o.w_dtype = dt;
+    check(37, 45, 24, o);
+    check(130, 129, 131, o);
+    check(7, 3, 5, o);
+  }
+}
+
+TEST_P(LinearTest, TiledModelEpilogues) {
+  if (!tiled()) GTEST_SKIP() << "tiled family only (Epilogues covers the texel family)";
+  Options a;  // CogVideoX FFN up-projection: bias + GELU-tanh, bf16 weight and bias
+  a.w_dtype = a.bias_dtype = DType::bf16;
+  a.bias = true;
+  a.act = Activation::gelu_tanh;
+  check(130, 129, 100, a);
+  Options g = a;  // gated residual, in place: y += gate ⊙ (xWᵀ + b), the transformer's out projections
+  g.act = Activation::none;
+  g.gate = g.residual = g.in_place = true;
+  g.batch = 2;
+  g.per_item_vectors = true;
+  check(37, 45, 131, g);
+  Options m;  // AdaLN-style modulation with SiLU, f16 weight, f32 bias, unaligned slices everywhere
+  m.w_dtype = DType::f16;
+  m.bias = true;
+  m.act = Activation::silu;
+  m.modulation = true;
+  m.x_lead = 3;
+  m.w_lead = 1;
+  m.y_lead = 5;
+  check(37, 45, 24, m);
+  Options e;  // DINOv2: GELU-erf, f32 weight, padded strides and separate batched weights
+  e.bias = true;
+  e.act = Activation::gelu_erf;
+  e.batch = 3;
+  e.shared_weight = false;
+  e.x_pad = 3;
+  e.y_pad = 2;
+  e.residual = true;
+  check(7, 129, 5, e);
+}
+
+INSTANTIATE_TEST_SUITE_P(Family, LinearTest, testing::Values("", "linear=tiled"),
+                         [](const testing::TestParamInfo<const char*>& i) {
+                           return std::string(i.param).empty() ? std::string("device") : std::string("tiled");
+                         });
+
+// The tensor-core kernel cannot run on lavapipe (no VK_KHR_cooperative_matrix): it is embedded (compiled by
+// glslang 15 and checked by spirv-val at build time), and asking for it on a device without a coopmat shape
+// runs the tiled kernel instead.
+class LinearCoopmatTest : public test::GpuTest {};
+
+TEST_F(LinearCoopmatTest, ShadersEmbedded) {
+  const std::vector<std::string> names = vk::shader_names();
+  for (const char* want : {"linalg/linear_coopmat", "linalg/linear_tiled", "bench/coopmat_mma_rate"})
+    EXPECT_NE(std::find(names.begin(), names.end(), want), names.end()) << want;
+}
+
+TEST_F(LinearCoopmatTest, FallsBackToTiledWithoutCoopmat) {
+  vk::Context& c = ctx();
+  if (ops::device_tuning(c.caps()).coopmat.defined()) GTEST_SKIP() << "the device has cooperative matrices";
+  LinearShape s;
+  s.m = 37;
+  s.n = 45;
+  s.k = 24;
+  for (const char* o : {"linear=coopmat", "gpu-coopmat"}) {
+    ops::ScopedTuningOverride t(o);
+    const LinearKernel k = ops::choose_linear_kernel(c, s, DType::bf16);
+    EXPECT_EQ(k.family, ops::KernelFamily::tiled) << o;
+  }
+  ops::ScopedTuningOverride t("gpu-coopmat");
+  // And it runs: y = x·wᵀ on the tiled kernel.
+  std::vector<float> xv = random_values(37 * 24, 1), wv = random_values(45 * 24, 2);
+  Tensor x = Tensor::upload(c, make_host({37, 24}, DType::f32, xv));
+  Tensor w = Tensor::upload(c, make_host({45, 24}, DType::bf16, wv));
+  Tensor y = Tensor::empty(c, {37, 45}, DType::f32);
+  LinearEpilogue ep;
+  ep.fp16_operands_ok = false;
+  ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x, w, y, ep); });
+  std::vector<float> got = y.download(c).to_f32();
+  for (int m = 0; m < 37; ++m)
+    for (int n = 0; n < 45; ++n) {
+      double acc = 0;
+      for (int kk = 0; kk < 24; ++kk) acc += double(xv[size_t(m * 24 + kk)]) * wv[size_t(n * 24 + kk)];
+      EXPECT_NEAR(got[size_t(m * 45 + n)], acc, 1e-4);
+    }
 }
 
 }  // namespace

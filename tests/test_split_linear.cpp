@@ -15,6 +15,7 @@
 #include "support/scoped_limits.hpp"
 #include "support/split_check.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
 
@@ -54,8 +55,21 @@ struct Result {
   uint64_t noted = 0;  // "linear" splits this call noted
 };
 
-class SplitLinearTest : public test::GpuTest {
+// Run for the device's family (texel on lavapipe) and for the tiled family (storage buffers: texel-view
+// limits do not apply to it, binding and grid limits do).
+class SplitLinearTest : public test::GpuTest, public testing::WithParamInterface<const char*> {
  protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    tuning_.emplace(GetParam());
+  }
+  void TearDown() override {
+    tuning_.reset();
+    test::GpuTest::TearDown();
+  }
+  bool tiled() const { return std::string(GetParam()) == "linear=tiled"; }
+  std::optional<ops::ScopedTuningOverride> tuning_;
+
   // Runs the case on fresh copies of the same data; `limits` empty: no extra limits.
   Result run(const Case& cs, const std::string& limits) {
     vk::Context& c = ctx();
@@ -118,24 +132,30 @@ class SplitLinearTest : public test::GpuTest {
 };
 
 // X (37x13 f32: 481 scalar texels, K odd) over 256 texels: rows of X split; W and Y fit.
-TEST_F(SplitLinearTest, RowsByTexels) {
+TEST_P(SplitLinearTest, RowsByTexels) {
+  if (tiled()) GTEST_SKIP() << "storage buffers: no texel views";
   check({.m = 37, .n = 13, .k = 13, .limits = "texels=256"});
 }
 
+// The same X (1924 B) over a 1 KiB binding: rows of X split (the storage-buffer families' counterpart).
+TEST_P(SplitLinearTest, RowsByBinding) {
+  check({.m = 37, .n = 13, .k = 13, .limits = "binding=1KiB"});
+}
+
 // A bf16 weight of 45x24 (2160 B) over a 1 KiB binding with 3 rows of X: weight rows split, Y column slices.
-TEST_F(SplitLinearTest, ColumnsByBinding) {
+TEST_P(SplitLinearTest, ColumnsByBinding) {
   check({.m = 3, .n = 45, .k = 24, .w_dtype = DType::bf16, .limits = "binding=1KiB"});
 }
 
 // Both: 37x45 with f32 weights and the full epilogue (bias, GELU, modulation, gate, residual).
-TEST_F(SplitLinearTest, RowsAndColumnsWithEpilogue) {
+TEST_P(SplitLinearTest, RowsAndColumnsWithEpilogue) {
   check({.m = 37, .n = 45, .k = 24, .epilogue = true, .limits = "binding=1KiB"});
   check({.m = 37, .n = 45, .k = 24, .epilogue = true, .in_place = true, .limits = "binding=1KiB,texels=256"});
 }
 
 // Batched weights and per-item vectors, Y a column slice of wider rows (padding untouched), X starting at
 // an unaligned element (aligned-down binding + element offset), K not a multiple of 8 (scalar texels).
-TEST_F(SplitLinearTest, BatchedStridedUnaligned) {
+TEST_P(SplitLinearTest, BatchedStridedUnaligned) {
   check({.batch = 3, .m = 19, .n = 29, .k = 24, .epilogue = true, .per_item = true, .x_lead = 5, .y_pad = 7,
          .limits = "binding=1KiB"});
   check({.batch = 2, .m = 23, .n = 17, .k = 13, .w_dtype = DType::f16, .epilogue = true, .x_lead = 3, .y_pad = 2,
@@ -144,14 +164,16 @@ TEST_F(SplitLinearTest, BatchedStridedUnaligned) {
 
 // The grid: more row tiles than 64 workgroups (M = 2101 rows: over 64 tiles of 16 or 32 rows) splits the
 // rows even though the bindings fit the device.
-TEST_F(SplitLinearTest, RowsByGrid) {
-  check({.m = 2101, .n = 5, .k = 8, .limits = "groups=64"});
+TEST_P(SplitLinearTest, RowsByGrid) {
+  // The tiled family: more than 64 tiles of the tuning's tile_m rows.
+  const int64_t m = tiled() ? 65 * int64_t(ops::device_tuning(ctx().caps()).linear_tile_m) + 37 : 2101;
+  check({.m = m, .n = 5, .k = 8, .limits = "groups=64"});
 }
 
 // One row of X (K = 520: 2080 B) over a 1 KiB binding: split over K, each later chunk adding its partial
 // products to Y (bias on the first, residual in place). Another summation order: equal within fp32
 // rounding, not bitwise.
-TEST_F(SplitLinearTest, KChunksAccumulate) {
+TEST_P(SplitLinearTest, KChunksAccumulate) {
   for (int64_t K : {520, 523}) {  // vec8 steps, scalar texels
     SCOPED_TRACE("K=" + std::to_string(K));
     vk::Context& c = ctx();
@@ -183,7 +205,7 @@ TEST_F(SplitLinearTest, KChunksAccumulate) {
 }
 
 // With an activation the K chunks cannot be summed after the epilogue: a clear error, not a bad dispatch.
-TEST_F(SplitLinearTest, KSplitWithActivationIsAnError) {
+TEST_P(SplitLinearTest, KSplitWithActivationIsAnError) {
   vk::Context& c = ctx();
   Tensor x = random_tensor(c, 2 * 520, DType::f32, 1), w = random_tensor(c, 3 * 520, DType::f32, 2);
   Tensor y = Tensor::empty(c, {2, 3}, DType::f32);
@@ -201,6 +223,11 @@ TEST_F(SplitLinearTest, KSplitWithActivationIsAnError) {
     EXPECT_NE(std::string(e.what()).find("K split"), std::string::npos) << e.what();
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Family, SplitLinearTest, testing::Values("", "linear=tiled"),
+                         [](const testing::TestParamInfo<const char*>& i) {
+                           return std::string(i.param).empty() ? std::string("device") : std::string("tiled");
+                         });
 
 }  // namespace
 }  // namespace dvs

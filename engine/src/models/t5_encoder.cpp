@@ -207,6 +207,10 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
     ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.0.layer_norm.weight"), cfg_.eps);
     // q, k, v into column slices of one [B*L, 3I] buffer.
     const char* names[3] = {"q", "k", "v"};
+    // T5's activations (and the products of its FFN, the input of wo) exceed fp16 range: every linear here
+    // demands fp32 operands (no tensor-core kernel, whose operands are fp16).
+    ops::LinearEpilogue fp32_ops;
+    fp32_ops.fp16_operands_ok = false;
     for (int w = 0; w < 3; ++w) {
       ops::LinearShape s;
       s.m = rows;
@@ -214,21 +218,21 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
       s.k = D;
       s.y_row_stride = 3 * I;
       ops::linear_batched(rec, a.xn, weights_.get(att + names[w] + ".weight"),
-                          element_range(a.qkv, w * I, a.qkv.numel() - w * I), s);
+                          element_range(a.qkv, w * I, a.qkv.numel() - w * I), s, fp32_ops);
     }
     ops::attention(rec, ashape, ops::fused_qkv_operand(a.qkv, 0, H, Dh), ops::fused_qkv_operand(a.qkv, 1, H, Dh),
                    ops::fused_qkv_operand(a.qkv, 2, H, Dh), ops::AttentionOperand{a.attn}, aopt);
-    ops::LinearEpilogue res;
+    ops::LinearEpilogue res = fp32_ops;
     res.residual = a.h;
     ops::linear(rec, a.attn, weights_.get(att + "o.weight"), a.h, res);
 
     const std::string ff = b + "layer.1.DenseReluDense.";
     ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.1.layer_norm.weight"), cfg_.eps);
-    ops::LinearEpilogue act;
+    ops::LinearEpilogue act = fp32_ops;
     act.activation = cfg_.activation;
     if (cfg_.gated) {
       ops::linear(rec, a.xn, weights_.get(ff + "wi_0.weight"), a.ff_a, act);
-      ops::linear(rec, a.xn, weights_.get(ff + "wi_1.weight"), a.ff_b);
+      ops::linear(rec, a.xn, weights_.get(ff + "wi_1.weight"), a.ff_b, fp32_ops);
       ops::mul(rec, a.ff_a, a.ff_b, a.ff_a);
     } else {
       ops::linear(rec, a.xn, weights_.get(ff + "wi.weight"), a.ff_a, act);

@@ -87,6 +87,13 @@ void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   if (c.subgroup_size != 32) t.attention = KernelFamily::tiled;
   t.linear_tile_m = t.linear_tile_n = 128;
   t.linear_tile_k = 32;
+  // linalg/linear_coopmat is laid out for 8 subgroups of 32 and 48 KiB of shared memory: elsewhere the
+  // tiled kernel at its own tile.
+  if (c.subgroup_size != 32 || c.max_compute_shared_memory < 48 * 1024) {
+    t.linear = KernelFamily::tiled;
+    t.linear_tile_m = t.linear_tile_n = 64;
+    t.linear_tile_k = 16;
+  }
 }
 
 const std::array<TuningEntry, 3> kTable = {{

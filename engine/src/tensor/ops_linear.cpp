@@ -124,10 +124,44 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   // The 8-value K steps need K and every X/W offset and stride on 8-element (W) / 4-element (X) boundaries;
   // strides are checked here and again at dispatch, offsets at dispatch where the bound views are known.
   k.vectorized = s.k % 8 == 0 && s.x_row_stride % 4 == 0 && s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
+  k.family = tune.linear;
+  k.tile_m = tune.linear_tile_m;
+  k.tile_n = tune.linear_tile_n;
+  k.tile_k = tune.linear_tile_k;
   return k;
 }
 
 namespace {
+
+// The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile
+// against what the shader supports and the device's shared memory.
+const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode) {
+  const vk::DeviceCaps& caps = ctx.caps();
+  const uint32_t bm = uint32_t(kern.tile_m), bn = uint32_t(kern.tile_n), bk = uint32_t(kern.tile_k);
+  const std::string tile = std::to_string(bm) + "x" + std::to_string(bn) + "x" + std::to_string(bk);
+  uint64_t shared = 0;
+  if (kern.family == KernelFamily::tiled) {
+    // 16 x 16 invocations, each a (bm/16) x (bn/16) register block.
+    if (bm % 16 || bn % 16 || bm < 16 || bn < 16 || bm > 128 || bn > 128 || bk < 1 || bk > 64)
+      fail("tiled kernel: tile " + tile + " unsupported (m, n multiples of 16 up to 128; k 1..64)");
+    shared = uint64_t(bk) * (bm + 1 + bn + 1) * 4;
+    if (shared > caps.max_compute_shared_memory)
+      fail("tiled kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");
+    const uint32_t spec[] = {bm, bn, wcode, bk, bm / 16, bn / 16, 256};
+    return ctx.pipelines().get("linalg/linear_tiled", spec);
+  }
+  // coopmat: 8 subgroups of 32 as 2 x 4, each 4 x 2 fragments of 16 x 16 (the shader's fixed layout).
+  const CoopmatShape shape = device_tuning(caps).coopmat;
+  if (!shape.defined() || shape.m != 16 || shape.n != 16 || (shape.k != 16 && shape.k != 8))
+    fail("coopmat kernel on a device without a 16x16x16 / 16x16x8 fp16 cooperative-matrix shape");
+  if (bm != 128 || bn != 128 || bk != 32) fail("coopmat kernel: tile " + tile + " unsupported (only 128x128x32)");
+  // Double-buffered fp16 X and W tiles (rows padded by 8 halves) + a 16x16 f32 staging block per subgroup.
+  shared = 2ull * (bm + bn) * (bk + 8) * 2 + 8ull * 256 * 4;
+  if (shared > caps.max_compute_shared_memory)
+    fail("coopmat kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");
+  const uint32_t spec[] = {bm, bn, wcode, bk, shape.k};
+  return ctx.pipelines().get("linalg/linear_coopmat", spec);
+}
 
 // One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc), the
 // products over k in [k0, k0+kc).
@@ -237,7 +271,7 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   // K = 0: the product is zero, the epilogue still applies; a one-element zero view keeps bindings valid.
   // The 8-value path also needs the X/W offsets on 4/8-element boundaries: every chunk's offset keeps the
   // whole tensor's residue (chunk starts move by multiples of 8 elements), so the choice holds per chunk.
-  const bool vec = kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
+  const bool vec = kernel.family == KernelFamily::texel && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
                    s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
   const bool use_vec = vec && bind_aligned(x, align).elem_off % 4 == 0 && bind_aligned(w, align).elem_off % 8 == 0;
   const VkFormat x_fmt = use_vec ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
@@ -271,21 +305,32 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     p.flags |= 32u;
   }
 
-  const int rows = kernel.rows, cols = kernel.cols;
-  const int sg_m = rows >= 8 ? kernel.sg_m : 1;
-  if (!(rows == 1 || rows == 2 || rows == 4 || rows == 8 || rows == 16) || cols < 1 || cols > 8 ||
-      !(sg_m == 1 || sg_m == 2 || sg_m == 4 || sg_m == 8))
-    fail("bad kernel configuration");
-  const uint32_t spec[] = {uint32_t(rows), uint32_t(cols), wcode, use_vec ? 1u : 0u, uint32_t(kernel.lanes),
-                           uint32_t(sg_m)};
-  const vk::Pipeline& pipe = ctx.pipelines().get(kernel.lanes == 2 ? "linalg/linear_nosubgroup" : "linalg/linear", spec);
-  const int64_t tile_m = int64_t(sg_m) * rows, tile_n = int64_t(8 / sg_m) * 8 * cols;
+  const bool storage = kernel.family != KernelFamily::texel;
+  int64_t tile_m = 0, tile_n = 0;
+  const vk::Pipeline* pipe_ptr = nullptr;
+  if (!storage) {
+    const int rows = kernel.rows, cols = kernel.cols;
+    const int sg_m = rows >= 8 ? kernel.sg_m : 1;
+    if (!(rows == 1 || rows == 2 || rows == 4 || rows == 8 || rows == 16) || cols < 1 || cols > 8 ||
+        !(sg_m == 1 || sg_m == 2 || sg_m == 4 || sg_m == 8))
+      fail("bad kernel configuration");
+    const uint32_t spec[] = {uint32_t(rows), uint32_t(cols), wcode, use_vec ? 1u : 0u, uint32_t(kernel.lanes),
+                             uint32_t(sg_m)};
+    pipe_ptr = &ctx.pipelines().get(kernel.lanes == 2 ? "linalg/linear_nosubgroup" : "linalg/linear", spec);
+    tile_m = int64_t(sg_m) * rows;
+    tile_n = int64_t(8 / sg_m) * 8 * cols;
+  } else {
+    pipe_ptr = &storage_pipeline(ctx, kernel, wcode);
+    tile_m = kernel.tile_m;
+    tile_n = kernel.tile_n;
+  }
+  const vk::Pipeline& pipe = *pipe_ptr;
 
   const Plan plan{s,
                   ep,
                   align,
-                  binding_capacity(caps, xt),
-                  binding_capacity(caps, wt),
+                  storage ? binding_capacity(caps, 0) : binding_capacity(caps, xt),
+                  storage ? binding_capacity(caps, 0) : binding_capacity(caps, wt),
                   binding_capacity(caps, 0),
                   dtype_size(w.dtype()),
                   tile_m,
@@ -307,8 +352,10 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     // K = 0 binds one element (the views must not be empty).
     const int64_t x_len = extent(c.bc, s.x_batch_stride, c.mc, s.x_row_stride, c.kc);
     const int64_t w_len = extent(c.bc, s.w_batch_stride, c.nc, s.k, c.kc);
-    Bound bx = bind_texels(elems(x, x0, std::max<int64_t>(x_len, 1)), align, xt);
-    Bound bw = bind_texels(elems(w, w0, std::max<int64_t>(w_len, 1)), align, wt);
+    Bound bx = storage ? bind_storage(elems(x, x0, std::max<int64_t>(x_len, 1)), align)
+                       : bind_texels(elems(x, x0, std::max<int64_t>(x_len, 1)), align, xt);
+    Bound bw = storage ? bind_storage(elems(w, w0, std::max<int64_t>(w_len, 1)), align)
+                       : bind_texels(elems(w, w0, std::max<int64_t>(w_len, 1)), align, wt);
     Bound by = bind_storage(elems(y, y0, y_len), align);
     if ((use_vec && (bx.elem_off % 4 || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
       fail("a chunk's x/w offsets lost their alignment");
@@ -338,10 +385,15 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     q.shift_off = bshift.elem_off;
     q.gate_off = bgate.elem_off;
     q.res_off = bres.elem_off;
-    rec.dispatch(pipe,
-                 {vk::Binding(bx.view, x_fmt), vk::Binding(bw.view, w_fmt), by.view, bbias.view, bscale.view,
-                  bshift.view, bgate.view, bres.view},
-                 &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"), "linear");
+    if (storage)
+      rec.dispatch(pipe, {bx.view, bw.view, by.view, bbias.view, bscale.view, bshift.view, bgate.view, bres.view},
+                   &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"),
+                   kernel.family == KernelFamily::coopmat ? "linear_coopmat" : "linear_tiled");
+    else
+      rec.dispatch(pipe,
+                   {vk::Binding(bx.view, x_fmt), vk::Binding(bw.view, w_fmt), by.view, bbias.view, bscale.view,
+                    bshift.view, bgate.view, bres.view},
+                   &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"), "linear");
   };
   if (size.bc < s.batch || size.nc < s.n || size.mc < s.m || size.kc < s.k) rec.context().note_split("linear");
   for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {
@@ -358,7 +410,16 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
 
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
                     const LinearEpilogue& ep) {
-  linear_batched_with(rec, x, w, y, shape, ep, choose_linear_kernel(rec.context(), shape, w.dtype()));
+  LinearKernel k = choose_linear_kernel(rec.context(), shape, w.dtype());
+  // fp16 operands could overflow for this caller: the fp32 tiled kernel at its own default tile.
+  if (k.family == KernelFamily::coopmat && !ep.fp16_operands_ok) {
+    const LinearKernel tiled_defaults;
+    k.family = KernelFamily::tiled;
+    k.tile_m = tiled_defaults.tile_m;
+    k.tile_n = tiled_defaults.tile_n;
+    k.tile_k = tiled_defaults.tile_k;
+  }
+  linear_batched_with(rec, x, w, y, shape, ep, k);
 }
 
 void linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearEpilogue& ep) {

@@ -8,6 +8,7 @@
 #pragma once
 #include <cstdint>
 
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/recorder.hpp"
 
@@ -31,6 +32,10 @@ struct LinearEpilogue {
   Tensor scale, shift;
   Tensor gate;
   Tensor residual;
+  // false: the caller's X or W may exceed fp16 range (|x| > 65504 becomes inf in an fp16 operand), so the
+  // tensor-core (coopmat) family, whose operands are fp16, must not be used: a coopmat device then runs the
+  // tiled fp32 kernel. (T5's activations exceed fp16 range.)
+  bool fp16_operands_ok = true;
 };
 
 // A batch of GEMMs over the same tensors with element strides. All sizes in elements.
@@ -63,9 +68,16 @@ void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const T
 // lanes: 0 subgroups of exactly 8 (lavapipe), 1 clusters of 8 inside wider subgroups (GPUs), 2 no subgroup
 // operations (shader linalg/linear_nosubgroup). sg_m: clusters of the 64-invocation workgroup along M.
 // vectorized: 8-value K steps through RGBA texels (falls back to scalar texels when the layout forbids).
+// family: texel (the fields above), tiled (linalg/linear_tiled: storage buffers, shared-memory tiles of
+// tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 128) or coopmat
+// (linalg/linear_coopmat: the same staging in fp16 feeding VK_KHR_cooperative_matrix, fp32 accumulation;
+// tile 128x128x32 only, 8 subgroups of 32). choose_linear_kernel takes the family and tiles from
+// device_tuning(caps).
 struct LinearKernel {
   int rows = 8, cols = 3, lanes = 0, sg_m = 2;
   bool vectorized = true;
+  KernelFamily family = KernelFamily::texel;
+  int tile_m = 64, tile_n = 64, tile_k = 16;
 };
 LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape, DType w_dtype);
 void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y,
