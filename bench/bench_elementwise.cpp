@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "harness.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"
 #include "tensor/ops_random.hpp"
@@ -82,6 +83,12 @@ void elementwise(Bench& b) {
   measure(b, copy, "relu", sn, 2 * f, [&](vk::Recorder& r) { ops::relu(r, x, z); });
   measure(b, copy, "clamp", sn, 2 * f, [&](vk::Recorder& r) { ops::clamp(r, x, z, -1.0f, 1.0f); });
   measure(b, copy, "add", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
+  {
+    // The storage-buffer inputs the "gpu" tuning entry runs (eltwise_texel_inputs=off), beside the above.
+    ops::ScopedTuningOverride storage("eltwise_texel_inputs=off");
+    measure(b, copy, "silu_storage_inputs", sn, 2 * f, [&](vk::Recorder& r) { ops::silu(r, x, z); });
+    measure(b, copy, "add_storage_inputs", sn, 3 * f, [&](vk::Recorder& r) { ops::add(r, x, y, z); });
+  }
   Tensor one = filled(ctx, {1});
   measure(b, copy, "mul_scalar_tensor", sn, 2 * f, [&](vk::Recorder& r) { ops::mul(r, x, one, z); });
   measure(b, copy, "axpby_inplace", sn, 3 * f, [&](vk::Recorder& r) { ops::axpby(r, 0.9f, x, 0.1f, y, x); });

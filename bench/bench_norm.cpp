@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "harness.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_norm.hpp"
 #include "tensor/ops_position.hpp"
 #include "tensor/ops_reduce.hpp"
@@ -69,13 +70,16 @@ void norms(Bench& b) {
     const std::string shape = std::to_string(rows) + "x" + std::to_string(D);
     const double bytes = 2.0 * double(x.bytes());
     measure(b, copy, "layernorm_affine_bf16", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
-    ops::set_row_mapping(ops::RowMapping::workgroup_per_row);
-    measure(b, copy, "layernorm_affine_bf16_wg", shape, bytes, "workgroup per row (GPU mapping)",
-            [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
-    ops::set_row_mapping(ops::RowMapping::invocation_per_row);
-    measure(b, copy, "layernorm_affine_bf16_inv", shape, bytes, "invocation per row (CPU mapping)",
-            [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
-    ops::set_row_mapping(ops::RowMapping::automatic);
+    {
+      ops::ScopedTuningOverride mapping("norm_row_per_invocation=off");
+      measure(b, copy, "layernorm_affine_bf16_wg", shape, bytes, "workgroup per row (GPU mapping)",
+              [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
+    }
+    {
+      ops::ScopedTuningOverride mapping("norm_row_per_invocation=on");
+      measure(b, copy, "layernorm_affine_bf16_inv", shape, bytes, "invocation per row (CPU mapping)",
+              [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f); });
+    }
     measure(b, copy, "layernorm_zero_modulated", shape, bytes, "adaLN, text/video split",
             [&](vk::Recorder& r) { ops::layernorm(r, x, y, w, bias, 1e-5f, &mod); });
     measure(b, copy, "layernorm_no_affine", shape, bytes, "", [&](vk::Recorder& r) { ops::layernorm(r, x, y, {}, {}, 1e-5f); });

@@ -10,12 +10,14 @@
 
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_norm.hpp"
 
 namespace dvs {
 namespace {
 
 using test::GpuTest;
+using NormOps = GpuTest;  // the suite name selects these for the DVS_TUNING=gpu pass
 
 std::vector<float> random_values(size_t n, uint32_t seed, float offset = 0.0f, float spread = 1.0f) {
   std::mt19937 rng(seed);
@@ -143,7 +145,7 @@ void run_layernorm(vk::Context& ctx, const LnCase& c) {
 }
 
 // Tolerance: |err| <= 2e-5 + 2e-7*|offset| + 1e-5*|ref|.
-TEST_F(GpuTest, LayerNormOddShapes) {
+TEST_F(NormOps, LayerNormOddShapes) {
   for (int64_t D : {1, 7, 33, 129, 1000})
     run_layernorm(ctx(), {1, 5, D, DType::f32, true, false, false, 0.0f});
   run_layernorm(ctx(), {3, 7, 64, DType::f32, false, false, false, 0.0f});
@@ -151,36 +153,29 @@ TEST_F(GpuTest, LayerNormOddShapes) {
   run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});  // beyond the register cache
 }
 
-TEST_F(GpuTest, LayerNormLargeOffsetIsTwoPass) {
+TEST_F(NormOps, LayerNormLargeOffsetIsTwoPass) {
   run_layernorm(ctx(), {2, 9, 257, DType::f32, false, false, false, 1000.0f});
 }
 
-TEST_F(GpuTest, LayerNormHalfWeightsAndInPlace) {
+TEST_F(NormOps, LayerNormHalfWeightsAndInPlace) {
   run_layernorm(ctx(), {1, 4, 33, DType::bf16, true, false, false, 0.5f});
   run_layernorm(ctx(), {1, 4, 33, DType::f16, true, false, true, 0.5f});
   run_layernorm(ctx(), {1, 3, 72, DType::bf16, true, false, true, 0.5f});  // vec4 path, 16-bit weights
   run_layernorm(ctx(), {1, 3, 72, DType::f16, true, false, false, 0.5f});
 }
 
-TEST_F(GpuTest, LayerNormZeroModulationTextVideoSplit) {
+TEST_F(NormOps, LayerNormZeroModulationTextVideoSplit) {
   // Tiny model: 8 text + 32 video tokens, D = 32; split at L/3 of 40 = 13 here to exercise an odd split.
   run_layernorm(ctx(), {2, 40, 32, DType::f32, true, true, false, 0.0f});
   run_layernorm(ctx(), {3, 7, 33, DType::bf16, true, true, true, 0.0f});
   run_layernorm(ctx(), {2, 5, 16, DType::f32, false, true, false, 0.0f});  // AdaLayerNorm-like, no affine
 }
 
-// The other row mapping (the default one depends on the device type): the same checks on a subset.
-class RowMappingTest : public GpuTest {
- protected:
-  void TearDown() override {
-    ops::set_row_mapping(ops::RowMapping::automatic);
-    GpuTest::TearDown();
-  }
-};
-
-TEST_F(RowMappingTest, LayerNormAndRmsNormBothMappings) {
-  for (auto m : {ops::RowMapping::workgroup_per_row, ops::RowMapping::invocation_per_row}) {
-    ops::set_row_mapping(m);
+// Both row mappings (the default one is the device's tuning): the same checks on a subset.
+TEST_F(NormOps, LayerNormAndRmsNormBothMappings) {
+  for (const char* m : {"norm_row_per_invocation=off", "norm_row_per_invocation=on"}) {
+    SCOPED_TRACE(m);
+    ops::ScopedTuningOverride mapping(m);
     run_layernorm(ctx(), {1, 5, 33, DType::f32, true, false, false, 0.0f});
     run_layernorm(ctx(), {1, 2, 4100, DType::f32, true, false, false, 0.0f});
     run_layernorm(ctx(), {2, 9, 257, DType::f32, false, false, false, 1000.0f});
@@ -191,7 +186,7 @@ TEST_F(RowMappingTest, LayerNormAndRmsNormBothMappings) {
   }
 }
 
-TEST_F(GpuTest, LayerNormRejectsBadModulation) {
+TEST_F(NormOps, LayerNormRejectsBadModulation) {
   Tensor x = Tensor::zeros(ctx(), {2, 4, 8}, DType::f32), w, b;
   ops::Modulation mod;
   mod.table = Tensor::zeros(ctx(), {2, 16}, DType::f32);
@@ -242,7 +237,7 @@ void run_head_layernorm(vk::Context& ctx, int64_t rows, int64_t H, int64_t Dh, i
 }
 
 // Tolerance: 1e-5 + 1e-5*|ref|.
-TEST_F(GpuTest, HeadLayerNormOnFusedQkvSlices) {
+TEST_F(NormOps, HeadLayerNormOnFusedQkvSlices) {
   // Tiny model: 2 heads x 16, fused QKV [rows, 96]: q at column 0, k at column 32.
   run_head_layernorm(ctx(), 70, 1, 16, 16, 0, DType::f32, false, false);  // several workgroups
   run_head_layernorm(ctx(), 40, 2, 16, 96, 0, DType::f32, true, true);
@@ -275,7 +270,7 @@ void run_rmsnorm(vk::Context& ctx, int64_t rows, int64_t D, DType wdt, bool in_p
 }
 
 // Tolerance: 1e-6 + 1e-5*|ref|.
-TEST_F(GpuTest, RmsNorm) {
+TEST_F(NormOps, RmsNorm) {
   for (int64_t D : {1, 7, 33, 129}) run_rmsnorm(ctx(), 3, D, DType::f32, false);
   run_rmsnorm(ctx(), 8, 32, DType::bf16, true);  // tiny T5: d_model 32
   run_rmsnorm(ctx(), 2, 4096, DType::f16, false);
@@ -322,7 +317,7 @@ void run_groupnorm(vk::Context& ctx, Shape shape, int64_t G, DType wdt, bool aff
 }
 
 // Tolerance: 2e-5 + 2e-7*|offset| + 2e-5*|ref|.
-TEST_F(GpuTest, GroupNormOddShapes) {
+TEST_F(NormOps, GroupNormOddShapes) {
   run_groupnorm(ctx(), {2, 8, 3, 5, 7}, 4, DType::f32, true, false, 0.0f, false);
   run_groupnorm(ctx(), {1, 3, 1, 1, 1}, 3, DType::f32, true, true, 0.0f, false);  // one element per group
   run_groupnorm(ctx(), {1, 6, 2, 9, 11}, 2, DType::bf16, true, true, 0.0f, true);
@@ -330,7 +325,7 @@ TEST_F(GpuTest, GroupNormOddShapes) {
   run_groupnorm(ctx(), {2, 6, 2, 4, 6}, 3, DType::bf16, true, false, 1.0f, false);  // vec4 path (S = 48)
 }
 
-TEST_F(GpuTest, GroupNormLargeGroupWithOffset) {
+TEST_F(NormOps, GroupNormLargeGroupWithOffset) {
   // Tiny-VAE-like: 32 channels / 8 groups, 9 frames of 60x90: 194,400 elements per group (48 blocks), mean 50.
   if (test::over_allocation_limit(ctx(), 32ull * 9 * 60 * 90 * 4, "GroupNorm 1x32x9x60x90")) GTEST_SKIP();
   run_groupnorm(ctx(), {1, 32, 9, 60, 90}, 8, DType::f32, true, true, 50.0f, false);

@@ -17,6 +17,7 @@ namespace dvs {
 namespace {
 
 using test::GpuTest;
+using PositionOps = GpuTest;  // the suite name selects these for the DVS_TUNING=gpu pass
 
 std::vector<float> random_values(size_t n, uint32_t seed, float lo = -2.0f, float hi = 2.0f) {
   std::mt19937 rng(seed);
@@ -106,7 +107,7 @@ void run_rope(vk::Context& ctx, int64_t B, int64_t L, int64_t first, int64_t n, 
 }
 
 // Tolerance: 1e-6 absolute (|x| <= 2, |cos|,|sin| <= 1: two products and a sum in fp32).
-TEST_F(GpuTest, RopeOnVideoTokensOfFusedQkv) {
+TEST_F(PositionOps, RopeOnVideoTokensOfFusedQkv) {
   // Tiny model: 8 text + 48 video tokens, 2 heads x 16, fused QKV [rows, 96]; q and k rotated in one call
   // as 4 heads from column 0.
   run_rope(ctx(), 2, 56, 8, 48, 4, 16, 96, 0, true);
@@ -115,7 +116,7 @@ TEST_F(GpuTest, RopeOnVideoTokensOfFusedQkv) {
   run_rope(ctx(), 1, 33, 0, 33, 1, 64, 64, 0, true);
 }
 
-TEST_F(GpuTest, RopeRejectsSliceOutsideSequence) {
+TEST_F(PositionOps, RopeRejectsSliceOutsideSequence) {
   Tensor x = Tensor::zeros(ctx(), {2 * 10, 32}, DType::f32);
   Tensor c = Tensor::zeros(ctx(), {6, 16}, DType::f32);
   vk::Recorder rec(ctx());
@@ -171,7 +172,7 @@ void run_timestep(vk::Context& ctx, const std::vector<float>& ts, int64_t D, boo
 }
 
 // Tolerance: 2e-6 + 2^-23*|t*freq| per element (see timestep_reference); >= 95% within 2e-6.
-TEST_F(GpuTest, TimestepEmbedding) {
+TEST_F(PositionOps, TimestepEmbedding) {
   run_timestep(ctx(), {0.0f, 1.0f, 0.25f}, 32, true, 0.0f);
   run_timestep(ctx(), {999.0f, 500.0f, 981.0f, 1.0f, 0.0f, 37.5f, 750.0f}, 32, true, 0.0f);  // tiny model
   run_timestep(ctx(), {999.0f, 123.0f}, 3072, true, 0.0f);                                   // 48 heads x 64

@@ -16,6 +16,7 @@ namespace dvs {
 namespace {
 
 using test::GpuTest;
+using ReduceOps = GpuTest;  // the suite name selects these for the DVS_TUNING=gpu pass
 
 std::vector<float> random_values(size_t n, uint32_t seed, float offset, float spread) {
   std::mt19937 rng(seed);
@@ -63,14 +64,14 @@ void run_channel_stats(vk::Context& ctx, int64_t outer, int64_t C, int64_t inner
   }
 }
 
-TEST_F(GpuTest, ChannelMeanVarOddShapes) {
+TEST_F(ReduceOps, ChannelMeanVarOddShapes) {
   run_channel_stats(ctx(), 1, 1, 1, 0.0f, 1.0f);   // one element: variance 0
   run_channel_stats(ctx(), 7, 3, 33, 0.5f, 2.0f);
   run_channel_stats(ctx(), 3, 5, 1, 0.0f, 1.0f);   // [N, C] layout (inner = 1)
   run_channel_stats(ctx(), 13, 4, 129, -3.0f, 1.0f);  // tiny latent-like [F, C, H*W]
 }
 
-TEST_F(GpuTest, ChannelMeanVarManyBlocksLargeOffset) {
+TEST_F(ReduceOps, ChannelMeanVarManyBlocksLargeOffset) {
   // Latent-sized channel: 13 frames x 60x90 = 70,200 elements per channel (18 blocks), offset 1000, std 0.5: a
   // one-pass E[x^2] - E[x]^2 in fp32 would lose the variance entirely.
   run_channel_stats(ctx(), 13, 3, 60 * 90, 1000.0f, 0.5f);
@@ -96,13 +97,13 @@ void run_sum_max(vk::Context& ctx, int64_t n, float offset) {
   EXPECT_EQ(mt.download(ctx).to_f32()[0], mx) << "max n=" << n;
 }
 
-TEST_F(GpuTest, SumAndMax) {
+TEST_F(ReduceOps, SumAndMax) {
   for (int64_t n : {1, 7, 33, 4096, 4097}) run_sum_max(ctx(), n, 0.0f);
   run_sum_max(ctx(), 1 << 20, 3.0f);  // 256 blocks; all-positive sum of ~3e6
   run_sum_max(ctx(), 1000, -50.0f);   // all negative: max must not be 0
 }
 
-TEST_F(GpuTest, ReduceRejectsSmallScratch) {
+TEST_F(ReduceOps, ReduceRejectsSmallScratch) {
   Tensor x = Tensor::zeros(ctx(), {10000}, DType::f32), out = Tensor::zeros(ctx(), {1}, DType::f32);
   Tensor scratch = Tensor::zeros(ctx(), {2}, DType::f32);  // needs 10 partials x 2
   vk::Recorder rec(ctx());

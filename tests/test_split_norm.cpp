@@ -16,6 +16,7 @@
 #include "support/scoped_limits.hpp"
 #include "support/split_check.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_norm.hpp"
 #include "tensor/tensor.hpp"
 
@@ -82,10 +83,10 @@ class SplitNormTest : public test::GpuTest {
 // [3 batches x 29 tokens, D] with a two-set modulation table (text: 7 tokens): chunks of a few rows start
 // inside batches and inside the text part. D = 28 (vec4) and 29 (scalar), bf16 affine, both row mappings.
 TEST_F(SplitNormTest, LayerNormModulationAcrossBatches) {
-  for (ops::RowMapping mapping : {ops::RowMapping::invocation_per_row, ops::RowMapping::workgroup_per_row})
+  for (const char* mapping : {"norm_row_per_invocation=on", "norm_row_per_invocation=off"})
     for (int64_t D : {28, 29}) {
-      SCOPED_TRACE("D=" + std::to_string(D));
-      ops::set_row_mapping(mapping);
+      SCOPED_TRACE(std::string(mapping) + " D=" + std::to_string(D));
+      ops::ScopedTuningOverride row_mapping(mapping);
       const int64_t B = 3, L = 29, W = 4 * D + 4;
       check(
           [&](Op& op) {
@@ -105,7 +106,6 @@ TEST_F(SplitNormTest, LayerNormModulationAcrossBatches) {
           },
           "binding=1KiB");
     }
-  ops::set_row_mapping(ops::RowMapping::automatic);
 }
 
 // Short sequences (7 batches of 3 tokens, text 1): a chunk of 10 rows spans up to 4 batches' table rows.
@@ -131,7 +131,7 @@ TEST_F(SplitNormTest, LayerNormModulationManyBatchesPerChunk) {
 
 // No modulation, in place, more rows than 64x64 workgroups hold (workgroup per row): split by the grid.
 TEST_F(SplitNormTest, LayerNormRowsByGrid) {
-  ops::set_row_mapping(ops::RowMapping::workgroup_per_row);
+  ops::ScopedTuningOverride row_mapping("norm_row_per_invocation=off");
   check(
       [&](Op& op) {
         Tensor x = random_tensor(ctx(), {4099, 3}, DType::f32, 5);
@@ -139,7 +139,6 @@ TEST_F(SplitNormTest, LayerNormRowsByGrid) {
         return x;
       },
       "groups=64");
-  ops::set_row_mapping(ops::RowMapping::automatic);
 }
 
 // Fused QKV rows [41, 3*H*Dh + pad]: k heads normalised in place, rows chunked; the other columns untouched.

@@ -73,6 +73,9 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.attention_rows_by_head_dim = false;
   t.attention_kv_workspace = false;
   t.eltwise_texel_inputs = false;
+  // Kept at the CPU's 1024, unmeasured on a GPU: the reductions (groupnorm statistics, sums) are a few
+  // passes over activations the convolutions around them read many times, and a smaller floor would need
+  // more scratch than memory plans size without a device (the field accepts 1024 and up).
   t.reduce_min_chunk = 1024;
   t.linear_tile_m = t.linear_tile_n = 64;
   t.linear_tile_k = 16;
@@ -184,10 +187,12 @@ const std::vector<Field>& fields() {
       int_field("conv_pack_columns", &DeviceTuning::conv_pack_columns, 0, 1 << 20, "0 (whole rows) or pixels"),
       bool_field("norm_row_per_invocation", &DeviceTuning::norm_row_per_invocation),
       bool_field("eltwise_texel_inputs", &DeviceTuning::eltwise_texel_inputs),
-      {"reduce_min_chunk", "4..1048576 (a multiple of 4)",
+      // Not below 1024: scratch sized without a device (ops_reduce.cpp's kScratchMinChunk) must bound every
+      // tuning's partial count.
+      {"reduce_min_chunk", "1024..1048576 (a multiple of 4)",
        [](DeviceTuning& t, const std::string& v) {
          int64_t x;
-         if (!parse_int(v, 4, 1 << 20, x) || x % 4) return false;
+         if (!parse_int(v, 1024, 1 << 20, x) || x % 4) return false;
          t.reduce_min_chunk = x;
          return true;
        }},
@@ -286,8 +291,10 @@ const DeviceTuning& device_tuning(const vk::DeviceCaps& caps) {
   static std::map<std::string, DeviceTuning> cache;
   const std::string overrides = joined(env_override(), g_scoped_override);
   std::string key(reinterpret_cast<const char*>(caps.pipeline_cache_uuid), VK_UUID_SIZE);
-  key += caps.name + '\n' + std::to_string(caps.type) + '\n' + std::to_string(caps.subgroup_size) + '\n' +
-         std::to_string(caps.cooperative_matrix_shapes.size()) + '\n' + overrides;
+  // Every property an entry or field reads (faked caps in tests differ in only one of them).
+  key += caps.name + '\n' + std::to_string(caps.type) + '\n' + std::to_string(caps.subgroup_size) +
+         (caps.subgroup_shuffle ? "s\n" : "\n") + (caps.cooperative_matrix ? "c" : "") +
+         std::to_string(pick_coopmat_shape(caps).k) + '\n' + overrides;
   std::lock_guard<std::mutex> lock(mutex);
   auto it = cache.find(key);
   if (it == cache.end()) it = cache.emplace(key, select_tuning(caps, overrides)).first;

@@ -81,11 +81,11 @@ void NonFiniteCheck::record(vk::Recorder& rec, const Tensor& t, const std::strin
       uint32_t n, base, slot;
     } push{uint32_t(count), uint32_t(first), slot};
     const Grid g = grid_1d(ctx_.caps(), div_up(div_up(count, 4), kRun), kLocal);
-    if (texel_inputs_enabled() && texel_view_ok(ctx_, range, 16))
+    if (texel_inputs(ctx_.caps()) && texel_view_ok(ctx_, range, 16))
       rec.dispatch(ctx_.pipelines().get("nn/nonfinite_tex4"), {vk::Binding(range, VK_FORMAT_R32G32B32A32_UINT), result_.view()},
                    &push, sizeof push, g.x, g.y, 1, "nonfinite");
     else {
-      if (texel_inputs_enabled() && !fallback) ctx_.note_split("nonfinite (storage fallback)");
+      if (texel_inputs(ctx_.caps()) && !fallback) ctx_.note_split("nonfinite (storage fallback)");
       fallback = true;
       rec.dispatch(storage, {range, result_.view()}, &push, sizeof push, g.x, g.y, 1, "nonfinite");
     }

@@ -3,11 +3,11 @@
 
 #include <algorithm>
 #include <numeric>
-#include <map>
 #include <string>
 
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -35,27 +35,21 @@ void check_count(const char* op, const Tensor& t) {
 }
 
 // Texel-buffer inputs: texelFetch is ~2-3x cheaper than a storage-buffer load on lavapipe (DESIGN §9), so
-// vec4-sized work reads x (and y, s, t) through uniform texel buffers whenever the views allow it: offset
-// aligned to minTexelBufferOffsetAlignment and few enough texels for maxTexelBufferElements.
-bool g_texel_inputs = true;
-
-VkDeviceSize texel_offset_alignment(vk::Context& ctx) {
-  static std::map<VkPhysicalDevice, VkDeviceSize> cache;
-  auto it = cache.find(ctx.physical_device());
-  if (it != cache.end()) return it->second;
-  VkPhysicalDeviceProperties props{};
-  vkGetPhysicalDeviceProperties(ctx.physical_device(), &props);
-  return cache[ctx.physical_device()] = std::max<VkDeviceSize>(1, props.limits.minTexelBufferOffsetAlignment);
+// where the device's tuning says so (DeviceTuning::eltwise_texel_inputs) vec4-sized work reads x (and y, s,
+// t) through uniform texel buffers whenever the views allow it: offset aligned to
+// minTexelBufferOffsetAlignment and few enough texels for maxTexelBufferElements.
+VkDeviceSize texel_offset_alignment(const vk::DeviceCaps& caps) {
+  return std::max<VkDeviceSize>(1, caps.min_texel_buffer_offset_alignment);
 }
 
 bool texel_ok(vk::Context& ctx, const Tensor& t, int64_t texels) {
-  return t.buffer().offset % texel_offset_alignment(ctx) == 0 && uint64_t(texels) <= ctx.caps().max_texel_buffer_elements;
+  return t.buffer().offset % texel_offset_alignment(ctx.caps()) == 0 && uint64_t(texels) <= ctx.caps().max_texel_buffer_elements;
 }
 
 }  // namespace
 
 bool texel_view_ok(vk::Context& ctx, const vk::BufferView& v, uint32_t texel_bytes) {
-  return v.offset % texel_offset_alignment(ctx) == 0 && v.size % texel_bytes == 0 &&
+  return v.offset % texel_offset_alignment(ctx.caps()) == 0 && v.size % texel_bytes == 0 &&
          v.size / texel_bytes <= ctx.caps().max_texel_buffer_elements;
 }
 
@@ -82,7 +76,7 @@ void unary_range(vk::Recorder& rec, const char* op, UnaryOp kind, const Tensor& 
   if (vec4_body && body > 0) {  // whole vec4s; an odd-sized tensor adds a scalar tail below
     const Tensor xb = body == n ? x : Tensor::on(x.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
     const Tensor yb = body == n ? y : Tensor::on(y.buffer().sub(0, VkDeviceSize(body) * 4), {body}, DType::f32);
-    const bool texel = g_texel_inputs && texel_ok(ctx, xb, body / 4);
+    const bool texel = texel_inputs(ctx.caps()) && texel_ok(ctx, xb, body / 4);
     push.n = uint32_t(body / 4);
     const vk::Pipeline& p = ctx.pipelines().get(texel ? "nn/eltwise_unary_tex4" : "nn/eltwise_unary_vec4", spec);
     rec.dispatch(p, {texel ? rgba(xb) : vk::Binding(xb.buffer()), yb.buffer()}, &push, sizeof push,
@@ -255,7 +249,7 @@ void binary_range(vk::Recorder& rec, const char* op, BinaryOp kind, float alpha,
   const uint32_t groups = groups_for(ctx.caps(), units);
   const BcastPlan pl = plan_broadcast(bc, n, same, vec4, groups, base);
   const bool y_vec4 = pl.mode <= 1;  // y read as whole vec4s
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) &&
+  const bool texel = vec4 && texel_inputs(ctx.caps()) && texel_ok(ctx, x, n / 4) &&
                      texel_ok(ctx, y, y_vec4 ? y.numel() / 4 : y.numel());
   const char* shader = !vec4 ? "nn/eltwise_binary"
                        : texel ? "nn/eltwise_binary_tex4"
@@ -304,7 +298,7 @@ void affine_range(vk::Recorder& rec, const char* op, const Tensor& x, const Tens
   if (vec4 && pl.mode == 0) pl.mode = 1;  // same shape runs as rows of length n
   const bool st_vec4 = vec4 && pl.mode == 1;
   const int64_t st_texels = st_vec4 ? s.numel() / 4 : s.numel();
-  const bool texel = vec4 && g_texel_inputs && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
+  const bool texel = vec4 && texel_inputs(ctx.caps()) && texel_ok(ctx, x, n / 4) && texel_ok(ctx, s, st_texels) &&
                      texel_ok(ctx, t, st_texels);
   struct {
     uint32_t n, C, inner, step_c, step_r;
@@ -371,8 +365,7 @@ void cast_range(vk::Recorder& rec, const Tensor& x, const Tensor& y, uint32_t sr
 
 }  // namespace
 
-void use_texel_inputs(bool on) { g_texel_inputs = on; }
-bool texel_inputs_enabled() { return g_texel_inputs; }
+bool texel_inputs(const vk::DeviceCaps& caps) { return device_tuning(caps).eltwise_texel_inputs; }
 
 void scale(vk::Recorder& rec, const Tensor& x, const Tensor& y, float a, float b) {
   unary(rec, "scale", UnaryOp::affine, x, y, a, b);

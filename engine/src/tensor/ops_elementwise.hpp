@@ -38,11 +38,11 @@ void scale_shift(vk::Recorder& rec, const Tensor& x, const Tensor& scale, const 
 // of slack after it (every Allocator/Arena allocation has); their contents are preserved.
 void cast(vk::Recorder& rec, const Tensor& x, const Tensor& y);
 
-// Ops with vec4-sized work (elementwise, concat/split, permute) read their inputs through texel buffers when
-// the views allow (faster on lavapipe); this switch forces the storage-buffer path everywhere (tests,
-// benchmarks).
-void use_texel_inputs(bool on);
-bool texel_inputs_enabled();
+// Whether ops with vec4-sized work (elementwise, concat/split, permute, nonfinite) read their inputs through
+// texel buffers when the views allow (faster on lavapipe), or through storage buffers (GPUs): the device's
+// DeviceTuning::eltwise_texel_inputs; tests and benchmarks force either path with
+// ScopedTuningOverride("eltwise_texel_inputs=on|off").
+bool texel_inputs(const vk::DeviceCaps& caps);
 // For op implementations: whether `v` can be bound as a uniform texel buffer of `texel_bytes`-sized texels
 // (offset alignment, whole texels, maxTexelBufferElements).
 bool texel_view_ok(vk::Context& ctx, const vk::BufferView& v, uint32_t texel_bytes);

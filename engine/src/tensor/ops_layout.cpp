@@ -61,7 +61,7 @@ void record_copy2d(vk::Recorder& rec, const vk::BufferView& src, const vk::Buffe
   const int64_t q = vec4 ? 4 : 1;
   const Grid2 g = grid_rows(rec.context().caps(), c.rows, c.len / q);
   vk::Context& ctx = rec.context();
-  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, src, 16);
+  const bool texel = vec4 && texel_inputs(ctx.caps()) && texel_view_ok(ctx, src, 16);
   struct {
     uint32_t rows, len, src_stride, src_off, dst_stride, dst_off, lane_rows;
   } push{uint32_t(c.rows), uint32_t(c.len / q), uint32_t(c.src_stride / q), uint32_t(c.src_off / q),
@@ -179,7 +179,7 @@ void record_permute(vk::Recorder& rec, const char* op, const vk::BufferView& in,
   const uint32_t last = push.dims[axes.size() - 1];
   push.rows = uint32_t(n / axes.back().first);
   vk::Context& ctx = rec.context();
-  const bool texel = vec4 && texel_inputs_enabled() && texel_view_ok(ctx, in, 16);
+  const bool texel = vec4 && texel_inputs(ctx.caps()) && texel_view_ok(ctx, in, 16);
   const char* shader = texel ? "nn/permute_tex4" : vec4 ? "nn/permute_vec4" : "nn/permute";
   const vk::Pipeline& p = ctx.pipelines().get(shader);
   const Grid2 g = grid_rows(ctx.caps(), push.rows, last);

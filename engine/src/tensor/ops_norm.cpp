@@ -5,6 +5,7 @@
 #include <string>
 
 #include "tensor/binding_split.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_reduce.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
@@ -15,12 +16,9 @@ namespace {
 constexpr uint32_t kRowLocal = 256;  // most invocations per row for layernorm / rmsnorm
 constexpr int64_t kRowCache = 4;    // most vec4 per invocation kept in registers (more would spill)
 
-RowMapping g_row_mapping = RowMapping::automatic;
-
-bool row_per_invocation(vk::Recorder& rec) {
-  if (g_row_mapping != RowMapping::automatic) return g_row_mapping == RowMapping::invocation_per_row;
-  return rec.context().caps().type == VK_PHYSICAL_DEVICE_TYPE_CPU;
-}
+// One invocation per row or a workgroup per row: a device choice (DeviceTuning::norm_row_per_invocation;
+// tests and benchmarks force either with ScopedTuningOverride("norm_row_per_invocation=on|off")).
+bool row_per_invocation(vk::Recorder& rec) { return device_tuning(rec.context().caps()).norm_row_per_invocation; }
 
 // Invocations per row: a power of two from 8 to kRowLocal covering the row's n (vec4s or floats) in
 // kRowCache per invocation.
@@ -102,8 +100,6 @@ RowView row_view(const vk::DeviceCaps& caps, const Tensor& t, int64_t row_elems,
 }
 
 }  // namespace
-
-void set_row_mapping(RowMapping mapping) { g_row_mapping = mapping; }
 
 void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,
                float eps, const Modulation* mod) {

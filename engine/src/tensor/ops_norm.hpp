@@ -22,11 +22,10 @@ struct Modulation {
   int64_t shift_col[2] = {0, 0}, scale_col[2] = {0, 0};
 };
 
-// How layernorm and rmsnorm map rows to invocations. automatic: one invocation per row on CPU drivers
-// (lavapipe: barriers and shared memory cost more than re-reading a cache-hot row), one workgroup per row
-// elsewhere. Process-wide; tests and benchmarks force each mapping to cover both paths.
-enum class RowMapping { automatic, workgroup_per_row, invocation_per_row };
-void set_row_mapping(RowMapping mapping);
+// How layernorm and rmsnorm map rows to invocations is the device's DeviceTuning::norm_row_per_invocation
+// (kernel_tuning.hpp): one invocation per row on CPU drivers (lavapipe: barriers and shared memory cost
+// more than re-reading a cache-hot row), one workgroup per row elsewhere. Tests and benchmarks force each
+// mapping with ScopedTuningOverride("norm_row_per_invocation=on|off").
 
 // LayerNorm over the last dim D of x [..., D]. weight/bias [D] (both or neither: no affine); mod optional.
 void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,

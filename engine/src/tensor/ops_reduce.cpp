@@ -4,6 +4,7 @@
 #include <string>
 
 #include "tensor/binding_split.hpp"
+#include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
 
@@ -11,18 +12,22 @@ namespace dvs::ops {
 namespace {
 
 // Elements per first-level partial (one invocation each, a contiguous run: what CPU drivers load fastest):
-// 1024, grown so all segments together make at most ~1M partials (8 MiB of scratch); a multiple of 4 for
-// the vec4 path.
-int64_t chunk_for(int64_t segments, int64_t seg_len) {
+// at least `min_chunk` (the device's DeviceTuning::reduce_min_chunk), grown so all segments together make
+// at most ~1M partials (8 MiB of scratch); a multiple of 4 for the vec4 path.
+int64_t chunk_for(int64_t min_chunk, int64_t segments, int64_t seg_len) {
   const int64_t total = segments * seg_len, max_partials = int64_t(1) << 20;
-  int64_t chunk = std::max<int64_t>(1024, (total + max_partials - 1) / max_partials);
+  int64_t chunk = std::max<int64_t>(min_chunk, (total + max_partials - 1) / max_partials);
   return (chunk + 3) / 4 * 4;
 }
 
-int64_t chunks_for(int64_t segments, int64_t seg_len) {
-  const int64_t chunk = chunk_for(segments, seg_len);
+int64_t chunks_for(int64_t min_chunk, int64_t segments, int64_t seg_len) {
+  const int64_t chunk = chunk_for(min_chunk, segments, seg_len);
   return std::max<int64_t>(1, (seg_len + chunk - 1) / chunk);
 }
+
+// The scratch sizes asked without a device (memory plans, groupnorm_scratch_elems) assume the smallest floor
+// the tuning accepts (kernel_tuning.cpp's reduce_min_chunk range), so they bound every device's need.
+constexpr int64_t kScratchMinChunk = 1024;
 
 void check_f32(const char* op, const char* arg, const Tensor& t) { expect_dtype(op, arg, t, DType::f32); }
 
@@ -51,7 +56,7 @@ int64_t room_for(const vk::DeviceCaps& caps, const Segments& segs, int64_t b) {
 // chunk_for(), shrunk where the limits in force cannot bind one block (bindings under 4 KiB, or unaligned
 // ones of a few KiB; more partials then).
 int64_t block_len_for(const vk::DeviceCaps& caps, const Segments& segs) {
-  int64_t b = chunk_for(segs.count, segs.seg_len);
+  int64_t b = chunk_for(device_tuning(caps).reduce_min_chunk, segs.count, segs.seg_len);
   if (block_extent(segs, b) <= room_for(caps, segs, b)) return b;
   const int64_t room = window_room(caps);
   b = std::max<int64_t>(4, room / 4 * 4);
@@ -70,7 +75,7 @@ int64_t blocks_for(const vk::DeviceCaps& caps, const Segments& segs) {
 }  // namespace
 
 int64_t reduce_scratch_elems(int64_t segments, int64_t seg_len) {
-  return segments * chunks_for(segments, seg_len) * 2;
+  return segments * chunks_for(kScratchMinChunk, segments, seg_len) * 2;
 }
 int64_t reduce_scratch_elems(const Segments& segs) { return reduce_scratch_elems(segs.count, segs.seg_len); }
 int64_t reduce_scratch_elems(const vk::DeviceCaps& caps, const Segments& segs) {

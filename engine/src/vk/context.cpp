@@ -176,18 +176,19 @@ Context::Context(const ContextOptions& options) {
       tail = &fat.pNext;
       exts.push_back("VK_EXT_shader_atomic_float");
     }
-    // Tensor cores: the coopmat shaders are SPIR-V 1.6 with the Vulkan memory model.
+    // Tensor cores: the coopmat shaders are SPIR-V 1.6 with the Vulkan memory model. Enabled only for them:
+    // with the model on, the other shaders' Device-scope atomics (cast, nonfinite) also need
+    // vulkanMemoryModelDeviceScope (VUID-RuntimeSpirv-vulkanMemoryModel-06265; lavapipe fails validation).
     VkPhysicalDeviceCooperativeMatrixFeaturesKHR fcm{};
     fcm.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR;
-    if (caps_.vulkan_memory_model) {
-      f12.vulkanMemoryModel = VK_TRUE;
       // With the memory model on, Device-scope barriers (every glslc shader's memoryBarrier()) need the
       // device-scope feature too.
-      VkPhysicalDeviceVulkan12Features s12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-      VkPhysicalDeviceFeatures2 s2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-      s2.pNext = &s12;
-      vkGetPhysicalDeviceFeatures2(physical_, &s2);
-      f12.vulkanMemoryModelDeviceScope = s12.vulkanMemoryModelDeviceScope;
+    if (caps_.cooperative_matrix) {
+      VkPhysicalDeviceVulkan12Features has12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+      VkPhysicalDeviceFeatures2 has{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &has12};
+      vkGetPhysicalDeviceFeatures2(physical_, &has);
+      f12.vulkanMemoryModel = VK_TRUE;
+      f12.vulkanMemoryModelDeviceScope = has12.vulkanMemoryModelDeviceScope;
     }
     if (caps_.cooperative_matrix) {
       fcm.cooperativeMatrix = VK_TRUE;
