@@ -181,8 +181,6 @@ Context::Context(const ContextOptions& options) {
     // vulkanMemoryModelDeviceScope (VUID-RuntimeSpirv-vulkanMemoryModel-06265; lavapipe fails validation).
     VkPhysicalDeviceCooperativeMatrixFeaturesKHR fcm{};
     fcm.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR;
-      // With the memory model on, Device-scope barriers (every glslc shader's memoryBarrier()) need the
-      // device-scope feature too.
     if (caps_.cooperative_matrix) {
       VkPhysicalDeviceVulkan12Features has12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
       VkPhysicalDeviceFeatures2 has{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &has12};
