@@ -433,6 +433,14 @@ TEST_F(LinearCoopmatTest, FallsBackToTiledWithoutCoopmat) {
     const LinearKernel k = ops::choose_linear_kernel(c, s, DType::bf16);
     EXPECT_EQ(k.family, ops::KernelFamily::tiled) << o;
   }
+  {
+    // The tiled kernel caps its tile at 64x64 (8x8 register blocks did not finish on the H100).
+    ops::ScopedTuningOverride big("linear=tiled,linear_tile_m=128,linear_tile_n=128,linear_tile_k=32");
+    const LinearKernel k = ops::choose_linear_kernel(c, s, DType::f32);
+    EXPECT_EQ(k.tile_m, 64);
+    EXPECT_EQ(k.tile_n, 64);
+    EXPECT_EQ(k.tile_k, 16);
+  }
   ops::ScopedTuningOverride t("gpu-coopmat");
   // And it runs: y = x·wᵀ on the tiled kernel.
   std::vector<float> xv = random_values(37 * 24, 1), wv = random_values(45 * 24, 2);

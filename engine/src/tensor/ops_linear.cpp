@@ -128,6 +128,16 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   k.tile_m = tune.linear_tile_m;
   k.tile_n = tune.linear_tile_n;
   k.tile_k = tune.linear_tile_k;
+  // The tiled kernel keeps register blocks of at most 4x4 (tiles up to 64x64): with the coopmat entry's
+  // 128x128x32 (8x8 blocks) the H100 (driver 580) did not finish the first 37x45x24 call within 45 s, where
+  // 64x64x16 passed every check. A larger tile asked for (e.g. linear=tiled on the gpu-coopmat entry) gets
+  // the tiled defaults.
+  if (k.family == KernelFamily::tiled && (k.tile_m > 64 || k.tile_n > 64)) {
+    const LinearKernel defaults;
+    k.tile_m = defaults.tile_m;
+    k.tile_n = defaults.tile_n;
+    k.tile_k = defaults.tile_k;
+  }
   return k;
 }
 
@@ -142,8 +152,8 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   uint64_t shared = 0;
   if (kern.family == KernelFamily::tiled) {
     // 16 x 16 invocations, each a (bm/16) x (bn/16) register block.
-    if (bm % 16 || bn % 16 || bm < 16 || bn < 16 || bm > 128 || bn > 128 || bk < 1 || bk > 64)
-      fail("tiled kernel: tile " + tile + " unsupported (m, n multiples of 16 up to 128; k 1..64)");
+    if (bm % 16 || bn % 16 || bm < 16 || bn < 16 || bm > 64 || bn > 64 || bk < 1 || bk > 64)
+      fail("tiled kernel: tile " + tile + " unsupported (m, n multiples of 16 up to 64; k 1..64)");
     shared = uint64_t(bk) * (bm + 1 + bn + 1) * 4;
     if (shared > caps.max_compute_shared_memory)
       fail("tiled kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");

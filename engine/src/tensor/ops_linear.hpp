@@ -69,7 +69,7 @@ void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const T
 // operations (shader linalg/linear_nosubgroup). sg_m: clusters of the 64-invocation workgroup along M.
 // vectorized: 8-value K steps through RGBA texels (falls back to scalar texels when the layout forbids).
 // family: texel (the fields above), tiled (linalg/linear_tiled: storage buffers, shared-memory tiles of
-// tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 128) or coopmat
+// tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 64) or coopmat
 // (linalg/linear_coopmat: the same staging in fp16 feeding VK_KHR_cooperative_matrix, fp32 accumulation;
 // tile 128x128x32 only, 8 subgroups of 32). choose_linear_kernel takes the family and tiles from
 // device_tuning(caps).
