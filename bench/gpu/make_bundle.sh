@@ -66,11 +66,15 @@ fetch() {  # fetch SUITE PACKAGE...
   (cd "$debs" && apt-get "${o[@]}" download -qq "$@" 2>&1 | { grep -v unsandboxed || true; })
   rm -rf "$state"
 }
-ls "$debs"/libvulkan1_1.3.*.deb "$debs"/vulkan-validationlayers_1.3.*.deb >/dev/null 2>&1 ||
-  fetch bookworm libvulkan1 vulkan-validationlayers
+# libglvnd's dispatch libraries: NVIDIA's Vulkan ICD (libGLX_nvidia) needs them and the device image has none
+# (the device README's recipe; without them the loader finds no driver).
+GLVND=(libglvnd0 libegl1 libgl1 libglx0 libopengl0 libgles2)
+ls "$debs"/libvulkan1_1.3.*.deb "$debs"/vulkan-validationlayers_1.3.*.deb "$debs"/libglvnd0_*.deb >/dev/null 2>&1 ||
+  fetch bookworm libvulkan1 vulkan-validationlayers "${GLVND[@]}"
 ls "$debs"/vulkan-validationlayers_1.4.*.deb >/dev/null 2>&1 || fetch trixie vulkan-validationlayers
 cp "$debs"/libvulkan1_1.3.*.deb "$debs"/vulkan-validationlayers_1.3.*.deb "$debs"/vulkan-validationlayers_1.4.*.deb \
   "$stage/debs/"
+for p in "${GLVND[@]}"; do cp "$debs"/"${p}"_*.deb "$stage/debs/"; done
 
 {
   echo "dvs GPU bundle, made $(date -u +%Y-%m-%dT%H:%M:%SZ) on $(uname -n)"
