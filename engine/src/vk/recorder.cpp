@@ -157,14 +157,17 @@ VkDescriptorSet Recorder::allocate_set(VkDescriptorSetLayout layout) {
   }
 }
 
-void Recorder::track(const Range& r, bool writes) {
-  auto overlaps = [&r](const std::vector<Range>& v) {
+void Recorder::track(const std::vector<Access>& accesses) {
+  auto overlaps = [](const std::vector<Range>& v, const Range& r) {
     for (const Range& o : v)
       if (o.buffer == r.buffer && o.begin < r.end && r.begin < o.end) return true;
     return false;
   };
-  if (overlaps(writes_) || (writes && overlaps(reads_))) barrier();
-  (writes ? writes_ : reads_).push_back(r);
+  bool hazard = false;
+  for (const Access& a : accesses)
+    hazard = hazard || overlaps(writes_, a.range) || (a.writes && overlaps(reads_, a.range));
+  if (hazard) barrier();
+  for (const Access& a : accesses) (a.writes ? writes_ : reads_).push_back(a.range);
 }
 
 void Recorder::barrier() {
@@ -213,6 +216,8 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
   std::vector<VkWriteDescriptorSet> writes(decl.size());
   std::vector<VkDescriptorBufferInfo> infos(decl.size());
   std::vector<VkBufferView> views(decl.size());
+  std::vector<Access> accesses;
+  accesses.reserve(decl.size());
   for (size_t i = 0; i < decl.size(); ++i) {
     const BufferView& v = bindings[i].view;
     if (!v.valid()) throw Error("internal: shader " + p.name + " binding " + std::to_string(i) + " has no buffer");
@@ -255,8 +260,9 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
       infos[i] = {v.buffer, v.offset, v.size};
       w.pBufferInfo = &infos[i];
     }
-    track({v.buffer, v.offset, v.offset + v.size}, !decl[i].read_only);
+    accesses.push_back({{v.buffer, v.offset, v.offset + v.size}, !decl[i].read_only});
   }
+  track(accesses);
   vkUpdateDescriptorSets(ctx_.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
 
   bool timed = ctx_.profiler().enabled() && ctx_.caps().timestamps;
@@ -289,8 +295,7 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
 void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize bytes) {
   if (!recording_) throw Error("internal: copy outside begin()/end()");
   if (bytes > src.size || bytes > dst.size) throw Error("internal: recorded copy larger than its buffers");
-  track({src.buffer, src.offset, src.offset + bytes}, false);
-  track({dst.buffer, dst.offset, dst.offset + bytes}, true);
+  track({{{src.buffer, src.offset, src.offset + bytes}, false}, {{dst.buffer, dst.offset, dst.offset + bytes}, true}});
   VkBufferCopy region{src.offset, dst.offset, bytes};
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, 1, &region);
   segment_empty_ = false;
@@ -306,15 +311,14 @@ void Recorder::copy_regions(const BufferView& src, const BufferView& dst, std::s
     r.srcOffset += src.offset;
     r.dstOffset += dst.offset;
   }
-  track({src.buffer, src.offset, src.offset + src.size}, false);
-  track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
+  track({{{src.buffer, src.offset, src.offset + src.size}, false}, {{dst.buffer, dst.offset, dst.offset + dst.size}, true}});
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, uint32_t(absolute.size()), absolute.data());
   segment_empty_ = false;
 }
 
 void Recorder::fill_zero(const BufferView& dst) {
   if (!recording_) throw Error("internal: fill outside begin()/end()");
-  track({dst.buffer, dst.offset, dst.offset + dst.size}, true);
+  track({{{dst.buffer, dst.offset, dst.offset + dst.size}, true}});
   vkCmdFillBuffer(cmd_, dst.buffer, dst.offset, (dst.size + 3) / 4 * 4, 0);
   segment_empty_ = false;
 }

@@ -81,7 +81,16 @@ class Recorder {
     VkBuffer buffer;
     VkDeviceSize begin, end;
   };
-  void track(const Range& r, bool writes);
+  struct Access {
+    Range range;
+    bool writes;
+  };
+  // Records the barrier a command needs against the commands before it, then its own accesses. All of one
+  // command's accesses go in together: a barrier found for one binding must not drop the others from the
+  // record (it did until the first GPU run, 2026-11-27: an in-place residual GEMM reads Y after writing it, the
+  // barrier for that read cleared Y's write, and the next op read Y without waiting — a race lavapipe, which
+  // runs dispatches one after the other, never shows).
+  void track(const std::vector<Access>& accesses);
   void open_segment();
   void flush_early();
   void recycle_descriptors();  // texel views destroyed, descriptor pools reset (their work must be done)
