@@ -85,12 +85,14 @@ class LinearTest : public test::GpuTest, public testing::WithParamInterface<cons
     tuning_.reset();
     test::GpuTest::TearDown();
   }
-  bool tiled() const { return std::string(GetParam()) == "linear=tiled"; }
+  bool forced_tiled() const { return std::string(GetParam()) == "linear=tiled"; }
+  // The family that runs (the parameter, DVS_TUNING and the device together): tiled() for the storage-buffer
+  // families (tiled, coopmat), whatever forced them.
+  ops::KernelFamily family() { return ops::device_tuning(ctx().caps()).linear; }
+  bool tiled() { return family() != ops::KernelFamily::texel; }
   // Relative to Σ|x·w|: fp32 kernels 1e-5; the tensor-core family rounds x and w to fp16 (2^-11 each), so
   // 3e-3 there (the first H200 run saw 2.2e-4 at most; with 1e-5 every "device" case failed there).
-  double rel_tol() {
-    return !tiled() && ops::device_tuning(ctx().caps()).linear == ops::KernelFamily::coopmat ? 3e-3 : 1e-5;
-  }
+  double rel_tol() { return family() == ops::KernelFamily::coopmat ? 3e-3 : 1e-5; }
 
   std::optional<ops::ScopedTuningOverride> tuning_;
 
@@ -150,7 +152,7 @@ class LinearTest : public test::GpuTest, public testing::WithParamInterface<cons
     s.x_row_stride = ldx;
     s.y_row_stride = ldy;
     LinearKernel kern = o.kernel ? *o.kernel : ops::choose_linear_kernel(c, s, o.w_dtype);
-    if (!o.kernel && tiled()) EXPECT_EQ(kern.family, ops::KernelFamily::tiled);
+    if (!o.kernel && forced_tiled()) EXPECT_EQ(kern.family, ops::KernelFamily::tiled);
     ops::run_now(c, [&](vk::Recorder& rec) { ops::linear_batched_with(rec, x, w, y, s, ep, kern); });
     std::vector<float> got = yt.download(c).to_f32();
 
@@ -324,7 +326,7 @@ TEST_P(LinearTest, KernelVariants) {
   // Variants the selector picks on other devices (cluster shuffles for wider subgroups, no subgroup
   // operations) and the 16-row tile, pinned here so lavapipe tests them all. Few rows (1, 2, 4) are
   // covered by the small-M shapes above.
-  if (tiled()) GTEST_SKIP() << "texel variants only";
+  if (forced_tiled()) GTEST_SKIP() << "texel variants only";
   const LinearKernel kernels[] = {{8, 2, 1, 2, true}, {8, 2, 2, 2, true}, {16, 2, 0, 2, true}};
   for (const LinearKernel& k : kernels) {
     Options o;

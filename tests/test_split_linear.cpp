@@ -67,7 +67,8 @@ class SplitLinearTest : public test::GpuTest, public testing::WithParamInterface
     tuning_.reset();
     test::GpuTest::TearDown();
   }
-  bool tiled() const { return std::string(GetParam()) == "linear=tiled"; }
+  // The storage-buffer families (tiled, coopmat) run, whether the parameter or DVS_TUNING chose them.
+  bool tiled() { return ops::device_tuning(ctx().caps()).linear != ops::KernelFamily::texel; }
   std::optional<ops::ScopedTuningOverride> tuning_;
 
   // Runs the case on fresh copies of the same data; `limits` empty: no extra limits.

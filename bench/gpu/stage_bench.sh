@@ -51,6 +51,7 @@ PYTHONPYCACHEPREFIX=$TMPD/dvs_pycache "$PY" -m py_compile "$HERE/torch_ref.py" "
   "$HERE/summarize.py" || { echo "stage_bench: python files do not compile" >&2; exit 1; }
 
 if [ $SMOKE -eq 1 ]; then
+  unset DVS_LIMITS  # the smoke checks the script; CI's forced-limits pass would stop the peak shaders
   export DVS_GPU_BENCH_SMOKE=1
   unset DVS_GPU_BENCH_DIR  # no torch: no block folder (set STAGE_SMOKE_BLOCK to a torch_ref.py --quick folder)
   [ -n "${STAGE_SMOKE_BLOCK:-}" ] && export DVS_GPU_BENCH_DIR=$STAGE_SMOKE_BLOCK BLOCK=$STAGE_SMOKE_BLOCK

@@ -20,7 +20,6 @@
 // COLS + ROWS/8 fetches (and ROWS shuffles). A K step is 8 values (texels RGBA32F for X, RGBA32UI for W:
 // two texels of f32 or one of eight packed 16-bit values, so no 16-bit storage is needed), or 1 value in
 // the scalar variant used when K or offsets are not multiples of 8. No shared memory, no barriers.
-#include "../common/erf.glsl"
 layout(local_size_x = 64) in;
 
 layout(constant_id = 0) const int ROWS = 8;   // rows per cluster tile: 8 or 16 shuffled from lanes; < 8: fetched by every lane
@@ -41,22 +40,7 @@ const int SG_N = 8 / SG_M;
 
 layout(binding = 0) uniform textureBuffer Xt;   // f32: RGBA32F (KVEC) or R32F
 layout(binding = 1) uniform utextureBuffer Wt;  // RGBA32UI (KVEC), or R32UI (f32) / R16UI (16-bit)
-layout(std430, binding = 2) writeonly buffer Yb { float y[]; };
-layout(std430, binding = 3) readonly buffer Bias { uint bias[]; };     // f32, or 16-bit pairs
-layout(std430, binding = 4) readonly buffer Scale { float scale[]; };
-layout(std430, binding = 5) readonly buffer Shift { float shift[]; };
-layout(std430, binding = 6) readonly buffer Gate { float gate[]; };
-layout(std430, binding = 7) readonly buffer Res { float res[]; };
-
-layout(push_constant) uniform Push {
-  uint M, N, K, ldx, ldy, ldw;  // ldw: W row stride (the whole K; K is a chunk of it when K is split)
-  uint x_off, w_off, y_off;      // element offsets in the bound views
-  uint x_bs, w_bs, y_bs;         // batch strides in elements (w_bs 0: shared weight)
-  uint bias_off, scale_off, shift_off, gate_off, res_off;
-  uint vec_bs;                   // batch stride of scale, shift and gate (0: shared)
-  uint flags;                    // bits 0-1 activation (1 GELU-tanh, 2 SiLU, 3 GELU-erf), 2 bias, 3 modulation, 4 gate,
-                                 // 5 residual, 6-7 bias dtype (0 f32, 1 f16, 2 bf16)
-} p;
+#include "linear_epilogue.glsl"
 
 float w_scalar(uint e) {
   uint u = texelFetch(Wt, int(e)).x;
@@ -90,22 +74,6 @@ void x_step(uint e, out float x[8]) {
   x[0] = a.x; x[1] = a.y; x[2] = a.z; x[3] = a.w; x[4] = b.x; x[5] = b.y; x[6] = b.z; x[7] = b.w;
 }
 
-float load_bias(uint n) {
-  uint dt = (p.flags >> 6) & 3u, i = p.bias_off + n;
-  if (dt == 0u) return uintBitsToFloat(bias[i]);
-  uint u = bias[i >> 1], half_bits = (i & 1u) == 0u ? (u & 0xffffu) : (u >> 16);
-  return dt == 1u ? unpackHalf2x16(half_bits).x : uintBitsToFloat(half_bits << 16);
-}
-
-float activate(float f, uint act) {
-  if (act == 1u) {  // GELU, tanh approximation; tanh(u) = 1 - 2/(e^{2u}+1) stays finite for large |u|
-    float u = 0.7978845608028654 * (f + 0.044715 * f * f * f);
-    return 0.5 * f * (2.0 - 2.0 / (exp(2.0 * u) + 1.0));
-  }
-  if (act == 2u) return f / (1.0 + exp(-f));
-  if (act == 3u) return gelu_erf(f);
-  return f;
-}
 
 // X value of row r of the lane's 8-row group, from lane r of the cluster. On lavapipe a shuffle with a
 // constant index compiles to one register permute; subgroupBroadcast compiles to a loop over the lanes
@@ -185,22 +153,12 @@ void main() {
     }
   }
 
-  const uint flags = p.flags, act = flags & 3u;
   [[unroll]] for (int r = 0; r < ROWS; ++r) {
     uint m = m0 + r;
     if (m >= M) break;
     [[unroll]] for (int c = 0; c < COLS; ++c) {
       uint n = n0 + 8 * c + lane;
-      if (n >= N) continue;
-      float f = acc[r][c];
-      if ((flags & 4u) != 0u) f += load_bias(n);
-      f = activate(f, act);
-      uint v = b * p.vec_bs + n;
-      if ((flags & 8u) != 0u) f = f * (1.0 + scale[p.scale_off + v]) + shift[p.shift_off + v];
-      if ((flags & 16u) != 0u) f *= gate[p.gate_off + v];
-      uint o = b * p.y_bs + m * p.ldy + n;
-      if ((flags & 32u) != 0u) f += res[p.res_off + o];
-      y[p.y_off + o] = f;
+      if (n < N) store_output(b, m, n, acc[r][c]);
     }
   }
 }

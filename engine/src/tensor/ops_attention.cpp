@@ -101,14 +101,6 @@ Bound bind_operand(const char* name, const AttentionOperand& a, int64_t batch, i
   return b;
 }
 
-struct Push {
-  uint32_t q_len, kv_len, heads;
-  uint32_t q_off, q_stride, o_off, o_stride;
-  uint32_t k_off, k_stride, k_bstride, k_hstride;
-  uint32_t v_off, v_stride, v_bstride, v_hstride;
-  float scale;
-  uint32_t bias_off, bias_hstride, bias_rstride, mask_off;  // elements
-};
 
 struct PackPush {
   uint32_t count, rows, heads, d4;
@@ -240,7 +232,7 @@ void attention_split(vk::Recorder& rec, const AttentionShape& s, const Attention
           state = rec.scratch(kScratchSlot + 1, VkDeviceSize(qn * hn * (D + 4)) * 4, "attention running state");
         for_each_chunk(Lk, p.keys, [&](int64_t k0, int64_t kn) {
           Window kw, vw;
-          Push push{};
+          AttentionPush push{};
           push.q_len = uint32_t(qn);
           push.kv_len = uint32_t(kn);
           push.heads = uint32_t(hn);
@@ -586,7 +578,7 @@ void attention_aligned(vk::Recorder& rec, const AttentionShape& s, const Attenti
   const vk::Pipeline& pipe = ctx.pipelines().get("nn/attention", spec);
 
   const uint32_t d4 = uint32_t(s.head_dim / 4), kv_len = uint32_t(s.kv_len);
-  Push push{uint32_t(s.q_len), kv_len, uint32_t(s.heads), bq.off4, bq.stride4, bo.off4, bo.stride4,
+  AttentionPush push{uint32_t(s.q_len), kv_len, uint32_t(s.heads), bq.off4, bq.stride4, bo.off4, bo.stride4,
             // k and v token-major: batch stride Lk rows, head stride D
             bk.off4, bk.stride4, kv_len * bk.stride4, d4, bv.off4, bv.stride4, kv_len * bv.stride4, d4,
             opt.scale, 0, uint32_t(s.q_len * s.kv_len), kv_len, 0};

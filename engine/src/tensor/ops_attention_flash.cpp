@@ -11,16 +11,6 @@
 namespace dvs::ops::flash {
 namespace {
 
-// attention.comp's push constants (the flash kernels read the same block; bias/mask fields unused).
-struct Push {
-  uint32_t q_len, kv_len, heads;
-  uint32_t q_off, q_stride, o_off, o_stride;
-  uint32_t k_off, k_stride, k_bstride, k_hstride;
-  uint32_t v_off, v_stride, v_bstride, v_hstride;
-  float scale;
-  uint32_t bias_off, bias_hstride, bias_rstride, mask_off;
-};
-
 // attention_flash_coopmat.comp: 4 subgroups of 32 lanes, 16 query rows each, 16x16x16 fragments.
 constexpr uint32_t kCoopmatRows = 64, kCoopmatFrag = 16;
 
@@ -110,7 +100,7 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   }
   const uint32_t d4 = uint32_t(s.head_dim / 4), kv_len = uint32_t(s.kv_len);
   // k and v token-major: batch stride Lk rows, head stride D (the head-major workspace pays on CPUs only).
-  Push push{uint32_t(s.q_len), kv_len,   uint32_t(s.heads), off4[0], stride4[0], off4[3], stride4[3],
+  AttentionPush push{uint32_t(s.q_len), kv_len,   uint32_t(s.heads), off4[0], stride4[0], off4[3], stride4[3],
             off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
             d4,                opt.scale, 0,                 0,  0,       0};
   const bool coop = plan.family == KernelFamily::coopmat;

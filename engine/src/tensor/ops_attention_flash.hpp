@@ -12,6 +12,21 @@
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 
+namespace dvs::ops {
+
+// The push constants of every attention kernel (shaders/nn/attention.comp and the flash kernels, which leave the
+// bias/mask fields unused). Offsets and strides in vec4 units; bias and mask offsets in elements.
+struct AttentionPush {
+  uint32_t q_len, kv_len, heads;
+  uint32_t q_off, q_stride, o_off, o_stride;
+  uint32_t k_off, k_stride, k_bstride, k_hstride;
+  uint32_t v_off, v_stride, v_bstride, v_hstride;
+  float scale;
+  uint32_t bias_off, bias_hstride, bias_rstride, mask_off;
+};
+
+}  // namespace dvs::ops
+
 namespace dvs::ops::flash {
 
 struct Plan {
