@@ -82,20 +82,22 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.attention_block_q = t.attention_block_k = 64;
   t.conv_tile_m = 128, t.conv_tile_n = 64;  // 8 x 4 fp32 accumulators per invocation
 }
+// Where a coopmat kernel's fixed layout fits the device. All three split their workgroup into subgroups of
+// 32 lanes (attention_flash_coopmat: 4 x 16 query rows, 2 lanes a row; conv_coopmat and linear_coopmat: 8
+// subgroups); linear_coopmat also double-buffers its 128x128x32 tile in 48 KiB of shared memory. Elsewhere the
+// op runs its tiled kernel (checked after the overrides too, so forcing a family cannot pick a misfit).
+bool coopmat_fits(KernelFamily DeviceTuning::*op, const vk::DeviceCaps& c) {
+  if (c.subgroup_size != 32) return false;
+  return op != &DeviceTuning::linear || c.max_compute_shared_memory >= 48 * 1024;
+}
+
 void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   fill_gpu(t, c);
   t.linear = t.attention = t.conv = KernelFamily::coopmat;
-  // attention_flash_coopmat.comp lays its 128 invocations out as 4 subgroups x 16 query rows, 2 lanes per
-  // row: subgroups of 32 (NVIDIA) only; other devices run the tiled kernel.
-  if (c.subgroup_size != 32) t.attention = KernelFamily::tiled;
-  t.linear_tile_m = t.linear_tile_n = 128;
-  t.linear_tile_k = 32;
-  // linalg/linear_coopmat is laid out for 8 subgroups of 32 and 48 KiB of shared memory: elsewhere the
-  // tiled kernel at its own tile.
-  if (c.subgroup_size != 32 || c.max_compute_shared_memory < 48 * 1024) {
-    t.linear = KernelFamily::tiled;
-    t.linear_tile_m = t.linear_tile_n = 64;
-    t.linear_tile_k = 16;
+  // linalg/linear_coopmat's tile; where it does not fit, the tiled kernel keeps the gpu entry's tile.
+  if (coopmat_fits(&DeviceTuning::linear, c)) {
+    t.linear_tile_m = t.linear_tile_n = 128;
+    t.linear_tile_k = 32;
   }
 }
 
@@ -281,8 +283,8 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
   if (!t.coopmat.defined())
     for (KernelFamily* k : {&t.linear, &t.attention, &t.conv})
       if (*k == KernelFamily::coopmat) *k = KernelFamily::tiled;
-  // The coopmat convolution splits its workgroup into 8 subgroups of 32 lanes (shaders/nn/conv_coopmat.glsl).
-  if (t.conv == KernelFamily::coopmat && caps.subgroup_size != 32) t.conv = KernelFamily::tiled;
+  for (KernelFamily DeviceTuning::*op : {&DeviceTuning::linear, &DeviceTuning::attention, &DeviceTuning::conv})
+    if (t.*op == KernelFamily::coopmat && !coopmat_fits(op, caps)) t.*op = KernelFamily::tiled;
   return t;
 }
 

@@ -100,6 +100,21 @@ LinearShape normalized(const LinearShape& s) {
   return r;
 }
 
+// `k` on the tiled family. Its register blocks stay at most 4x4 (tiles up to 64x64): with the coopmat entry's
+// 128x128x32 (8x8 blocks) the H100 (driver 580) did not finish the first 37x45x24 call within 45 s, where
+// 64x64x16 passed every check; a larger tile (the coopmat one, or linear=tiled on the gpu-coopmat entry) gets
+// the tiled defaults.
+LinearKernel as_tiled(LinearKernel k) {
+  k.family = KernelFamily::tiled;
+  if (k.tile_m > 64 || k.tile_n > 64) {
+    const LinearKernel defaults;
+    k.tile_m = defaults.tile_m;
+    k.tile_n = defaults.tile_n;
+    k.tile_k = defaults.tile_k;
+  }
+  return k;
+}
+
 }  // namespace
 
 LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape_in, DType w_dtype) {
@@ -128,17 +143,7 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   k.tile_m = tune.linear_tile_m;
   k.tile_n = tune.linear_tile_n;
   k.tile_k = tune.linear_tile_k;
-  // The tiled kernel keeps register blocks of at most 4x4 (tiles up to 64x64): with the coopmat entry's
-  // 128x128x32 (8x8 blocks) the H100 (driver 580) did not finish the first 37x45x24 call within 45 s, where
-  // 64x64x16 passed every check. A larger tile asked for (e.g. linear=tiled on the gpu-coopmat entry) gets
-  // the tiled defaults.
-  if (k.family == KernelFamily::tiled && (k.tile_m > 64 || k.tile_n > 64)) {
-    const LinearKernel defaults;
-    k.tile_m = defaults.tile_m;
-    k.tile_n = defaults.tile_n;
-    k.tile_k = defaults.tile_k;
-  }
-  return k;
+  return k.family == KernelFamily::tiled ? as_tiled(k) : k;
 }
 
 namespace {
@@ -395,15 +400,11 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     q.shift_off = bshift.elem_off;
     q.gate_off = bgate.elem_off;
     q.res_off = bres.elem_off;
-    if (storage)
-      rec.dispatch(pipe, {bx.view, bw.view, by.view, bbias.view, bscale.view, bshift.view, bgate.view, bres.view},
-                   &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"),
-                   kernel.family == KernelFamily::coopmat ? "linear_coopmat" : "linear_tiled");
-    else
-      rec.dispatch(pipe,
-                   {vk::Binding(bx.view, x_fmt), vk::Binding(bw.view, w_fmt), by.view, bbias.view, bscale.view,
-                    bshift.view, bgate.view, bres.view},
-                   &q, sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"), "linear");
+    const vk::Binding bxw[2] = {storage ? vk::Binding(bx.view) : vk::Binding(bx.view, x_fmt),
+                                storage ? vk::Binding(bw.view) : vk::Binding(bw.view, w_fmt)};
+    rec.dispatch(pipe, {bxw[0], bxw[1], by.view, bbias.view, bscale.view, bshift.view, bgate.view, bres.view}, &q,
+                 sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"),
+                 !storage ? "linear" : kernel.family == KernelFamily::coopmat ? "linear_coopmat" : "linear_tiled");
   };
   if (size.bc < s.batch || size.nc < s.n || size.mc < s.m || size.kc < s.k) rec.context().note_split("linear");
   for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {
@@ -421,14 +422,8 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
                     const LinearEpilogue& ep) {
   LinearKernel k = choose_linear_kernel(rec.context(), shape, w.dtype());
-  // fp16 operands could overflow for this caller: the fp32 tiled kernel at its own default tile.
-  if (k.family == KernelFamily::coopmat && !ep.fp16_operands_ok) {
-    const LinearKernel tiled_defaults;
-    k.family = KernelFamily::tiled;
-    k.tile_m = tiled_defaults.tile_m;
-    k.tile_n = tiled_defaults.tile_n;
-    k.tile_k = tiled_defaults.tile_k;
-  }
+  // fp16 operands could overflow for this caller: the fp32 tiled kernel.
+  if (k.family == KernelFamily::coopmat && !ep.fp16_operands_ok) k = as_tiled(k);
   linear_batched_with(rec, x, w, y, shape, ep, k);
 }
 
