@@ -56,26 +56,22 @@ function(dvs_embed_shaders target shader_root)
         message(FATAL_ERROR "${rel} uses cooperative matrices, which Debian 12's glslc cannot compile: run "
           "bash .ci/deps (it unpacks Debian 13's glslang into ${DVS_GLSLANG_DIR}; DVS_GLSLANG_DIR moves it)")
       endif()
-      add_custom_command(
-        OUTPUT ${spv}
-        COMMAND ${CMAKE_COMMAND} -E make_directory ${spv_dir}
-        COMMAND ${CMAKE_COMMAND} -DPREPROCESSOR=${DVS_COOPMAT_GLSLANG} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src} -P ${DVS_SHADERS_CMAKE}
-        COMMAND ${DVS_COOPMAT_GLSLANG} -V --quiet --target-env vulkan1.3 -I${shader_root}/common -o ${spv} ${src}
-        COMMAND ${DVS_COOPMAT_SPIRV_VAL} --target-env vulkan1.3 ${spv}
-        DEPENDS ${src} ${includes} ${DVS_SHADERS_CMAKE}
-        COMMENT "glslangValidator (cooperative matrix) ${rel}"
-        VERBATIM)
-      list(APPEND spv_files ${spv})
-      list(APPEND names ${name})
-      continue()
+      set(check -DPREPROCESSOR=${DVS_COOPMAT_GLSLANG})
+      set(compile ${DVS_COOPMAT_GLSLANG} -V --quiet --target-env vulkan1.3 -I${shader_root}/common -o ${spv} ${src}
+          COMMAND ${DVS_COOPMAT_SPIRV_VAL} --target-env vulkan1.3 ${spv})
+      set(tool "glslangValidator (cooperative matrix)")
+    else()
+      set(check -DGLSLC=${GLSLC})
+      set(compile ${GLSLC} --target-env=vulkan1.2 -O -I ${shader_root}/common -o ${spv} ${src})
+      set(tool glslc)
     endif()
     add_custom_command(
       OUTPUT ${spv}
       COMMAND ${CMAKE_COMMAND} -E make_directory ${spv_dir}
-      COMMAND ${CMAKE_COMMAND} -DGLSLC=${GLSLC} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src} -P ${DVS_SHADERS_CMAKE}
-      COMMAND ${GLSLC} --target-env=vulkan1.2 -O -I ${shader_root}/common -o ${spv} ${src}
+      COMMAND ${CMAKE_COMMAND} ${check} -DINCLUDE_DIR=${shader_root}/common -DSHADER=${src} -P ${DVS_SHADERS_CMAKE}
+      COMMAND ${compile}
       DEPENDS ${src} ${includes} ${DVS_SHADERS_CMAKE}
-      COMMENT "glslc ${rel}"
+      COMMENT "${tool} ${rel}"
       VERBATIM)
     list(APPEND spv_files ${spv})
     list(APPEND names ${name})
