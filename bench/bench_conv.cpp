@@ -16,8 +16,8 @@
 #include <unistd.h>
 
 #include "harness.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/tiny_model.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/random/tiny_model.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
 #include "vk/recorder.hpp"

@@ -32,7 +32,7 @@
 #include "dvs/error.hpp"
 #include "harness.hpp"
 #include "io/npy.hpp"
-#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"

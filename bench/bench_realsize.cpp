@@ -24,10 +24,10 @@
 #include <nlohmann/json.hpp>
 
 #include "harness.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/t5_encoder.hpp"
-#include "models/vae_tiling.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "realsize_model.hpp"
 #include "realsize_reference.hpp"

@@ -5,8 +5,8 @@
 #include <cstdlib>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
-#include "io/model_schema.hpp"
+#include "spec/model_folder.hpp"
+#include "spec/model_schema.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"

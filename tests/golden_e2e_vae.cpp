@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/npy.hpp"
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/latent_layout.hpp"
 #include "support/files.hpp"

@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "io/npy.hpp"
-#include "models/t5_encoder.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 

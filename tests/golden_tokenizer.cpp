@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "io/npy.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "support/gpu.hpp"
 
 namespace fs = std::filesystem;

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "io/npy.hpp"
-#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "tensor/ops_elementwise.hpp"

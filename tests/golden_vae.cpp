@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "io/npy.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/vae_tiling.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"

@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "io/npy.hpp"
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "support/gpu.hpp"
 
 namespace fs = std::filesystem;

@@ -17,10 +17,10 @@
 #include <string>
 
 #include "io/npy.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_pos_embed.hpp"
-#include "models/vda_preprocess.hpp"
-#include "models/vda_video.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/vda/vda_pos_embed.hpp"
+#include "models/vda/vda_preprocess.hpp"
+#include "models/vda/vda_video.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "support/vda_pack.hpp"

@@ -18,8 +18,8 @@
 
 #include "diffusion/sampler.hpp"
 #include "pipeline/transformer_denoiser.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/tiny_model.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/random/tiny_model.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
 #include "support/random_latent.hpp"

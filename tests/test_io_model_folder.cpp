@@ -13,8 +13,8 @@
 #include "support/files.hpp"
 #include "support/process.hpp"
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
-#include "io/model_schema.hpp"
+#include "spec/model_folder.hpp"
+#include "spec/model_schema.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

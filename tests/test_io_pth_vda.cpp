@@ -20,7 +20,7 @@
 #include "io/pickle_state_dict.hpp"
 #include "io/pth_file.hpp"
 #include "io/safetensors.hpp"
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 #include "support/files.hpp"
 #include "support/process.hpp"
 #include "support/vda_pack.hpp"

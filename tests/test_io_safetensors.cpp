@@ -13,8 +13,8 @@
 #include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
-#include "io/model_schema.hpp"
+#include "spec/model_folder.hpp"
+#include "spec/model_schema.hpp"
 #include "io/safetensors.hpp"
 
 namespace fs = std::filesystem;

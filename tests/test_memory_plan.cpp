@@ -13,12 +13,12 @@
 #include <random>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "io/safetensors.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/t5_encoder.hpp"
-#include "models/tiny_model.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
+#include "models/random/tiny_model.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/files.hpp"
 #include "support/process.hpp"

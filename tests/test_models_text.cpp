@@ -21,12 +21,12 @@
 #include <vector>
 
 #include "dvs/error.hpp"
-#include "io/model_schema.hpp"
-#include "io/model_folder.hpp"
+#include "spec/model_schema.hpp"
+#include "spec/model_folder.hpp"
 #include "io/npy.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/lora.hpp"
-#include "models/t5_encoder.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/lora.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
 #include "tensor/ops_position.hpp"

@@ -5,7 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/process.hpp"

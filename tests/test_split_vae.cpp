@@ -12,7 +12,7 @@
 
 #include <cstdio>
 
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "pipeline/memory_plan.hpp"
 
 namespace dvs {

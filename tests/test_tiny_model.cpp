@@ -4,11 +4,11 @@
 #include <fstream>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
-#include "io/model_schema.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/tiny_model.hpp"
-#include "models/tokenizer.hpp"
+#include "spec/model_folder.hpp"
+#include "spec/model_schema.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/random/tiny_model.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
 #include "support/process.hpp"

@@ -11,7 +11,7 @@
 #include "support/files.hpp"
 #include "support/source_dir.hpp"
 #include "dvs/error.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 
 namespace fs = std::filesystem;
 

@@ -9,8 +9,8 @@
 #include <cstdlib>
 
 #include "io/safetensors_writer.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_random.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/random/vda_random.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
 

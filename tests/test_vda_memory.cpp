@@ -1,10 +1,10 @@
-// The Video-Depth-Anything memory plan (models/vda_memory.hpp) against what the model really holds: the weights
+// The Video-Depth-Anything memory plan (models/vda/vda_memory.hpp) against what the model really holds: the weights
 // exactly as uploaded, and one clip's activation peak bounded by the plan (and not wildly above it), at two sizes.
 #include <gtest/gtest.h>
 
-#include "models/vda_memory.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_video.hpp"
+#include "models/vda/vda_memory.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/vda/vda_video.hpp"
 #include "support/gpu.hpp"
 #include "support/vda_pack.hpp"
 #include "vk/memory.hpp"

@@ -6,8 +6,8 @@
 #include <map>
 
 #include "io/safetensors.hpp"
-#include "io/vda_config.hpp"
-#include "models/vda_random.hpp"
+#include "spec/vda_config.hpp"
+#include "models/random/vda_random.hpp"
 #include "support/files.hpp"
 #include "support/process.hpp"
 #include "support/vda_pack.hpp"

@@ -9,7 +9,7 @@
 
 #include "io/npy.hpp"
 #include "models/activation_plan.hpp"
-#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
 #include "pipeline/transformer_denoiser.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"

@@ -11,11 +11,11 @@
 #include <random>
 #include <span>
 
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "io/npy.hpp"
 #include "io/safetensors_writer.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/lora.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/lora.hpp"
 #include "support/files.hpp"
 #include "support/gpu.hpp"
 #include "support/process.hpp"

@@ -7,7 +7,7 @@
 #include "dvs/error.hpp"
 #include "io/pth_file.hpp"
 #include "io/safetensors_writer.hpp"
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 
 namespace fs = std::filesystem;
 

@@ -8,7 +8,7 @@
 
 #include "dvs/error.hpp"
 #include "io/lora_file.hpp"
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "io/safetensors.hpp"
 #include "io/safetensors_writer.hpp"
 

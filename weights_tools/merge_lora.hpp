@@ -1,5 +1,5 @@
 // `dvs-weights merge-lora`: a complete model folder whose transformer has a LoRA merged into its weights,
-// W' = W + scale·(alpha/rank)·B·A (models/lora.hpp gives the file layout and the scale rule), stored in W's
+// W' = W + scale·(alpha/rank)·B·A (models/cogvideox/lora.hpp gives the file layout and the scale rule), stored in W's
 // dtype and sharded like the input. Host only: no device.
 #pragma once
 #include <filesystem>

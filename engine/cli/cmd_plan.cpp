@@ -6,7 +6,7 @@
 #include "args.hpp"
 #include "commands.hpp"
 #include "dvs/error.hpp"
-#include "models/vda_model.hpp"
+#include "models/vda/vda_model.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"

@@ -1,7 +1,7 @@
 #include "prompt_length.hpp"
 
 #include "dvs/error.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 
 namespace dvs::cli {
 

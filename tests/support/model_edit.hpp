@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "io/safetensors_writer.hpp"
 #include "support/files.hpp"
 

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
+#include "io/weight_set.hpp"
 
 namespace dvs {
 namespace {

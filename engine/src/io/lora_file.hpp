@@ -2,7 +2,7 @@
 // [rank, in], B = "<module>.lora_B.weight" [out, rank], optional "<module>.alpha". The effective scale is the
 // user scale · (alpha / rank) when the file holds alpha, else the user scale (PEFT's default lora_alpha =
 // rank). Module names are taken after an optional prefix ("transformer." in diffusers' saved layout), e.g.
-// "transformer_blocks.3.attn1.to_q". Used unmerged by models/lora.hpp and merged by dvs-weights merge-lora.
+// "transformer_blocks.3.attn1.to_q". Used unmerged by models/cogvideox/lora.hpp and merged by dvs-weights merge-lora.
 #pragma once
 #include <filesystem>
 #include <map>

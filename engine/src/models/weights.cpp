@@ -1,7 +1,7 @@
 #include "models/weights.hpp"
 
 #include "dvs/error.hpp"
-#include "io/model_schema.hpp"
+#include "spec/model_schema.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::models {

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 #include "tensor/tensor.hpp"
 
 namespace dvs::vk {

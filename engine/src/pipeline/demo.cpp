@@ -4,7 +4,7 @@
 #include "geometry/synthetic_scene.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
-#include "models/tiny_model.hpp"
+#include "models/random/tiny_model.hpp"
 
 namespace dvs {
 

@@ -3,7 +3,7 @@
 #include <chrono>
 
 #include "dvs/depth_estimate.hpp"
-#include "models/vda_model.hpp"
+#include "models/vda/vda_model.hpp"
 
 namespace dvs {
 

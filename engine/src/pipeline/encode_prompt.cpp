@@ -2,8 +2,8 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
-#include "models/t5_encoder.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "vk/context.hpp"
 
 namespace dvs {

@@ -9,8 +9,8 @@
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
-#include "models/lora.hpp"
-#include "models/vae_tiling.hpp"
+#include "models/cogvideox/lora.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"

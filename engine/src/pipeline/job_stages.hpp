@@ -9,9 +9,9 @@
 
 #include "diffusion/schedule.hpp"
 #include "dvs/pipeline.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/settings.hpp"

@@ -4,7 +4,7 @@
 #include <cstdint>
 
 #include "io/host_tensor.hpp"
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "tensor/tensor.hpp"
 
 namespace dvs {

@@ -7,13 +7,13 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
-#include "io/model_schema.hpp"
-#include "models/cogvideox_transformer.hpp"
-#include "models/t5_encoder.hpp"
-#include "models/vda_memory.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_preprocess.hpp"
+#include "spec/model_folder.hpp"
+#include "spec/model_schema.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
+#include "models/vda/vda_memory.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/vda/vda_preprocess.hpp"
 #include "pipeline/job_stages.hpp"
 #include "tensor/ops_attention.hpp"
 

@@ -15,9 +15,9 @@
 #include <nlohmann/json.hpp>
 
 #include "io/host_tensor.hpp"
-#include "io/vda_config.hpp"
-#include "models/cogvideox_vae.hpp"
-#include "models/vae_tiling.hpp"
+#include "spec/vda_config.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "vk/device_info.hpp"
 
 namespace dvs::pipeline {

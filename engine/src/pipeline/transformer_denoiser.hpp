@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
 #include "tensor/ops_check.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"

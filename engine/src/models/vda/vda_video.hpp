@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "io/host_tensor.hpp"
-#include "models/vda_model.hpp"
-#include "models/vda_preprocess.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/vda/vda_preprocess.hpp"
 
 namespace dvs {
 

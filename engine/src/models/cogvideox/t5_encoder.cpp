@@ -1,11 +1,11 @@
-#include "models/t5_encoder.hpp"
+#include "models/cogvideox/t5_encoder.hpp"
 
 #include <cmath>
 #include <string>
 
 #include "dvs/error.hpp"
 #include "models/activation_plan.hpp"
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 #include "tensor/ops_attention.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_layout.hpp"

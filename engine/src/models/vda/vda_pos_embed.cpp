@@ -1,4 +1,4 @@
-#include "models/vda_pos_embed.hpp"
+#include "models/vda/vda_pos_embed.hpp"
 
 #include <algorithm>
 #include <array>

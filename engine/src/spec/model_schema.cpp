@@ -6,14 +6,14 @@
 //                 models/attention_processor.py (Attention), models/attention.py (FeedForward)
 //                 models/autoencoders/autoencoder_kl_cogvideox.py (AutoencoderKLCogVideoX)
 // Defaults are the constructors' defaults, used when a config omits a key.
-#include "io/model_schema.hpp"
+#include "spec/model_schema.hpp"
 
 #include <algorithm>
 #include <map>
 #include <optional>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 
 namespace dvs {
 namespace {

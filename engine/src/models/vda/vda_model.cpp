@@ -1,4 +1,4 @@
-#include "models/vda_model.hpp"
+#include "models/vda/vda_model.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include "dvs/error.hpp"
 #include "io/pth_file.hpp"
 #include "io/safetensors.hpp"
-#include "models/vda_pos_embed.hpp"
+#include "models/vda/vda_pos_embed.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_attention.hpp"
 #include "tensor/ops_conv.hpp"

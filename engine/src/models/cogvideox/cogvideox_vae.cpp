@@ -1,4 +1,4 @@
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <utility>
 
 #include "dvs/error.hpp"
-#include "io/model_schema.hpp"
-#include "models/vae_tiling.hpp"
+#include "spec/model_schema.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_conv.hpp"
 #include "tensor/ops_elementwise.hpp"

@@ -1,6 +1,6 @@
 // Built with -ffp-contract=off (CMakeLists.txt): every product and sum here is rounded to float32 on its own, as
 // numpy computes them; a fused multiply-add would move the alignment by an ulp on ARM and other FMA targets.
-#include "models/vda_stitch.hpp"
+#include "models/vda/vda_stitch.hpp"
 
 #include <algorithm>
 #include <string>

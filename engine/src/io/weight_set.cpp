@@ -1,12 +1,11 @@
-// Pipeline folder and per-component weight discovery, including sharded checkpoints.
-#include "io/model_folder.hpp"
+// Per-component weight discovery, including sharded checkpoints.
+#include "io/weight_set.hpp"
 
 #include <algorithm>
-#include <fstream>
 #include <set>
-#include <sstream>
 
 #include "dvs/error.hpp"
+#include "io/json_file.hpp"
 
 namespace dvs {
 namespace fs = std::filesystem;
@@ -37,56 +36,7 @@ std::string name_list(const std::vector<fs::path>& files) {
   return out;
 }
 
-// Bracket depth outside strings; configs are small, but a hostile one must not reach the parser.
-bool nests_deeper_than(std::string_view s, int limit) {
-  int depth = 0;
-  bool in_string = false, escaped = false;
-  for (char ch : s) {
-    if (in_string) {
-      if (escaped) escaped = false;
-      else if (ch == '\\') escaped = true;
-      else if (ch == '"') in_string = false;
-    } else if (ch == '"') {
-      in_string = true;
-    } else if ((ch == '[' || ch == '{') && ++depth > limit) {
-      return true;
-    } else if (ch == ']' || ch == '}') {
-      --depth;
-    }
-  }
-  return false;
-}
-
 }  // namespace
-
-json read_json_file(const fs::path& path, std::string_view what_to_do) {
-  const std::string name = path.string();
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec))
-    throw Error(name + ": file not found" + (what_to_do.empty() ? std::string() : "; " + std::string(what_to_do)));
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(name + ": cannot open for reading");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  if (nests_deeper_than(text, 64)) throw Error(name + ": JSON nests deeper than 64 levels; refusing to parse it");
-  try {
-    return json::parse(text);
-  } catch (const json::exception& e) {
-    throw Error(name + ": not valid JSON: " + e.what() + "; fix or re-download the file");
-  }
-}
-
-std::string config_class_name(const json& config) {
-  if (!config.is_object()) return {};
-  if (auto it = config.find("_class_name"); it != config.end() && it->is_string()) return it->get<std::string>();
-  if (auto it = config.find("architectures"); it != config.end() && it->is_array() && !it->empty() &&
-                                               (*it)[0].is_string())
-    return (*it)[0].get<std::string>();
-  return {};
-}
-
-// ---- WeightSet ---------------------------------------------------------------------------------------------
 
 bool WeightSet::dir_has_weights(const fs::path& dir) {
   return !files_ending(dir, ".safetensors").empty() || !files_ending(dir, ".safetensors.index.json").empty();
@@ -220,69 +170,5 @@ uint64_t WeightSet::total_bytes() const {
 }
 
 // ---- ModelFolder -------------------------------------------------------------------------------------------
-
-ModelFolder ModelFolder::open(const fs::path& root) {
-  std::error_code ec;
-  if (!fs::is_directory(root, ec)) throw Error(root.string() + ": not a folder (expected a Hugging Face pipeline folder)");
-  ModelFolder m;
-  m.root_ = root;
-  const fs::path idx = root / "model_index.json";
-  m.index_ = read_json_file(idx, "point at a Hugging Face pipeline folder such as a download of THUDM/CogVideoX-5b-I2V");
-  if (!m.index_.is_object()) throw Error(idx.string() + ": not a JSON object");
-  if (auto it = m.index_.find("_class_name"); it != m.index_.end() && it->is_string())
-    m.pipeline_class_ = it->get<std::string>();
-  for (const auto& [key, v] : m.index_.items()) {
-    if (!key.empty() && key[0] == '_') continue;  // _class_name, _diffusers_version, _name_or_path ...
-    if (!v.is_array()) continue;                  // plain settings such as "requires_safety_checker": false
-    if (v.size() != 2) throw Error(idx.string() + ": component '" + key + "' must be [library, class]");
-    if (v[0].is_null() && v[1].is_null()) continue;  // an optional component that is not provided
-    if (!v[0].is_string() || !v[1].is_string())
-      throw Error(idx.string() + ": component '" + key + "' must be [library, class] strings");
-    if (key.find('/') != std::string::npos || key == "." || key == "..")
-      throw Error(idx.string() + ": component name '" + key + "' is not a folder name");
-    m.components_.push_back({key, v[0].get<std::string>(), v[1].get<std::string>()});
-  }
-  return m;
-}
-
-const ComponentEntry* ModelFolder::find(std::string_view name) const {
-  for (const auto& c : components_)
-    if (c.name == name) return &c;
-  return nullptr;
-}
-
-const ComponentEntry& ModelFolder::require(std::string_view name) const {
-  const ComponentEntry* c = find(name);
-  if (!c) throw Error((root_ / "model_index.json").string() + ": no component '" + std::string(name) + "'");
-  std::error_code ec;
-  if (!fs::is_directory(root_ / c->name, ec))
-    throw Error((root_ / c->name).string() + ": component folder listed in model_index.json is missing; "
-                "the download is incomplete");
-  return *c;
-}
-
-fs::path ModelFolder::config_path(std::string_view name) const {
-  const fs::path dir = root_ / require(name).name;
-  std::error_code ec;
-  for (const char* f : {"config.json", "scheduler_config.json", "tokenizer_config.json", "preprocessor_config.json"})
-    if (fs::is_regular_file(dir / f, ec)) return dir / f;
-  return dir / "config.json";
-}
-
-json ModelFolder::config(std::string_view name) const {
-  return read_json_file(config_path(name), "every component folder needs its config; re-download it");
-}
-
-WeightSet ModelFolder::weights(std::string_view name) const { return WeightSet::open_dir(root_ / require(name).name); }
-
-Component ModelFolder::load(std::string_view name) const {
-  Component c;
-  c.entry = require(name);
-  c.dir = root_ / c.entry.name;
-  c.config_path = config_path(name);
-  c.config = config(name);
-  if (WeightSet::dir_has_weights(c.dir)) c.weights = WeightSet::open_dir(c.dir);
-  return c;
-}
 
 }  // namespace dvs

@@ -1,4 +1,4 @@
-#include "models/lora.hpp"
+#include "models/cogvideox/lora.hpp"
 
 #include <vector>
 

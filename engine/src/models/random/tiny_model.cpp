@@ -1,4 +1,4 @@
-#include "models/tiny_model.hpp"
+#include "models/random/tiny_model.hpp"
 
 #include <sentencepiece_trainer.h>
 
@@ -15,7 +15,7 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
-#include "io/model_schema.hpp"
+#include "spec/model_schema.hpp"
 #include "io/safetensors_writer.hpp"
 
 namespace dvs::models {

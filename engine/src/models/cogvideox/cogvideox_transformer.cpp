@@ -1,4 +1,4 @@
-#include "models/cogvideox_transformer.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
 
 #include <algorithm>
 #include <cmath>

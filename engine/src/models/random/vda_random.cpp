@@ -1,4 +1,4 @@
-#include "models/vda_random.hpp"
+#include "models/random/vda_random.hpp"
 
 #include <cmath>
 #include <random>

@@ -1,9 +1,9 @@
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 
 #include <set>
 
 #include "dvs/error.hpp"
-#include "io/model_folder.hpp"
+#include "spec/model_folder.hpp"
 
 namespace dvs {
 

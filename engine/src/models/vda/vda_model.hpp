@@ -13,7 +13,7 @@
 #include <map>
 #include <string>
 
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/context.hpp"
 

@@ -4,7 +4,7 @@
 #pragma once
 #include <cstdint>
 
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 
 namespace dvs {
 

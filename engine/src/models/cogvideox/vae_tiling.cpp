@@ -1,10 +1,10 @@
-#include "models/vae_tiling.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 
 #include <algorithm>
 #include <vector>
 
 #include "dvs/error.hpp"
-#include "models/cogvideox_vae.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 
 namespace dvs::models {
 namespace {

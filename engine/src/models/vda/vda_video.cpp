@@ -1,11 +1,11 @@
-#include "models/vda_video.hpp"
+#include "models/vda/vda_video.hpp"
 
 #include <map>
 #include <set>
 #include <string>
 
 #include "dvs/error.hpp"
-#include "models/vda_stitch.hpp"
+#include "models/vda/vda_stitch.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_resize.hpp"
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "io/host_tensor.hpp"
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 
 namespace dvs {
 

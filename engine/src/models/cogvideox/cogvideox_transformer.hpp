@@ -25,7 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "models/lora.hpp"
+#include "models/cogvideox/lora.hpp"
 #include "models/weights.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"

@@ -1,4 +1,4 @@
-#include "models/tokenizer.hpp"
+#include "models/cogvideox/tokenizer.hpp"
 
 #include <sentencepiece_processor.h>
 

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "io/vda_config.hpp"
+#include "spec/vda_config.hpp"
 
 namespace dvs {
 

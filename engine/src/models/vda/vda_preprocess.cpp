@@ -1,4 +1,4 @@
-#include "models/vda_preprocess.hpp"
+#include "models/vda/vda_preprocess.hpp"
 
 #ifndef DVS_VIDEO_IO
 #define DVS_VIDEO_IO 1  // CMake defines it as 0 for this file in a DVS_VIDEO_IO=OFF build

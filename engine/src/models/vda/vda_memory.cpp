@@ -1,11 +1,11 @@
-#include "models/vda_memory.hpp"
+#include "models/vda/vda_memory.hpp"
 
 #include <algorithm>
 #include <map>
 #include <vector>
 
-#include "models/vda_model.hpp"
-#include "models/vda_random.hpp"
+#include "models/vda/vda_model.hpp"
+#include "models/random/vda_random.hpp"
 
 namespace dvs {
 
