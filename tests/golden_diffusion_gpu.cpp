@@ -142,7 +142,7 @@ TEST_F(GpuTest, GoldenSamplingLoop) {
   expect_close(r.pred_x0, load(last), ctx(), "e2e_sampling", "last pred_x0");
 }
 
-// The official position-wise dynamic CFG (reference/official-code.md §5.5) on the pack's saved per-step
+// The official position-wise dynamic CFG (docs/design.md §6.7) on the pack's saved per-step
 // uncond/cond outputs: GPU loop vs a plain C++ loop that applies the rule and CogVideoXDDIMScheduler.step
 // (pack README conventions) with the pack's ᾱ table, chained from x_init. P: a seeded pattern of latent cells
 // (the official V < 1 is constant over channels), preservation scale 1 (official config).

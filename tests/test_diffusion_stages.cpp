@@ -1,6 +1,6 @@
 // The diffusion stages as separate calls (sampler guidance modes, init_noise) and their edge cases, against
-// plain C++ references and the independent tables of reference/official-code.md (Appendix A, C):
-//  - the official dynamic guidance scale, per step, against Appendix C;
+// plain C++ references and the independent tables of docs/design.md §9 (tables A, C):
+//  - the official dynamic guidance scale, per step, against table C;
 //  - the fused guidance + DDIM step on the GPU (constant and position-wise dynamic) against a host loop on
 //    random model outputs of odd sizes;
 //  - S = 1, strength 1.0, a strength that keeps no step (the error names the option);
@@ -40,7 +40,7 @@ double max_rel_diff(const std::vector<float>& a, const std::vector<double>& b) {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// g_dyn against reference/official-code.md Appendix C (S = 30, strength 0.98: N = 29, t from Appendix A).
+// g_dyn against docs/design.md §9 table C (S = 30, strength 0.98: N = 29, t from table A).
 
 TEST(DynamicGuidance, ScaleMatchesAppendixC) {
   const int ts[29] = {966, 932, 899, 866, 832, 799, 766, 732, 699, 666, 632, 599, 566, 532, 499,
@@ -63,7 +63,7 @@ TEST(DynamicGuidance, ScaleMatchesAppendixC) {
       EXPECT_GE(got, 1.0 - 1e-12);
       EXPECT_LE(got, row.g + 1 + 1e-12);
     }
-  // The plan those t come from (Appendix A): S = 30, strength 0.98 keeps N = 29 steps from 966.
+  // The plan those t come from (table A): S = 30, strength 0.98 keeps N = 29 steps from 966.
   const SamplingPlan plan = CogVideoXSchedule().plan(30, 0.98);
   ASSERT_EQ(plan.num_steps(), 29);
   for (int i = 0; i < 29; ++i) EXPECT_EQ(plan.timesteps[size_t(i)], ts[i]);

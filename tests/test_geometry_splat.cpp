@@ -1,5 +1,5 @@
 // The splat renderer against analytic scenes and against a plain C++ port of the official algorithm
-// (official-code.md §3.4–3.5). Scenes use f = 64 and power-of-two depths so that projections are exact in
+// (docs/design.md §6.3). Scenes use f = 64 and power-of-two depths so that projections are exact in
 // float and every pixel lands where geometry says.
 #include <gtest/gtest.h>
 

@@ -83,7 +83,7 @@ TEST(GeometryCamera, OfficialDefaultAndConvention) {
   EXPECT_THROW(k.scaled_to(0, 10), Error);
 }
 
-// T_i = P_i · inv(P_s) with P built exactly as sphere2pose/get_poses do (official-code.md §3.3).
+// T_i = P_i · inv(P_s) with P built exactly as sphere2pose/get_poses do (docs/design.md §6.2).
 TEST(GeometryTrajectory, OfficialClosedFormEqualsMatrixConstruction) {
   auto pose = [](double th, double ph, double r, double R) {
     glm::dmat4 C0(1.0);

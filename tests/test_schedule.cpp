@@ -1,6 +1,6 @@
 // Unit tests of the host diffusion math: schedules (timesteps, strength truncation, step coefficients,
 // edge cases, config errors) and the K-RNR reference (closed form = recursion, AdaIN statistics, the
-// official analytic AdaIN's cancellation of k). Values from reference/official-code.md Appendix A/B.
+// official analytic AdaIN's cancellation of k). Values from docs/design.md §9 (tables A, B).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -78,7 +78,7 @@ TEST(Schedule, InverseFloat32TableCloseToFloat64) {
   const DDIMInverseSchedule inv{SchedulerConfig{}};
   double m = 0;
   for (int t = 0; t < 1000; ++t) m = std::max(m, std::fabs(double(inv.alphas_cumprod()[size_t(t)]) - cog().alpha_cumprod(t)));
-  EXPECT_LT(m, 6e-7);  // official-code.md §5.4: "within 4.7e-7" (plus float32 rounding of the value)
+  EXPECT_LT(m, 6e-7);  // docs/design.md §6.4: "within 4.7e-7" (plus float32 rounding of the value)
   EXPECT_EQ(inv.alphas_cumprod().back(), 0.0f);
   const auto ts = inv.timesteps(30);
   EXPECT_EQ(ts.front(), 32);
@@ -132,7 +132,7 @@ TEST(Schedule, StrengthErrors) {
 }
 
 TEST(Schedule, StepCoefficients) {
-  // S = 30: prev_t = t − 33 (Appendix A); the library's x0 form equals the generic DDIM transfer.
+  // S = 30: prev_t = t − 33 (docs/design.md §9, table A); the library's x0 form equals the generic DDIM transfer.
   for (int t : {966, 932, 499, 66}) {
     const StepCoefficients c = cog().step(t, 30);
     EXPECT_EQ(c.to_t, t - 33);

@@ -3,7 +3,7 @@
 // One whole DDIM step after the model call, in one dispatch (the combine and the two linear maps were three
 // dispatches; on small latents the dispatch overhead dominated the step's non-model time):
 //   ĝ       = u + s·(c − u)  with v = [u; c] (n elements each), or ĝ = v when guidance is off;
-//             s = dynamic_scale where positions ≠ 0 (official position-wise rule, official-code.md §5.5),
+//             s = dynamic_scale where positions ≠ 0 (official position-wise rule, docs/design.md §6.7),
 //             s = scale elsewhere (constant guidance: no positions, s = scale everywhere);
 //   pred_x0 = px·x + pv·ĝ ;   x_next = nx·x + nv·ĝ.
 layout(local_size_x = 64) in;

@@ -1,6 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// One round of the official "adaptive K-RNR" (reference/official-code.md §5.4): per element, with the VAE
+// One round of the official "adaptive K-RNR" (docs/design.md §6.6): per element, with the VAE
 // posterior mean μ and std σ (both already ×0.7),
 //   noisy = m_k·x0 + n_k·ε,  cur_mean = m_k·μ + n_k·ε,  cur_std = m_k·σ,
 //   tgt_mean = m_δ·μ + n_δ·ε, tgt_std = m_δ·σ,  out = (noisy − cur_mean)/(cur_std + 1e-9)·tgt_std + tgt_mean.

@@ -7,7 +7,7 @@
 // Work split: every invocation owns R whole query rows (its q rows, running max/sum and output accumulators
 // live in its registers) and all invocations of a workgroup walk the keys of one (batch, head) in lockstep.
 // K and V rows are read at the same address by every lane (texel fetches, RGBA32F), so nothing crosses
-// lanes: no shared memory, no subgroup operations, no barriers. On lavapipe (DESIGN §9) a texel fetch is a
+// lanes: no shared memory, no subgroup operations, no barriers. On lavapipe (docs/design.md §8) a texel fetch is a
 // per-lane gather whatever the address and a subgroup broadcast costs about as much, so the measured best
 // is to have no cross-lane traffic at all and feed each fetched K/V chunk to R rows × 4 FMAs (a first
 // design with 8-lane teams sharing rows through broadcasts ran 2.5× slower; barriers that make the

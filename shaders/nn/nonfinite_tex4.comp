@@ -1,6 +1,6 @@
 #version 450
 // NaN/Inf scan reading the range through a uniform texel buffer (RGBA32UI), ~3x cheaper per load than a
-// storage buffer on CPU drivers (DESIGN §9). The body and its description: nonfinite.glsl.
+// storage buffer on CPU drivers (docs/design.md §8). The body and its description: nonfinite.glsl.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_samplerless_texture_functions : require
 

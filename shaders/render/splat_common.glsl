@@ -1,5 +1,5 @@
 // Shared by the splat renderer's passes: push constants, unprojection/transform/projection of one source
-// pixel, and the official bilinear splat footprint (official-code.md §3.4–3.5).
+// pixel, and the official bilinear splat footprint (docs/design.md §6.3).
 //
 // The point passes run one frame per dispatch over a (W/64, H) grid, so the frame's transform lives in
 // push constants (uniform, no per-lane buffer loads) and no pixel index needs a division.

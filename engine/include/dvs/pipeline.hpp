@@ -1,4 +1,4 @@
-// The whole dynamic-view-synthesis job (DESIGN §1): render the input along a new camera path, encode the
+// The whole dynamic-view-synthesis job (docs/design.md §1): render the input along a new camera path, encode the
 // render, invert it, initialise the noise (SLM + adaptive K-RNR) and sample the new view. What `dvs run`
 // and `dvs demo` execute.
 #pragma once
@@ -25,7 +25,7 @@ struct RunOptions {
   double k = 10;
   double delta = 0;                 // 0 = preset default (paper 3, official 2)
   double guidance = 6.0;
-  // The official position-wise dynamic CFG (reference/official-code.md §5.5): occluded latents (the official
+  // The official position-wise dynamic CFG (docs/design.md §6.7): occluded latents (the official
   // mask V < 1) get a per-step scale from `guidance`, fully visible ones `preservation_scale`. Unset = the
   // preset's choice (official on, paper off: constant `guidance` everywhere).
   std::optional<bool> dynamic_cfg;

@@ -1,4 +1,4 @@
-// The noise initialisation stage (DESIGN §5, reference/official-code.md §5.3–5.4, §6.3): Stochastic Latent
+// The noise initialisation stage (docs/design.md §5.5–5.6, §6.6): Stochastic Latent
 // Modulation of x0 and ε_inv, then adaptive K-RNR, `rounds` times, each round's output the next ε:
 //
 //   for r in 0..rounds−1:   (x0, ε) ← SLM(x0, ε, round r) ;  ε ← K-RNR(x0, ε)

@@ -1,4 +1,4 @@
-// K-order Recursive Noise Representation and its adaptive normalisation on the GPU (paper §4.2, DESIGN §5;
+// K-order Recursive Noise Representation and its adaptive normalisation on the GPU (paper §4.2, docs/design.md §5.6;
 // host reference in krnr_reference.hpp). Latents are [F, C, H, W] f32 (a batch of 1 folded into F).
 //   ε^(k) = m_k·x0 + n_k·ε_inv  with (m_k, n_k) from reference::krnr_closed_form (real k) or krnr_series.
 //   paper:    x_init = AdaIN(ε^(k), ε^(δ)), per-channel statistics over (F, H, W), δ = 3.

@@ -5,7 +5,7 @@
 //   ε^(0) = ε_inv,  ε^(j) = a·x0 + b·ε^(j−1)   ⇒   ε^(k) = m_k·x0 + n_k·ε_inv,
 //   m_k = a·(1 − b^k)/(1 − b) (closed form, any real k > 0),  n_k = b^k.
 // Paper preset: x_init = AdaIN(ε^(k), ε^(δ)) with per-channel statistics over (F, H, W) (δ = 3).
-// Official preset (reference/official-code.md §5.4): per-element "analytic" AdaIN from the VAE posterior
+// Official preset (docs/design.md §6.6): per-element "analytic" AdaIN from the VAE posterior
 // mean μ and std σ (both ×0.7), δ = 2, applied in 3 rounds, each feeding its output back as ε.
 #pragma once
 #include <cstdint>

@@ -1,5 +1,5 @@
 // The two diffusion loops on the GPU: DDIM inversion of x0 up to t0 and guided DDIM sampling from t0
-// (DESIGN §5). Both take the model as a callback, so this folder never includes the models: the pipeline
+// (docs/design.md §5.4–5.7). Both take the model as a callback, so this folder never includes the models: the pipeline
 // binds the transformer (with its image latent and text embeddings) into a Denoiser. Every step is
 // v = model(x, τ), classifier-free guidance ĝ = u + g·(c − u), then x ← c_x·x + c_v·ĝ with the schedule's
 // coefficients (schedule.hpp), all as axpby on whole latents.
@@ -20,7 +20,7 @@ using Denoiser = std::function<void(vk::Recorder& rec, const Tensor& x, int mode
 
 enum class GuidanceMode {
   constant,  // ĝ = u + g·(c − u) everywhere (paper, diffusers)
-  dynamic,   // the official position-wise rule (reference/official-code.md §5.5), see below
+  dynamic,   // the official position-wise rule (docs/design.md §6.7), see below
 };
 
 struct Guidance {
@@ -35,7 +35,7 @@ struct Guidance {
 
 // The official per-step scale, in double exactly as written (the argument of the cosine is ~1e8 for the raw
 // timestep, so any other evaluation order changes the value): g + 2 − (1 + g·(1 − cos(π·((N − t)/N)^5))/2)
-// with t the integer timestep and N the number of strength-truncated steps (reference Appendix C).
+// with t the integer timestep and N the number of strength-truncated steps (docs/design.md §9, table C).
 double dynamic_guidance_scale(double g, int t, int num_steps);
 
 struct LoopCallbacks {

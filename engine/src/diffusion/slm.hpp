@@ -1,4 +1,4 @@
-// Stochastic Latent Modulation (paper §4.4 / App. D; DESIGN.md §5; official code: reference/official-code.md §6).
+// Stochastic Latent Modulation (paper §4.4 / App. D; docs/design.md §5.5; official code: docs/design.md §6.6).
 //
 // Three steps:
 //  1. compute_slm_masks: the renderer's pixel mask [Fp, H, W] (f32, 1 = visible) and optional depth are reduced

@@ -2,7 +2,7 @@
 // point (X = z·K⁻¹(x, y, 1), OpenCV axes, integer pixel coordinates), moves it by the frame's transform T_i
 // (trajectory.hpp), projects it into the target camera and splats it.
 //
-// Soft mode (default) = the official renderer (official-code.md §3.5): bilinear splat into the four
+// Soft mode (default) = the official renderer (docs/design.md §6.3): bilinear splat into the four
 // neighbours in a buffer padded by one pixel (floor/ceil/clamp exactly as the official code), weights
 // divided by exp(50·log(1+clamp(z,0,1000)) / max over the frame of the same), Σw·rgb / Σw; holes are −1
 // (RGB in [−1, 1]); mask = 1 where weight landed, 0 in holes. Accumulation is 32-bit fixed point by default

@@ -56,12 +56,12 @@ OrbitAngles official_preset_angles(const std::string& name, int frames);
 // (row H/2, col W/2) of frame 0 at the working size (row 288, col 512 at 576×1024).
 double official_radius(double centre_depth, double radius_scale = 1.0);
 
-// Official pose construction (official-code.md §3.3), in closed form:
+// Official pose construction (docs/design.md §6.2), in closed form:
 //   T = [M | (0,0,R)ᵀ − M·(0,0,R(1+r))ᵀ],  M = Ry(φ)·Rx(θ),
 //   Rx(θ) = [[1,0,0],[0,c,−s],[0,s,c]],  Ry(φ) = [[c,0,s],[0,1,0],[−s,0,c]]
 // i.e. an orbit by M about the pivot (0,0,R) plus a shift of −r·R along z: with M = I a point's depth becomes
 // z − r·R, so r > 0 brings the scene closer (the camera moves forward). This follows the matrix
-// construction T = P_i·inv(P_s) exactly (tested); official-code.md's prose says "r > 0 moves the camera
+// construction T = P_i·inv(P_s) exactly (tested); an earlier prose account said "r > 0 moves the camera
 // back", which contradicts its own formula.
 glm::dmat4 official_transform(double theta_deg, double phi_deg, double r, double radius);
 Trajectory official_trajectory(const OrbitAngles& per_frame, double radius, const std::string& description = "");

@@ -1,4 +1,4 @@
-// GENERATED once from reference/official-code-trajectories.tsv (the authors' warper_utils.txt_interpolation
+// GENERATED once from tests/data/official-code-trajectories.tsv (the authors' warper_utils.txt_interpolation
 // re-run with scipy 1.10.1 for video_length = 49): theta (deg, about x), phi (deg, about y), r (x radius) per
 // frame for the six trajectories shipped with the official code. Do not edit by hand; the test
 // GeometryTrajectory.OfficialPresetsMatchTsv compares these tables with tests/data/official-code-trajectories.tsv.

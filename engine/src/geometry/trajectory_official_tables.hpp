@@ -1,5 +1,5 @@
 // The exact 49-frame camera tables of the six trajectories shipped with the authors' code (generated into
-// trajectory_official_tables.cpp from reference/official-code-trajectories.tsv).
+// trajectory_official_tables.cpp from tests/data/official-code-trajectories.tsv).
 #pragma once
 #include <span>
 #include <string>

@@ -7,7 +7,7 @@
 namespace dvs {
 namespace {
 
-// The official code's fixed negative prompt (reference/official-code.md §5.1, `NEG` in infer.py).
+// The official code's fixed negative prompt (docs/design.md §6.7, `NEG` in infer.py).
 constexpr const char* kOfficialNegativePrompt =
     "crowded scene, car in the road, bad anatomy, deformed body, occlusions, dark scene, black, unseen regions, "
     "black & white, blurry, pixelated.";

@@ -34,7 +34,7 @@ void check_count(const char* op, const Tensor& t) {
   if (t.numel() >= int64_t(UINT32_MAX) - 4) throw Error(std::string("internal: ") + op + ": " + t.describe() + " is too large");
 }
 
-// Texel-buffer inputs: texelFetch is ~2-3x cheaper than a storage-buffer load on lavapipe (DESIGN §9), so
+// Texel-buffer inputs: texelFetch is ~2-3x cheaper than a storage-buffer load on lavapipe (docs/design.md §8), so
 // where the device's tuning says so (DeviceTuning::eltwise_texel_inputs) vec4-sized work reads x (and y, s,
 // t) through uniform texel buffers whenever the views allow it: offset aligned to
 // minTexelBufferOffsetAlignment and few enough texels for maxTexelBufferElements.
