@@ -1,7 +1,7 @@
 // The GPU families of the convolutions (engine/src/tensor/kernel_tuning.hpp), forced on whatever device
 // runs the tests: "tiled" (shaders/nn/conv_tiled.comp, shared-memory tiles over storage buffers, fp32) at
 // several workgroup tiles, and the tiling / loads / fp16 rounding / epilogue of "coopmat" through its fp32
-// twin (shaders/nn/conv_coopmat_twin.comp; the tensor-core product itself cannot run on lavapipe).
+// twin (nn/conv_coopmat_twin, from shaders/nn/conv_coopmat.comp; the tensor-core product cannot run on lavapipe).
 // Every conv variant the models use, with odd channel counts (Cin 3, 5, 13, 37; Cout 3, 7, 19, 40, 140) and
 // odd frame / row / column counts, against a plain-C++ reference written out here (explicit time prefix,
 // nearest x2 upsampling and zero padding, then a valid convolution in double).

@@ -1,4 +1,4 @@
-// The linear kernels' output side, shared by every family (linear_kernel.glsl: texel inputs; linear_storage_io.glsl:
+// The linear kernels' output side, shared by every family (linear.comp: texel inputs; linear_storage_io.glsl:
 // storage inputs for the tiled and tensor-core kernels): the output and epilogue bindings (2-7), the push block and
 // the 5 epilogue steps, so every family applies the same epilogue (ops_linear.hpp) from the same push constants.
 #include "../common/erf.glsl"

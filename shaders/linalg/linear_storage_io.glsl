@@ -1,7 +1,7 @@
 // Shared by the storage-buffer linear kernels (linear_tiled.comp: fp32 FMA; linear_coopmat.comp: tensor
 // cores): bindings, push constants, guarded element loads and the epilogue, so the two families differ only
 // in how the tile product is formed. Same push block and epilogue meaning as the texel kernel
-// (linear_kernel.glsl); the host (ops_linear.cpp) binds every buffer from an aligned-down offset and passes
+// (linear.comp); the host (ops_linear.cpp) binds every buffer from an aligned-down offset and passes
 // the element offsets.
 
 layout(constant_id = 2) const int WTYPE = 0;  // weight storage: 0 f32, 1 f16, 2 bf16

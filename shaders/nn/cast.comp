@@ -1,3 +1,121 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-#include "cast.glsl"
+// nn/cast (two elements per step, any count) and its variant nn/cast_x8 (X8, shaders/variants.cmake: eight
+// elements per step as whole uvec4 loads/stores, counts that are multiples of 8). SRC/DST: 0 f32, 1 f16, 2 bf16, 3 i32. Narrowing to
+// f16/bf16 rounds to nearest even in integer arithmetic (the same bits on every device; NaN stays NaN,
+// overflow gives ±Inf); f32 -> i32 truncates toward zero, saturating, NaN -> 0. 16-bit data moves as whole
+// 32-bit words (no 16-bit storage needed). With an odd count of 16-bit outputs the last word is shared with
+// whatever follows the tensor: its other half is kept (atomic and/or).
+#include "bf16.glsl"
+
+layout(constant_id = 0) const uint SRC = 0;
+layout(constant_id = 1) const uint DST = 0;
+layout(local_size_x = 64) in;
+#ifdef X8
+layout(std430, binding = 0) readonly buffer X { uvec4 x[]; };
+layout(std430, binding = 1) writeonly buffer Y { uvec4 y[]; };
+#else
+layout(std430, binding = 0) readonly buffer X { uint x[]; };
+layout(std430, binding = 1) buffer Y { uint y[]; };
+#endif
+layout(push_constant) uniform Push { uint n; } p;  // elements
+
+const bool SRC16 = SRC == 1u || SRC == 2u, DST16 = DST == 1u || DST == 2u;
+
+float f16_bits_to_f32(uint h) {
+  uint sign = (h & 0x8000u) << 16, e = (h >> 10) & 0x1fu, m = h & 0x3ffu;
+  if (e == 0u) return uintBitsToFloat(sign | floatBitsToUint(float(m) * (1.0 / 16777216.0)));  // subnormal: exact
+  if (e == 31u) return uintBitsToFloat(sign | 0x7f800000u | (m << 13));
+  return uintBitsToFloat(sign | ((e + 112u) << 23) | (m << 13));
+}
+
+uint f32_to_f16_bits(float f) {
+  uint u = floatBitsToUint(f);
+  uint sign = (u >> 16) & 0x8000u, a = u & 0x7fffffffu;
+  if (a > 0x7f800000u) return sign | 0x7e00u | ((a >> 13) & 0x3ffu);  // NaN, quiet
+  if (a >= 0x477ff000u) return sign | 0x7c00u;                      // ≥ 65520 rounds to Inf
+  if (a >= 0x38800000u) {                                           // normal half (≥ 2^-14)
+    uint r = a - 0x38000000u;                                       // rebias 127 -> 15
+    return sign | ((r + 0xfffu + ((r >> 13) & 1u)) >> 13);
+  }
+  if (a <= 0x33000000u) return sign;                                // ≤ 2^-25: ties to even give 0
+  uint e = a >> 23, m = (a & 0x7fffffu) | 0x800000u;
+  uint shift = 126u - e;                                            // 14..24: to units of 2^-24
+  uint q = m >> shift, rem = m & ((1u << shift) - 1u), half_ = 1u << (shift - 1u);
+  if (rem > half_ || (rem == half_ && (q & 1u) != 0u)) q += 1u;
+  return sign | q;
+}
+
+float decode(uint bits) {
+  if (SRC == 0u) return uintBitsToFloat(bits);
+  if (SRC == 1u) return f16_bits_to_f32(bits);
+  if (SRC == 2u) return uintBitsToFloat(bits << 16);
+  return float(int(bits));
+}
+
+uint encode(float v) {
+  if (DST == 0u) return floatBitsToUint(v);
+  if (DST == 1u) return f32_to_f16_bits(v);
+  if (DST == 2u) return f32_to_bf16_bits(v);
+  if (isnan(v)) return 0u;
+  return uint(int(clamp(v, -2147483648.0, 2147483520.0)));
+}
+
+uint convert(uint bits) { return encode(decode(bits)); }
+uint convert_pair(uint w) { return convert(w & 0xffffu) | (convert(w >> 16) << 16); }  // 16 -> 16
+
+#ifdef X8
+// Eight elements: two uvec4 on a 32-bit side, one uvec4 on a 16-bit side.
+void main() {
+  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  uint groups = p.n / 8u;
+  for (uint k = gl_GlobalInvocationID.x; k < groups; k += stride) {
+    if (SRC16 && DST16) {
+      uvec4 w = x[k];
+      y[k] = uvec4(convert_pair(w.x), convert_pair(w.y), convert_pair(w.z), convert_pair(w.w));
+    } else if (SRC16) {
+      uvec4 w = x[k];
+      y[2u * k] = uvec4(convert(w.x & 0xffffu), convert(w.x >> 16), convert(w.y & 0xffffu), convert(w.y >> 16));
+      y[2u * k + 1u] = uvec4(convert(w.z & 0xffffu), convert(w.z >> 16), convert(w.w & 0xffffu), convert(w.w >> 16));
+    } else if (DST16) {
+      uvec4 a = x[2u * k], b = x[2u * k + 1u];
+      y[k] = uvec4(convert(a.x) | (convert(a.y) << 16), convert(a.z) | (convert(a.w) << 16),
+                   convert(b.x) | (convert(b.y) << 16), convert(b.z) | (convert(b.w) << 16));
+    } else {
+      uvec4 a = x[2u * k], b = x[2u * k + 1u];
+      y[2u * k] = uvec4(convert(a.x), convert(a.y), convert(a.z), convert(a.w));
+      y[2u * k + 1u] = uvec4(convert(b.x), convert(b.y), convert(b.z), convert(b.w));
+    }
+  }
+}
+#else
+void main() {
+  uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+  uint pairs = (p.n + 1u) / 2u;
+  for (uint k = gl_GlobalInvocationID.x; k < pairs; k += stride) {
+    uint e = 2u * k;
+    bool both = e + 1u < p.n;
+    uint lo_bits, hi_bits = 0u;
+    if (SRC16) {
+      uint w = x[k];
+      lo_bits = w & 0xffffu;
+      hi_bits = w >> 16;
+    } else {
+      lo_bits = x[e];
+      if (both) hi_bits = x[e + 1u];
+    }
+    uint lo = encode(decode(lo_bits)), hi = encode(decode(hi_bits));
+    if (DST16) {
+      if (both) {
+        y[k] = lo | (hi << 16);
+      } else {
+        atomicAnd(y[k], 0xffff0000u);
+        atomicOr(y[k], lo);
+      }
+    } else {
+      y[e] = lo;
+      if (both) y[e + 1u] = hi;
+    }
+  }
+}
+#endif

@@ -1,7 +1,7 @@
 #version 450
 #extension GL_EXT_control_flow_attributes : require
 // Convolution as an implicit GEMM for GPUs (the "tiled" family, kernel_tuning.hpp): the same GEMM, the
-// same repacked operands and the same push constants as conv_gemm.glsl, but read through storage buffers
+// same repacked operands and the same push constants as conv_gemm.comp, but read through storage buffers
 // (no 2^27-element texel-view cap) and staged through shared memory:
 //   Y[m, n] = bias[n] + sum_k X[m, k] W[n, k],  m = output pixel of the chunk, n = output channel,
 //   k = tap * CP + input channel (CP = Cin rounded up to 8; the weights are [Cout][tap][CP], so W[n, k] is
@@ -27,7 +27,7 @@ layout(std430, binding = 1) readonly buffer W { uint w[]; };    // packed weight
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };
 layout(std430, binding = 3) buffer Y { float y[]; };
 
-// Identical to conv_gemm.glsl's (record_conv fills both the same way).
+// Identical to conv_gemm.comp's (record_conv fills both the same way).
 layout(push_constant) uniform Push {
   uint M, N, cp, kt, kh, kw, stride, up, wo, rows, oh0;
   int pad_top, pad_left;
@@ -110,7 +110,7 @@ void main() {
     barrier();
   }
 
-  // Epilogue as conv_gemm.glsl's: bias with the first input-channel chunk, later chunks add into y.
+  // Epilogue as conv_gemm.comp's: bias with the first input-channel chunk, later chunks add into y.
   [[unroll]] for (int i = 0; i < TM; ++i) {
     uint m = m0 + tx + 16u * uint(i);
     if (m >= M) continue;

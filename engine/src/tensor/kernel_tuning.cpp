@@ -39,7 +39,7 @@ CoopmatShape pick_coopmat_shape(const vk::DeviceCaps& c) {
 // (lavapipe on a 2-core Zen 5, per CPU-second of the FMA peak: 8x2 0.30-0.45, 8x3 0.20-0.30, 16x2 ~0.31,
 // 8x4 ~0.33, 16x1 ~0.28; longer channel-loop trips (k_unroll 4) did not help). 8 x 2 (64 channels per
 // workgroup with sg_m 2) also divides the VAE's 128/256/512 channels, where 8 x 3 wastes a third at 128.
-// With rotations instead of broadcasts (conv_gemm.glsl) 8x2 and 8x4 measured interleaved, twice each, over
+// With rotations instead of broadcasts (conv_gemm.comp) 8x2 and 8x4 measured interleaved, twice each, over
 // the VAE shapes: 0.28-0.33 and 0.21-0.36, 8x4 ahead on some shapes in one run and behind in the other.
 // The conv input repack writes whole rows per invocation (a vector integer division is a scalar loop per
 // lane: 11.1 -> 5.1 ms per call at 9x64x96, Mesa 22.3). Norms: one invocation per row. Attention: several

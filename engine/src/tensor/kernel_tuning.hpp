@@ -72,7 +72,7 @@ struct DeviceTuning {
   int conv_pack_columns = 0;  // pixels of a row per invocation of the input repack (0: the whole row)
   // tiled family (shaders/nn/conv_tiled.comp): workgroup tile of pixels x output channels, each 32, 64 or
   // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's tile is fixed
-  // by its shader (128 x 128 x 32, shaders/nn/conv_coopmat.glsl).
+  // by its shader (128 x 128 x 32, shaders/nn/conv_coopmat.comp).
   int conv_tile_m = 64, conv_tile_n = 64;
 
   // norms, reductions, elementwise

@@ -15,7 +15,7 @@ namespace dvs::ops {
 namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
-constexpr uint32_t kRun = 16, kLocal = 64;  // about kRun vec4s per invocation; workgroup size (nonfinite.glsl)
+constexpr uint32_t kRun = 16, kLocal = 64;  // about kRun vec4s per invocation; workgroup size (nonfinite.comp)
 
 std::string format_shape(const Shape& s) {
   std::string r = "[";

@@ -59,7 +59,7 @@ ConvFamily conv_family(const vk::DeviceCaps& caps) {
   f.kind = g_block_override.coopmat_twin ? KernelFamily::coopmat : t.conv;
   f.twin = g_block_override.coopmat_twin;
   if (f.kind == KernelFamily::tiled) f.tile_m = t.conv_tile_m, f.tile_n = t.conv_tile_n;
-  if (f.kind == KernelFamily::coopmat) f.tile_m = 128, f.tile_n = 128;  // shaders/nn/conv_coopmat.glsl BM, BN
+  if (f.kind == KernelFamily::coopmat) f.tile_m = 128, f.tile_n = 128;  // shaders/nn/conv_coopmat.comp BM, BN
   return f;
 }
 
@@ -275,8 +275,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   if (g_block_override.cols) tile.cols = g_block_override.cols;
   if (g_block_override.k_unroll) tile.k_unroll = g_block_override.k_unroll;
   if (g_block_override.lanes >= 0) tile.lanes = std::max(g_block_override.lanes, gemm_lanes(caps));
-  // The GEMM kernel family (kernel_tuning.hpp): texel (conv_gemm.glsl), tiled (conv_tiled.comp) or coopmat
-  // (conv_coopmat.glsl; its fp32 twin when a test asks for it). All three read the same repacked operands
+  // The GEMM kernel family (kernel_tuning.hpp): texel (conv_gemm.comp), tiled (conv_tiled.comp) or coopmat
+  // (conv_coopmat.comp; its fp32 twin when a test asks for it). All three read the same repacked operands
   // with the same push constants and serve every variant (2D/3D, strides, upsampling, channels-last y).
   const ConvFamily fam = conv_family(caps);
   int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;

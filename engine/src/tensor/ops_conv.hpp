@@ -3,14 +3,14 @@
 // [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
 // has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
 // outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
-// the inputs. The convolutions run as an implicit GEMM (shaders/nn/conv_gemm.glsl) over chunks of output
+// the inputs. The convolutions run as an implicit GEMM (shaders/nn/conv_gemm.comp) over chunks of output
 // frames and rows whose input is first repacked channels-last into recorder scratch (the chunks stay within
 // maxStorageBufferRange and maxTexelBufferElements); the weights are repacked once per call. x and a cache
 // are read through texel buffers: each must start at an allocation-aligned offset (whole tensors and arena
 // views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
 // The GEMM itself is one of three kernel families (kernel_tuning.hpp, DeviceTuning::conv): texel
-// (conv_gemm.glsl, CPU drivers), tiled (conv_tiled.comp: shared-memory tiles over storage buffers, fp32) or
-// coopmat (conv_coopmat.glsl: tensor cores, fp16 operands, fp32 sums); each serves every op below.
+// (conv_gemm.comp, CPU drivers), tiled (conv_tiled.comp: shared-memory tiles over storage buffers, fp32) or
+// coopmat (conv_coopmat.comp: tensor cores, fp16 operands, fp32 sums); each serves every op below.
 // (The resampling ops are implemented in ops_resample.cpp.)
 #pragma once
 #include <cstdint>
@@ -91,14 +91,14 @@ void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, con
                         bool compress_time, const ConvScratch* scratch = nullptr);
 ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time);
 
-// Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.glsl; defaults come from
+// Tuning / testing knobs of the convolution kernel (shaders/nn/conv_gemm.comp; defaults come from
 // tensor/kernel_tuning.cpp). Register block: `rows` output pixels x 8*`cols` output channels per 8-lane
 // cluster (0 = automatic), `lanes` -1 automatic, else GemmTile::lanes (2 = no subgroup shuffles),
 // `k_unroll` 8-channel steps per loop trip (0 automatic; 1, 2 or 4). `pack_columns`: pixels of a row per
 // invocation of the input repack (shaders/nn/conv_pack_input.comp; 0 automatic).
 // `coopmat_twin`: run the coopmat family's tiling, loads and epilogue with its fp32 twin shader
-// (shaders/nn/conv_coopmat_twin.comp, no tensor cores) whatever the device's family: tests the coopmat
-// kernel's every part but the MMA on devices without cooperative matrices.
+// (nn/conv_coopmat_twin, a variant of shaders/nn/conv_coopmat.comp; no tensor cores) whatever the device's
+// family: tests the coopmat kernel's every part but the MMA on devices without cooperative matrices.
 struct ConvRegisterBlock {
   int rows = 0, cols = 0, lanes = -1, k_unroll = 0, pack_columns = 0;
   bool coopmat_twin = false;

@@ -1,4 +1,5 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+// The vec4 variant.
 #define VEC4 1
-#include "gather_rows.glsl"
+#include "scale.glsl"

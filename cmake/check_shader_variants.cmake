@@ -1,0 +1,118 @@
+# ctest check (cmake -DSHADER_ROOT=<folder> -P check_shader_variants.cmake): the rule that shader variants come
+# from the variants table (shaders/variants.cmake), not from files. Fails, naming the file or row, when
+#  - a .comp under SHADER_ROOT exists only to pick a variant of another file: outside comments it has nothing
+#    but one-line preprocessor directives (#version, #extension, #define, #include, #if...) and layout(...)
+#    declarations, and it #includes something. Such a file is a row of the table instead. (A #define whose
+#    body runs over several lines is the kernel's own code, as in nn/attention_flash_coopmat.comp.)
+#  - a row is malformed or its source .comp does not exist (dvs_read_shader_variants),
+#  - a row's name is taken by a .comp or an earlier row,
+#  - a row's define is never tested (#ifdef, #ifndef, defined()) by its source or the files that source
+#    includes: a misspelt define would silently build a copy of the source's own shader.
+cmake_minimum_required(VERSION 3.22)
+if(NOT SHADER_ROOT)
+  message(FATAL_ERROR "usage: cmake -DSHADER_ROOT=<shaders folder> -P check_shader_variants.cmake")
+endif()
+include(${CMAKE_CURRENT_LIST_DIR}/shader_variants.cmake)
+
+# The text of file, comments removed (// to the end of the line, /* ... */).
+function(strip_comments file out)
+  file(READ ${file} text)
+  string(REGEX REPLACE "/\\*([^*]|\\*+[^*/])*\\*+/" "" text "${text}")
+  string(REGEX REPLACE "//[^\n]*" "" text "${text}")
+  set(${out} "${text}" PARENT_SCOPE)
+endfunction()
+
+# The text of src and, recursively, of every file it #includes (looked up next to the including file, then
+# in SHADER_ROOT/common, as the compilers' -I does).
+function(text_with_includes src out)
+  set(todo ${src})
+  set(seen)
+  set(all "")
+  while(todo)
+    list(POP_FRONT todo file)
+    if(file IN_LIST seen)
+      continue()
+    endif()
+    list(APPEND seen ${file})
+    strip_comments(${file} text)
+    string(APPEND all "${text}\n")
+    get_filename_component(dir ${file} DIRECTORY)
+    string(REGEX MATCHALL "#[ \t]*include[ \t]*\"[^\"]+\"" incs "${text}")
+    foreach(inc ${incs})
+      string(REGEX REPLACE ".*\"([^\"]+)\"" "\\1" inc "${inc}")
+      if(EXISTS ${dir}/${inc})
+        get_filename_component(path ${dir}/${inc} ABSOLUTE)
+      else()
+        get_filename_component(path ${SHADER_ROOT}/common/${inc} ABSOLUTE)
+      endif()
+      if(EXISTS ${path})
+        list(APPEND todo ${path})
+      endif()
+    endforeach()
+  endwhile()
+  set(${out} "${all}" PARENT_SCOPE)
+endfunction()
+
+set(problems "")
+file(GLOB_RECURSE sources ${SHADER_ROOT}/*.comp)
+set(names)
+foreach(src ${sources})
+  file(RELATIVE_PATH rel ${SHADER_ROOT} ${src})
+  string(REGEX REPLACE "\\.comp$" "" name ${rel})
+  list(APPEND names ${name})
+  strip_comments(${src} text)
+  # One list element per line: no ; [ ] or \ (a list escape) left in the text.
+  string(REGEX REPLACE "[][;]" "," text "${text}")
+  string(REPLACE "\\" "<backslash>" text "${text}")
+  string(REPLACE "\n" ";" lines "${text}")
+  set(only_directives TRUE)
+  set(includes_something FALSE)
+  foreach(line IN LISTS lines)
+    if(line MATCHES "^[ \t]*$")
+      continue()
+    endif()
+    if(line MATCHES "<backslash>[ \t]*$")  # a line continued: a multi-line macro body is code
+      set(only_directives FALSE)
+    elseif(line MATCHES "^[ \t]*#[ \t]*include")
+      set(includes_something TRUE)
+    elseif(NOT line MATCHES "^[ \t]*(#[ \t]*(version|extension|define|undef|if|ifdef|ifndef|else|elif|endif)|layout[ \t]*\\()")
+      set(only_directives FALSE)
+    endif()
+  endforeach()
+  if(only_directives AND includes_something)
+    string(APPEND problems "  ${rel}: only defines and includes another file. Make the included body this "
+      ".comp, and give each variant a row of variants.cmake (run-time name, source .comp, defines) instead of a "
+      "file.\n")
+  endif()
+endforeach()
+
+dvs_read_shader_variants(${SHADER_ROOT} variant_names variant_sources variant_defines)
+list(LENGTH variant_names count)
+if(count GREATER 0)
+  math(EXPR last "${count} - 1")
+  foreach(i RANGE ${last})
+    list(GET variant_names ${i} name)
+    list(GET variant_sources ${i} src)
+    list(GET variant_defines ${i} row_defines)
+    if(name IN_LIST names)
+      string(APPEND problems "  variants.cmake row ${name}: the name is taken by ${name}.comp or an earlier row.\n")
+    endif()
+    list(APPEND names ${name})
+    text_with_includes(${src} text)
+    separate_arguments(defines UNIX_COMMAND "${row_defines}")
+    foreach(define ${defines})
+      if(NOT text MATCHES "#[ \t]*ifn?def[ \t]+${define}([^A-Za-z0-9_]|$)"
+         AND NOT text MATCHES "defined[ \t]*\\(?[ \t]*${define}([^A-Za-z0-9_]|$)")
+        file(RELATIVE_PATH rel ${SHADER_ROOT} ${src})
+        string(APPEND problems "  variants.cmake row ${name}: ${rel} and its includes never test ${define} "
+          "(#ifdef, #ifndef or defined()); fix the define's spelling or drop it.\n")
+      endif()
+    endforeach()
+  endforeach()
+endif()
+
+if(problems)
+  message(FATAL_ERROR "shader variants (${SHADER_ROOT}):\n${problems}")
+endif()
+list(LENGTH sources comp_count)
+message(STATUS "shader variants: ${comp_count} .comp files, ${count} table rows, no variant file")

@@ -1,4 +1,0 @@
-#version 450
-#extension GL_GOOGLE_include_directive : require
-#define VEC4 1
-#include "eltwise_affine.glsl"

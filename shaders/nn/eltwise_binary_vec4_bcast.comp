@@ -1,5 +1,0 @@
-#version 450
-#extension GL_GOOGLE_include_directive : require
-#define VEC4 1
-#define Y_SCALAR 1
-#include "eltwise_binary.glsl"

@@ -1,0 +1,1 @@
+set(DVS_SHADER_VARIANTS)
