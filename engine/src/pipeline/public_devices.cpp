@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "dvs/devices.hpp"
+#include "dvs/usage_error.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
 #include "vk/device_limits.hpp"
@@ -40,7 +41,15 @@ DeviceLimits device_limits(const std::string& device_spec) {
 }
 
 DeviceLimits profile_limits(const std::string& profile) {
-  const vk::LimitProfile& p = vk::limit_profile(profile);
+  const vk::LimitProfile* found = nullptr;
+  try {
+    found = &vk::limit_profile(profile);
+  } catch (const UsageError&) {
+    throw;
+  } catch (const Error& e) {
+    throw UsageError(e.what());  // a name that is not a profile is the caller's to fix
+  }
+  const vk::LimitProfile& p = *found;
   DeviceLimits l{"profile " + p.name + " (" + p.describes + ")", p.binding, p.texels, p.alloc, p.groups[0],
                  p.alignment, p.heap};
   // DVS_LIMITS lowers a profile as it lowers a device.
