@@ -21,10 +21,14 @@ int main(int argc, char** argv) {
       for (std::string g; std::getline(ss, g, ',');) groups.push_back(g);
     } else if (a == "--device" && i + 1 < argc) opts.device = argv[++i];
     else {
-      std::cerr << "usage: dvs-bench [--filter GROUP[,GROUP]] [--quick] [--device I|NAME]\ngroups:";
-      for (auto& r : registry()) std::cerr << " " << r.group;
-      std::cerr << "\n";
-      return 2;
+      // --help: the usage on stdout, status 0; anything else is a usage error: the usage on stderr, status 2.
+      const bool help = a == "-h" || a == "--help";
+      std::ostream& out = help ? std::cout : std::cerr;
+      if (!help) out << "dvs-bench: unknown option or missing value: " << a << "\n";
+      out << "usage: dvs-bench [--filter GROUP[,GROUP]] [--quick] [--device I|NAME]\ngroups:";
+      for (auto& r : registry()) out << " " << r.group;
+      out << "\n";
+      return help ? 0 : 2;
     }
   }
   try {

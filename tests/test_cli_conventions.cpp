@@ -25,12 +25,12 @@ const std::string kDvs = test::program("dvs");
 const std::string kTool = test::program("dvs-weights");
 
 TEST(CliConventions, HelpExitsZeroEverywhere) {
-  for (const char* cmd : {"", "info", "render", "run", "demo", "invert", "encode-prompt", "batch", "plan"}) {
+  for (const char* cmd : {"", "info", "render", "run", "demo", "invert", "encode-prompt", "batch", "plan", "depth"}) {
     const auto r = test::run_command(kDvs + " " + cmd + " --help");
     EXPECT_EQ(r.exit_code, 0) << "dvs " << cmd << " --help\n" << r.output;
     EXPECT_NE(r.output.find("usage"), std::string::npos) << "dvs " << cmd << " --help\n" << r.output;
   }
-  for (const char* cmd : {"", "inspect", "make-tiny", "merge-lora"}) {
+  for (const char* cmd : {"", "inspect", "make-tiny", "make-vda", "merge-lora"}) {
     const auto r = test::run_command(kTool + " " + cmd + " --help");
     EXPECT_EQ(r.exit_code, 0) << "dvs-weights " << cmd << " --help\n" << r.output;
   }

@@ -148,7 +148,7 @@ TEST(BatchPreflight, TheWholeFileIsCheckedBeforeTheFirstJob) {
                              " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + in.cache.string());
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("4 problems found before running anything; no job was run"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("job 1 (jobs.jsonl:2): dvs batch: unknown option --sped"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("job 1 (jobs.jsonl:2): unknown key \"sped\""), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("job 2 (jobs.jsonl:3): missing required \"depth\", \"prompt\""), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("job 3 (jobs.jsonl:4): \"out\""), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("is also the out folder of job 0 (jobs.jsonl:1)"), std::string::npos) << r.output;

@@ -439,6 +439,10 @@ int make_vda(const std::vector<std::string>& args) {
   uint64_t seed = 0;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
+    if (a == "-h" || a == "--help") {
+      std::cout << kUsage;
+      return 0;
+    }
     if (a != "--size" && a != "--out" && a != "--seed") throw dvs::UsageError("make-vda: unknown option " + a + " (see dvs-weights --help)");
     if (i + 1 >= args.size()) throw dvs::UsageError("make-vda: " + a + " needs a value");
     const std::string v = args[++i];

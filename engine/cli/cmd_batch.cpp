@@ -4,6 +4,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -11,40 +12,52 @@
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
-#include "pipeline/preflight.hpp"
+#include "dvs/preflight.hpp"
+#include "options.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
 namespace {
 
-const char* kBatchHelp =
-    "usage: dvs batch JOBS.jsonl [--shard I/N] [dvs run options as defaults]\n"
-    "\n"
+const CommandHelp kBatchHelp{
+    "dvs batch JOBS.jsonl [--shard I/N] [dvs run options as defaults]",
     "Runs every job of JOBS.jsonl: one JSON object per line whose keys are dvs run's options without the dashes,\n"
     "e.g. {\"video\": \"a.mp4\", \"depth\": \"a_depth.npz\", \"trajectory\": \"pan_left\", \"prompt\": \"...\", \"out\": \"out/a\"}.\n"
     "Values are strings or numbers; a flag is true/false (\"vae-tiling\": true); intrinsics may be an array.\n"
     "dvs run options given on this command line (e.g. --model DIR --steps 30) are defaults every job can override.\n"
-    "Relative paths are relative to the current folder. Blank lines and lines starting with # are not jobs.\n"
-    "\n"
-    "  --shard I/N   run only the jobs whose index (0-based, in file order) is I modulo N (default 0/1)\n"
-    "\n"
+    "Relative paths are relative to the current folder. Blank lines and lines starting with # are not jobs.\n",
     "The whole file is checked first: unknown keys, missing required fields (video, depth, model, prompt, out), bad\n"
     "values, two jobs with the same out folder, and each pending job's preflight (dvs run --help) are reported\n"
     "together and nothing runs. A job whose out folder holds output.mp4 and run.json is skipped. A job failing while\n"
     "it runs is reported and the batch goes on; the exit code is 1 when any job failed. Ctrl-C stops the current job\n"
-    "cleanly and exits with 130.\n";
+    "cleanly and exits with 130.\n"};
+
+const OptionGroup kSharding{
+    "batch", {{"shard", "I/N", "run only the jobs whose index (0-based, in file order) is I modulo N (default 0/1)"}}};
+
+// The batch's command line: the jobs file, --shard and dvs run's options (defaults of every job). A job's keys are
+// read as the same options, after those on the command line (later values win).
+std::unique_ptr<Args> batch_arguments(const std::vector<std::string>& argv) {
+  std::vector<OptionGroup> groups = run_option_groups();
+  groups.push_back(kSharding);
+  auto a = std::make_unique<Args>("batch", kBatchHelp, groups);
+  a->positional("JOBS.jsonl", "the jobs, one JSON object per line");
+  a->parse(argv);
+  return a;
+}
 
 struct Shard {
   int index = 0, count = 1;
 };
 
-Shard parse_shard(const std::string& v) {
+Shard parse_shard(const Args& a) {
+  const std::string v = a.str("shard", "0/1");
   Shard s;
   char slash = 0, extra = 0;
   std::istringstream in(v);
   if (!(in >> s.index >> slash >> s.count) || slash != '/' || (in >> extra) || s.count < 1 || s.index < 0 ||
       s.index >= s.count)
-    throw Error("dvs batch: --shard must be I/N with 0 ≤ I < N, e.g. 0/4, got '" + v + "'");
+    a.fail("--shard must be I/N with 0 ≤ I < N, e.g. 0/4, got '" + v + "'");
   return s;
 }
 
@@ -73,13 +86,26 @@ std::vector<Job> read_jobs(const std::filesystem::path& file) {
   return jobs;
 }
 
-// A job's JSON object as dvs run arguments.
+// A job's JSON object as dvs run arguments: each key must name one of dvs run's options (the declarations the
+// command line is read with), a flag's value is true or false.
 std::vector<std::string> job_arguments(const nlohmann::json& spec) {
+  const std::vector<OptionGroup> declared = run_option_groups();
+  auto declaration = [&](const std::string& key) -> const OptionSpec* {
+    for (const OptionGroup& g : declared)
+      for (const OptionSpec& o : g.options)
+        if (o.name == key) return &o;
+    return nullptr;
+  };
   std::vector<std::string> args;
   for (const auto& [key, value] : spec.items()) {
+    const OptionSpec* option = declaration(key);
+    if (!option)
+      throw Error("unknown key \"" + key + "\": a job's keys are dvs run's options without the dashes (see dvs run --help)");
     const std::string opt = "--" + key;
-    if (value.is_boolean()) {
-      if (value.get<bool>()) args.push_back(opt);
+    if (value.is_null()) continue;
+    if (option->flag()) {
+      if (!value.is_boolean()) throw Error("\"" + key + "\" is a flag: its value must be true or false, got " + value.dump());
+      args.push_back(opt + (value.get<bool>() ? "=true" : "=false"));
     } else if (value.is_string()) {
       args.insert(args.end(), {opt, value.get<std::string>()});
     } else if (value.is_number()) {
@@ -88,8 +114,8 @@ std::vector<std::string> job_arguments(const nlohmann::json& spec) {
       std::string joined;
       for (const auto& v : value) joined += (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>() : v.dump());
       args.insert(args.end(), {opt, joined});
-    } else if (!value.is_null()) {
-      throw Error("\"" + key + "\" must be a string, number, boolean or array");
+    } else {
+      throw Error("\"" + key + "\" must be a string, number or array (" + option->value + "), got " + value.dump());
     }
   }
   return args;
@@ -102,26 +128,12 @@ bool finished(const std::filesystem::path& out) {
 }  // namespace
 
 int run_batch(const std::vector<std::string>& argv) {
-  if (argv.empty() || argv[0] == "-h" || argv[0] == "--help") {
-    std::cout << kBatchHelp;
-    return argv.empty() ? 2 : 0;
-  }
-  const std::filesystem::path jobs_file = argv[0];
-  if (jobs_file.string().rfind("--", 0) == 0) throw Error("dvs batch: the jobs file comes first: dvs batch JOBS.jsonl [options]");
-  // The rest are defaults for every job, checked now; --shard is the batch's own.
-  std::vector<std::string> defaults;
-  std::string shard_text = "0/1";
-  for (size_t i = 1; i < argv.size(); ++i) {
-    if (argv[i] == "--shard" && i + 1 < argv.size()) shard_text = argv[++i];
-    else if (argv[i].rfind("--shard=", 0) == 0) shard_text = argv[i].substr(8);
-    else defaults.push_back(argv[i]);
-  }
-  const Shard shard = parse_shard(shard_text);
-  Args checked("batch", defaults, kRunOptions, kRunFlags);
-  if (checked.help()) {
-    std::cout << kBatchHelp;
-    return 0;
-  }
+  const std::unique_ptr<Args> command_line = batch_arguments(argv);
+  if (command_line->help()) return 0;
+  if (!command_line->has("JOBS.jsonl")) command_line->fail("the jobs file is required: dvs batch JOBS.jsonl [options]");
+  const std::filesystem::path jobs_file = command_line->str("JOBS.jsonl");
+  const Shard shard = parse_shard(*command_line);
+  progress_mode(*command_line);  // contradicting defaults are the command line's usage error, not every job's
   const std::vector<Job> jobs = read_jobs(jobs_file);
 
   // The whole file is checked before the first job runs: every job's keys, required fields and values, that no
@@ -140,10 +152,11 @@ int run_batch(const std::vector<std::string>& argv) {
     const std::string where = "job " + std::to_string(job.index) + " (" + jobs_file.filename().string() + ":" +
                               std::to_string(job.line) + ")";
     try {
-      std::vector<std::string> args = defaults;  // later values win: the job's own over the defaults
+      std::vector<std::string> args = argv;  // later values win: the job's own over the command line's defaults
       const auto own = job_arguments(job.spec);
       args.insert(args.end(), own.begin(), own.end());
-      Args a("batch", args, kRunOptions, kRunFlags);
+      const std::unique_ptr<Args> job_args = batch_arguments(args);
+      const Args& a = *job_args;
       std::string missing;
       const bool no_depth = a.str("depth").empty() && a.str("depth-model").empty();  // either gives the depth
       for (const char* key : {"video", "depth", "model", "prompt", "out"})

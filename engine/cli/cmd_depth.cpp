@@ -7,27 +7,35 @@
 #include "dvs/depth_estimate.hpp"
 #include "dvs/error.hpp"
 #include "interrupt.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 
 namespace dvs::cli {
 
-static const char* kDepthHelp =
-    "usage: dvs depth --video V --out FILE.npz [--depth-model FILE.pth] [options]\n"
-    "\n"
+namespace {
+
+const CommandHelp kDepthHelp{
+    "dvs depth --video V --out FILE.npz [--depth-model FILE.pth] [options]",
     "Estimates the disparity of every frame of V with Video-Depth-Anything (windows of 32 frames aligned to each\n"
     "other, as the authors' infer_video_depth) and writes it as their run.py --save_npz does: FILE.npz holding\n"
     "'depths', f32 [N,H,W] at the frames' size (FILE.npy: the array alone). Give it to dvs run/render --depth, or\n"
-    "let them estimate it themselves with --depth-model.\n"
-    "\n"
-    "  --video V             input video\n"
-    "  --out FILE            .npz (key 'depths') or .npy; written atomically\n"
-    "  --depth-model FILE    video_depth_anything_vits.pth (Small, Apache-2.0), _vitb / _vitl (CC-BY-NC-4.0), a\n"
-    "                        metric_video_depth_anything_*.pth, or a .safetensors of one (default: $DVS_DEPTH_MODEL)\n"
-    "  --input-size N        network input's short side, a multiple of 14 (default 518, the model's)\n"
-    "  --frames N            first N frames (default 0 = all)\n"
-    "  --max-res N           scale frames whose long side exceeds N down first (default 1280; 0 = never)\n"
-    "  --progress bar|json|none   progress output (default bar; one step per window); --quiet = none\n"
-    "  --device I|NAME       Vulkan device\n";
+    "let them estimate it themselves with --depth-model.\n",
+    ""};
+
+// dvs depth's own options: its --out is a file, its --frames defaults to all of them.
+const OptionGroup kDepthEstimate{
+    "depth estimate",
+    {{"video", "V", "input video"},
+     {"out", "FILE", ".npz (key 'depths') or .npy; written atomically"},
+     {"depth-model", "FILE",
+      "video_depth_anything_vits.pth (Small, Apache-2.0), _vitb / _vitl (CC-BY-NC-4.0),\n"
+      "a metric_video_depth_anything_*.pth, or a .safetensors of one (default:\n"
+      "$DVS_DEPTH_MODEL)"},
+     {"input-size", "N", "network input's short side, a multiple of 14 (default 518, the model's)"},
+     {"frames", "N", "first N frames (default 0 = all)"},
+     {"max-res", "N", "scale frames whose long side exceeds N down first (default 1280; 0 = never)"}}};
+
+}  // namespace
 
 std::filesystem::path depth_model_argument(const Args& a) {
   if (a.has("depth-model")) return a.str("depth-model");
@@ -37,11 +45,10 @@ std::filesystem::path depth_model_argument(const Args& a) {
 }
 
 int run_depth(const std::vector<std::string>& argv) {
-  Args a("depth", argv, {"video", "out", "depth-model", "input-size", "frames", "max-res", "progress", "device"}, {"quiet"});
-  if (a.help()) {
-    std::cout << kDepthHelp;
-    return 0;
-  }
+  Args a("depth", kDepthHelp, {kDepthEstimate, kDevice, kProgressOutput});
+  a.parse(argv);
+  if (a.help()) return 0;
+  const ProgressMode mode = progress_mode(a);
   DepthJob job;
   job.video = a.required("video");
   const std::filesystem::path out = a.required("out");
@@ -51,7 +58,6 @@ int run_depth(const std::vector<std::string>& argv) {
   job.frames = a.integer("frames", 0, 0, 1000000);
   job.max_res = a.integer("max-res", job.max_res, 0, 100000);
   job.device = a.str("device");
-  const ProgressMode mode = parse_progress_mode(a.str("progress"), a.has("quiet"));
   Progress progress(mode);
   const DepthSummary s = estimate_depth(job, out, std::ref(progress), interrupted);
   progress.finish();

@@ -7,40 +7,28 @@
 #include "commands.hpp"
 #include "dvs/pipeline.hpp"
 #include "interrupt.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
 namespace {
 
-const char* kInvertHelp =
-    "usage: dvs invert --video V (--depth D | --depth-model FILE.pth) --model DIR --out DIR [options]\n"
-    "\n"
+const CommandHelp kInvertHelp{
+    "dvs invert --video V (--depth D | --depth-model FILE.pth) --model DIR --out DIR [options]",
     "Stages 1-5 of dvs run: renders V along the camera path, VAE-encodes the render and DDIM-inverts it with the\n"
     "transformer up to the start timestep t0. Writes DIR/eps_inv.npy ([latent frames, C, h, w] f32) and stores\n"
     "the result in the inversion cache, where dvs run with the same inputs, model, LoRA, tiling, --preset,\n"
     "--steps, --strength and --inversion-steps finds it (any --prompt, --guidance, --k, --delta or --seed).\n"
-    "\n"
-    "Takes dvs run's input, model, schedule, cache and memory options (dvs run --help): --video --depth --depth-model\n"
-    "--metric-depth --trim-depth --trajectory --frames --size|--height/--width --resize --intrinsics --points\n"
-    "--model --preset --steps --strength --inversion-steps --lora --vae-tiling --vae-tile --cache-dir --no-cache\n"
-    "--device --progress --quiet\n";
-
-// run's options that do not change ε_inv are not taken, so a user cannot believe they did.
-std::set<std::string> invert_options() {
-  std::set<std::string> o = kRunOptions;
-  for (const char* name : {"prompt", "negative-prompt", "guidance", "k", "delta", "seed", "dynamic-cfg", "preservation-scale"}) o.erase(name);
-  return o;
-}
+    "Takes dvs run's options except the prompt and sampling ones, which do not change the inversion.\n",
+    ""};
 
 }  // namespace
 
 int run_invert(const std::vector<std::string>& argv) {
-  Args a("invert", argv, invert_options(), kRunFlags);
-  if (a.help()) {
-    std::cout << kInvertHelp;
-    return 0;
-  }
+  Args a("invert", kInvertHelp, invert_option_groups());
+  a.parse(argv);
+  if (a.help()) return 0;
   const RunOptions o = parse_run_options(a);
   const ProgressMode mode = progress_mode(a);
   Progress progress(mode);

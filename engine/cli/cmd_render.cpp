@@ -1,55 +1,35 @@
 // `dvs render`: the geometry stage alone (render + visibility mask along a camera path).
 #include <iostream>
+#include <tuple>
 
 #include "args.hpp"
 #include "commands.hpp"
 #include "depth_args.hpp"
 #include "dvs/error.hpp"
+#include "dvs/preflight.hpp"
 #include "dvs/render.hpp"
+#include "options.hpp"
+#include "progress.hpp"
 
 namespace dvs::cli {
+namespace {
 
-static const char* kRenderHelp =
-    "usage: dvs render --video V (--depth D | --depth-model FILE.pth) --out DIR [options]\n"
-    "\n"
+const CommandHelp kRenderHelp{
+    "dvs render --video V (--depth D | --depth-model FILE.pth) --out DIR [options]",
     "Lifts every frame of V with its depth to a point cloud, moves it along the camera path and splats it into\n"
     "the new view. Writes DIR/render.mp4, mask.mp4, mask.npy ([F,H,W] f32, 1 = visible), poses.json and\n"
-    "scene.glb (trajectory + frame-0 point cloud, for any glTF viewer).\n"
-    "\n"
-    "  --video V             input video (any size and fps)\n"
-    "  --depth D             per-frame depth: .npy/.npz [N,H,W] (or [N,H,W,1]; float or 16-bit; FILE.npz:KEY\n"
-    "                        picks an array, default key 'depths'), a folder of 16-bit PNG/EXR frames (natural\n"
-    "                        name order: d_2 before d_10) or a grayscale video\n"
-    "  --depth-model FILE    instead of --depth: estimate the depth with Video-Depth-Anything (video_depth_anything_\n"
-    "                        vits.pth etc., see README); cached in $DVS_CACHE_DIR or ~/.cache/dvs (--cache-dir DIR)\n"
-    "                        by the video's bytes, the model and the settings; --no-cache estimates again\n"
-    "  --depth-input-size N  its network input's short side (default 518)\n"
-    "  --metric-depth        D holds metric depth (default: disparity, as Video-Depth-Anything writes)\n"
-    "  --trim-depth          allow D to have more frames than the video uses\n"
-    "  --depth-fit error|stretch|crop  depth of another aspect ratio (or orientation) than the video: refuse\n"
-    "                        (error, the default), scale each axis (stretch) or cut its centre (crop)\n"
-    "  --trajectory T        loop1..loop4, wave1, oscillating_wave (official), pan_left, pan_right, tilt_up,\n"
-    "                        tilt_down, dolly_in, dolly_out, truck_left, truck_right, arc_left, arc_right\n"
-    "                        (NAME:MAGNITUDE sets degrees or radius fractions), or a .txt (official three-line\n"
-    "                        format), .json (4x4 poses) or .gltf/.glb camera animation (default loop1)\n"
-    "  --out DIR             output folder (created)\n"
-    "  --frames N            first N frames (default 49; 0 = all)\n"
-    "  --size HxW            working size (default 480x720; multiples of 8)\n"
-    "  --resize crop|squash  keep the aspect ratio and crop the centre (default), or squash (official)\n"
-    "  --intrinsics fx,fy,cx,cy  in pixels of the working size (default: f = 500 at 1024x576, scaled)\n"
-    "  --points              hard z-buffer point splatting instead of the soft bilinear splat\n"
-    "  --no-glb              skip scene.glb\n"
-    "  --device I|NAME       Vulkan device\n";
+    "scene.glb (trajectory + frame-0 point cloud, for any glTF viewer).\n",
+    ""};
+
+const OptionGroup kRenderOnly{"render", {{"no-glb", "", "skip scene.glb"}}};
+
+}  // namespace
 
 int run_render(const std::vector<std::string>& argv) {
-  Args a("render", argv,
-         {"video", "depth", "depth-model", "depth-input-size", "cache-dir", "trajectory", "out", "frames", "size", "resize",
-          "intrinsics", "device", "depth-fit"},
-         {"metric-depth", "trim-depth", "points", "no-glb", "no-cache"});
-  if (a.help()) {
-    std::cout << kRenderHelp;
-    return 0;
-  }
+  Args a("render", kRenderHelp,
+         {kClipInputs, kDepthSource, kOutFolder, kRenderOnly, kDepthCache, kDevice, kProgressOutput, kCheckOnly});
+  a.parse(argv);
+  if (a.help()) return 0;
   RenderJob job;
   job.video = a.required("video");
   parse_depth_source(a, job);
@@ -58,10 +38,8 @@ int run_render(const std::vector<std::string>& argv) {
   job.out_dir = a.required("out");
   job.trajectory = a.str("trajectory", job.trajectory);
   job.frames = a.integer("frames", job.frames, 0, 100000);
-  auto [h, w] = a.size("size", {job.height, job.width});
-  job.height = h;
-  job.width = w;
-  std::string resize = a.str("resize", "crop");
+  std::tie(job.height, job.width) = a.working_size({job.height, job.width});
+  const std::string resize = a.str("resize", "crop");
   if (resize != "crop" && resize != "squash") a.fail("--resize must be crop or squash, got '" + resize + "'");
   job.squash = resize == "squash";
   job.metric_depth = a.has("metric-depth");
@@ -76,7 +54,22 @@ int run_render(const std::vector<std::string>& argv) {
     auto k = a.numbers("intrinsics", 4);
     job.fx = k[0], job.fy = k[1], job.cx = k[2], job.cy = k[3];
   }
-  RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; });
+  const ProgressMode mode = progress_mode(a);
+  if (a.has("check")) {
+    const PreflightReport r = preflight_render(job);
+    if (!r.ok()) throw Error(r.message());
+    if (mode != ProgressMode::quiet)
+      for (const auto& n : r.notes) std::cerr << "  " << n << "\n";
+    // stdout stays JSON Lines under --progress json: the verdict goes to stderr there.
+    (mode == ProgressMode::json ? std::cerr : std::cout) << "preflight: no problem found; dvs render with these options would start\n";
+    return 0;
+  }
+  Progress progress(mode);
+  const RenderSummary s = render_novel_view(job, [&](const std::string& line) {
+    if (mode == ProgressMode::bar) std::cerr << "dvs: " << line << "\n";
+    else progress("render", 0, 0, line);  // json: one event per line; quiet: nothing
+  });
+  progress.finish();
   std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << s.seconds_decode
             << " s, render " << s.seconds_render << " s, write " << s.seconds_write << " s)\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "

@@ -10,77 +10,35 @@
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
-#include "io/lora_file.hpp"
-#include "pipeline/preflight.hpp"
-#include "pipeline/run_record.hpp"
+#include "dvs/lora.hpp"
+#include "dvs/preflight.hpp"
+#include "dvs/run_record.hpp"
+#include "dvs/usage_error.hpp"
 #include "interrupt.hpp"
 #include "depth_args.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 #include "prompt_length.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
 
-const char* kRunHelp =
-    "usage: dvs run --video V (--depth D | --depth-model FILE.pth) --model DIR --prompt TEXT --out DIR [options]\n"
-    "\n"
+namespace {
+
+const CommandHelp kRunHelp{
+    "dvs run --video V (--depth D | --depth-model FILE.pth) --model DIR --prompt TEXT --out DIR [options]",
     "Re-renders V along a new camera path: renders the input with its depth, VAE-encodes the render, inverts it\n"
     "with the transformer, fills occluded latents (SLM), initialises the noise (adaptive K-RNR) and samples the\n"
     "new view. Writes DIR/output.mp4, render.mp4, mask.mp4, comparison.mp4 (input | render | output) and run.json.\n"
-    "\n"
-    "inputs (as dvs render): --video --depth --metric-depth --trim-depth --depth-fit --trajectory\n"
-    "  --depth-model FILE    instead of --depth: estimate the depth with Video-Depth-Anything (video_depth_anything_\n"
-    "                        vits.pth etc., see README) before the diffusion models load; cached in the cache folder\n"
-    "                        by the video's bytes, the model and the settings (--no-cache: estimate again)\n"
-    "  --depth-input-size N  its network input's short side (default 518)\n"
-    "  --frames N            4k+1, default 49\n"
-    "  --size HxW or --height H --width W (default 480x720; multiples of 8; a model with learned positional\n"
-    "                        embeddings, as CogVideoX-5B-I2V, needs its own size)\n"
-    "  --resize crop|squash  --intrinsics fx,fy,cx,cy (default: f = 500 px at 1024x576, square pixels under crop,\n"
-    "                        scaled per axis under squash)  --points\n"
-    "  --model DIR           model folder laid out like THUDM/CogVideoX-5b-I2V\n"
-    "  --prompt TEXT         what the scene shows\n"
-    "  --negative-prompt T   default \"\" (paper) / the authors' fixed text (official)\n"
-    "diffusion:\n"
-    "  --preset paper|official  paper (default) or the authors' code (see README)\n"
-    "  --steps N             sampling schedule length (paper 50, official 30)\n"
-    "  --strength S          keeps the last floor(N*S) steps (paper 0.95, official 0.98)\n"
-    "  --inversion-steps N   DDIM inversion steps (30)\n"
-    "  --k K                 K-RNR order (10; real values allowed)\n"
-    "  --delta D             AdaIN target order (paper 3, official 2)\n"
-    "  --guidance G          classifier-free guidance scale (6)\n"
-    "  --dynamic-cfg on|off  the authors' position-wise guidance: occluded latents get a per-step scale from G,\n"
-    "                        fully visible ones --preservation-scale (official on, paper off: constant G)\n"
-    "  --preservation-scale P  guidance scale of the fully visible latents with --dynamic-cfg on (1 = the\n"
-    "                        prompt-conditioned prediction, as the authors' config)\n"
-    "  --seed N              seed of every random draw (42)\n"
-    "  --lora FILE[:SCALE]   a LoRA adapter (.safetensors, diffusers/PEFT layout) on the transformer, for the\n"
-    "                        inversion and the sampling (scale 1 when not given)\n"
-    "  --cache-dir DIR       inversion cache (default $DVS_CACHE_DIR or ~/.cache/dvs); --no-cache disables it\n"
-    "memory:\n"
-    "  --vae-tiling          encode and decode in overlapping spatial tiles (diffusers' enable_tiling): far less\n"
-    "                        device memory at 480x720; use it when a run stops out of device memory\n"
-    "  --vae-tile HxW        tile size in pixels (implies --vae-tiling; default half the VAE's sample size, 240x360)\n"
-    "other:\n"
-    "  --device I|NAME       Vulkan device\n"
-    "  --progress bar|json|none   progress output (default bar); --quiet = none\n"
-    "  --check               preflight only: check the options, files, model (configs, weight headers, tokenizer),\n"
-    "                        LoRA, tiling and device memory, report every problem, run nothing (exit 0 = fine)\n"
-    "  --from RUN.json       repeat a run from the run.json it wrote; options given next to it override its values\n"
-    "Every run starts with that preflight. Outputs are staged and moved into DIR only when the run completes: a run\n"
-    "that fails or is cancelled leaves the files of an earlier run in DIR as they were.\n"
-    "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n";
+    "Its inputs are dvs render's (the same options).\n",
+    "Every run starts with the preflight of --check. Outputs are staged and moved into DIR only when the run\n"
+    "completes: a run that fails or is cancelled leaves the files of an earlier run in DIR as they were.\n"
+    "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n"};
 
-const std::set<std::string> kRunOptions = {"video", "depth", "depth-model", "depth-input-size", "trajectory", "out", "frames", "size", "resize",
-                                           "intrinsics", "device", "model", "prompt", "negative-prompt", "preset",
-                                           "steps", "strength", "inversion-steps", "k", "delta", "guidance", "seed",
-                                           "dynamic-cfg", "preservation-scale",
-                                           "cache-dir", "progress", "height", "width", "lora", "vae-tile",
-                                           "depth-fit"};
-const std::set<std::string> kRunFlags = {"metric-depth", "trim-depth", "points", "no-cache", "quiet", "vae-tiling"};
+const OptionGroup kReplay{
+    "replay", {{"from", "RUN.json", "repeat a run from the run.json it wrote; options given next to it override its values"}}};
 
-
-ProgressMode progress_mode(const Args& a) { return parse_progress_mode(a.str("progress"), a.has("quiet")); }
+}  // namespace
 
 void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache) {
   if (mode == ProgressMode::quiet) return;
@@ -120,9 +78,10 @@ RunOptions parse_run_options(const Args& a) {
   o.prompt = a.str("prompt");
   o.render.trajectory = a.str("trajectory", o.render.trajectory);
   o.render.frames = a.integer("frames", 49, 1, 100000);
-  auto [h, w] = a.working_size({480, 720});
-  o.render.height = h;
-  o.render.width = w;
+  if ((o.render.frames - 1) % 4 != 0)
+    a.fail("--frames must be 4k+1 (1, 5, 9, ..., 49): the VAE compresses time by 4 after the first frame, got " +
+           std::to_string(o.render.frames));
+  std::tie(o.render.height, o.render.width) = a.working_size({480, 720});
   std::string resize = a.str("resize", "crop");
   if (resize != "crop" && resize != "squash") a.fail("--resize must be crop or squash, got '" + resize + "'");
   o.render.squash = resize == "squash";
@@ -144,6 +103,7 @@ RunOptions parse_run_options(const Args& a) {
   }
   o.negative_prompt = a.str("negative-prompt");
   o.preset = a.str("preset", "paper");
+  if (o.preset != "paper" && o.preset != "official") a.fail("--preset must be paper or official, got '" + o.preset + "'");
   o.steps = a.integer("steps", 0, 1, 1000);
   o.strength = explicit_number(a, "strength", 0, [](double v) { return v > 0 && v <= 1; }, "in (0, 1]");
   o.inversion_steps = a.integer("inversion-steps", 0, 1, 1000);
@@ -160,13 +120,21 @@ RunOptions parse_run_options(const Args& a) {
   o.cache_dir = a.str("cache-dir");
   o.use_cache = !a.has("no-cache");
   if (a.has("lora")) {
-    const LoraSpec lora = parse_lora_spec(a.str("lora"));
-    if (!std::isfinite(lora.scale)) a.fail("--lora: the scale must be a finite number, got " + a.str("lora"));
-    o.lora = lora.file;
-    o.lora_scale = lora.scale;
+    try {
+      const LoraArgument lora = parse_lora_argument(a.str("lora"));
+      o.lora = lora.file;
+      o.lora_scale = lora.scale;
+    } catch (const UsageError& e) {
+      a.fail(e.what());
+    }
   }
   o.vae_tiling = a.has("vae-tiling") || a.has("vae-tile");
-  if (a.has("vae-tile")) std::tie(o.vae_tile_height, o.vae_tile_width) = a.size("vae-tile", {0, 0});
+  if (a.has("vae-tile")) {
+    std::tie(o.vae_tile_height, o.vae_tile_width) = a.size("vae-tile", {0, 0});
+    if (o.vae_tile_height % 8 || o.vae_tile_width % 8)
+      a.fail("--vae-tile must be multiples of 8, got " + a.str("vae-tile") + "; e.g. " +
+             std::to_string(std::max(8, o.vae_tile_height / 8 * 8)) + "x" + std::to_string(std::max(8, o.vae_tile_width / 8 * 8)));
+  }
   return o;
 }
 
@@ -195,14 +163,12 @@ std::vector<std::string> with_recorded_run(const std::vector<std::string>& argv)
 }
 
 int run_run(const std::vector<std::string>& argv) {
-  std::set<std::string> flags = kRunFlags;
-  flags.insert("check");
-  const std::vector<std::string> args = with_recorded_run(argv);
-  Args a("run", args, kRunOptions, flags);
-  if (a.help()) {
-    std::cout << kRunHelp;
-    return 0;
-  }
+  std::vector<OptionGroup> groups = run_option_groups();
+  groups.push_back(kCheckOnly);
+  groups.push_back(kReplay);
+  Args a("run", kRunHelp, groups);
+  a.parse(with_recorded_run(argv));
+  if (a.help()) return 0;
   if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed: no text conditioning)");
   const RunOptions o = parse_run_options(a);
   for (const auto& [text, option] : {std::pair{o.prompt, "--prompt"}, std::pair{o.negative_prompt, "--negative-prompt"}})
@@ -221,14 +187,15 @@ int run_run(const std::vector<std::string>& argv) {
 }
 
 int run_demo(const std::vector<std::string>& argv) {
-  Args a("demo", argv, {"out", "device", "progress"}, {"quiet"});
-  if (a.help()) {
-    std::cout << "usage: dvs demo --out DIR [--device I|NAME] [--progress bar|json|none] [--quiet]\n\n"
-                 "Generates a synthetic RGB-D clip (a box sliding in front of a wall) and a tiny random-weight model in\n"
-                 "DIR, then runs the whole pipeline on them (render, encode, invert, SLM, K-RNR, sample, decode).\n"
-                 "The output is noise-like (the model is random): the demo shows the machinery and its speed.\n";
-    return 0;
-  }
+  Args a("demo",
+         {"dvs demo --out DIR [--device I|NAME] [--progress bar|json|none | --quiet]",
+          "Generates a synthetic RGB-D clip (a box sliding in front of a wall) and a tiny random-weight model in\n"
+          "DIR, then runs the whole pipeline on them (render, encode, invert, SLM, K-RNR, sample, decode).\n"
+          "The output is noise-like (the model is random): the demo shows the machinery and its speed.\n",
+          ""},
+         {kOutFolder, kDevice, kProgressOutput});
+  a.parse(argv);
+  if (a.help()) return 0;
   std::filesystem::path dir = a.required("out");
   ProgressMode mode = progress_mode(a);
   if (mode != ProgressMode::quiet) std::cerr << "dvs demo: writing the synthetic scene and a tiny model to " << dir.string() << "\n";

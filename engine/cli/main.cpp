@@ -12,11 +12,12 @@
 
 #include "dvs/error.hpp"
 #include "dvs/info.hpp"
+#include "dvs/logs.hpp"
 #include "dvs/usage_error.hpp"
 #include "args.hpp"
 #include "commands.hpp"
 #include "interrupt.hpp"
-#include "io/third_party_logs.hpp"
+#include "options.hpp"
 #include "progress.hpp"
 
 namespace {
@@ -62,11 +63,10 @@ int finish(bool json, int code, const std::string& message = "") {
 namespace dvs::cli {
 
 int run_info(const std::vector<std::string>& argv) {
-  Args a("info", argv, {"device"}, {});
-  if (a.help()) {
-    std::cout << "usage: dvs info [--device I|NAME]\n";
-    return 0;
-  }
+  Args a("info", {"dvs info [--device I|NAME]", "Lists the Vulkan devices, their features, memory and limits.\n", ""},
+         {kDevice});
+  a.parse(argv);
+  if (a.help()) return 0;
   std::cout << dvs::device_report(a.str("device"));
   return 0;
 }
@@ -85,9 +85,13 @@ int main(int argc, char** argv) {
   const bool json = dvs::cli::wants_json_progress(args);
   if (json) std::cout.rdbuf(std::cerr.rdbuf());
   try {
-    if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
+    if (args.empty()) {  // a usage error: the usage on stderr, status 2
+      std::cerr << kUsage;
+      return finish(json, 2, "no command given");
+    }
+    if (args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
       std::cout << kUsage;
-      return args.empty() ? 2 : 0;
+      return 0;
     }
     if (args[0] == "--version") {
       std::cout << "dvs " << dvs::version() << "\n";

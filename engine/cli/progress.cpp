@@ -5,17 +5,18 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
-#include "dvs/error.hpp"
-#include "dvs/usage_error.hpp"
+#include "args.hpp"
 
 namespace dvs::cli {
 
-ProgressMode parse_progress_mode(const std::string& value, bool quiet) {
-  if (quiet) return ProgressMode::quiet;
-  if (value.empty() || value == "bar") return ProgressMode::bar;
-  if (value == "json") return ProgressMode::json;
-  if (value == "none") return ProgressMode::quiet;
-  throw UsageError("--progress must be bar, json or none, got '" + value + "' (see --help)");
+ProgressMode progress_mode(const Args& a) {
+  const std::string value = a.str("progress", "bar");
+  if (value != "bar" && value != "json" && value != "none") a.fail("--progress must be bar, json or none, got '" + value + "'");
+  // --quiet is --progress none: with another mode the two contradict each other.
+  if (a.has("quiet") && a.has("progress") && value != "none")
+    a.fail("--quiet and --progress " + value + " contradict each other; give one of them");
+  if (a.has("quiet") || value == "none") return ProgressMode::quiet;
+  return value == "json" ? ProgressMode::json : ProgressMode::bar;
 }
 
 Progress::Progress(ProgressMode mode) : mode_(mode), tty_(isatty(fileno(stderr))) {}

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "args.hpp"
+
 namespace dvs::cli {
 
 enum class ProgressMode { bar, json, quiet };
@@ -27,7 +29,8 @@ class Progress {
   bool open_line_ = false;
 };
 
-ProgressMode parse_progress_mode(const std::string& value, bool quiet);
+// --progress bar|json|none and --quiet (= none); the two together with another mode are a usage error.
+ProgressMode progress_mode(const Args& a);
 
 // --progress json: one JSON object per line on stdout. Every event has "event": "progress" (a stage's step),
 // then exactly one final "done" (exit_code 0) or "error" (message, exit_code 1, 2 or 130).

@@ -1,7 +1,7 @@
-// What `dvs run`, `dvs invert` and `dvs batch` share: the run options (one parser for the command line and
-// for batch jobs) and executing one run with progress output and Ctrl-C handling.
+// What `dvs run`, `dvs invert` and `dvs batch` share: the run options read from their arguments (options.hpp
+// declares them, for the command line and for batch jobs) and executing one run with progress output and
+// Ctrl-C handling.
 #pragma once
-#include <set>
 #include <string>
 #include <vector>
 
@@ -11,14 +11,9 @@
 
 namespace dvs::cli {
 
-extern const std::set<std::string> kRunOptions;  // every --option of `dvs run` that takes a value
-extern const std::set<std::string> kRunFlags;    // and every flag
-extern const char* kRunHelp;
-
 // RunOptions from parsed arguments. --video, --depth, --model and --out are required; --prompt is read when
 // present (the caller requires it where it matters).
 RunOptions parse_run_options(const Args& a);
-ProgressMode progress_mode(const Args& a);
 // argv with `--from RUN.json` replaced by the arguments that run.json records, placed before the rest so the
 // options given next to --from override them. argv itself when there is no --from.
 std::vector<std::string> with_recorded_run(const std::vector<std::string>& argv);

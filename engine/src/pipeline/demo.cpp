@@ -1,5 +1,6 @@
 #include <filesystem>
 
+#include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "geometry/synthetic_scene.hpp"
 #include "io/npy.hpp"
@@ -11,7 +12,12 @@ namespace dvs {
 RunOptions prepare_demo(const std::filesystem::path& dir) {
   constexpr int kFrames = 9, kHeight = 96, kWidth = 128;
   const auto inputs = dir / "inputs", model = dir / "model";
-  std::filesystem::create_directories(inputs);
+  if (std::filesystem::exists(dir) && !std::filesystem::is_directory(dir))
+    throw Error(dir.string() + ": exists and is not a folder; the demo writes its scene, a tiny model and the run's " +
+                "outputs into a folder (give a new or an existing folder)");
+  std::error_code ec;
+  std::filesystem::create_directories(inputs, ec);
+  if (ec) throw Error(inputs.string() + ": cannot create the demo's folder (" + ec.message() + "); give another folder");
 
   geometry::SyntheticSceneSpec spec;
   spec.frames = kFrames;

@@ -307,6 +307,15 @@ PreflightReport preflight(const RunOptions& o, JobKind kind) {
   return r;
 }
 
+PreflightReport preflight_render(const RenderJob& job) {
+  PreflightReport r;
+  Checker c(r);
+  RunOptions o;
+  o.render = job;
+  check_inputs(o, c);
+  return r;
+}
+
 void require_preflight(const RunOptions& o, JobKind kind) {
   const PreflightReport r = preflight(o, kind);
   if (!r.ok()) throw Error(r.message());

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/pipeline.hpp"
+#include "dvs/run_record.hpp"
 
 namespace dvs {
 
@@ -37,10 +38,8 @@ struct RunRecordExtras {
   nlohmann::json depth_estimate;
 };
 
-// A run.json turned back into `dvs run` arguments ("--video", "/abs/v.mp4", ...): every input and setting the
-// run used, so that running them repeats it (kept next to the writer so the two cannot drift apart).
-// Throws dvs::Error naming the file and the key when it is not a run.json dvs wrote.
-std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json);
+// run_record_arguments (run.json back into `dvs run` arguments) is public, dvs/run_record.hpp; it is defined in
+// run_record.cpp next to the writer so the two cannot drift apart.
 
 void write_run_record(const std::filesystem::path& path, const RunOptions& o, const RunReport& r, const RunRecordExtras& x);
 

@@ -1,0 +1,37 @@
+# The dvs program is the first user of the library's public API: every header a file of engine/cli includes must
+# be one of the program's own (engine/cli) or a public one (engine/include/dvs), never one of the library's
+# internal headers (engine/src: pipeline/, vk/, tensor/, models/, io/, ...). Third-party and system headers in
+# <...> are fine unless they resolve to engine/src. Run: cmake -DSOURCE_DIR=<repository> -P check_cli_includes.cmake
+if(NOT SOURCE_DIR)
+  message(FATAL_ERROR "give -DSOURCE_DIR=<the repository root>")
+endif()
+set(cli_dir ${SOURCE_DIR}/engine/cli)
+file(GLOB cli_files ${cli_dir}/*.cpp ${cli_dir}/*.hpp)
+set(bad "")
+foreach(file ${cli_files})
+  file(STRINGS ${file} lines REGEX "^[ \t]*#[ \t]*include")
+  foreach(line ${lines})
+    string(REGEX MATCH "[\"<]([^\">]+)[\">]" _ "${line}")
+    set(header "${CMAKE_MATCH_1}")
+    string(FIND "${line}" "\"" quoted)
+    if(quoted GREATER -1)
+      # "..." may only name the program's own files or dvs/ public headers.
+      if(EXISTS ${cli_dir}/${header})
+        continue()
+      endif()
+      if(header MATCHES "^dvs/" AND EXISTS ${SOURCE_DIR}/engine/include/${header})
+        continue()
+      endif()
+      list(APPEND bad "${file}: #include \"${header}\"")
+    elseif(EXISTS ${SOURCE_DIR}/engine/src/${header})
+      list(APPEND bad "${file}: #include <${header}> (an internal header of engine/src)")
+    endif()
+  endforeach()
+endforeach()
+if(bad)
+  list(JOIN bad "\n  " listed)
+  message(FATAL_ERROR "engine/cli includes headers outside engine/include/dvs and engine/cli; make what the program "
+                      "needs public API (engine/include/dvs) instead:\n  ${listed}")
+endif()
+list(LENGTH cli_files n)
+message(STATUS "engine/cli: ${n} files, every include public or the program's own")

@@ -1,0 +1,78 @@
+// dvs/plan.hpp on the memory planner (pipeline/memory_plan): the request checked against the model first, so a
+// size the model cannot take is the caller's usage error, not a failure of the plan.
+#include "dvs/plan.hpp"
+
+#include <algorithm>
+
+#include "dvs/usage_error.hpp"
+#include "models/cogvideox/cogvideox_transformer.hpp"
+#include "models/vda/vda_model.hpp"
+#include "pipeline/memory_plan.hpp"
+
+namespace dvs {
+namespace {
+
+// The checks plan_memory makes on the request, as usage errors: the VAE compresses time by 4 after the first
+// frame, and a frame must be whole latent patches.
+void require_plannable(const pipeline::PlanModel& pm, const MemoryPlanRequest& req) {
+  if (req.frames < 1 || (req.frames - 1) % 4 != 0)
+    throw UsageError("--frames must be 4k+1 (1, 5, 9, ..., 49), got " + std::to_string(req.frames) +
+                     ": the VAE compresses time by 4 after the first frame");
+  if (req.alignment == 0 || (req.alignment & (req.alignment - 1)) != 0)
+    throw UsageError("--alignment must be a power of two, got " + std::to_string(req.alignment));
+  const auto tcfg = models::CogVideoXTransformerConfig::from_json(pm.transformer, "transformer config");
+  const int64_t r = models::VaeConfig::from_json(pm.vae).spatial_ratio(), cell = r * tcfg.patch_size;
+  if (req.height < cell || req.width < cell || req.height % cell || req.width % cell)
+    throw UsageError("--height and --width must be positive multiples of " + std::to_string(cell) + " for " + pm.source +
+                     " (VAE ratio " + std::to_string(r) + " x patch " + std::to_string(tcfg.patch_size) + "), got " +
+                     std::to_string(req.height) + "x" + std::to_string(req.width) + "; e.g. " +
+                     std::to_string(std::max(cell, req.height / cell * cell)) + "x" +
+                     std::to_string(std::max(cell, req.width / cell * cell)));
+}
+
+}  // namespace
+
+bool is_builtin_model(const std::string& name) { return pipeline::is_builtin_model(name); }
+
+uint64_t parse_byte_size(const std::string& text, const std::string& option) {
+  try {
+    return pipeline::parse_byte_size(text, option);
+  } catch (const UsageError&) {
+    throw;
+  } catch (const Error& e) {
+    throw UsageError(e.what());  // a malformed size is the caller's to fix
+  }
+}
+
+MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
+  const pipeline::PlanModel pm = pipeline::is_builtin_model(request.model) ? pipeline::builtin_plan_model(request.model)
+                                                                           : pipeline::plan_model_from_folder(request.model);
+  require_plannable(pm, request);
+  pipeline::PlanRequest req;
+  req.frames = request.frames, req.height = request.height, req.width = request.width;
+  req.budget = request.budget;
+  req.alignment = request.alignment;
+  if (request.limits) {
+    const DeviceLimits& l = *request.limits;
+    req.limits = pipeline::PlanLimits{l.source, l.binding, l.texels, l.alloc, l.groups};
+    req.alignment = std::max(req.alignment, l.alignment);
+    if (!req.budget && l.memory) req.budget = l.memory;
+  }
+  if (!request.depth_model.empty()) {
+    const std::string& m = request.depth_model;
+    req.depth_model = (m == "vits" || m == "vitb" || m == "vitl") ? released_vda_config(m) : VdaModel::inspect(m);
+    req.depth_input_size = request.depth_input_size;
+    req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
+  }
+  const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
+  MemoryPlanReport r;
+  r.checked = plan.checked();
+  r.runs = !plan.checked() || plan.chosen >= 0;
+  r.weights_bytes = plan.weights_total;
+  r.run_peak_bytes = plan.run_peak;
+  r.table = pipeline::format_plan_table(plan);
+  r.json = pipeline::plan_to_json(plan).dump(2);
+  return r;
+}
+
+}  // namespace dvs
