@@ -6,6 +6,7 @@
 #include "depth_args.hpp"
 #include "dvs/error.hpp"
 #include "dvs/render.hpp"
+#include "pipeline/duration_text.hpp"
 
 namespace dvs::cli {
 
@@ -77,8 +78,8 @@ int run_render(const std::vector<std::string>& argv) {
     job.fx = k[0], job.fy = k[1], job.cx = k[2], job.cy = k[3];
   }
   RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; });
-  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << s.seconds_decode
-            << " s, render " << s.seconds_render << " s, write " << s.seconds_write << " s)\n"
+  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << duration_text(s.seconds_decode)
+            << ", render " << duration_text(s.seconds_render) << ", write " << duration_text(s.seconds_write) << ")\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "
             << s.poses_json.string() << "\n";
   if (!s.scene_glb.empty()) std::cout << "  " << s.scene_glb.string() << "\n";

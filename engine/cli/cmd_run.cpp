@@ -11,6 +11,7 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/lora_file.hpp"
+#include "pipeline/duration_text.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/run_record.hpp"
 #include "interrupt.hpp"
@@ -85,7 +86,7 @@ ProgressMode progress_mode(const Args& a) { return parse_progress_mode(a.str("pr
 void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache) {
   if (mode == ProgressMode::quiet) return;
   std::cerr << "stage times:";
-  for (const auto& s : stages) std::cerr << " " << s.stage << " " << s.seconds << "s";
+  for (const auto& s : stages) std::cerr << " " << s.stage << " " << duration_text(s.seconds);
   std::cerr << (inversion_from_cache ? "  (inversion from the cache)" : "") << "\n";
 }
 
