@@ -26,7 +26,10 @@ static const char* kDepthHelp =
     "  --input-size N        network input's short side, a multiple of 14 (default 518, the model's)\n"
     "  --frames N            first N frames (default 0 = all)\n"
     "  --max-res N           scale frames whose long side exceeds N down first (default 1280; 0 = never)\n"
-    "  --progress bar|json|none   progress output (default bar; one step per window); --quiet = none\n"
+    "  --cache-dir DIR       the depth cache, shared with run/render --depth-model (default $DVS_CACHE_DIR or\n"
+    "                        ~/.cache/dvs): the same estimate is never made twice\n"
+    "  --no-cache            estimate again even when the cache holds this estimate\n"
+    "  --progress bar|json|none   progress output (default bar; steps within each window); --quiet = none\n"
     "  --device I|NAME       Vulkan device\n";
 
 std::filesystem::path depth_model_argument(const Args& a) {
@@ -37,7 +40,8 @@ std::filesystem::path depth_model_argument(const Args& a) {
 }
 
 int run_depth(const std::vector<std::string>& argv) {
-  Args a("depth", argv, {"video", "out", "depth-model", "input-size", "frames", "max-res", "progress", "device"}, {"quiet"});
+  Args a("depth", argv, {"video", "out", "depth-model", "input-size", "frames", "max-res", "progress", "device", "cache-dir"},
+         {"quiet", "no-cache"});
   if (a.help()) {
     std::cout << kDepthHelp;
     return 0;
@@ -51,16 +55,17 @@ int run_depth(const std::vector<std::string>& argv) {
   job.frames = a.integer("frames", 0, 0, 1000000);
   job.max_res = a.integer("max-res", job.max_res, 0, 100000);
   job.device = a.str("device");
+  job.cache_dir = a.str("cache-dir");
+  job.refresh_cache = a.has("no-cache");
   const ProgressMode mode = parse_progress_mode(a.str("progress"), a.has("quiet"));
   Progress progress(mode);
+  job.notice = [&](const std::string& line) {  // kept on screen whatever the progress mode
+    progress.finish();
+    std::cerr << "dvs depth: " << line << "\n";
+  };
   const DepthSummary s = estimate_depth(job, out, std::ref(progress), interrupted);
   progress.finish();
-  if (mode != ProgressMode::quiet)
-    std::cerr << "depth of " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW) with "
-              << s.model_size << (s.metric ? " (metric)" : "") << ", network input " << s.input_height << "x"
-              << s.input_width << ", " << s.windows << " windows: decode " << s.seconds_decode << " s, load "
-              << s.seconds_load << " s, depth " << s.seconds_depth << " s (" << (s.frames / std::max(1e-9, s.seconds_depth))
-              << " frames/s)\n";
+  if (mode != ProgressMode::quiet) std::cerr << describe(s) << "\n";
   std::cout << out.string() << "\n";
   return 0;
 }
