@@ -2,7 +2,8 @@
 // (models/random/vda_random, the conformance pack's architecture): progress moves inside one window, a
 // cancellation asked from the progress callback stops at the next step, the output is checked before any work,
 // dvs depth and --depth-model share one cache entry, a model with NaN weights is an error that caches nothing,
-// and a long estimate is forecast with the options that make it cheaper.
+// a long estimate is forecast with the options that make it cheaper, and run's depth stage says when it only
+// reads the cache.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,6 +17,8 @@
 #include "models/random/vda_random.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/duration_text.hpp"
+#include "pipeline/job_stages.hpp"
+#include "pipeline/stage_tracker.hpp"
 #include "spec/vda_config.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -194,6 +197,23 @@ TEST_F(DepthEstimate, ALongEstimateIsForecastWithWhatMakesItCheaper) {
   j.refresh_cache = true;
   estimate_depth(j, in.dir / "d.npy", record());
   EXPECT_TRUE(notices.empty());
+}
+
+// run's depth stage announces what it does: "estimating depth" when it estimates, "reading the cached estimate"
+// when the cache holds it (not "estimating" for a read that takes a moment).
+TEST_F(DepthEstimate, TheDepthStageSaysWhenItReadsTheCache) {
+  RunOptions o = in.run_options(in.dir / "out", in.cache);
+  o.render.depth_model = model;
+  o.render.depth_input_size = 28;
+  for (const char* expected : {"estimating depth with vda_random.safetensors", "reading the cached estimate of vda_random"}) {
+    events.clear();
+    StageTracker stages(record(), {});
+    const nlohmann::json d = depth_stage(o, stages);
+    ASSERT_FALSE(events.empty());
+    EXPECT_EQ(events.front().stage, "depth");
+    EXPECT_EQ(events.front().note.rfind(expected, 0), 0u) << events.front().note;
+    EXPECT_EQ(d.at("from_cache").get<bool>(), std::string(expected).rfind("reading", 0) == 0);
+  }
 }
 
 TEST(DurationText, ThreeSignificantDigitsAtMost) {
