@@ -175,31 +175,37 @@ TEST_F(CliDepth, NaNWeightsAreAnErrorAndNothingIsCached) {
   EXPECT_EQ(npy_files_below(in.cache), 0u) << "the broken estimate was cached";
 }
 
-// Ctrl-C inside a window: acknowledged at once ("stopping…"), honoured at the next step (seconds), exit 130,
-// nothing written.
+// Ctrl-C inside a window, in dvs depth and in render --depth-model: acknowledged at once ("stopping…"),
+// honoured at the next step (seconds, not the window's end), exit 130, nothing written.
 TEST_F(CliDepth, CtrlCInsideAWindowIsAcknowledgedAndHonoured) {
   test::PipelineInputs in;
   const auto log = in.dir / "log.txt";
-  const int pid = test::start_command(depth_json_cmd(in, in.dir / "d.npz", "--input-size 252 --cache-dir " +
-                                                                        in.cache.string()) +
-                                      " > " + log.string() + " 2>&1");
-  ASSERT_GT(pid, 0);
-  bool started = false;
-  for (int i = 0; i < 12000 && !started; ++i) {  // up to two minutes for the first step
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    started = test::read_text(log).find("\"stage\":\"depth\",\"step\":1,") != std::string::npos;
+  const std::string depth = depth_json_cmd(in, in.dir / "d.npz", "--input-size 252 --cache-dir " + in.cache.string());
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --frames 9 --size 64x64 " +
+                             "--no-glb --depth-model " + test::vda_checkpoint_path().string() + " --depth-input-size 252 " +
+                             "--cache-dir " + in.cache.string() + " --out " + (in.dir / "o").string();
+  // The first step inside the window, as each command reports it.
+  for (const auto& [cmd, first_step] : {std::pair{depth, std::string("\"stage\":\"depth\",\"step\":1,")},
+                                        std::pair{render, std::string("depth: step 1/")}}) {
+    const int pid = test::start_command(cmd + " > " + log.string() + " 2>&1");
+    ASSERT_GT(pid, 0);
+    bool started = false;
+    for (int i = 0; i < 12000 && !started; ++i) {  // up to two minutes for the first step
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      started = test::read_text(log).find(first_step) != std::string::npos;
+    }
+    ASSERT_TRUE(started) << test::read_text(log);
+    const auto t = std::chrono::steady_clock::now();
+    kill(pid, SIGINT);
+    EXPECT_EQ(test::wait_command(pid), 130) << test::read_text(log);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    const std::string output = test::read_text(log);
+    EXPECT_NE(output.find("stopping"), std::string::npos) << output;
+    EXPECT_LT(seconds, 30.0) << "Ctrl-C waited for the window to end";
+    EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npz"));
+    EXPECT_FALSE(std::filesystem::exists(in.dir / "o" / "render.mp4"));
+    EXPECT_EQ(npy_files_below(in.cache), 0u);
   }
-  ASSERT_TRUE(started) << test::read_text(log);
-  const auto t = std::chrono::steady_clock::now();
-  kill(pid, SIGINT);
-  EXPECT_EQ(test::wait_command(pid), 130) << test::read_text(log);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-  const std::string output = test::read_text(log);
-  EXPECT_NE(output.find("stopping"), std::string::npos) << output;
-  EXPECT_LT(seconds, 30.0) << "Ctrl-C waited for the window to end";
-  EXPECT_EQ(output.find("\"step\":" + std::string("1,\"total\":1,")), std::string::npos) << output;
-  EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npz"));
-  EXPECT_EQ(npy_files_below(in.cache), 0u);
 }
 
 TEST(CliDepthErrors, ProblemsAreNamedBeforeAnyWork) {

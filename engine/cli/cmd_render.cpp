@@ -4,6 +4,7 @@
 #include "args.hpp"
 #include "commands.hpp"
 #include "depth_args.hpp"
+#include "interrupt.hpp"
 #include "dvs/error.hpp"
 #include "dvs/render.hpp"
 #include "pipeline/duration_text.hpp"
@@ -77,7 +78,7 @@ int run_render(const std::vector<std::string>& argv) {
     auto k = a.numbers("intrinsics", 4);
     job.fx = k[0], job.fy = k[1], job.cx = k[2], job.cy = k[3];
   }
-  RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; });
+  RenderSummary s = render_novel_view(job, [](const std::string& line) { std::cerr << "dvs: " << line << "\n"; }, interrupted);
   std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << duration_text(s.seconds_decode)
             << ", render " << duration_text(s.seconds_render) << ", write " << duration_text(s.seconds_write) << ")\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "

@@ -114,7 +114,8 @@ HostTensor mask_as_video(const HostTensor& mask) {
   return v;
 }
 
-RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress) {
+RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress,
+                                const std::function<bool()>& cancelled) {
   RenderJob job = job_in;
   if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
     const nlohmann::json d = resolve_depth_model(
@@ -128,7 +129,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
           progress(total > 0 ? "depth: step " + std::to_string(step) + "/" + std::to_string(total) + " (" + note + ")"
                              : "depth: " + note);
         },
-        {});
+        cancelled);
     if (progress) {
       if (d.at("from_cache").get<bool>()) {
         progress("depth from the cache: " + d.at("file").get<std::string>());
@@ -141,6 +142,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
       }
     }
   }
+  if (cancelled && cancelled()) throw Cancelled();
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);
