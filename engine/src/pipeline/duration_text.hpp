@@ -1,5 +1,6 @@
-// Seconds as a person reads them, for stage times and forecasts: three significant digits at most ("0.41 s",
-// "12.3 s", "4 min 05 s", "1 h 12 min"), never the 6-9 digits of a default stream.
+// Seconds as a person reads them, for stage times and forecasts: three significant digits below a minute ("0.41 s",
+// "12.3 s"), whole seconds below an hour ("4 min 05 s"), whole minutes above ("1 h 12 min"); never the 6-9
+// digits of a default stream.
 #pragma once
 #include <string>
 
