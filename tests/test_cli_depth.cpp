@@ -4,8 +4,13 @@
 // depth given with --depth renders the same mask; problems are named before any work.
 #include <gtest/gtest.h>
 
+#include <signal.h>
+
+#include <chrono>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "io/depth.hpp"
 #include "io/npy.hpp"
@@ -16,6 +21,7 @@
 #include "support/gpu.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
+#include "support/pth_edit.hpp"
 #include "support/vda_pack.hpp"
 
 namespace dvs {
@@ -107,6 +113,101 @@ TEST_F(CliDepth, RunRecordsTheEstimateAndReplaysIt) {
   EXPECT_EQ(record2["inputs"]["depth_input_size"], 28);
 }
 
+// depth_cmd with JSON progress events instead of --quiet.
+std::string depth_json_cmd(const test::PipelineInputs& in, const std::filesystem::path& out, const std::string& extra) {
+  std::string c = depth_cmd(in, out, extra);
+  return c.replace(c.find(" --quiet"), 8, " --progress json");
+}
+
+size_t npy_files_below(const std::filesystem::path& dir) {
+  size_t n = 0;
+  std::error_code ec;
+  if (std::filesystem::exists(dir))
+    for (const auto& e : std::filesystem::recursive_directory_iterator(dir, ec)) n += e.path().extension() == ".npy";
+  return n;
+}
+
+// An --out that cannot be written is found before the estimate (no progress event), with the right hint; a
+// missing folder is made; the estimate goes through the depth cache that --depth-model reads, so a retry with
+// another --out, and render --depth-model with the same settings, reuse it.
+TEST_F(CliDepth, OutputIsCheckedFirstAndTheEstimateIsCachedForEveryone) {
+  test::PipelineInputs in;
+  test::write_text(in.dir / "file", "x");
+  const std::string opts = " --input-size 28 --frames 9 --cache-dir " + in.cache.string();
+  auto bad = test::run_command(depth_json_cmd(in, in.dir / "file" / "d.npz", opts));
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("is not a folder"), std::string::npos) << bad.output;
+  EXPECT_EQ(bad.output.find("disk"), std::string::npos) << "the wrong hint:\n" << bad.output;
+  EXPECT_EQ(bad.output.find("\"stage\":\"depth\""), std::string::npos) << "estimated before checking --out:\n" << bad.output;
+  EXPECT_EQ(npy_files_below(in.cache), 0u);
+
+  auto first = test::run_command(depth_json_cmd(in, in.dir / "new" / "d.npz", opts));
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  EXPECT_NE(first.output.find("\"stage\":\"depth\""), std::string::npos) << first.output;
+  EXPECT_EQ(npy_files_below(in.cache), 1u) << "dvs depth did not keep its estimate in the depth cache";
+  auto retry = test::run_command(depth_json_cmd(in, in.dir / "new" / "e.npy", opts));
+  ASSERT_EQ(retry.exit_code, 0) << retry.output;
+  EXPECT_EQ(retry.output.find("\"stage\":\"depth\""), std::string::npos) << "estimated again:\n" << retry.output;
+  EXPECT_NE(retry.output.find("from the depth cache"), std::string::npos) << retry.output;
+  EXPECT_EQ(read_depth_array(in.dir / "new" / "e.npy").data, read_depth_array(in.dir / "new" / "d.npz").data);
+  auto render = test::run_command(test::program("dvs") + " render --video " + in.video.string() + " --frames 9 --size 64x64 " +
+                                  "--no-glb --depth-model " + test::vda_checkpoint_path().string() +
+                                  " --depth-input-size 28 --cache-dir " + in.cache.string() + " --out " + (in.dir / "o").string());
+  ASSERT_EQ(render.exit_code, 0) << render.output;
+  EXPECT_NE(render.output.find("depth from the cache"), std::string::npos) << render.output;
+}
+
+// A valid .pth whose weights are NaN: an error naming the model and how to find the cause, exit 1, no depth
+// file and nothing in the cache (a later run must not find a zero estimate there).
+TEST_F(CliDepth, NaNWeightsAreAnErrorAndNothingIsCached) {
+  test::PipelineInputs in;
+  const auto nan_model = in.dir / "video_depth_anything_nan.pth";
+  std::filesystem::copy_file(test::vda_golden_path() / "model" / "config.json", in.dir / "config.json");  // its size
+  test::write_pth_filled(test::vda_checkpoint_path(), nan_model, "pretrained.blocks.0.attn.qkv.weight",
+                         std::numeric_limits<float>::quiet_NaN());
+  auto r = test::run_command(test::program("dvs") + " depth --quiet --video " + in.video.string() + " --depth-model " +
+                             nan_model.string() + " --input-size 28 --frames 9 --cache-dir " + in.cache.string() +
+                             " --out " + (in.dir / "d.npz").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("video_depth_anything_nan.pth"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("inspect --values"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npz"));
+  EXPECT_EQ(npy_files_below(in.cache), 0u) << "the broken estimate was cached";
+}
+
+// Ctrl-C inside a window, in dvs depth and in render --depth-model: acknowledged at once ("stopping…"),
+// honoured at the next step (seconds, not the window's end), exit 130, nothing written.
+TEST_F(CliDepth, CtrlCInsideAWindowIsAcknowledgedAndHonoured) {
+  test::PipelineInputs in;
+  const auto log = in.dir / "log.txt";
+  const std::string depth = depth_json_cmd(in, in.dir / "d.npz", "--input-size 252 --cache-dir " + in.cache.string());
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --frames 9 --size 64x64 " +
+                             "--no-glb --depth-model " + test::vda_checkpoint_path().string() + " --depth-input-size 252 " +
+                             "--cache-dir " + in.cache.string() + " --out " + (in.dir / "o").string();
+  // The first step inside the window, as each command reports it.
+  for (const auto& [cmd, first_step] : {std::pair{depth, std::string("\"stage\":\"depth\",\"step\":1,")},
+                                        std::pair{render, std::string("depth: step 1/")}}) {
+    const int pid = test::start_command(cmd + " > " + log.string() + " 2>&1");
+    ASSERT_GT(pid, 0);
+    bool started = false;
+    for (int i = 0; i < 12000 && !started; ++i) {  // up to two minutes for the first step
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      started = test::read_text(log).find(first_step) != std::string::npos;
+    }
+    ASSERT_TRUE(started) << test::read_text(log);
+    const auto t = std::chrono::steady_clock::now();
+    kill(pid, SIGINT);
+    EXPECT_EQ(test::wait_command(pid), 130) << test::read_text(log);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    const std::string output = test::read_text(log);
+    EXPECT_NE(output.find("stopping"), std::string::npos) << output;
+    EXPECT_LT(seconds, 30.0) << "Ctrl-C waited for the window to end";
+    EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npz"));
+    EXPECT_FALSE(std::filesystem::exists(in.dir / "o" / "render.mp4"));
+    EXPECT_EQ(npy_files_below(in.cache), 0u);
+  }
+}
+
 TEST(CliDepthErrors, ProblemsAreNamedBeforeAnyWork) {
   test::PipelineInputs in;
   const std::string dvs = test::program("dvs");
@@ -130,6 +231,17 @@ TEST(CliDepthErrors, ProblemsAreNamedBeforeAnyWork) {
   auto bad_out = test::run_command(dvs + " depth --video " + in.video.string() + " --depth-model " +
                                    test::vda_checkpoint_path().string() + " --out " + (in.dir / "d.txt").string());
   EXPECT_EQ(bad_out.exit_code, 2) << bad_out.output;
+  // Another model's weights are named as such, by dvs depth and by the preflight.
+  const auto transformer = test::golden_path() / "model" / "transformer" / "diffusion_pytorch_model.safetensors";
+  auto wrong = test::run_command(dvs + " depth --video " + in.video.string() + " --depth-model " + transformer.string() +
+                                 " --out " + (in.dir / "d.npz").string());
+  EXPECT_EQ(wrong.exit_code, 1) << wrong.output;
+  EXPECT_NE(wrong.output.find("not a Video-Depth-Anything checkpoint"), std::string::npos) << wrong.output;
+  auto wrong_run = test::run_command(dvs + " run --check --video " + in.video.string() + " --depth-model " + transformer.string() +
+                                     " --model " + in.model.string() + " --prompt x --frames 9 --size 64x64 --out " +
+                                     (in.dir / "r").string());
+  EXPECT_EQ(wrong_run.exit_code, 1) << wrong_run.output;
+  EXPECT_NE(wrong_run.output.find("not a Video-Depth-Anything checkpoint"), std::string::npos) << wrong_run.output;
   // run: a corrupt depth model is found by the preflight (no model load, no device work).
   auto run = test::run_command(dvs + " run --check --video " + in.video.string() + " --depth-model " + junk.string() +
                                " --model " + in.model.string() + " --prompt x --frames 9 --size 64x64 --out " +

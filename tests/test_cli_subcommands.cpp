@@ -75,11 +75,12 @@ TEST(CliEncodePrompt, MatchesTheT5Golden) {
 TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
   PipelineInputs in;
   const auto jobs = in.dir / "jobs.jsonl";
-  // Job 3's depth has 5 frames for the 9-frame video: it passes the batch's up-front checks and fails in its
-  // render stage (a trajectory that does not exist would stop the whole shard before any job, see
-  // BatchPreflight in test_run_preflight.cpp).
+  // Job 3's metric depth is negative everywhere: it passes the batch's up-front checks (they read the header:
+  // frames, size) and fails in its render stage, where the values are read (a trajectory that does not exist or
+  // a depth of the wrong length would stop the whole shard before any job, see BatchPreflight in
+  // test_run_preflight.cpp).
   const int kJobs = 5, kBad = 3;
-  test::PipelineInputs::write_scene_depth(in.dir / "depth5.npy", 5);
+  write_npy(in.dir / "depth_bad.npy", HostTensor::from_f32({9, 64, 64}, std::vector<float>(9 * 64 * 64, -1.0f)));
   {
     std::ofstream f(jobs);
     f << "# video, depth and model come from the command line\n";
@@ -88,7 +89,7 @@ TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
                          {"out", (in.dir / ("out" + std::to_string(i))).string()},
                          {"trajectory", i % 2 ? "pan_left:5" : "loop1"},
                          {"seed", i}};
-      if (i == kBad) job["depth"] = (in.dir / "depth5.npy").string();
+      if (i == kBad) job["depth"] = (in.dir / "depth_bad.npy").string();
       f << job.dump() << "\n" << (i == 1 ? "\n" : "");  // a blank line is not a job
     }
   }
@@ -102,7 +103,7 @@ TEST(CliBatch, ShardsCoverEveryJobOnceFailuresAreReportedAndReRunsSkip) {
     for (std::string s = r.output; std::regex_search(s, m, std::regex("job (\\d+) \\(jobs.jsonl:\\d+\\): running")); s = m.suffix())
       runs[std::stoi(m[1].str())]++;
     if (has_bad) EXPECT_NE(r.output.find("job 3 (jobs.jsonl:"), std::string::npos) << r.output;
-    if (has_bad) EXPECT_NE(r.output.find("depth5.npy"), std::string::npos) << r.output;
+    if (has_bad) EXPECT_NE(r.output.find("depth_bad.npy"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("failed"), std::string::npos) << "summary line\n" << r.output;
   }
   for (int i = 0; i < kJobs; ++i) {

@@ -134,6 +134,40 @@ TEST(RunPreflight, ExplicitOutOfRangeValuesAreErrorsNotTheDefault) {
   }
 }
 
+// The depth file's frame count (its header) against the frames the job uses: found by run --check and by
+// batch's up-front check, not in the render stage.
+TEST(RunPreflight, DepthFramesAgainstFramesAreChecked) {
+  PipelineInputs in;
+  const auto fewer = in.dir / "depth5.npy", more = in.dir / "depth12.npy";
+  PipelineInputs::write_scene_depth(fewer, 5);
+  PipelineInputs::write_scene_depth(more, 12);
+  auto with_depth = [&](const std::filesystem::path& depth, const std::string& extra) {
+    std::string cmd = in.command(in.dir / "out", "--check " + extra);
+    return test::run_command(cmd.replace(cmd.find(in.depth.string()), in.depth.string().size(), depth.string()));
+  };
+  auto r = with_depth(fewer, "");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("depth5.npy: holds 5 depth frames, fewer than --frames 9; give depth for every frame, or --frames 5"),
+            std::string::npos) << r.output;
+  r = with_depth(more, "");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("--trim-depth uses its first 9"), std::string::npos) << r.output;
+  r = with_depth(more, "--trim-depth");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = with_depth(in.depth, "");
+  EXPECT_EQ(r.exit_code, 0) << "the matching depth was refused:\n" << r.output;
+
+  const auto jobs = in.dir / "jobs.jsonl";
+  test::write_text(jobs, "{\"video\": \"" + in.video.string() + "\", \"depth\": \"" + fewer.string() +
+                             "\", \"metric-depth\": true, \"prompt\": \"a fox\", \"out\": \"" + (in.dir / "a").string() + "\"}\n");
+  auto b = test::run_command(test::program("dvs") + " batch " + jobs.string() + " --model " + in.model.string() +
+                             " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + in.cache.string());
+  EXPECT_NE(b.exit_code, 0) << b.output;
+  EXPECT_NE(b.output.find("holds 5 depth frames"), std::string::npos) << b.output;
+  EXPECT_EQ(b.output.find(": running ->"), std::string::npos) << b.output;
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "a"));
+}
+
 TEST(BatchPreflight, TheWholeFileIsCheckedBeforeTheFirstJob) {
   PipelineInputs in;
   const std::string common = "\"video\": \"" + in.video.string() + "\", \"depth\": \"" + in.depth.string() +

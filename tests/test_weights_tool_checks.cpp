@@ -11,6 +11,8 @@
 #include "io/safetensors.hpp"
 #include "support/files.hpp"
 #include "support/process.hpp"
+#include "support/pth_edit.hpp"
+#include "support/vda_pack.hpp"
 
 namespace dvs {
 namespace {
@@ -79,6 +81,32 @@ TEST(WeightsToolValues, InfinityInBf16IsFoundInASingleFile) {
   const uint16_t finite = 0x7f7f;
   poke(d / "n" / kTransformer, kWeight, 5, &finite, 2);
   EXPECT_EQ(test::run_command(kTool + " inspect --values " + (d / "n" / kTransformer).string()).exit_code, 0);
+}
+
+// A .pth is checked as the loaders read it: NaN weights in a valid archive, and a record whose CRC fails (which
+// dvs depth refuses), both fail --values naming the tensor; the intact file passes.
+TEST(WeightsToolValues, PthNaNAndDamagedRecordsAreFound) {
+  test::TempDir d;
+  const auto pack = test::vda_checkpoint_path();
+  const std::string tensor = "pretrained.blocks.0.attn.qkv.weight";
+  fs::copy_file(pack.parent_path() / "config.json", d / "config.json");  // the tiny size is described there
+  const auto clean = test::run_command(kTool + " inspect --summary --values " + pack.string());
+  EXPECT_EQ(clean.exit_code, 0) << clean.output;
+  EXPECT_NE(clean.output.find("values: OK"), std::string::npos) << clean.output;
+
+  test::write_pth_filled(pack, d / "nan.pth", tensor, std::numeric_limits<float>::quiet_NaN());
+  EXPECT_EQ(test::run_command(kTool + " inspect --summary " + (d / "nan.pth").string()).exit_code, 0)
+      << "the structure is fine: only reading the values finds the NaN";
+  const auto nan = test::run_command(kTool + " inspect --summary --values " + (d / "nan.pth").string());
+  EXPECT_EQ(nan.exit_code, 1) << nan.output;
+  EXPECT_NE(nan.output.find("tensor '" + tensor + "'"), std::string::npos) << nan.output;
+  EXPECT_NE(nan.output.find("holds NaN"), std::string::npos) << nan.output;
+
+  test::write_pth_bad_crc(pack, d / "crc.pth", tensor);
+  const auto crc = test::run_command(kTool + " inspect --summary --values " + (d / "crc.pth").string());
+  EXPECT_EQ(crc.exit_code, 1) << crc.output;
+  EXPECT_NE(crc.output.find("tensor '" + tensor + "'"), std::string::npos) << crc.output;
+  EXPECT_NE(crc.output.find("damaged"), std::string::npos) << crc.output;
 }
 
 TEST(WeightsToolInspect, ListedComponentWithoutWeightsFails) {

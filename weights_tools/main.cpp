@@ -20,6 +20,7 @@
 #include "spec/vda_config.hpp"
 #include "spec/model_schema.hpp"
 #include "io/npy.hpp"
+#include "io/pth_file.hpp"
 #include "io/safetensors.hpp"
 #include "io/third_party_logs.hpp"
 #include "convert_pth.hpp"
@@ -44,7 +45,8 @@ commands:
       --summary  totals and schema check only, no per-tensor lines.
       --values   also read every floating-point weight and fail (exit 1) on NaN or Inf, naming the tensor
                  and its first bad element (flat index and [i,j,...]); reads all the data, so it takes
-                 about as long as reading the files once.
+                 about as long as reading the files once. A .pth's records are read as dvs reads them, so a
+                 damaged one (CRC mismatch) fails too.
   make-tiny --out DIR [--real-size] [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
             [--time-embed-dim N] [--t5-layers N] [--t5-d-model N] [--t5-heads N] [--t5-d-kv N] [--t5-d-ff N]
             [--vocab N] [--text-len N] [--sample LHxLWxF] [--vae-channels a,b,c,d] [--vae-layers-per-block N]
@@ -244,6 +246,34 @@ class Inspector {
     return finish();
   }
 
+  // --values for a .pth: every tensor's record read as the loaders read it (so libzip checks its CRC, as
+  // dvs depth's load does) and every floating-point one scanned for NaN/Inf.
+  int pth_values(const fs::path& p) {
+    const dvs::PthFile f = dvs::PthFile::open(p);
+    size_t checked = 0, bad = 0;
+    for (const auto& t : f.tensors()) {
+      std::vector<uint8_t> bytes;
+      try {
+        bytes = f.read_bytes(t);
+      } catch (const dvs::Error& e) {
+        ++bad;
+        error(std::string(e.what()) + " (tensor '" + t.name + "'; the file is damaged: download or copy it again)");
+        continue;
+      }
+      if (!dvs::weights_tools::is_float_dtype(t.dtype_name)) continue;
+      ++checked;
+      const auto hit = dvs::weights_tools::first_non_finite(bytes, t.dtype_name);
+      if (!hit) continue;
+      ++bad;
+      error(p.string() + ": tensor '" + t.name + "' " + t.dtype_name + shape_list(t.shape) + " holds " +
+            (hit->nan ? "NaN" : "an infinite value") + ", first at element " + std::to_string(hit->index) + " " +
+            index_list(t.shape, hit->index));
+    }
+    if (bad == 0) std::cout << "  values: OK, every record reads back intact and all " << checked << " floating-point tensors are finite\n";
+    else std::cout << "  values: " << bad << " tensor(s) unreadable or holding NaN/Inf\n";
+    return finish();
+  }
+
   // Model classes hold weights; tokenizers and schedulers do not.
   static bool expects_weights(const std::string& cls) {
     auto ends = [&](const std::string& suffix) {
@@ -331,7 +361,10 @@ int inspect(const std::vector<std::string>& args) {
     }
     if (!fs::exists(p, ec)) throw dvs::Error(path + ": no such file or folder");
     if (ends_with(path, ".npy")) return ins.npy(p);
-    if (ends_with(path, ".pth") || ends_with(path, ".pt")) return dvs::weights_tools::inspect_pth(p, summary);
+    if (ends_with(path, ".pth") || ends_with(path, ".pt")) {
+      const int listed = dvs::weights_tools::inspect_pth(p, summary);
+      return values ? std::max(listed, ins.pth_values(p)) : listed;
+    }
     if (ends_with(path, ".safetensors") || ends_with(path, ".json")) return ins.weight_source(p, false);
     throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json, .pth or .npy");
   } catch (const dvs::Error& e) {

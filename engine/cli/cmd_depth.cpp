@@ -35,6 +35,13 @@ const OptionGroup kDepthEstimate{
      {"frames", "N", "first N frames (default 0 = all)"},
      {"max-res", "N", "scale frames whose long side exceeds N down first (default 1280; 0 = never)"}}};
 
+// The depth cache, shared with run/render --depth-model: the same estimate is never made twice.
+const OptionGroup kDepthEstimateCache{
+    "cache",
+    {{"cache-dir", "DIR", "the depth cache, shared with run/render --depth-model (default $DVS_CACHE_DIR or\n"
+                          "~/.cache/dvs)"},
+     {"no-cache", "", "estimate again even when the cache holds this estimate"}}};
+
 }  // namespace
 
 std::filesystem::path depth_model_argument(const Args& a) {
@@ -45,7 +52,7 @@ std::filesystem::path depth_model_argument(const Args& a) {
 }
 
 int run_depth(const std::vector<std::string>& argv) {
-  Args a("depth", kDepthHelp, {kDepthEstimate, kDevice, kProgressOutput});
+  Args a("depth", kDepthHelp, {kDepthEstimate, kDepthEstimateCache, kDevice, kProgressOutput});
   a.parse(argv);
   if (a.help()) return 0;
   const ProgressMode mode = progress_mode(a);
@@ -58,15 +65,16 @@ int run_depth(const std::vector<std::string>& argv) {
   job.frames = a.integer("frames", 0, 0, 1000000);
   job.max_res = a.integer("max-res", job.max_res, 0, 100000);
   job.device = a.str("device");
+  job.cache_dir = a.str("cache-dir");
+  job.refresh_cache = a.has("no-cache");
   Progress progress(mode);
+  job.notice = [&](const std::string& line) {  // kept on screen whatever the progress mode
+    progress.finish();
+    std::cerr << "dvs depth: " << line << "\n";
+  };
   const DepthSummary s = estimate_depth(job, out, std::ref(progress), interrupted);
   progress.finish();
-  if (mode != ProgressMode::quiet)
-    std::cerr << "depth of " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW) with "
-              << s.model_size << (s.metric ? " (metric)" : "") << ", network input " << s.input_height << "x"
-              << s.input_width << ", " << s.windows << " windows: decode " << s.seconds_decode << " s, load "
-              << s.seconds_load << " s, depth " << s.seconds_depth << " s (" << (s.frames / std::max(1e-9, s.seconds_depth))
-              << " frames/s)\n";
+  if (mode != ProgressMode::quiet) std::cerr << describe(s) << "\n";
   std::cout << out.string() << "\n";
   return 0;
 }

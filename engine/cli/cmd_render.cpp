@@ -5,11 +5,13 @@
 #include "args.hpp"
 #include "commands.hpp"
 #include "depth_args.hpp"
+#include "interrupt.hpp"
 #include "dvs/error.hpp"
 #include "dvs/preflight.hpp"
 #include "dvs/render.hpp"
 #include "options.hpp"
 #include "progress.hpp"
+#include "dvs/duration_text.hpp"
 
 namespace dvs::cli {
 namespace {
@@ -65,13 +67,16 @@ int run_render(const std::vector<std::string>& argv) {
     return 0;
   }
   Progress progress(mode);
-  const RenderSummary s = render_novel_view(job, [&](const std::string& line) {
-    if (mode == ProgressMode::bar) std::cerr << "dvs: " << line << "\n";
-    else progress("render", 0, 0, line);  // json: one event per line; quiet: nothing
-  });
+  const RenderSummary s = render_novel_view(
+      job,
+      [&](const std::string& line) {
+        if (mode == ProgressMode::bar) std::cerr << "dvs: " << line << "\n";
+        else progress("render", 0, 0, line);  // json: one event per line; quiet: nothing
+      },
+      interrupted);
   progress.finish();
-  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << s.seconds_decode
-            << " s, render " << s.seconds_render << " s, write " << s.seconds_write << " s)\n"
+  std::cout << "rendered " << s.frames << " frames at " << s.height << "x" << s.width << " (HxW)" << " (decode " << duration_text(s.seconds_decode)
+            << ", render " << duration_text(s.seconds_render) << ", write " << duration_text(s.seconds_write) << ")\n"
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "
             << s.poses_json.string() << "\n";
   if (!s.scene_glb.empty()) std::cout << "  " << s.scene_glb.string() << "\n";

@@ -14,6 +14,7 @@
 #include "dvs/preflight.hpp"
 #include "dvs/run_record.hpp"
 #include "dvs/usage_error.hpp"
+#include "dvs/duration_text.hpp"
 #include "interrupt.hpp"
 #include "depth_args.hpp"
 #include "options.hpp"
@@ -43,7 +44,7 @@ const OptionGroup kReplay{
 void print_stage_times(ProgressMode mode, const std::vector<StageTime>& stages, bool inversion_from_cache) {
   if (mode == ProgressMode::quiet) return;
   std::cerr << "stage times:";
-  for (const auto& s : stages) std::cerr << " " << s.stage << " " << s.seconds << "s";
+  for (const auto& s : stages) std::cerr << " " << s.stage << " " << duration_text(s.seconds);
   std::cerr << (inversion_from_cache ? "  (inversion from the cache)" : "") << "\n";
 }
 

@@ -11,6 +11,9 @@ bool interrupted();
 // The exit code of a job stopped by a signal (128 + SIGINT, as shells report it).
 constexpr int kInterruptedExitCode = 130;
 
+// Written to stderr by the first signal's handler, the moment it arrives.
+inline constexpr char kStoppingMessage[] = "\ndvs: stopping… (finishing the current step; Ctrl-C again to quit at once)\n";
+
 // Signals this close to the first one (nanoseconds) count as the same Ctrl-C.
 constexpr long long kSameInterruptNs = 500'000'000LL;
 

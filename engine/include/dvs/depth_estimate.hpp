@@ -19,6 +19,15 @@ struct DepthJob {
   int max_res = 1280;           // frames whose long side exceeds this are scaled down first (run.py --max_res)
   std::optional<bool> metric;   // unset: the checkpoint's mode (metric_* files are metric)
   std::string device;
+  // The depth cache every estimate goes through (shared by dvs depth and --depth-model, same key), so a failed
+  // write or a retry never repeats the work. Empty: $DVS_CACHE_DIR or ~/.cache/dvs.
+  std::filesystem::path cache_dir;
+  bool refresh_cache = false;  // estimate again even when the cache holds this estimate (--no-cache)
+  // Lines to keep apart from the progress (the forecast of a long estimate, a damaged cache entry replaced).
+  // Unset: sent as progress notes of stage "depth".
+  std::function<void(const std::string&)> notice;
+  double forecast_after_s = 60;  // forecast the cost of estimates expected to take at least this long
+  std::string input_size_option = "--input-size";  // how messages name the option (run: --depth-input-size)
 };
 
 struct DepthSummary {
@@ -27,25 +36,36 @@ struct DepthSummary {
   int windows = 0;
   std::string model_size;                 // "vits", ... or the config's name
   bool metric = false;
-  uint64_t weight_bytes = 0, peak_device_bytes = 0;
+  uint64_t weight_bytes = 0, peak_device_bytes = 0;         // of an estimate made now
   double seconds_decode = 0, seconds_load = 0, seconds_depth = 0;
+  bool from_cache = false;                                    // taken from the depth cache, not estimated now
+  std::filesystem::path cache_file;
 };
 
-// Estimates the depth of job.video and writes it to `out` (.npz: key "depths"; .npy: the array), atomically.
-// Progress: stage "depth", one step per window. Throws dvs::Error naming the file at fault.
+// One line for a person: size, model, network input, windows, times (3 digits) or where the cached one came from.
+std::string describe(const DepthSummary& summary);
+
+// Estimates the depth of job.video (or takes it from the depth cache) and writes it to `out` (.npz: key
+// "depths"; .npy: the array), atomically. `out` and the cache are checked before any work; a write that still
+// fails keeps the estimate in the cache, so the same command with another --out reuses it.
+// Progress: stage "depth", steps within every window (encoder blocks, head stages; note says which), polled for
+// cancellation at each. A broken model (NaN/Inf or constant disparity) is a dvs::Error and nothing is cached.
+// Throws dvs::Error naming the file at fault.
 DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress = {},
                             const CancelFn& cancelled = {});
 
 // A cached estimate for (video bytes, model file, input size, frames, max_res, metric): the cached .npy's path
-// when present (from_cache = true), else estimated now and stored there. cache_dir empty: $DVS_CACHE_DIR or
-// ~/.cache/dvs; refresh = true re-estimates even when an entry exists (--no-cache).
+// when a sound entry is present (from_cache = true), else estimated now and stored there (job.cache_dir,
+// job.refresh_cache). The cache folder is checked before the work.
 struct CachedDepth {
   std::filesystem::path file;
   bool from_cache = false;
   std::string key;
-  DepthSummary summary;  // of the estimate (only when computed now)
+  DepthSummary summary;  // of the estimate (complete only when computed now)
 };
-CachedDepth cached_depth(const DepthJob& job, const std::filesystem::path& cache_dir, bool refresh,
-                         const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+
+// Whether the cache holds an entry for this job (not read: a damaged one is estimated again).
+bool depth_cache_has(const DepthJob& job);
 
 }  // namespace dvs

@@ -36,7 +36,9 @@ struct RenderSummary {
 };
 
 // Writes render.mp4, mask.mp4, mask.npy ([F,H,W] f32, 1 = visible), poses.json and scene.glb into
-// out_dir (created). `progress` receives short status lines.
-RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress = {});
+// out_dir (created). `progress` receives short status lines. `cancelled` is polled through the depth estimate
+// (--depth-model) and before the render; true stops with dvs::Cancelled.
+RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress = {},
+                                const std::function<bool()>& cancelled = {});
 
 }  // namespace dvs

@@ -1,14 +1,20 @@
 #include "dvs/depth_estimate.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 
 #include "dvs/error.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
 #include "models/vda/vda_model.hpp"
+#include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
+#include "pipeline/depth_forecast.hpp"
+#include "dvs/duration_text.hpp"
 #include "pipeline/inversion_cache.hpp"
+#include "pipeline/output_path.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
 
@@ -25,24 +31,36 @@ void check_job(const DepthJob& j) {
     throw Error(j.model.string() + ": no such depth model (give --depth-model video_depth_anything_vits.pth; README.md "
                 "says where the checkpoints are)");
   if (j.input_size < 14 || j.input_size > 4096)
-    throw Error("--input-size must be in [14, 4096] (the model's default is 518), got " + std::to_string(j.input_size));
+    throw Error(j.input_size_option + " must be in [14, 4096] (the model's default is 518), got " + std::to_string(j.input_size));
   if (j.frames < 0) throw Error("--frames must be ≥ 0 (0 = all frames)");
   if (j.max_res < 0) throw Error("--max-res must be ≥ 0 (0 = no limit)");
+  VdaModel::inspect(j.model);  // the headers alone: another model's file is named now, not after the decode
 }
 
-}  // namespace
+void notify(const DepthJob& job, const ProgressFn& progress, const std::string& line) {
+  if (job.notice) job.notice(line);
+  else if (progress) progress("depth", 0, 0, line);
+}
 
-DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress,
-                            const CancelFn& cancelled) {
-  check_job(job);
-  const std::string ext = out.extension().string();
-  if (ext != ".npz" && ext != ".npy") throw Error(out.string() + ": the depth file must end in .npz or .npy");
-  DepthSummary s;
+// A cache entry worth using: what an estimate writes (f32 [N, H, W]), finite and not constant.
+std::optional<std::string> entry_problem(const HostTensor& h) {
+  if (h.dtype != DType::f32 || h.shape.size() != 3 || h.numel() == 0) return "not an f32 [N, H, W] array";
+  const float* v = h.as<float>();
+  for (int64_t i = 0; i < h.numel(); ++i)
+    if (!std::isfinite(v[i])) return "holds NaN or Inf";
+  for (int64_t i = 1; i < h.numel(); ++i)
+    if (v[i] != v[0]) return std::nullopt;
+  return "is constant";
+}
+
+// The estimate itself, in a Vulkan context of its own; the depth is returned, nothing is written.
+HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled, DepthSummary& s) {
   auto t = std::chrono::steady_clock::now();
   VideoInfo vi;
   const HostTensor frames = read_video_rgb8(job.video, job.frames, job.max_res, &vi);
   s.frames = int(frames.shape[0]), s.height = int(frames.shape[1]), s.width = int(frames.shape[2]);
   s.seconds_decode = seconds_since(t);
+  if (cancelled && cancelled()) throw Cancelled();
 
   vk::ContextOptions copt;
   copt.device = job.device;
@@ -54,48 +72,136 @@ DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& ou
   s.metric = model.config().metric;
   s.weight_bytes = model.weight_bytes();
   s.seconds_load = seconds_since(t);
+  if (cancelled && cancelled()) throw Cancelled();
 
   t = std::chrono::steady_clock::now();
+  s.windows = int(vda_window_frames(s.frames, model.config()).size());
+  DepthForecastInput fi;
+  fi.cfg = model.config();
+  fi.frame_height = s.height, fi.frame_width = s.width;
+  fi.input_size = job.input_size;
+  fi.windows = s.windows;
+  fi.input_size_option = job.input_size_option;
+  fi.threshold_s = job.forecast_after_s;
+  DepthForecast forecast(fi);
   VdaVideoOptions o;
   o.input_size = job.input_size;
-  o.on_window = [&](int done, int total) {
-    s.windows = total;
-    if (progress) progress("depth", done, total, "");
+  o.on_step = [&](const VdaStep& st) {
+    // Cancellation first: a step can take seconds on a CPU device, and Ctrl-C must not wait for a window.
     if (cancelled && cancelled()) throw Cancelled();
+    if (auto m = forecast.on_step(st, seconds_since(t))) notify(job, progress, *m);
+    if (progress)
+      progress("depth", (st.window - 1) * st.total + st.done, st.windows * st.total,
+               (st.windows > 1 ? "window " + std::to_string(st.window) + "/" + std::to_string(st.windows) + ": " : "") + st.what);
   };
-  const VdaVideoResult r = vda_video_depth(model, frames, o);
+  VdaVideoResult r;
+  try {
+    r = vda_video_depth(model, frames, o);
+  } catch (const VdaBrokenOutput& e) {
+    throw Error(job.model.string() + ": " + e.what() + "; the estimate is refused, not cached. Usual causes: weights "
+                "holding NaN/Inf (dvs-weights inspect --values " + job.model.string() + " lists them) or a damaged file");
+  }
   s.input_height = int(r.input.height), s.input_width = int(r.input.width);
   s.seconds_depth = seconds_since(t);
   s.peak_device_bytes = ctx.allocator().stats().peak_bytes_reserved;
-  if (ext == ".npz") write_npz(out, {{"depths", r.depth}});
-  else write_npy(out, r.depth);
+  return r.depth;
+}
+
+// What a cached estimate says of itself: sizes from the array, the rest from the checkpoint's headers.
+DepthSummary summary_of_cached(const DepthJob& job, const HostTensor& depth) {
+  DepthSummary s;
+  s.frames = int(depth.shape[0]), s.height = int(depth.shape[1]), s.width = int(depth.shape[2]);
+  VdaConfig cfg = VdaModel::inspect(job.model);
+  if (job.metric) cfg.metric = *job.metric;
+  s.model_size = cfg.name;
+  s.metric = cfg.metric;
+  const VdaInputSize in = vda_input_size(s.height, s.width, job.input_size, cfg.patch_size);
+  s.input_height = int(in.height), s.input_width = int(in.width);
+  s.windows = int(vda_window_frames(s.frames, cfg).size());
+  s.from_cache = true;
   return s;
 }
 
-CachedDepth cached_depth(const DepthJob& job, const std::filesystem::path& cache_dir, bool refresh,
-                         const ProgressFn& progress, const CancelFn& cancelled) {
+InversionCache depth_cache(const DepthJob& job) { return InversionCache(job.cache_dir, "depth"); }
+
+std::string cache_key(const DepthJob& job) {
+  return InversionCache::key({"vda depth v1", file_fingerprint(job.video), file_fingerprint(job.model),
+                              std::to_string(job.input_size), std::to_string(job.frames), std::to_string(job.max_res),
+                              job.metric ? (*job.metric ? "metric" : "relative") : "checkpoint mode"});
+}
+
+}  // namespace
+
+std::string describe(const DepthSummary& s) {
+  std::string line = "depth of " + count_text(s.frames, "frame", "frames") + " at " + std::to_string(s.height) + "x" +
+                     std::to_string(s.width) + " (HxW) with " + s.model_size + (s.metric ? " (metric)" : "") +
+                     ", network input " + std::to_string(s.input_height) + "x" + std::to_string(s.input_width) + ", " +
+                     count_text(s.windows, "window", "windows");
+  if (s.from_cache) return line + ": from the depth cache (" + s.cache_file.string() + ")";
+  char rate[32];
+  std::snprintf(rate, sizeof rate, "%.3g", s.frames / std::max(1e-9, s.seconds_depth));
+  return line + ": decode " + duration_text(s.seconds_decode) + ", load " + duration_text(s.seconds_load) + ", depth " +
+         duration_text(s.seconds_depth) + " (" + rate + " frames/s)";
+}
+
+bool depth_cache_has(const DepthJob& job) {
+  if (job.refresh_cache) return false;
+  std::error_code ec;
+  return std::filesystem::is_regular_file(depth_cache(job).file(cache_key(job)), ec);
+}
+
+CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
   check_job(job);
   CachedDepth c;
-  const InversionCache cache(cache_dir, "depth");
-  c.key = InversionCache::key({"vda depth v1", file_fingerprint(job.video), file_fingerprint(job.model),
-                               std::to_string(job.input_size), std::to_string(job.frames), std::to_string(job.max_res),
-                               job.metric ? (*job.metric ? "metric" : "relative") : "checkpoint mode"});
+  const InversionCache cache = depth_cache(job);
+  c.key = cache_key(job);
   c.file = cache.file(c.key);
   std::error_code ec;
-  if (!refresh && std::filesystem::is_regular_file(c.file, ec)) {
+  if (!job.refresh_cache && std::filesystem::is_regular_file(c.file, ec)) {
+    std::optional<std::string> problem;
     try {
       const HostTensor h = read_npy(c.file);
-      if (h.dtype == DType::f32 && h.shape.size() == 3 && h.numel() > 0) {
+      problem = entry_problem(h);
+      if (!problem) {
         c.from_cache = true;
+        c.summary = summary_of_cached(job, h);
+        c.summary.cache_file = c.file;
         return c;
       }
-    } catch (const Error&) {
+    } catch (const Error& e) {
+      problem = e.what();
     }
-    std::filesystem::remove(c.file, ec);  // damaged: estimate again
+    notify(job, progress, "warning: the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
+    std::filesystem::remove(c.file, ec);
   }
+  // Where the estimate will be kept, checked before the work.
+  if (auto p = file_write_problem(c.file, "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
+    throw Error("depth cache: " + *p);
+  HostTensor depth = run_estimate(job, progress, cancelled, c.summary);
   std::filesystem::create_directories(c.file.parent_path(), ec);
-  c.summary = estimate_depth(job, c.file, progress, cancelled);
+  write_npy(c.file, depth);
+  c.summary.cache_file = c.file;
   return c;
+}
+
+DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress,
+                            const CancelFn& cancelled) {
+  check_job(job);
+  const std::string ext = out.extension().string();
+  if (ext != ".npz" && ext != ".npy") throw Error(out.string() + ": the depth file must end in .npz or .npy");
+  if (auto p = file_write_problem(out, "give another --out")) throw Error(*p);  // before the work, not after
+  const CachedDepth c = cached_depth(job, progress, cancelled);
+  try {
+    const HostTensor depth = read_npy(c.file);
+    std::error_code ec;
+    std::filesystem::create_directories(std::filesystem::absolute(out).parent_path(), ec);
+    if (ext == ".npz") write_npz(out, {{"depths", depth}});
+    else write_npy(out, depth);
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
+                "): the same command with a writable --out takes it from there");
+  }
+  return c.summary;
 }
 
 }  // namespace dvs

@@ -7,17 +7,25 @@
 
 namespace dvs {
 
-nlohmann::json resolve_depth_model(RenderJob& job, const std::filesystem::path& cache_dir, bool refresh,
-                                   const ProgressFn& progress, const CancelFn& cancelled) {
-  if (job.depth_model.empty()) return nullptr;
-  const auto t = std::chrono::steady_clock::now();
+DepthJob depth_job_for(const RenderJob& job, const std::filesystem::path& cache_dir, bool refresh) {
   DepthJob d;
   d.video = job.video;
   d.model = job.depth_model;
   d.input_size = job.depth_input_size;
   d.frames = job.frames;  // the frames the job uses (0 = all)
   d.device = job.device;
-  const CachedDepth c = cached_depth(d, cache_dir, refresh, progress, cancelled);
+  d.cache_dir = cache_dir;
+  d.refresh_cache = refresh;
+  d.input_size_option = "--depth-input-size";
+  return d;
+}
+
+nlohmann::json resolve_depth_model(RenderJob& job, const std::filesystem::path& cache_dir, bool refresh,
+                                   const ProgressFn& progress, const CancelFn& cancelled) {
+  if (job.depth_model.empty()) return nullptr;
+  const auto t = std::chrono::steady_clock::now();
+  const DepthJob d = depth_job_for(job, cache_dir, refresh);
+  const CachedDepth c = cached_depth(d, progress, cancelled);
   job.depth = c.file;
   job.metric_depth = VdaModel::inspect(job.depth_model).metric;  // metric checkpoints give depth, others disparity
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();

@@ -7,7 +7,12 @@
 
 #include "dvs/pipeline.hpp"
 
+#include "dvs/depth_estimate.hpp"
+
 namespace dvs {
+
+// The depth estimate a job with --depth-model asks for (the cache key's inputs, the cache, the option names).
+DepthJob depth_job_for(const RenderJob& job, const std::filesystem::path& cache_dir, bool refresh);
 
 // Nothing when job.depth_model is empty. Otherwise sets job.depth to the estimate and returns its provenance
 // for run.json: {"model", "input_size", "file", "key", "from_cache", "seconds"}.

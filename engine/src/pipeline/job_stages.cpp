@@ -57,7 +57,10 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
 
 nlohmann::json depth_stage(RunOptions& o, StageTracker& stages) {
   if (o.render.depth_model.empty()) return nullptr;
-  stages.begin("depth", "estimating depth with " + o.render.depth_model.filename().string());
+  // Said as it is: reading the cache takes a moment, estimating may take long.
+  stages.begin("depth", depth_cache_has(depth_job_for(o.render, o.cache_dir, !o.use_cache))
+                            ? "reading the cached estimate of " + o.render.depth_model.filename().string()
+                            : "estimating depth with " + o.render.depth_model.filename().string());
   nlohmann::json d = resolve_depth_model(
       o.render, o.cache_dir, !o.use_cache,
       [&](const std::string&, int step, int total, const std::string& note) { stages.say(step, total, note); },

@@ -15,6 +15,7 @@
 #include "io/lora_file.hpp"
 #include "spec/model_folder.hpp"
 #include "spec/model_schema.hpp"
+#include "io/depth.hpp"
 #include "io/video.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
@@ -23,6 +24,7 @@
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/memory_plan.hpp"
+#include "pipeline/output_path.hpp"
 #include "pipeline/settings.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
@@ -38,11 +40,29 @@ std::string gib(uint64_t b) {
   return buf;
 }
 
-// The first existing folder at or above `p` (the output folder need not exist yet).
-std::filesystem::path existing_ancestor(std::filesystem::path p) {
-  p = std::filesystem::absolute(p);
-  while (!p.empty() && !std::filesystem::exists(p) && p != p.parent_path()) p = p.parent_path();
-  return p;
+// Frames in a depth source, as the render stage will read them: an array's first dimension (the file is read),
+// a folder's image count, a grayscale video's container count; nothing when unknown.
+std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
+  const auto path = split_npz_key(spec).first;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    int64_t n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(path, ec)) {
+      std::string ext = e.path().extension().string();
+      for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+      if (e.is_regular_file() && (ext == ".png" || ext == ".exr")) ++n;
+    }
+    return n;
+  }
+  std::string ext = path.extension().string();
+  for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  if (ext == ".npy" || ext == ".npz") return read_depth_array(spec).shape.at(0);
+  VideoReadOptions vo;
+  vo.max_frames = 1;
+  vo.height = 8, vo.width = 8;
+  VideoInfo vi;
+  read_video(path, vo, &vi);
+  return vi.frames_in_file > 0 ? std::optional<int64_t>(vi.frames_in_file) : std::nullopt;
 }
 
 class Checker {
@@ -78,6 +98,7 @@ void check_inputs(const RunOptions& o, Checker& c) {
     c.problem("--intrinsics: fx, fy, cx, cy must all be > 0 (pixels of the working size), or leave the option out for " +
               std::string("the default"));
   // The video: opened and one small frame decoded, which also gives the container's frame count.
+  std::optional<int64_t> video_frames;
   if (!std::filesystem::is_regular_file(j.video)) {
     c.problem(j.video.string() + ": no such video file (give --video FILE)");
   } else {
@@ -87,6 +108,7 @@ void check_inputs(const RunOptions& o, Checker& c) {
       vo.height = 8, vo.width = 8;
       VideoInfo vi;
       read_video(j.video, vo, &vi);
+      if (vi.frames_in_file > 0) video_frames = vi.frames_in_file;
       if (vi.frames_in_file > 0 && j.frames > vi.frames_in_file) {
         const int fit = (vi.frames_in_file - 1) / 4 * 4 + 1;
         c.problem(j.video.string() + ": holds " + std::to_string(vi.frames_in_file) + " frames, fewer than --frames " +
@@ -105,22 +127,32 @@ void check_inputs(const RunOptions& o, Checker& c) {
       });
     if (j.depth_input_size < 14 || j.depth_input_size > 4096)
       c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
-  } else if (!std::filesystem::exists(j.depth)) {
+  } else if (!depth_source_exists(j.depth)) {
     c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE, or --depth-model FILE.pth to estimate it)");
+  } else if (video_frames) {
+    // The render stage's frame rule (render_job.cpp): depth for every frame the job uses; more only when it is
+    // the whole clip's (cut with --frames) or --trim-depth says so.
+    c.attempt("--depth " + j.depth.string(), [&] {
+      const std::optional<int64_t> n = depth_frame_count(j.depth);
+      if (!n) return;
+      const int64_t used = j.frames > 0 ? std::min<int64_t>(j.frames, *video_frames) : *video_frames;
+      const std::string frames = j.frames > 0 ? "--frames " + std::to_string(j.frames) : "the video's " + std::to_string(used) + " frames";
+      if (*n < used) {
+        const int64_t fit = (*n - 1) / 4 * 4 + 1;
+        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames, fewer than " + frames +
+                  "; give depth for every frame, or --frames " + std::to_string(std::max<int64_t>(fit, 1)) +
+                  " (the largest 4k+1 it covers)");
+      } else if (*n > used && !j.trim_depth && *n != *video_frames) {
+        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames but the job uses " + frames +
+                  " (and the video holds " + std::to_string(*video_frames) + "): --trim-depth uses its first " +
+                  std::to_string(used));
+      }
+    });
   }
   // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
   c.attempt("--trajectory " + j.trajectory, [&] { geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0); });
   // The output folder: an existing folder we may write into, or creatable below one.
-  const auto out = std::filesystem::absolute(j.out_dir);
-  if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
-    c.problem(j.out_dir.string() + ": exists and is not a folder (give --out DIR)");
-  } else {
-    const auto base = existing_ancestor(out);
-    if (!std::filesystem::is_directory(base))
-      c.problem(j.out_dir.string() + ": cannot be created, " + base.string() + " is not a folder (give another --out)");
-    else if (::access(base.c_str(), W_OK | X_OK) != 0)
-      c.problem(j.out_dir.string() + ": " + base.string() + " is not writable (give another --out)");
-  }
+  if (auto p = folder_write_problem(j.out_dir, "give another --out DIR")) c.problem(*p);
 }
 
 struct ModelFacts {

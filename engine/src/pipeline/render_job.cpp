@@ -11,6 +11,7 @@
 #include "geometry/trajectory_json.hpp"
 #include "io/depth.hpp"
 #include "pipeline/depth_source.hpp"
+#include "dvs/duration_text.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
 #include "vk/context.hpp"
@@ -113,15 +114,22 @@ HostTensor mask_as_video(const HostTensor& mask) {
   return v;
 }
 
-RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress) {
+RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress,
+                                const std::function<bool()>& cancelled) {
   RenderJob job = job_in;
   if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
     const nlohmann::json d = resolve_depth_model(
         job, job.depth_cache_dir, !job.depth_cache,
-        [&](const std::string&, int step, int total, const std::string&) {
-          if (progress) progress("depth: window " + std::to_string(step) + "/" + std::to_string(total));
+        [&, last = std::chrono::steady_clock::time_point()](const std::string&, int step, int total,
+                                                             const std::string& note) mutable {
+          // Steps come many per window: a line every few seconds says where the estimate is.
+          const auto now = std::chrono::steady_clock::now();
+          if (!progress || (total > 0 && step < total && now - last < std::chrono::seconds(2))) return;
+          last = now;
+          progress(total > 0 ? "depth: step " + std::to_string(step) + "/" + std::to_string(total) + " (" + note + ")"
+                             : "depth: " + note);
         },
-        {});
+        cancelled);
     if (progress) {
       if (d.at("from_cache").get<bool>()) {
         progress("depth from the cache: " + d.at("file").get<std::string>());
@@ -129,11 +137,12 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
         const double sec = d.at("seconds").get<double>();
         const int frames = d.at("estimate").at("frames").get<int>();
         char rate[96];
-        std::snprintf(rate, sizeof rate, " in %.1f s (%.2f frames/s)", sec, frames / std::max(sec, 1e-9));
+        std::snprintf(rate, sizeof rate, " in %s (%.3g frames/s)", duration_text(sec).c_str(), frames / std::max(sec, 1e-9));
         progress("depth estimated" + std::string(rate) + ": " + d.at("file").get<std::string>());
       }
     }
   }
+  if (cancelled && cancelled()) throw Cancelled();
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);

@@ -258,6 +258,17 @@ void check_vda_config_against(const VdaConfig& c, const std::map<std::string, Sh
 }
 
 VdaConfig resolve_vda_config(const std::filesystem::path& checkpoint, const std::map<std::string, Shape>& shapes) {
+  // Another model's weights (a CogVideoX component, an image model) are named as such before any config beside
+  // them is read as a VDA config or a missing tensor is reported.
+  const bool encoder = shapes.count("pretrained.cls_token") || shapes.count("pretrained.patch_embed.proj.weight");
+  const auto head = shapes.lower_bound("head.");
+  if (!encoder || head == shapes.end() || head->first.rfind("head.", 0) != 0) {
+    const std::string example = shapes.empty() ? std::string("it holds no tensors") : "its first tensor is " + shapes.begin()->first;
+    throw Error(checkpoint.string() + ": not a Video-Depth-Anything checkpoint (no pretrained.cls_token / "
+                "pretrained.patch_embed.* encoder or head.* tensors; " + example + "). Give --depth-model "
+                "video_depth_anything_vits.pth (or _vitb, _vitl, metric_*), or a .safetensors made from one by "
+                "dvs-weights convert");
+  }
   const std::filesystem::path cfg = checkpoint.parent_path() / "config.json";
   std::error_code ec;
   if (!std::filesystem::is_regular_file(cfg, ec)) return recognise_vda_size(shapes, checkpoint);

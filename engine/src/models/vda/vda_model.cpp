@@ -34,6 +34,13 @@ std::map<std::string, HostTensor> read_checkpoint(const std::filesystem::path& f
       const auto v = h.to_f32();
       h = HostTensor::from_f32(h.shape, v);
     }
+    // A NaN/Inf weight spreads to every pixel and the final ReLU hides it (a flat or zero depth): refused here.
+    const float* v = h.as<float>();
+    for (int64_t i = 0; i < h.numel(); ++i)
+      if (!std::isfinite(v[i]))
+        throw Error(file.string() + ": tensor " + name + " holds " + (std::isnan(v[i]) ? "NaN" : "an infinite value") +
+                    " (first at element " + std::to_string(i) + "): the checkpoint is damaged; download it again "
+                    "(dvs-weights inspect --values " + file.string() + " lists every such tensor)");
     shapes[name] = h.shape;
     out.emplace(name, std::move(h));
   };
@@ -226,6 +233,8 @@ std::array<Tensor, 4> VdaModel::encode(const Tensor& x) {
     patches = Tensor();
     for (int b = 0; b < cfg_.depth; ++b) {
       vit_block(b, tok, n, tokens);
+      step("encoder block " + std::to_string(b + 1) + "/" + std::to_string(cfg_.depth) + ", frames " +
+           std::to_string(f0 + 1) + "-" + std::to_string(f0 + n));
       for (int t = 0; t < 4; ++t) {
         if (cfg_.taps[size_t(t)] != b) continue;
         Tensor normed = empty(ctx, {n, tokens, d}, "vit tap");
@@ -413,7 +422,9 @@ Tensor VdaModel::head(std::array<Tensor, 4> taps, int64_t h, int64_t wd, int64_t
     probe("head/layer" + std::to_string(i + 1), layer[size_t(i)]);
   }
   layer[2] = temporal(0, layer[2], frames);
+  step("head temporal module 1/4");
   layer[3] = temporal(1, layer[3], frames);
+  step("head temporal module 2/4");
   std::array<Tensor, 4> rn;
   for (int i = 0; i < 4; ++i) {
     rn[size_t(i)] = conv("head.scratch.layer" + std::to_string(i + 1) + "_rn.", layer[size_t(i)], 1, 1, false);
@@ -423,9 +434,11 @@ Tensor VdaModel::head(std::array<Tensor, 4> taps, int64_t h, int64_t wd, int64_t
   Tensor path4 = fusion(4, rn[3], nullptr, rn[2].dim(2), rn[2].dim(3));
   probe("head/refinenet4", path4);
   path4 = temporal(2, path4, frames);
+  step("head temporal module 3/4");
   Tensor path3 = fusion(3, path4, &rn[2], rn[1].dim(2), rn[1].dim(3));
   probe("head/refinenet3", path3);
   path3 = temporal(3, path3, frames);
+  step("head temporal module 4/4");
   // refinenet2, refinenet1 and the output convolutions run a few frames at a time, as the reference does: at the
   // real size their maps are the model's largest (32 channels at 14h x 14w, ~61 MiB a frame). Frames are
   // independent there, so the chunking changes no value.
@@ -463,15 +476,26 @@ Tensor VdaModel::head(std::array<Tensor, 4> taps, int64_t h, int64_t wd, int64_t
     run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, hidden, hidden); });
     Tensor part = conv("head.scratch.output_conv2.2.", hidden, 1, 0, true);
     run(*ctx_, [&](vk::Recorder& r) { ops::relu(r, part, out.rows(f0, n)); });
+    step("head full resolution, frames " + std::to_string(f0 + 1) + "-" + std::to_string(f0 + n));
   }
   for (const auto& [name, t] : whole) probe(name, t);
   probe("head/output", out);
   return out;
 }
 
+void VdaModel::step(const std::string& what) {
+  if (step_hook_) step_hook_(what, ++steps_done_, steps_total_);
+}
+
 Tensor VdaModel::forward(const Tensor& x) {
   const int64_t frames = x.dim(0), ps = cfg_.patch_size;
   const int64_t h = x.dim(2) / ps, wd = x.dim(3) / ps;
+  // The steps step() reports: every block of every encoder chunk, the four temporal modules, the tail's chunks
+  // (chunk sizes as encode() and head() choose them).
+  auto chunks = [&](int64_t chunk) { return int((frames + chunk - 1) / chunk); };
+  const int64_t encoder_chunk = probe_ ? frames : std::clamp<int64_t>(encoder_chunk_frames_, 1, frames);
+  steps_done_ = 0;
+  steps_total_ = chunks(encoder_chunk) * cfg_.depth + 4 + chunks(micro_batch_ > 0 ? std::min<int64_t>(micro_batch_, frames) : frames);
   Tensor out = head(encode(x), h, wd, frames);
   // forward() resizes to the input size (the head's 14h x 14w already is) and applies ReLU again: both identities
   // on a ReLU output of the input's size.

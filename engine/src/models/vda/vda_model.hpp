@@ -51,6 +51,12 @@ class VdaModel {
   void set_encoder_chunk_frames(int64_t frames) { encoder_chunk_frames_ = frames; }
   static constexpr int64_t kEncoderChunkFrames = 4;
 
+  // Called inside forward() after every encoder block of every frame chunk and every head stage (temporal
+  // modules, full-resolution chunks) with what ran and how far the forward is (done of total): progress within a
+  // window, and a place to stop (it may throw dvs::Cancelled). Unset: nothing is called.
+  using StepHook = std::function<void(const std::string& what, int done, int total)>;
+  void set_step_hook(StepHook hook) { step_hook_ = std::move(hook); }
+
   // x: f32 [T, 3, H, W] -> disparity f32 [T, H, W] (>= 0), H and W multiples of the patch size.
   Tensor forward(const Tensor& x);
 
@@ -80,6 +86,9 @@ class VdaModel {
   HostTensor pos_table_;
   uint64_t weight_bytes_ = 0;
   Probe probe_;
+  void step(const std::string& what);
+  StepHook step_hook_;
+  int steps_done_ = 0, steps_total_ = 0;  // of the forward() in progress
   int micro_batch_ = kHeadMicroBatch;
   int64_t temporal_chunk_positions_ = 0;
   int64_t encoder_chunk_frames_ = kEncoderChunkFrames;

@@ -1,5 +1,7 @@
 #include "models/vda/vda_video.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <set>
 #include <string>
@@ -10,6 +12,24 @@
 #include "tensor/ops_resize.hpp"
 
 namespace dvs {
+namespace {
+
+// A window's disparity at the frame size: finite and not one value everywhere, else the model is broken.
+void check_window(const HostTensor& disparity, size_t window, size_t windows, const std::vector<int64_t>& frames) {
+  const float* v = disparity.as<float>();
+  const int64_t n = disparity.numel();
+  const std::string where = "depth window " + std::to_string(window + 1) + "/" + std::to_string(windows) + " (clip frames " +
+                            std::to_string(frames.front() + 1) + "-" + std::to_string(frames.back() + 1) + ")";
+  for (int64_t i = 0; i < n; ++i)
+    if (!std::isfinite(v[i]))
+      throw VdaBrokenOutput(where + ": the model's disparity holds " + (std::isnan(v[i]) ? "NaN" : "an infinite value") +
+                  " (first at element " + std::to_string(i) + ")");
+  if (n > 1 && std::all_of(v, v + n, [&](float x) { return x == v[0]; }))
+    throw VdaBrokenOutput(where + ": the model's disparity is " + std::to_string(v[0]) +
+                " everywhere; NaN weights give this after the final ReLU");
+}
+
+}  // namespace
 
 VdaVideoResult vda_video_depth(VdaModel& model, const HostTensor& frames, const VdaVideoOptions& o) {
   const Shape& s = frames.shape;
@@ -36,7 +56,18 @@ VdaVideoResult vda_video_depth(VdaModel& model, const HostTensor& frames, const 
 
   vk::Context& ctx = model.context();
   VdaStitcher stitcher(cfg, H * W);
+  // The model reports the steps of each forward; the hook is the model's only while this runs.
+  struct HookGuard {
+    VdaModel& m;
+    ~HookGuard() { m.set_step_hook({}); }
+  } guard{model};
+  size_t window = 0;
+  if (o.on_step)
+    model.set_step_hook([&](const std::string& what, int done, int total) {
+      o.on_step(VdaStep{int(window) + 1, int(windows.size()), done, total, what});
+    });
   for (size_t k = 0; k < windows.size(); ++k) {
+    window = k;
     const auto& idx = windows[k];
     HostTensor x({int64_t(idx.size()), 3, h, w}, DType::f32);
     for (size_t i = 0; i < idx.size(); ++i) {
@@ -57,6 +88,7 @@ VdaVideoResult vda_video_depth(VdaModel& model, const HostTensor& frames, const 
     ops::run_now(ctx, [&](vk::Recorder& r) { ops::resize_bilinear(r, depth.reshape({T, 1, h, w}), full, true); });
     HostTensor up = full.download(ctx);
     up.shape = {T, H, W};
+    check_window(up, k, windows.size(), idx);
     if (o.probe) o.probe(int(k), idx, depth.download(ctx), up);
     std::vector<std::vector<float>> per_frame(static_cast<size_t>(T));
     const float* u = up.as<float>();
