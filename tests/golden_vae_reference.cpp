@@ -5,6 +5,7 @@
 // Upsample3D time rules). Weights: the pack's vae/. Tolerances: those of the pack's vae cases.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +19,7 @@
 #include "spec/model_folder.hpp"
 #include "io/npy.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
+#include "pipeline/job_stages.hpp"
 #include "support/gpu.hpp"
 
 namespace fs = std::filesystem;
@@ -381,6 +383,60 @@ TEST_F(VaeReference, Batch2TwoFrameBatches) { check_clip(ctx(), vae_dir(), 2, 17
 
 // 24 frames: even batches [0:8],[8:16],[16:24] (no odd first frame); 6 latent frames decode as [0:2],[2:4],[4:6].
 TEST_F(VaeReference, EvenFrames) { check_clip(ctx(), vae_dir(), 1, 24, 8, 8, 5); }
+
+// Which decoded frames dvs keeps for an even latent count, checked by value. diffusers decodes an even Fl as
+// [0:2], [2:4], ...; a batch being even, its time upsampling (nearest, twice) repeats latent frame 0 four times
+// like every other frame instead of keeping it apart, so 4·Fl frames come out for a 4·Fl − 3 frame video, frames
+// 0..3 at latent 0's position and 4·k..4·k+3 at latent k's. The video's frames are latent 0's one frame, then four
+// per later latent: the last 4·Fl − 3. decode_latent (what `dvs run` writes) must return exactly the reference's
+// frames 3.. (clamped); keeping the first 4·Fl − 3 instead shifts every frame after 0 by three and fails here.
+// (A golden of the authors' pipeline at an even latent count needs PyTorch and diffusers; the reference here is
+// the plain-C++ restatement of diffusers' decode that the pack's vae cases check above.)
+TEST_F(VaeReference, EvenLatentCountKeepsTheLastFourFlMinusThreeFrames) {
+  RefVae ref(vae_dir());
+  dvs::models::CogVideoXVae vae(ctx(), vae_dir());
+  const int64_t Fl = 4, C = ref.cfg.latent_channels, h = 3, w = 5;  // odd latent sizes: 24 x 40 frames
+  const float scaling = float(vae.config().scaling_factor);
+  const int64_t frames = 4 * Fl - 3;
+  // The diffusion-space latent [Fl, C, h, w] and the reference's [1, C, Fl, h, w] in VAE units (as to_vae_layout
+  // scales it: one f32 multiply by 1/scaling).
+  const V z = random_v(1, C, Fl, h, w, 21);
+  HostTensor diffusion({Fl, C, h, w}, dvs::DType::f32);
+  V vae_space = z;
+  for (int64_t f = 0; f < Fl; ++f)
+    for (int64_t c = 0; c < C; ++c)
+      for (int64_t y = 0; y < h; ++y)
+        for (int64_t x = 0; x < w; ++x) {
+          const float v = float(z.at(0, c, f, y, x)) * scaling;
+          diffusion.as<float>()[((f * C + c) * h + y) * w + x] = v;
+          vae_space.at(0, c, f, y, x) = double(v * (1.0f / scaling));
+        }
+  const V all = ref.decode(vae_space);
+  ASSERT_EQ(all.F, 4 * Fl) << "the reference decodes an even latent count to 4·Fl frames";
+
+  dvs::RunOptions o;  // untiled decode
+  const HostTensor got = dvs::decode_latent(ctx(), vae, o, Tensor::upload(ctx(), diffusion), scaling, int(frames));
+  ASSERT_EQ(got.shape, (dvs::Shape{frames, 3, all.H, all.W}));
+  V want(1, 3, frames, all.H, all.W);
+  for (int64_t f = 0; f < frames; ++f)
+    for (int64_t c = 0; c < 3; ++c)
+      for (int64_t y = 0; y < want.H; ++y)
+        for (int64_t x = 0; x < want.W; ++x) want.at(0, c, f, y, x) = std::clamp(all.at(0, c, f + 3, y, x), -1.0, 1.0);
+  // decode_latent's [F, 3, H, W] as the reference's [1, 3, F, H, W].
+  HostTensor got_cf({1, 3, frames, want.H, want.W}, dvs::DType::f32);
+  const int64_t plane = want.H * want.W;
+  for (int64_t f = 0; f < frames; ++f)
+    for (int64_t c = 0; c < 3; ++c)
+      std::copy_n(got.as<float>() + (f * 3 + c) * plane, plane, got_cf.as<float>() + (c * frames + f) * plane);
+  expect_close("even Fl decode, kept frames", got_cf, want, 5e-4, 1e-4);
+  // The test can tell the two choices apart: the reference's first 4·Fl − 3 frames are not its last.
+  double shift = 0;
+  for (int64_t c = 0; c < 3; ++c)
+    for (int64_t y = 0; y < want.H; ++y)
+      for (int64_t x = 0; x < want.W; ++x)
+        shift = std::max(shift, std::fabs(std::clamp(all.at(0, c, 1, y, x), -1.0, 1.0) - want.at(0, c, 1, y, x)));
+  EXPECT_GT(shift, 1e-2) << "frame 1 of 'keep the first' must differ from frame 1 of 'keep the last'";
+}
 
 // The reference itself reproduces the pack's vae_frame_batching case (so agreement with it means something).
 TEST(VaeReferenceSelfCheck, MatchesPackFrameBatching) {
