@@ -262,7 +262,19 @@ HostTensor PthFile::load(std::string_view name) const {
   return load(*t);
 }
 
-HostTensor PthFile::load(const PthTensorInfo& t) const {
+std::vector<const WeightEntry*> PthFile::entries() const {
+  std::vector<const WeightEntry*> out;
+  out.reserve(tensors_.size());
+  for (const auto& t : tensors_) out.push_back(&t);
+  return out;
+}
+
+TensorBytes PthFile::bytes(const WeightEntry& entry) const {
+  return TensorBytes(read_bytes(own_entry(find(entry.name), entry)));
+}
+
+HostTensor PthFile::load(const WeightEntry& entry) const {
+  const PthTensorInfo& t = own_entry(find(entry.name), entry);
   if (!t.dtype)
     throw Error(path_.string() + ": tensor '" + t.name + "' is " + t.dtype_name +
                 "; the engine reads only F32, F16, BF16, I32 and U8 tensors");

@@ -313,7 +313,19 @@ HostTensor SafetensorsFile::load(std::string_view name) const {
   return load(*t);
 }
 
-HostTensor SafetensorsFile::load(const TensorInfo& t) const {
+std::vector<const WeightEntry*> SafetensorsFile::entries() const {
+  std::vector<const WeightEntry*> out;
+  out.reserve(tensors_.size());
+  for (const auto& t : tensors_) out.push_back(&t);
+  return out;
+}
+
+TensorBytes SafetensorsFile::bytes(const WeightEntry& entry) const {
+  return TensorBytes(bytes(own_entry(find(entry.name), entry)));
+}
+
+HostTensor SafetensorsFile::load(const WeightEntry& entry) const {
+  const TensorInfo& t = own_entry(find(entry.name), entry);
   if (!t.dtype)
     throw Error(path_.string() + ": tensor '" + t.name + "': dtype " + t.dtype_name +
                 " is not usable by the engine (F32, F16, BF16, I32, U8); convert it with dvs-weights");
