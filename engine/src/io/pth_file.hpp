@@ -62,8 +62,9 @@ class PthFile final : public WeightFile {
   // The tensor's values, row-major and contiguous (strided tensors are gathered).
   std::vector<uint8_t> read_bytes(const PthTensorInfo& t) const;
   TensorBytes bytes(const WeightEntry& t) const override;  // read_bytes, through the common face
-  // A copy as a HostTensor; throws for unknown names and for dtypes the engine has no DType for.
-  HostTensor load(std::string_view name) const;
+  // A copy as a HostTensor (by entry, or by name: WeightFile::load); throws for unknown names and for dtypes the
+  // engine has no DType for.
+  using WeightFile::load;
   HostTensor load(const WeightEntry& t) const override;
 
  private:

@@ -60,8 +60,9 @@ class SafetensorsFile final : public WeightFile {
   // The tensor's bytes inside the mapping (valid while this object lives; no alignment guarantee).
   std::span<const uint8_t> bytes(const TensorInfo& t) const;
   TensorBytes bytes(const WeightEntry& t) const override;  // the same view, through the common face
-  // A copy of an engine-dtype tensor; throws for unknown names and non-engine dtypes.
-  HostTensor load(std::string_view name) const;
+  // A copy of an engine-dtype tensor (by entry, or by name: WeightFile::load); throws for unknown names and
+  // non-engine dtypes.
+  using WeightFile::load;
   HostTensor load(const WeightEntry& t) const override;
 
  private:

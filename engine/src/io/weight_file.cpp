@@ -41,6 +41,12 @@ const std::map<std::string, std::string>& WeightFile::metadata() const {
   return none;
 }
 
+HostTensor WeightFile::load(std::string_view name) const {
+  const WeightEntry* t = find(name);
+  if (!t) throw Error(path().string() + ": no tensor named '" + std::string(name) + "'");
+  return load(*t);
+}
+
 void WeightFile::throw_not_ours(const WeightEntry& entry) const {
   throw Error(path().string() + ": tensor '" + entry.name + "' is not from this file");
 }

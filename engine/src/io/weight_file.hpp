@@ -75,10 +75,20 @@ class WeightFile {
   virtual TensorBytes bytes(const WeightEntry& entry) const = 0;
   // A copy as a HostTensor in the stored dtype; throws for dtypes the engine has no DType for.
   virtual HostTensor load(const WeightEntry& entry) const = 0;
+  // The same by name; dvs::Error naming the file and the tensor when it has none.
+  HostTensor load(std::string_view name) const;
   // String metadata stored with the tensors (safetensors' __metadata__); empty when the format has none.
   virtual const std::map<std::string, std::string>& metadata() const;
 
  protected:
+  // Every entry of a format's tensor list, in its order (for entries()).
+  template <class Info>
+  static std::vector<const WeightEntry*> entry_list(const std::vector<Info>& infos) {
+    std::vector<const WeightEntry*> out;
+    out.reserve(infos.size());
+    for (const Info& i : infos) out.push_back(&i);
+    return out;
+  }
   // The format's own entry for `entry`, checked to be this file's (`info` is what find(entry.name) returned).
   template <class Info>
   const Info& own_entry(const Info* info, const WeightEntry& entry) const {

@@ -121,7 +121,7 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   const Schema t5_schema = t5_encoder_schema(model.text_encoder, "text_encoder config");
   const auto tcfg = CogVideoXTransformerConfig::from_json(model.transformer, "transformer config");
   const VaeConfig vcfg = VaeConfig::from_json(model.vae);
-  const auto t5cfg = T5EncoderConfig::from_json(model.text_encoder, "text_encoder config");
+  T5EncoderConfig::from_json(model.text_encoder, "text_encoder config");  // its errors name the config here
 
   const int64_t r = vcfg.spatial_ratio(), cell = r * tcfg.patch_size;
   if (req.height < cell || req.width < cell || req.height % cell || req.width % cell)

@@ -20,15 +20,6 @@ namespace {
 
 using nlohmann::json;
 
-std::string shape_list(const Shape& s) {
-  std::string out = "[";
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i) out += ",";
-    out += std::to_string(s[i]);
-  }
-  return out + "]";
-}
-
 // The schema reads configs strictly (spec/config_values.hpp): a config that is not an object is an error.
 ConfigValues config_reader(const json& config, std::string_view origin) {
   ConfigValues c(config, origin);

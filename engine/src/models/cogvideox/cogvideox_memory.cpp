@@ -18,7 +18,11 @@ int64_t ceil_halvings(int64_t x, int64_t times) {
   return x;
 }
 
-std::string shape_text(const Shape& s) { return "[" + shape_str(s) + "]"; }
+std::string shape_text(const Shape& s) {
+  std::string out = "[";  // built by appends: GCC 12 warns falsely (-Wrestrict) on "[" + std::string
+  out += shape_str(s);
+  return out + "]";
+}
 
 int64_t max_batch(const std::vector<std::pair<int64_t, int64_t>>& batches) {
   int64_t b = 1;
