@@ -185,7 +185,7 @@ TEST(SafetensorsPack, LoadsATensorFromEachShard) {
   EXPECT_TRUE(w.sharded());
   EXPECT_EQ(w.files().size(), 3u);
   EXPECT_TRUE(w.warnings().empty());
-  std::set<const dvs::SafetensorsFile*> seen;
+  std::set<const dvs::WeightFile*> seen;
   for (const auto& [name, ref] : w.entries()) seen.insert(ref.file);
   EXPECT_EQ(seen.size(), 3u);
   const auto pos = w.load("patch_embed.pos_embedding");

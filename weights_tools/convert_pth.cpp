@@ -22,16 +22,6 @@ reader that never imports or executes anything) and writes its tensors as safete
 shapes and bytes. OUT must not exist.
 )";
 
-std::string shape_list(const Shape& s) {
-  std::string out = "[";
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i) out += ",";
-    out += std::to_string(s[i]);
-  }
-  out += "]";
-  return out;
-}
-
 }  // namespace
 
 int inspect_pth(const fs::path& file, bool summary) {

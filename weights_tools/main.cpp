@@ -22,6 +22,7 @@
 #include "io/npy.hpp"
 #include "io/pth_file.hpp"
 #include "io/safetensors.hpp"
+#include "io/weight_file.hpp"
 #include "io/third_party_logs.hpp"
 #include "convert_pth.hpp"
 #include "merge_lora.hpp"
@@ -361,11 +362,16 @@ int inspect(const std::vector<std::string>& args) {
     }
     if (!fs::exists(p, ec)) throw dvs::Error(path + ": no such file or folder");
     if (ends_with(path, ".npy")) return ins.npy(p);
-    if (ends_with(path, ".pth") || ends_with(path, ".pt")) {
+    if (ends_with(path, ".json")) return ins.weight_source(p, false);
+    // A weight file is read as what its content shows, whatever its extension (io/weight_file.hpp); one of
+    // neither format goes to the reader its name claims, which says what is wrong with it.
+    const dvs::WeightFormat format = dvs::weight_file_format(p);
+    const bool named_pth = ends_with(path, ".pth") || ends_with(path, ".pt");
+    if (format == dvs::WeightFormat::pth || (format == dvs::WeightFormat::neither && named_pth)) {
       const int listed = dvs::weights_tools::inspect_pth(p, summary);
       return values ? std::max(listed, ins.pth_values(p)) : listed;
     }
-    if (ends_with(path, ".safetensors") || ends_with(path, ".json")) return ins.weight_source(p, false);
+    if (format == dvs::WeightFormat::safetensors || ends_with(path, ".safetensors")) return ins.weight_source(p, false);
     throw dvs::Error(path + ": not a pipeline folder, component folder, .safetensors, *.safetensors.index.json, .pth or .npy");
   } catch (const dvs::Error& e) {
     std::cout.flush();

@@ -9,7 +9,6 @@
 #include "dvs/error.hpp"
 #include "io/lora_file.hpp"
 #include "spec/model_folder.hpp"
-#include "io/safetensors.hpp"
 #include "io/safetensors_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -112,9 +111,9 @@ MergeLoraReport merge_lora_folder(const MergeLoraOptions& o) {
     // above, stays valid: names, files and byte totals are unchanged).
     for (const auto& file : weights.files()) {
       std::vector<std::pair<std::string, HostTensor>> tensors;
-      for (const TensorInfo& t : file->tensors()) {
-        HostTensor h = file->load(t);
-        const std::string name = t.name;
+      for (const WeightEntry* t : file->entries()) {
+        HostTensor h = file->load(*t);
+        const std::string name = t->name;
         if (ends_with(name, ".weight")) {
           const auto it = adapters.find(name.substr(0, name.size() - 7));
           if (it != adapters.end()) {

@@ -8,6 +8,15 @@
 
 namespace dvs {
 
+std::string shape_list(const Shape& s) {
+  std::string out = "[";
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (i) out += ",";
+    out += std::to_string(s[i]);
+  }
+  return out + "]";
+}
+
 std::string shape_str(const Shape& s) {
   if (s.empty()) return "scalar";
   std::string out;

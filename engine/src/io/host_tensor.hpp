@@ -19,7 +19,8 @@ inline int64_t shape_numel(const Shape& s) {
   return n;
 }
 
-std::string shape_str(const Shape& s);  // "1x3x8x8"
+std::string shape_str(const Shape& s);   // "1x3x8x8"
+std::string shape_list(const Shape& s);  // "[1,3,8,8]", as weight files and schemas print shapes
 
 struct HostTensor {
   Shape shape;

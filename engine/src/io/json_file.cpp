@@ -9,10 +9,7 @@ namespace dvs {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-namespace {
-
-// Bracket depth outside strings; configs are small, but a hostile one must not reach the parser.
-bool nests_deeper_than(std::string_view s, int limit) {
+bool json_nests_deeper_than(std::string_view s, int limit) {
   int depth = 0;
   bool in_string = false, escaped = false;
   for (char ch : s) {
@@ -31,8 +28,6 @@ bool nests_deeper_than(std::string_view s, int limit) {
   return false;
 }
 
-}  // namespace
-
 json read_json_file(const fs::path& path, std::string_view what_to_do) {
   const std::string name = path.string();
   std::error_code ec;
@@ -43,7 +38,7 @@ json read_json_file(const fs::path& path, std::string_view what_to_do) {
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string text = ss.str();
-  if (nests_deeper_than(text, 64)) throw Error(name + ": JSON nests deeper than 64 levels; refusing to parse it");
+  if (json_nests_deeper_than(text, 64)) throw Error(name + ": JSON nests deeper than 64 levels; refusing to parse it");
   try {
     return json::parse(text);
   } catch (const json::exception& e) {

@@ -7,6 +7,7 @@
 
 #include "dvs/error.hpp"
 #include "io/pickle_state_dict.hpp"
+#include "io/safetensors.hpp"
 
 namespace dvs {
 
@@ -16,15 +17,6 @@ constexpr uint64_t kMaxPickleBytes = uint64_t(1) << 26;  // a vitl state_dict pi
 
 bool mul_ok(uint64_t a, uint64_t b, uint64_t& out) { return !__builtin_mul_overflow(a, b, &out); }
 bool add_ok(uint64_t a, uint64_t b, uint64_t& out) { return !__builtin_add_overflow(a, b, &out); }
-
-std::optional<DType> engine_dtype(std::string_view name) {
-  if (name == "F32") return DType::f32;
-  if (name == "F16") return DType::f16;
-  if (name == "BF16") return DType::bf16;
-  if (name == "I32") return DType::i32;
-  if (name == "U8") return DType::u8;
-  return std::nullopt;
-}
 
 std::string zip_open_error(int code) {
   zip_error_t e;
@@ -159,7 +151,7 @@ PthFile PthFile::open(const std::filesystem::path& path) {
     PthTensorInfo t;
     t.name = p.name;
     t.dtype_name = p.storage_type->dtype_name;
-    t.dtype = engine_dtype(t.dtype_name);
+    t.dtype = safetensors_engine_dtype(t.dtype_name);  // the dtype names are safetensors'
     t.elem_size = p.storage_type->elem_size;
     t.shape = p.shape;
     t.strides = p.strides;
@@ -256,13 +248,14 @@ std::vector<uint8_t> PthFile::read_bytes(const PthTensorInfo& t) const {
   return out;
 }
 
-HostTensor PthFile::load(std::string_view name) const {
-  const PthTensorInfo* t = find(name);
-  if (!t) throw Error(path_.string() + ": no tensor named '" + std::string(name) + "'");
-  return load(*t);
+std::vector<const WeightEntry*> PthFile::entries() const { return entry_list(tensors_); }
+
+TensorBytes PthFile::bytes(const WeightEntry& entry) const {
+  return TensorBytes(read_bytes(own_entry(find(entry.name), entry)));
 }
 
-HostTensor PthFile::load(const PthTensorInfo& t) const {
+HostTensor PthFile::load(const WeightEntry& entry) const {
+  const PthTensorInfo& t = own_entry(find(entry.name), entry);
   if (!t.dtype)
     throw Error(path_.string() + ": tensor '" + t.name + "' is " + t.dtype_name +
                 "; the engine reads only F32, F16, BF16, I32 and U8 tensors");

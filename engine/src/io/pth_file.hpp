@@ -5,8 +5,8 @@
 // executed. open() checks every tensor against its storage record (presence, size, bounds with overflow-safe
 // arithmetic), so later reads cannot go out of bounds; tensor bytes are read on demand (CRC-checked by libzip).
 //
-// The tensor list mirrors SafetensorsFile's TensorInfo (name, dtype name, engine dtype, shape, bytes) so a
-// model loader can treat both formats alike. Not thread-safe: one PthFile reads one record at a time.
+// Its tensors share SafetensorsFile's face (io/weight_file.hpp: name, dtype name, engine dtype, shape, bytes) so a
+// model loader treats both formats alike. Not thread-safe: one PthFile reads one record at a time.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -18,28 +18,23 @@
 
 #include "io/dtype.hpp"
 #include "io/host_tensor.hpp"
+#include "io/weight_file.hpp"
 
 typedef struct zip zip_t;
 
 namespace dvs {
 
-struct PthTensorInfo {
-  std::string name;
-  std::string dtype_name;      // safetensors naming: "F32", "F16", "BF16", "F64", "I64", "I32", "I16", "I8", "U8", "BOOL"
-  std::optional<DType> dtype;  // set when the engine can use it directly (F32 F16 BF16 I32 U8)
-  size_t elem_size = 0;        // bytes per element
-  Shape shape;
-  uint64_t numel = 0;
+// A tensor of the state_dict (name, dtype in safetensors naming: "F32", "F16", "BF16", "F64", "I64", "I32", "I16",
+// "I8", "U8", "BOOL"; shape: WeightEntry) and where its values are in the archive.
+struct PthTensorInfo : WeightEntry {
   // Where the values are: elements storage_offset + sum(index_i * strides_i) of record data/<storage_key>.
   std::string storage_key;
   int64_t storage_offset = 0;
   Shape strides;
   bool contiguous = true;  // row-major without gaps: read as one slice, otherwise gathered on read
-
-  uint64_t nbytes() const { return numel * elem_size; }  // of the contiguous tensor read_bytes() returns
 };
 
-class PthFile {
+class PthFile final : public WeightFile {
  public:
   // Opens and validates the archive. Throws dvs::Error naming the file and the problem.
   static PthFile open(const std::filesystem::path& path);
@@ -48,9 +43,10 @@ class PthFile {
   PthFile& operator=(PthFile&& o) noexcept;
   PthFile(const PthFile&) = delete;
   PthFile& operator=(const PthFile&) = delete;
-  ~PthFile();
+  ~PthFile() override;
 
-  const std::filesystem::path& path() const { return path_; }
+  const std::filesystem::path& path() const override { return path_; }
+  const char* format_name() const override { return "PyTorch .pth"; }
   const std::string& record_prefix() const { return prefix_; }  // "archive/", "video_depth_anything_vits/", ...
   // What open() normalised: the wrapper key that held the state_dict ("" if none), and whether a "module."
   // prefix shared by every key was removed.
@@ -59,14 +55,17 @@ class PthFile {
 
   // Tensors in the state_dict's order.
   const std::vector<PthTensorInfo>& tensors() const { return tensors_; }
-  const PthTensorInfo* find(std::string_view name) const;
+  std::vector<const WeightEntry*> entries() const override;
+  const PthTensorInfo* find(std::string_view name) const override;
   uint64_t total_bytes() const;
 
   // The tensor's values, row-major and contiguous (strided tensors are gathered).
   std::vector<uint8_t> read_bytes(const PthTensorInfo& t) const;
-  // A copy as a HostTensor; throws for unknown names and for dtypes the engine has no DType for.
-  HostTensor load(std::string_view name) const;
-  HostTensor load(const PthTensorInfo& t) const;
+  TensorBytes bytes(const WeightEntry& t) const override;  // read_bytes, through the common face
+  // A copy as a HostTensor (by entry, or by name: WeightFile::load); throws for unknown names and for dtypes the
+  // engine has no DType for.
+  using WeightFile::load;
+  HostTensor load(const WeightEntry& t) const override;
 
  private:
   PthFile() = default;

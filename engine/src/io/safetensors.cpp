@@ -14,6 +14,7 @@
 #include <set>
 
 #include "dvs/error.hpp"
+#include "io/json_file.hpp"
 
 namespace dvs {
 namespace {
@@ -31,15 +32,6 @@ constexpr DTypeRow kDTypes[] = {
     {"F64", 8}, {"F32", 4}, {"F16", 2}, {"BF16", 2}, {"I64", 8}, {"I32", 4}, {"I16", 2}, {"I8", 1},
     {"U8", 1},  {"BOOL", 1}, {"F8_E4M3", 1}, {"F8_E5M2", 1}, {"U16", 2}, {"U32", 4}, {"U64", 8},
 };
-
-std::string shape_list(const Shape& s) {
-  std::string out = "[";
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i) out += ",";
-    out += std::to_string(s[i]);
-  }
-  return out + "]";
-}
 
 std::string span_str(uint64_t b, uint64_t e) {
   std::string out = "[";  // built by appends: GCC 12 warns falsely (-Wrestrict) on "[" + std::string
@@ -76,27 +68,6 @@ size_t find_invalid_utf8(std::string_view s) {
     i += len;
   }
   return std::string_view::npos;
-}
-
-// Deepest bracket nesting outside strings. Done before parsing so hostile input ("[[[[...") never reaches a
-// parser or a recursive destructor; stops counting once past the limit.
-int max_nesting(std::string_view s, int limit) {
-  int depth = 0, deepest = 0;
-  bool in_string = false, escaped = false;
-  for (char ch : s) {
-    if (in_string) {
-      if (escaped) escaped = false;
-      else if (ch == '\\') escaped = true;
-      else if (ch == '"') in_string = false;
-      continue;
-    }
-    if (ch == '"') in_string = true;
-    else if (ch == '[' || ch == '{') {
-      deepest = std::max(deepest, ++depth);
-      if (deepest > limit) return deepest;
-    } else if (ch == ']' || ch == '}') --depth;
-  }
-  return deepest;
 }
 
 }  // namespace
@@ -196,7 +167,7 @@ void SafetensorsFile::parse_header() {
   const std::string_view text(reinterpret_cast<const char*>(map_ + 8), size_t(n));
   if (const size_t bad = find_invalid_utf8(text); bad != std::string_view::npos)
     fail("header is not valid UTF-8 (bad byte at header offset " + std::to_string(bad) + ")");
-  if (const int depth = max_nesting(text, kMaxJsonDepth); depth > kMaxJsonDepth)
+  if (json_nests_deeper_than(text, kMaxJsonDepth))
     fail("header JSON nests deeper than " + std::to_string(kMaxJsonDepth) + " levels; refusing to parse it");
 
   // Duplicate keys: nlohmann keeps the last silently, so watch keys per object while parsing.
@@ -307,13 +278,14 @@ std::span<const uint8_t> SafetensorsFile::bytes(const TensorInfo& t) const {
   return {map_ + 8 + header_len_ + t.begin, size_t(t.nbytes())};
 }
 
-HostTensor SafetensorsFile::load(std::string_view name) const {
-  const TensorInfo* t = find(name);
-  if (!t) throw Error(path_.string() + ": no tensor named '" + std::string(name) + "'");
-  return load(*t);
+std::vector<const WeightEntry*> SafetensorsFile::entries() const { return entry_list(tensors_); }
+
+TensorBytes SafetensorsFile::bytes(const WeightEntry& entry) const {
+  return TensorBytes(bytes(own_entry(find(entry.name), entry)));
 }
 
-HostTensor SafetensorsFile::load(const TensorInfo& t) const {
+HostTensor SafetensorsFile::load(const WeightEntry& entry) const {
+  const TensorInfo& t = own_entry(find(entry.name), entry);
   if (!t.dtype)
     throw Error(path_.string() + ": tensor '" + t.name + "': dtype " + t.dtype_name +
                 " is not usable by the engine (F32, F16, BF16, I32, U8); convert it with dvs-weights");

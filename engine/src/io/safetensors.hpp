@@ -17,6 +17,7 @@
 
 #include "io/dtype.hpp"
 #include "io/host_tensor.hpp"
+#include "io/weight_file.hpp"
 
 namespace dvs {
 
@@ -27,19 +28,13 @@ std::optional<DType> safetensors_engine_dtype(std::string_view name);
 // The safetensors name of an engine dtype ("F32", ...).
 const char* safetensors_dtype_name(DType t);
 
-struct TensorInfo {
-  std::string name;
-  std::string dtype_name;      // as in the file: "F32", "BF16", "I64", ...
-  std::optional<DType> dtype;  // set when the engine can use it directly
-  size_t elem_size = 0;        // bytes per element
-  Shape shape;
-  uint64_t numel = 0;
+// A tensor of the file (name, dtype as in the file, shape: WeightEntry) and where its bytes are. open() checks
+// that the range holds exactly nbytes().
+struct TensorInfo : WeightEntry {
   uint64_t begin = 0, end = 0;  // byte range inside the data section
-
-  uint64_t nbytes() const { return end - begin; }
 };
 
-class SafetensorsFile {
+class SafetensorsFile final : public WeightFile {
  public:
   // Maps and validates the file. Throws dvs::Error naming the file, the tensor and the problem.
   static SafetensorsFile open(const std::filesystem::path& path);
@@ -48,23 +43,27 @@ class SafetensorsFile {
   SafetensorsFile& operator=(SafetensorsFile&& o) noexcept;
   SafetensorsFile(const SafetensorsFile&) = delete;
   SafetensorsFile& operator=(const SafetensorsFile&) = delete;
-  ~SafetensorsFile();
+  ~SafetensorsFile() override;
 
-  const std::filesystem::path& path() const { return path_; }
+  const std::filesystem::path& path() const override { return path_; }
+  const char* format_name() const override { return "safetensors"; }
   uint64_t file_size() const { return size_; }
   uint64_t header_size() const { return header_len_; }  // N, the JSON header's length
   uint64_t data_size() const { return size_ - 8 - header_len_; }
 
   // Tensors sorted by name.
   const std::vector<TensorInfo>& tensors() const { return tensors_; }
-  const TensorInfo* find(std::string_view name) const;
-  const std::map<std::string, std::string>& metadata() const { return metadata_; }
+  std::vector<const WeightEntry*> entries() const override;
+  const TensorInfo* find(std::string_view name) const override;
+  const std::map<std::string, std::string>& metadata() const override { return metadata_; }
 
   // The tensor's bytes inside the mapping (valid while this object lives; no alignment guarantee).
   std::span<const uint8_t> bytes(const TensorInfo& t) const;
-  // A copy of an engine-dtype tensor; throws for unknown names and non-engine dtypes.
-  HostTensor load(std::string_view name) const;
-  HostTensor load(const TensorInfo& t) const;
+  TensorBytes bytes(const WeightEntry& t) const override;  // the same view, through the common face
+  // A copy of an engine-dtype tensor (by entry, or by name: WeightFile::load); throws for unknown names and
+  // non-engine dtypes.
+  using WeightFile::load;
+  HostTensor load(const WeightEntry& t) const override;
 
  private:
   SafetensorsFile() = default;

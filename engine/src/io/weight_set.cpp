@@ -73,13 +73,13 @@ WeightSet WeightSet::open_file(const fs::path& file) {
   if (ends_with(file.filename().string(), ".json")) return open_index(file);
   WeightSet w;
   w.source_ = file;
-  w.files_.push_back(std::make_unique<SafetensorsFile>(SafetensorsFile::open(file)));
+  w.files_.push_back(WeightFile::open(file));
   w.add_file_tensors(*w.files_.back());
   return w;
 }
 
-void WeightSet::add_file_tensors(const SafetensorsFile& f) {
-  for (const auto& t : f.tensors()) entries_.emplace(t.name, WeightRef{&f, &t});
+void WeightSet::add_file_tensors(const WeightFile& f) {
+  for (const WeightEntry* t : f.entries()) entries_.emplace(t->name, WeightRef{&f, t});
 }
 
 WeightSet WeightSet::open_index(const fs::path& index) {
@@ -95,7 +95,7 @@ WeightSet WeightSet::open_index(const fs::path& index) {
   const fs::path dir = index.parent_path();
 
   // Open every shard once, in name order.
-  std::map<std::string, const SafetensorsFile*> shards;
+  std::map<std::string, const WeightFile*> shards;
   for (const auto& [tensor, shard] : wm->items()) {
     if (!shard.is_string())
       throw Error(iname + ": weight_map entry for tensor '" + tensor + "' is not a file name");
@@ -110,25 +110,25 @@ WeightSet WeightSet::open_index(const fs::path& index) {
     if (!fs::is_regular_file(dir / s, ec))
       throw Error(iname + ": shard '" + s + "' named in weight_map is missing from " + dir.string() +
                   "; the download is incomplete (fetch every shard listed in the index)");
-    w.files_.push_back(std::make_unique<SafetensorsFile>(SafetensorsFile::open(dir / s)));
+    w.files_.push_back(WeightFile::open(dir / s));
     ptr = w.files_.back().get();
   }
 
   // Where each tensor physically is: a tensor stored in two shards is ambiguous, whatever the index says.
-  std::map<std::string, const SafetensorsFile*, std::less<>> stored;
+  std::map<std::string, const WeightFile*, std::less<>> stored;
   for (const auto& f : w.files_)
-    for (const auto& t : f->tensors()) {
-      const auto [it, fresh] = stored.emplace(t.name, f.get());
+    for (const WeightEntry* t : f->entries()) {
+      const auto [it, fresh] = stored.emplace(t->name, f.get());
       if (!fresh)
-        throw Error(iname + ": tensor '" + t.name + "' is present in two shards, " +
+        throw Error(iname + ": tensor '" + t->name + "' is present in two shards, " +
                     it->second->path().filename().string() + " and " + f->path().filename().string() +
                     "; the checkpoint is inconsistent");
     }
 
   uint64_t total = 0;
   for (const auto& [tensor, shard] : wm->items()) {
-    const SafetensorsFile* f = shards.at(shard.get<std::string>());
-    const TensorInfo* t = f->find(tensor);
+    const WeightFile* f = shards.at(shard.get<std::string>());
+    const WeightEntry* t = f->find(tensor);
     if (!t)
       throw Error(iname + ": tensor '" + tensor + "' is mapped to shard '" + f->path().filename().string() +
                   "', but that shard does not contain it; the index and shards do not match (re-download them)");
@@ -151,7 +151,7 @@ const WeightRef* WeightSet::find(std::string_view name) const {
   return it == entries_.end() ? nullptr : &it->second;
 }
 
-std::span<const uint8_t> WeightSet::bytes(std::string_view name) const {
+TensorBytes WeightSet::bytes(std::string_view name) const {
   const WeightRef* r = find(name);
   if (!r) throw Error(source_.string() + ": no tensor named '" + std::string(name) + "'");
   return r->file->bytes(*r->info);
@@ -168,7 +168,5 @@ uint64_t WeightSet::total_bytes() const {
   for (const auto& [name, r] : entries_) n += r.info->nbytes();
   return n;
 }
-
-// ---- ModelFolder -------------------------------------------------------------------------------------------
 
 }  // namespace dvs

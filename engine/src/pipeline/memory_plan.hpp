@@ -1,9 +1,8 @@
 // Device memory of a whole dvs run, planned from the model's config.json files alone (no weights read, no
 // device): weight bytes per component, the peak of each model stage, the peak of the run and, given a budget,
-// the VAE spatial tiling that fits. The activation figures come from the models' own from-config planners
-// (CogVideoXTransformer::arena_bytes, T5Encoder::arena_bytes, CogVideoXVae::*_working_bytes); this file adds
-// the tensors each stage allocates around them (inputs, outputs, tables), each rounded to the allocator's
-// alignment as the allocator does.
+// the VAE spatial tiling that fits. Each model call's figure comes from beside its model
+// (models/cogvideox/cogvideox_memory.hpp, models/vda/vda_memory.hpp); this file adds them up into the run's
+// phases. The report a user reads is pipeline/memory_plan_report.cpp.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -16,6 +15,7 @@
 
 #include "io/host_tensor.hpp"
 #include "spec/vda_config.hpp"
+#include "models/call_memory.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "vk/device_info.hpp"
@@ -67,19 +67,8 @@ struct ComponentWeightBytes {
   bool from_headers = false;
 };
 
-// One model call: `working` is the planner's activation figure (arena / VAE working set), `io` the tensors the
-// call allocates around it (inputs, outputs, tables); total = the call's device peak above the weights.
-struct StageMemory {
-  std::string name;      // "t5_encode", "transformer_cfg", "transformer_inversion", "vae_encode", "vae_decode"
-  std::string what;      // human description with shapes
-  uint64_t working = 0, io = 0;
-  uint64_t total() const { return working + io; }
-  // The largest single tensor the call binds (weights, activations, inputs, outputs): ops split a tensor
-  // over several bindings / texel views, but each tensor is one allocation.
-  uint64_t largest_bytes = 0;
-  int64_t largest_elements = 0;
-  std::string largest_what;
-};
+// One model call's memory (models/call_memory.hpp: working set, the tensors around it, its largest tensor).
+using models::StageMemory;
 
 struct TilingOption {
   bool tiled = false;
@@ -129,6 +118,10 @@ std::vector<std::pair<int64_t, int64_t>> plan_tile_sizes(const models::VaeConfig
 // "24GiB", "80GB", "1.5 GiB", "512MiB", "1000000" (bytes). Throws dvs::Error naming `option` otherwise.
 uint64_t parse_byte_size(const std::string& text, const std::string& option = "--budget");
 
+// Bytes as the plan prints them (two decimals, unlike vk::format_bytes): "1.50 GiB", "12.00 MiB", "3.00 KiB", "512 B".
+std::string format_plan_bytes(uint64_t bytes);
+
+// The plan as a user reads it (`dvs plan`), and its --json form (pipeline/memory_plan_report.cpp).
 std::string format_plan_table(const MemoryPlan& plan);
 nlohmann::json plan_to_json(const MemoryPlan& plan);
 

@@ -16,8 +16,6 @@ std::string config_class_name(const json& config) {
   return {};
 }
 
-// ---- WeightSet ---------------------------------------------------------------------------------------------
-
 ModelFolder ModelFolder::open(const fs::path& root) {
   std::error_code ec;
   if (!fs::is_directory(root, ec)) throw Error(root.string() + ": not a folder (expected a Hugging Face pipeline folder)");

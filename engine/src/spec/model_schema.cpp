@@ -10,9 +10,9 @@
 
 #include <algorithm>
 #include <map>
-#include <optional>
 
 #include "dvs/error.hpp"
+#include "spec/config_values.hpp"
 #include "spec/model_folder.hpp"
 
 namespace dvs {
@@ -20,95 +20,14 @@ namespace {
 
 using nlohmann::json;
 
-constexpr int64_t kMaxDim = int64_t(1) << 31;  // any larger "size" in a config is a typo or an attack
-
-std::string shape_list(const Shape& s) {
-  std::string out = "[";
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i) out += ",";
-    out += std::to_string(s[i]);
-  }
-  return out + "]";
+// The schema reads configs strictly (spec/config_values.hpp): a config that is not an object is an error.
+ConfigValues config_reader(const json& config, std::string_view origin) {
+  ConfigValues c(config, origin);
+  c.require_object();
+  return c;
 }
 
-// Typed access to config values with errors that say which key is wrong and why.
-class Cfg {
- public:
-  Cfg(const json& j, std::string_view origin) : j_(j), origin_(origin) {
-    if (!j.is_object()) throw Error(origin_ + ": config is not a JSON object");
-  }
-
-  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-    throw Error(origin_ + ": '" + key + "' " + what);
-  }
-
-  // Integer in [lo, kMaxDim]; integral floats (4.0) are accepted, as Python configs sometimes hold them.
-  int64_t integer(const std::string& key, int64_t def, int64_t lo = 0) const {
-    const auto v = opt_integer(key, lo);
-    if (!v && has(key)) fail(key, "must be an integer, got null");
-    return v.value_or(def);
-  }
-  // Missing or null -> nullopt (for keys where null means "feature off").
-  std::optional<int64_t> opt_integer(const std::string& key, int64_t lo = 0) const {
-    const auto it = j_.find(key);
-    if (it == j_.end() || it->is_null()) return std::nullopt;
-    int64_t v;
-    if (it->is_number_integer()) {
-      if (it->is_number_unsigned() && it->get<uint64_t>() > uint64_t(kMaxDim)) fail(key, "is out of range: " + it->dump());
-      v = it->get<int64_t>();
-    } else if (it->is_number_float() && it->get<double>() == double(int64_t(it->get<double>())) &&
-               it->get<double>() >= -double(kMaxDim) && it->get<double>() <= double(kMaxDim)) {
-      v = int64_t(it->get<double>());
-    } else {
-      fail(key, "must be an integer, got " + it->dump());
-    }
-    if (v < lo || v > kMaxDim) fail(key, "is out of range (" + std::to_string(lo) + ".." + std::to_string(kMaxDim) + "): " + it->dump());
-    return v;
-  }
-  bool boolean(const std::string& key, bool def) const {
-    const auto it = j_.find(key);
-    if (it == j_.end()) return def;
-    if (!it->is_boolean()) fail(key, "must be true or false, got " + it->dump());
-    return it->get<bool>();
-  }
-  std::string string(const std::string& key, const std::string& def) const {
-    const auto it = j_.find(key);
-    if (it == j_.end()) return def;
-    if (!it->is_string()) fail(key, "must be a string, got " + it->dump());
-    return it->get<std::string>();
-  }
-  std::vector<int64_t> integers(const std::string& key, std::vector<int64_t> def, int64_t lo) const {
-    const auto it = j_.find(key);
-    if (it == j_.end()) return def;
-    if (!it->is_array() || it->empty()) fail(key, "must be a non-empty list of integers, got " + it->dump());
-    std::vector<int64_t> out;
-    for (const auto& e : *it) {
-      if (!e.is_number_integer() || e.get<int64_t>() < lo || e.get<int64_t>() > kMaxDim)
-        fail(key, "must hold integers >= " + std::to_string(lo) + ", got " + it->dump());
-      out.push_back(e.get<int64_t>());
-    }
-    return out;
-  }
-  std::vector<std::string> strings(const std::string& key, std::vector<std::string> def) const {
-    const auto it = j_.find(key);
-    if (it == j_.end()) return def;
-    if (!it->is_array()) fail(key, "must be a list of strings, got " + it->dump());
-    std::vector<std::string> out;
-    for (const auto& e : *it) {
-      if (!e.is_string()) fail(key, "must be a list of strings, got " + it->dump());
-      out.push_back(e.get<std::string>());
-    }
-    return out;
-  }
-  const std::string& origin() const { return origin_; }
-
- private:
-  bool has(const std::string& key) const { return j_.contains(key); }
-  const json& j_;
-  std::string origin_;
-};
-
-int64_t mul(const Cfg& c, std::initializer_list<int64_t> xs) {
+int64_t mul(const ConfigValues& c, std::initializer_list<int64_t> xs) {
   int64_t r = 1;
   for (int64_t x : xs)
     if (__builtin_mul_overflow(r, x, &r) || r > (int64_t(1) << 52))
@@ -178,7 +97,7 @@ std::string SchemaIssue::message() const {
 }
 
 Schema t5_encoder_schema(const json& config, std::string_view origin) {
-  const Cfg c(config, origin);
+  const ConfigValues c = config_reader(config, origin);
   const int64_t vocab = c.integer("vocab_size", 32128, 1);
   const int64_t d = c.integer("d_model", 512, 1);
   const int64_t dkv = c.integer("d_kv", 64, 1);
@@ -224,7 +143,7 @@ Schema t5_encoder_schema(const json& config, std::string_view origin) {
 }
 
 Schema cogvideox_transformer_schema(const json& config, std::string_view origin) {
-  const Cfg c(config, origin);
+  const ConfigValues c = config_reader(config, origin);
   const int64_t heads = c.integer("num_attention_heads", 30, 1);
   const int64_t head_dim = c.integer("attention_head_dim", 64, 1);
   const int64_t in_ch = c.integer("in_channels", 16, 1);
@@ -303,7 +222,7 @@ Schema cogvideox_transformer_schema(const json& config, std::string_view origin)
 }
 
 Schema cogvideox_vae_schema(const json& config, std::string_view origin) {
-  const Cfg c(config, origin);
+  const ConfigValues c = config_reader(config, origin);
   const int64_t in_ch = c.integer("in_channels", 3, 1);
   const int64_t out_ch = c.integer("out_channels", 3, 1);
   const std::vector<int64_t> boc = c.integers("block_out_channels", {128, 256, 256, 512}, 1);

@@ -19,62 +19,9 @@ namespace dvs::models {
 
 namespace {
 
-int64_t cfg_int(const nlohmann::json& c, const char* key, int64_t def, int64_t min, std::string_view origin) {
-  if (!c.contains(key) || c[key].is_null()) return def;
-  if (!c[key].is_number_integer() || c[key].get<int64_t>() < min)
-    throw Error(std::string(origin) + ": '" + key + "' must be an integer >= " + std::to_string(min));
-  return c[key].get<int64_t>();
-}
-
-bool cfg_bool(const nlohmann::json& c, const char* key, bool def, std::string_view origin) {
-  if (!c.contains(key) || c[key].is_null()) return def;
-  if (!c[key].is_boolean()) throw Error(std::string(origin) + ": '" + key + "' must be true or false");
-  return c[key].get<bool>();
-}
-
 std::string blk(int64_t i) { return "transformer_blocks." + std::to_string(i) + "."; }
 
 }  // namespace
-
-CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann::json& c, std::string_view origin) {
-  CogVideoXTransformerConfig r;
-  r.heads = cfg_int(c, "num_attention_heads", 30, 1, origin);
-  r.head_dim = cfg_int(c, "attention_head_dim", 64, 1, origin);
-  r.in_channels = cfg_int(c, "in_channels", 16, 1, origin);
-  r.out_channels = cfg_int(c, "out_channels", 16, 1, origin);
-  r.time_embed_dim = cfg_int(c, "time_embed_dim", 512, 1, origin);
-  r.text_embed_dim = cfg_int(c, "text_embed_dim", 4096, 1, origin);
-  r.num_layers = cfg_int(c, "num_layers", 30, 0, origin);
-  r.patch_size = cfg_int(c, "patch_size", 2, 1, origin);
-  r.max_text_seq_length = cfg_int(c, "max_text_seq_length", 226, 0, origin);
-  r.sample_width = cfg_int(c, "sample_width", 90, 1, origin);
-  r.sample_height = cfg_int(c, "sample_height", 60, 1, origin);
-  r.sample_frames = cfg_int(c, "sample_frames", 49, 1, origin);
-  r.temporal_compression_ratio = cfg_int(c, "temporal_compression_ratio", 4, 1, origin);
-  r.flip_sin_to_cos = cfg_bool(c, "flip_sin_to_cos", true, origin);
-  if (c.contains("freq_shift") && c["freq_shift"].is_number()) r.freq_shift = c["freq_shift"].get<float>();
-  if (c.contains("norm_eps") && c["norm_eps"].is_number()) r.norm_eps = c["norm_eps"].get<float>();
-  if (c.contains("spatial_interpolation_scale") && c["spatial_interpolation_scale"].is_number())
-    r.spatial_interpolation_scale = c["spatial_interpolation_scale"].get<float>();
-  if (c.contains("temporal_interpolation_scale") && c["temporal_interpolation_scale"].is_number())
-    r.temporal_interpolation_scale = c["temporal_interpolation_scale"].get<float>();
-  r.norm_affine = cfg_bool(c, "norm_elementwise_affine", true, origin);
-  r.attention_bias = cfg_bool(c, "attention_bias", true, origin);
-  r.rotary = cfg_bool(c, "use_rotary_positional_embeddings", false, origin);
-  r.learned_pos = cfg_bool(c, "use_learned_positional_embeddings", false, origin);
-  const auto unsupported = [&](const std::string& what) {
-    throw Error(std::string(origin) + ": " + what + " is not supported by this port (CogVideoX 1.0 5B/5B-I2V layout)");
-  };
-  if (c.contains("patch_size_t") && !c["patch_size_t"].is_null()) unsupported("patch_size_t (CogVideoX 1.5)");
-  if (c.contains("ofs_embed_dim") && !c["ofs_embed_dim"].is_null() && c["ofs_embed_dim"] != 0)
-    unsupported("ofs_embed_dim (CogVideoX 1.5)");
-  if (!r.rotary) unsupported("use_rotary_positional_embeddings = false (CogVideoX-2B sincos embedding)");
-  if (c.value("activation_fn", std::string("gelu-approximate")) != "gelu-approximate")
-    unsupported("activation_fn other than gelu-approximate");
-  if (c.value("timestep_activation_fn", std::string("silu")) != "silu") unsupported("timestep_activation_fn other than silu");
-  if (r.head_dim % 16 != 0) unsupported("attention_head_dim not a multiple of 16 (3D RoPE split)");
-  return r;
-}
 
 struct CogVideoXTransformer::Activations {
   Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj, lora_tmp;

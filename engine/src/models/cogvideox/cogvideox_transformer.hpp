@@ -27,6 +27,7 @@
 
 #include "models/cogvideox/lora.hpp"
 #include "models/weights.hpp"
+#include "spec/cogvideox_config.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"
 #include "vk/recorder.hpp"
@@ -35,21 +36,7 @@ namespace dvs::models {
 
 class ActivationPlan;
 
-struct CogVideoXTransformerConfig {
-  int64_t heads = 0, head_dim = 0, in_channels = 0, out_channels = 0, time_embed_dim = 0, text_embed_dim = 0;
-  int64_t num_layers = 0, patch_size = 2, max_text_seq_length = 0;
-  int64_t sample_width = 0, sample_height = 0, sample_frames = 0, temporal_compression_ratio = 4;
-  bool flip_sin_to_cos = true;
-  float freq_shift = 0.0f;
-  float norm_eps = 1e-5f;
-  float spatial_interpolation_scale = 1.875f, temporal_interpolation_scale = 1.0f;
-  bool norm_affine = true;
-  bool attention_bias = true;
-  bool rotary = true, learned_pos = false;
-
-  int64_t dim() const { return heads * head_dim; }
-  static CogVideoXTransformerConfig from_json(const nlohmann::json& config, std::string_view origin = "config.json");
-};
+using dvs::CogVideoXTransformerConfig;  // spec/cogvideox_config.hpp
 
 // Intermediate results of one forward (debug aid; host copies of the first ones the pack records).
 struct CogVideoXTaps {

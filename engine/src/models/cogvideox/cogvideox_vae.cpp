@@ -20,36 +20,6 @@
 
 namespace dvs::models {
 
-// ---- config -------------------------------------------------------------------------------------------------
-
-VaeConfig VaeConfig::from_json(const nlohmann::json& j) {
-  VaeConfig c;
-  auto integer = [&](const char* key, int64_t def) {
-    return j.contains(key) && !j[key].is_null() ? int64_t(std::llround(j[key].get<double>())) : def;
-  };
-  c.in_channels = integer("in_channels", 3);
-  c.out_channels = integer("out_channels", 3);
-  c.latent_channels = integer("latent_channels", 16);
-  c.block_out_channels = {128, 256, 256, 512};
-  if (j.contains("block_out_channels")) c.block_out_channels = j["block_out_channels"].get<std::vector<int64_t>>();
-  c.layers_per_block = integer("layers_per_block", 3);
-  c.norm_num_groups = integer("norm_num_groups", 32);
-  if (j.contains("norm_eps")) c.norm_eps = j["norm_eps"].get<float>();
-  c.temporal_compression_ratio = integer("temporal_compression_ratio", 4);
-  if (j.contains("scaling_factor") && !j["scaling_factor"].is_null()) c.scaling_factor = j["scaling_factor"].get<double>();
-  c.sample_height = integer("sample_height", 480);
-  c.sample_width = integer("sample_width", 720);
-  if (j.contains("use_quant_conv")) c.use_quant_conv = j["use_quant_conv"].get<bool>();
-  if (j.contains("use_post_quant_conv")) c.use_post_quant_conv = j["use_post_quant_conv"].get<bool>();
-  if (c.block_out_channels.empty()) throw Error("vae config: block_out_channels is empty");
-  return c;
-}
-
-int64_t VaeConfig::temporal_levels() const {
-  // int(np.log2(temporal_compression_ratio))
-  return int64_t(std::floor(std::log2(double(temporal_compression_ratio)) + 1e-9));
-}
-
 // ---- per-call state -----------------------------------------------------------------------------------------
 
 namespace {

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "models/weights.hpp"
+#include "spec/cogvideox_config.hpp"
 #include "tensor/tensor.hpp"
 
 namespace dvs::vk {
@@ -26,20 +27,7 @@ class Recorder;
 
 namespace dvs::models {
 
-struct VaeConfig {
-  int64_t in_channels = 3, out_channels = 3, latent_channels = 16;
-  std::vector<int64_t> block_out_channels;
-  int64_t layers_per_block = 3, norm_num_groups = 32;
-  float norm_eps = 1e-6f;
-  int64_t temporal_compression_ratio = 4;
-  double scaling_factor = 1.15258426;
-  int64_t sample_height = 480, sample_width = 720;
-  bool use_quant_conv = false, use_post_quant_conv = false;
-
-  static VaeConfig from_json(const nlohmann::json& config);
-  int64_t spatial_ratio() const { return int64_t(1) << (block_out_channels.size() - 1); }
-  int64_t temporal_levels() const;  // log2(temporal_compression_ratio): down/up blocks that compress time
-};
+using dvs::VaeConfig;  // spec/cogvideox_config.hpp
 
 // diffusers' enable_tiling() settings. Defaults: tiles of half the config's sample size, overlap 1/6 (H), 1/5 (W).
 struct VaeTiling {

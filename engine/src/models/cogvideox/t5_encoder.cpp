@@ -16,46 +16,9 @@ namespace dvs::models {
 
 namespace {
 
-int64_t cfg_int(const nlohmann::json& c, const char* key, int64_t def, int64_t min, std::string_view origin) {
-  if (!c.contains(key) || c[key].is_null()) return def;
-  if (!c[key].is_number_integer() || c[key].get<int64_t>() < min)
-    throw Error(std::string(origin) + ": '" + key + "' must be an integer >= " + std::to_string(min));
-  return c[key].get<int64_t>();
-}
-
-ops::Activation activation_named(const std::string& name, std::string_view origin) {
-  // transformers ACT2FN: gelu_new / gelu_pytorch_tanh are the tanh approximation; silu == swish.
-  if (name == "gelu_new" || name == "gelu_pytorch_tanh") return ops::Activation::gelu_tanh;
-  if (name == "silu" || name == "swish") return ops::Activation::silu;
-  throw Error(std::string(origin) + ": T5 activation '" + name +
-              "' is not supported (gelu_new / gelu_pytorch_tanh / silu are)");
-}
-
 std::string block(int64_t i) { return "encoder.block." + std::to_string(i) + "."; }
 
 }  // namespace
-
-T5EncoderConfig T5EncoderConfig::from_json(const nlohmann::json& c, std::string_view origin) {
-  T5EncoderConfig r;
-  r.vocab_size = cfg_int(c, "vocab_size", 32128, 1, origin);
-  r.d_model = cfg_int(c, "d_model", 512, 1, origin);
-  r.d_kv = cfg_int(c, "d_kv", 64, 1, origin);
-  r.d_ff = cfg_int(c, "d_ff", 2048, 1, origin);
-  r.num_layers = cfg_int(c, "num_layers", 6, 0, origin);
-  r.num_heads = cfg_int(c, "num_heads", 8, 1, origin);
-  r.num_buckets = cfg_int(c, "relative_attention_num_buckets", 32, 2, origin);
-  r.max_distance = cfg_int(c, "relative_attention_max_distance", 128, 1, origin);
-  if (c.contains("layer_norm_epsilon") && c["layer_norm_epsilon"].is_number())
-    r.eps = c["layer_norm_epsilon"].get<float>();
-  // T5Config: feed_forward_proj "gated-ACT" or "ACT"; "gated-gelu" means dense_act_fn = gelu_new.
-  const std::string ffp = c.value("feed_forward_proj", std::string("relu"));
-  r.gated = ffp.rfind("gated-", 0) == 0;
-  // T5Config derives dense_act_fn from feed_forward_proj (the stored dense_act_fn is recomputed).
-  std::string act = r.gated ? ffp.substr(6) : ffp;
-  if (ffp == "gated-gelu") act = "gelu_new";
-  r.activation = activation_named(act, origin);
-  return r;
-}
 
 int64_t t5_relative_position_bucket(int64_t relative_position, bool bidirectional, int64_t num_buckets,
                                     int64_t max_distance) {
@@ -229,7 +192,8 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
     const std::string ff = b + "layer.1.DenseReluDense.";
     ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.1.layer_norm.weight"), cfg_.eps);
     ops::LinearEpilogue act = fp32_ops;
-    act.activation = cfg_.activation;
+    act.activation =
+        cfg_.activation == T5EncoderConfig::Activation::silu ? ops::Activation::silu : ops::Activation::gelu_tanh;
     if (cfg_.gated) {
       ops::linear(rec, a.xn, weights_.get(ff + "wi_0.weight"), a.ff_a, act);
       ops::linear(rec, a.xn, weights_.get(ff + "wi_1.weight"), a.ff_b, fp32_ops);

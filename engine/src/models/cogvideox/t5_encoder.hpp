@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "models/weights.hpp"
+#include "spec/t5_config.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/memory.hpp"
@@ -30,16 +31,7 @@ namespace dvs::models {
 
 class ActivationPlan;
 
-struct T5EncoderConfig {
-  int64_t vocab_size = 0, d_model = 0, d_kv = 0, d_ff = 0, num_layers = 0, num_heads = 0;
-  int64_t num_buckets = 32, max_distance = 128;
-  float eps = 1e-6f;
-  bool gated = true;
-  ops::Activation activation = ops::Activation::gelu_tanh;
-
-  int64_t inner() const { return num_heads * d_kv; }
-  static T5EncoderConfig from_json(const nlohmann::json& config, std::string_view origin = "config.json");
-};
+using dvs::T5EncoderConfig;  // spec/t5_config.hpp
 
 // transformers' T5Attention._relative_position_bucket (fp32 log as torch computes it). relative_position =
 // key position - query position.

@@ -6,10 +6,11 @@
 #include <functional>
 
 #include "io/host_tensor.hpp"
+#include "spec/cogvideox_config.hpp"
 
 namespace dvs::models {
 
-struct VaeConfig;
+using dvs::VaeConfig;  // spec/cogvideox_config.hpp
 struct VaeTiling;
 
 struct TilePlan {

@@ -5,8 +5,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
-#include "io/pth_file.hpp"
-#include "io/safetensors.hpp"
+#include "io/weight_set.hpp"
 #include "models/vda/vda_pos_embed.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_attention.hpp"
@@ -26,10 +25,13 @@ std::string attention_block(int j, int a) {
   return motion(j) + "transformer_blocks.0.attention_blocks." + std::to_string(a) + ".";
 }
 
-// Every tensor of the checkpoint as f32 host tensors, from either format.
-std::map<std::string, HostTensor> read_checkpoint(const std::filesystem::path& file, std::map<std::string, Shape>& shapes) {
+// Every tensor of the checkpoint (either format: the weight loader tells them apart by content) as f32 host
+// tensors.
+std::map<std::string, HostTensor> read_checkpoint(const WeightSet& weights, std::map<std::string, Shape>& shapes) {
   std::map<std::string, HostTensor> out;
-  auto take = [&](const std::string& name, HostTensor h) {
+  for (const auto& [name, ref] : weights.entries()) {
+    if (!ref.info->dtype) continue;  // e.g. integer buffers the model does not use
+    HostTensor h = ref.file->load(*ref.info);
     if (h.dtype != DType::f32) {
       const auto v = h.to_f32();
       h = HostTensor::from_f32(h.shape, v);
@@ -43,16 +45,6 @@ std::map<std::string, HostTensor> read_checkpoint(const std::filesystem::path& f
                     "(dvs-weights inspect --values " + file.string() + " lists every such tensor)");
     shapes[name] = h.shape;
     out.emplace(name, std::move(h));
-  };
-  if (file.extension() == ".safetensors") {
-    const SafetensorsFile f = SafetensorsFile::open(file);
-    for (const auto& t : f.tensors()) take(t.name, f.load(t));
-  } else {
-    const PthFile f = PthFile::open(file);
-    for (const auto& t : f.tensors()) {
-      if (!t.dtype) continue;  // e.g. integer buffers the model does not use
-      take(t.name, f.load(t));
-    }
   }
   return out;
 }
@@ -92,19 +84,14 @@ Tensor empty(vk::Context& ctx, Shape s, const char* what) { return Tensor::empty
 
 VdaConfig VdaModel::inspect(const std::filesystem::path& checkpoint) {
   std::map<std::string, Shape> shapes;
-  if (checkpoint.extension() == ".safetensors") {
-    const SafetensorsFile f = SafetensorsFile::open(checkpoint);
-    for (const auto& t : f.tensors()) shapes[t.name] = t.shape;
-  } else {
-    const PthFile f = PthFile::open(checkpoint);
-    for (const auto& t : f.tensors()) shapes[t.name] = t.shape;
-  }
+  const WeightSet weights = WeightSet::open_file(checkpoint);
+  for (const auto& [name, ref] : weights.entries()) shapes[name] = ref.info->shape;
   return resolve_vda_config(checkpoint, shapes);
 }
 
 VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoint) {
   std::map<std::string, Shape> shapes;
-  std::map<std::string, HostTensor> host = read_checkpoint(checkpoint, shapes);
+  std::map<std::string, HostTensor> host = read_checkpoint(WeightSet::open_file(checkpoint), shapes);
   VdaModel m(ctx, resolve_vda_config(checkpoint, shapes));
   m.file_ = checkpoint;
   auto need = [&](const std::string& name) -> HostTensor& {

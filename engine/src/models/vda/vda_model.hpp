@@ -21,7 +21,8 @@ namespace dvs {
 
 class VdaModel {
  public:
-  // Reads the checkpoint (.pth or .safetensors written by `dvs-weights convert`), resolves its architecture
+  // Reads the checkpoint through the weight loader (io/weight_set.hpp: a .pth or a safetensors file, e.g. one written
+  // by `dvs-weights convert`, told apart by content whatever its extension), resolves its architecture
   // (config.json beside it, else the released sizes) and uploads every tensor. Throws dvs::Error naming the file.
   static VdaModel load(vk::Context& ctx, const std::filesystem::path& checkpoint);
   // The architecture alone, from the tensors' names and shapes (no weights read): a cheap check before long work.
