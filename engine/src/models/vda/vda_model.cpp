@@ -40,9 +40,9 @@ std::map<std::string, HostTensor> read_checkpoint(const WeightSet& weights, std:
     const float* v = h.as<float>();
     for (int64_t i = 0; i < h.numel(); ++i)
       if (!std::isfinite(v[i]))
-        throw Error(file.string() + ": tensor " + name + " holds " + (std::isnan(v[i]) ? "NaN" : "an infinite value") +
+        throw Error(ref.file->path().string() + ": tensor " + name + " holds " + (std::isnan(v[i]) ? "NaN" : "an infinite value") +
                     " (first at element " + std::to_string(i) + "): the checkpoint is damaged; download it again "
-                    "(dvs-weights inspect --values " + file.string() + " lists every such tensor)");
+                    "(dvs-weights inspect --values " + ref.file->path().string() + " lists every such tensor)");
     shapes[name] = h.shape;
     out.emplace(name, std::move(h));
   }
