@@ -4,6 +4,7 @@
 #include "args.hpp"
 #include "commands.hpp"
 #include "dvs/pipeline.hpp"
+#include "prompt_length.hpp"
 
 namespace dvs::cli {
 
@@ -18,6 +19,7 @@ int run_encode_prompt(const std::vector<std::string>& argv) {
   }
   const std::filesystem::path model = a.required("model"), out = a.required("out");
   if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed)");
+  if (auto w = prompt_truncation_warning(model, a.str("prompt"), "--prompt")) std::cerr << "dvs encode-prompt: " << *w << "\n";
   const auto shape = encode_prompt(model, a.str("prompt"), out, a.str("device"));
   std::cout << "wrote " << out.string() << " [";
   for (size_t i = 0; i < shape.size(); ++i) std::cout << (i ? "," : "") << shape[i];
