@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "args.hpp"
+#include "depth_args.hpp"
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "models/vda/vda_model.hpp"
@@ -72,7 +73,7 @@ int run_plan(const std::vector<std::string>& argv) {
   if (a.has("depth-model")) {
     const std::string m = a.str("depth-model");
     req.depth_model = (m == "vits" || m == "vitb" || m == "vitl") ? released_vda_config(m) : VdaModel::inspect(m);
-    req.depth_input_size = a.integer("depth-input-size", 518, 14, 4096);
+    req.depth_input_size = depth_input_size(a, "depth-input-size", 518);
     const auto [vh, vw] = a.size("video-size", {0, 0});
     req.depth_frame_height = vh, req.depth_frame_width = vw;
   } else if (a.has("depth-input-size") || a.has("video-size")) {
