@@ -51,13 +51,15 @@ commands:
   make-tiny --out DIR [--real-size] [--seed N] [--dtype f32|bf16] [--layers N] [--heads N] [--head-dim N]
             [--time-embed-dim N] [--t5-layers N] [--t5-d-model N] [--t5-heads N] [--t5-d-kv N] [--t5-d-ff N]
             [--vocab N] [--text-len N] [--sample LHxLWxF] [--vae-channels a,b,c,d] [--vae-layers-per-block N]
-            [--vae-groups N] [--latent-channels N]
+            [--vae-groups N] [--latent-channels N] [--force]
                     write a random-weight CogVideoX-5B-I2V folder of tiny (or any) size that dvs loads;
                     defaults are the conformance pack's sizes; --real-size starts from the real model's
                     (THUDM/CogVideoX-5b-I2V: 42 blocks of 48x64, T5-XXL 24 layers, 480x720x49; about 20 GB
                     in bf16), the other options then change single sizes. DIR is a folder (created; not a file).
                     --sample is the transformer's sample size in LATENT units: latent height x latent width
-                    (pixels / 8, the VAE's scale) x video frames; e.g. 8x8x9 suits --size 64x64 --frames 9
+                    (pixels / 8, the VAE's scale, each even) x video frames (4k+1); e.g. 8x8x9 suits
+                    --size 64x64 --frames 9. An existing DIR that is not empty is refused unless --force
+                    (then files of the same names are replaced).
   make-vda --size vits|vitb|vitl --out FILE.safetensors [--seed N]
                     write a random-weight Video-Depth-Anything checkpoint of a released size (every tensor
                     of the released .pth, same names and shapes; metric mode when FILE's name starts with
@@ -386,6 +388,31 @@ int inspect(const std::vector<std::string>& args) {
 
 }  // namespace
 
+namespace {
+
+// `--sample LHxLWxF`, refusing sizes no run can use: the transformer cuts the latent into 2x2 patches and its
+// learned positional table fixes the run to exactly LH x LW, so both must be even; videos have 4k+1 frames (the VAE
+// keeps the first and compresses the rest by 4), and only a clip of exactly F frames uses the stored table.
+void parse_sample(const std::string& v, dvs::models::TinyModelSpec& spec) {
+  int h = 0, w = 0, f = 0;
+  char end = 0;
+  const bool shaped = std::sscanf(v.c_str(), "%dx%dx%d%c", &h, &w, &f, &end) == 3;
+  std::string why;
+  if (!shaped) why = "must be LATENT_HxLATENT_WxFRAMES";
+  else if (h < 2 || w < 2 || h > 1024 || w > 1024 || h % 2 || w % 2)
+    why = "latent height and width must be even numbers in [2, 1024] (the transformer's 2x2 patches; its learned "
+          "positional table then fixes the run's size to them)";
+  else if (f < 1 || f > 1021 || (f - 1) % 4)
+    why = "frames must be 4k+1 in [1, 1021] (videos have 4k+1 frames: the VAE compresses time by 4 after the first; "
+          "only a clip of exactly that many frames uses the learned positional table)";
+  if (!why.empty())
+    throw dvs::UsageError("make-tiny: --sample " + why + ", got '" + v + "'; it is in latent units (pixels / 8), e.g. "
+                          "8x8x9 for 64x64-pixel videos of 9 frames");
+  spec.sample_height = h, spec.sample_width = w, spec.sample_frames = f;
+}
+
+}  // namespace
+
 // `make-tiny`: every option has the pack's value as default.
 int make_tiny(const std::vector<std::string>& args) {
   dvs::models::TinyModelSpec spec;
@@ -421,7 +448,7 @@ int make_tiny(const std::vector<std::string>& args) {
       std::cout << kUsage;
       return 0;
     }
-    if (a == "--real-size") continue;
+    if (a == "--real-size" || a == "--force") continue;
     if (a == "--out") out = value(i);
     else if (a == "--seed") spec.seed = uint64_t(integer(i, 0, 1 << 30));
     else if (a == "--dtype") {
@@ -443,12 +470,8 @@ int make_tiny(const std::vector<std::string>& args) {
     else if (a == "--vocab") spec.vocab = integer(i, 16, 32128);
     else if (a == "--text-len") spec.text_len = integer(i, 2, 512);
     else if (a == "--latent-channels") spec.latent_channels = integer(i, 1, 64);
-    else if (a == "--sample") {
-      const std::string v = value(i);
-      if (std::sscanf(v.c_str(), "%dx%dx%d", &spec.sample_height, &spec.sample_width, &spec.sample_frames) != 3)
-        throw dvs::UsageError("make-tiny: --sample must be LATENT_HxLATENT_WxFRAMES in latent units (pixels / 8), "
-                              "e.g. 8x8x9 for 64x64-pixel videos of 9 frames");
-    } else if (a == "--vae-channels") {
+    else if (a == "--sample") parse_sample(value(i), spec);
+    else if (a == "--vae-channels") {
       spec.vae_channels.clear();
       std::stringstream ss(value(i));
       for (std::string part; std::getline(ss, part, ',');) {
@@ -464,6 +487,11 @@ int make_tiny(const std::vector<std::string>& args) {
   std::error_code ec;
   if (fs::exists(out, ec) && !fs::is_directory(out, ec))
     throw dvs::Error("make-tiny: --out " + out + " is a file; it must name a folder (it is created when missing)");
+  // As merge-lora: an existing folder with something in it is not written into unless asked to.
+  if (fs::is_directory(out, ec) && !fs::is_empty(out, ec) && std::find(args.begin(), args.end(), "--force") == args.end())
+    throw dvs::Error(out + ": already exists and is not an empty folder" +
+                     std::string(fs::exists(fs::path(out) / "model_index.json", ec) ? " (it holds a model)" : "") +
+                     "; choose another --out, or give --force to write into it (files of the same names are replaced)");
   spec.t5_d_kv = std::max(1, spec.t5_d_model / spec.t5_heads);
   spec.t5_d_ff = 2 * spec.t5_d_model;
   spec.time_embed_dim = spec.heads * spec.head_dim;

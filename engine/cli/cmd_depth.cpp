@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "args.hpp"
+#include "depth_args.hpp"
 #include "commands.hpp"
 #include "dvs/depth_estimate.hpp"
 #include "dvs/error.hpp"
@@ -61,7 +62,7 @@ int run_depth(const std::vector<std::string>& argv) {
   const std::filesystem::path out = a.required("out");
   if (out.extension() != ".npz" && out.extension() != ".npy") a.fail("--out must end in .npz or .npy, got " + out.string());
   job.model = depth_model_argument(a);
-  job.input_size = a.integer("input-size", job.input_size, 14, 4096);
+  job.input_size = depth_input_size(a, "input-size", job.input_size);
   job.frames = a.integer("frames", 0, 0, 1000000);
   job.max_res = a.integer("max-res", job.max_res, 0, 100000);
   job.device = a.str("device");

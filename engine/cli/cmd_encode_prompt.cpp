@@ -5,6 +5,7 @@
 #include "commands.hpp"
 #include "dvs/pipeline.hpp"
 #include "options.hpp"
+#include "prompt_length.hpp"
 
 namespace dvs::cli {
 
@@ -22,6 +23,7 @@ int run_encode_prompt(const std::vector<std::string>& argv) {
   if (a.help()) return 0;
   const std::filesystem::path model = a.required("model"), out = a.required("out");
   if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed)");
+  if (auto w = prompt_truncation_warning(model, a.str("prompt"), "--prompt")) std::cerr << "dvs encode-prompt: " << *w << "\n";
   const auto shape = encode_prompt(model, a.str("prompt"), out, a.str("device"));
   std::cout << "wrote " << out.string() << " [";
   for (size_t i = 0; i < shape.size(); ++i) std::cout << (i ? "," : "") << shape[i];

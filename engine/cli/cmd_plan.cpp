@@ -4,6 +4,7 @@
 #include <tuple>
 
 #include "args.hpp"
+#include "depth_args.hpp"
 #include "commands.hpp"
 #include "dvs/error.hpp"
 #include "dvs/plan.hpp"
@@ -74,7 +75,7 @@ int run_plan(const std::vector<std::string>& argv) {
   if (a.has("device") && a.has("limits")) a.fail("give --device or --limits, not both");
   if (a.has("depth-model")) {
     req.depth_model = a.str("depth-model");
-    req.depth_input_size = a.integer("depth-input-size", 518, 14, 4096);
+    req.depth_input_size = depth_input_size(a, "depth-input-size", 518);
     std::tie(req.depth_frame_height, req.depth_frame_width) = a.size("video-size", {0, 0});
   }
   // The library's UsageErrors (a size it cannot read, a profile it does not know, frames or a size the model

@@ -1,5 +1,8 @@
 #include "depth_args.hpp"
 
+#include <algorithm>
+#include <string>
+
 namespace dvs::cli {
 
 void parse_depth_source(const Args& a, RenderJob& job) {
@@ -15,7 +18,15 @@ void parse_depth_source(const Args& a, RenderJob& job) {
     return;
   }
   job.depth_model = a.str("depth-model");
-  job.depth_input_size = a.integer("depth-input-size", job.depth_input_size, 14, 4096);
+  job.depth_input_size = depth_input_size(a, "depth-input-size", job.depth_input_size);
+}
+
+int depth_input_size(const Args& a, const std::string& option, int fallback) {
+  const int n = a.integer(option, fallback, 14, 4096);
+  if (n % 14)
+    a.fail("--" + option + " must be a multiple of 14 (the model's patch size), got " + std::to_string(n) + "; e.g. " +
+           std::to_string(n / 14 * 14) + " or " + std::to_string(std::min(4088, n / 14 * 14 + 14)));
+  return n;
 }
 
 }  // namespace dvs::cli

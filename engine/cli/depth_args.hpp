@@ -8,4 +8,8 @@ namespace dvs::cli {
 
 void parse_depth_source(const Args& a, RenderJob& job);
 
+// A Video-Depth-Anything network input size (--input-size, --depth-input-size): in [14, 4096] and a multiple of
+// 14, the ViT's patch (the model would round any other value to one silently).
+int depth_input_size(const Args& a, const std::string& option, int fallback);
+
 }  // namespace dvs::cli

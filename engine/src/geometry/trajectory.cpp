@@ -4,13 +4,13 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <sstream>
 
 #include "dvs/error.hpp"
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
 #include "geometry/trajectory_official_tables.hpp"
+#include "geometry/trajectory_text.hpp"
 
 namespace dvs::geometry {
 
@@ -117,6 +117,7 @@ OrbitAngles parse_official_trajectory(const std::string& text, const std::string
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
     std::istringstream words(line);
     std::string w;
     std::vector<double> values;
@@ -125,7 +126,7 @@ OrbitAngles parse_official_trajectory(const std::string& text, const std::string
       char* end = nullptr;
       double v = std::strtod(w.c_str(), &end);
       if (end == w.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v))
-        throw Error(name + ":" + std::to_string(line_no) + ": '" + w + "' is not a finite number");
+        throw Error(name + ":" + std::to_string(line_no) + ": '" + printable_excerpt(w) + "' is not a finite number");
       values.push_back(v);
     }
     if (values.empty()) continue;  // blank lines are ignored
@@ -141,11 +142,15 @@ OrbitAngles parse_official_trajectory(const std::string& text, const std::string
 }
 
 OrbitAngles read_official_trajectory(const std::filesystem::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(path.string() + ": cannot open the trajectory file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_official_trajectory(ss.str(), path.string());
+  return parse_official_trajectory(read_trajectory_text(path), path.string());
+}
+
+std::string knot_counts(const OrbitAngles& knots) {
+  const size_t t = knots.theta_deg.size(), p = knots.phi_deg.size(), r = knots.r.size();
+  if (t == p && p == r) return std::to_string(t) + " knots per line";
+  return "knots: theta " + std::to_string(t) + ", phi " + std::to_string(p) + ", r " + std::to_string(r) +
+         "; lines of different lengths are each spread over the whole clip on their own, as the authors' loader "
+         "does (their loop1.txt has 13, 9 and 8)";
 }
 
 OrbitAngles interpolate_official(const OrbitAngles& knots, int frames) {
@@ -310,8 +315,9 @@ Trajectory load_trajectory(const std::string& spec, int frames, double radius) {
     o.frames = frames;
     t = read_gltf_trajectory(p, o);
   } else {
-    return official_trajectory(interpolate_official(read_official_trajectory(p), frames), radius,
-                               "official-format file " + p.string());
+    const OrbitAngles knots = read_official_trajectory(p);
+    return official_trajectory(interpolate_official(knots, frames), radius,
+                               "official-format file " + p.string() + " (" + knot_counts(knots) + ")");
   }
   if (t.frames() != frames)
     throw Error(p.string() + ": has " + std::to_string(t.frames()) + " poses but the clip has " +

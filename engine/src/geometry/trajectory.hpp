@@ -35,7 +35,12 @@ struct OrbitAngles {
 
 // Parses the three whitespace-separated lists. Errors name the file and the line.
 OrbitAngles parse_official_trajectory(const std::string& text, const std::string& name);
+// A binary file is refused as not text (trajectory_text.hpp).
 OrbitAngles read_official_trajectory(const std::filesystem::path& path);
+
+// How many knots each line holds, for the trajectory's description: "9 knots per line", or each count when the
+// lines differ (allowed, as in the authors' own files: each line is interpolated over the clip on its own).
+std::string knot_counts(const OrbitAngles& knots);
 
 // Resamples each list to `frames` values at linspace(0,1,frames) against knots at linspace(0,1,len):
 // linear for len ≤ 3 (exactly the official interp1d); for len > 3 a NATURAL CUBIC INTERPOLATING spline

@@ -2,11 +2,11 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "geometry/trajectory_text.hpp"
 #include "io/disk_space.hpp"
 
 namespace dvs::geometry {
@@ -119,11 +119,7 @@ Trajectory parse_trajectory_json(const std::string& text, const std::string& nam
 }
 
 Trajectory read_trajectory_json(const std::filesystem::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(path.string() + ": cannot open the trajectory file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_trajectory_json(ss.str(), path.string());
+  return parse_trajectory_json(read_trajectory_text(path), path.string());
 }
 
 std::string trajectory_to_json(const Trajectory& t) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <vector>
 
@@ -197,6 +198,17 @@ HostTensor depth_from_array(const HostTensor& in, const std::string& name, const
     }
     return out;
   }
+  if (lo < 0) {  // disparity is inverse depth: a depth model's output is never negative (VDA ends in a ReLU)
+    int64_t first = 0, count = 0;
+    for (int64_t i = n - 1; i >= 0; --i)
+      if (d[i] < 0) first = i, ++count;
+    throw Error(name + ": disparity (inverse depth) cannot be negative, but frame " + std::to_string(first / plane) +
+                " holds " + std::to_string(d[first]) + " at row " + std::to_string(first % plane / in.shape[2]) +
+                ", column " + std::to_string(first % in.shape[2]) + " (" + std::to_string(count) + " of " +
+                std::to_string(n) + " values are below 0, the least " + std::to_string(lo) +
+                "). Give a depth model's raw disparity; if the file holds metric depth, say so with --metric-depth; "
+                "a signed or log map must be converted first");
+  }
   if (!(hi > lo))
     throw Error(name + ": the disparity is constant over the whole clip (" + std::to_string(lo) +
                 "), so it cannot be normalised into depth");
@@ -318,6 +330,16 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
   }
   const double kx = rw / vw, ky = rh / vh;
   const double x0 = rx + cx * kx, y0 = ry + cy * ky, w = cw * kx, h = ch * ky;
+  // 3. Enough depth for the frame: one depth pixel may stretch over at most kDepthMaxUpscale working pixels a side.
+  if (h * kDepthMaxUpscale < g.height || w * kDepthMaxUpscale < g.width) {
+    char ratio[32];
+    std::snprintf(ratio, sizeof ratio, "%.3g", std::max(g.height / h, g.width / w));
+    throw Error(name + ": the depth frames are " + std::to_string(d.shape[1]) + "x" + std::to_string(d.shape[2]) +
+                " (HxW), far too small for the " + std::to_string(g.height) + "x" + std::to_string(g.width) +
+                " working frame: each depth pixel would cover " + ratio + " pixels a side (at most " +
+                std::to_string(kDepthMaxUpscale) + " are allowed, one VAE cell). Give depth computed at (or near) the "
+                "video's size, e.g. with dvs depth or --depth-model");
+  }
   if (x0 == 0 && y0 == 0 && w == dw && h == dh) return resize_depth(d, g.height, g.width);
   return resample_region(d, x0, y0, w, h, g.height, g.width);
 }

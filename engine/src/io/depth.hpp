@@ -9,7 +9,7 @@
 // Disparity → depth exactly as the official code (float32): dn = (d − min)/(max − min) over the WHOLE clip,
 // z = 10000 / max(3900·dn, 1e-5), clipped to [near, far] = [1e-4, 1e4]. Metric depth is used as is.
 // Errors name the file and the problem (wrong rank or dtype, zero frames, NaN/inf with its frame, a
-// constant disparity clip, non-positive metric depth).
+// constant disparity clip, negative disparity, non-positive metric depth).
 #pragma once
 #include <filesystem>
 #include <string>
@@ -79,7 +79,10 @@ struct VideoFrameGeometry {
 // Depth [N,h,w] mapped onto the working frame exactly as the video's frames were (so depth pixel and video
 // pixel stay aligned under --resize crop): first onto the source video frame (DepthFit when the aspect
 // ratios differ), then the video's own crop or squash, then bilinear resampling (half-pixel centres).
-// Frame counts as fit_depth_to_video. Errors name `name`.
+// Depth whose part that covers the working frame has fewer than 1/kDepthMaxUpscale of its rows or columns is
+// refused (e.g. 4x7 for 384x672: one depth pixel per 96x96 pixels is no geometry). Frame counts as
+// fit_depth_to_video. Errors name `name`.
+constexpr int kDepthMaxUpscale = 8;
 HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& video, DepthFit fit,
                               bool allow_trim, const std::string& name);
 

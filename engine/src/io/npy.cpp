@@ -194,6 +194,14 @@ std::string shape_tuple(const Shape& s) {
 
 }  // namespace
 
+std::string cannot_create_note(const std::filesystem::path& path, int error_number) {
+  const std::filesystem::path folder = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  std::error_code ec;
+  if (!std::filesystem::exists(folder, ec)) return "cannot create the file: the folder " + folder.string() + " does not exist";
+  if (!std::filesystem::is_directory(folder, ec)) return "cannot create the file: " + folder.string() + " is not a folder";
+  return "cannot create the file in " + folder.string() + ": " + std::strerror(error_number);
+}
+
 HostTensor parse_npy(std::span<const uint8_t> b, const std::string& name) {
   if (b.size() < 10 || std::memcmp(b.data(), kMagic, 6) != 0)
     throw Error(name + ": not a .npy file (missing the \\x93NUMPY magic" +
@@ -341,7 +349,7 @@ void write_npy(const std::filesystem::path& path, const HostTensor& t) {
   tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
   const std::string name = path.string();
   FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw Error(name + ": cannot create " + tmp.string() + ": " + std::strerror(errno));
+  if (!f) throw Error(name + ": " + cannot_create_note(path, errno));
   const bool wrote = bytes.empty() || std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   const int werr = errno;
   const bool closed = std::fclose(f) == 0;

@@ -22,6 +22,10 @@ HostTensor parse_npy(std::span<const uint8_t> bytes, const std::string& name);
 // Writes `t` atomically (temp file + rename). Throws dvs::Error on a malformed tensor or an I/O failure.
 void write_npy(const std::filesystem::path& path, const HostTensor& t);
 
+// Why a file cannot be created at `path` (errno `error_number` from the attempt), naming the user's folder, not a
+// temporary name: "cannot create the file: the folder out/x does not exist".
+std::string cannot_create_note(const std::filesystem::path& path, int error_number);
+
 // The exact bytes write_npy would store (header + data).
 std::vector<uint8_t> encode_npy(const HostTensor& t);
 

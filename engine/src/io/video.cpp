@@ -12,6 +12,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #if DVS_VIDEO_IO
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -22,6 +23,7 @@
 #include "io/disk_space.hpp"
 #include "io/npy.hpp"
 #include "io/third_party_logs.hpp"
+#include "io/video_probe.hpp"
 
 namespace dvs {
 
@@ -34,6 +36,20 @@ namespace {
 [[noreturn]] void no_video_io(const std::filesystem::path& path, const std::string& what) {
   throw Error(path.string() + ": " + what + (DVS_VIDEO_IO ? " (frame arrays are read at their own size)"
                                                           : ": built without video I/O (DVS_VIDEO_IO=OFF; only .npy frame arrays)"));
+}
+
+// A video that holds fewer frames than were asked for (--frames). `announced` is the container's own count (0 when
+// it does not say); more than were decoded means the file stops early. run needs 4k+1 frames, render and depth
+// take any count, so both are suggested.
+[[noreturn]] void too_few_frames(const std::string& name, int have, int wanted, int announced) {
+  const int fit = (have - 1) / 4 * 4 + 1;
+  std::string why;
+  if (announced > have)
+    why = " (the file is truncated or damaged: its header announces " + std::to_string(announced) +
+          " frames but decoding stops after frame " + std::to_string(have) + ")";
+  throw Error(name + ": holds " + std::to_string(have) + " frames, fewer than --frames " + std::to_string(wanted) + why +
+              "; use --frames " + std::to_string(fit) + " (the largest 4k+1 it has, as dvs run needs; dvs render and "
+              "dvs depth take any count up to " + std::to_string(have) + "), or leave --frames out to use them all");
 }
 
 bool is_npy(const std::filesystem::path& path) {
@@ -53,7 +69,8 @@ HostTensor read_frames_npy(const std::filesystem::path& path, int max_frames, Vi
     throw Error(path.string() + ": frame arrays must be f32 [F,3,H,W] in [-1,1] or u8 [F,H,W,3], got [" + shape_str(s) + "]");
   const int64_t F = max_frames > 0 ? std::min<int64_t>(s[0], max_frames) : s[0];
   const int64_t H = planar ? s[2] : s[1], W = planar ? s[3] : s[2];
-  if (F == 0) throw Error(path.string() + ": the video has no decodable frames");
+  if (F == 0) throw Error(path.string() + ": the frame array holds no frames (its shape is [" + shape_str(s) + "])");
+  if (max_frames > 0 && F < max_frames) too_few_frames(path.string(), int(F), max_frames, 0);
   HostTensor out({F, 3, H, W}, DType::f32);
   const size_t plane = size_t(H * W);
   for (int64_t f = 0; f < F; ++f)
@@ -156,9 +173,13 @@ cv::VideoCapture open_video(const std::filesystem::path& path, VideoInfo& vi) {
   const std::string name = path.string();
   if (!std::filesystem::is_regular_file(path)) throw Error(name + ": no such video file");
   cv::VideoCapture cap(name, cv::CAP_FFMPEG);
-  if (!cap.isOpened())
+  if (!cap.isOpened()) {
+    const std::string problem = video_file_problem(path);
+    if (!problem.empty())
+      throw Error(name + ": cannot read the video: " + problem);
     throw Error(name + ": cannot open the video (unknown container or codec; re-encode it to H.264 .mp4, e.g. "
                 "ffmpeg -i IN -c:v libx264 OUT.mp4)");
+  }
   vi.width = int(cap.get(cv::CAP_PROP_FRAME_WIDTH));
   vi.height = int(cap.get(cv::CAP_PROP_FRAME_HEIGHT));
   vi.fps = cap.get(cv::CAP_PROP_FPS);
@@ -177,9 +198,26 @@ std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& nam
     if (bgr.channels() == 1) cv::cvtColor(bgr, bgr, cv::COLOR_GRAY2BGR);
     frames.push_back(fit(bgr).clone());
   }
-  if (frames.empty()) throw Error(name + ": the video has no decodable frames");
+  if (frames.empty()) {
+    const std::string problem = video_file_problem(name);
+    throw Error(name + ": not one frame of the video can be decoded" +
+                (!problem.empty() ? ": " + problem
+                 : vi.frames_in_file > 0 ? " though its header announces " + std::to_string(vi.frames_in_file) +
+                                               " (the file is truncated or damaged)"
+                                         : std::string()) +
+                (problem.empty() ? "; export or copy it again, or re-encode it (ffmpeg -i IN -c:v libx264 OUT.mp4)" : ""));
+  }
+  if (max_frames > 0 && int(frames.size()) < max_frames)
+    too_few_frames(name, int(frames.size()), max_frames, vi.frames_in_file);
   vi.frames = int(frames.size());
-  if (max_frames <= 0 || vi.frames < max_frames) vi.frames_in_file = vi.frames;  // read to the end: exact
+  if (max_frames <= 0) {
+    // Read to the end. Some containers only estimate their count (from the duration), hence the one frame of slack.
+    if (vi.frames_in_file > vi.frames + 1)
+      std::cerr << "dvs: warning: " << name << ": its header announces " << vi.frames_in_file
+                << " frames but decoding stops after frame " << vi.frames
+                << " (the file is truncated or damaged); using those " << vi.frames << "\n";
+    vi.frames_in_file = vi.frames;  // exact
+  }
   return frames;
 }
 

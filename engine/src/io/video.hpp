@@ -15,7 +15,7 @@ enum class ResizeMode {
 };
 
 struct VideoReadOptions {
-  int max_frames = 0;  // 0 = all frames
+  int max_frames = 0;  // the first N frames (0 = all); a video with fewer is an error (too_few_frames, video.cpp)
   int height = 0, width = 0;  // 0 = keep the file's size
   ResizeMode resize = ResizeMode::crop;
 };
@@ -27,11 +27,12 @@ struct VideoInfo {
   double fps = 0;
 };
 
-// [F,3,H,W] f32 RGB in [−1,1]. Throws dvs::Error naming the file when it cannot be opened or holds no
-// frames.
+// [F,3,H,W] f32 RGB in [−1,1]. Throws dvs::Error naming the file and the cause when it cannot be opened
+// (empty, truncated, no video stream: video_probe.hpp), holds no frames, or fewer than max_frames (suggesting the
+// --frames that works).
 HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& options = {}, VideoInfo* info = nullptr);
 
-// The decoded frames as they are, u8 RGB [F,H,W,3] (what Video-Depth-Anything takes). max_frames 0 = all;
+// The decoded frames as they are, u8 RGB [F,H,W,3] (what Video-Depth-Anything takes). max_frames as above;
 // when the long side exceeds max_long_side (> 0), frames are scaled to fit it as VDA's run.py does (--max_res).
 HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames = 0, int max_long_side = 0,
                            VideoInfo* info = nullptr);

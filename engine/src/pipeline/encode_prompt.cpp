@@ -1,4 +1,6 @@
 // `dvs encode-prompt`: the pipeline's text stage alone.
+#include <cerrno>
+
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
@@ -12,6 +14,10 @@ std::vector<int64_t> encode_prompt(const std::filesystem::path& model, const std
                                    const std::filesystem::path& out_npy, const std::string& device) {
   if (!std::filesystem::is_directory(model))
     throw Error(model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+  // The output is checked before the T5 encoder runs (minutes for the real one), naming the user's path.
+  if (!out_npy.parent_path().empty() && !std::filesystem::is_directory(out_npy.parent_path()))
+    throw Error(out_npy.string() + ": " + cannot_create_note(out_npy, ENOENT) + " (create it, or give another --out)");
+  if (std::filesystem::is_directory(out_npy)) throw Error(out_npy.string() + ": is a folder; give --out FILE.npy");
   const T5Tokenizer tokenizer = T5Tokenizer::load(model);
   const int text_len = max_text_seq_length(model);
   vk::ContextOptions copt;

@@ -97,14 +97,15 @@ void check_inputs(const RunOptions& o, Checker& c) {
       ((j.fx != 0 || j.fy != 0 || j.cx != 0 || j.cy != 0) && !(j.fx > 0 && j.fy > 0 && j.cx > 0 && j.cy > 0)))
     c.problem("--intrinsics: fx, fy, cx, cy must all be > 0 (pixels of the working size), or leave the option out for " +
               std::string("the default"));
-  // The video: opened and one small frame decoded, which also gives the container's frame count.
+  // The video: opened and its --frames decoded small (one frame when all are used), which finds a file that stops
+  // before --frames; the container's frame count covers the rest.
   std::optional<int64_t> video_frames;
   if (!std::filesystem::is_regular_file(j.video)) {
     c.problem(j.video.string() + ": no such video file (give --video FILE)");
   } else {
     c.attempt("", [&] {
       VideoReadOptions vo;
-      vo.max_frames = 1;
+      vo.max_frames = j.frames > 0 ? j.frames : 1;
       vo.height = 8, vo.width = 8;
       VideoInfo vi;
       read_video(j.video, vo, &vi);

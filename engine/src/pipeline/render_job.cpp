@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <fstream>
 #include <filesystem>
+#include <iostream>
+#include <vector>
 
 #include "dvs/error.hpp"
 #include "dvs/render.hpp"
@@ -23,6 +25,57 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// "3, 5-8" for frames {3, 5, 6, 7, 8}.
+std::string frame_list(const std::vector<int>& frames) {
+  std::string out;
+  for (size_t i = 0; i < frames.size();) {
+    size_t j = i;
+    while (j + 1 < frames.size() && frames[j + 1] == frames[j] + 1) ++j;
+    if (!out.empty()) out += ", ";
+    out += std::to_string(frames[i]);
+    if (j > i) out += '-', out += std::to_string(frames[j]);
+    i = j + 1;
+  }
+  return out;
+}
+
+// Frames of the render that show nothing of the scene (no visible pixel in the mask). When every frame after the
+// first is empty the camera left the scene at once (wrong units, magnitude, convention or depth) and a run would
+// invent the whole clip: an error, before any long work. When only some are, a warning on stderr naming them
+// (a path may pass a gap on purpose; the model then fills those frames from the others).
+void check_visibility(const HostTensor& mask, const RenderJob& job, double radius,
+                      const std::function<void(const std::string&)>& say) {
+  const int64_t F = mask.shape[0], plane = mask.shape[1] * mask.shape[2];
+  std::vector<int> empty;
+  double least = 1, sum = 0;
+  int least_frame = 0;
+  for (int64_t f = 0; f < F; ++f) {
+    int64_t seen = 0;
+    for (int64_t i = 0; i < plane; ++i) seen += mask.as<float>()[f * plane + i] > 0.0f;
+    const double share = double(seen) / double(plane);
+    sum += share;
+    if (share < least) least = share, least_frame = int(f);
+    if (seen == 0) empty.push_back(int(f));
+  }
+  char summary[96];
+  std::snprintf(summary, sizeof summary, "visible pixels: %.0f%% on average, least %.0f%% (frame %d)", 100 * sum / F,
+                100 * least, least_frame);
+  say(summary);
+  if (empty.empty()) return;
+  const std::string which = "--trajectory " + job.trajectory + ": frame" + (empty.size() > 1 ? "s " : " ") +
+                            frame_list(empty) + " (" + std::to_string(empty.size()) + " of " + std::to_string(F) +
+                            ") show nothing of the scene (0% of the pixels visible)";
+  char r[32];
+  std::snprintf(r, sizeof r, "%.3g", radius);
+  const int64_t after_first = int64_t(empty.size()) - (empty.front() == 0 ? 1 : 0);
+  if (F > 1 && after_first == F - 1)
+    throw Error(which + ": the camera leaves the scene at once. Check the move's size (pan/tilt/arc in degrees, "
+                "dolly/truck in multiples of the orbit radius, " + std::string(r) + " here), a .json file's "
+                "\"convention\" (world_to_camera or camera_to_world) and \"axes\" (opencv or opengl), and that the "
+                "depth is what it claims (--metric-depth for metric depth)");
+  std::cerr << "dvs: warning: " << which << "; the model has to invent them. Look at mask.mp4, or use a smaller move\n";
 }
 
 }  // namespace
@@ -94,7 +147,8 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   r.seconds_decode = seconds_since(t0);
 
   r.K = job_intrinsics(job);
-  r.trajectory = geometry::load_trajectory(job.trajectory, F, geometry::official_radius(centre_depth(r.depth)));
+  const double radius = geometry::official_radius(centre_depth(r.depth));
+  r.trajectory = geometry::load_trajectory(job.trajectory, F, radius);
   say("trajectory " + r.trajectory.description);
 
   auto t1 = std::chrono::steady_clock::now();
@@ -105,6 +159,7 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   r.render = std::move(clip.render);
   r.mask = std::move(clip.mask);
   r.seconds_render = seconds_since(t1);
+  check_visibility(r.mask, job, radius, say);
   return r;
 }
 
