@@ -330,15 +330,17 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
   }
   const double kx = rw / vw, ky = rh / vh;
   const double x0 = rx + cx * kx, y0 = ry + cy * ky, w = cw * kx, h = ch * ky;
-  // 3. Enough depth for the frame: one depth pixel may stretch over at most kDepthMaxUpscale working pixels a side.
-  if (h * kDepthMaxUpscale < g.height || w * kDepthMaxUpscale < g.width) {
+  // 3. Enough depth for the video: one depth pixel may stand for at most kDepthMaxUpscale pixels a side of the
+  // video's own frame (the part it keeps). Against the source, not the working size: depth at the video's own
+  // resolution always passes, whatever --size upscales both to.
+  if (h * kDepthMaxUpscale < ch || w * kDepthMaxUpscale < cw) {
     char ratio[32];
-    std::snprintf(ratio, sizeof ratio, "%.3g", std::max(g.height / h, g.width / w));
+    std::snprintf(ratio, sizeof ratio, "%.3g", std::max(ch / h, cw / w));
     throw Error(name + ": the depth frames are " + std::to_string(d.shape[1]) + "x" + std::to_string(d.shape[2]) +
-                " (HxW), far too small for the " + std::to_string(g.height) + "x" + std::to_string(g.width) +
-                " working frame: each depth pixel would cover " + ratio + " pixels a side (at most " +
-                std::to_string(kDepthMaxUpscale) + " are allowed, one VAE cell). Give depth computed at (or near) the "
-                "video's size, e.g. with dvs depth or --depth-model");
+                " (HxW), far too small for the video's " + std::to_string(g.source_height) + "x" +
+                std::to_string(g.source_width) + " frames: each depth pixel would cover " + ratio +
+                " video pixels a side (at most " + std::to_string(kDepthMaxUpscale) +
+                " are allowed). Give depth computed at (or near) the video's size, e.g. with dvs depth or --depth-model");
   }
   if (x0 == 0 && y0 == 0 && w == dw && h == dh) return resize_depth(d, g.height, g.width);
   return resample_region(d, x0, y0, w, h, g.height, g.width);

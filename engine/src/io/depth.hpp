@@ -79,8 +79,8 @@ struct VideoFrameGeometry {
 // Depth [N,h,w] mapped onto the working frame exactly as the video's frames were (so depth pixel and video
 // pixel stay aligned under --resize crop): first onto the source video frame (DepthFit when the aspect
 // ratios differ), then the video's own crop or squash, then bilinear resampling (half-pixel centres).
-// Depth whose part that covers the working frame has fewer than 1/kDepthMaxUpscale of its rows or columns is
-// refused (e.g. 4x7 for 384x672: one depth pixel per 96x96 pixels is no geometry). Frame counts as
+// Depth whose part that covers the video's frame (in the video's own pixels) has fewer than 1/kDepthMaxUpscale of
+// its rows or columns is refused (e.g. 4x7 for 384x672: one depth pixel per 96x96 pixels is no geometry). Frame counts as
 // fit_depth_to_video. Errors name `name`.
 constexpr int kDepthMaxUpscale = 8;
 HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& video, DepthFit fit,
