@@ -7,12 +7,14 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <map>
 #include <regex>
+#include <string>
 
 #include "pipeline/inversion_cache.hpp"
 
@@ -59,7 +61,8 @@ std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
     c.kind = kind_of(m[1].str());
     c.key = m[2].str();
     c.files.push_back(e.path());
-    c.bytes += e.file_size(ec);
+    const uintmax_t size = e.file_size(ec);
+    if (!ec) c.bytes += size;
     const auto t = e.last_write_time(ec);
     if (!newest.count(id) || t > newest[id]) newest[id] = t;
   }
