@@ -87,6 +87,7 @@ TEST(CliCommandLine, HelpOnEverySubcommandGoesToStdout) {
       {"batch", {"--shard", "--prompt", "--seed"}},
       {"plan", {"--budget", "--limits", "--depth-model", "--video-size"}},
       {"depth", {"--input-size", "--max-res", "--quiet"}},
+      {"cache", {"--cache-dir", "--older-than", "--max-size", "--all", "--dry-run"}},
   };
   for (const auto& [cmd, options] : commands) {
     // run_command captures stdout and stderr together: the subshells keep one of them.

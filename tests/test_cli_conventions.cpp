@@ -25,7 +25,7 @@ const std::string kDvs = test::program("dvs");
 const std::string kTool = test::program("dvs-weights");
 
 TEST(CliConventions, HelpExitsZeroEverywhere) {
-  for (const char* cmd : {"", "info", "render", "run", "demo", "invert", "encode-prompt", "batch", "plan", "depth"}) {
+  for (const char* cmd : {"", "info", "render", "run", "demo", "invert", "encode-prompt", "batch", "plan", "depth", "cache"}) {
     const auto r = test::run_command(kDvs + " " + cmd + " --help");
     EXPECT_EQ(r.exit_code, 0) << "dvs " << cmd << " --help\n" << r.output;
     EXPECT_NE(r.output.find("usage"), std::string::npos) << "dvs " << cmd << " --help\n" << r.output;

@@ -65,7 +65,36 @@ TEST(RunOutputs, NanInTheTransformerStopsTheInversionAtItsFirstStep) {
   EXPECT_NE(r.output.find("invert stage: transformer output at inversion step 1 (t="), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("dvs-weights inspect --values"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("\"stage\":\"sample\""), std::string::npos) << "stopped before the sampling\n" << r.output;
-  EXPECT_FALSE(std::filesystem::exists(in.dir / "out" / "output.mp4"));
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "out")) << "the output folder this failed run created is removed again";
+
+  // A folder that was there before the failed run stays, even empty.
+  std::filesystem::create_directories(in.dir / "mine");
+  cmd.replace(cmd.find((in.dir / "out").string()), (in.dir / "out").string().size(), (in.dir / "mine").string());
+  r = test::run_command(cmd);
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::is_directory(in.dir / "mine"));
+}
+
+// A cache folder that cannot be written: said once, even with --progress none; the run goes on uncached and
+// run.json says so ("cache": false and why), instead of claiming a cache it did not use.
+TEST(RunOutputs, AnUnwritableCacheIsSaidAndRecorded) {
+  PipelineInputs in;
+  test::write_text(in.dir / "a_file", "x");
+  std::string cmd = in.command(in.dir / "out");
+  cmd.replace(cmd.find("--progress json"), 15, "--progress none");
+  cmd.replace(cmd.find(in.cache.string()), in.cache.string().size(), (in.dir / "a_file" / "cache").string());
+  const auto r = test::run_command(cmd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string warning = "warning: the cache cannot be written, so this run is not cached";
+  const size_t at = r.output.find(warning);
+  EXPECT_NE(at, std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(warning, at + 1), std::string::npos) << "said once\n" << r.output;
+  EXPECT_NE(r.output.find("a_file"), std::string::npos) << r.output;
+  const auto record = nlohmann::json::parse(std::ifstream(in.dir / "out" / "run.json"));
+  EXPECT_EQ(record["settings"]["cache"], false);
+  EXPECT_TRUE(record["settings"]["cache_dir"].is_null());
+  EXPECT_NE(record.value("cache_problem", "").find("a_file"), std::string::npos) << record.dump(1);
+  EXPECT_TRUE(record["latent"].is_null());
 }
 
 TEST(RunOutputs, ACachedInversionHoldingNanIsNotReused) {
@@ -80,7 +109,10 @@ TEST(RunOutputs, ACachedInversionHoldingNanIsNotReused) {
   eps.as<float>()[7] = std::numeric_limits<float>::quiet_NaN();
   write_npy(cached[0], eps);
 
-  r = test::run_command(in.command(in.dir / "b", "--seed 5"));
+  // --progress none hides progress, not warnings: the entry being replaced is said on stderr all the same.
+  std::string quiet = in.command(in.dir / "b", "--seed 5");
+  quiet.replace(quiet.find("--progress json"), 15, "--progress none");
+  r = test::run_command(quiet);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("ignoring the cached inversion"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1 non-finite values (NaN/Inf), the first at flat index 7"), std::string::npos) << r.output;

@@ -9,6 +9,7 @@
 
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
+#include "support/lora_adapter.hpp"
 #include "support/process.hpp"
 
 namespace dvs {
@@ -65,6 +66,67 @@ TEST(RunRecord, RecordsWhatWasUsedAndRepeatsFromIt) {
   EXPECT_EQ(a["lora"], b["lora"]);
   EXPECT_EQ(a["trajectory_poses"], b["trajectory_poses"]);
   EXPECT_TRUE(b["inversion_from_cache"].get<bool>()) << "the same render (intrinsics typed out) and inversion settings";
+}
+
+// A run with every setting away from its default, replayed with `--from` and nothing else but a new --out, is
+// the same run: the same settings key by key and byte-identical videos. Every setting in run.json is set here to
+// a value other than its default, so dropping any one of them from the replay makes the replay's run.json
+// differ; a setting added to run.json later must be added here (the test says which).
+TEST(RunRecord, ReplayFromAloneReproducesANonDefaultRunByteForByte) {
+  PipelineInputs in;
+  std::filesystem::create_directories(in.dir / "lora");
+  const auto adapter = test::write_lora_adapter(in.dir / "lora", {"transformer_blocks.0.attn1.to_q"}, 5, 1.0f);
+  const std::string settings =
+      " --video " + in.video.string() + " --depth " + in.depth.string() + " --metric-depth --model " + in.model.string() +
+      " --frames 9 --size 64x64 --resize squash --intrinsics 50,52,31,33 --points --trim-depth --depth-fit stretch"
+      " --preset official --steps 5 --strength 0.9 --inversion-steps 3 --k 4 --delta 3 --guidance 4.5"
+      " --dynamic-cfg off --preservation-scale 0.5 --seed 11 --no-cache --vae-tile 48x40 --trajectory pan_left:0.3"
+      " --prompt 'a red fox' --negative-prompt 'blurry' --lora " + adapter.string() + ":0.7";
+  auto r = test::run_command(test::program("dvs") + " run --quiet" + settings + " --out " + (in.dir / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto a = record(in.dir / "out");
+  // The settings this run made non-default; derived values (t0, the steps run) follow from them.
+  const std::vector<std::string> set_here = {"preset", "prompt", "negative_prompt", "frames", "height", "width", "resize",
+                                             "intrinsics", "points", "trim_depth", "depth_fit", "steps", "strength",
+                                             "inversion_steps", "k", "delta", "guidance", "dynamic_cfg",
+                                             "preservation_scale", "seed", "cache", "cache_dir", "vae_tiling", "vae_tile"};
+  for (const auto& [key, value] : a["settings"].items())
+    if (key != "t0" && key != "sampling_steps_run")
+      EXPECT_NE(std::find(set_here.begin(), set_here.end(), key), set_here.end())
+          << "run.json records the setting \"" << key << "\", which this test does not set to a non-default value";
+
+  auto again = test::run_command(test::program("dvs") + " run --quiet --from " + (in.dir / "out" / "run.json").string() +
+                                 " --out " + (in.dir / "again").string());
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  const auto b = record(in.dir / "again");
+  for (const auto& [key, value] : a["settings"].items())
+    EXPECT_EQ(b["settings"].value(key, nlohmann::json()), value) << "setting \"" << key << "\" not replayed";
+  EXPECT_EQ(b["settings"].size(), a["settings"].size());
+  auto ia = a["inputs"], ib = b["inputs"];
+  ia.erase("out"), ib.erase("out");
+  EXPECT_EQ(ia, ib) << "the same inputs, camera path included";
+  EXPECT_EQ(a["lora"], b["lora"]);
+  EXPECT_TRUE(a["lora"].is_object());
+  EXPECT_EQ(a["trajectory_poses"], b["trajectory_poses"]);
+  for (const char* video : {"output.mp4", "render.mp4", "mask.mp4", "comparison.mp4"}) {
+    const std::string first = test::read_text(in.dir / "out" / video);
+    ASSERT_FALSE(first.empty()) << video;
+    EXPECT_TRUE(first == test::read_text(in.dir / "again" / video)) << video << " of the replay differs";
+  }
+}
+
+// --from without --out would write into the recorded run's own folder, replacing the run being repeated: refused
+// as a usage error that names the folder, before any work; --out with that folder replaces it on purpose.
+TEST(RunRecord, ReplayWithoutOutIsRefused) {
+  PipelineInputs in;
+  auto r = test::run_command(in.command(in.dir / "out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string before = test::read_text(in.dir / "out" / "run.json");
+  r = test::run_command(test::program("dvs") + " run --quiet --from " + (in.dir / "out" / "run.json").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--out"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find((in.dir / "out").string()), std::string::npos) << r.output;
+  EXPECT_EQ(test::read_text(in.dir / "out" / "run.json"), before) << "the original run is untouched";
 }
 
 TEST(RunRecord, FromNeedsARunJson) {

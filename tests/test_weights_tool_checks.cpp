@@ -121,6 +121,17 @@ TEST(WeightsToolInspect, ListedComponentWithoutWeightsFails) {
   EXPECT_EQ(test::count_of(r.output, "dvs-weights: error:"), 1u) << r.output;
 }
 
+// The tokenizer has no weights but one file dvs cannot run without: its absence fails inspect, naming the file.
+TEST(WeightsToolInspect, TokenizerWithoutItsVocabularyFails) {
+  test::TempDir d;
+  make_tiny(d / "m", "f32");
+  fs::remove(d / "m" / "tokenizer" / "spiece.model");
+  const auto r = test::run_command(kTool + " inspect --summary " + (d / "m").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find((d / "m" / "tokenizer" / "spiece.model").string() + " is missing"), std::string::npos) << r.output;
+  EXPECT_EQ(test::count_of(r.output, "dvs-weights: error:"), 1u) << r.output;
+}
+
 TEST(WeightsToolMakeTiny, OutNamingAFileIsAClearErrorAndHelpStatesLatentUnits) {
   test::TempDir d;
   test::write_text(d / "file.txt", "not a folder");

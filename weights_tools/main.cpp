@@ -197,6 +197,10 @@ class Inspector {
           } else {
             std::cout << "  no weights (none expected for " << c.class_name << ")\n";
           }
+          // dvs's tokenizer reads the SentencePiece vocabulary from this one file (models/cogvideox/tokenizer.cpp).
+          if (c.class_name.find("T5Tokenizer") != std::string::npos && !fs::is_regular_file(comp.dir / "spiece.model"))
+            error(c.name + ": " + (comp.dir / "spiece.model").string() + " is missing: dvs run reads the " + c.class_name +
+                  " vocabulary from it (copy the model's tokenizer/ folder again)");
           continue;
         }
         ++with_weights;

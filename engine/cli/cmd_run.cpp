@@ -37,7 +37,10 @@ const CommandHelp kRunHelp{
     "Ctrl-C stops at the next stage or diffusion step, removes partial outputs and exits with 130.\n"};
 
 const OptionGroup kReplay{
-    "replay", {{"from", "RUN.json", "repeat a run from the run.json it wrote; options given next to it override its values"}}};
+    "replay",
+    {{"from", "RUN.json",
+      "repeat a run from the run.json it wrote, into the --out given next to it (required: the recorded folder holds the "
+      "run being repeated); other options given next to it override its values"}}};
 
 }  // namespace
 
@@ -149,6 +152,15 @@ std::vector<std::string> with_recorded_run(const std::vector<std::string>& argv)
   }
   if (from.empty()) return argv;
   std::vector<std::string> recorded = run_record_arguments(from);
+  // The recorded --out holds the run being repeated: writing there would replace it, which a replay must not do
+  // unasked. --out DIR (that folder included, on purpose) says where the repeat goes.
+  const bool own_out = std::any_of(own.begin(), own.end(), [](const std::string& s) { return s == "--out" || s.rfind("--out=", 0) == 0; });
+  if (!own_out && std::find(own.begin(), own.end(), "--help") == own.end() && std::find(own.begin(), own.end(), "-h") == own.end()) {
+    const auto out = std::find(recorded.begin(), recorded.end(), "--out");
+    const std::string recorded_out = out != recorded.end() && out + 1 != recorded.end() ? *(out + 1) : "its folder";
+    throw UsageError("--from " + from + " without --out would write into " + recorded_out +
+                     ", replacing the run it repeats; give --out NEW_DIR (or --out " + recorded_out + " to replace it)");
+  }
   // The user's own --height/--width replace the recorded --size (the two forms do not mix).
   const bool own_dims = std::count(own.begin(), own.end(), "--height") + std::count(own.begin(), own.end(), "--width") > 0;
   std::vector<std::string> args;

@@ -14,5 +14,6 @@ int run_encode_prompt(const std::vector<std::string>& args);
 int run_batch(const std::vector<std::string>& args);
 int run_plan(const std::vector<std::string>& args);
 int run_depth(const std::vector<std::string>& args);
+int run_cache(const std::vector<std::string>& args);
 
 }  // namespace dvs::cli

@@ -37,6 +37,7 @@ const char* kUsage =
     "  encode-prompt   T5 embeddings of a prompt as .npy\n"
     "  batch           many runs from a JSON-lines file, shardable across machines (--shard i/n)\n"
     "  plan            device memory a run needs (weights, each model call, VAE tiling for a budget)\n"
+    "  cache           list the cache (depth, inversions, latents) or clean it by age or size\n"
     "\n"
     "common options:\n"
     "  --device I|NAME  use device index I or the first whose name contains NAME (also: DVS_DEVICE)\n"
@@ -110,6 +111,7 @@ int main(int argc, char** argv) {
     else if (cmd == "batch") code = dvs::cli::run_batch(rest);
     else if (cmd == "plan") code = dvs::cli::run_plan(rest);
     else if (cmd == "depth") code = dvs::cli::run_depth(rest);
+    else if (cmd == "cache") code = dvs::cli::run_cache(rest);
     if (code < 0) {
       std::cerr << "dvs: unknown command '" << cmd << "'\n\n" << kUsage;
       return finish(json, 2, "unknown command '" + cmd + "'");

@@ -1,5 +1,5 @@
 // Progress output for long commands: a bar per stage with step counts and ETA on a terminal, one JSON
-// object per event with --progress json, nothing with --quiet.
+// object per event with --progress json, nothing with --quiet; warnings in every mode.
 #pragma once
 #include <chrono>
 #include <nlohmann/json.hpp>
@@ -28,6 +28,9 @@ class Progress {
   std::chrono::steady_clock::time_point stage_start_;
   bool open_line_ = false;
 };
+
+// A progress note that is a warning ("warning: ..."): always printed to stderr, whatever the mode.
+bool is_warning(const std::string& note);
 
 // --progress bar|json|none and --quiet (= none); the two together with another mode are a usage error.
 ProgressMode progress_mode(const Args& a);

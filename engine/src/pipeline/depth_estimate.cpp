@@ -12,6 +12,7 @@
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
 #include "pipeline/depth_forecast.hpp"
+#include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/output_path.hpp"
@@ -124,13 +125,15 @@ DepthSummary summary_of_cached(const DepthJob& job, const HostTensor& depth) {
 
 InversionCache depth_cache(const DepthJob& job) { return InversionCache(job.cache_dir, "depth"); }
 
-std::string cache_key(const DepthJob& job) {
+}  // namespace
+
+std::string depth_cache_key(const DepthJob& job) {
+  // The estimate reads the video's bytes, the checkpoint's, the network input size, the frames kept, the
+  // max-res scaling and the depth mode; not the device, the cache folder or how messages name the options.
   return InversionCache::key({"vda depth v1", file_fingerprint(job.video), file_fingerprint(job.model),
                               std::to_string(job.input_size), std::to_string(job.frames), std::to_string(job.max_res),
                               job.metric ? (*job.metric ? "metric" : "relative") : "checkpoint mode"});
 }
-
-}  // namespace
 
 std::string describe(const DepthSummary& s) {
   std::string line = "depth of " + count_text(s.frames, "frame", "frames") + " at " + std::to_string(s.height) + "x" +
@@ -147,14 +150,14 @@ std::string describe(const DepthSummary& s) {
 bool depth_cache_has(const DepthJob& job) {
   if (job.refresh_cache) return false;
   std::error_code ec;
-  return std::filesystem::is_regular_file(depth_cache(job).file(cache_key(job)), ec);
+  return std::filesystem::is_regular_file(depth_cache(job).file(depth_cache_key(job)), ec);
 }
 
 CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
   check_job(job);
   CachedDepth c;
   const InversionCache cache = depth_cache(job);
-  c.key = cache_key(job);
+  c.key = depth_cache_key(job);
   c.file = cache.file(c.key);
   std::error_code ec;
   if (!job.refresh_cache && std::filesystem::is_regular_file(c.file, ec)) {
@@ -166,6 +169,7 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
         c.from_cache = true;
         c.summary = summary_of_cached(job, h);
         c.summary.cache_file = c.file;
+        std::filesystem::last_write_time(c.file, std::filesystem::file_time_type::clock::now(), ec);  // recently used
         return c;
       }
     } catch (const Error& e) {

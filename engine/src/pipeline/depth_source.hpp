@@ -14,6 +14,9 @@ namespace dvs {
 // The depth estimate a job with --depth-model asks for (the cache key's inputs, the cache, the option names).
 DepthJob depth_job_for(const RenderJob& job, const std::filesystem::path& cache_dir, bool refresh);
 
+// The depth cache's key (defined in depth_estimate.cpp): a hash of everything the estimate depends on.
+std::string depth_cache_key(const DepthJob& job);
+
 // Nothing when job.depth_model is empty. Otherwise sets job.depth to the estimate and returns its provenance
 // for run.json: {"model", "input_size", "file", "key", "from_cache", "seconds"}.
 nlohmann::json resolve_depth_model(RenderJob& job, const std::filesystem::path& cache_dir, bool refresh,

@@ -65,7 +65,11 @@ Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shap
       int64_t bad = 0, first = -1;
       for (int64_t i = 0; i < h.numel(); ++i)
         if (!std::isfinite(v[i])) bad++, first = first < 0 ? i : first;
-      if (bad == 0) return Tensor::upload(ctx, h, "cached inversion");
+      if (bad == 0) {
+        // Reused now: `dvs cache clean` removes the least recently used entries first.
+        std::filesystem::last_write_time(file(key), std::filesystem::file_time_type::clock::now(), ec);
+        return Tensor::upload(ctx, h, "cached inversion");
+      }
       why = std::to_string(bad) + " non-finite values (NaN/Inf), the first at flat index " + std::to_string(first);
     }
   } catch (const Error& e) {

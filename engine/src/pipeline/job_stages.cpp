@@ -153,9 +153,11 @@ std::string intrinsics_key(const geometry::Intrinsics& K) {
 // inputs and render options that determine them are.
 std::vector<std::string> render_key_parts(const RunOptions& o, int frames) {
   const RenderJob& j = o.render;
+  // --depth-fit and --trim-depth decide which depth pixels and frames meet which video ones.
   return {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
           std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
-          j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft", intrinsics_key(job_intrinsics(j))};
+          j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft", intrinsics_key(job_intrinsics(j)),
+          "fit " + j.depth_fit, j.trim_depth ? "trim" : "no trim"};
 }
 
 std::string exact(double v) {
@@ -225,27 +227,36 @@ void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::
   cache_.store(ctx, key_, latent);
 }
 
+std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames) {
+  const Settings& st = jp.settings;
+  // Keyed by what the inversion reads: x0 (the render, encoded with or without tiling), the image latent (a
+  // posterior sample drawn with the seed under the official preset, the mean under paper), the schedule up to
+  // t0, and the transformer with its LoRA. Not the prompt, negative prompt, guidance or k: the inversion runs
+  // on the empty prompt without guidance.
+  const auto tiling = vae_tiling(o);
+  std::vector<std::string> parts = render_key_parts(o, frames);
+  parts.insert(parts.end(),
+               {o.preset, std::to_string(st.inversion_steps), std::to_string(jp.plan.t0()),
+                st.official ? "image latent sampled with seed " + std::to_string(o.seed) : "image latent mean",
+                o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + exact(o.lora_scale),
+                tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)
+                       : "untiled"});
+  return InversionCache::key(parts);
+}
+
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages) {
   const Settings& st = jp.settings;
   const int t0 = jp.plan.t0();
-  // Keyed by what determines x0 and the image latent, and by what changes the model (LoRA) or x0 (tiling).
-  const auto tiling = vae_tiling(o);
-  std::vector<std::string> parts = render_key_parts(o, frames);
-  parts.insert(parts.end(),
-               {o.preset, std::to_string(st.inversion_steps), std::to_string(t0),
-                o.lora.empty() ? "no lora" : "lora " + file_fingerprint(o.lora) + " " + std::to_string(o.lora_scale),
-                tiling ? "tiled " + std::to_string(tiling->tile_sample_min_height) + "x" + std::to_string(tiling->tile_sample_min_width)
-                       : "untiled"});
-  const std::string key = InversionCache::key(parts);
+  const std::string key = inversion_cache_key(o, jp, frames);
   InversionCache cache(o.cache_dir);
   InversionResult r;
   if (o.use_cache) {
     r.cache_file = cache.file(key);
     std::string rejected;
     r.eps = cache.load(ctx, key, enc.x0_mean.shape(), &rejected);
-    if (!rejected.empty()) stages.say(0, 0, "ignoring the cached inversion " + rejected);
+    if (!rejected.empty()) stages.say(0, 0, "warning: ignoring the cached inversion " + rejected);
   }
   r.from_cache = r.eps.defined();
   if (r.from_cache) {

@@ -73,6 +73,9 @@ struct InversionResult {
 
 // DDIM inversion of x0_mean up to the plan's t0 with the "" prompt embedding `text_empty`, through the on-disk
 // cache (keyed by everything ε_inv depends on, LoRA and tiling included).
+// The inversion cache's key: a hash of everything ε_inv depends on and nothing else.
+std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames);
+
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages);

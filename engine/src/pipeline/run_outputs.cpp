@@ -27,6 +27,23 @@ void remove_stale_staging(const std::filesystem::path& dir) {
   }
 }
 
+CreatedFolders::CreatedFolders(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (auto p = std::filesystem::absolute(dir, ec).lexically_normal(); !p.empty() && !std::filesystem::exists(p, ec);
+       p = p.parent_path()) {
+    if (ec || p == p.parent_path()) break;
+    missing_.push_back(p);
+  }
+}
+
+CreatedFolders::~CreatedFolders() {
+  for (const auto& p : missing_) {
+    std::error_code ec;
+    // remove() takes only an empty folder (or a file, which is not ours: then stop).
+    if (!std::filesystem::is_directory(p, ec) || !std::filesystem::remove(p, ec)) break;
+  }
+}
+
 RunOutputs::RunOutputs(std::filesystem::path dir) : dir_(std::move(dir)) {
   static std::atomic<int> n{0};
   staging_ = dir_ / (kStagingPrefix + std::to_string(::getpid()) + "-" + std::to_string(n++));

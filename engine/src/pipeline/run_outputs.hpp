@@ -12,6 +12,21 @@ namespace dvs {
 // Removes staging folders in `dir` left by dvs processes that no longer exist (killed with SIGKILL, power loss).
 void remove_stale_staging(const std::filesystem::path& dir);
 
+// The output folder (and any missing folders above it) a job is about to create: a job that fails removes the
+// ones it created itself once they are empty again, so a failed run does not leave an empty --out behind.
+// A folder that was there before, or that holds anything (an earlier run's files), is never removed.
+class CreatedFolders {
+ public:
+  explicit CreatedFolders(const std::filesystem::path& dir);  // notes which of dir and its parents do not exist yet
+  ~CreatedFolders();                                          // removes them, deepest first, unless keep() was called
+  CreatedFolders(const CreatedFolders&) = delete;
+  CreatedFolders& operator=(const CreatedFolders&) = delete;
+  void keep() { missing_.clear(); }
+
+ private:
+  std::vector<std::filesystem::path> missing_;  // deepest first
+};
+
 class RunOutputs {
  public:
   explicit RunOutputs(std::filesystem::path dir);  // creates the staging folder

@@ -27,6 +27,7 @@
 #include "pipeline/latent_layout.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/output_path.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
@@ -42,6 +43,18 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   RunOptions o = options;
   RunReport report;
   require_preflight(o, JobKind::run);  // every problem knowable now, before any device work
+  // A cache that cannot be written is said once and the run goes on without it (caching only saves time on a
+  // later run); run.json then records "cache": false and why, not the cache it could not use.
+  std::string cache_problem;
+  if (o.use_cache) {
+    const InversionCache cache(o.cache_dir);
+    if (auto p = file_write_problem(cache.dir() / "eps_inv-write-check.npy",
+                                    "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder, or --no-cache")) {
+      cache_problem = *p;
+      o.use_cache = false;
+      stages.say(0, 0, "warning: the cache cannot be written, so this run is not cached: " + cache_problem);
+    }
+  }
   JobPlan jp = plan_job(o);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
   const nlohmann::json depth_estimate = depth_stage(o, stages);
@@ -74,7 +87,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   if (o.use_cache) {
     std::string rejected;
     cached = latent_cache.load(ctx, lat, &rejected);
-    if (!rejected.empty()) stages.say(0, 0, "ignoring the cached latent " + rejected);
+    if (!rejected.empty()) stages.say(0, 0, "warning: ignoring the cached latent " + rejected);
   }
   const int t0 = plan.t0();
   Tensor latent;  // what the decode takes: the final x0 prediction
@@ -210,6 +223,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   }
   extras.poses_hash = InversionCache::key(pose_text);
   extras.cache_dir = o.use_cache ? InversionCache(o.cache_dir).dir().string() : "";
+  extras.cache_problem = cache_problem;
   if (o.use_cache) {
     extras.latent = {{"path", latent_cache.file().string()}, {"key", latent_cache.key()}, {"reused", cached.has_value()},
                      {"encoded_with", latent_meta.value("encoded_with", nlohmann::json())}};
@@ -224,7 +238,10 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
 
 RunReport run_pipeline(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
   StageTracker stages(progress, cancelled);
-  return stages.run([&] { return run_stages(o, stages); });
+  CreatedFolders out_folder(o.render.out_dir);  // removed again if the run fails before filling it
+  RunReport report = stages.run([&] { return run_stages(o, stages); });
+  out_folder.keep();
+  return report;
 }
 
 }  // namespace dvs

@@ -55,6 +55,7 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"cache", o.use_cache},
                    {"cache_dir", x.cache_dir.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(abs(x.cache_dir))},
                    {"vae_tiling", o.vae_tiling}};
+  if (!x.cache_problem.empty()) j["cache_problem"] = x.cache_problem;
   if (o.vae_tiling) j["settings"]["vae_tile"] = {x.vae_tile_height, x.vae_tile_width};
   j["lora"] = o.lora.empty() ? nlohmann::ordered_json(nullptr)
                              : nlohmann::ordered_json{{"file", abs(o.lora)}, {"scale", o.lora_scale}};

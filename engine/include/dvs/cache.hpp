@@ -1,0 +1,48 @@
+// The cache folder (--cache-dir, $DVS_CACHE_DIR or ~/.cache/dvs): depth estimates, inversions and sampled
+// latents, each an entry a later run reuses. `dvs cache list` and `dvs cache clean` read and trim it.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace dvs {
+
+struct CacheEntry {
+  std::string kind;                         // "depth", "inversion" or "latent"
+  std::string key;                          // the hash of its inputs
+  std::vector<std::filesystem::path> files; // the entry's files (a latent: its .npy and its .json)
+  uint64_t bytes = 0;                       // all its files together
+  double age_days = 0;                      // since it was last written or reused
+};
+
+// The folder the entries are in for `cache_dir` as given (empty: $DVS_CACHE_DIR or ~/.cache/dvs).
+std::filesystem::path cache_folder(const std::filesystem::path& cache_dir);
+
+// Every complete entry, most recently used first. Files still being written (a temporary name until they are
+// renamed into place whole) are not entries.
+std::vector<CacheEntry> list_cache(const std::filesystem::path& cache_dir);
+
+struct CacheCleaning {
+  std::optional<double> older_than_days;  // remove entries unused for longer than this
+  std::optional<uint64_t> max_bytes;      // then remove the least recently used until the rest fit in this
+  bool all = false;                       // remove every entry
+  bool dry_run = false;                   // say what would go, remove nothing
+};
+
+struct CacheCleaned {
+  std::vector<CacheEntry> removed;
+  uint64_t removed_bytes = 0, kept_bytes = 0;
+  int kept = 0;
+  int stale_temporaries = 0;  // files left half-written by dvs processes that no longer exist, removed
+};
+
+// Removes entries as `what` says. Never touches a file another process is writing (those have temporary names
+// and are not entries); a process reading an entry while it is removed keeps reading it (POSIX unlink).
+CacheCleaned clean_cache(const std::filesystem::path& cache_dir, const CacheCleaning& what);
+
+// "500M", "2G", "1.5GiB", "1048576" -> bytes (K/M/G/T are powers of 1024); nullopt when not a size.
+std::optional<uint64_t> parse_byte_size(const std::string& text);
+
+}  // namespace dvs
