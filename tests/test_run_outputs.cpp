@@ -75,6 +75,33 @@ TEST(RunOutputs, NanInTheTransformerStopsTheInversionAtItsFirstStep) {
   EXPECT_TRUE(std::filesystem::is_directory(in.dir / "mine"));
 }
 
+// dvs invert and dvs render fail the same way: the output folder they created is gone, one that was there stays.
+TEST(RunOutputs, FailedInvertAndRenderRemoveTheFolderTheyCreated) {
+  PipelineInputs in;
+  const auto model = test::copy_model(in.model, in.dir / "nan_transformer");
+  test::plant_nan(model, "transformer", "proj_out.bias", 0);
+  std::string inputs = in.inputs();
+  inputs.replace(inputs.find(in.model.string()), in.model.string().size(), model.string());
+  auto inv = test::run_command(test::program("dvs") + " invert" + inputs + " --quiet --out " + (in.dir / "a" / "inv").string());
+  EXPECT_EQ(inv.exit_code, 1) << inv.output;
+  EXPECT_NE(inv.output.find("invert stage"), std::string::npos) << inv.output;
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "a")) << "both folders the failed inversion created are removed";
+
+  // Metric depth with a negative value: the render stage refuses it after the output folder was made.
+  HostTensor depth = read_npy(in.depth);
+  depth.as<float>()[7] = -1.0f;
+  write_npy(in.dir / "bad_depth.npy", depth);
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --depth " +
+                             (in.dir / "bad_depth.npy").string() + " --metric-depth --size 64x64 --frames 9 --quiet --out ";
+  auto r = test::run_command(render + (in.dir / "r").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "r")) << r.output;
+  std::filesystem::create_directories(in.dir / "mine");
+  r = test::run_command(render + (in.dir / "mine").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(std::filesystem::is_directory(in.dir / "mine"));
+}
+
 // A cache folder that cannot be written: said once, even with --progress none; the run goes on uncached and
 // run.json says so ("cache": false and why), instead of claiming a cache it did not use.
 TEST(RunOutputs, AnUnwritableCacheIsSaidAndRecorded) {

@@ -70,7 +70,10 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
 
 InversionReport run_inversion(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
   StageTracker stages(progress, cancelled);
-  return stages.run([&] { return invert_stages(o, stages); });
+  CreatedFolders out_folder(o.render.out_dir);  // removed again if the inversion fails before filling it
+  InversionReport report = stages.run([&] { return invert_stages(o, stages); });
+  out_folder.keep();
+  return report;
 }
 
 }  // namespace dvs

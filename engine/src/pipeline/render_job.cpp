@@ -172,6 +172,7 @@ HostTensor mask_as_video(const HostTensor& mask) {
 RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress,
                                 const std::function<bool()>& cancelled) {
   RenderJob job = job_in;
+  CreatedFolders out_folder(job.out_dir);  // removed again if the render fails before filling it
   if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
     const nlohmann::json d = resolve_depth_model(
         job, job.depth_cache_dir, !job.depth_cache,
@@ -230,6 +231,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
     geometry::write_trajectory_glb(sum.scene_glb, in.trajectory, &pc, gopt);
   }
   sum.seconds_write = seconds_since(t2);
+  out_folder.keep();
   return sum;
 }
 
