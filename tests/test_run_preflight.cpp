@@ -126,7 +126,8 @@ TEST(RunPreflight, ExplicitOutOfRangeValuesAreErrorsNotTheDefault) {
            {"--strength 0", "--strength"}, {"--strength 1.5", "--strength"}, {"--delta 0", "--delta"},
            {"--delta -2", "--delta"}, {"--k 0", "--k"}, {"--intrinsics 0,0,0,0", "--intrinsics"},
            {"--intrinsics 50,50,-1,32", "--intrinsics"}, {"--preservation-scale -1", "--preservation-scale"},
-           {"--guidance -0.5", "--guidance"}}) {
+           {"--guidance -0.5", "--guidance"}, {"--preset official --delta 1.5", "--delta"},
+           {"--preset official --k 2.5", "--k"}}) {
     auto r = test::run_command(in.command(out, extra + " --check"));
     EXPECT_NE(r.exit_code, 0) << extra << "\n" << r.output;
     EXPECT_NE(r.output.find(option + " must be"), std::string::npos) << extra << "\n" << r.output;

@@ -28,6 +28,9 @@ Settings resolve(const RunOptions& o) {
   if (!(o.k > 0)) throw Error("--k must be > 0");
   if (s.official && o.k != std::floor(o.k))  // the official K-RNR is the integer recursion (Σ a·b^i, i < k)
     throw Error("--k must be a whole number with --preset official (the authors' recursion), got " + std::to_string(o.k));
+  if (s.official && s.delta != std::floor(s.delta))  // as init_noise's per-element K-RNR requires, found here first
+    throw Error("--delta must be a whole number with --preset official (the authors' recursion), got " +
+                std::to_string(s.delta));
   if (!(o.guidance >= 0)) throw Error("--guidance must be ≥ 0");
   if (s.steps > 1000 || s.inversion_steps > 1000) throw Error("--steps and --inversion-steps must be ≤ 1000");
   if (o.render.frames != 0 && (o.render.frames - 1) % 4 != 0)
