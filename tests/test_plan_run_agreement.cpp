@@ -116,5 +116,26 @@ TEST(PlanRunAgreement, AllocationLimitSweep) {
   EXPECT_EQ(seen.size(), 3u) << "the sweep must meet all three verdicts";
 }
 
+// run --check names the memory it plans against as `dvs info` does: the budget dvs will use on the device
+// ("device memory for dvs: ..."), not another figure (the heap a CPU device reports is not its limit).
+TEST(PlanRunAgreement, CheckNamesTheBudgetDvsInfoShows) {
+  test::PipelineInputs in;
+  const auto info = test::run_command("DVS_LIMITS= " + test::program("dvs") + " info");
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  const std::string key = "device memory for dvs: ";
+  const size_t i = info.output.find(key);
+  ASSERT_NE(i, std::string::npos) << info.output;
+  const auto check = test::run_command("DVS_LIMITS= " + in.command(in.dir / "out", "--check --progress bar"));
+  ASSERT_EQ(check.exit_code, 0) << check.output;
+  const size_t c = check.output.find(key);
+  ASSERT_NE(c, std::string::npos) << check.output;
+  // The same source, in the same words (the amount itself moves with the host's free memory).
+  auto source = [&](const std::string& text, size_t at) {
+    const size_t open = text.find('(', at);
+    return text.substr(open, text.find('\n', open) - open);
+  };
+  EXPECT_EQ(source(check.output, c), source(info.output, i)) << check.output;
+}
+
 }  // namespace
 }  // namespace dvs

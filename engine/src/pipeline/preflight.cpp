@@ -274,6 +274,10 @@ void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
 // passes here runs, what fails here would fail there.
 void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
+  const int64_t r = m.vae->spatial_ratio();
+  if (m.transformer->learned_pos && (o.render.height != m.transformer->sample_height * r ||
+                                     o.render.width != m.transformer->sample_width * r))
+    return;  // check_model_fit names the size this model takes; no size of its own runs
   // Listed once per process: a batch preflights every job.
   static std::optional<std::vector<vk::DeviceCaps>> listed;
   if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return;
