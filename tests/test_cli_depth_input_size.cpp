@@ -14,7 +14,8 @@ namespace {
 TEST(CliDepthInputSize, NotAMultipleOf14IsAUsageError) {
   test::TempDir d;
   const std::string dvs = test::program("dvs");
-  const std::string plan_model = " --model " + (test::golden_path() / "model").string();
+  // At the size the pack's learned positional table takes (another is a usage error of its own).
+  const std::string plan_model = " --model " + (test::golden_path() / "model").string() + " --frames 9 --height 64 --width 64";
   const std::string files = " --video " + (d / "v.mp4").string() + " --depth-model " + (d / "m.pth").string();
   const struct {
     std::string command, option;

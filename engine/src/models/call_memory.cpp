@@ -16,4 +16,11 @@ void StageMemory::consider(const Shape& shape, uint64_t elem, const std::string&
   largest_what = what + " [" + shape_str(shape) + "]" + (elem == 4 ? " f32" : elem == 2 ? " bf16" : "");
 }
 
+void StageMemory::consider_buffer(uint64_t bytes, const std::string& what) {
+  if (bytes <= largest_bytes) return;
+  largest_bytes = bytes;
+  largest_elements = int64_t(bytes / 4);
+  largest_what = what;
+}
+
 }  // namespace dvs::models

@@ -31,6 +31,8 @@ struct StageMemory {
 
   // Keeps the larger of the largest tensor so far and `shape` (`elem` bytes each), described as `what`.
   void consider(const Shape& shape, uint64_t elem, const std::string& what);
+  // The same for a buffer a model's planner sized (`what` names it with its shape; f32 texels).
+  void consider_buffer(uint64_t bytes, const std::string& what);
 };
 
 }  // namespace dvs::models

@@ -39,6 +39,19 @@ std::optional<uint64_t> stored_bytes(const std::filesystem::path& dir) {
   return WeightSet::open_dir(dir).total_bytes();  // headers only: the data is mapped, never read
 }
 
+std::string weight_text(const std::string& name, const Shape& shape, const std::string& dtype) {
+  return "weight '" + name + "' [" + shape_str(shape) + "] " + dtype;
+}
+
+std::optional<LargestWeight> stored_largest(const std::filesystem::path& dir) {
+  if (!WeightSet::dir_has_weights(dir)) return std::nullopt;
+  LargestWeight l;
+  const WeightSet weights = WeightSet::open_dir(dir);
+  for (const auto& [name, ref] : weights.entries())
+    if (ref.info->nbytes() > l.bytes) l = {ref.info->nbytes(), weight_text(name, ref.info->shape, ref.info->dtype_name)};
+  return l;
+}
+
 }  // namespace
 
 // ---- models ---------------------------------------------------------------------------------------------------
@@ -78,6 +91,9 @@ PlanModel plan_model_from_folder(const std::filesystem::path& dir) {
   m.transformer_stored = stored_bytes(dir / "transformer");
   m.vae_stored = stored_bytes(dir / "vae");
   m.text_encoder_stored = stored_bytes(dir / "text_encoder");
+  m.transformer_largest = stored_largest(dir / "transformer");
+  m.vae_largest = stored_largest(dir / "vae");
+  m.text_encoder_largest = stored_largest(dir / "text_encoder");
   // T5's activations depend on whether the embedding table is 16-bit; with weights, the header says.
   if (WeightSet::dir_has_weights(dir / "text_encoder")) {
     const WeightSet w = WeightSet::open_dir(dir / "text_encoder");
@@ -136,24 +152,41 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   plan.latent_height = req.height / r;
   plan.latent_width = req.width / r;
   plan.text_len = tcfg.max_text_seq_length;
+  // A transformer with a learned positional table takes one size only: the plan of another never runs.
+  std::string size_blocker;
   if (tcfg.learned_pos && (plan.latent_height != tcfg.sample_height || plan.latent_width != tcfg.sample_width))
-    plan.notes.push_back("the learned positional embedding fixes the size to " + std::to_string(tcfg.sample_height * r) +
-                         "x" + std::to_string(tcfg.sample_width * r) + "; the transformer rejects " +
-                         std::to_string(req.height) + "x" + std::to_string(req.width));
+    size_blocker = "the transformer's learned positional table fixes the size to " + std::to_string(tcfg.sample_height * r) +
+                   "x" + std::to_string(tcfg.sample_width * r) + "; it rejects " + std::to_string(req.height) + "x" +
+                   std::to_string(req.width);
 
   // Weights.
-  auto component = [&](const char* name, const Schema& s, const std::optional<uint64_t>& stored) {
+  auto component = [&](const char* name, const Schema& s, const std::optional<uint64_t>& stored,
+                       const std::optional<LargestWeight>& largest) {
     ComponentWeightBytes c;
     c.name = name;
     c.params = schema_params(s);
     c.from_headers = stored.has_value();
     c.bytes = stored ? *stored : c.params * uint64_t(model.assumed_dtype_bytes);
+    if (largest) {
+      c.largest = *largest;
+    } else {
+      const int eb = model.assumed_dtype_bytes;
+      for (const auto& t : s.tensors)
+        if (uint64_t(shape_numel(t.shape)) * uint64_t(eb) > c.largest.bytes)
+          c.largest = {uint64_t(shape_numel(t.shape)) * uint64_t(eb), weight_text(t.name, t.shape, eb == 2 ? "BF16" : "F32")};
+    }
     plan.weights_total += c.bytes;
     plan.weights.push_back(c);
   };
-  component("transformer", tr_schema, model.transformer_stored);
-  component("vae", vae_schema, model.vae_stored);
-  component("text_encoder", t5_schema, model.text_encoder_stored);
+  component("transformer", tr_schema, model.transformer_stored, model.transformer_largest);
+  component("vae", vae_schema, model.vae_stored, model.vae_largest);
+  component("text_encoder", t5_schema, model.text_encoder_stored, model.text_encoder_largest);
+  // Each weight is one allocation, resident while its model's calls run: a call's largest tensor counts it.
+  auto with_weights = [&](StageMemory st, const char* component_name) {
+    for (const auto& w : plan.weights)
+      if (w.name == component_name) st.consider_buffer(w.largest.bytes, w.largest.what);
+    return st;
+  };
 
   // Stages, untiled.
   const int64_t Fl = plan.latent_frames, Hl = plan.latent_height, Wl = plan.latent_width, L = plan.text_len;
@@ -187,21 +220,24 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     plan.stages.push_back(d);
     plan.depth_weights = vm.weights;
   }
-  plan.stages.push_back(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits));
-  StageMemory cfg2 =
-      plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
+  plan.stages.push_back(
+      with_weights(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits), "text_encoder"));
+  StageMemory cfg2 = with_weights(
+      plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits),
+      "transformer");
   cfg2.name = "transformer_cfg";
   cfg2.what += " (CFG: negative + positive)";
-  StageMemory inv =
-      plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
+  StageMemory inv = with_weights(
+      plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits),
+      "transformer");
   inv.name = "transformer_inversion";
   inv.what += " (inversion)";
   plan.stages.push_back(cfg2);
   plan.stages.push_back(inv);
   const Shape video{1, vcfg.in_channels, req.frames, req.height, req.width};
   const Shape z{1, vcfg.latent_channels, Fl, Hl, Wl};
-  const StageMemory enc = plan_vae_encode_stage(model.vae, req.alignment, video);
-  const StageMemory dec = plan_vae_decode_stage(model.vae, req.alignment, z);
+  const StageMemory enc = with_weights(plan_vae_encode_stage(model.vae, req.alignment, video), "vae");
+  const StageMemory dec = with_weights(plan_vae_decode_stage(model.vae, req.alignment, z), "vae");
   plan.stages.push_back(enc);
   plan.stages.push_back(dec);
 
@@ -234,57 +270,42 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   plan.run_peak = run_peak(enc, dec);
 
   // Tiling options: untiled, then diffusers' default tile (half the VAE's sample size) and halvings of it, as long
-  // as the tile is smaller than the clip and its latent tile at least 4 x 4.
+  // as the tile is smaller than the clip and its latent tile at least 4 x 4; or, when the run names its tiling,
+  // that one alone. Each tiled call's figures are the VAE's own (CogVideoXVae::*_tiled_footprint).
   TilingOption untiled;
   untiled.vae_encode = enc;
   untiled.vae_decode = dec;
   untiled.run_peak = plan.run_peak;
   plan.tilings.push_back(untiled);
-  for (const auto& [th, tw] : plan_tile_sizes(vcfg)) {
-    models::VaeTiling t;
-    t.tile_sample_min_height = int(th);
-    t.tile_sample_min_width = int(tw);
-    const auto pe = models::TilePlan::for_encode(vcfg, t), pd = models::TilePlan::for_decode(vcfg, t);
-    if (!(req.width > pe.tile_in_w || req.height > pe.tile_in_h)) continue;  // no tiling at this size
-    if (pe.stride_h <= 0 || pe.stride_w <= 0 || pd.stride_h <= 0 || pd.stride_w <= 0) break;
+  auto tiled_option = [&](const models::VaeTiling& t) {
     TilingOption o;
     o.tiled = true;
     o.tiling = t;
-    o.encode = pe;
-    o.decode = pd;
-    o.tiles = ((req.height + pe.stride_h - 1) / pe.stride_h) * ((req.width + pe.stride_w - 1) / pe.stride_w);
-    // Tiled encode: the clip stays on the device; one tile call at a time; the blended moments come back at the
-    // end with the posterior. Tiled decode: the latent stays; one tile call; the blended frames come back.
-    const Shape vt{1, vcfg.in_channels, req.frames, std::min(req.height, pe.tile_in_h), std::min(req.width, pe.tile_in_w)};
-    const StageMemory te = models::vae_encode_call_memory(model.vae, req.alignment, vt, false);
-    Shape moments = z;
-    moments[1] = 2 * vcfg.latent_channels;
-    o.vae_encode.name = "vae_encode";
-    o.vae_encode.what = "VAE encode of [" + shape_str(video) + "]" + " in " + std::to_string(o.tiles) + " tiles of " +
-                        std::to_string(vt[3]) + "x" + std::to_string(vt[4]);
-    o.vae_encode.working = te.working;
-    o.vae_encode.io = allocation_bytes(video, req.alignment) +
-                      std::max(te.total(), allocation_bytes(moments, req.alignment) + 2 * allocation_bytes(z, req.alignment)) -
-                      te.working;
-    o.vae_encode.largest_bytes = te.largest_bytes;
-    o.vae_encode.largest_elements = te.largest_elements;
-    o.vae_encode.largest_what = te.largest_what;
-    o.vae_encode.consider(video, 4, "input clip");
-    const Shape zt{1, vcfg.latent_channels, Fl, std::min(Hl, pd.tile_in_h), std::min(Wl, pd.tile_in_w)};
-    const StageMemory td = models::vae_decode_call_memory(model.vae, req.alignment, zt);
-    o.vae_decode.name = "vae_decode";
-    o.vae_decode.what = "VAE decode of [" + shape_str(z) + "]" + " in tiles of " + std::to_string(zt[3]) + "x" +
-                        std::to_string(zt[4]) + " latents";
-    o.vae_decode.working = td.working;
-    o.vae_decode.io = allocation_bytes(z, req.alignment) +
-                      std::max(td.total(), allocation_bytes({1, vcfg.out_channels, req.frames, req.height, req.width}, req.alignment)) -
-                      td.working;
-    o.vae_decode.largest_bytes = td.largest_bytes;
-    o.vae_decode.largest_elements = td.largest_elements;
-    o.vae_decode.largest_what = td.largest_what;
-    o.vae_decode.consider({1, vcfg.out_channels, req.frames, req.height, req.width}, 4, "decoded frames");
+    o.encode = models::TilePlan::for_encode(vcfg, t);
+    o.decode = models::TilePlan::for_decode(vcfg, t);
+    o.tiles = o.encode.stride_h > 0 && o.encode.stride_w > 0
+                  ? ((req.height + o.encode.stride_h - 1) / o.encode.stride_h) * ((req.width + o.encode.stride_w - 1) / o.encode.stride_w)
+                  : 0;
+    o.vae_encode = with_weights(models::vae_encode_tiled_call_memory(model.vae, req.alignment, video, t), "vae");
+    o.vae_decode = with_weights(models::vae_decode_tiled_call_memory(model.vae, req.alignment, z, t), "vae");
     o.run_peak = run_peak(o.vae_encode, o.vae_decode);
-    plan.tilings.push_back(o);
+    return o;
+  };
+  if (req.tiling) {
+    models::VaeTiling t = *req.tiling;
+    if (t.tile_sample_min_height <= 0) t.tile_sample_min_height = vcfg.sample_height / 2;
+    if (t.tile_sample_min_width <= 0) t.tile_sample_min_width = vcfg.sample_width / 2;
+    plan.tilings.push_back(tiled_option(t));
+  } else {
+    for (const auto& [th, tw] : plan_tile_sizes(vcfg)) {
+      models::VaeTiling t;
+      t.tile_sample_min_height = int(th);
+      t.tile_sample_min_width = int(tw);
+      const auto pe = models::TilePlan::for_encode(vcfg, t), pd = models::TilePlan::for_decode(vcfg, t);
+      if (!(req.width > pe.tile_in_w || req.height > pe.tile_in_h)) continue;  // no tiling at this size
+      if (pe.stride_h <= 0 || pe.stride_w <= 0 || pd.stride_h <= 0 || pd.stride_w <= 0) break;
+      plan.tilings.push_back(tiled_option(t));
+    }
   }
 
   // A setting runs when its whole-run peak is within the budget and every tensor of every stage fits one
@@ -294,16 +315,18 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     return st.name + "'s " + st.largest_what + " (" + format_plan_bytes(st.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
            format_plan_bytes(req.limits->alloc) + " of " + req.limits->source;
   };
-  std::string fixed_blocker;  // a non-VAE stage no tiling helps
+  std::string fixed_blocker = size_blocker;  // what no tiling helps: the size, a non-VAE stage
   for (const auto& st : plan.stages)
     if (st.name != "vae_encode" && st.name != "vae_decode" && fixed_blocker.empty()) fixed_blocker = too_big(st);
   for (auto& t : plan.tilings) {
     t.blocker = fixed_blocker;
+    t.fixed = !fixed_blocker.empty();
     if (t.blocker.empty()) t.blocker = too_big(t.vae_encode);
     if (t.blocker.empty()) t.blocker = too_big(t.vae_decode);
     if (t.blocker.empty() && req.budget && t.run_peak > *req.budget)
       t.blocker = "the run's peak " + format_plan_bytes(t.run_peak) + " exceeds the budget " + format_plan_bytes(*req.budget);
   }
+  if (!plan.checked() && !size_blocker.empty()) plan.notes.push_back(size_blocker);
   if (plan.checked()) {
     for (size_t i = 0; i < plan.tilings.size(); ++i)
       if (plan.tilings[i].blocker.empty()) {
@@ -318,11 +341,12 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
         plan.notes.push_back("nothing fits in " + format_plan_bytes(*req.budget) + ": the " +
                              (transformer_phase >= text_phase ? "transformer phase (VAE + transformer weights and its call)"
                                                               : "text phase (VAE + T5 weights and its call)") +
-                             " already needs " + format_plan_bytes(floor_bytes) +
-                             " with any VAE tiling; use a device with more memory or fewer frames / a smaller size");
+                             " already needs " + format_plan_bytes(floor_bytes) + " with any VAE tiling; use a device " +
+                             "with more memory or fewer frames" +
+                             (tcfg.learned_pos ? std::string(" (this model's size is fixed by its learned positional table)")
+                                               : std::string(" / a smaller size")));
       else
-        plan.notes.push_back("nothing runs within " + format_plan_bytes(*req.budget) + ": even the smallest VAE tile tried: " +
-                             plan.tilings.back().blocker);
+        plan.notes.push_back("nothing runs: even the smallest VAE tile tried: " + plan.tilings.back().blocker);
     } else if (plan.chosen < 0) {
       plan.notes.push_back("nothing runs: even the smallest VAE tile tried: " + plan.tilings.back().blocker);
     }

@@ -22,6 +22,12 @@
 
 namespace dvs::pipeline {
 
+// A component's largest weight tensor: each weight is uploaded as one allocation.
+struct LargestWeight {
+  uint64_t bytes = 0;
+  std::string what;  // "weight 'name' [shape] BF16"
+};
+
 // The three configs a plan needs, and the stored bytes of each component's weights when known.
 struct PlanModel {
   std::string source;  // the folder, or the built-in name
@@ -29,6 +35,7 @@ struct PlanModel {
   // Per component: stored bytes read from the safetensors headers (nullopt: no weights present; the plan
   // then counts the config's tensors at `assumed_dtype_bytes` each).
   std::optional<uint64_t> transformer_stored, vae_stored, text_encoder_stored;
+  std::optional<LargestWeight> transformer_largest, vae_largest, text_encoder_largest;  // from the headers too
   int assumed_dtype_bytes = 2;  // bf16, the real model's storage
 };
 
@@ -58,6 +65,9 @@ struct PlanRequest {
   std::optional<VdaConfig> depth_model;
   int depth_input_size = 518;
   int64_t depth_frame_height = 0, depth_frame_width = 0;  // the video's frames; 0 = the clip size
+  // The VAE tiling a run was given (dvs run --vae-tile): the plan weighs it alone against untiled
+  // (tilings = [untiled, this]) instead of offering its own tile sizes.
+  std::optional<models::VaeTiling> tiling;
 };
 
 struct ComponentWeightBytes {
@@ -65,6 +75,7 @@ struct ComponentWeightBytes {
   uint64_t params = 0;   // from the config's tensor list (tied/optional tensors not counted)
   uint64_t bytes = 0;    // stored bytes
   bool from_headers = false;
+  LargestWeight largest;  // from the headers, else the config's largest tensor x the assumed dtype
 };
 
 // One model call's memory (models/call_memory.hpp: working set, the tensors around it, its largest tensor).
@@ -78,6 +89,7 @@ struct TilingOption {
   StageMemory vae_encode, vae_decode;
   uint64_t run_peak = 0;             // the largest phase of the run with this tiling (see plan_memory)
   std::string blocker;               // why this setting cannot run within the budget and limits ("" = it runs)
+  bool fixed = false;                // the blocker is a stage no VAE tiling changes (weights, T5, transformer)
 };
 
 struct MemoryPlan {

@@ -34,12 +34,6 @@ namespace {
 
 std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_string(w); }
 
-std::string gib(uint64_t b) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f GiB", double(b) / double(uint64_t(1) << 30));
-  return buf;
-}
-
 // Frames in a depth source, as the render stage will read them: an array's first dimension (the file is read),
 // a folder's image count, a grayscale video's container count; nothing when unknown.
 std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
@@ -272,11 +266,18 @@ void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
   });
 }
 
-// Device memory as the planner sees it, against the chosen device's memory budget (vk/memory_budget: host
-// RAM available on a CPU device, the device-local heap's budget or size on a GPU), the figure the Allocator
-// enforces: one policy.
+// Device memory and device limits as the planner sees them (dvs plan --device): the whole run's peak against the
+// chosen device's memory budget (vk/memory_budget: host RAM available on a CPU device, the device-local heap's
+// budget or size on a GPU; the figure the Allocator enforces and `dvs info` prints), and every allocation of
+// every stage against maxMemoryAllocationSize (DVS_LIMITS included), with the VAE tiling the run was given.
+// The plan's VAE figures are the ones the VAE's calls check before any work (CogVideoXVae::*_footprint): what
+// passes here runs, what fails here would fail there.
 void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
+  const int64_t r = m.vae->spatial_ratio();
+  if (m.transformer->learned_pos && (o.render.height != m.transformer->sample_height * r ||
+                                     o.render.width != m.transformer->sample_width * r))
+    return;  // check_model_fit names the size this model takes; no size of its own runs
   // Listed once per process: a batch preflights every job.
   static std::optional<std::vector<vk::DeviceCaps>> listed;
   if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return;
@@ -284,23 +285,42 @@ void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
   uint32_t index = 0;
   if (!c.attempt("--device", [&] { index = vk::select_device(devices, o.render.device); })) return;
   const vk::DeviceCaps& dev = devices.at(index);
-  const uint64_t heap = dev.memory_budget.bytes;
+  const uint64_t budget = dev.memory_budget.bytes;
   c.attempt("memory plan", [&] {
-    pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
+    const pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
     pipeline::PlanRequest req;
     req.frames = o.render.frames, req.height = o.render.height, req.width = o.render.width;
     req.alignment = std::max<uint64_t>(256, dev.min_storage_buffer_offset_alignment);
-    if (heap) req.budget = heap;
+    if (budget) req.budget = budget;
+    req.limits = pipeline::PlanLimits{"device " + std::to_string(dev.index) + " (" + dev.name + ")" +
+                                          (dev.forced_limits.any() ? " lowered by DVS_LIMITS" : ""),
+                                      dev.max_storage_buffer_range, dev.max_texel_buffer_elements,
+                                      dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
+    const std::optional<models::VaeTiling> given = vae_tiling(o);
+    req.tiling = given;
     const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
-    c.note("memory plan: " + gib(plan.run_peak) + " at the peak untiled; " + dev.name + " may hold " + dev.memory_budget.describe());
-    if (!heap) return;
-    if (plan.chosen < 0) {
-      std::string why = plan.notes.empty() ? std::string("it does not fit") : plan.notes.back();
-      c.problem("device memory: the run needs more than " + dev.name + "'s " + gib(heap) + " (" + why + ")");
-    } else if (plan.chosen > 0 && !o.vae_tiling) {
-      const auto& t = plan.tilings[size_t(plan.chosen)].tiling;
-      c.problem("device memory: untiled, the run needs " + gib(plan.run_peak) + " of " + dev.name + "'s " + gib(heap) +
-                "; add --vae-tile " + hw(t.tile_sample_min_height, t.tile_sample_min_width) + " (fits)");
+    c.note("memory plan: " + pipeline::format_plan_bytes(plan.tilings[given ? 1 : 0].run_peak) + " at the peak" +
+           (given ? " with --vae-tile " : " untiled") +
+           (given ? hw(given->tile_sample_min_height, given->tile_sample_min_width) : std::string()) +
+           "; device memory for dvs: " + dev.memory_budget.describe());
+    const pipeline::TilingOption& mine = plan.tilings[given ? 1 : 0];  // given: [untiled, the given tiling]
+    if (mine.blocker.empty()) return;
+    const std::string what = given ? "--vae-tile " + hw(given->tile_sample_min_height, given->tile_sample_min_width) : "untiled";
+    // What would run: the plan's own offers (a second plan when the run named its tiling).
+    std::optional<pipeline::MemoryPlan> offers_storage;
+    if (given) {
+      req.tiling.reset();
+      offers_storage = pipeline::plan_memory(pm, req);
+    }
+    const pipeline::MemoryPlan& offers = given ? *offers_storage : plan;
+    if (mine.fixed || offers.chosen < 0) {
+      c.problem("device memory on " + dev.name + ": " + (offers.notes.empty() ? "nothing runs: " + mine.blocker : offers.notes.back()));
+    } else if (offers.chosen == 0) {
+      c.problem("device memory: " + what + ", " + mine.blocker + "; run without --vae-tile (untiled fits)");
+    } else {
+      const auto& t = offers.tilings[size_t(offers.chosen)].tiling;
+      c.problem("device memory: " + what + ", " + mine.blocker + "; " + (given ? "use" : "add") + " --vae-tile " +
+                hw(t.tile_sample_min_height, t.tile_sample_min_width) + " (fits; dvs plan --device shows the plan)");
     }
   });
 }

@@ -3,6 +3,7 @@
 #include "dvs/plan.hpp"
 
 #include <algorithm>
+#include <filesystem>
 
 #include "dvs/usage_error.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
@@ -28,6 +29,34 @@ void require_plannable(const pipeline::PlanModel& pm, const MemoryPlanRequest& r
                      std::to_string(req.height) + "x" + std::to_string(req.width) + "; e.g. " +
                      std::to_string(std::max(cell, req.height / cell * cell)) + "x" +
                      std::to_string(std::max(cell, req.width / cell * cell)));
+  const int64_t fixed_h = tcfg.sample_height * r, fixed_w = tcfg.sample_width * r;
+  if (tcfg.learned_pos && (req.height != fixed_h || req.width != fixed_w))
+    throw UsageError("--height " + std::to_string(req.height) + " --width " + std::to_string(req.width) + ": " + pm.source +
+                     " has a learned positional table, which fixes the size to " + std::to_string(fixed_h) + "x" +
+                     std::to_string(fixed_w) + " (its transformer rejects any other); plan --height " +
+                     std::to_string(fixed_h) + " --width " + std::to_string(fixed_w) + " with any 4k+1 --frames");
+}
+
+// The model a request names: a built-in configuration or a folder. A name that is both (a folder called
+// cogvideox-5b-i2v in the current folder) is refused rather than one of them silently chosen.
+pipeline::PlanModel plan_model(const std::string& model) {
+  std::error_code ec;
+  const bool folder = std::filesystem::is_directory(model, ec);
+  if (!pipeline::is_builtin_model(model)) return pipeline::plan_model_from_folder(model);
+  if (folder)
+    throw UsageError("--model " + model + " names both the built-in configuration and the folder " + model +
+                     ": give --model ./" + model + " for the folder, or run dvs plan from another folder for the " +
+                     "built-in configuration");
+  return pipeline::builtin_plan_model(model);
+}
+
+// --depth-model: a released size, or a checkpoint file.
+VdaConfig depth_model_config(const std::string& m) {
+  if (m == "vits" || m == "vitb" || m == "vitl") return released_vda_config(m);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(m, ec))
+    throw UsageError("--depth-model " + m + ": no such checkpoint file, and not a released size (vits, vitb or vitl)");
+  return VdaModel::inspect(m);
 }
 
 }  // namespace
@@ -45,8 +74,7 @@ uint64_t parse_byte_size(const std::string& text, const std::string& option) {
 }
 
 MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
-  const pipeline::PlanModel pm = pipeline::is_builtin_model(request.model) ? pipeline::builtin_plan_model(request.model)
-                                                                           : pipeline::plan_model_from_folder(request.model);
+  const pipeline::PlanModel pm = plan_model(request.model);
   require_plannable(pm, request);
   pipeline::PlanRequest req;
   req.frames = request.frames, req.height = request.height, req.width = request.width;
@@ -60,7 +88,7 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
   }
   if (!request.depth_model.empty()) {
     const std::string& m = request.depth_model;
-    req.depth_model = (m == "vits" || m == "vitb" || m == "vitl") ? released_vda_config(m) : VdaModel::inspect(m);
+    req.depth_model = depth_model_config(m);
     req.depth_input_size = request.depth_input_size;
     req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
   }

@@ -343,6 +343,7 @@ ArenaPacking::Place ArenaPacking::place(VkDeviceSize bytes) {
   }
   Place p{k, filled_.blocks[k], filled_.blocks[k] + need <= capacity(k)};
   filled_.blocks[k] += need;
+  filled_.largest = std::max(filled_.largest, need);
   return p;
 }
 

@@ -129,6 +129,7 @@ class Allocator {
 // (models/activation_plan.hpp) gives the blocks its tensors fill, so the arena reserves no more than they use.
 struct ArenaLayout {
   std::vector<VkDeviceSize> blocks;
+  VkDeviceSize largest = 0;  // the largest tensor placed, aligned: it must fit one block (one allocation)
   VkDeviceSize bytes() const;
   // Whether an arena of these blocks can take what `other` was counted for: as many blocks, each as large.
   // (Placing in order, each tensor then lands no later than the counting put it.)

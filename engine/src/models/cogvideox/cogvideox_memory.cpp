@@ -8,6 +8,7 @@
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/t5_encoder.hpp"
+#include "models/cogvideox/vae_tiling.hpp"
 #include "tensor/ops_attention.hpp"
 
 namespace dvs::models {
@@ -24,25 +25,6 @@ std::string shape_text(const Shape& s) {
   return out + "]";
 }
 
-int64_t max_batch(const std::vector<std::pair<int64_t, int64_t>>& batches) {
-  int64_t b = 1;
-  for (const auto& [start, end] : batches) b = std::max(b, end - start);
-  return b;
-}
-
-// The largest activation of a VAE pass over `frames` frames (a frame batch plus the causal conv's 2 cached
-// frames) at h x w pixels: each level's channels (block ℓ reads c[ℓ-1] and works at c[ℓ]) at its resolution,
-// with the conv's 1-pixel padding. An upper figure at the levels that also compress time.
-void consider_vae_levels(StageMemory& m, const VaeConfig& cfg, int64_t frames, int64_t h, int64_t w,
-                         const std::string& what) {
-  const auto& c = cfg.block_out_channels;
-  for (size_t l = 0; l < c.size(); ++l) {
-    const int64_t ch = std::max(c[l], c[l == 0 ? 0 : l - 1]);
-    m.consider({1, ch, frames + 2, ceil_halvings(h, int64_t(l)) + 2, ceil_halvings(w, int64_t(l)) + 2}, 4,
-               what + " level " + std::to_string(l) + " activation");
-  }
-}
-
 }  // namespace
 
 StageMemory t5_call_memory(const nlohmann::json& t5_config, bool embedding_16bit, uint64_t alignment, int64_t batch,
@@ -51,7 +33,9 @@ StageMemory t5_call_memory(const nlohmann::json& t5_config, bool embedding_16bit
   StageMemory m;
   m.name = "t5_encode";
   m.what = "T5 encode of " + std::to_string(batch) + " prompt(s) x " + std::to_string(len) + " tokens";
-  m.working = T5Encoder::arena_bytes(cfg, embedding_16bit, alignment, batch, len);
+  const vk::ArenaLayout arena = T5Encoder::arena_layout(cfg, embedding_16bit, alignment, batch, len, UINT64_MAX);
+  m.working = arena.bytes();
+  m.consider_buffer(arena.largest, "T5 activation arena's largest tensor");
   m.io = allocation_bytes({batch, len}, alignment) /* ids, i32 */ +
          allocation_bytes({cfg.num_heads, len, len}, alignment) /* bias */ +
          allocation_bytes({batch, len, cfg.d_model}, alignment) /* last_hidden_state */;
@@ -66,6 +50,8 @@ StageMemory t5_call_memory(const nlohmann::json& t5_config, bool embedding_16bit
     m.io += ops::attention_split_plan_fused(caps ? *caps : unlimited, {batch, cfg.num_heads, cfg.d_kv, len, len}, true)
                 .scratch_bytes;
   }
+  m.consider({cfg.num_heads, len, len}, 4, "position bias");
+  m.consider({batch, len, cfg.d_model}, 4, "last_hidden_state");
   m.consider({cfg.vocab_size, cfg.d_model}, embedding_16bit ? 2 : 4, "token embedding");
   m.consider({cfg.d_ff, cfg.d_model}, embedding_16bit ? 2 : 4, "FFN weight");
   m.consider({batch, len, cfg.d_ff}, 4, "FFN activation");
@@ -81,7 +67,8 @@ StageMemory transformer_call_memory(const nlohmann::json& config, uint64_t align
   m.name = "transformer";
   m.what = "transformer call, batch " + std::to_string(batch) + " x (" + std::to_string(L) + " + " + std::to_string(N) +
            ") tokens";
-  m.working = CogVideoXTransformer::arena_bytes(cfg, alignment, batch, F, H, W, L);
+  const vk::ArenaLayout arena = CogVideoXTransformer::arena_layout(cfg, alignment, batch, F, H, W, L, 0, UINT64_MAX);
+  m.working = arena.bytes();
   m.io = allocation_bytes({batch, F, cfg.in_channels, H, W}, alignment) +
          allocation_bytes({batch, L, cfg.text_embed_dim}, alignment) + allocation_bytes({batch}, alignment) /* timesteps */ +
          allocation_bytes({batch, F, cfg.out_channels, H, W}, alignment);
@@ -95,6 +82,13 @@ StageMemory transformer_call_memory(const nlohmann::json& config, uint64_t align
   m.consider({batch, L + N, 3 * cfg.dim()}, 4, "q, k, v");
   m.consider({batch, L + N, 4 * cfg.dim()}, 4, "FFN activation");
   m.consider({batch, F, cfg.in_channels, H, W}, 4, "latent input");
+  m.consider({batch, L, cfg.text_embed_dim}, 4, "text embeddings");
+  if (cfg.learned_pos || !cfg.rotary) m.consider({L + N, cfg.dim()}, 4, "positional table");
+  // The arena's largest tensor (the FFN activation, sharing its region with q|k|v and the attention output)
+  // as the arena places it, aligned: the figure its blocks are cut for.
+  if (arena.largest > m.largest_bytes)
+    m.consider_buffer(arena.largest, "activation arena's largest tensor (FFN activation / q, k, v region) [" +
+                                         std::to_string(arena.largest / 4) + "] f32");
   return m;
 }
 
@@ -103,6 +97,8 @@ StageMemory transformer_call_memory(const nlohmann::json& config, uint64_t align
 // figure), then the posterior beside the moments. Several batches: the bands copied out of the input and the
 // concatenation of the per-batch results come on top. The VAE's dry run counts its buffers unpadded; the
 // allocator pads small ones (GroupNorm scratch) to its alignment, a few alignments per call at most.
+// The largest buffer is the VAE's own figure (CogVideoXVae::encode_footprint: what encode checks before any
+// work) or the input clip.
 StageMemory vae_encode_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& video, bool posterior) {
   const VaeConfig cfg = VaeConfig::from_json(config);
   const int64_t levels = int64_t(cfg.block_out_channels.size()) - 1;
@@ -111,10 +107,11 @@ StageMemory vae_encode_call_memory(const nlohmann::json& config, uint64_t alignm
   const Shape moments{video[0], 2 * cfg.latent_channels, lf, ceil_halvings(video[3], levels), ceil_halvings(video[4], levels)};
   Shape half = moments;
   half[1] = cfg.latent_channels;
+  const VaeFootprint f = CogVideoXVae::encode_footprint(config, video, 8, posterior);
   StageMemory m;
   m.name = "vae_encode";
   m.what = "VAE encode of " + shape_text(video);
-  m.working = CogVideoXVae::encode_working_bytes(config, video);
+  m.working = f.working;
   const uint64_t in = allocation_bytes(video, alignment), mom = allocation_bytes(moments, alignment);
   const uint64_t post = posterior ? 2 * allocation_bytes(half, alignment) : 0;
   uint64_t total;
@@ -122,29 +119,77 @@ StageMemory vae_encode_call_memory(const nlohmann::json& config, uint64_t alignm
   else total = 2 * in + m.working + 2 * mom + post;
   m.io = total - m.working;
   m.consider(video, 4, "input clip");
-  m.consider(moments, 4, "moments");
-  consider_vae_levels(m, cfg, max_batch(CogVideoXVae::frame_batches(frames, 8)), video[3], video[4], "encoder");
+  m.consider_buffer(f.largest_allocation, f.largest_what);
   return m;
 }
 
 // The input, the working set and the frames copied out of it, and (several latent batches) the bands and the
-// concatenation, as for encode.
+// concatenation, as for encode; the largest buffer as CogVideoXVae::decode_footprint or the latent.
 StageMemory vae_decode_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& z) {
   const VaeConfig cfg = VaeConfig::from_json(config);
   const int64_t r = cfg.spatial_ratio();
   const Shape frames{z[0], cfg.out_channels, (z[2] - 1) * cfg.temporal_compression_ratio + 1, z[3] * r, z[4] * r};
+  const VaeFootprint f = CogVideoXVae::decode_footprint(config, z);
   StageMemory m;
   m.name = "vae_decode";
   m.what = "VAE decode of " + shape_text(z);
-  m.working = CogVideoXVae::decode_working_bytes(config, z);
+  m.working = f.working;
   const uint64_t in = allocation_bytes(z, alignment), out = allocation_bytes(frames, alignment);
   uint64_t total;
   if (CogVideoXVae::frame_batches(z[2], 2).size() == 1) total = in + m.working + out;
   else total = 2 * in + m.working + 2 * out;
   m.io = total - m.working;
-  m.consider(frames, 4, "decoded frames");
-  const int64_t lb = max_batch(CogVideoXVae::frame_batches(z[2], 2));
-  consider_vae_levels(m, cfg, lb * cfg.temporal_compression_ratio, frames[3], frames[4], "decoder");
+  m.consider(z, 4, "latent");
+  m.consider_buffer(f.largest_allocation, f.largest_what);
+  return m;
+}
+
+// Tiled encode: the clip stays on the device; one tile call at a time (the largest tile's figures); the
+// blended moments come back at the end with the posterior.
+StageMemory vae_encode_tiled_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& video,
+                                         const VaeTiling& tiling) {
+  const VaeConfig cfg = VaeConfig::from_json(config);
+  const TilePlan plan = TilePlan::for_encode(cfg, tiling);
+  if (!(video[4] > plan.tile_in_w || video[3] > plan.tile_in_h)) return vae_encode_call_memory(config, alignment, video, true);
+  const Shape tile{video[0], video[1], video[2], std::min(video[3], plan.tile_in_h), std::min(video[4], plan.tile_in_w)};
+  const StageMemory one = vae_encode_call_memory(config, alignment, tile, false);
+  const VaeFootprint f = CogVideoXVae::encode_tiled_footprint(config, video, tiling);
+  const int64_t lf = video[2] == 1 ? 1 : (video[2] - 1) / cfg.temporal_compression_ratio + 1;
+  const Shape z{video[0], cfg.latent_channels, lf, video[3] / cfg.spatial_ratio(), video[4] / cfg.spatial_ratio()};
+  Shape moments = z;
+  moments[1] = 2 * cfg.latent_channels;
+  const int64_t tiles = ((video[3] + plan.stride_h - 1) / plan.stride_h) * ((video[4] + plan.stride_w - 1) / plan.stride_w);
+  StageMemory m;
+  m.name = "vae_encode";
+  m.what = "VAE encode of " + shape_text(video) + " in " + std::to_string(tiles) + " tiles of " + std::to_string(tile[3]) +
+           "x" + std::to_string(tile[4]);
+  m.working = f.working;
+  m.io = allocation_bytes(video, alignment) +
+         std::max(one.total(), allocation_bytes(moments, alignment) + 2 * allocation_bytes(z, alignment)) - one.working;
+  m.consider(video, 4, "input clip");
+  m.consider_buffer(f.largest_allocation, f.largest_what);
+  return m;
+}
+
+// Tiled decode: the latent stays; one tile call at a time; the blended frames come back whole.
+StageMemory vae_decode_tiled_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& z,
+                                         const VaeTiling& tiling) {
+  const VaeConfig cfg = VaeConfig::from_json(config);
+  const TilePlan plan = TilePlan::for_decode(cfg, tiling);
+  if (!(z[4] > plan.tile_in_w || z[3] > plan.tile_in_h)) return vae_decode_call_memory(config, alignment, z);
+  const Shape tile{z[0], z[1], z[2], std::min(z[3], plan.tile_in_h), std::min(z[4], plan.tile_in_w)};
+  const StageMemory one = vae_decode_call_memory(config, alignment, tile);
+  const VaeFootprint f = CogVideoXVae::decode_tiled_footprint(config, z, tiling);
+  const int64_t r = cfg.spatial_ratio();
+  const Shape frames{z[0], cfg.out_channels, (z[2] - 1) * cfg.temporal_compression_ratio + 1, z[3] * r, z[4] * r};
+  StageMemory m;
+  m.name = "vae_decode";
+  m.what = "VAE decode of " + shape_text(z) + " in tiles of " + std::to_string(tile[3]) + "x" + std::to_string(tile[4]) +
+           " latents";
+  m.working = f.working;
+  m.io = allocation_bytes(z, alignment) + std::max(one.total(), allocation_bytes(frames, alignment)) - one.working;
+  m.consider(z, 4, "latent");
+  m.consider_buffer(f.largest_allocation, f.largest_what);
   return m;
 }
 

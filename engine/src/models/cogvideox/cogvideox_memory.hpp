@@ -1,8 +1,9 @@
 // Device memory of one call of each CogVideoX network, from its config.json alone (for `dvs plan` and the run's
 // preflight; pipeline/memory_plan adds the calls of a run up). The activation figures are the models' own
-// from-config planners (CogVideoXTransformer::arena_bytes, T5Encoder::arena_bytes, CogVideoXVae::*_working_bytes);
+// from-config planners (CogVideoXTransformer::arena_layout, T5Encoder::arena_layout, CogVideoXVae::*_footprint);
 // this file adds the tensors each call allocates around them (inputs, outputs, tables), each rounded to the
-// allocator's alignment as the allocator does, and the call's largest single tensor.
+// allocator's alignment as the allocator does, and the call's largest single tensor: for the VAE the figure
+// its calls check before any work (CogVideoXVae::check_allocations), for the arenas the largest tensor placed.
 #pragma once
 #include <cstdint>
 
@@ -10,6 +11,7 @@
 
 #include "io/host_tensor.hpp"
 #include "models/call_memory.hpp"
+#include "models/cogvideox/cogvideox_vae.hpp"
 #include "vk/device_info.hpp"
 
 namespace dvs::models {
@@ -28,5 +30,10 @@ StageMemory transformer_call_memory(const nlohmann::json& config, uint64_t align
 StageMemory vae_encode_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& video, bool posterior);
 // A VAE decode call of the latent `z` [B, Cl, Fl, Hl, Wl].
 StageMemory vae_decode_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& z);
+// encode_tiled / decode_tiled with `tiling` (the untiled figures where the size does not exceed the tile).
+StageMemory vae_encode_tiled_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& video,
+                                         const VaeTiling& tiling);
+StageMemory vae_decode_tiled_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& z,
+                                         const VaeTiling& tiling);
 
 }  // namespace dvs::models

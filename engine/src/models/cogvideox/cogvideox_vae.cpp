@@ -51,13 +51,20 @@ struct Run {
   std::map<Shape, Tensor> zq;           // decoder: the latent batch resized to each feature size
   Tensor z;                             // decoder: the latent batch (SpatialNorm's condition)
   uint64_t batch_bytes = 0, cache_bytes = 0, peak_bytes = 0, dry_ids = 0;
-  uint64_t largest = 0;  // the largest single buffer allocated (an activation, a conv staging or a cache)
+  uint64_t largest = 0;      // the largest single buffer allocated (an activation, a conv staging or a cache)
+  std::string largest_what;  // what it holds, with its shape
 
   explicit Run(vk::Context* c) : ctx(c) {}
 
+  void note_buffer(uint64_t bytes, const std::string& what, const Shape& s) {
+    if (bytes <= largest) return;
+    largest = bytes;
+    largest_what = what + " [" + shape_str(s) + "]";
+  }
+
   static Key key_of(const Tensor& t) { return {t.buffer().buffer, t.buffer().offset}; }
 
-  Tensor get(const Shape& s) {
+  Tensor get(const Shape& s, const char* what = "activation") {
     const uint64_t need = uint64_t(std::max<int64_t>(shape_numel(s), 1)) * 4;
     if (auto it = free.lower_bound(need); it != free.end() && it->first <= 2 * need) {
       const Key k = it->second;
@@ -65,7 +72,7 @@ struct Run {
       return Tensor::on(slots.at(k).owner.buffer(), s, DType::f32);
     }
     batch_bytes += need;
-    largest = std::max(largest, need);
+    note_buffer(need, what, s);
     Tensor owner = ctx ? Tensor::empty(*ctx, {int64_t(need / 4)}, DType::f32, "vae activation")
                        : shape_only({int64_t(need / 4)}, ++dry_ids);
     slots.emplace(key_of(owner), Slot{owner, need});
@@ -86,7 +93,7 @@ struct Run {
   }
   Tensor new_cache(const std::string& name, const Shape& s) {
     cache_bytes += uint64_t(shape_numel(s)) * 4;
-    largest = std::max(largest, uint64_t(shape_numel(s)) * 4);
+    note_buffer(uint64_t(shape_numel(s)) * 4, "conv cache of " + name, s);
     Tensor c = ctx ? Tensor::empty(*ctx, s, DType::f32, name + " cache") : shape_only(s);
     cache.emplace(name, c);
     return c;
@@ -138,7 +145,9 @@ struct Layers {
   // CogVideoXCausalConv3d (kt = 3 here) with its cache under `prefix`.
   // Staging of one convolution (its repacked input and weights) from the pool, so that dry runs count it
   // like every other buffer; returned right after the op is recorded.
-  ops::ConvScratch conv_scratch(Run& run, const ops::ConvScratchSize& s) { return {run.get({s.input}), run.get({s.weights})}; }
+  ops::ConvScratch conv_scratch(Run& run, const ops::ConvScratchSize& s) {
+    return {run.get({s.input}, "convolution staging (repacked input)"), run.get({s.weights}, "convolution staging (weights)")};
+  }
   void put_scratch(Run& run, const ops::ConvScratch& s) {
     run.put(s.input);
     run.put(s.weights);
@@ -162,7 +171,7 @@ struct Layers {
   }
 
   void group_norm(Run& run, const Tensor& x, const Tensor& y, const std::string& prefix, float eps, bool silu) {
-    Tensor scratch = run.get({ops::groupnorm_scratch_elems(x.shape(), cfg.norm_num_groups)});
+    Tensor scratch = run.get({ops::groupnorm_scratch_elems(x.shape(), cfg.norm_num_groups)}, "GroupNorm scratch");
     if (rec)
       ops::groupnorm(*rec, x, y, cfg.norm_num_groups, W(prefix + ".weight"), W(prefix + ".bias"), eps, silu, scratch);
     run.put(scratch);
@@ -393,20 +402,21 @@ void check_video(const char* what, const Tensor& t, int64_t channels) {
 
 }  // namespace
 
-// Refuses, before any work, a call whose largest single buffer (its planner's figure) exceeds one allocation:
-// the ops split every binding, but one activation is one allocation (at 480 x 720 an untiled decode of a
-// 2-latent-frame batch holds 256 x 8 x 480 x 720 f32 = 2.6 GiB in one tensor).
+// Refuses, before any work, a call whose largest single buffer (the planner's figure, the one `dvs plan` and
+// the preflight check) exceeds one allocation: the ops split every binding, but one buffer is one allocation
+// (at 480 x 720 an untiled decode of a 2-latent-frame batch holds 256 x 8 x 480 x 720 f32 = 2.6 GiB in one).
 void CogVideoXVae::check_allocations(const char* what, const VaeFootprint& f) const {
   const uint64_t limit = ctx_.caps().max_memory_allocation_size;
-  if (limit && f.largest_tensor > limit)
-    throw Error(std::string("CogVideoX VAE ") + what + ": one activation of this call needs " + vk::format_bytes(f.largest_tensor) +
-                ", more than the device allocates at once (maxMemoryAllocationSize " + vk::format_bytes(limit) +
-                "); use VAE tiling (--vae-tiling) with smaller tiles");
+  if (limit && f.largest_allocation > limit)
+    throw Error(std::string("CogVideoX VAE ") + what + ": its largest buffer, " + f.largest_what + ", needs " +
+                vk::format_bytes(f.largest_allocation) + ", more than the device allocates at once " +
+                "(maxMemoryAllocationSize " + vk::format_bytes(limit) + "); use VAE tiling (--vae-tile HxW) with " +
+                "smaller tiles (dvs plan --device shows the tile that fits)");
 }
 
 Tensor CogVideoXVae::encode_moments(const Tensor& video) {
   check_video("encode", video, cfg_.in_channels);
-  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch));
+  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch, false));
   const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
   std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
   Run run(&ctx_);
@@ -421,7 +431,7 @@ Tensor CogVideoXVae::encode_moments(const Tensor& video) {
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
-  last_footprint_ = {run.peak_bytes, run.largest};
+  last_footprint_ = {run.peak_bytes, run.largest, run.largest, run.largest_what};
   return concat_frames(ctx_, outs, "vae moments");
 }
 
@@ -435,7 +445,11 @@ VaePosterior CogVideoXVae::posterior_of(const Tensor& moments) {
   return p;
 }
 
-VaePosterior CogVideoXVae::encode(const Tensor& video) { return posterior_of(encode_moments(video)); }
+VaePosterior CogVideoXVae::encode(const Tensor& video) {
+  check_video("encode", video, cfg_.in_channels);
+  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch, true));
+  return posterior_of(encode_moments(video));
+}
 
 Tensor CogVideoXVae::decode(const Tensor& z) {
   check_video("decode", z, cfg_.latent_channels);
@@ -454,7 +468,7 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
-  last_footprint_ = {run.peak_bytes, run.largest};
+  last_footprint_ = {run.peak_bytes, run.largest, run.largest, run.largest_what};
   return concat_frames(ctx_, outs, "vae frames");
 }
 
@@ -462,8 +476,25 @@ Tensor CogVideoXVae::decode(const Tensor& z) {
 
 namespace {
 
+// The largest of the buffers offered so far, with what it holds.
+struct LargestBuffer {
+  uint64_t bytes = 0;
+  std::string what;
+  void offer(uint64_t b, const std::string& w) {
+    if (b > bytes) bytes = b, what = w;
+  }
+  void offer(const Shape& s, const std::string& w) {
+    offer(uint64_t(std::max<int64_t>(shape_numel(s), 1)) * 4, w + " [" + shape_str(s) + "]");
+  }
+};
+
+struct DryRun {
+  VaeFootprint footprint;  // working set and largest buffer of the batches (largest_allocation: the same)
+  Shape result;            // the call's result: the batch results concatenated on frames
+};
+
 // The same layer code on shape-only tensors: the working set of every frame batch, from the config alone.
-VaeFootprint dry_run(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
+DryRun dry_run(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch) {
   const VaeConfig cfg = VaeConfig::from_json(config);
   std::map<std::string, Shape> shapes;
   for (const auto& t : schema_for("AutoencoderKLCogVideoX", config, "vae config").tensors) shapes[t.name] = t.shape;
@@ -471,34 +502,130 @@ VaeFootprint dry_run(const nlohmann::json& config, const Shape& input, bool enco
     throw Error("VAE memory plan: the input must be [B, " + std::to_string(encode ? cfg.in_channels : cfg.latent_channels) +
                 ", F, H, W], got [" + shape_str(input) + "]");
   Run run(nullptr);
+  DryRun d;
   for (auto [s, e] : CogVideoXVae::frame_batches(input[2], batch)) {
     Shape b = input;
     b[2] = e - s;
     Layers L{cfg, nullptr, nullptr, &shapes, {}};
     const Tensor x = shape_only(b);
-    if (encode) L.encoder(run, x);
-    else L.decoder(run, x);
+    const Shape out = (encode ? L.encoder(run, x) : L.decoder(run, x)).shape();
+    if (d.result.empty()) d.result = out;
+    else d.result[2] += out[2];
     run.release_batch();
   }
-  return {run.peak_bytes, run.largest};
+  d.footprint = {run.peak_bytes, run.largest, run.largest, run.largest_what};
+  return d;
+}
+
+// The buffers an untiled call allocates around its batches (split_frames, Run::owned, concat_frames,
+// posterior_of): a band per batch when there are several, the concatenated result, the posterior's halves.
+// A batch result copied out of the pool is never larger than the pool buffer it came from, already counted.
+DryRun whole_call(const nlohmann::json& config, const Shape& input, bool encode, int64_t batch, bool posterior) {
+  DryRun d = dry_run(config, input, encode, batch);
+  LargestBuffer l{d.footprint.largest_allocation, d.footprint.largest_what};
+  const auto ranges = CogVideoXVae::frame_batches(input[2], batch);
+  if (ranges.size() > 1) {
+    for (auto [s, e] : ranges) {
+      Shape band = input;
+      band[2] = e - s;
+      l.offer(band, "frame batch copied out of the input");
+    }
+    l.offer(d.result, encode ? "moments" : "decoded frames");
+  }
+  if (encode && posterior) {
+    Shape half = d.result;
+    half[1] /= 2;
+    l.offer(half, "posterior mean / std");
+  }
+  d.footprint.largest_allocation = l.bytes;
+  d.footprint.largest_what = l.what;
+  return d;
+}
+
+// The distinct sizes of the tiles run_tiled cuts from an extent: `tile` at each multiple of `stride`, clipped
+// at the end (an interior size and an edge size at most).
+std::vector<int64_t> tile_extents(int64_t extent, int64_t tile, int64_t stride) {
+  std::vector<int64_t> out;
+  for (int64_t i = 0; i < extent; i += stride) {
+    const int64_t e = std::min(tile, extent - i);
+    if (std::find(out.begin(), out.end(), e) == out.end()) out.push_back(e);
+  }
+  return out;
+}
+
+// A tiled call: every distinct tile shape through the untiled call (without the posterior), each tile's
+// upload, and the blended result uploaded whole (plus the posterior for encode). The blended result keeps
+// limit_h x limit_w of each tile's output.
+VaeFootprint tiled_call(const nlohmann::json& config, const Shape& input, const TilePlan& plan, bool encode, int64_t batch) {
+  if (plan.stride_h <= 0 || plan.stride_w <= 0) throw Error("VAE tiling: the tile overlap leaves no stride");
+  const int64_t H = input[3], W = input[4];
+  VaeFootprint f;
+  LargestBuffer l;
+  std::map<std::pair<int64_t, int64_t>, Shape> outputs;  // tile size -> its output
+  for (int64_t th : tile_extents(H, plan.tile_in_h, plan.stride_h))
+    for (int64_t tw : tile_extents(W, plan.tile_in_w, plan.stride_w)) {
+      Shape tile = input;
+      tile[3] = th, tile[4] = tw;
+      const DryRun d = whole_call(config, tile, encode, batch, false);
+      f.working = std::max(f.working, d.footprint.working);
+      f.largest_tensor = std::max(f.largest_tensor, d.footprint.largest_tensor);
+      l.offer(d.footprint.largest_allocation, d.footprint.largest_what + " (one tile)");
+      l.offer(tile, "tile uploaded");
+      outputs[{th, tw}] = d.result;
+    }
+  Shape blended;
+  int64_t out_h = 0, out_w = 0;
+  for (int64_t i = 0; i < H; i += plan.stride_h) {
+    const Shape& o = outputs.at({std::min(plan.tile_in_h, H - i), std::min(plan.tile_in_w, W)});
+    out_h += std::min(plan.limit_h, o[3]);
+    blended = o;
+  }
+  for (int64_t j = 0; j < W; j += plan.stride_w)
+    out_w += std::min(plan.limit_w, outputs.at({std::min(plan.tile_in_h, H), std::min(plan.tile_in_w, W - j)})[4]);
+  blended[3] = out_h, blended[4] = out_w;
+  l.offer(blended, encode ? "blended moments" : "blended decoded frames");
+  if (encode) {
+    Shape half = blended;
+    half[1] /= 2;
+    l.offer(half, "posterior mean / std");
+  }
+  f.largest_allocation = l.bytes;
+  f.largest_what = l.what;
+  return f;
 }
 
 }  // namespace
 
-VaeFootprint CogVideoXVae::encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
-  return dry_run(config, video, true, frames_batch);
+VaeFootprint CogVideoXVae::encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch,
+                                            bool posterior) {
+  return whole_call(config, video, true, frames_batch, posterior).footprint;
 }
 
 VaeFootprint CogVideoXVae::decode_footprint(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
-  return dry_run(config, z, false, latent_batch);
+  return whole_call(config, z, false, latent_batch, false).footprint;
+}
+
+VaeFootprint CogVideoXVae::encode_tiled_footprint(const nlohmann::json& config, const Shape& video, const VaeTiling& tiling,
+                                                  int64_t frames_batch) {
+  const TilePlan plan = TilePlan::for_encode(VaeConfig::from_json(config), tiling);
+  if (!(video.size() == 5 && (video[4] > plan.tile_in_w || video[3] > plan.tile_in_h)))
+    return encode_footprint(config, video, frames_batch, true);  // encode_tiled falls back to encode
+  return tiled_call(config, video, plan, true, frames_batch);
+}
+
+VaeFootprint CogVideoXVae::decode_tiled_footprint(const nlohmann::json& config, const Shape& z, const VaeTiling& tiling,
+                                                  int64_t latent_batch) {
+  const TilePlan plan = TilePlan::for_decode(VaeConfig::from_json(config), tiling);
+  if (!(z.size() == 5 && (z[4] > plan.tile_in_w || z[3] > plan.tile_in_h))) return decode_footprint(config, z, latent_batch);
+  return tiled_call(config, z, plan, false, latent_batch);
 }
 
 uint64_t CogVideoXVae::encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch) {
-  return encode_footprint(config, video, frames_batch).working;
+  return dry_run(config, video, true, frames_batch).footprint.working;
 }
 
 uint64_t CogVideoXVae::decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch) {
-  return decode_footprint(config, z, latent_batch).working;
+  return dry_run(config, z, false, latent_batch).footprint.working;
 }
 
 // ---- tiling ---------------------------------------------------------------------------------------------------
@@ -508,6 +635,7 @@ VaePosterior CogVideoXVae::encode_tiled(const Tensor& video, const VaeTiling& ti
   const TilePlan plan = TilePlan::for_encode(cfg_, tiling);
   const int64_t H = video.dim(3), W = video.dim(4);
   if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return encode(video);
+  check_allocations("tiled encode", encode_tiled_footprint(weights_.config(), video.shape(), tiling, sample_frames_batch));
   HostTensor host = video.download(ctx_);
   HostTensor moments = run_tiled(plan, host, [&](const HostTensor& tile) {
     return encode_moments(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);
@@ -520,6 +648,7 @@ Tensor CogVideoXVae::decode_tiled(const Tensor& z, const VaeTiling& tiling) {
   const TilePlan plan = TilePlan::for_decode(cfg_, tiling);
   const int64_t H = z.dim(3), W = z.dim(4);
   if (!(W > plan.tile_in_w || H > plan.tile_in_h)) return decode(z);
+  check_allocations("tiled decode", decode_tiled_footprint(weights_.config(), z.shape(), tiling, latent_frames_batch));
   HostTensor host = z.download(ctx_);
   HostTensor frames = run_tiled(plan, host, [&](const HostTensor& tile) {
     return decode(Tensor::upload(ctx_, tile, "vae tile")).download(ctx_);

@@ -43,11 +43,16 @@ struct VaePosterior {
 // Memory of one VAE call from its working-set planner (CogVideoXVae::*_footprint): `working` is the largest
 // working set of one frame batch in bytes (every intermediate buffer plus the conv caches, as
 // *_working_bytes); `largest_tensor` is the largest single buffer among them (an activation, a convolution's
-// staging, a conv cache): it must be <= maxMemoryAllocationSize (each is one allocation). Every binding the
-// ops make of it is split to the device's limits by the ops themselves (tensor/ops_conv.hpp), so this is the
-// only VAE size a device limit bounds. Not counted: weights, the call's input and result.
+// staging, a conv cache). `largest_allocation` is the largest single buffer the whole call allocates: those,
+// the frame bands it copies out of its input, its result and (encode) the posterior; for a tiled call also
+// each tile's upload and the blended result's; `largest_what` names it. That figure is the one
+// check_allocations holds against maxMemoryAllocationSize before any work, and the one `dvs plan` and the
+// preflight report for the call (each buffer is one allocation; every binding of it is split to the device's
+// limits by the ops themselves, tensor/ops_conv.hpp). Not counted: weights and the call's input.
 struct VaeFootprint {
   uint64_t working = 0, largest_tensor = 0;
+  uint64_t largest_allocation = 0;
+  std::string largest_what;
 };
 
 class CogVideoXVae {
@@ -92,10 +97,18 @@ class CogVideoXVae {
   static uint64_t encode_working_bytes(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8);
   static uint64_t decode_working_bytes(const nlohmann::json& config, const Shape& z, int64_t latent_batch = 2);
   uint64_t last_working_bytes() const { return last_peak_bytes_; }
-  // The same plans with the largest single buffer too (for `dvs plan` against maxMemoryAllocationSize); a live
-  // call's figures are last_footprint() after it.
-  static VaeFootprint encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8);
+  // The same plans with the call's largest allocations too: encode(video) (with the posterior; without it,
+  // `posterior` false, as encode_tiled runs each tile), decode(z), and the tiled calls for `tiling` (every
+  // distinct tile shape; the untiled figures where the size does not exceed the tile, as those calls fall
+  // back). The calls themselves check these figures (check_allocations) and `dvs plan` reports them: one
+  // estimate. A live call's working set and largest buffer are last_footprint() after it.
+  static VaeFootprint encode_footprint(const nlohmann::json& config, const Shape& video, int64_t frames_batch = 8,
+                                       bool posterior = true);
   static VaeFootprint decode_footprint(const nlohmann::json& config, const Shape& z, int64_t latent_batch = 2);
+  static VaeFootprint encode_tiled_footprint(const nlohmann::json& config, const Shape& video, const VaeTiling& tiling,
+                                             int64_t frames_batch = 8);
+  static VaeFootprint decode_tiled_footprint(const nlohmann::json& config, const Shape& z, const VaeTiling& tiling,
+                                             int64_t latent_batch = 2);
   VaeFootprint last_footprint() const { return last_footprint_; }
 
  private:
