@@ -123,12 +123,17 @@ StageMemory vae_encode_call_memory(const nlohmann::json& config, uint64_t alignm
   return m;
 }
 
+// The frames a decode of latent z gives (4·(F−1)+1 of them, the spatial ratio up), in the VAE's layout.
+static Shape decoded_shape(const VaeConfig& cfg, const Shape& z) {
+  const int64_t r = cfg.spatial_ratio();
+  return {z[0], cfg.out_channels, (z[2] - 1) * cfg.temporal_compression_ratio + 1, z[3] * r, z[4] * r};
+}
+
 // The input, the working set and the frames copied out of it, and (several latent batches) the bands and the
 // concatenation, as for encode; the largest buffer as CogVideoXVae::decode_footprint or the latent.
 StageMemory vae_decode_call_memory(const nlohmann::json& config, uint64_t alignment, const Shape& z) {
   const VaeConfig cfg = VaeConfig::from_json(config);
-  const int64_t r = cfg.spatial_ratio();
-  const Shape frames{z[0], cfg.out_channels, (z[2] - 1) * cfg.temporal_compression_ratio + 1, z[3] * r, z[4] * r};
+  const Shape frames = decoded_shape(cfg, z);
   const VaeFootprint f = CogVideoXVae::decode_footprint(config, z);
   StageMemory m;
   m.name = "vae_decode";
@@ -180,8 +185,7 @@ StageMemory vae_decode_tiled_call_memory(const nlohmann::json& config, uint64_t 
   const Shape tile{z[0], z[1], z[2], std::min(z[3], plan.tile_in_h), std::min(z[4], plan.tile_in_w)};
   const StageMemory one = vae_decode_call_memory(config, alignment, tile);
   const VaeFootprint f = CogVideoXVae::decode_tiled_footprint(config, z, tiling);
-  const int64_t r = cfg.spatial_ratio();
-  const Shape frames{z[0], cfg.out_channels, (z[2] - 1) * cfg.temporal_compression_ratio + 1, z[3] * r, z[4] * r};
+  const Shape frames = decoded_shape(cfg, z);
   StageMemory m;
   m.name = "vae_decode";
   m.what = "VAE decode of " + shape_text(z) + " in tiles of " + std::to_string(tile[3]) + "x" + std::to_string(tile[4]) +

@@ -414,25 +414,30 @@ void CogVideoXVae::check_allocations(const char* what, const VaeFootprint& f) co
                 "smaller tiles (dvs plan --device shows the tile that fits)");
 }
 
-Tensor CogVideoXVae::encode_moments(const Tensor& video) {
-  check_video("encode", video, cfg_.in_channels);
-  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch, false));
-  const auto ranges = frame_batches(video.dim(2), sample_frames_batch);
-  std::vector<Tensor> inputs = split_frames(ctx_, video, ranges);
+// One network over a clip, frame batch by frame batch (diffusers' batching with the conv caches carried in `run`),
+// the batches' outputs joined on time. Records the call's peak and largest buffer.
+Tensor CogVideoXVae::run_frame_batches(const Tensor& x, int64_t frames_batch, bool decoder, const char* name) {
+  std::vector<Tensor> inputs = split_frames(ctx_, x, frame_batches(x.dim(2), frames_batch));
   Run run(&ctx_);
   std::vector<Tensor> outs;
-  for (const Tensor& x : inputs) {
+  for (const Tensor& batch : inputs) {
     Tensor out;
     ops::run_now(ctx_, [&](vk::Recorder& rec) {
       Layers L{cfg_, &rec, &weights_, nullptr, {}};
-      out = L.encoder(run, x);
+      out = decoder ? L.decoder(run, batch) : L.encoder(run, batch);
     });
     outs.push_back(run.owned(out));
     run.release_batch();
   }
   last_peak_bytes_ = run.peak_bytes;
   last_footprint_ = {run.peak_bytes, run.largest, run.largest, run.largest_what};
-  return concat_frames(ctx_, outs, "vae moments");
+  return concat_frames(ctx_, outs, name);
+}
+
+Tensor CogVideoXVae::encode_moments(const Tensor& video) {
+  check_video("encode", video, cfg_.in_channels);
+  check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch, false));
+  return run_frame_batches(video, sample_frames_batch, false, "vae moments");
 }
 
 VaePosterior CogVideoXVae::posterior_of(const Tensor& moments) {
@@ -448,28 +453,13 @@ VaePosterior CogVideoXVae::posterior_of(const Tensor& moments) {
 VaePosterior CogVideoXVae::encode(const Tensor& video) {
   check_video("encode", video, cfg_.in_channels);
   check_allocations("encode", encode_footprint(weights_.config(), video.shape(), sample_frames_batch, true));
-  return posterior_of(encode_moments(video));
+  return posterior_of(run_frame_batches(video, sample_frames_batch, false, "vae moments"));
 }
 
 Tensor CogVideoXVae::decode(const Tensor& z) {
   check_video("decode", z, cfg_.latent_channels);
   check_allocations("decode", decode_footprint(weights_.config(), z.shape(), latent_frames_batch));
-  const auto ranges = frame_batches(z.dim(2), latent_frames_batch);
-  std::vector<Tensor> inputs = split_frames(ctx_, z, ranges);
-  Run run(&ctx_);
-  std::vector<Tensor> outs;
-  for (const Tensor& x : inputs) {
-    Tensor out;
-    ops::run_now(ctx_, [&](vk::Recorder& rec) {
-      Layers L{cfg_, &rec, &weights_, nullptr, {}};
-      out = L.decoder(run, x);
-    });
-    outs.push_back(run.owned(out));
-    run.release_batch();
-  }
-  last_peak_bytes_ = run.peak_bytes;
-  last_footprint_ = {run.peak_bytes, run.largest, run.largest, run.largest_what};
-  return concat_frames(ctx_, outs, "vae frames");
+  return run_frame_batches(z, latent_frames_batch, true, "vae frames");
 }
 
 // ---- memory planning ------------------------------------------------------------------------------------------

@@ -113,6 +113,7 @@ class CogVideoXVae {
 
  private:
   Tensor encode_moments(const Tensor& video);
+  Tensor run_frame_batches(const Tensor& x, int64_t frames_batch, bool decoder, const char* name);
   VaePosterior posterior_of(const Tensor& moments);
   void check_allocations(const char* what, const VaeFootprint& f) const;
 
