@@ -90,7 +90,7 @@ HostTensor read_depth_exr(const std::filesystem::path& file) {
   return read_single_channel(file, "EXR");
 }
 
-HostTensor read_depth_image_sequence(const std::filesystem::path& folder) {
+std::vector<std::filesystem::path> depth_image_files(const std::filesystem::path& folder) {
   const std::string name = folder.string();
   if (!std::filesystem::is_directory(folder)) throw Error(name + ": not a folder of depth images");
   std::vector<std::filesystem::path> png, exr;
@@ -106,9 +106,15 @@ HostTensor read_depth_image_sequence(const std::filesystem::path& folder) {
   std::sort(files.begin(), files.end(), [](const std::filesystem::path& a, const std::filesystem::path& b) {
     return natural_less(a.filename().string(), b.filename().string());
   });
+  return files;
+}
+
+HostTensor read_depth_image_sequence(const std::filesystem::path& folder) {
+  const std::vector<std::filesystem::path> files = depth_image_files(folder);
+  const bool png = lower_ext(files[0]) == ".png";
   HostTensor out;
   for (size_t i = 0; i < files.size(); ++i) {
-    HostTensor f = png.empty() ? read_depth_exr(files[i]) : read_depth_png(files[i]);
+    HostTensor f = png ? read_depth_png(files[i]) : read_depth_exr(files[i]);
     if (i == 0) {
       out = HostTensor({int64_t(files.size()), f.shape[0], f.shape[1]}, DType::f32);
     } else if (f.shape[0] != out.shape[1] || f.shape[1] != out.shape[2]) {

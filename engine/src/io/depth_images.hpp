@@ -4,6 +4,7 @@
 // its single channel as float (OpenCV reads both).
 #pragma once
 #include <filesystem>
+#include <vector>
 #include <string>
 
 #include "io/host_tensor.hpp"
@@ -14,7 +15,11 @@ namespace dvs {
 // leading zeros sorts after), everything else byte by byte.
 bool natural_less(const std::string& a, const std::string& b);
 
-// [N,H,W] f32 from every .png or every .exr in `folder` (one kind only). Errors name the file.
+// The depth images of `folder` in frame order: every .png or every .exr (one kind only, natural name order).
+// dvs::Error when the folder mixes the kinds or holds neither.
+std::vector<std::filesystem::path> depth_image_files(const std::filesystem::path& folder);
+
+// [N,H,W] f32 from depth_image_files(folder). Errors name the file.
 HostTensor read_depth_image_sequence(const std::filesystem::path& folder);
 
 // One frame: [H,W] f32.

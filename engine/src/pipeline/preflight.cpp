@@ -16,6 +16,7 @@
 #include "spec/model_folder.hpp"
 #include "spec/model_schema.hpp"
 #include "io/depth.hpp"
+#include "io/depth_images.hpp"
 #include "io/video.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
@@ -39,15 +40,7 @@ std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_
 std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
   const auto path = split_npz_key(spec).first;
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    int64_t n = 0;
-    for (const auto& e : std::filesystem::directory_iterator(path, ec)) {
-      std::string ext = e.path().extension().string();
-      for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-      if (e.is_regular_file() && (ext == ".png" || ext == ".exr")) ++n;
-    }
-    return n;
-  }
+  if (std::filesystem::is_directory(path, ec)) return int64_t(depth_image_files(path).size());
   std::string ext = path.extension().string();
   for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
   if (ext == ".npy" || ext == ".npz") return read_depth_array(spec).shape.at(0);
