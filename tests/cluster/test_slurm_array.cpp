@@ -2,10 +2,12 @@
 // MODEL and PATH, to a real single-node Slurm that tests/cluster/slurm_cluster.sh starts and always stops: its
 // array tasks each run `dvs batch --shard I/N` (two at a time, sharing one cache folder) on the conformance
 // pack's tiny model, and every job's outputs must equal, byte for byte, those of the same recipe run as one
-// process (--shard 0/1). Label "cluster". Without Slurm (not installed, not root, a daemon that does not start)
-// the test is skipped and says why; with DVS_REQUIRE_SLURM=1 (CI) that is a failure.
+// process (--shard 0/1). And the cluster script leaves nothing running, also when its command fails. Label
+// "cluster". Without Slurm (not installed, not root, a daemon that does not start) the tests are skipped and say
+// why; with DVS_REQUIRE_SLURM=1 (CI) that is a failure.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -31,6 +33,37 @@ constexpr int kJobs = 10;
 bool slurm_required() {
   const char* e = std::getenv("DVS_REQUIRE_SLURM");
   return e && std::string(e) == "1";
+}
+
+fs::path cluster_script() { return test::source_dir() / "tests" / "cluster" / "slurm_cluster.sh"; }
+
+// `slurm_cluster.sh WORK COMMAND` as this test runs it: setpriv ends the script (and with it the daemons) when
+// this test process ends.
+std::string on_cluster(const fs::path& work, const std::string& command) {
+  return "setpriv --pdeathsig TERM bash " + cluster_script().string() + " " + work.string() + " " + command;
+}
+
+// Processes of the cluster slurm_cluster.sh ran in `work`: the daemons, job steps and their tasks all carry its
+// SLURM_CONF in their environment.
+std::vector<std::string> cluster_processes(const fs::path& work) {
+  const std::string marker = "SLURM_CONF=" + (work / "slurm" / "slurm.conf").string();
+  std::vector<std::string> found;
+  std::error_code ec;
+  for (fs::directory_iterator it("/proc", ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string pid = it->path().filename().string();
+    if (pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    const std::string env = test::read_text(it->path() / "environ");  // NUL-separated NAME=VALUE entries
+    for (size_t at = 0; at < env.size();) {
+      const size_t end = std::min(env.find('\0', at), env.size());
+      if (env.compare(at, end - at, marker) == 0) {
+        std::string name = test::read_text(it->path() / "comm");
+        found.push_back(pid + " " + name.substr(0, name.find('\n')));
+        break;
+      }
+      at = end + 1;
+    }
+  }
+  return found;
 }
 
 // The jobs file of both runs: relative out folders (the recipe's jobs start at the submission folder), the
@@ -69,7 +102,6 @@ nlohmann::json comparable_record(const fs::path& run_json) {
 TEST(SlurmArray, RecipeShardsMatchOneProcessBatch) {
   test::PipelineInputs in;
   const fs::path recipe = test::source_dir() / "docs" / "examples" / "slurm_batch.sh";
-  const fs::path cluster = test::source_dir() / "tests" / "cluster" / "slurm_cluster.sh";
   ASSERT_TRUE(fs::exists(recipe)) << recipe;
   const fs::path one = in.dir / "one", slurm = in.dir / "slurm";
   for (const fs::path& d : {one, slurm}) {
@@ -79,14 +111,15 @@ TEST(SlurmArray, RecipeShardsMatchOneProcessBatch) {
 
   // The array job. setpriv: the cluster script (and with it the daemons) ends when this test process does.
   // timeout: a task that hangs fails the test well within ctest's limit, and the script still stops Slurm.
-  const auto submitted = test::run_command(recipe_environment(slurm, in) + "setpriv --pdeathsig TERM bash " +
-                                           cluster.string() + " " + slurm.string() + " timeout 1500 sbatch --wait " +
-                                           recipe.string());
+  const auto submitted =
+      test::run_command(recipe_environment(slurm, in) + on_cluster(slurm, "timeout 1500 sbatch --wait " + recipe.string()));
   if (submitted.exit_code == kSlurmCannotStart) {
     if (slurm_required()) FAIL() << "DVS_REQUIRE_SLURM=1 and Slurm could not start:\n" << submitted.output;
     GTEST_SKIP() << "Slurm cannot start on this machine (DVS_REQUIRE_SLURM=1 makes this a failure):\n"
                  << submitted.output;
   }
+
+  for (const auto& p : cluster_processes(slurm)) ADD_FAILURE() << "left running after the cluster stopped: " << p;
 
   // The reference: the same script as one process, the whole file in one shard.
   auto single = test::run_command(recipe_environment(one, in) + "SLURM_ARRAY_TASK_ID=0 SLURM_ARRAY_TASK_COUNT=1 bash " +
@@ -132,6 +165,23 @@ TEST(SlurmArray, RecipeShardsMatchOneProcessBatch) {
   for (const auto& name : test::files_in(slurm / "cache" / "inversions"))
     EXPECT_TRUE(name.find(".tmp-") == std::string::npos && name.find(".partial-") == std::string::npos)
         << "a cache file left half-written: " << name;
+}
+
+// The cluster is stopped when the command fails too: a job still running is cancelled, and no daemon, job step
+// or task of it is left.
+TEST(SlurmCluster, StopsEverythingWhenTheCommandFails) {
+  test::TempDir work;
+  const std::string command =
+      "bash -c 'sbatch --output=/dev/null --wrap \"sleep 300\" || exit 10; "
+      "for i in $(seq 100); do squeue -h -o %T | grep -q RUNNING && exit 3; sleep 0.2; done; exit 11'";
+  const auto r = test::run_command(on_cluster(work.path, command));
+  if (r.exit_code == kSlurmCannotStart) {
+    if (slurm_required()) FAIL() << "DVS_REQUIRE_SLURM=1 and Slurm could not start:\n" << r.output;
+    GTEST_SKIP() << "Slurm cannot start on this machine (DVS_REQUIRE_SLURM=1 makes this a failure):\n" << r.output;
+  }
+  EXPECT_EQ(r.exit_code, 3) << "the command's own exit status (10: sbatch failed, 11: the job never ran)\n" << r.output;
+  EXPECT_NE(r.output.find("cancelling jobs still in the queue"), std::string::npos) << r.output;
+  for (const auto& p : cluster_processes(work.path)) ADD_FAILURE() << "left running after the cluster stopped: " << p;
 }
 
 }  // namespace
