@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# shellcheck disable=SC2317  # stop_cluster and what it calls run from the EXIT trap
 # Runs a command against a single-node Slurm cluster of its own: munged, slurmctld and slurmd on this machine
 # (127.0.0.1, two free ports), every file of theirs in WORK/slurm (slurm.conf and gres.conf written there, fresh
 # state), started before the command and always stopped after it: on success, on failure and on a signal. The
@@ -57,7 +58,9 @@ mkdir -p "$DIR/state" "$DIR/spool" || cannot_start "cannot create $DIR"
 HOST="$(uname -n)"
 HOST="${HOST%%.*}"  # slurmctld compares SlurmctldHost with the short host name
 # munge: a fresh random key, readable by its owner only (munged refuses a key others can read).
-head -c 1024 /dev/urandom > "$DIR/munge.key" && chmod 400 "$DIR/munge.key" || cannot_start "cannot write the munge key"
+if ! head -c 1024 /dev/urandom > "$DIR/munge.key" || ! chmod 400 "$DIR/munge.key"; then
+  cannot_start "cannot write the munge key $DIR/munge.key"
+fi
 
 # The node offers two GPUs, so two array tasks run at once, each with the `--gpus=1` it asks for. Slurm counts
 # a GPU only with a device file; /dev/null and /dev/zero stand in for them (no task plugin confines a task to
@@ -116,15 +119,15 @@ cluster_processes() {
 }
 stop_cluster() {
   trap - EXIT INT TERM HUP
-  local ids pid left
+  local ids=() left=() pid
   if [ -n "$COMMAND_PID" ] && kill -0 "$COMMAND_PID" 2>/dev/null; then
     kill -TERM "$COMMAND_PID" 2>/dev/null
     wait "$COMMAND_PID" 2>/dev/null
   fi
-  ids="$(with_conf squeue -h -o %A 2>/dev/null)"
-  if [ -n "$ids" ]; then
-    echo "slurm_cluster.sh: cancelling jobs still in the queue: $(echo $ids)" >&2
-    with_conf scancel $ids 2>/dev/null
+  mapfile -t ids < <(with_conf squeue -h -o %A 2>/dev/null)
+  if [ ${#ids[@]} -gt 0 ]; then
+    echo "slurm_cluster.sh: cancelling jobs still in the queue: ${ids[*]}" >&2
+    with_conf scancel "${ids[@]}" 2>/dev/null
     for _ in $(seq 20); do [ -z "$(with_conf squeue -h -o %A 2>/dev/null)" ] && break; sleep 0.5; done
   fi
   for pid in "${DAEMON_PIDS[@]}"; do kill -TERM "$pid" 2>/dev/null; done
@@ -133,10 +136,10 @@ stop_cluster() {
     kill -KILL "$pid" 2>/dev/null
     wait "$pid" 2>/dev/null
   done
-  left="$(cluster_processes | grep -vxF -f <(printf '%s\n' "${DAEMON_PIDS[@]}") | tr '\n' ' ')"
-  if [ -n "$left" ]; then
-    echo "slurm_cluster.sh: ending job processes left behind: $left" >&2
-    kill -KILL $left 2>/dev/null
+  mapfile -t left < <(cluster_processes | grep -vxF -f <(printf '%s\n' "${DAEMON_PIDS[@]}"))
+  if [ ${#left[@]} -gt 0 ]; then
+    echo "slurm_cluster.sh: ending job processes left behind: ${left[*]}" >&2
+    kill -KILL "${left[@]}" 2>/dev/null
   fi
 }
 trap stop_cluster EXIT
