@@ -60,8 +60,8 @@ OutputLock::OutputLock(const std::filesystem::path& dir) : file_(dir / ".dvs-loc
   const std::string me = "pid " + std::to_string(::getpid()) + " on host " + host + "\n";
   const bool noted = ::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, me.data(), me.size(), 0) == ssize_t(me.size());
   (void)noted;  // the holder's name only makes a refused process's message clearer
-  crash_point("out-locked");
   recover_staging(dir);  // no other process writes here now: whatever is staged belongs to a dead one
+  crash_point("out-locked");
 }
 
 OutputLock::~OutputLock() {
