@@ -32,20 +32,24 @@ OutputLock::OutputLock(const std::filesystem::path& dir) : file_(dir / ".dvs-loc
   std::filesystem::create_directories(dir, ec);
   if (ec || !std::filesystem::is_directory(dir))
     throw Error(dir.string() + ": cannot create the output folder (" + (ec ? ec.message() : "not a folder") + ")");
+  bool locked = true;
   for (;;) {
     fd_ = ::open(file_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd_ < 0)
       throw Error(file_.string() + ": cannot create the output folder's lock file (" + std::strerror(errno) +
                   "); give an --out folder you can write to");
     if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      const int err = errno;
+      if (errno != EWOULDBLOCK) {
+        // A file system without locks (an NFSv3 mount without lockd, some FUSE ones): the job runs unlocked,
+        // as dvs did before it had the lock, and leaves alone the staging folders of live processes.
+        locked = false;
+        break;
+      }
       const std::string holder = holder_of(fd_);
       ::close(fd_);
       fd_ = -1;
-      if (err == EWOULDBLOCK)
-        throw Error(dir.string() + ": this output folder is in use by " + holder +
-                    " (its lock is " + file_.filename().string() + "); wait for it to finish, or give another --out");
-      throw Error(file_.string() + ": cannot lock the output folder (" + std::strerror(err) + ")");
+      throw Error(dir.string() + ": this output folder is in use by " + holder + " (its lock is " +
+                  file_.filename().string() + "); wait for it to finish, or give another --out");
     }
     // The previous holder removes the file when it is done: a lock taken on a file no longer at that name is no
     // lock on the folder, so take it again on the one that is.
@@ -60,7 +64,7 @@ OutputLock::OutputLock(const std::filesystem::path& dir) : file_(dir / ".dvs-loc
   const std::string me = "pid " + std::to_string(::getpid()) + " on host " + host + "\n";
   const bool noted = ::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, me.data(), me.size(), 0) == ssize_t(me.size());
   (void)noted;  // the holder's name only makes a refused process's message clearer
-  recover_staging(dir);  // no other process writes here now: whatever is staged belongs to a dead one
+  recover_staging(dir, locked);  // locked, no other process writes here: whatever is staged is a dead one's
   crash_point("out-locked");
 }
 

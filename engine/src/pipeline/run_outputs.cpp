@@ -35,11 +35,15 @@ bool roll_forward(const std::filesystem::path& staging, const std::filesystem::p
 
 }  // namespace
 
-void recover_staging(const std::filesystem::path& dir) {
+void recover_staging(const std::filesystem::path& dir, bool locked) {
   std::error_code ec;
   std::vector<std::filesystem::path> staged;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
-    if (e.path().filename().string().rfind(kStagingPrefix, 0) == 0 && e.is_directory(ec)) staged.push_back(e.path());
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(kStagingPrefix, 0) != 0 || !e.is_directory(ec)) continue;
+    const long pid = std::strtol(name.c_str() + std::strlen(kStagingPrefix), nullptr, 10);
+    if (locked || (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)) staged.push_back(e.path());
+  }
   for (const auto& s : staged) {
     roll_forward(s, dir);
     std::filesystem::remove_all(s, ec);

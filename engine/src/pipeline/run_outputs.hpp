@@ -13,9 +13,10 @@
 
 namespace dvs {
 
-// With DIR's lock held: every staging folder in `dir` is a dead process's. One with its COMMIT written is moved
-// into place (rolled forward); any other is removed.
-void recover_staging(const std::filesystem::path& dir);
+// With DIR's lock held (`locked`), every staging folder in `dir` is a dead process's; without it (a file system
+// that cannot lock) only those named by a pid that does not exist on this machine are. A dead process's staging
+// folder with its COMMIT written is moved into place (rolled forward); any other is removed.
+void recover_staging(const std::filesystem::path& dir, bool locked = true);
 
 // Removes the temporary files a killed writer of `file` left beside it (NAME.tmp-PID-N, NAME.partial-PID, the
 // names write_npy, write_npz and the cache use) when no process PID exists on this machine.
