@@ -13,6 +13,7 @@
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
+#include "pipeline/cache_entry.hpp"
 #include "pipeline/job_stages.hpp"
 #include "support/pipeline_inputs.hpp"
 
@@ -131,7 +132,7 @@ TEST(LatentCache, ADamagedLatentIsSampledAgain) {
   const fs::path file = first.record["latent"]["path"].get<std::string>();
   HostTensor latent = read_npy(file);
   latent.as<float>()[3] = std::numeric_limits<float>::infinity();
-  write_npy(file, latent);
+  write_cache_entry(file, latent);  // a whole entry (its marker matches) that holds an Inf
   o.render.out_dir = in.dir / "out2";
   std::vector<std::string> notes;
   RunReport report = run_pipeline(o, [&](const std::string&, int, int, const std::string& note) { notes.push_back(note); });

@@ -48,7 +48,8 @@ std::set<fs::path> cache_files(const fs::path& cache) {
   std::set<fs::path> s;
   if (fs::is_directory(cache))
     for (const auto& e : fs::recursive_directory_iterator(cache))
-      if (e.is_regular_file() && e.path().filename().string().rfind("eps_inv-", 0) == 0) s.insert(e.path());  // not the latents
+      if (e.is_regular_file() && e.path().filename().string().rfind("eps_inv-", 0) == 0 && e.path().extension() == ".npy")
+        s.insert(e.path());  // not the latents, not the entries' commit markers
   return s;
 }
 

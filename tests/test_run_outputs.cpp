@@ -11,6 +11,7 @@
 
 #include "io/npy.hpp"
 #include "io/video.hpp"
+#include "pipeline/cache_entry.hpp"
 #include "support/files.hpp"
 #include "support/model_edit.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -130,11 +131,12 @@ TEST(RunOutputs, ACachedInversionHoldingNanIsNotReused) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::vector<std::filesystem::path> cached;
   for (const auto& e : std::filesystem::recursive_directory_iterator(in.cache))
-    if (e.path().filename().string().rfind("eps_inv-", 0) == 0) cached.push_back(e.path());  // not the latent
+    if (e.path().filename().string().rfind("eps_inv-", 0) == 0 && e.path().extension() == ".npy")
+      cached.push_back(e.path());  // not the latent, not the entry's commit marker
   ASSERT_EQ(cached.size(), 1u);
   HostTensor eps = read_npy(cached[0]);
   eps.as<float>()[7] = std::numeric_limits<float>::quiet_NaN();
-  write_npy(cached[0], eps);
+  write_cache_entry(cached[0], eps);  // a whole entry (its marker matches) that holds a NaN
 
   // --progress none hides progress, not warnings: the entry being replaced is said on stderr all the same.
   std::string quiet = in.command(in.dir / "b", "--seed 5");

@@ -28,9 +28,10 @@ const CommandHelp kBatchHelp{
     "Relative paths are relative to the current folder. Blank lines and lines starting with # are not jobs.\n",
     "The whole file is checked first: unknown keys, missing required fields (video, depth, model, prompt, out), bad\n"
     "values, two jobs with the same out folder, and each pending job's preflight (dvs run --help) are reported\n"
-    "together and nothing runs. A job whose out folder holds output.mp4 and run.json is skipped. A job failing while\n"
-    "it runs is reported and the batch goes on; the exit code is 1 when any job failed. Ctrl-C stops the current job\n"
-    "cleanly and exits with 130.\n"};
+    "together and nothing runs. A job whose out folder holds output.mp4 and run.json is skipped (so a killed batch\n"
+    "resumes at the job it was in). A job failing while it runs is reported and the batch goes on, as is a job whose\n"
+    "out folder another dvs process is writing (refused at once); the exit code is 1 when any job failed. Ctrl-C\n"
+    "stops the current job cleanly and exits with 130.\n"};
 
 const OptionGroup kSharding{
     "batch", {{"shard", "I/N", "run only the jobs whose index (0-based, in file order) is I modulo N (default 0/1)"}}};
@@ -121,8 +122,15 @@ std::vector<std::string> job_arguments(const nlohmann::json& spec) {
   return args;
 }
 
+// A job is done when its folder holds output.mp4 and run.json and no staging folder (.dvs-partial-*): a job killed
+// while it moved its files into place may have left the new output.mp4 beside an earlier run.json; running it
+// again completes the move (the files come from the caches) before anything is trusted.
 bool finished(const std::filesystem::path& out) {
-  return std::filesystem::exists(out / "output.mp4") && std::filesystem::exists(out / "run.json");
+  std::error_code ec;
+  if (!std::filesystem::exists(out / "output.mp4", ec) || !std::filesystem::exists(out / "run.json", ec)) return false;
+  for (const auto& e : std::filesystem::directory_iterator(out, ec))
+    if (e.path().filename().string().rfind(".dvs-partial-", 0) == 0) return false;
+  return true;
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
-// `dvs cache`: the cache folder's entries listed and trimmed. Every writer (InversionCache::store, write_npy,
-// LatentCache::store) writes under a temporary name (NAME.tmp-PID-N, NAME.partial-PID) and renames the
+// `dvs cache`: the cache folder's entries listed and trimmed. Every writer (write_cache_entry, LatentCache::store)
+// writes under a temporary name (NAME.tmp-PID-N, NAME.partial-PID) and renames the
 // complete file into place, so a file with an entry's own name is always whole, and one with a temporary name
 // belongs to a writer: only its writer's death (no such process) makes it removable.
 #include "dvs/cache.hpp"
@@ -48,7 +48,8 @@ const char* kind_of(const std::string& prefix) {
 fs::path cache_folder(const fs::path& cache_dir) { return InversionCache(cache_dir).dir(); }
 
 std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
-  static const std::regex entry_name("(eps_inv|latent|depth)-([0-9a-f]{16})\\.(npy|json)");
+  // An entry's files: its .npy, the .npy's commit marker (.npy.sum, pipeline/cache_entry.hpp), a latent's .json.
+  static const std::regex entry_name("(eps_inv|latent|depth)-([0-9a-f]{16})\\.(npy|npy\\.sum|json)");
   std::map<std::string, CacheEntry> entries;  // by "<prefix>-<key>"
   std::map<std::string, fs::file_time_type> newest;
   std::error_code ec;
@@ -73,7 +74,7 @@ std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
     if (c.kind == "latent" && std::none_of(c.files.begin(), c.files.end(), [](const fs::path& f) { return f.extension() == ".npy"; }))
       continue;
     std::sort(c.files.begin(), c.files.end(), [](const fs::path& a, const fs::path& b) {
-      return a.extension() == ".npy" && b.extension() != ".npy";  // the .npy first: removed first, the entry is gone
+      return a.extension() == ".sum" && b.extension() != ".sum";  // the marker first: removed first, the entry is gone
     });
     c.age_days = days_since(newest[id]);
     list.push_back(std::move(c));

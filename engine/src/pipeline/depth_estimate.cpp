@@ -5,17 +5,20 @@
 #include <cstdio>
 
 #include "dvs/error.hpp"
+#include "io/crash_points.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
 #include "models/vda/vda_model.hpp"
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
+#include "pipeline/cache_entry.hpp"
 #include "pipeline/depth_forecast.hpp"
 #include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/run_outputs.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
 
@@ -90,6 +93,7 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
   o.on_step = [&](const VdaStep& st) {
     // Cancellation first: a step can take seconds on a CPU device, and Ctrl-C must not wait for a window.
     if (cancelled && cancelled()) throw Cancelled();
+    crash_point("step", "depth", (st.window - 1) * st.total + st.done);
     if (auto m = forecast.on_step(st, seconds_since(t))) notify(job, progress, *m);
     if (progress)
       progress("depth", (st.window - 1) * st.total + st.done, st.windows * st.total,
@@ -149,8 +153,7 @@ std::string describe(const DepthSummary& s) {
 
 bool depth_cache_has(const DepthJob& job) {
   if (job.refresh_cache) return false;
-  std::error_code ec;
-  return std::filesystem::is_regular_file(depth_cache(job).file(depth_cache_key(job)), ec);
+  return cache_entry_exists(depth_cache(job).file(depth_cache_key(job)));
 }
 
 CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
@@ -160,30 +163,31 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
   c.key = depth_cache_key(job);
   c.file = cache.file(c.key);
   std::error_code ec;
-  if (!job.refresh_cache && std::filesystem::is_regular_file(c.file, ec)) {
+  if (!job.refresh_cache && std::filesystem::exists(c.file, ec)) {
+    const CacheEntryRead entry = read_cache_entry(c.file);
     std::optional<std::string> problem;
-    try {
-      const HostTensor h = read_npy(c.file);
-      problem = entry_problem(h);
-      if (!problem) {
-        c.from_cache = true;
-        c.summary = summary_of_cached(job, h);
-        c.summary.cache_file = c.file;
-        std::filesystem::last_write_time(c.file, std::filesystem::file_time_type::clock::now(), ec);  // recently used
-        return c;
-      }
-    } catch (const Error& e) {
-      problem = e.what();
+    if (!entry.problem.empty()) problem = entry.problem;
+    else if (entry.tensor) problem = entry_problem(*entry.tensor);
+    if (entry.tensor && !problem) {
+      c.from_cache = true;
+      c.summary = summary_of_cached(job, *entry.tensor);
+      c.summary.cache_file = c.file;
+      std::filesystem::last_write_time(c.file, std::filesystem::file_time_type::clock::now(), ec);  // recently used
+      return c;
     }
-    notify(job, progress, "warning: the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
-    std::filesystem::remove(c.file, ec);
+    if (problem) {
+      notify(job, progress, "warning: the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
+      remove_cache_entry(c.file);
+    }
   }
   // Where the estimate will be kept, checked before the work.
   if (auto p = file_write_problem(c.file, "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
     throw Error("depth cache: " + *p);
+  crash_point("depth-estimate-begin");
   HostTensor depth = run_estimate(job, progress, cancelled, c.summary);
+  crash_point("depth-estimate-end");
   std::filesystem::create_directories(c.file.parent_path(), ec);
-  write_npy(c.file, depth);
+  write_cache_entry(c.file, depth);
   c.summary.cache_file = c.file;
   return c;
 }
@@ -199,8 +203,11 @@ DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& ou
     const HostTensor depth = read_npy(c.file);
     std::error_code ec;
     std::filesystem::create_directories(std::filesystem::absolute(out).parent_path(), ec);
+    crash_point("publish-before", out.filename().string());
     if (ext == ".npz") write_npz(out, {{"depths", depth}});
     else write_npy(out, depth);
+    crash_point("publish-after", out.filename().string());
+    remove_stale_temporaries(out);  // what a dvs depth killed while writing this file left
   } catch (const Error& e) {
     throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
                 "): the same command with a writable --out takes it from there");

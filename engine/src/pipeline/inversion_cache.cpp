@@ -8,6 +8,7 @@
 
 #include "dvs/error.hpp"
 #include "io/npy.hpp"
+#include "pipeline/cache_entry.hpp"
 
 namespace dvs {
 namespace {
@@ -52,30 +53,26 @@ std::string InversionCache::key(const std::vector<std::string>& parts) {
 std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / (prefix_ + "-" + key + ".npy"); }
 
 Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected) const {
-  std::error_code ec;
-  if (!std::filesystem::exists(file(key), ec)) return {};
-  std::string why;
-  try {
-    HostTensor h = read_npy(file(key));
-    if (h.shape != shape || h.dtype != DType::f32) {
-      why = std::string("it holds ") + dtype_name(h.dtype) + " [" + shape_str(h.shape) + "], not the expected f32 [" + shape_str(shape) + "]";
-    } else {
-      // Read on the host anyway: checked here, before a NaN entry could turn every later run black.
-      const float* v = h.as<float>();
-      int64_t bad = 0, first = -1;
-      for (int64_t i = 0; i < h.numel(); ++i)
-        if (!std::isfinite(v[i])) bad++, first = first < 0 ? i : first;
-      if (bad == 0) {
-        // Reused now: `dvs cache clean` removes the least recently used entries first.
-        std::filesystem::last_write_time(file(key), std::filesystem::file_time_type::clock::now(), ec);
-        return Tensor::upload(ctx, h, "cached inversion");
-      }
-      why = std::to_string(bad) + " non-finite values (NaN/Inf), the first at flat index " + std::to_string(first);
+  const CacheEntryRead entry = read_cache_entry(file(key));
+  if (!entry.tensor && entry.problem.empty()) return {};
+  std::string why = entry.problem;
+  if (const auto& h = entry.tensor; h && (h->shape != shape || h->dtype != DType::f32)) {
+    why = std::string("it holds ") + dtype_name(h->dtype) + " [" + shape_str(h->shape) + "], not the expected f32 [" + shape_str(shape) + "]";
+  } else if (h) {
+    // Read on the host anyway: checked here, before a NaN entry could turn every later run black.
+    const float* v = h->as<float>();
+    int64_t bad = 0, first = -1;
+    for (int64_t i = 0; i < h->numel(); ++i)
+      if (!std::isfinite(v[i])) bad++, first = first < 0 ? i : first;
+    if (bad == 0) {
+      // Reused now: `dvs cache clean` removes the least recently used entries first.
+      std::error_code ec;
+      std::filesystem::last_write_time(file(key), std::filesystem::file_time_type::clock::now(), ec);
+      return Tensor::upload(ctx, *h, "cached inversion");
     }
-  } catch (const Error& e) {
-    why = e.what();  // a damaged cache file is as good as none
+    why = std::to_string(bad) + " non-finite values (NaN/Inf), the first at flat index " + std::to_string(first);
   }
-  std::filesystem::remove(file(key), ec);
+  remove_cache_entry(file(key));
   if (rejected) *rejected = file(key).string() + ": " + why + "; removed, computing it again";
   return {};
 }
@@ -84,7 +81,7 @@ void InversionCache::store(vk::Context& ctx, const std::string& key, const Tenso
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   try {
-    write_npy(file(key), latent.download(ctx));
+    write_cache_entry(file(key), latent.download(ctx));
   } catch (const Error&) {
     // An unwritable cache only costs time on the next run.
   }

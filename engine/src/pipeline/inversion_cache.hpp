@@ -1,6 +1,7 @@
 // Inversion results on disk, keyed by a hash of everything they depend on (the model, the encoded render,
 // the image latent and the inversion settings), so a second run with another guidance, k or seed skips
-// the inversion. Files are .npy written atomically; a damaged or mismatched file is ignored. The same folder
+// the inversion. Entries are verified .npy files (pipeline/cache_entry.hpp); a damaged or mismatched one is
+// removed and computed again. The same folder
 // keeps the runs' sampled latents under another prefix (job_stages.hpp: LatentCache).
 #pragma once
 #include <filesystem>

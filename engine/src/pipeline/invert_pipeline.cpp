@@ -7,6 +7,7 @@
 #include "pipeline/job_stages.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/output_lock.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "vk/context.hpp"
@@ -17,6 +18,7 @@ namespace {
 InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   RunOptions o = options;
   require_preflight(o, JobKind::invert);  // every problem knowable now, before any device work
+  const OutputLock out_lock(o.render.out_dir);  // held to the end: one process writes into a folder at a time
   JobPlan jp = plan_job(o);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
   depth_stage(o, stages);

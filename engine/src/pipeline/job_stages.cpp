@@ -15,6 +15,7 @@
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "pipeline/run_outputs.hpp"
 #include "tensor/ops_check.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
@@ -225,6 +226,7 @@ void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::
     return;
   }
   cache_.store(ctx, key_, latent);
+  remove_stale_temporaries(meta_file());  // what a store killed earlier left
 }
 
 std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames) {

@@ -18,6 +18,7 @@
 #include "io/video.hpp"
 #include "vk/context.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/output_lock.hpp"
 #include "pipeline/run_outputs.hpp"
 
 namespace dvs {
@@ -106,7 +107,6 @@ void prepare_out_dir(const std::filesystem::path& dir) {
   { std::ofstream(probe) << "x"; }
   if (!std::filesystem::exists(probe)) throw Error(dir.string() + ": the output folder is not writable");
   std::filesystem::remove(probe, ec);
-  remove_stale_staging(dir);
 }
 
 RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::function<void(const std::string&)>& say_fn) {
@@ -199,6 +199,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
     }
   }
   if (cancelled && cancelled()) throw Cancelled();
+  const OutputLock out_lock(job.out_dir);  // before the folder is prepared: no other process writes into it
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);

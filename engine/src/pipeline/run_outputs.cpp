@@ -8,22 +8,59 @@
 #include <cstring>
 
 #include <atomic>
+#include <fstream>
 
 #include "dvs/error.hpp"
+#include "io/crash_points.hpp"
 
 namespace dvs {
 
 namespace {
+
 constexpr const char* kStagingPrefix = ".dvs-partial-";
+constexpr const char* kJournal = "COMMIT";
+
+// Moves the staged files named in `staging`/COMMIT into `dir`, in their order; true when there was a COMMIT.
+bool roll_forward(const std::filesystem::path& staging, const std::filesystem::path& dir) {
+  std::ifstream in(staging / kJournal);
+  if (!in) return false;
+  std::error_code ec;
+  for (std::string name; std::getline(in, name);) {
+    // Only plain names of this folder: a damaged journal must not move anything elsewhere.
+    if (name.empty() || name != std::filesystem::path(name).filename().string() || name[0] == '.') continue;
+    if (std::filesystem::is_regular_file(staging / name, ec)) std::filesystem::rename(staging / name, dir / name, ec);
+  }
+  return true;
 }
 
-void remove_stale_staging(const std::filesystem::path& dir) {
+}  // namespace
+
+void recover_staging(const std::filesystem::path& dir, bool locked) {
   std::error_code ec;
+  std::vector<std::filesystem::path> staged;
   for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
     if (name.rfind(kStagingPrefix, 0) != 0 || !e.is_directory(ec)) continue;
     const long pid = std::strtol(name.c_str() + std::strlen(kStagingPrefix), nullptr, 10);
-    if (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove_all(e.path(), ec);
+    if (locked || (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)) staged.push_back(e.path());
+  }
+  for (const auto& s : staged) {
+    roll_forward(s, dir);
+    std::filesystem::remove_all(s, ec);
+  }
+}
+
+void remove_stale_temporaries(const std::filesystem::path& file) {
+  const std::string name = file.filename().string();
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(file.parent_path(), ec)) {
+    const std::string other = e.path().filename().string();
+    if (other.rfind(name, 0) != 0) continue;
+    long pid = 0;
+    for (const char* mark : {".tmp-", ".partial-"})
+      if (other.compare(name.size(), std::strlen(mark), mark) == 0)
+        pid = std::strtol(other.c_str() + name.size() + std::strlen(mark), nullptr, 10);
+    if (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove(e.path(), ec);
   }
 }
 
@@ -59,21 +96,35 @@ std::filesystem::path RunOutputs::add(const std::string& name) {
 }
 
 void RunOutputs::commit() {
+  // The journal, whole or not at all: from its rename on, the job's files are the folder's.
+  const std::filesystem::path journal_tmp = staging_ / (std::string(kJournal) + ".tmp");
+  {
+    std::ofstream journal(journal_tmp);
+    for (const auto& name : names_) journal << name << "\n";
+    if (!journal.flush())
+      throw Error(journal_tmp.string() + ": cannot write the list of finished files; nothing in " + dir_.string() + " was replaced");
+  }
+  crash_point("publish-journal-before");
+  std::error_code ec;
+  std::filesystem::rename(journal_tmp, staging_ / kJournal, ec);
+  if (ec) throw Error(journal_tmp.string() + ": cannot finish the list of finished files (" + ec.message() + ")");
+  journaled_ = true;
   for (const auto& name : names_) {
-    std::error_code ec;
+    crash_point("publish-before", name);
     std::filesystem::rename(staging_ / name, dir_ / name, ec);
     if (ec)
       throw Error((dir_ / name).string() + ": cannot move the finished file into place (" + ec.message() +
                   "); the staged copy was in " + staging_.string());
+    crash_point("publish-after", name);
   }
-  committed_ = true;
-  std::error_code ec;
   std::filesystem::remove_all(staging_, ec);
+  journaled_ = false;
+  crash_point("publish-done");
 }
 
 RunOutputs::~RunOutputs() {
   std::error_code ec;
-  std::filesystem::remove_all(staging_, ec);
+  if (!journaled_) std::filesystem::remove_all(staging_, ec);
 }
 
 }  // namespace dvs

@@ -2,6 +2,10 @@
 // (DIR/.dvs-partial-<pid>-<n>/, same file system) and moved into place by commit() only when the job has
 // finished. A job that fails or is cancelled before commit() removes its staging folder and leaves every file
 // an earlier job finished in DIR exactly as it was: results are never destroyed by a later failure.
+// commit() first writes the list of its files (COMMIT, renamed into the staging folder), then moves them: a
+// process killed in between leaves a staging folder that the next job in DIR completes (recover_staging), so a
+// folder holds either all of the earlier job's files or, once COMMIT exists, all of the new one's.
+// Jobs hold DIR's lock (output_lock.hpp) while they stage and commit.
 #pragma once
 #include <filesystem>
 #include <string>
@@ -9,8 +13,14 @@
 
 namespace dvs {
 
-// Removes staging folders in `dir` left by dvs processes that no longer exist (killed with SIGKILL, power loss).
-void remove_stale_staging(const std::filesystem::path& dir);
+// With DIR's lock held (`locked`), every staging folder in `dir` is a dead process's; without it (a file system
+// that cannot lock) only those named by a pid that does not exist on this machine are. A dead process's staging
+// folder with its COMMIT written is moved into place (rolled forward); any other is removed.
+void recover_staging(const std::filesystem::path& dir, bool locked = true);
+
+// Removes the temporary files a killed writer of `file` left beside it (NAME.tmp-PID-N, NAME.partial-PID, the
+// names write_npy, write_npz and the cache use) when no process PID exists on this machine.
+void remove_stale_temporaries(const std::filesystem::path& file);
 
 // The output folder (and any missing folders above it) a job is about to create: a job that fails removes the
 // ones it created itself once they are empty again, so a failed run does not leave an empty --out behind.
@@ -46,7 +56,7 @@ class RunOutputs {
  private:
   std::filesystem::path dir_, staging_;
   std::vector<std::string> names_;
-  bool committed_ = false;
+  bool journaled_ = false;  // COMMIT is written: the staging folder is left for recover_staging if commit() fails
 };
 
 }  // namespace dvs

@@ -28,6 +28,7 @@
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/output_lock.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "pipeline/run_record.hpp"
 #include "pipeline/stage_tracker.hpp"
@@ -43,6 +44,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   RunOptions o = options;
   RunReport report;
   require_preflight(o, JobKind::run);  // every problem knowable now, before any device work
+  const OutputLock out_lock(o.render.out_dir);  // held to the end: one process writes into a folder at a time
   // A cache that cannot be written is said once and the run goes on without it (caching only saves time on a
   // later run); run.json then records "cache": false and why, not the cache it could not use.
   std::string cache_problem;

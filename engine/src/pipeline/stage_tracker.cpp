@@ -2,6 +2,8 @@
 
 #include <memory>
 
+#include "io/crash_points.hpp"
+
 namespace dvs {
 
 const char* const kNonFiniteHint =
@@ -13,12 +15,14 @@ StageTracker::StageTracker(const ProgressFn& progress, const CancelFn& cancelled
 
 void StageTracker::begin(const std::string& stage, const std::string& note) {
   check_cancelled();
+  crash_point("stage-begin", stage);
   stage_ = stage;
   start_ = std::chrono::steady_clock::now();
   say(0, 0, note);
 }
 
 void StageTracker::end() {
+  crash_point("stage-end", stage_);
   times_.push_back({stage_, std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count()});
 }
 
@@ -59,6 +63,7 @@ diffusion::LoopCallbacks StageTracker::loop_callbacks(ops::NonFiniteCheck* check
       check->clear();
     }
     say(step, total, "t=" + std::to_string(t));
+    crash_point("step", stage_, step);
   };
   cb.cancelled = [this] { return cancel_requested(); };
   return cb;
