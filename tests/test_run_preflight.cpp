@@ -279,6 +279,34 @@ TEST(RunPreflight, DepthEstimateIsPlannedBeforeAnyWork) {
   EXPECT_TRUE(std::filesystem::exists(out / "output.mp4")) << works.output;
 }
 
+// --depth-model keeps its estimate in the depth cache (with --no-cache too) and renders from there: a cache folder
+// that cannot be written stops run and render in their preflight, not in the depth stage after a warning that
+// the run goes on uncached.
+TEST(RunPreflight, AnUnwritableDepthCacheIsSaidBeforeAnyWork) {
+  PipelineInputs in;
+  const auto not_a_folder = in.dir / "a_file";
+  test::write_text(not_a_folder, "x");
+  const std::string common = " --video " + in.video.string() + " --depth-model " + test::vda_checkpoint_path().string() +
+                             " --depth-input-size 28 --frames 9 --size 64x64 --cache-dir " + (not_a_folder / "cache").string();
+  const auto out = in.dir / "out";
+  const std::string says = "--depth-model: the estimate is kept in the depth cache, which cannot be written";
+  for (const std::string& cmd : {test::program("dvs") + " run" + common + " --model " + in.model.string() +
+                                     " --steps 4 --inversion-steps 3 --prompt 'a fox' --progress json --no-cache",
+                                 test::program("dvs") + " render" + common + " --no-glb --progress json"}) {
+    const auto check = test::run_command(cmd + " --out " + out.string() + " --check");
+    EXPECT_NE(check.exit_code, 0) << check.output;
+    EXPECT_NE(check.output.find(says), std::string::npos) << check.output;
+    // (dvs render itself has no preflight: the estimate's own check of its cache file says it, before the work.)
+    const auto r = test::run_command(cmd + " --out " + out.string());
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("depth cache"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("a_file is not a folder"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("not cached"), std::string::npos) << "a warning that the run goes on\n" << r.output;
+    EXPECT_EQ(r.output.find("\"stage\":"), std::string::npos) << "a stage started\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out)) << r.output;
+  }
+}
+
 // A .txt trajectory whose lines hold different numbers of values is used (the authors' own loop1/loop2 files are
 // like that) but never silently: a warning on stderr whatever --progress says, naming the file, each line's
 // number and count and what dvs does; --check lists it too. Equal lines give no warning.

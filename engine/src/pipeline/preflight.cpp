@@ -26,6 +26,7 @@
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/depth_source.hpp"
+#include "pipeline/inversion_cache.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "pipeline/output_path.hpp"
 #include "pipeline/render_stage.hpp"
@@ -125,6 +126,11 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c) {
       });
     if (j.depth_input_size < 14 || j.depth_input_size > 4096)
       c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
+    // The estimate is kept in the depth cache and read from there by the render (even with --no-cache, which
+    // only skips reading an earlier entry): a folder it cannot write fails the job, so it is said now.
+    const InversionCache depth_cache(o.cache_dir, "depth");
+    if (auto p = folder_write_problem(depth_cache.dir(), "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
+      c.problem("--depth-model: the estimate is kept in the depth cache, which cannot be written: " + *p);
   } else if (!depth_source_exists(j.depth)) {
     c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE, or --depth-model FILE.pth to estimate it)");
   } else if (video_frames) {
@@ -398,6 +404,7 @@ PreflightReport preflight_render(const RenderJob& job) {
   Checker c(r);
   RunOptions o;
   o.render = job;
+  o.cache_dir = job.depth_cache_dir;  // where render's --depth-model keeps its estimate
   check_inputs(o, c);
   // The render's buffers against the device's limits (the same figures the renderer chunks with).
   if (const vk::DeviceCaps* dev = chosen_device(job.device, c))
