@@ -38,10 +38,12 @@ TEST_F(SplatMemory, TheFootprintIsWhatARenderAllocates) {
       ASSERT_TRUE(fp.problem.empty()) << fp.problem;
       // (Under a lower DVS_LIMITS of the whole process, those stay in force and the chunk is theirs.)
       const vk::DeviceCaps& c = ctx().caps();
-      if (c.max_storage_buffer_range == (72u << 10) && c.max_memory_allocation_size >= (72u << 10))
+      if (c.max_storage_buffer_range == (72u << 10) && c.max_memory_allocation_size >= (72u << 10)) {
         EXPECT_EQ(fp.chunk_frames, 3);
-      if (c.max_memory_allocation_size == (96u << 10) && c.max_storage_buffer_range >= (96u << 10))
+      }
+      if (c.max_memory_allocation_size == (96u << 10) && c.max_storage_buffer_range >= (96u << 10)) {
         EXPECT_EQ(fp.chunk_frames, 4);
+      }
       vk::Allocator& a = ctx().allocator();
       const uint64_t before = a.stats().bytes_in_use;
       a.reset_peak();

@@ -278,12 +278,6 @@ void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
   });
 }
 
-// Device memory and device limits as the planner sees them (dvs plan --device): the whole run's peak against the
-// chosen device's memory budget (vk/memory_budget: host RAM available on a CPU device, the device-local heap's
-// budget or size on a GPU; the figure the Allocator enforces and `dvs info` prints), and every allocation of
-// every stage against maxMemoryAllocationSize (DVS_LIMITS included), with the VAE tiling the run was given.
-// The plan's VAE figures are the ones the VAE's calls check before any work (CogVideoXVae::*_footprint): what
-// passes here runs, what fails here would fail there.
 // The device a job names (--device), listed once per process: a batch preflights every job.
 const vk::DeviceCaps* chosen_device(const std::string& device, Checker& c) {
   static std::optional<std::vector<vk::DeviceCaps>> listed;
@@ -305,7 +299,11 @@ void plan_depth_stage(const RunOptions& o, const std::optional<VideoFacts>& vide
   if (j.depth_model.empty() || !video || video->height <= 0 || !std::filesystem::is_regular_file(j.depth_model)) return;
   const DepthJob d = depth_job_for(j, o.cache_dir, !o.use_cache);
   if (o.use_cache && depth_cache_has(d)) return;  // read from the cache: nothing is estimated
-  req.depth_model = VdaModel::inspect(j.depth_model);
+  try {
+    req.depth_model = VdaModel::inspect(j.depth_model);
+  } catch (const Error&) {
+    return;  // check_inputs has named what is wrong with the checkpoint
+  }
   req.depth_input_size = j.depth_input_size;
   int64_t h = video->height, w = video->width;
   if (d.max_res > 0 && std::max(h, w) > d.max_res) {
@@ -315,6 +313,12 @@ void plan_depth_stage(const RunOptions& o, const std::optional<VideoFacts>& vide
   req.depth_frame_height = h, req.depth_frame_width = w;
 }
 
+// Device memory and device limits as the planner sees them (dvs plan --device): the whole run's peak against the
+// chosen device's memory budget (vk/memory_budget: host RAM available on a CPU device, the device-local heap's
+// budget or size on a GPU; the figure the Allocator enforces and `dvs info` prints), and every allocation of
+// every stage against maxMemoryAllocationSize (DVS_LIMITS included), with the VAE tiling the run was given.
+// The plan's VAE figures are the ones the VAE's calls check before any work (CogVideoXVae::*_footprint): what
+// passes here runs, what fails here would fail there.
 void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<VideoFacts>& video, Checker& c) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
   const int64_t r = m.vae->spatial_ratio();
