@@ -1,5 +1,5 @@
 // Trajectory files as users get them wrong: a binary file named as one (its bytes must not reach the terminal),
-// stray control bytes, and the authors' format with lines of different lengths (allowed, and now said).
+// stray control bytes, and the authors' format with lines of different lengths (allowed, and said: a warning).
 #include <gtest/gtest.h>
 
 #include <string>
@@ -44,7 +44,7 @@ TEST(TrajectoryInput, ControlBytesInAWordArePrintedEscaped) {
 }
 
 // The authors' loop1.txt has 13, 9 and 8 values on its three lines: each is interpolated over the clip on its own.
-TEST(TrajectoryInput, LinesOfDifferentLengthsAreAllowedAndDescribed) {
+TEST(TrajectoryInput, LinesOfDifferentLengthsAreAllowedDescribedAndWarned) {
   test::TempDir d;
   test::write_text(d / "loop.txt", "0 2 10 15 12 6 0 -2 -5 -12 -8 -3 0\n0 -3 -10 -20 -30 -25 -17 -10 0\n"
                                    "0 -0.02 -0.09 -0.16 -0.25 -0.2 -0.09 0\n");
@@ -54,8 +54,16 @@ TEST(TrajectoryInput, LinesOfDifferentLengthsAreAllowedAndDescribed) {
                                "whole clip on their own"),
             std::string::npos)
       << t.description;
+  ASSERT_EQ(t.warnings.size(), 1u) << "lines of different lengths must be said";
+  EXPECT_EQ(t.warnings[0], (d / "loop.txt").string() + ": its lines hold different numbers of values: line 1 (theta) 13 "
+                           "values, line 2 (phi) 9 values, line 3 (r) 8 values. dvs spreads each line over the whole clip "
+                           "on its own (its first value at the first frame, its last at the last frame), as the authors' "
+                           "loader does, so the i-th values of different lines do not fall on the same frame; give every "
+                           "line the same number of values to keep them together");
   test::write_text(d / "even.txt", "0 5 10\n0 1 2\n0 0 0\n");
-  EXPECT_NE(load_trajectory((d / "even.txt").string(), 9, 1.0).description.find("(3 knots per line)"), std::string::npos);
+  const Trajectory e = load_trajectory((d / "even.txt").string(), 9, 1.0);
+  EXPECT_NE(e.description.find("(3 knots per line)"), std::string::npos);
+  EXPECT_TRUE(e.warnings.empty());
 }
 
 }  // namespace

@@ -32,8 +32,8 @@ struct Outcome {
 
 std::string limits_env(uint64_t alloc) { return "DVS_LIMITS=alloc=" + std::to_string(alloc) + " "; }
 
-json plan_json(const test::PipelineInputs& in, uint64_t alloc) {
-  const auto r = test::run_command(limits_env(alloc) + test::program("dvs") + " plan --model " + in.model.string() +
+json plan_json(const test::PipelineInputs& in, const std::string& env) {
+  const auto r = test::run_command(env + test::program("dvs") + " plan --model " + in.model.string() +
                                    " --frames 9 --height 64 --width 64 --device 0 --json");
   EXPECT_TRUE(r.exit_code == 0 || r.exit_code == 1) << r.output;
   return json::parse(r.output.substr(r.output.find('{')));
@@ -72,7 +72,7 @@ TEST(PlanRunAgreement, AllocationLimitSweep) {
   test::PipelineInputs in;
   // The boundaries the plan draws: the largest allocation of the untiled setting and of the smallest tile it
   // offers, read from its own report with the limit out of the way.
-  const json open = plan_json(in, 1ull << 40);
+  const json open = plan_json(in, limits_env(1ull << 40));
   auto largest = [](const json& tiling) {
     return std::max(tiling.at("vae_encode").at("limits").at("largest_tensor_bytes").get<uint64_t>(),
                     tiling.at("vae_decode").at("limits").at("largest_tensor_bytes").get<uint64_t>());
@@ -87,7 +87,7 @@ TEST(PlanRunAgreement, AllocationLimitSweep) {
   std::set<Verdict> seen;
   for (const uint64_t alloc : sweep) {
     SCOPED_TRACE("DVS_LIMITS=alloc=" + std::to_string(alloc));
-    const Outcome plan = plan_verdict(plan_json(in, alloc));
+    const Outcome plan = plan_verdict(plan_json(in, limits_env(alloc)));
     const auto check = test::run_command(limits_env(alloc) + in.command(in.dir / "check", "--no-cache --check"));
     const Outcome checked = check_verdict(check);
     EXPECT_EQ(name(checked.verdict), std::string(name(plan.verdict))) << check.output;
@@ -114,6 +114,39 @@ TEST(PlanRunAgreement, AllocationLimitSweep) {
     }
   }
   EXPECT_EQ(seen.size(), 3u) << "the sweep must meet all three verdicts";
+}
+
+// The render stage is in the same estimate. The splat renderer splits a clip over frames, never a frame: one
+// frame's accumulation (4 words per pixel: 64 x 64 x 16 B = 64 KiB at the pack's size) must fit one storage
+// binding, while the models' ops split their tensors over bindings. With maxStorageBufferRange forced below and
+// above that, the plan and --check refuse exactly where the run fails (before any stage, with the same reason,
+// naming the render and a --size that fits), and where they pass the run renders and finishes.
+TEST(PlanRunAgreement, BindingLimitOnlyTheRenderMeets) {
+  test::PipelineInputs in;
+  const uint64_t frame_accumulation = 64 * 64 * 16;
+  for (const uint64_t binding : {frame_accumulation / 2, frame_accumulation - 1024, frame_accumulation}) {
+    const std::string env = "DVS_LIMITS=binding=" + std::to_string(binding) + " ";
+    SCOPED_TRACE(env);
+    const bool fits = binding >= frame_accumulation;
+    const json plan = plan_json(in, env);
+    EXPECT_EQ(plan.at("choice").at("fits").get<bool>(), fits) << plan.dump(1);
+    EXPECT_EQ(plan.at("render").at("runs").get<bool>(), fits) << plan.dump(1);
+    const auto check = test::run_command(env + in.command(in.dir / "check", "--no-cache --check"));
+    EXPECT_EQ(check.exit_code == 0, fits) << check.output;
+    const auto out = in.dir / ("out_" + std::to_string(binding));
+    const auto run = test::run_command(env + in.command(out, "--no-cache"));
+    if (fits) {
+      EXPECT_EQ(run.exit_code, 0) << run.output;
+      EXPECT_TRUE(std::filesystem::exists(out / "output.mp4")) << run.output;
+      continue;
+    }
+    const std::string reason = problems_of(check.output);
+    EXPECT_NE(reason.find("render: one 64x64 frame needs 64.00 KiB for the splat accumulation"), std::string::npos) << check.output;
+    EXPECT_NE(reason.find("use a smaller --size"), std::string::npos) << check.output;
+    EXPECT_NE(run.exit_code, 0) << run.output;
+    EXPECT_EQ(run.output.find("\"stage\":"), std::string::npos) << "a stage started\n" << run.output;
+    EXPECT_EQ(problems_of(run.output), reason) << "the run stopped for another reason\n" << run.output;
+  }
 }
 
 // run --check names the memory it plans against as `dvs info` does: the budget dvs will use on the device

@@ -5,13 +5,17 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <optional>
+#include <vector>
 #include <nlohmann/json.hpp>
 
+#include "io/npy.hpp"
 #include "io/safetensors_writer.hpp"
 #include "support/files.hpp"
 #include "support/model_edit.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
+#include "support/vda_pack.hpp"
 
 namespace dvs {
 namespace {
@@ -191,6 +195,141 @@ TEST(BatchPreflight, TheWholeFileIsCheckedBeforeTheFirstJob) {
       << r.output;
   EXPECT_EQ(r.output.find(": running ->"), std::string::npos) << r.output;
   for (const char* d : {"a", "b", "c", "e"}) EXPECT_FALSE(std::filesystem::exists(in.dir / d)) << d;
+}
+
+// `dvs render` and its --check meet the splat renderer's limits before any work: one frame's accumulation (4 words per
+// pixel, 64 x 64 x 16 B = 64 KiB) over a forced storage binding or (at 128x128, 256 KiB) allocation, and one frame's dispatch (128 rows of workgroups at
+// --size 128x128) over forced group counts, are refused by --check and by the render itself, before the output
+// folder exists, naming the render and a --size; the limits just above render. A chunk is as many frames as fit
+// one binding and one allocation: at a 512 KiB allocation limit 8 of the 9 frames (9 x 64 KiB would not be one
+// allocation), and every chunking renders the same mask.
+TEST(RenderPreflight, LimitsTheRendererMeetsAreCheckedFirst) {
+  PipelineInputs in;
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --depth " +
+                             in.depth.string() + " --metric-depth --frames 9 --no-glb --quiet";
+  struct Case {
+    std::string limits, size, says;
+    bool fits;
+  };
+  std::optional<std::vector<uint8_t>> first_mask;  // every chunking of the 64x64 clip renders the same
+  for (const Case& c : {Case{"binding=32KiB", "64x64", "render: one 64x64 frame needs 64.00 KiB for the splat accumulation", false},
+                        Case{"binding=64KiB", "64x64", "", true},
+                        Case{"alloc=128KiB", "128x128", "256.00 KiB for the splat accumulation, over one allocation", false},
+                        Case{"alloc=256KiB", "128x128", "", true},
+                        Case{"alloc=512KiB", "64x64", "", true},  // 8 of the 9 frames per chunk
+                        Case{"alloc=1GiB", "64x64", "", true},
+                        Case{"groups=64", "128x128", "render: a 128x128 frame is splatted in one dispatch of 2x128 workgroups", false},
+                        Case{"groups=128", "128x128", "", true}}) {
+    SCOPED_TRACE(c.limits + " --size " + c.size);
+    const auto out = in.dir / ("out_" + c.limits);
+    const std::string cmd = "DVS_LIMITS=" + c.limits + " " + render + " --size " + c.size + " --out " + out.string();
+    const auto check = test::run_command(cmd + " --check");
+    const auto run = test::run_command(cmd);
+    if (c.fits) {
+      EXPECT_EQ(check.exit_code, 0) << check.output;
+      EXPECT_EQ(run.exit_code, 0) << run.output;
+      EXPECT_TRUE(std::filesystem::exists(out / "render.mp4")) << run.output;
+      if (c.size == "64x64" && std::filesystem::exists(out / "mask.npy")) {
+        const std::vector<uint8_t> mask = read_npy(out / "mask.npy").data;
+        if (!first_mask) first_mask = mask;
+        EXPECT_EQ(mask, *first_mask) << "the chunking changed the render";
+      }
+      continue;
+    }
+    EXPECT_NE(check.exit_code, 0) << check.output;
+    EXPECT_NE(check.output.find(c.says), std::string::npos) << check.output;
+    EXPECT_NE(check.output.find("use a smaller --size"), std::string::npos) << check.output;
+    EXPECT_NE(run.exit_code, 0) << run.output;
+    EXPECT_NE(run.output.find(c.says), std::string::npos) << run.output;
+    EXPECT_EQ(run.output.find("internal"), std::string::npos) << run.output;
+    EXPECT_FALSE(std::filesystem::exists(out)) << "the render started";
+  }
+}
+
+// run --depth-model: the estimate's memory is planned in run's preflight as dvs plan --depth-model plans it. With
+// the allocation limit forced to 4 MiB (the model's own stages fit it untiled) the default network input (518) cannot
+// allocate its window; --check and the run refuse it before any stage, naming the depth estimate and the largest
+// --depth-input-size that fits, and with that size both pass and the run finishes.
+TEST(RunPreflight, DepthEstimateIsPlannedBeforeAnyWork) {
+  PipelineInputs in;
+  const std::string run = "DVS_LIMITS=alloc=4MiB " + test::program("dvs") + " run --video " + in.video.string() +
+                          " --depth-model " + test::vda_checkpoint_path().string() + " --model " + in.model.string() +
+                          " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --prompt 'a red fox' --progress json" +
+                          " --cache-dir " + in.cache.string();
+  const auto out = in.dir / "out";
+  const auto check = test::run_command(run + " --out " + out.string() + " --check");
+  EXPECT_NE(check.exit_code, 0) << check.output;
+  EXPECT_NE(check.output.find("the depth estimate's window input"), std::string::npos) << check.output;
+  EXPECT_NE(check.output.find("exceeds maxMemoryAllocationSize 4.00 MiB"), std::string::npos) << check.output;
+  const std::string key = "a smaller network input fits: --depth-input-size ";
+  const size_t at = check.output.find(key);
+  ASSERT_NE(at, std::string::npos) << check.output;
+  const int fits = std::stoi(check.output.substr(at + key.size()));
+  EXPECT_EQ(fits % 14, 0);
+  EXPECT_LT(fits, 518);
+  const auto refused = test::run_command(run + " --out " + out.string());
+  expect_stopped_before_any_stage(in, refused, out, "--depth-input-size 518 at alloc=4MiB");
+  EXPECT_NE(refused.output.find("the depth estimate's window input"), std::string::npos) << refused.output;
+
+  const std::string smaller = run + " --depth-input-size " + std::to_string(fits) + " --out " + out.string();
+  const auto passes = test::run_command(smaller + " --check");
+  EXPECT_EQ(passes.exit_code, 0) << passes.output;
+  const auto works = test::run_command(smaller);
+  EXPECT_EQ(works.exit_code, 0) << works.output;
+  EXPECT_TRUE(std::filesystem::exists(out / "output.mp4")) << works.output;
+}
+
+// --depth-model keeps its estimate in the depth cache (with --no-cache too) and renders from there: a cache folder
+// that cannot be written stops run and render in their preflight, not in the depth stage after a warning that
+// the run goes on uncached.
+TEST(RunPreflight, AnUnwritableDepthCacheIsSaidBeforeAnyWork) {
+  PipelineInputs in;
+  const auto not_a_folder = in.dir / "a_file";
+  test::write_text(not_a_folder, "x");
+  const std::string common = " --video " + in.video.string() + " --depth-model " + test::vda_checkpoint_path().string() +
+                             " --depth-input-size 28 --frames 9 --size 64x64 --cache-dir " + (not_a_folder / "cache").string();
+  const auto out = in.dir / "out";
+  const std::string says = "--depth-model: the estimate is kept in the depth cache, which cannot be written";
+  for (const std::string& cmd : {test::program("dvs") + " run" + common + " --model " + in.model.string() +
+                                     " --steps 4 --inversion-steps 3 --prompt 'a fox' --progress json --no-cache",
+                                 test::program("dvs") + " render" + common + " --no-glb --progress json"}) {
+    const auto check = test::run_command(cmd + " --out " + out.string() + " --check");
+    EXPECT_NE(check.exit_code, 0) << check.output;
+    EXPECT_NE(check.output.find(says), std::string::npos) << check.output;
+    // (dvs render itself has no preflight: the estimate's own check of its cache file says it, before the work.)
+    const auto r = test::run_command(cmd + " --out " + out.string());
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("depth cache"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("a_file is not a folder"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("not cached"), std::string::npos) << "a warning that the run goes on\n" << r.output;
+    EXPECT_EQ(r.output.find("\"stage\":"), std::string::npos) << "a stage started\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out)) << r.output;
+  }
+}
+
+// A .txt trajectory whose lines hold different numbers of values is used (the authors' own loop1/loop2 files are
+// like that) but never silently: a warning on stderr whatever --progress says, naming the file, each line's
+// number and count and what dvs does; --check lists it too. Equal lines give no warning.
+TEST(RenderPreflight, TrajectoryLinesOfDifferentLengthsAreWarnedOnStderr) {
+  PipelineInputs in;
+  const auto uneven = in.dir / "uneven.txt", even = in.dir / "even.txt";
+  test::write_text(uneven, "0 2 10 15 12\n\n0 -3 -10\n0 -0.02 -0.09 -0.16\n");  // a blank line 2
+  test::write_text(even, "0 2 10\n0 -3 -10\n0 -0.02 -0.09\n");
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --depth " +
+                             in.depth.string() + " --metric-depth --frames 9 --size 64x64 --no-glb --quiet";
+  const std::string says = uneven.string() + ": its lines hold different numbers of values: line 1 (theta) 5 values, " +
+                           "line 3 (phi) 3 values, line 4 (r) 4 values. dvs spreads each line over the whole clip on its own";
+  // stderr alone (stdout to /dev/null).
+  const auto r = test::run_command("{ " + render + " --trajectory " + uneven.string() + " --out " +
+                                   (in.dir / "u").string() + " 2>&1 >/dev/null; }");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("dvs: warning: " + says), std::string::npos) << r.output;
+  const auto check = test::run_command(render + " --trajectory " + uneven.string() + " --out " + (in.dir / "c").string() + " --check");
+  EXPECT_EQ(check.exit_code, 0) << check.output;
+  EXPECT_NE(check.output.find("warning: " + says), std::string::npos) << check.output;
+  const auto quiet = test::run_command(render + " --trajectory " + even.string() + " --out " + (in.dir / "e").string());
+  EXPECT_EQ(quiet.exit_code, 0) << quiet.output;
+  EXPECT_EQ(quiet.output.find("warning"), std::string::npos) << quiet.output;
 }
 
 }  // namespace

@@ -60,8 +60,8 @@ int run_render(const std::vector<std::string>& argv) {
   if (a.has("check")) {
     const PreflightReport r = preflight_render(job);
     if (!r.ok()) throw Error(r.message());
-    if (mode != ProgressMode::quiet)
-      for (const auto& n : r.notes) std::cerr << "  " << n << "\n";
+    for (const auto& n : r.notes)  // warnings whatever --progress says
+      if (mode != ProgressMode::quiet || n.rfind("warning: ", 0) == 0) std::cerr << "  " << n << "\n";
     // stdout stays JSON Lines under --progress json: the verdict goes to stderr there.
     (mode == ProgressMode::json ? std::cerr : std::cout) << "preflight: no problem found; dvs render with these options would start\n";
     return 0;

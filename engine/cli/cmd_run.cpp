@@ -189,8 +189,8 @@ int run_run(const std::vector<std::string>& argv) {
   if (a.has("check")) {
     const PreflightReport r = preflight(o, JobKind::run);
     if (!r.ok()) throw Error(r.message());
-    if (progress_mode(a) != ProgressMode::quiet)
-      for (const auto& n : r.notes) std::cerr << "  " << n << "\n";
+    for (const auto& n : r.notes)  // warnings whatever --progress says
+      if (progress_mode(a) != ProgressMode::quiet || n.rfind("warning: ", 0) == 0) std::cerr << "  " << n << "\n";
     // stdout stays JSON Lines under --progress json: the verdict goes to stderr there.
     (progress_mode(a) == ProgressMode::json ? std::cerr : std::cout)
         << "preflight: no problem found; dvs run with these options would start\n";

@@ -1,5 +1,7 @@
 #include "geometry/splat.hpp"
 
+#include "geometry/splat_memory.hpp"
+
 #include <algorithm>
 #include <cstring>
 
@@ -28,6 +30,12 @@ struct ResolvePush {
 
 constexpr uint32_t kKeepBehind = 1;
 
+SplatLimits limits_of(const vk::Context& ctx) {
+  const vk::DeviceCaps& c = ctx.caps();
+  return {c.max_storage_buffer_range, c.max_memory_allocation_size, c.max_workgroup_count[0], c.max_workgroup_count[1],
+          "device " + c.name + (c.forced_limits.any() ? " lowered by DVS_LIMITS" : "")};
+}
+
 void expect(const char* arg, const Tensor& t, const Shape& s) {
   ops::expect_shape("splat_render", arg, t, s);
   ops::expect_dtype("splat_render", arg, t, DType::f32);
@@ -35,26 +43,21 @@ void expect(const char* arg, const Tensor& t, const Shape& s) {
 
 }  // namespace
 
+// The chunk splat_footprint sizes: as many frames as fit one binding and one allocation of the accumulation.
 int SplatRenderer::frames_per_binding(const vk::Context& ctx, int height, int width) {
-  uint64_t limit = ctx.caps().max_storage_buffer_range;
-  if (limit == 0) limit = 128ull << 20;
-  uint64_t per_frame = uint64_t(height) * uint64_t(width) * 16;  // accum: 4 words per pixel (largest buffer)
-  return int(std::max<uint64_t>(1, limit / std::max<uint64_t>(per_frame, 1)));
+  return int(splat_footprint(65535, height, width, false, false, limits_of(ctx)).chunk_frames);
 }
 
 SplatRenderer::SplatRenderer(vk::Context& ctx, int height, int width, int max_frames, const SplatOptions& options)
     : ctx_(ctx), H_(height), W_(width), max_frames_(max_frames), options_(options) {
   if (height < 1 || width < 1 || max_frames < 1) throw Error("splat renderer: size and frame count must be positive");
-  const uint64_t frame_bytes = uint64_t(height) * uint64_t(width) * 16;
-  if (frame_bytes > ctx.caps().max_storage_buffer_range)
-    throw Error("splat renderer: one " + std::to_string(height) + "x" + std::to_string(width) + " frame needs " +
-                vk::format_bytes(frame_bytes) + " of accumulation, over one storage binding (maxStorageBufferRange " +
-                vk::format_bytes(ctx.caps().max_storage_buffer_range) + "); the renderer splits a clip over frames, "
-                "not a frame (the real 480x720 takes 5.3 MiB)");
-  if (max_frames > frames_per_binding(ctx, height, width))
+  const SplatFootprint fp = splat_footprint(max_frames, height, width, options.mode == SplatMode::hard_point,
+                                            options.atomics == SplatAtomics::float_atomics, limits_of(ctx));
+  if (!fp.problem.empty()) throw Error(fp.problem);
+  if (max_frames > fp.chunk_frames)
     throw Error("splat renderer: " + std::to_string(max_frames) + " frames of " + std::to_string(height) + "x" +
-                std::to_string(width) + " exceed one storage binding; render in chunks of at most " +
-                std::to_string(frames_per_binding(ctx, height, width)) + " frames (render_clip does)");
+                std::to_string(width) + " exceed one storage binding or allocation; render in chunks of at most " +
+                std::to_string(fp.chunk_frames) + " frames (render_clip does)");
   if (max_frames > 65535) throw Error("splat renderer: at most 65535 frames per dispatch");
   // Only on request: float atomics sum in whatever order the invocations run, so two renders of the same
   // input differ in the last bits, and that difference grows through the whole diffusion chain.
@@ -173,8 +176,12 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
   if (K.width != W || K.height != H)
     throw Error("render: the intrinsics are for " + std::to_string(K.height) + "x" + std::to_string(K.width) +
                 " (HxW) but the frames are " + std::to_string(H) + "x" + std::to_string(W) + " (use Intrinsics::scaled_to)");
-  // Tensors of rgb/render are 3 planes per frame: keep each within one binding too.
-  int chunk = std::max(1, int(std::min<int64_t>(F, SplatRenderer::frames_per_binding(ctx, int(H), int(W)))));
+  // Chunks of frames whose every buffer fits one binding and one allocation (rgb/render: 3 planes per frame,
+  // below the accumulation's 4 words); a size whose one frame does not fit is refused here, before any upload.
+  const SplatFootprint fp = splat_footprint(F, H, W, options.mode == SplatMode::hard_point,
+                                            options.atomics == SplatAtomics::float_atomics, limits_of(ctx));
+  if (!fp.problem.empty()) throw Error(fp.problem);
+  int chunk = int(fp.chunk_frames);
   if (options.max_chunk_frames > 0) chunk = std::min(chunk, options.max_chunk_frames);
   SplatRenderer renderer(ctx, int(H), int(W), chunk, options);
 
@@ -185,7 +192,8 @@ RenderedClip render_clip(vk::Context& ctx, const HostTensor& rgb, const HostTens
   vk::Recorder rec(ctx);
   for (int64_t first = 0; first < F; first += chunk) {
     int n = int(std::min<int64_t>(chunk, F - first));
-    if (n != allocated_for) {
+    if (n != allocated_for) {  // the last, shorter chunk: the old buffers go first (the footprint holds one set)
+      t_rgb = t_depth = t_render = t_mask = Tensor();
       t_rgb = Tensor::empty(ctx, {n, 3, H, W}, DType::f32, "render input video");
       t_depth = Tensor::empty(ctx, {n, H, W}, DType::f32, "render input depth");
       t_render = Tensor::empty(ctx, {n, 3, H, W}, DType::f32, "render output");

@@ -64,7 +64,8 @@ class SplatRenderer {
 
   bool uses_float_atomics() const { return float_atomics_; }
   int max_frames() const { return max_frames_; }
-  // Frames of height × width whose buffers fit one storage binding of this device (≥ 1).
+  // Frames of height × width whose buffers fit one storage binding and one allocation of this device (≥ 1;
+  // geometry/splat_memory.hpp sizes them).
   static int frames_per_binding(const vk::Context& ctx, int height, int width);
 
  private:

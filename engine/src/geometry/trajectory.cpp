@@ -111,6 +111,7 @@ glm::dmat4 translation(const glm::dvec3& t) {
 
 OrbitAngles parse_official_trajectory(const std::string& text, const std::string& name) {
   std::vector<std::vector<double>> lists;
+  std::vector<int> line_of;
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
@@ -134,11 +135,12 @@ OrbitAngles parse_official_trajectory(const std::string& text, const std::string
       throw Error(name + ":" + std::to_string(line_no) +
                   ": a trajectory file has exactly three lines (theta degrees, phi degrees, r); found more");
     lists.push_back(std::move(values));
+    line_of.push_back(line_no);
   }
   if (lists.size() != 3)
     throw Error(name + ": a trajectory file has three lines (theta degrees about x, phi degrees about y, r as a "
                 "multiple of the radius); found " + std::to_string(lists.size()) + " non-empty line(s)");
-  return {lists[0], lists[1], lists[2]};
+  return {lists[0], lists[1], lists[2], {line_of[0], line_of[1], line_of[2]}};
 }
 
 OrbitAngles read_official_trajectory(const std::filesystem::path& path) {
@@ -151,6 +153,18 @@ std::string knot_counts(const OrbitAngles& knots) {
   return "knots: theta " + std::to_string(t) + ", phi " + std::to_string(p) + ", r " + std::to_string(r) +
          "; lines of different lengths are each spread over the whole clip on their own, as the authors' loader "
          "does (their loop1.txt has 13, 9 and 8)";
+}
+
+std::string unequal_lines_warning(const OrbitAngles& k, const std::string& name) {
+  const size_t t = k.theta_deg.size(), p = k.phi_deg.size(), r = k.r.size();
+  if (t == p && p == r) return "";
+  auto line = [&](int i, const char* what, size_t n) {
+    return "line " + std::to_string(k.lines[i]) + " (" + what + ") " + std::to_string(n) + (n == 1 ? " value" : " values");
+  };
+  return name + ": its lines hold different numbers of values: " + line(0, "theta", t) + ", " + line(1, "phi", p) +
+         ", " + line(2, "r", r) + ". dvs spreads each line over the whole clip on its own (its first value at the "
+         "first frame, its last at the last frame), as the authors' loader does, so the i-th values of different "
+         "lines do not fall on the same frame; give every line the same number of values to keep them together";
 }
 
 OrbitAngles interpolate_official(const OrbitAngles& knots, int frames) {
@@ -316,8 +330,10 @@ Trajectory load_trajectory(const std::string& spec, int frames, double radius) {
     t = read_gltf_trajectory(p, o);
   } else {
     const OrbitAngles knots = read_official_trajectory(p);
-    return official_trajectory(interpolate_official(knots, frames), radius,
-                               "official-format file " + p.string() + " (" + knot_counts(knots) + ")");
+    Trajectory official = official_trajectory(interpolate_official(knots, frames), radius,
+                                              "official-format file " + p.string() + " (" + knot_counts(knots) + ")");
+    if (std::string w = unequal_lines_warning(knots, p.string()); !w.empty()) official.warnings.push_back(std::move(w));
+    return official;
   }
   if (t.frames() != frames)
     throw Error(p.string() + ": has " + std::to_string(t.frames()) + " poses but the clip has " +

@@ -23,6 +23,9 @@ namespace dvs::geometry {
 struct Trajectory {
   std::vector<glm::dmat4> transforms;  // T_i, see above
   std::string description;             // where it came from, for logs and the poses JSON
+  // What the user must be told whatever the progress mode (the renderer prints each on stderr as
+  // "dvs: warning: ..."): e.g. a .txt file whose lines hold different numbers of values.
+  std::vector<std::string> warnings;
   int frames() const { return int(transforms.size()); }
 };
 
@@ -31,6 +34,7 @@ struct Trajectory {
 // r (dolly, multiplied by the radius).
 struct OrbitAngles {
   std::vector<double> theta_deg, phi_deg, r;
+  int lines[3] = {0, 0, 0};  // the file's line number of each list (0: not from a file)
 };
 
 // Parses the three whitespace-separated lists. Errors name the file and the line.
@@ -41,6 +45,9 @@ OrbitAngles read_official_trajectory(const std::filesystem::path& path);
 // How many knots each line holds, for the trajectory's description: "9 knots per line", or each count when the
 // lines differ (allowed, as in the authors' own files: each line is interpolated over the clip on its own).
 std::string knot_counts(const OrbitAngles& knots);
+// For a file whose lines differ in length: the warning naming the file, its line numbers and counts, and what dvs
+// does with them (docs/file-formats.md); "" when the lines are equally long.
+std::string unequal_lines_warning(const OrbitAngles& knots, const std::string& name);
 
 // Resamples each list to `frames` values at linspace(0,1,frames) against knots at linspace(0,1,len):
 // linear for len ≤ 3 (exactly the official interp1d); for len > 3 a NATURAL CUBIC INTERPOLATING spline

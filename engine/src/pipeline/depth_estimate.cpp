@@ -9,6 +9,7 @@
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
+#include "models/vda/vda_memory.hpp"
 #include "models/vda/vda_model.hpp"
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
@@ -69,6 +70,15 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);
+  // An estimate whose tensors cannot be allocated on this device is refused before the model loads, with the
+  // network input that fits (the figures dvs plan and run's preflight use).
+  const vk::DeviceCaps& caps = ctx.caps();
+  if (const std::string p = vda_fit_problem(VdaModel::inspect(job.model), s.height, s.width, job.input_size,
+                                            caps.max_memory_allocation_size, std::nullopt, ctx.allocator().alignment(),
+                                            "device " + caps.name + (caps.forced_limits.any() ? " lowered by DVS_LIMITS" : ""),
+                                            job.input_size_option);
+      !p.empty())
+    throw Error(p);
   t = std::chrono::steady_clock::now();
   VdaModel model = VdaModel::load(ctx, job.model);
   if (job.metric) model.set_metric(*job.metric);

@@ -202,10 +202,12 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     caps->min_storage_buffer_offset_alignment = caps->min_texel_buffer_offset_alignment = req.alignment;
   }
   const vk::DeviceCaps* limits = caps ? &*caps : nullptr;
+  // The depth estimate's frames (their size, the window's at the end).
+  const int64_t depth_fh = req.depth_frame_height > 0 ? req.depth_frame_height : req.height;
+  const int64_t depth_fw = req.depth_frame_width > 0 ? req.depth_frame_width : req.width;
   if (req.depth_model) {
     const VdaConfig& dc = *req.depth_model;
-    const int64_t fh = req.depth_frame_height > 0 ? req.depth_frame_height : req.height;
-    const int64_t fw = req.depth_frame_width > 0 ? req.depth_frame_width : req.width;
+    const int64_t fh = depth_fh, fw = depth_fw;
     const VdaInputSize in = vda_input_size(fh, fw, req.depth_input_size, dc.patch_size);
     const VdaMemory vm = plan_vda_memory(dc, dc.infer_len, in.height, in.width, fh, fw, VdaModel::kHeadMicroBatch, req.alignment);
     StageMemory d;
@@ -219,6 +221,21 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     d.largest_what = vm.largest_what;
     plan.stages.push_back(d);
     plan.depth_weights = vm.weights;
+  }
+  // The render: the splat renderer's chunk and buffers, on the limits when given (render_job.cpp renders first,
+  // in the run's context, and frees them before the VAE loads).
+  geometry::SplatLimits splat_limits;
+  if (req.limits)
+    splat_limits = {req.limits->binding, req.limits->alloc, req.limits->groups, req.limits->groups, req.limits->source};
+  plan.render = geometry::splat_footprint(req.frames, req.height, req.width, req.hard_points, false, splat_limits, req.alignment);
+  {
+    StageMemory rs;
+    rs.name = "render";
+    rs.what = "splat renderer, " + std::to_string(plan.render.chunk_frames) + " of " + std::to_string(req.frames) +
+              " frames at a time";
+    rs.io = plan.render.total;
+    rs.consider_buffer(plan.render.largest.bytes, plan.render.largest.what);
+    plan.stages.push_back(rs);
   }
   plan.stages.push_back(
       with_weights(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits), "text_encoder"));
@@ -264,8 +281,8 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
       vae_w + weights_of("transformer") + std::max(stage_of("transformer_cfg"), stage_of("transformer_inversion"));
   auto run_peak = [&](const StageMemory& e, const StageMemory& d) {
     // The depth estimate runs alone, before anything else is loaded.
-    return std::max(plan.depth_weights + stage_of("depth_estimate"),
-                    plan.carried + std::max({text_phase, transformer_phase, vae_w + e.total(), vae_w + d.total()}));
+    return std::max({plan.depth_weights + stage_of("depth_estimate"), stage_of("render"),
+                     plan.carried + std::max({text_phase, transformer_phase, vae_w + e.total(), vae_w + d.total()})});
   };
   plan.run_peak = run_peak(enc, dec);
 
@@ -315,7 +332,12 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     return st.name + "'s " + st.largest_what + " (" + format_plan_bytes(st.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
            format_plan_bytes(req.limits->alloc) + " of " + req.limits->source;
   };
-  std::string fixed_blocker = size_blocker;  // what no tiling helps: the size, a non-VAE stage
+  std::string fixed_blocker = size_blocker;  // what no tiling helps: the size, the render, a non-VAE stage
+  if (fixed_blocker.empty()) fixed_blocker = plan.render.problem;
+  if (fixed_blocker.empty() && req.depth_model)  // it runs alone: what helps is a smaller network input
+    fixed_blocker = vda_fit_problem(*req.depth_model, depth_fh, depth_fw, req.depth_input_size,
+                                    req.limits ? req.limits->alloc : 0, req.budget, req.alignment,
+                                    req.limits ? req.limits->source : "", "--depth-input-size");
   for (const auto& st : plan.stages)
     if (st.name != "vae_encode" && st.name != "vae_decode" && fixed_blocker.empty()) fixed_blocker = too_big(st);
   for (auto& t : plan.tilings) {

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/host_tensor.hpp"
+#include "geometry/splat_memory.hpp"
 #include "spec/vda_config.hpp"
 #include "models/call_memory.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
@@ -65,6 +66,8 @@ struct PlanRequest {
   std::optional<VdaConfig> depth_model;
   int depth_input_size = 518;
   int64_t depth_frame_height = 0, depth_frame_width = 0;  // the video's frames; 0 = the clip size
+  // The render stage (stage 1-2, before any model loads): the splat renderer's z-buffer mode (--points).
+  bool hard_points = false;
   // The VAE tiling a run was given (dvs run --vae-tile): the plan weighs it alone against untiled
   // (tilings = [untiled, this]) instead of offering its own tile sizes.
   std::optional<models::VaeTiling> tiling;
@@ -98,7 +101,8 @@ struct MemoryPlan {
   int64_t latent_frames = 0, latent_height = 0, latent_width = 0, text_len = 0;
   std::vector<ComponentWeightBytes> weights;
   uint64_t weights_total = 0;
-  std::vector<StageMemory> stages;   // untiled ("depth_estimate" first with --depth-model)
+  std::vector<StageMemory> stages;   // untiled ("depth_estimate" first with --depth-model, then "render")
+  geometry::SplatFootprint render;   // the render stage's chunk and buffers (its problem on the limits, if any)
   uint64_t depth_weights = 0;        // the depth model's, resident during its stage only
   uint64_t carried = 0;              // tensors kept across stages (text embeddings, latents)
   uint64_t run_peak = 0;             // untiled

@@ -28,6 +28,13 @@ std::string limits_verdict(const StageMemory& s, const PlanLimits& l) {
   return v;
 }
 
+// The render's own verdict: it splits a clip over frames (never a tensor over bindings or texel views).
+std::string render_verdict(const geometry::SplatFootprint& r) {
+  if (!r.problem.empty()) return "CANNOT RUN: " + r.problem;
+  return "chunks of " + std::to_string(r.chunk_frames) + " frames, largest buffer " + format_plan_bytes(r.largest.bytes) +
+         " (" + r.largest.what + "): one binding, allocation fits";
+}
+
 json limits_json(const StageMemory& s, const PlanLimits& l) {
   return {{"largest_tensor_bytes", s.largest_bytes}, {"largest_tensor", s.largest_what},
           {"largest_texel_view", s.largest_elements}, {"bindings", pieces(s.largest_bytes, l.binding)},
@@ -76,7 +83,8 @@ std::string format_plan_table(const MemoryPlan& p) {
       << ", texel view (maxTexelBufferElements) " << l.texels << " texels, allocation (maxMemoryAllocationSize) "
       << format_plan_bytes(l.alloc) << ", groups " << l.groups << "\n";
     for (const auto& s : p.stages)
-      if (s.name != "vae_encode" && s.name != "vae_decode") o << "  " << s.name << ": " << limits_verdict(s, l) << "\n";
+      if (s.name == "render") o << "  render: " << render_verdict(p.render) << "\n";
+      else if (s.name != "vae_encode" && s.name != "vae_decode") o << "  " << s.name << ": " << limits_verdict(s, l) << "\n";
     for (const auto& t : p.tilings) {
       const std::string tag = t.tiled ? " (tiles " + std::to_string(t.tiling.tile_sample_min_height) + "x" +
                                             std::to_string(t.tiling.tile_sample_min_width) + ")"
@@ -133,6 +141,10 @@ json plan_to_json(const MemoryPlan& p) {
     j["stages"].push_back(stage_json(s));
     if (p.request.limits) j["stages"].back()["limits"] = limits_json(s, *p.request.limits);
   }
+  j["render"] = {{"chunk_frames", p.render.chunk_frames}, {"total_bytes", p.render.total},
+                 {"largest_buffer_bytes", p.render.largest.bytes}, {"largest_buffer", p.render.largest.what},
+                 {"runs", p.render.problem.empty()}};
+  if (!p.render.problem.empty()) j["render"]["problem"] = p.render.problem;
   j["carried_bytes"] = p.carried;
   j["run_peak_bytes"] = p.run_peak;
   j["tilings"] = json::array();

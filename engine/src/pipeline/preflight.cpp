@@ -9,6 +9,7 @@
 #include <set>
 
 #include "diffusion/schedule.hpp"
+#include "dvs/depth_estimate.hpp"
 #include "dvs/error.hpp"
 #include "models/vda/vda_model.hpp"
 #include "geometry/trajectory.hpp"
@@ -24,8 +25,11 @@
 #include "models/cogvideox/tokenizer.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/job_stages.hpp"
+#include "pipeline/depth_source.hpp"
+#include "pipeline/inversion_cache.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/render_stage.hpp"
 #include "pipeline/settings.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
@@ -75,7 +79,12 @@ class Checker {
   PreflightReport& r_;
 };
 
-void check_inputs(const RunOptions& o, Checker& c) {
+// The video's frames as the container says (for the depth estimate's plan); nothing when it cannot be read.
+struct VideoFacts {
+  int64_t frames = 0, height = 0, width = 0;
+};
+
+std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c) {
   const RenderJob& j = o.render;
   if (j.height <= 0 || j.width <= 0 || j.height % 8 || j.width % 8)
     c.problem("--size " + hw(j.height, j.width) + ": height and width must be positive multiples of 8 (the VAE works on " +
@@ -87,6 +96,7 @@ void check_inputs(const RunOptions& o, Checker& c) {
   // The video: opened and its --frames decoded small (one frame when all are used), which finds a file that stops
   // before --frames; the container's frame count covers the rest.
   std::optional<int64_t> video_frames;
+  std::optional<VideoFacts> facts;
   if (!std::filesystem::is_regular_file(j.video)) {
     c.problem(j.video.string() + ": no such video file (give --video FILE)");
   } else {
@@ -97,6 +107,7 @@ void check_inputs(const RunOptions& o, Checker& c) {
       VideoInfo vi;
       read_video(j.video, vo, &vi);
       if (vi.frames_in_file > 0) video_frames = vi.frames_in_file;
+      facts = VideoFacts{vi.frames_in_file, vi.height, vi.width};
       if (vi.frames_in_file > 0 && j.frames > vi.frames_in_file) {
         const int fit = (vi.frames_in_file - 1) / 4 * 4 + 1;
         c.problem(j.video.string() + ": holds " + std::to_string(vi.frames_in_file) + " frames, fewer than --frames " +
@@ -115,6 +126,11 @@ void check_inputs(const RunOptions& o, Checker& c) {
       });
     if (j.depth_input_size < 14 || j.depth_input_size > 4096)
       c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
+    // The estimate is kept in the depth cache and read from there by the render (even with --no-cache, which
+    // only skips reading an earlier entry): a folder it cannot write fails the job, so it is said now.
+    const InversionCache depth_cache(o.cache_dir, "depth");
+    if (auto p = folder_write_problem(depth_cache.dir(), "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
+      c.problem("--depth-model: the estimate is kept in the depth cache, which cannot be written: " + *p);
   } else if (!depth_source_exists(j.depth)) {
     c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE, or --depth-model FILE.pth to estimate it)");
   } else if (video_frames) {
@@ -138,9 +154,12 @@ void check_inputs(const RunOptions& o, Checker& c) {
     });
   }
   // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
-  c.attempt("--trajectory " + j.trajectory, [&] { geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0); });
+  c.attempt("--trajectory " + j.trajectory, [&] {
+    for (const auto& w : geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0).warnings) c.note("warning: " + w);
+  });
   // The output folder: an existing folder we may write into, or creatable below one.
   if (auto p = folder_write_problem(j.out_dir, "give another --out DIR")) c.problem(*p);
+  return facts;
 }
 
 struct ModelFacts {
@@ -259,25 +278,56 @@ void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
   });
 }
 
+// The device a job names (--device), listed once per process: a batch preflights every job.
+const vk::DeviceCaps* chosen_device(const std::string& device, Checker& c) {
+  static std::optional<std::vector<vk::DeviceCaps>> listed;
+  if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return nullptr;
+  uint32_t index = 0;
+  if (!c.attempt("--device", [&] { index = vk::select_device(*listed, device); })) return nullptr;
+  return &listed->at(index);
+}
+
+std::string device_source(const vk::DeviceCaps& dev) {
+  return "device " + std::to_string(dev.index) + " (" + dev.name + ")" + (dev.forced_limits.any() ? " lowered by DVS_LIMITS" : "");
+}
+
+// --depth-model: the estimate the run will make (none when the depth cache holds it), planned as `dvs plan
+// --depth-model` plans it: the checkpoint's architecture, the network input, the frames at the size the
+// estimate reads them (the video's, scaled down to DepthJob::max_res as read_video_rgb8 does).
+void plan_depth_stage(const RunOptions& o, const std::optional<VideoFacts>& video, pipeline::PlanRequest& req) {
+  const RenderJob& j = o.render;
+  if (j.depth_model.empty() || !video || video->height <= 0 || !std::filesystem::is_regular_file(j.depth_model)) return;
+  const DepthJob d = depth_job_for(j, o.cache_dir, !o.use_cache);
+  if (o.use_cache && depth_cache_has(d)) return;  // read from the cache: nothing is estimated
+  try {
+    req.depth_model = VdaModel::inspect(j.depth_model);
+  } catch (const Error&) {
+    return;  // check_inputs has named what is wrong with the checkpoint
+  }
+  req.depth_input_size = j.depth_input_size;
+  int64_t h = video->height, w = video->width;
+  if (d.max_res > 0 && std::max(h, w) > d.max_res) {
+    const double s = double(d.max_res) / double(std::max(h, w));
+    h = int64_t(std::nearbyint(double(video->height) * s)), w = int64_t(std::nearbyint(double(video->width) * s));
+  }
+  req.depth_frame_height = h, req.depth_frame_width = w;
+}
+
 // Device memory and device limits as the planner sees them (dvs plan --device): the whole run's peak against the
 // chosen device's memory budget (vk/memory_budget: host RAM available on a CPU device, the device-local heap's
 // budget or size on a GPU; the figure the Allocator enforces and `dvs info` prints), and every allocation of
 // every stage against maxMemoryAllocationSize (DVS_LIMITS included), with the VAE tiling the run was given.
 // The plan's VAE figures are the ones the VAE's calls check before any work (CogVideoXVae::*_footprint): what
 // passes here runs, what fails here would fail there.
-void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
+void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<VideoFacts>& video, Checker& c) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
   const int64_t r = m.vae->spatial_ratio();
   if (m.transformer->learned_pos && (o.render.height != m.transformer->sample_height * r ||
                                      o.render.width != m.transformer->sample_width * r))
     return;  // check_model_fit names the size this model takes; no size of its own runs
-  // Listed once per process: a batch preflights every job.
-  static std::optional<std::vector<vk::DeviceCaps>> listed;
-  if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return;
-  const std::vector<vk::DeviceCaps>& devices = *listed;
-  uint32_t index = 0;
-  if (!c.attempt("--device", [&] { index = vk::select_device(devices, o.render.device); })) return;
-  const vk::DeviceCaps& dev = devices.at(index);
+  const vk::DeviceCaps* chosen = chosen_device(o.render.device, c);
+  if (!chosen) return;
+  const vk::DeviceCaps& dev = *chosen;
   const uint64_t budget = dev.memory_budget.bytes;
   c.attempt("memory plan", [&] {
     const pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
@@ -285,9 +335,9 @@ void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
     req.frames = o.render.frames, req.height = o.render.height, req.width = o.render.width;
     req.alignment = std::max<uint64_t>(256, dev.min_storage_buffer_offset_alignment);
     if (budget) req.budget = budget;
-    req.limits = pipeline::PlanLimits{"device " + std::to_string(dev.index) + " (" + dev.name + ")" +
-                                          (dev.forced_limits.any() ? " lowered by DVS_LIMITS" : ""),
-                                      dev.max_storage_buffer_range, dev.max_texel_buffer_elements,
+    req.hard_points = o.render.hard_points;
+    plan_depth_stage(o, video, req);
+    req.limits = pipeline::PlanLimits{device_source(dev), dev.max_storage_buffer_range, dev.max_texel_buffer_elements,
                                       dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
     const std::optional<models::VaeTiling> given = vae_tiling(o);
     req.tiling = given;
@@ -337,7 +387,7 @@ PreflightReport preflight(const RunOptions& o, JobKind kind) {
     if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
       c.problem("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
   }
-  check_inputs(o, c);
+  const std::optional<VideoFacts> video = check_inputs(o, c);
   const ModelFacts m = check_model(o, c);
   if (std::filesystem::is_directory(o.model) && st)
     c.attempt("", [&] {
@@ -349,7 +399,7 @@ PreflightReport preflight(const RunOptions& o, JobKind kind) {
     });
   check_model_fit(o, m, c);
   check_lora(o, m, c);
-  check_memory(o, m, c);
+  check_memory(o, m, video, c);
   return r;
 }
 
@@ -358,7 +408,11 @@ PreflightReport preflight_render(const RenderJob& job) {
   Checker c(r);
   RunOptions o;
   o.render = job;
+  o.cache_dir = job.depth_cache_dir;  // where render's --depth-model keeps its estimate
   check_inputs(o, c);
+  // The render's buffers against the device's limits (the same figures the renderer chunks with).
+  if (const vk::DeviceCaps* dev = chosen_device(job.device, c))
+    if (auto p = render_limits_problem(job, *dev)) c.problem(*p);
   return r;
 }
 

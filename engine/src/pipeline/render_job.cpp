@@ -9,6 +9,7 @@
 #include "dvs/error.hpp"
 #include "dvs/render.hpp"
 #include "geometry/splat.hpp"
+#include "geometry/splat_memory.hpp"
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
 #include "io/depth.hpp"
@@ -79,6 +80,10 @@ void check_visibility(const HostTensor& mask, const RenderJob& job, double radiu
   std::cerr << "dvs: warning: " << which << "; the model has to invent them. Look at mask.mp4, or use a smaller move\n";
 }
 
+void require_video_file(const RenderJob& job) {
+  if (!std::filesystem::is_regular_file(job.video)) throw Error(job.video.string() + ": no such video file (give --video FILE)");
+}
+
 }  // namespace
 
 // The default camera when none is given. The official default is f = 500 px at 1024×576 scaled per axis to the
@@ -96,6 +101,15 @@ geometry::Intrinsics job_intrinsics(const RenderJob& job) {
   }
   K.validate();
   return K;
+}
+
+std::optional<std::string> render_limits_problem(const RenderJob& job, const vk::DeviceCaps& d) {
+  const geometry::SplatLimits limits{d.max_storage_buffer_range, d.max_memory_allocation_size, d.max_workgroup_count[0],
+                                     d.max_workgroup_count[1],
+                                     "device " + d.name + (d.forced_limits.any() ? " lowered by DVS_LIMITS" : "")};
+  const auto fp = geometry::splat_footprint(std::max(1, job.frames), job.height, job.width, job.hard_points, false, limits);
+  if (fp.problem.empty()) return std::nullopt;
+  return fp.problem;
 }
 
 void prepare_out_dir(const std::filesystem::path& dir) {
@@ -120,6 +134,8 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   // Check everything the user gave before any long work.
   if (!depth_source_exists(job.depth)) throw Error(job.depth.string() + ": no such depth file or folder");
   const DepthFit depth_fit = parse_depth_fit(job.depth_fit);
+  require_video_file(job);
+  if (auto p = render_limits_problem(job, ctx.caps())) throw Error(*p);  // before the decode and the output folder
   prepare_out_dir(job.out_dir);
 
   RenderedInput r;
@@ -150,6 +166,7 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   const double radius = geometry::official_radius(centre_depth(r.depth));
   r.trajectory = geometry::load_trajectory(job.trajectory, F, radius);
   say("trajectory " + r.trajectory.description);
+  for (const auto& w : r.trajectory.warnings) std::cerr << "dvs: warning: " << w << "\n";  // whatever --progress says
 
   auto t1 = std::chrono::steady_clock::now();
   geometry::SplatOptions sopt;
@@ -173,6 +190,11 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
                                 const std::function<bool()>& cancelled) {
   RenderJob job = job_in;
   CreatedFolders out_folder(job.out_dir);  // removed again if the render fails before filling it
+  if (!job.depth_model.empty() && job.height > 0 && job.width > 0) {  // a size that cannot render: before the estimate
+    require_video_file(job);
+    const std::vector<vk::DeviceCaps> devices = vk::list_devices();
+    if (auto p = render_limits_problem(job, devices.at(vk::select_device(devices, job.device)))) throw Error(*p);
+  }
   if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
     const nlohmann::json d = resolve_depth_model(
         job, job.depth_cache_dir, !job.depth_cache,

@@ -2,6 +2,7 @@
 // load and fit the depth, build the camera path and splat every frame into its new view.
 #pragma once
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "dvs/render.hpp"
@@ -9,6 +10,7 @@
 #include "geometry/trajectory.hpp"
 #include "io/host_tensor.hpp"
 #include "vk/context.hpp"
+#include "vk/device_info.hpp"
 
 namespace dvs {
 
@@ -29,6 +31,10 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
 // The camera a job renders with: its --intrinsics, else the default (square pixels under crop, the official
 // per-axis scaling under squash). Throws dvs::Error for incomplete or non-positive values.
 geometry::Intrinsics job_intrinsics(const RenderJob& job);
+
+// Why the job's size cannot render on this device's limits (geometry/splat_memory.hpp: one frame's accumulation
+// over a binding or an allocation, a frame's dispatch over the group counts), and what helps; nothing when it fits.
+std::optional<std::string> render_limits_problem(const RenderJob& job, const vk::DeviceCaps& device);
 
 // Validates and creates the output folder (clear error when it cannot be written).
 void prepare_out_dir(const std::filesystem::path& dir);

@@ -1,10 +1,12 @@
 #include "models/vda/vda_memory.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <map>
 #include <vector>
 
 #include "models/vda/vda_model.hpp"
+#include "models/vda/vda_preprocess.hpp"
 #include "models/random/vda_random.hpp"
 
 namespace dvs {
@@ -86,6 +88,39 @@ VdaMemory plan_vda_memory(const VdaConfig& c, int64_t T, int64_t input_h, int64_
   for (const auto& p : phases)
     if (p.bytes > m.activations) m.activations = p.bytes, m.peak_phase = p.name;
   return m;
+}
+
+namespace {
+
+std::string mib(uint64_t b) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f MiB", double(b) / double(1ull << 20));
+  return buf;
+}
+
+}  // namespace
+
+std::string vda_fit_problem(const VdaConfig& c, int64_t frame_h, int64_t frame_w, int input_size, uint64_t alloc,
+                            std::optional<uint64_t> budget, uint64_t alignment, const std::string& limit_source,
+                            const std::string& option) {
+  auto problem = [&](int size) -> std::string {
+    const VdaInputSize in = vda_input_size(frame_h, frame_w, size, c.patch_size);
+    const VdaMemory m = plan_vda_memory(c, c.infer_len, in.height, in.width, frame_h, frame_w, VdaModel::kHeadMicroBatch, alignment);
+    if (alloc && m.largest_tensor > alloc)
+      return "the depth estimate's " + m.largest_what + " (" + mib(m.largest_tensor) + " at network input " +
+             std::to_string(in.height) + "x" + std::to_string(in.width) + ") exceeds maxMemoryAllocationSize " + mib(alloc) +
+             (limit_source.empty() ? std::string() : " of " + limit_source);
+    if (budget && m.total() > *budget)
+      return "the depth estimate needs " + mib(m.total()) + " (weights " + mib(m.weights) + " + its largest phase, " +
+             m.peak_phase + "), over the device memory " + mib(*budget);
+    return "";
+  };
+  std::string p = problem(input_size);
+  if (p.empty()) return p;
+  for (int size = (input_size - 1) / 14 * 14; size >= 14; size -= 14)
+    if (problem(size).empty())
+      return p + "; a smaller network input fits: " + option + " " + std::to_string(size) + " (or a smaller video)";
+  return p + "; no " + option + " fits (give --depth with an estimate made elsewhere)";
 }
 
 }  // namespace dvs
