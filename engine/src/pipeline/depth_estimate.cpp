@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "dvs/error.hpp"
+#include "io/injected_faults.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
@@ -16,6 +17,7 @@
 #include "dvs/duration_text.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/output_path.hpp"
+#include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
 
@@ -181,7 +183,18 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
   // Where the estimate will be kept, checked before the work.
   if (auto p = file_write_problem(c.file, "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
     throw Error("depth cache: " + *p);
-  HostTensor depth = run_estimate(job, progress, cancelled, c.summary);
+  HostTensor depth;
+  try {
+    faults::set_stage("depth");
+    depth = run_estimate(job, progress, cancelled, c.summary);
+  } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
+    throw Error("depth estimate: " + e.detail() + ". Try a smaller " + job.input_size_option + " (the network input; " +
+                "default 518) or a smaller --max-res / fewer --frames; dvs plan --depth-model " +
+                job.model.filename().string() + " shows what the estimate needs");
+  } catch (const vk::DeviceLost& e) {
+    throw Error(std::string("depth estimate: ") + e.what());
+  }
+  faults::set_stage("depth-write");
   std::filesystem::create_directories(c.file.parent_path(), ec);
   write_npy(c.file, depth);
   c.summary.cache_file = c.file;

@@ -24,6 +24,7 @@
 #include "models/cogvideox/tokenizer.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/job_stages.hpp"
+#include "pipeline/memory_advice.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "pipeline/output_path.hpp"
 #include "pipeline/settings.hpp"
@@ -278,19 +279,10 @@ void check_memory(const RunOptions& o, const ModelFacts& m, Checker& c) {
   uint32_t index = 0;
   if (!c.attempt("--device", [&] { index = vk::select_device(devices, o.render.device); })) return;
   const vk::DeviceCaps& dev = devices.at(index);
-  const uint64_t budget = dev.memory_budget.bytes;
   c.attempt("memory plan", [&] {
     const pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
-    pipeline::PlanRequest req;
-    req.frames = o.render.frames, req.height = o.render.height, req.width = o.render.width;
-    req.alignment = std::max<uint64_t>(256, dev.min_storage_buffer_offset_alignment);
-    if (budget) req.budget = budget;
-    req.limits = pipeline::PlanLimits{"device " + std::to_string(dev.index) + " (" + dev.name + ")" +
-                                          (dev.forced_limits.any() ? " lowered by DVS_LIMITS" : ""),
-                                      dev.max_storage_buffer_range, dev.max_texel_buffer_elements,
-                                      dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
-    const std::optional<models::VaeTiling> given = vae_tiling(o);
-    req.tiling = given;
+    pipeline::PlanRequest req = run_plan_request(o, dev);  // the request an out-of-memory error's advice plans too
+    const std::optional<models::VaeTiling> given = req.tiling;
     const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
     c.note("memory plan: " + pipeline::format_plan_bytes(plan.tilings[given ? 1 : 0].run_peak) + " at the peak" +
            (given ? " with --vae-tile " : " untiled") +

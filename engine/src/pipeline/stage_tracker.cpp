@@ -2,6 +2,8 @@
 
 #include <memory>
 
+#include "io/injected_faults.hpp"
+
 namespace dvs {
 
 const char* const kNonFiniteHint =
@@ -14,11 +16,15 @@ StageTracker::StageTracker(const ProgressFn& progress, const CancelFn& cancelled
 void StageTracker::begin(const std::string& stage, const std::string& note) {
   check_cancelled();
   stage_ = stage;
+  ended_ = false;
+  faults::set_stage(stage);  // named in DVS_FAULTS_TRACE's lines
   start_ = std::chrono::steady_clock::now();
   say(0, 0, note);
 }
 
 void StageTracker::end() {
+  ended_ = true;
+  faults::set_stage("after-" + stage_);
   times_.push_back({stage_, std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count()});
 }
 
@@ -42,6 +48,11 @@ vk::SegmentHook StageTracker::segment_hook() const {
                                                   : last_note_ + " · " + p.label;
     progress_(stage_, last_step_, last_total_, note);
   };
+}
+
+std::string StageTracker::where() const {
+  if (stage_.empty()) return "start-up";
+  return ended_ ? "after the " + stage_ + " stage" : stage_ + " stage";
 }
 
 bool StageTracker::cancel_requested() const { return cancelled_ && cancelled_(); }
