@@ -136,5 +136,17 @@ TEST_F(FaultsRun, EveryStageAndKindFailsCleanlyAndTheRerunReuses) {
   test::print_fault_matrix("dvs run (tiny model, --depth-model, 9 frames 64x64, 4 steps)", matrix);
 }
 
+// A switch that cannot be read stops the program at once, naming the variable and the forms it takes.
+TEST(FaultsSwitch, AMalformedSwitchIsNamed) {
+  test::TempDir dir;
+  for (const char* spec : {"bogus", "alloc=0", "write=3", "write=3:EFAULT", "submit=x"}) {
+    const auto r = test::run_command(std::string("DVS_FAULTS=") + spec + " " + test::program("dvs") + " demo --quiet --out " +
+                                     (dir.path / "out").string());
+    EXPECT_EQ(r.exit_code, 1) << spec << "\n" << r.output;
+    EXPECT_NE(r.output.find("DVS_FAULTS: '" + std::string(spec) + "' is not one of alloc=N, submit=N, write=N:ENOSPC"),
+              std::string::npos) << r.output;
+  }
+}
+
 }  // namespace
 }  // namespace dvs

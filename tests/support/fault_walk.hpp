@@ -117,11 +117,13 @@ inline void print_fault_matrix(const std::string& title, const std::vector<Fault
   for (const auto& r : rows)
     std::cout << "| " << r.fault << " | " << r.stage << " | " << r.exit_code << " | " << shorten(r.message, 220) << " | "
               << r.kept << " |\n";
-  std::set<std::string> shown;  // one whole message of each kind of fault and stage, as the user reads it
-  for (const auto& r : rows)
-    if (!r.message.empty() && shown.insert(r.fault.substr(0, r.fault.find('=')) + r.fault.substr(r.fault.find(':') + 1) + r.stage).second &&
-        shown.size() <= 6)
+  std::set<std::string> shown;  // a few whole messages (one per kind and stage), as the user reads them
+  for (const auto& r : rows) {
+    const size_t colon = r.fault.find(':');  // "write=3:EIO": the kind and the errno
+    const std::string kind = r.fault.substr(0, r.fault.find('=')) + (colon == std::string::npos ? "" : r.fault.substr(colon));
+    if (!r.message.empty() && shown.size() < 10 && shown.insert(kind + " " + r.stage).second)
       std::cout << "\n" << r.fault << " (" << r.stage << "):\n  " << r.message << "\n";
+  }
   std::cout << std::flush;
 }
 

@@ -452,7 +452,8 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
   if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true) || injected) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    const std::string full = injected ? write_error_note(injected, path.parent_path()) : no_space_note(path.parent_path());
+    const std::string full =
+        injected ? write_error_note(injected, path.parent_path()) : no_space_note(path.parent_path());
     throw Error(path.string() + ": could not write the .glb file" + (full.empty() ? std::string() : ": " + full));
   }
   std::filesystem::rename(tmp, path);

@@ -1,5 +1,5 @@
-// A full disk (and other failed writes) named as such. Writers that cannot see the error code (OpenCV's video writer drops FFmpeg's
-// write errors) check the free space of the folder they wrote into.
+// A full disk (and other failed writes) named as such. Writers that cannot see the error code (OpenCV's video
+// writer drops FFmpeg's write errors) check the free space of the folder they wrote into.
 #pragma once
 #include <cstdint>
 #include <filesystem>

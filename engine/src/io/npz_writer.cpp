@@ -39,7 +39,8 @@ void write_npz(const std::filesystem::path& path, const std::vector<std::pair<st
   const int injected = faults::write_error(path);
   if (injected || zip_close(z) != 0) {
     const int err = injected ? injected : zip_error_code_system(zip_get_error(z));
-    const std::string why = err ? write_error_note(err, path.parent_path()) : std::string(zip_strerror(z)) + "; is the disk full?";
+    const std::string why =
+        err ? write_error_note(err, path.parent_path()) : std::string(zip_strerror(z)) + "; is the disk full?";
     zip_discard(z);
     std::filesystem::remove(tmp, ec);
     throw Error(path.string() + ": writing failed: " + why + " (nothing was written)");

@@ -218,7 +218,7 @@ void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::
   {
     std::ofstream out(tmp);
     out << meta.dump(2) << "\n";
-    if (!out || faults::write_error(meta_file())) return std::filesystem::remove(tmp, ec), void();  // an unwritable cache only costs time on a re-run
+    if (!out || faults::write_error(meta_file())) return std::filesystem::remove(tmp, ec), void();  // costs only time
   }
   std::filesystem::rename(tmp, meta_file(), ec);
   if (ec) {

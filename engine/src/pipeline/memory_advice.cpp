@@ -38,7 +38,9 @@ std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& pla
              pipeline::format_plan_bytes(best->run_peak) + "), or a smaller --height/--width or fewer --frames";
     return "a smaller --vae-tile, a smaller --height/--width or fewer --frames";
   }
-  if (stage == "text") return "freeing the device memory other programs hold, or a device with more memory (T5's needs do not depend on the video's size)";
+  if (stage == "text")
+    return "freeing the device memory other programs hold, or a device with more memory (T5's needs do not depend "
+           "on the video's size)";
   if (stage == "invert" || stage == "sample")
     return "fewer --frames or a smaller --height/--width (the transformer's attention grows with both; VAE tiling "
            "does not change this stage)";

@@ -41,7 +41,9 @@ class StageTracker {
 
   // What an out-of-device-memory error in `stage` should add (pipeline/memory_advice.hpp); unset: the
   // allocator's generic advice.
-  void set_memory_advice(std::function<std::string(const std::string& stage)> advice) { memory_advice_ = std::move(advice); }
+  void set_memory_advice(std::function<std::string(const std::string& stage)> advice) {
+    memory_advice_ = std::move(advice);
+  }
 
   // Runs the whole job: diffusion::Cancelled becomes dvs::Cancelled, any other dvs::Error thrown inside a
   // stage is rethrown as "<stage> stage: <message>". Device faults say exactly where they happened, also
@@ -57,7 +59,8 @@ class StageTracker {
       throw Cancelled();
     } catch (const vk::DeviceOutOfMemory& e) {
       const std::string advice_stage = ended_ ? "" : stage_;  // between stages: a model's weights, the run's advice
-      throw Error(where() + ": " + e.detail() + (memory_advice_ ? memory_advice_(advice_stage) : std::string(vk::kOutOfMemoryHint)));
+      throw Error(where() + ": " + e.detail() +
+                  (memory_advice_ ? memory_advice_(advice_stage) : std::string(vk::kOutOfMemoryHint)));
     } catch (const vk::DeviceLost& e) {
       throw Error(where() + ": " + e.what());
     } catch (const Error& e) {

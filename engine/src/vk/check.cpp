@@ -39,8 +39,8 @@ void throw_vk_error(VkResult r, const char* call, const char* file, int line) {
     throw DeviceOutOfMemory("the device ran out of memory (" + std::string(result_name(r)) + " from " + function + ")",
                             kOutOfMemoryHint);
   if (r == VK_ERROR_DEVICE_LOST)
-    throw DeviceLost("the GPU device was lost (VK_ERROR_DEVICE_LOST from " + function + "): the driver reset it after a shader fault, a timeout "
-                     "or a hardware error, and nothing on it survives. What to try: run the same command again "
+    throw DeviceLost("the GPU device was lost (VK_ERROR_DEVICE_LOST from " + function + "): the driver reset it "
+                     "after a shader fault, a timeout or a hardware error, and nothing on it survives. What to try: run the same command again "
                      "(stages already finished are taken from the cache); if it happens again, look for the GPU's "
                      "error in the kernel log (dmesg), update the driver, or give the GPU less work per submission "
                      "(--vae-tiling, fewer --frames, a smaller --height/--width)");
