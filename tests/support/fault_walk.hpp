@@ -152,7 +152,9 @@ inline void expect_fault_message(const FaultEvent& e, const std::string& errno_n
         << message;
     EXPECT_NE(message.find("run the same command again"), std::string::npos) << message;
   }
-  if (e.kind != "write" && !stage_words.empty()) EXPECT_NE(message.find(stage_words), std::string::npos) << message;
+  if (e.kind != "write" && !stage_words.empty()) {
+    EXPECT_NE(message.find(stage_words), std::string::npos) << message;
+  }
 }
 
 }  // namespace dvs::test
