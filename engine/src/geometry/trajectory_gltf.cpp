@@ -18,6 +18,7 @@
 
 #include "dvs/error.hpp"
 #include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 
 namespace dvs::geometry {
 
@@ -447,10 +448,12 @@ void write_trajectory_glb(const std::filesystem::path& path, const Trajectory& t
   std::filesystem::path tmp = path;
   tmp += ".tmp";
   tinygltf::TinyGLTF writer;
-  if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true)) {
+  const int injected = faults::write_error(path);
+  if (!writer.WriteGltfSceneToFile(&m, tmp.string(), false, true, false, true) || injected) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    const std::string full = no_space_note(path.parent_path());
+    const std::string full =
+        injected ? write_error_note(injected, path.parent_path()) : no_space_note(path.parent_path());
     throw Error(path.string() + ": could not write the .glb file" + (full.empty() ? std::string() : ": " + full));
   }
   std::filesystem::rename(tmp, path);

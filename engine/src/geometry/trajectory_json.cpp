@@ -8,6 +8,7 @@
 #include "dvs/error.hpp"
 #include "geometry/trajectory_text.hpp"
 #include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 
 namespace dvs::geometry {
 
@@ -156,6 +157,11 @@ void write_trajectory_json(const std::filesystem::path& path, const Trajectory& 
     if (!f) throw Error(path.string() + ": cannot write the trajectory file" + with_space_note(path));
     f << text;
     f.close();  // the buffered bytes reach the disk here: check after it
+    if (const int injected = faults::write_error(path); injected && f) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error(path.string() + ": write failed: " + write_error_note(injected, path.parent_path()));
+    }
     if (!f) {
       std::error_code ec;
       std::filesystem::remove(tmp, ec);

@@ -1,5 +1,5 @@
-// A full disk named as such. Writers that cannot see the error code (OpenCV's video writer drops FFmpeg's
-// write errors) check the free space of the folder they wrote into.
+// A full disk (and other failed writes) named as such. Writers that cannot see the error code (OpenCV's video
+// writer drops FFmpeg's write errors) check the free space of the folder they wrote into.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -14,5 +14,9 @@ constexpr uint64_t kNearlyFullBytes = 64 * 1024;
 // "no space left on device (FOLDER has N bytes free)" when the file system holding `folder` is (nearly)
 // full, else "".
 std::string no_space_note(const std::filesystem::path& folder);
+
+// Why a write of a file in `folder` failed with `err` (errno) and what to do: ENOSPC names the full disk, EIO
+// the device's I/O error, anything else its strerror text.
+std::string write_error_note(int err, const std::filesystem::path& folder);
 
 }  // namespace dvs

@@ -13,6 +13,8 @@
 #include <string_view>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 
 namespace dvs {
 namespace {
@@ -350,15 +352,15 @@ void write_npy(const std::filesystem::path& path, const HostTensor& t) {
   const std::string name = path.string();
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw Error(name + ": " + cannot_create_note(path, errno));
-  const bool wrote = bytes.empty() || std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  const int werr = errno;
+  bool wrote = bytes.empty() || std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  int werr = errno;
+  if (const int injected = faults::write_error(path); injected && wrote) wrote = false, werr = injected;
   const bool closed = std::fclose(f) == 0;
   std::error_code ec;
   if (!wrote || !closed) {
     std::filesystem::remove(tmp, ec);
     const int e = wrote ? errno : werr;
-    throw Error(name + ": write failed: " + (e == ENOSPC ? std::string("no space left on device") : std::strerror(e)) +
-                " (nothing was written)");
+    throw Error(name + ": write failed: " + write_error_note(e, path.parent_path()) + " (nothing was written)");
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

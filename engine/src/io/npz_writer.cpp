@@ -4,6 +4,8 @@
 #include <zip.h>
 
 #include "dvs/error.hpp"
+#include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 #include "io/npy.hpp"
 
 namespace dvs {
@@ -33,11 +35,15 @@ void write_npz(const std::filesystem::path& path, const std::vector<std::pair<st
     }
     zip_set_file_compression(z, zip_uint64_t(idx), ZIP_CM_DEFLATE, 0);
   }
-  if (zip_close(z) != 0) {
-    const std::string why = zip_strerror(z);
+  // libzip writes everything in zip_close; its error keeps the errno of the failed write.
+  const int injected = faults::write_error(path);
+  if (injected || zip_close(z) != 0) {
+    const int err = injected ? injected : zip_error_code_system(zip_get_error(z));
+    const std::string why =
+        err ? write_error_note(err, path.parent_path()) : std::string(zip_strerror(z)) + "; is the disk full?";
     zip_discard(z);
     std::filesystem::remove(tmp, ec);
-    throw Error(path.string() + ": writing failed (" + why + "; is the disk full?)");
+    throw Error(path.string() + ": writing failed: " + why + " (nothing was written)");
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

@@ -2,11 +2,13 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
 #include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 #include "io/safetensors.hpp"
 
 namespace dvs {
@@ -34,11 +36,16 @@ void write_safetensors(const std::filesystem::path& path, const std::vector<std:
     out.write(text.data(), std::streamsize(n));
     for (const auto& [name, t] : tensors) out.write(reinterpret_cast<const char*>(t.data.data()), std::streamsize(t.bytes()));
     out.close();  // the last buffered bytes reach the disk here
+    int err = out ? 0 : errno;  // the failed write(2)'s, which the stream leaves in errno
+    if (const int injected = faults::write_error(path); injected && out) out.setstate(std::ios::badbit), err = injected;
     if (!out) {
       std::error_code ec;
       std::filesystem::remove(tmp, ec);
       const std::string full = no_space_note(path.parent_path());
-      throw Error(path.string() + ": write failed (" + (full.empty() ? std::string("an I/O error") : full) + ")");
+      const std::string why = err == ENOSPC || err == EIO ? write_error_note(err, path.parent_path())
+                              : full.empty()              ? std::string("an I/O error")
+                                                          : full;
+      throw Error(path.string() + ": write failed (" + why + ")");
     }
   }
   std::filesystem::rename(tmp, path);

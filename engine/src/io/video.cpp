@@ -21,6 +21,7 @@
 
 #include "dvs/error.hpp"
 #include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 #include "io/npy.hpp"
 #include "io/third_party_logs.hpp"
 #include "io/video_probe.hpp"
@@ -320,7 +321,8 @@ void write_video(const std::filesystem::path& path, const HostTensor& frames, do
   writer.release();
   std::error_code ec;
   // OpenCV does not report FFmpeg's write errors: a full disk shows only as a short file and no free space.
-  const std::string full = no_space_note(folder);
+  std::string full = no_space_note(folder);
+  if (const int injected = faults::write_error(path)) full = write_error_note(injected, folder);
   if (!full.empty() || !std::filesystem::exists(tmp, ec) || std::filesystem::file_size(tmp, ec) == 0) {
     std::filesystem::remove(tmp, ec);
     throw Error(name + ": writing the video failed: " + (full.empty() ? std::string("the encoder wrote nothing") : full));

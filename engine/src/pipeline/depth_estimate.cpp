@@ -6,6 +6,7 @@
 
 #include "dvs/error.hpp"
 #include "io/crash_points.hpp"
+#include "io/injected_faults.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
@@ -20,6 +21,7 @@
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/output_path.hpp"
 #include "pipeline/run_outputs.hpp"
+#include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/memory.hpp"
 
@@ -193,9 +195,20 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
   // Where the estimate will be kept, checked before the work.
   if (auto p = file_write_problem(c.file, "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
     throw Error("depth cache: " + *p);
-  crash_point("depth-estimate-begin");
-  HostTensor depth = run_estimate(job, progress, cancelled, c.summary);
-  crash_point("depth-estimate-end");
+  HostTensor depth;
+  try {
+    faults::set_stage("depth");
+    crash_point("depth-estimate-begin");
+    depth = run_estimate(job, progress, cancelled, c.summary);
+    crash_point("depth-estimate-end");
+  } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
+    throw Error("depth estimate: " + e.detail() + ". Try a smaller " + job.input_size_option + " (the network input; " +
+                "default 518) or a smaller --max-res / fewer --frames; dvs plan --depth-model " +
+                job.model.filename().string() + " shows what the estimate needs");
+  } catch (const vk::DeviceLost& e) {
+    throw Error(std::string("depth estimate: ") + e.what());
+  }
+  faults::set_stage("depth-write");
   std::filesystem::create_directories(c.file.parent_path(), ec);
   write_cache_entry(c.file, depth);
   c.summary.cache_file = c.file;

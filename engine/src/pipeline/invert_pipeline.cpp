@@ -5,6 +5,7 @@
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/t5_encoder.hpp"
 #include "pipeline/job_stages.hpp"
+#include "pipeline/memory_advice.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/output_lock.hpp"
@@ -72,6 +73,7 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
 
 InversionReport run_inversion(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
   StageTracker stages(progress, cancelled);
+  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
   CreatedFolders out_folder(o.render.out_dir);  // removed again if the inversion fails before filling it
   InversionReport report = stages.run([&] { return invert_stages(o, stages); });
   out_folder.keep();

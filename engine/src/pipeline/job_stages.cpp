@@ -9,6 +9,7 @@
 
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
+#include "io/injected_faults.hpp"
 #include "models/cogvideox/lora.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/denoise_stages.hpp"
@@ -218,7 +219,7 @@ void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::
   {
     std::ofstream out(tmp);
     out << meta.dump(2) << "\n";
-    if (!out) return;  // an unwritable cache only costs time on a re-run
+    if (!out || faults::write_error(meta_file())) return std::filesystem::remove(tmp, ec), void();  // costs only time
   }
   std::filesystem::rename(tmp, meta_file(), ec);
   if (ec) {

@@ -27,6 +27,7 @@
 #include "pipeline/job_stages.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
+#include "pipeline/memory_advice.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "pipeline/output_path.hpp"
 #include "pipeline/render_stage.hpp"
@@ -287,10 +288,6 @@ const vk::DeviceCaps* chosen_device(const std::string& device, Checker& c) {
   return &listed->at(index);
 }
 
-std::string device_source(const vk::DeviceCaps& dev) {
-  return "device " + std::to_string(dev.index) + " (" + dev.name + ")" + (dev.forced_limits.any() ? " lowered by DVS_LIMITS" : "");
-}
-
 // --depth-model: the estimate the run will make (none when the depth cache holds it), planned as `dvs plan
 // --depth-model` plans it: the checkpoint's architecture, the network input, the frames at the size the
 // estimate reads them (the video's, scaled down to DepthJob::max_res as read_video_rgb8 does).
@@ -328,19 +325,11 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
   const vk::DeviceCaps* chosen = chosen_device(o.render.device, c);
   if (!chosen) return;
   const vk::DeviceCaps& dev = *chosen;
-  const uint64_t budget = dev.memory_budget.bytes;
   c.attempt("memory plan", [&] {
     const pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
-    pipeline::PlanRequest req;
-    req.frames = o.render.frames, req.height = o.render.height, req.width = o.render.width;
-    req.alignment = std::max<uint64_t>(256, dev.min_storage_buffer_offset_alignment);
-    if (budget) req.budget = budget;
-    req.hard_points = o.render.hard_points;
+    pipeline::PlanRequest req = run_plan_request(o, dev);  // the request an out-of-memory error's advice plans too
     plan_depth_stage(o, video, req);
-    req.limits = pipeline::PlanLimits{device_source(dev), dev.max_storage_buffer_range, dev.max_texel_buffer_elements,
-                                      dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
-    const std::optional<models::VaeTiling> given = vae_tiling(o);
-    req.tiling = given;
+    const std::optional<models::VaeTiling> given = req.tiling;
     const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
     c.note("memory plan: " + pipeline::format_plan_bytes(plan.tilings[given ? 1 : 0].run_peak) + " at the peak" +
            (given ? " with --vae-tile " : " untiled") +

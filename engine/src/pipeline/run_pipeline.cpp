@@ -25,6 +25,7 @@
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "pipeline/memory_advice.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/output_path.hpp"
@@ -240,6 +241,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
 
 RunReport run_pipeline(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
   StageTracker stages(progress, cancelled);
+  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
   CreatedFolders out_folder(o.render.out_dir);  // removed again if the run fails before filling it
   RunReport report = stages.run([&] { return run_stages(o, stages); });
   out_folder.keep();

@@ -3,11 +3,14 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
 #include "dvs/info.hpp"
+#include "io/disk_space.hpp"
+#include "io/injected_faults.hpp"
 
 namespace dvs {
 
@@ -82,10 +85,13 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
     std::ofstream out(tmp);
     out << j.dump(2) << "\n";
     out.close();
+    int err = out ? 0 : errno;  // the failed write(2)'s, which the stream leaves in errno
+    if (const int injected = faults::write_error(path); injected && out) out.setstate(std::ios::badbit), err = injected;
     if (!out) {
       std::error_code ec;
       std::filesystem::remove(tmp, ec);
-      throw Error(path.string() + ": cannot write run.json");
+      throw Error(path.string() + ": cannot write run.json: " +
+                  (err ? write_error_note(err, path.parent_path()) : std::string("an I/O error")));
     }
   }
   std::error_code ec;

@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "io/crash_points.hpp"
+#include "io/injected_faults.hpp"
 
 namespace dvs {
 
@@ -17,12 +18,16 @@ void StageTracker::begin(const std::string& stage, const std::string& note) {
   check_cancelled();
   crash_point("stage-begin", stage);
   stage_ = stage;
+  ended_ = false;
+  faults::set_stage(stage);  // named in DVS_FAULTS_TRACE's lines
   start_ = std::chrono::steady_clock::now();
   say(0, 0, note);
 }
 
 void StageTracker::end() {
   crash_point("stage-end", stage_);
+  ended_ = true;
+  faults::set_stage("after-" + stage_);
   times_.push_back({stage_, std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count()});
 }
 
@@ -46,6 +51,11 @@ vk::SegmentHook StageTracker::segment_hook() const {
                                                   : last_note_ + " · " + p.label;
     progress_(stage_, last_step_, last_total_, note);
   };
+}
+
+std::string StageTracker::where() const {
+  if (stage_.empty()) return "start-up";
+  return ended_ ? "after the " + stage_ + " stage" : stage_ + " stage";
 }
 
 bool StageTracker::cancel_requested() const { return cancelled_ && cancelled_(); }

@@ -3,6 +3,7 @@
 // memory ran out).
 #pragma once
 #include <chrono>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "tensor/ops_check.hpp"
+#include "vk/check.hpp"
 #include "vk/context.hpp"
 
 namespace dvs {
@@ -37,8 +39,16 @@ class StageTracker {
   static constexpr double kSegmentProgressS = 0.5;
   const std::vector<StageTime>& times() const { return times_; }
 
+  // What an out-of-device-memory error in `stage` should add (pipeline/memory_advice.hpp); unset: the
+  // allocator's generic advice.
+  void set_memory_advice(std::function<std::string(const std::string& stage)> advice) {
+    memory_advice_ = std::move(advice);
+  }
+
   // Runs the whole job: diffusion::Cancelled becomes dvs::Cancelled, any other dvs::Error thrown inside a
-  // stage is rethrown as "<stage> stage: <message>".
+  // stage is rethrown as "<stage> stage: <message>". Device faults say exactly where they happened, also
+  // between stages (loading a model) and before the first ("after the render stage: ", "start-up: "), and out
+  // of device memory adds the stage's memory advice.
   template <class Job>
   auto run(Job&& job) -> decltype(job()) {
     try {
@@ -47,6 +57,12 @@ class StageTracker {
       throw;
     } catch (const diffusion::Cancelled&) {
       throw Cancelled();
+    } catch (const vk::DeviceOutOfMemory& e) {
+      const std::string advice_stage = ended_ ? "" : stage_;  // between stages: a model's weights, the run's advice
+      throw Error(where() + ": " + e.detail() +
+                  (memory_advice_ ? memory_advice_(advice_stage) : std::string(vk::kOutOfMemoryHint)));
+    } catch (const vk::DeviceLost& e) {
+      throw Error(where() + ": " + e.what());
     } catch (const Error& e) {
       if (stage_.empty()) throw;
       throw Error(stage_ + " stage: " + e.what());
@@ -55,10 +71,14 @@ class StageTracker {
 
  private:
   bool cancel_requested() const;
+  // "<stage> stage", "after the <stage> stage" (between two stages) or "start-up" (before the first).
+  std::string where() const;
 
   ProgressFn progress_;
   CancelFn cancelled_;
   std::string stage_;
+  bool ended_ = false;  // stage_ has ended and the next has not begun
+  std::function<std::string(const std::string&)> memory_advice_;
   // The last say(), which segment progress repeats with its own note.
   mutable int last_step_ = 0, last_total_ = 0;
   mutable std::string last_note_;

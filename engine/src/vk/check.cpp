@@ -1,6 +1,12 @@
 #include "vk/check.hpp"
 
+#include <cstring>
+
 namespace dvs::vk {
+
+const char* const kOutOfMemoryHint =
+    ". Try --vae-tiling, a smaller --height/--width, fewer --frames, or a device with more memory (dvs plan "
+    "shows what each stage needs)";
 
 const char* result_name(VkResult r) {
   switch (r) {
@@ -26,11 +32,18 @@ const char* result_name(VkResult r) {
 }
 
 void throw_vk_error(VkResult r, const char* call, const char* file, int line) {
-  std::string msg = std::string("Vulkan call failed with ") + result_name(r) + " (" + std::to_string(int(r)) +
-                    "): " + call + " at " + file + ":" + std::to_string(line);
+  const std::string msg = std::string("Vulkan call failed with ") + result_name(r) + " (" + std::to_string(int(r)) +
+                          "): " + call + " at " + file + ":" + std::to_string(line);
+  const std::string function(call, std::strcspn(call, "("));  // "vkQueueSubmit" of "vkQueueSubmit(queue_, ...)"
   if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
-    msg += ". The device ran out of memory: try --vae-tiling, a smaller --height/--width or fewer --frames.";
-  if (r == VK_ERROR_DEVICE_LOST) msg += ". The GPU driver reset the device (a shader fault or a timeout).";
+    throw DeviceOutOfMemory("the device ran out of memory (" + std::string(result_name(r)) + " from " + function + ")",
+                            kOutOfMemoryHint);
+  if (r == VK_ERROR_DEVICE_LOST)
+    throw DeviceLost("the GPU device was lost (VK_ERROR_DEVICE_LOST from " + function + "): the driver reset it "
+                     "after a shader fault, a timeout or a hardware error, and nothing on it survives. What to try: run the same command again "
+                     "(stages already finished are taken from the cache); if it happens again, look for the GPU's "
+                     "error in the kernel log (dmesg), update the driver, or give the GPU less work per submission "
+                     "(--vae-tiling, fewer --frames, a smaller --height/--width)");
   throw Error(msg);
 }
 

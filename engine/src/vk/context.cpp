@@ -5,6 +5,7 @@
 #include <cstring>
 #include <iostream>
 
+#include "io/injected_faults.hpp"
 #include "vk/check.hpp"
 #include "vk/memory.hpp"
 #include "vk/pipeline.hpp"
@@ -310,6 +311,9 @@ void Context::submit_and_wait(VkCommandBuffer cmd) {
   VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cmd;
+  // DVS_FAULTS=submit=N: this submission reports a lost device (io/injected_faults.hpp).
+  if (faults::fail_now(faults::Kind::submit, "vkQueueSubmit"))
+    throw_vk_error(VK_ERROR_DEVICE_LOST, "vkQueueSubmit", __FILE__, __LINE__);
   VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence_));
   ++submissions_;
   VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "io/injected_faults.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 
@@ -96,10 +97,10 @@ void Allocator::check_budget(VkDeviceSize size, uint32_t heap, const std::string
   }
   if (limit_ && cap == *limit_) source = format_bytes(cap) + " (limit set by Allocator::limit_device_memory)";
   if (after > cap)
-    throw Error("Out of device memory: " + what + " needs a new block of " + format_bytes(size) + ", which would "
-                "bring dvs's device memory to " + format_bytes(after) + ", over the " + source + " it may use. Try "
-                "--vae-tiling, a smaller --height/--width, fewer --frames, or a device with more memory (dvs plan "
-                "shows what each stage needs).");
+    throw DeviceOutOfMemory("Out of device memory: " + what + " needs a new block of " + format_bytes(size) +
+                                ", which would bring dvs's device memory to " + format_bytes(after) + ", over the " +
+                                source + " it may use",
+                            kOutOfMemoryHint);
 }
 
 Allocator::~Allocator() {
@@ -164,7 +165,7 @@ uint32_t Allocator::memory_type_for(MemoryUse use, uint32_t type_bits) const {
   return uint32_t(t);
 }
 
-MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::string& what) {
+MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::string& what, bool injected_failure) {
   VkDevice dev = ctx_.device();
   auto block = std::make_unique<MemoryBlock>();
   block->size = size;
@@ -190,13 +191,14 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
     vkDestroyBuffer(dev, block->buffer, nullptr);
     throw;
   }
-  VkResult r = vkAllocateMemory(dev, &mai, nullptr, &block->memory);
+  VkResult r = injected_failure ? VK_ERROR_OUT_OF_DEVICE_MEMORY : vkAllocateMemory(dev, &mai, nullptr, &block->memory);
   if (r != VK_SUCCESS) {
     vkDestroyBuffer(dev, block->buffer, nullptr);
     if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
-      throw Error("Out of device memory: allocating " + format_bytes(req.size) + " for " + what + " failed (" +
-                  format_bytes(stats_.bytes_reserved) + " already held by dvs). Try --vae-tiling, a smaller "
-                  "--height/--width, fewer --frames, or a device with more memory (dvs plan shows the budget).");
+      throw DeviceOutOfMemory("Out of device memory: allocating " + format_bytes(req.size) + " for " + what +
+                                  " failed (" + result_name(r) + "; " + format_bytes(stats_.bytes_reserved) +
+                                  " already held by dvs)",
+                              kOutOfMemoryHint);
     VK_CHECK(r);
   }
   VK_CHECK(vkBindBufferMemory(dev, block->buffer, block->memory, 0));
@@ -238,8 +240,11 @@ Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string&
       }
     if (block) break;
   }
-  if (!block) {
-    block = new_block(std::max(need, block_size()), use, what);
+  // DVS_FAULTS=alloc=N counts every allocation, also those a free range would hold: the Nth asks the driver for
+  // a block of its own and gets VK_ERROR_OUT_OF_DEVICE_MEMORY, through the real error path (io/injected_faults.hpp).
+  const bool injected = faults::fail_now(faults::Kind::alloc, what);
+  if (!block || injected) {
+    block = new_block(injected ? need : std::max(need, block_size()), use, what, injected);
     offset = 0;
   }
   VkDeviceSize range = block->free_ranges[offset];

@@ -109,7 +109,8 @@ class Allocator {
  private:
   friend class Buffer;
   void release(Buffer& b);
-  MemoryBlock* new_block(VkDeviceSize size, MemoryUse use, const std::string& what);
+  // `injected_failure`: the driver's answer is VK_ERROR_OUT_OF_DEVICE_MEMORY (DVS_FAULTS=alloc=N).
+  MemoryBlock* new_block(VkDeviceSize size, MemoryUse use, const std::string& what, bool injected_failure = false);
   void return_free_blocks(MemoryUse use);  // see memory.cpp for the policy
   void free_block(size_t index);
   uint32_t memory_type_for(MemoryUse use, uint32_t type_bits) const;

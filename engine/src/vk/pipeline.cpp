@@ -8,6 +8,7 @@
 #include <iostream>
 #include <unistd.h>
 
+#include "io/injected_faults.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/shader_registry.hpp"
@@ -139,7 +140,8 @@ void PipelineCache::save() {
     if (!out) return;  // an unwritable cache directory only costs start-up time
     out.write(reinterpret_cast<const char*>(&h), sizeof h);
     out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(size));
-    if (!out) {
+    out.close();
+    if (!out || faults::write_error(path)) {
       std::filesystem::remove(tmp, ec);
       return;
     }

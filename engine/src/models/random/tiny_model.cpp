@@ -16,6 +16,7 @@
 
 #include "dvs/error.hpp"
 #include "spec/model_schema.hpp"
+#include "io/injected_faults.hpp"
 #include "io/safetensors_writer.hpp"
 
 namespace dvs::models {
@@ -27,7 +28,7 @@ void write_json(const std::filesystem::path& p, const json& j) {
   std::filesystem::create_directories(p.parent_path());
   std::ofstream out(p);
   out << j.dump(2) << "\n";
-  if (!out) throw Error(p.string() + ": cannot write");
+  if (!out || faults::write_error(p)) throw Error(p.string() + ": cannot write");
 }
 
 json t5_config(const TinyModelSpec& s) {
