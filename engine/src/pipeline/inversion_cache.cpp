@@ -77,14 +77,15 @@ Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shap
   return {};
 }
 
-void InversionCache::store(vk::Context& ctx, const std::string& key, const Tensor& latent) const {
+std::string InversionCache::store(vk::Context& ctx, const std::string& key, const Tensor& latent) const {
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   try {
     write_cache_entry(file(key), latent.download(ctx));
-  } catch (const Error&) {
-    // An unwritable cache only costs time on the next run.
+  } catch (const Error& e) {
+    return e.what();  // an unwritable cache only costs time on the next run
   }
+  return {};
 }
 
 std::string model_fingerprint(const std::filesystem::path& model) {

@@ -20,7 +20,8 @@ class InversionCache {
   // Undefined when absent. An entry that is not a finite f32 array of `shape` (damaged, truncated, NaN/Inf) is
   // never reused: it is removed and `rejected` (when given) says why.
   Tensor load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected = nullptr) const;
-  void store(vk::Context& ctx, const std::string& key, const Tensor& latent) const;
+  // Empty when the entry was written; else why not (the caller warns: an unwritable cache costs only time).
+  [[nodiscard]] std::string store(vk::Context& ctx, const std::string& key, const Tensor& latent) const;
   std::filesystem::path file(const std::string& key) const;
   const std::filesystem::path& dir() const { return dir_; }
 

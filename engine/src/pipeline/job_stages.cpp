@@ -210,7 +210,7 @@ std::optional<CachedLatent> LatentCache::load(vk::Context& ctx, const Shape& sha
   return c;
 }
 
-void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const {
+std::string LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const {
   // The metadata first, then the latent (written under a temporary name and renamed): a latent file is
   // there only complete and with its metadata.
   std::error_code ec;
@@ -219,15 +219,20 @@ void LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlohmann::
   {
     std::ofstream out(tmp);
     out << meta.dump(2) << "\n";
-    if (!out || faults::write_error(meta_file())) return std::filesystem::remove(tmp, ec), void();  // costs only time
+    if (!out || faults::write_error(meta_file())) {
+      std::filesystem::remove(tmp, ec);
+      return meta_file().string() + ": could not be written";
+    }
   }
   std::filesystem::rename(tmp, meta_file(), ec);
   if (ec) {
     std::filesystem::remove(tmp, ec);
-    return;
+    return meta_file().string() + ": " + ec.message();
   }
-  cache_.store(ctx, key_, latent);
+  std::string failed = cache_.store(ctx, key_, latent);
+  if (!failed.empty()) std::filesystem::remove(meta_file(), ec);  // no metadata without its latent
   remove_stale_temporaries(meta_file());  // what a store killed earlier left
+  return failed;
 }
 
 std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames) {
@@ -270,7 +275,12 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
   r.eps = invert_latent(ctx, transformer, inversion_steps(st, jp.schedule, t0), enc.x0_mean, enc.image_latent, text_empty,
                         stages.loop_callbacks(&check), &check);
   ops::require_finite(ctx, {{&r.eps, "ε_inv"}}, kNonFiniteHint);  // before it is cached
-  if (o.use_cache) cache.store(ctx, key, r.eps);
+  if (o.use_cache) {
+    if (const std::string failed = cache.store(ctx, key, r.eps); !failed.empty()) {
+      stages.say(0, 0, "warning: the inversion could not be cached (" + failed + "); a later run computes it again");
+      r.cache_file.clear();
+    }
+  }
   return r;
 }
 

@@ -94,7 +94,8 @@ class LatentCache {
   LatentCache(const RunOptions& o, std::string key);
   // nullopt when absent; a damaged entry is removed and `rejected` says why.
   std::optional<CachedLatent> load(vk::Context& ctx, const Shape& shape, std::string* rejected) const;
-  void store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const;
+  // Empty when the entry was written; else why not (nothing of it is left behind).
+  [[nodiscard]] std::string store(vk::Context& ctx, const Tensor& latent, const nlohmann::json& meta) const;
   std::filesystem::path file() const;
   std::filesystem::path meta_file() const;
   const std::string& key() const { return key_; }

@@ -172,7 +172,9 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
       const auto tp = models::TilePlan::for_encode(vcfg, *tiling);
       latent_meta["encoded_with"]["vae_tile"] = {tp.tile_in_h, tp.tile_in_w};
     }
-    if (o.use_cache) latent_cache.store(ctx, latent, latent_meta);
+    if (o.use_cache)
+      if (const std::string failed = latent_cache.store(ctx, latent, latent_meta); !failed.empty())
+        stages.say(0, 0, "warning: the sampled latent could not be cached (" + failed + "); a later run samples again");
     stages.end();
   }
 
