@@ -71,6 +71,7 @@ std::vector<FaultOutcome> walk(const Walk& w, const fs::path& root, const fs::pa
       EXPECT_EQ(test::count_of(r.output, "dvs: error: "), 1u) << r.output;
       test::expect_fault_message(e, errno_name, row.message, w.stage_prefix.empty() ? test::stage_words(e.stage) : w.stage_prefix);
       EXPECT_FALSE(w.output_written(dir)) << "a failed run left its output";
+      EXPECT_EQ(r.output.find(".dvs-partial"), std::string::npos) << "names the staging folder, gone by now\n" << r.output;
       const auto again = test::run_command(w.command(dir, ""));
       EXPECT_EQ(again.exit_code, 0) << again.output;
       EXPECT_TRUE(w.output_written(dir));

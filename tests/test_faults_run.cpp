@@ -103,6 +103,7 @@ TEST_F(FaultsRun, EveryStageAndKindFailsCleanlyAndTheRerunReuses) {
       EXPECT_EQ(test::count_of(r.output, "dvs: error: "), 1u) << r.output;
       test::expect_fault_message(here, f.errno_name, row.message, test::stage_words(e.stage));
       EXPECT_TRUE(test::files_in(c.out).empty()) << "--out holds something after a failed run";
+      EXPECT_EQ(r.output.find(".dvs-partial"), std::string::npos) << "names the staging folder, gone by now\n" << r.output;
     }
     const auto torn = test::torn_files(c.cache);
     EXPECT_TRUE(torn.empty()) << torn.front();

@@ -56,7 +56,8 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   stages.begin("write", "writing eps_inv.npy");
   RunOutputs files(o.render.out_dir);
   InversionReport report;
-  write_npy(files.add("eps_inv.npy"), inv.eps.download(ctx));
+  const HostTensor eps = inv.eps.download(ctx);
+  files.write([&] { write_npy(files.add("eps_inv.npy"), eps); });
   report.eps_inv_npy = files.final_path("eps_inv.npy");
   stages.end();
   stages.check_cancelled();

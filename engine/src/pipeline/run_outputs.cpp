@@ -90,6 +90,13 @@ RunOutputs::RunOutputs(std::filesystem::path dir) : dir_(std::move(dir)) {
   if (ec) throw Error(staging_.string() + ": cannot create the staging folder for the outputs (" + ec.message() + ")");
 }
 
+std::string RunOutputs::with_final_paths(std::string text) const {
+  const std::string from = staging_.string(), to = dir_.string();
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+    text.replace(at, from.size(), to);
+  return text;
+}
+
 std::filesystem::path RunOutputs::add(const std::string& name) {
   names_.push_back(name);
   return staging_ / name;

@@ -8,8 +8,11 @@
 // Jobs hold DIR's lock (output_lock.hpp) while they stage and commit.
 #pragma once
 #include <filesystem>
+#include <typeinfo>
 #include <string>
 #include <vector>
+
+#include "dvs/error.hpp"
 
 namespace dvs {
 
@@ -48,6 +51,18 @@ class RunOutputs {
   std::filesystem::path add(const std::string& name);
   // Where `name` will be once committed: DIR/name.
   std::filesystem::path final_path(const std::string& name) const { return dir_ / name; }
+  // Runs `writes` (the writes of the added files); a plain dvs::Error they throw (a full disk, an I/O error) is
+  // rethrown naming DIR/name instead of the staging folder's path, which the user never sees (it is removed).
+  template <class Writes>
+  void write(Writes&& writes) const {
+    try {
+      writes();
+    } catch (const Error& e) {
+      if (typeid(e) != typeid(Error)) throw;  // device errors and cancellation keep their type
+      throw Error(with_final_paths(e.what()));
+    }
+  }
+  std::string with_final_paths(std::string text) const;  // every staging/NAME in text as DIR/NAME
   // Renames every added file into DIR, in the order they were added (so the one added last, e.g. run.json,
   // marks the folder finished), replacing files of the same names. Throws dvs::Error naming a file that
   // could not be moved.

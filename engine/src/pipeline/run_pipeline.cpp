@@ -188,10 +188,12 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
   const auto render_mp4 = files.add("render.mp4"), mask_mp4 = files.add("mask.mp4"),
              comparison_mp4 = files.add("comparison.mp4"), output_mp4 = files.add("output.mp4"),
              run_json = files.add("run.json");  // last: moved into place last, it marks the folder finished
-  write_video(render_mp4, in.render, in.fps);
-  write_video(mask_mp4, mask_as_video(in.mask), in.fps);
-  write_video(comparison_mp4, hstack_videos({&in.rgb, &in.render, &output}), in.fps);
-  write_video(output_mp4, output, in.fps);
+  files.write([&] {
+    write_video(render_mp4, in.render, in.fps);
+    write_video(mask_mp4, mask_as_video(in.mask), in.fps);
+    write_video(comparison_mp4, hstack_videos({&in.rgb, &in.render, &output}), in.fps);
+    write_video(output_mp4, output, in.fps);
+  });
   report.render_mp4 = files.final_path("render.mp4");
   report.mask_mp4 = files.final_path("mask.mp4");
   report.comparison_mp4 = files.final_path("comparison.mp4");
@@ -233,7 +235,7 @@ RunReport run_stages(const RunOptions& options, StageTracker& stages) {
     extras.latent = {{"path", latent_cache.file().string()}, {"key", latent_cache.key()}, {"reused", cached.has_value()},
                      {"encoded_with", latent_meta.value("encoded_with", nlohmann::json())}};
   }
-  write_run_record(run_json, o, report, extras);
+  files.write([&] { write_run_record(run_json, o, report, extras); });
   stages.check_cancelled();  // the last chance before the job's files replace anything
   files.commit();
   return report;
