@@ -4,9 +4,11 @@
 # seed corpus, then the unit tests under the sanitizers. Fails on any crash, hang, leak, out-of-memory or
 # sanitizer report. Prints per harness the executions per second and libFuzzer's coverage (cov: edges, ft: features).
 #
-#   tests/run_sanitized.sh                 everything (about 4 minutes of fuzzing plus the unit tests)
-#   DVS_FUZZ_SECONDS=60 tests/run_sanitized.sh       a longer fuzzing budget per harness (default 15)
-#   DVS_SANITIZE_TESTS='-L unit' (default), or any ctest selection, or 'none' to fuzz only
+#   tests/run_sanitized.sh                 everything: about 4 minutes of fuzzing, then the tests labelled
+#                                          "sanitize" (dvs_sanitize_tests, tests/CMakeLists.txt: every reader, the
+#                                          dvs program on tiny models, the caches)
+#   DVS_FUZZ_SECONDS=60                    a longer fuzzing budget per harness (default 15)
+#   DVS_SANITIZE_TESTS=all                 the whole unit suite (builds dvs_tests: far slower), or 'none' to fuzz only
 #   DVS_FUZZ_ONLY=fuzz_npy                 one harness (a name or a regular expression of names)
 # Mesa (lavapipe runs inside the test processes), the Vulkan loader and OpenCV are not built with the sanitizers:
 # their leaks are suppressed by library name in tests/sanitizers/lsan.supp; nothing of dvs's own is suppressed.
@@ -15,7 +17,7 @@ cd "$(dirname "$0")/.."
 SOURCE_DIR="$PWD"
 BUILD="${DVS_SANITIZE_BUILD:-build-sanitize}"
 FUZZ_SECONDS="${DVS_FUZZ_SECONDS:-15}"
-TESTS="${DVS_SANITIZE_TESTS:--L unit}"
+TESTS="${DVS_SANITIZE_TESTS:-sanitize}"
 ONLY="${DVS_FUZZ_ONLY:-.}"
 JOBS="${DVS_SANITIZE_JOBS:-$(nproc)}"
 start=$(date +%s)
@@ -28,11 +30,17 @@ launcher=()
 if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
 
 echo "== configure $BUILD (clang, ASan+UBSan, libFuzzer harnesses) [$(elapsed)]"
+mkdir -p "$BUILD"
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" \
-  -DDVS_SANITIZE=ON -DDVS_FUZZ=ON -DDVS_BUILD_BENCH=OFF >"$BUILD.configure.log" 2>&1 ||
-  { cat "$BUILD.configure.log"; exit 1; }
+  -DDVS_SANITIZE=ON -DDVS_FUZZ=ON -DDVS_BUILD_BENCH=OFF >"$BUILD/configure.log" 2>&1 ||
+  { cat "$BUILD/configure.log"; exit 1; }
 targets=(dvs_fuzzers)
-if [ "$TESTS" != none ]; then targets+=(dvs_tests dvs); fi
+case "$TESTS" in
+  none) ;;
+  all) targets+=(dvs_tests dvs); ctest_selection=(-L unit) ;;
+  sanitize) targets+=(dvs_sanitize_tests); ctest_selection=(-L sanitize) ;;
+  *) echo "run_sanitized.sh: DVS_SANITIZE_TESTS must be sanitize (the default), all or none, got '$TESTS'" >&2; exit 2 ;;
+esac
 echo "== build ${targets[*]} [$(elapsed)]"
 cmake --build "$BUILD" -j"$JOBS" --target "${targets[@]}"
 
@@ -80,9 +88,8 @@ echo "== fuzzing done [$(elapsed)]"
 printf '%s\n' "${summary[@]}"
 
 if [ "$TESTS" != none ]; then
-  echo "== unit tests under ASan+UBSan: ctest $TESTS [$(elapsed)]"
-  # shellcheck disable=SC2086  # the selection is ctest arguments
-  if ! ctest --test-dir "$BUILD" --output-on-failure -j2 $TESTS; then failed+=("ctest $TESTS"); fi
+  echo "== tests under ASan+UBSan: ctest ${ctest_selection[*]} [$(elapsed)]"
+  if ! ctest --test-dir "$BUILD" --output-on-failure -j2 "${ctest_selection[@]}"; then failed+=("ctest ${ctest_selection[*]}"); fi
 fi
 
 echo "== run_sanitized.sh: $(elapsed) in all"
