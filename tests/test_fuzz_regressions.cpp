@@ -8,6 +8,7 @@
 
 #include "io/depth.hpp"
 #include "io/depth_images.hpp"
+#include "geometry/trajectory_json.hpp"
 #include "spec/cogvideox_config.hpp"
 #include "spec/t5_config.hpp"
 #include "dvs/run_record.hpp"
@@ -102,6 +103,13 @@ TEST_F(FuzzRegressions, ConfigValuesOfTheWrongTypeOrSizeNameTheKey) {
   dvs::test::expect_error([&] { dvs::VaeConfig::from_json(json{{"use_quant_conv", 1}}); },
                           {"vae config", "'use_quant_conv' must be true or false"});
   EXPECT_EQ(dvs::VaeConfig::from_json(json{{"sample_height", 480.0}}).sample_height, 480);  // integral floats still read
+}
+
+// fuzz_trajectory_json: a number past double's range (…E54444444) escaped as nlohmann's out_of_range.
+TEST_F(FuzzRegressions, TrajectoryJsonWithAnOverflowingNumberIsAnError) {
+  const auto file = corpus_file("trajectory_json", "regression_number_overflow");
+  dvs::test::expect_error([&] { dvs::geometry::parse_trajectory_json(dvs::test::read_text(file), "camera.json"); },
+                          {"camera.json", "not valid JSON", "number overflow"});
 }
 
 // fuzz_depth_png: a 69-byte PNG declaring 30000x30000 16-bit pixels made OpenCV allocate 1.8 GB before failing.
