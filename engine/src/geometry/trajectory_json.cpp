@@ -78,7 +78,7 @@ Trajectory parse_trajectory_json(const std::string& text, const std::string& nam
   json j;
   try {
     j = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double's range (1e999)
     throw Error(name + ": not valid JSON (" + std::string(e.what()) + ")");
   }
   if (!j.is_object()) throw Error(name + ": expected a JSON object with \"convention\" and \"poses\"");

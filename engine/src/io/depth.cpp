@@ -69,9 +69,17 @@ std::vector<uint8_t> read_npz_member(const std::filesystem::path& path, const st
   member = zip_get_name(za, zip_uint64_t(index), 0);
   zip_stat_t st;
   zip_stat_init(&st);
-  if (zip_stat_index(za, zip_uint64_t(index), 0, &st) != 0 || !(st.valid & ZIP_STAT_SIZE))
+  if (zip_stat_index(za, zip_uint64_t(index), 0, &st) != 0 || !(st.valid & ZIP_STAT_SIZE) || !(st.valid & ZIP_STAT_COMP_SIZE))
     throw Error(path.string() + ": cannot read the size of member " + member);
   if (st.size > (uint64_t(1) << 36)) throw Error(path.string() + ": member " + member + " claims an absurd size");
+  // The size is the archive's claim: the buffer below is sized from it, so it must fit what the member's
+  // compressed bytes can expand to (deflate at most ~1032:1) and those bytes must fit in the file (as pth_file.cpp).
+  std::error_code size_error;
+  const uint64_t file_size = std::filesystem::file_size(path, size_error);
+  if (size_error || st.comp_size > file_size || st.size / 1100 > st.comp_size + 1)
+    throw Error(path.string() + ": member " + member + " claims " + std::to_string(st.size) + " bytes (" +
+                std::to_string(st.comp_size) + " compressed) in a " + std::to_string(file_size) +
+                "-byte file: corrupt archive; re-save it with numpy.savez");
   std::vector<uint8_t> bytes(size_t(st.size));
   zip_file_t* f = zip_fopen_index(za, zip_uint64_t(index), 0);
   if (!f) throw Error(path.string() + ": cannot open member " + member + ": " + zip_strerror(za));

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,68 @@ std::string lower_ext(const std::filesystem::path& p) {
   return e;
 }
 
+uint32_t big_endian_u32(const unsigned char* p) { return uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 | uint32_t(p[2]) << 8 | p[3]; }
+int32_t little_endian_i32(const unsigned char* p) {
+  return int32_t(uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24);
+}
+
+// The width, height and bytes per pixel the image's header declares (PNG: IHDR; EXR: the dataWindow attribute),
+// or zeros when it is not found there (OpenCV then decides).
+struct DeclaredSize {
+  int64_t width = 0, height = 0, bytes_per_pixel = 0;
+};
+DeclaredSize declared_size(const std::string& head) {
+  const auto* p = reinterpret_cast<const unsigned char*>(head.data());
+  DeclaredSize d;
+  if (head.size() >= 26 && head.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0 && head.compare(12, 4, "IHDR") == 0) {
+    d.width = big_endian_u32(p + 16);
+    d.height = big_endian_u32(p + 20);
+    const int64_t channels = p[25] == 0 ? 1 : p[25] == 2 ? 3 : p[25] == 4 ? 2 : p[25] == 6 ? 4 : 1;
+    d.bytes_per_pixel = std::max<int64_t>(1, channels * p[24] / 8);
+    return d;
+  }
+  if (head.size() < 8 || head.compare(0, 4, "\x76\x2f\x31\x01") != 0) return d;
+  // EXR attributes after the 8-byte magic and version: name NUL, type NUL, int32 size, value; an empty name ends them.
+  for (size_t i = 8; i < head.size() && head[i] != '\0';) {
+    const size_t name_end = head.find('\0', i), type_end = name_end == std::string::npos ? name_end : head.find('\0', name_end + 1);
+    if (type_end == std::string::npos || type_end + 4 >= head.size()) break;
+    const int32_t size = little_endian_i32(p + type_end + 1);
+    const size_t value = type_end + 5;
+    if (size < 0 || value + size_t(size) > head.size()) break;
+    if (head.compare(i, name_end - i, "dataWindow") == 0 && size == 16) {
+      const int64_t x0 = little_endian_i32(p + value), y0 = little_endian_i32(p + value + 4);
+      const int64_t x1 = little_endian_i32(p + value + 8), y1 = little_endian_i32(p + value + 12);
+      d.width = x1 - x0 + 1;
+      d.height = y1 - y0 + 1;
+      d.bytes_per_pixel = 4;
+      return d;
+    }
+    i = value + size_t(size);
+  }
+  return d;
+}
+
+// Refuses an image whose header declares more pixels than a depth frame has (kMaxDepthImagePixels) or than a PNG
+// of this file's size can hold (deflate expands at most ~1032:1), before OpenCV allocates them.
+void check_declared_size(const std::filesystem::path& file, const char* kind) {
+  std::ifstream in(file, std::ios::binary);
+  std::string head(64 * 1024, '\0');
+  in.read(head.data(), std::streamsize(head.size()));
+  head.resize(size_t(in.gcount()));
+  const DeclaredSize d = declared_size(head);
+  if (d.width == 0 && d.height == 0) return;
+  const std::string what = file.string() + ": the " + kind + " header declares a " + std::to_string(d.width) + "x" +
+                           std::to_string(d.height) + " image";
+  if (d.width <= 0 || d.height <= 0 || d.width > kMaxDepthImagePixels || d.height > kMaxDepthImagePixels ||
+      d.width * d.height > kMaxDepthImagePixels)
+    throw Error(what + "; a depth frame has at most " + std::to_string(kMaxDepthImagePixels) +
+                " pixels (corrupt file?)");
+  std::error_code ec;
+  const uint64_t file_size = std::filesystem::file_size(file, ec);
+  if (!ec && kind == std::string("PNG") && uint64_t(d.width * d.height * d.bytes_per_pixel) / 1100 > file_size)
+    throw Error(what + ", more than its " + std::to_string(file_size) + " bytes can hold (corrupt file?)");
+}
+
 // One single-channel image as [H,W] f32, through OpenCV (PNG 8/16-bit, EXR float).
 HostTensor read_single_channel(const std::filesystem::path& file, const char* kind) {
   const std::string name = file.string();
@@ -36,6 +99,7 @@ HostTensor read_single_channel(const std::filesystem::path& file, const char* ki
 #if !DVS_VIDEO_IO
   throw Error(name + ": cannot read " + kind + " depth images: built without video I/O (DVS_VIDEO_IO=OFF)");
 #else
+  check_declared_size(file, kind);
   cv::Mat img;
   try {
     img = cv::imread(name, cv::IMREAD_UNCHANGED | cv::IMREAD_ANYDEPTH);

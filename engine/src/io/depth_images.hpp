@@ -22,7 +22,9 @@ std::vector<std::filesystem::path> depth_image_files(const std::filesystem::path
 // [N,H,W] f32 from depth_image_files(folder). Errors name the file.
 HostTensor read_depth_image_sequence(const std::filesystem::path& folder);
 
-// One frame: [H,W] f32.
+// One frame: [H,W] f32. An image whose header declares more than kMaxDepthImagePixels pixels (8192 x 8192), or a
+// PNG declaring more than its compressed bytes can hold, is refused before it is decoded.
+constexpr int64_t kMaxDepthImagePixels = int64_t(1) << 26;
 HostTensor read_depth_png(const std::filesystem::path& file);
 HostTensor read_depth_exr(const std::filesystem::path& file);
 

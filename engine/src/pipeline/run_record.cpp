@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "io/json_file.hpp"
 #include "dvs/info.hpp"
 #include "io/disk_space.hpp"
 #include "io/injected_faults.hpp"
@@ -108,7 +109,11 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
   try {
     std::ifstream in(run_json);
     if (!in) throw Error(run_json.string() + ": cannot read it (give --from RUN.json, a run.json dvs run wrote)");
-    j = nlohmann::json::parse(in);
+    const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // dump() below recurses: a hostile file must not nest deep enough to exhaust the stack (run.json needs 3 levels)
+    if (json_nests_deeper_than(content, 64))
+      throw Error(run_json.string() + ": not a run.json (JSON nests deeper than 64 levels)");
+    j = nlohmann::json::parse(content);
   } catch (const nlohmann::json::exception& e) {
     throw Error(run_json.string() + ": not a run.json (" + e.what() + ")");
   }
@@ -136,7 +141,7 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
     text(in, "depth", "depth");
   }
   // With --depth-model the checkpoint decides depth or disparity (--metric-depth is refused there).
-  if (in.value("depth_values", "") == "depth" && !in.contains("depth_model")) args.push_back("--metric-depth");
+  if (in.contains("depth_values") && in["depth_values"] == "depth" && !in.contains("depth_model")) args.push_back("--metric-depth");
   text(in, "trajectory", "trajectory");
   text(in, "model", "model");
   text(in, "out", "out");
@@ -145,8 +150,11 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
   if (st.contains("negative_prompt") && st["negative_prompt"].is_string() && !st["negative_prompt"].get<std::string>().empty())
     text(st, "negative_prompt", "negative-prompt");
   text(st, "frames", "frames");
+  for (const char* key : {"height", "width"})
+    if (!st.contains(key) || !st[key].is_number_integer())
+      throw Error(run_json.string() + ": \"" + key + "\" is missing or not a whole number");
   args.push_back("--size");
-  args.push_back(st.at("height").dump() + "x" + st.at("width").dump());
+  args.push_back(st["height"].dump() + "x" + st["width"].dump());
   text(st, "resize", "resize");
   if (st.contains("intrinsics") && st["intrinsics"].is_array() && st["intrinsics"].size() == 4) {
     std::string k;
@@ -166,8 +174,12 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
   if (st.contains("cache_dir") && st["cache_dir"].is_string()) text(st, "cache_dir", "cache-dir");
   if (st.contains("vae_tile") && st["vae_tile"].is_array() && st["vae_tile"].size() == 2)
     args.insert(args.end(), {"--vae-tile", st["vae_tile"][0].dump() + "x" + st["vae_tile"][1].dump()});
-  if (j.contains("lora") && j["lora"].is_object())
-    args.insert(args.end(), {"--lora", j["lora"].at("file").get<std::string>() + ":" + j["lora"].at("scale").dump()});
+  if (j.contains("lora") && j["lora"].is_object()) {
+    const nlohmann::json& lora = j["lora"];
+    if (!lora.contains("file") || !lora["file"].is_string() || !lora.contains("scale") || !lora["scale"].is_number())
+      throw Error(run_json.string() + ": \"lora\" must hold \"file\" (a path) and \"scale\" (a number)");
+    args.insert(args.end(), {"--lora", lora["file"].get<std::string>() + ":" + lora["scale"].dump()});
+  }
   return args;
 }
 

@@ -40,33 +40,36 @@ CogVideoXTransformerConfig CogVideoXTransformerConfig::from_json(const nlohmann:
   if (c.contains("ofs_embed_dim") && !c["ofs_embed_dim"].is_null() && c["ofs_embed_dim"] != 0)
     unsupported("ofs_embed_dim (CogVideoX 1.5)");
   if (!r.rotary) unsupported("use_rotary_positional_embeddings = false (CogVideoX-2B sincos embedding)");
-  if (c.value("activation_fn", std::string("gelu-approximate")) != "gelu-approximate")
-    unsupported("activation_fn other than gelu-approximate");
-  if (c.value("timestep_activation_fn", std::string("silu")) != "silu") unsupported("timestep_activation_fn other than silu");
+  if (v.string("activation_fn", "gelu-approximate") != "gelu-approximate") unsupported("activation_fn other than gelu-approximate");
+  if (v.string("timestep_activation_fn", "silu") != "silu") unsupported("timestep_activation_fn other than silu");
   if (r.head_dim % 16 != 0) unsupported("attention_head_dim not a multiple of 16 (3D RoPE split)");
   return r;
 }
 
 VaeConfig VaeConfig::from_json(const nlohmann::json& j) {
+  // Every value's type is checked (ConfigValues), so a malformed config is an error naming the key.
+  const ConfigValues v(j, "vae config");
+  v.require_object();
   VaeConfig c;
-  auto integer = [&](const char* key, int64_t def) {
-    return j.contains(key) && !j[key].is_null() ? int64_t(std::llround(j[key].get<double>())) : def;
-  };
+  auto integer = [&](const char* key, int64_t def) { return j.contains(key) && !j[key].is_null() ? v.integer(key, def, 1) : def; };
   c.in_channels = integer("in_channels", 3);
   c.out_channels = integer("out_channels", 3);
   c.latent_channels = integer("latent_channels", 16);
-  c.block_out_channels = {128, 256, 256, 512};
-  if (j.contains("block_out_channels")) c.block_out_channels = j["block_out_channels"].get<std::vector<int64_t>>();
+  c.block_out_channels = v.integers("block_out_channels", {128, 256, 256, 512}, 1);
+  if (c.block_out_channels.size() > 16)  // one level per halving of the frame (spatial_ratio shifts by it)
+    v.fail("block_out_channels", "has " + std::to_string(c.block_out_channels.size()) + " levels; at most 16");
   c.layers_per_block = integer("layers_per_block", 3);
   c.norm_num_groups = integer("norm_num_groups", 32);
-  if (j.contains("norm_eps")) c.norm_eps = j["norm_eps"].get<float>();
+  c.norm_eps = v.number_or_default("norm_eps", c.norm_eps);
   c.temporal_compression_ratio = integer("temporal_compression_ratio", 4);
-  if (j.contains("scaling_factor") && !j["scaling_factor"].is_null()) c.scaling_factor = j["scaling_factor"].get<double>();
+  if (j.contains("scaling_factor") && !j["scaling_factor"].is_null()) {
+    if (!j["scaling_factor"].is_number()) v.fail("scaling_factor", "must be a number, got " + j["scaling_factor"].dump());
+    c.scaling_factor = j["scaling_factor"].get<double>();
+  }
   c.sample_height = integer("sample_height", 480);
   c.sample_width = integer("sample_width", 720);
-  if (j.contains("use_quant_conv")) c.use_quant_conv = j["use_quant_conv"].get<bool>();
-  if (j.contains("use_post_quant_conv")) c.use_post_quant_conv = j["use_post_quant_conv"].get<bool>();
-  if (c.block_out_channels.empty()) throw Error("vae config: block_out_channels is empty");
+  c.use_quant_conv = v.boolean_or_default("use_quant_conv", false);
+  c.use_post_quant_conv = v.boolean_or_default("use_post_quant_conv", false);
   return c;
 }
 

@@ -77,8 +77,10 @@ std::vector<std::string> ConfigValues::strings(const std::string& key, std::vect
 
 int64_t ConfigValues::integer_or_default(const char* key, int64_t def, int64_t min) const {
   if (!j_.contains(key) || j_[key].is_null()) return def;
-  if (!j_[key].is_number_integer() || j_[key].get<int64_t>() < min)
-    throw Error(origin_ + ": '" + key + "' must be an integer >= " + std::to_string(min));
+  // Bounded above too: sizes are multiplied together when memory is planned, and must not overflow there.
+  if (!j_[key].is_number_integer() || (j_[key].is_number_unsigned() && j_[key].get<uint64_t>() > uint64_t(kMaxConfigDim)) ||
+      j_[key].get<int64_t>() < min || j_[key].get<int64_t>() > kMaxConfigDim)
+    throw Error(origin_ + ": '" + key + "' must be an integer in " + std::to_string(min) + ".." + std::to_string(kMaxConfigDim));
   return j_[key].get<int64_t>();
 }
 

@@ -39,7 +39,7 @@ class ConfigValues {
   std::vector<std::string> strings(const std::string& key, std::vector<std::string> def) const;
 
   // ---- constructor defaults (model configs) ----
-  // Missing or null -> def; otherwise a JSON integer >= min ("'key' must be an integer >= min").
+  // Missing or null -> def; otherwise a JSON integer in [min, kMaxConfigDim] ("'key' must be an integer in min..max").
   int64_t integer_or_default(const char* key, int64_t def, int64_t min) const;
   // Missing or null -> def; otherwise true or false ("'key' must be true or false").
   bool boolean_or_default(const char* key, bool def) const;

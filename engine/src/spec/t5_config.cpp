@@ -31,7 +31,7 @@ T5EncoderConfig T5EncoderConfig::from_json(const nlohmann::json& c, std::string_
   r.max_distance = v.integer_or_default("relative_attention_max_distance", 128, 1);
   r.eps = v.number_or_default("layer_norm_epsilon", r.eps);
   // T5Config: feed_forward_proj "gated-ACT" or "ACT"; "gated-gelu" means dense_act_fn = gelu_new.
-  const std::string ffp = c.value("feed_forward_proj", std::string("relu"));
+  const std::string ffp = v.string("feed_forward_proj", "relu");
   r.gated = ffp.rfind("gated-", 0) == 0;
   // T5Config derives dense_act_fn from feed_forward_proj (the stored dense_act_fn is recomputed).
   std::string act = r.gated ? ffp.substr(6) : ffp;

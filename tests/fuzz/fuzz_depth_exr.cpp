@@ -1,0 +1,14 @@
+// One frame of an EXR depth folder (io/depth_images.hpp read_depth_exr): OpenCV decodes the EXR (OpenEXR is not
+// ours and not instrumented), dvs checks what it got (empty, channel count) and converts it to f32.
+#include "dvs/error.hpp"
+#include "harness_input.hpp"
+#include "io/depth_images.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const auto file = dvs::fuzz::write_scratch("d_0001.exr", dvs::fuzz::as_text(data, size));
+  try {
+    (void)dvs::read_depth_exr(file);
+  } catch (const dvs::Error&) {
+  }
+  return 0;
+}
