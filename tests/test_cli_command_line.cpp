@@ -150,7 +150,7 @@ TEST(CliCommandLine, RenderTakesRunsInputOptionsAndTheyAct) {
   EXPECT_GT(events, 1);
   EXPECT_EQ(last["event"], "done");
   // --check: the preflight alone; nothing is written, a problem is a failure (1).
-  const auto check = test::run_command(in.render(in.dir / "checked", "--check"));
+  const auto check = test::run_command(in.render(in.dir / "checked", "--height 32 --width 40 --check"));
   EXPECT_EQ(check.exit_code, 0) << check.output;
   EXPECT_NE(check.output.find("preflight: no problem found"), std::string::npos) << check.output;
   EXPECT_FALSE(fs::exists(in.dir / "checked"));

@@ -96,8 +96,9 @@ TEST_F(FaultsRun, EveryStageAndKindFailsCleanlyAndTheRerunReuses) {
     const bool cache_write = e.kind == "write" && test::writes_a_cache(here, c.cache, pipelines);
     if (cache_write) {
       EXPECT_EQ(r.exit_code, 0) << "a cache that cannot be written must not stop the run\n" << r.output;
-      if (here.where.rfind(c.cache.string(), 0) == 0)  // the inversion or latent entry: said, never silent
+      if (here.where.rfind(c.cache.string(), 0) == 0) {  // the inversion or latent entry: said, never silent
         EXPECT_NE(r.output.find("could not be cached"), std::string::npos) << r.output;
+      }
     } else {
       EXPECT_EQ(r.exit_code, 1) << r.output;
       EXPECT_EQ(test::count_of(r.output, "dvs: error: "), 1u) << r.output;
