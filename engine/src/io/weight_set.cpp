@@ -87,7 +87,9 @@ WeightSet WeightSet::open_index(const fs::path& index) {
   const json j = read_json_file(index, "it is the shard index of a sharded checkpoint; re-download it");
   if (!j.is_object()) throw Error(iname + ": shard index is not a JSON object");
   const auto wm = j.find("weight_map");
-  if (wm == j.end() || !wm->is_object()) throw Error(iname + ": shard index has no \"weight_map\" object");
+  if (wm == j.end() || !wm->is_object())  // e.g. a config.json given where weights belong
+    throw Error(iname + ": read as a sharded checkpoint's index (*.safetensors.index.json), but it has no "
+                "\"weight_map\" object; give the weights file itself (.safetensors or .pth) or the folder that holds them");
 
   WeightSet w;
   w.source_ = index;
