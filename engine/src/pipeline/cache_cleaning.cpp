@@ -4,11 +4,9 @@
 // belongs to a writer: only its writer's death (no such process) makes it removable.
 #include "dvs/cache.hpp"
 
-#include <signal.h>
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -17,6 +15,7 @@
 #include <string>
 
 #include "pipeline/inversion_cache.hpp"
+#include "pipeline/run_outputs.hpp"
 
 namespace dvs {
 namespace {
@@ -35,8 +34,6 @@ long writer_pid(const std::string& name) {
   }
   return 0;
 }
-
-bool process_exists(long pid) { return !(::kill(pid_t(pid), 0) != 0 && errno == ESRCH); }
 
 const char* kind_of(const std::string& prefix) {
   if (prefix == "eps_inv") return "inversion";
@@ -117,7 +114,7 @@ CacheCleaned clean_cache(const fs::path& cache_dir, const CacheCleaning& what) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
     const long pid = writer_pid(e.path().filename().string());
-    if (pid <= 0 || process_exists(pid) || !e.is_regular_file(ec)) continue;
+    if (!process_is_gone(pid) || !e.is_regular_file(ec)) continue;
     r.stale_temporaries++;
     if (!what.dry_run) fs::remove(e.path(), ec);
   }

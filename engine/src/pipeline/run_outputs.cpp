@@ -35,6 +35,8 @@ bool roll_forward(const std::filesystem::path& staging, const std::filesystem::p
 
 }  // namespace
 
+bool process_is_gone(long pid) { return pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH; }
+
 void recover_staging(const std::filesystem::path& dir, bool locked) {
   std::error_code ec;
   std::vector<std::filesystem::path> staged;
@@ -42,7 +44,7 @@ void recover_staging(const std::filesystem::path& dir, bool locked) {
     const std::string name = e.path().filename().string();
     if (name.rfind(kStagingPrefix, 0) != 0 || !e.is_directory(ec)) continue;
     const long pid = std::strtol(name.c_str() + std::strlen(kStagingPrefix), nullptr, 10);
-    if (locked || (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH)) staged.push_back(e.path());
+    if (locked || process_is_gone(pid)) staged.push_back(e.path());
   }
   for (const auto& s : staged) {
     roll_forward(s, dir);
@@ -60,7 +62,7 @@ void remove_stale_temporaries(const std::filesystem::path& file) {
     for (const char* mark : {".tmp-", ".partial-"})
       if (other.compare(name.size(), std::strlen(mark), mark) == 0)
         pid = std::strtol(other.c_str() + name.size() + std::strlen(mark), nullptr, 10);
-    if (pid > 0 && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove(e.path(), ec);
+    if (process_is_gone(pid)) std::filesystem::remove(e.path(), ec);
   }
 }
 

@@ -21,6 +21,10 @@ namespace dvs {
 // folder with its COMMIT written is moved into place (rolled forward); any other is removed.
 void recover_staging(const std::filesystem::path& dir, bool locked = true);
 
+// True when no process with this pid exists on this machine: the writer a staging or temporary name names was
+// killed, and what it left may be removed.
+bool process_is_gone(long pid);
+
 // Removes the temporary files a killed writer of `file` left beside it (NAME.tmp-PID-N, NAME.partial-PID, the
 // names write_npy, write_npz and the cache use) when no process PID exists on this machine.
 void remove_stale_temporaries(const std::filesystem::path& file);
