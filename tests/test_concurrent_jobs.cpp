@@ -145,14 +145,22 @@ TEST(ConcurrentJobs, BatchShardsAtOnceWriteWhatOneProcessWrites) {
   std::vector<int> pids;
   for (const char* shard : {"0/2", "1/2", "0/2"})
     pids.push_back(test::start_command(sharded + " --shard " + shard + " > " + (in.dir / ("shard" + std::to_string(pids.size()))).string() + " 2>&1"));
+  // Processes 0 and 2 are the same command started together: either may take a job's folder first, so either may be
+  // the one refused; at least one of them finishes cleanly.
+  int clean_copies_of_shard_0 = 0;
   for (size_t i = 0; i < pids.size(); ++i) {
     const int rc = test::wait_command(pids[i]);
     const std::string log = test::read_text(in.dir / ("shard" + std::to_string(i)));
-    if (i < 2) EXPECT_EQ(rc, 0) << log;
-    else EXPECT_TRUE(rc == 0 || log.find("in use by dvs process") != std::string::npos) << "the copy of shard 0/2\n" << log;
+    if (i == 1) {
+      EXPECT_EQ(rc, 0) << log;
+    } else {
+      clean_copies_of_shard_0 += rc == 0;
+      EXPECT_TRUE(rc == 0 || log.find("in use by dvs process") != std::string::npos) << "a copy of shard 0/2\n" << log;
+    }
     const size_t summary = log.rfind("dvs batch: shard");
     std::printf("shard process %zu: exit %d: %s", i, rc, (summary == std::string::npos ? log : log.substr(summary)).c_str());
   }
+  EXPECT_GE(clean_copies_of_shard_0, 1) << "both copies of shard 0/2 failed";
   for (int i = 0; i < 2; ++i)
     expect_same_job(in.dir / "sharded" / ("job" + std::to_string(i)), test::visible_files(in.dir / "one" / ("job" + std::to_string(i))),
                     "job " + std::to_string(i));
