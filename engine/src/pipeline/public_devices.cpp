@@ -8,9 +8,9 @@
 #include "vk/device_info.hpp"
 #include "vk/device_limits.hpp"
 #include "vk/limit_profiles.hpp"
+#include "embed/public_limits.hpp"
 
 namespace dvs {
-namespace {
 
 DeviceLimits limits_of(const vk::DeviceCaps& d) {
   DeviceLimits l;
@@ -23,8 +23,6 @@ DeviceLimits limits_of(const vk::DeviceCaps& d) {
   l.memory = d.memory_budget.bytes;
   return l;
 }
-
-}  // namespace
 
 std::vector<DeviceSummary> list_devices(const std::string& device_spec) {
   const std::vector<vk::DeviceCaps> devices = vk::list_devices();  // DVS_LIMITS lowers them, as for a run
