@@ -137,6 +137,7 @@ TEST_F(PointCloudSceneTest, RenderEqualsRenderClip) {
       geometry::SplatOptions so;
       so.mode = hard ? geometry::SplatMode::hard_point : geometry::SplatMode::soft_bilinear;
       EXPECT_EQ(scene.centre_depth(), double(z.as<float>()[(H / 2) * W + W / 2]));
+      EXPECT_EQ(scene.orbit_radius(), std::min(scene.centre_depth(), 5.0));  // the official radius: capped at 5
       for (const glm::dmat4& T : test_poses()) {
         const Rendered got = render(scene, pose_of(T));
         geometry::Trajectory t;
