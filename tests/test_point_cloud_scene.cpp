@@ -259,6 +259,25 @@ TEST_F(PointCloudSceneTest, Rgb8FrameEqualsItsConversion) {
   }
 }
 
+// A repeated pose skips the splat (its result is still on the device) and a destination kept replays its
+// recording: alternating poses and outputs must still give each pose's own image every time.
+TEST_F(PointCloudSceneTest, RepeatedAndAlternatingPosesGiveEachPosesImage) {
+  std::vector<float> frame = random_planar(H, W, 18), disparity = random_disparity(H, W, 19);
+  PointCloudScene scene(ctx(), view(frame, {3, H, W}), view(disparity, {H, W}), CameraIntrinsics::dvs_default(W, H));
+  const Pose a = pose_of(test_poses()[0]), b = pose_of(test_poses()[1]);
+  const Rendered ra = render(scene, a), rb = render(scene, b);
+  ASSERT_GT(differing(ra.image, rb.image), 0u);
+  std::vector<uint8_t> rgba_a(size_t(H) * W * 4), rgba(rgba_a.size());
+  scene.render(a, view(rgba_a, {H, W, 4}));
+  for (const bool use_a : {true, true, false, true, false, false}) {
+    const Rendered r = render(scene, use_a ? a : b);
+    EXPECT_EQ(differing(r.image, use_a ? ra.image : rb.image), 0u);
+    EXPECT_EQ(differing(r.mask, use_a ? ra.mask : rb.mask), 0u);
+    scene.render(use_a ? a : b, view(rgba, {H, W, 4}));
+    EXPECT_EQ(differing(rgba, rgba_a) == 0, use_a);
+  }
+}
+
 void expect_error(const std::function<void()>& f, const std::string& part) {
   try {
     f();
@@ -331,6 +350,9 @@ TEST_F(PointCloudSceneTest, DevicePathEqualsHostPath) {
     const uint64_t ticket = scene.render(pose_of(T), DeviceBufferView{buffer, 0, ElementType::f32, {3, H, W}},
                                          DeviceBufferView{buffer, mask_offset, ElementType::f32, {H, W}});
     ASSERT_TRUE(ctx().wait(ticket));
+    std::fill_n(static_cast<float*>(mapped), 3 * H * W, 9.0f);  // the application reuses its buffer...
+    ASSERT_TRUE(ctx().wait(scene.render(pose_of(T), DeviceBufferView{buffer, 0, ElementType::f32, {3, H, W}},
+                                        DeviceBufferView{buffer, mask_offset, ElementType::f32, {H, W}})));  // ...same pose
     const auto* f = static_cast<const float*>(mapped);
     EXPECT_EQ(differing(host.image, std::vector<float>(f, f + 3 * H * W)), 0u);
     const auto* m = reinterpret_cast<const float*>(static_cast<const uint8_t*>(mapped) + mask_offset);

@@ -1,8 +1,9 @@
 // dvs/scene.hpp: PointCloudScene over the splat renderer of `dvs render` (geometry/splat.hpp) for one frame.
 // The frame and its depth are uploaded once; every buffer a render needs is made by the constructor (the packed
 // RGBA8 image on its first use), so a render allocates nothing. A render records the splat with the pose in push
-// constants, and the recording is replayed as it is while the pose and the destination stay the same (a still
-// camera costs one submission).
+// constants and submits it, then what the destination needs (the RGBA8 packing, copies into the application's
+// buffers) from a second recording, kept while the destination stays the same. A pose equal to the last one
+// skips the splat: its result is still in the scene's buffers (a still camera costs a download).
 #include "dvs/scene.hpp"
 
 #include <array>
@@ -31,14 +32,13 @@ geometry::SplatOptions splat_options(const SceneOptions& o) {
 }
 
 
-// What a recording renders and where its result goes: the same key replays the recording.
-struct RecordingKey {
-  std::array<double, 16> pose{};
+// Where a render's result goes: the same destination replays the output recording.
+struct OutputKey {
   embed::SceneImage image = embed::SceneImage::planar_f32;
   bool on_device = false;
   VkBuffer image_buffer = VK_NULL_HANDLE, mask_buffer = VK_NULL_HANDLE;
   VkDeviceSize image_offset = 0, mask_offset = 0;
-  bool operator==(const RecordingKey&) const = default;
+  bool operator==(const OutputKey&) const = default;
 };
 
 struct PackPush {  // shaders/render/pack_rgba8.comp
@@ -55,7 +55,8 @@ struct PointCloudScene::Impl {
         W(int(depth_host.shape[2])),
         K(K_),
         renderer(device, H, W, 1, splat_options(o)),
-        rec(device),
+        splat_rec(device),
+        output_rec(device),
         centre(::dvs::centre_depth(depth_host)) {
     rgb = Tensor::upload(device, rgb_host, "scene frame");
     depth = Tensor::upload(device, depth_host, "scene depth");
@@ -63,29 +64,45 @@ struct PointCloudScene::Impl {
     mask = Tensor::empty(device, {1, H, W}, DType::f32, "scene mask");
   }
 
-  // Records (or keeps) the render for `key`; `device_image` / `device_mask` are the application's buffers.
-  void prepare(const RecordingKey& key, const glm::dmat4& T, const vk::BufferView& device_image,
-               const vk::BufferView& device_mask) {
-    if (recorded && key == last) return;
-    recorded = false;
-    if (key.image == embed::SceneImage::rgba8 && !packed.defined())
-      packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
-    rec.begin();
-    renderer.record(rec, rgb, depth, std::span<const glm::dmat4>(&T, 1), K, K, render, mask);
-    if (key.image == embed::SceneImage::rgba8) {
-      const PackPush push{uint32_t(H) * uint32_t(W)};
-      const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
-      rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), packed.buffer()}, &push,
-                   sizeof push, g.x, g.y, g.z, "pack_rgba8");
+  // The splat for `pose` into render and mask: skipped when they already hold it (a still camera).
+  void splat(const Pose& pose) {
+    if (splatted && pose.m == splat_pose) return;
+    const glm::dmat4 T = embed::pose_matrix(pose);
+    splatted = false;
+    splat_rec.begin();
+    renderer.record(splat_rec, rgb, depth, std::span<const glm::dmat4>(&T, 1), K, K, render, mask);
+    splat_rec.end();
+    splat_rec.submit();
+    splat_pose = pose.m;
+    splatted = true;
+  }
+
+  // What follows the splat for `key` (the RGBA8 packing, the copies into the application's buffers), recorded
+  // again only for another destination, and submitted; nothing for a host f32 render.
+  void output(const OutputKey& key, const vk::BufferView& device_image, const vk::BufferView& device_mask) {
+    if (key.image == embed::SceneImage::planar_f32 && !key.on_device) return;
+    if (!(output_recorded && key == output_key)) {
+      output_recorded = false;
+      if (key.image == embed::SceneImage::rgba8 && !packed.defined())
+        packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
+      output_rec.begin();
+      if (key.image == embed::SceneImage::rgba8) {
+        const PackPush push{uint32_t(H) * uint32_t(W)};
+        const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
+        output_rec.dispatch(device.pipelines().get("render/pack_rgba8"),
+                            {render.buffer(), mask.buffer(), packed.buffer()}, &push, sizeof push, g.x, g.y, g.z,
+                            "pack_rgba8");
+      }
+      if (key.on_device) {
+        const Tensor& image = key.image == embed::SceneImage::rgba8 ? packed : render;
+        output_rec.copy(image.buffer(), device_image, image.bytes());
+        if (device_mask.valid()) output_rec.copy(mask.buffer(), device_mask, mask.bytes());
+      }
+      output_rec.end();
+      output_key = key;
+      output_recorded = true;
     }
-    if (key.on_device) {
-      const Tensor& image = key.image == embed::SceneImage::rgba8 ? packed : render;
-      rec.copy(image.buffer(), device_image, image.bytes());
-      if (device_mask.valid()) rec.copy(mask.buffer(), device_mask, mask.bytes());
-    }
-    rec.end();
-    last = key;
-    recorded = true;
+    output_rec.submit();
   }
 
   Context& ctx;
@@ -93,11 +110,13 @@ struct PointCloudScene::Impl {
   int H, W;
   geometry::Intrinsics K;
   geometry::SplatRenderer renderer;
-  vk::Recorder rec;
+  vk::Recorder splat_rec, output_rec;
   float centre;
   Tensor rgb, depth, render, mask, packed;
-  RecordingKey last;
-  bool recorded = false;
+  std::array<double, 16> splat_pose{};
+  bool splatted = false;
+  OutputKey output_key;
+  bool output_recorded = false;
 };
 
 PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
@@ -118,13 +137,11 @@ double PointCloudScene::centre_depth() const { return impl_->centre; }
 
 void PointCloudScene::render(const Pose& pose, const HostView& image, const HostView& mask) {
   Impl& s = *impl_;
-  const glm::dmat4 T = embed::pose_matrix(pose);
-  RecordingKey key;
-  key.pose = pose.m;
+  OutputKey key;
   key.image = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
-  s.prepare(key, T, {}, {});
-  s.rec.submit();
+  s.splat(pose);
+  s.output(key, {}, {});
   const Tensor& out = key.image == embed::SceneImage::rgba8 ? s.packed : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
@@ -132,9 +149,7 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
 
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
-  const glm::dmat4 T = embed::pose_matrix(pose);
-  RecordingKey key;
-  key.pose = pose.m;
+  OutputKey key;
   key.image = embed::device_image_kind(image, s.H, s.W);
   key.on_device = true;
   key.image_buffer = image.buffer;
@@ -145,8 +160,8 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
     key.mask_offset = mask.offset;
     mask_view = vk::BufferView{mask.buffer, mask.offset, mask.bytes(), nullptr};
   }
-  s.prepare(key, T, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
-  s.rec.submit();
+  s.splat(pose);
+  s.output(key, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
   return s.ctx.submitted_value();
 }
 
