@@ -2,7 +2,7 @@
 // The frame and its depth are uploaded once; every buffer a render needs is made by the constructor (the packed
 // RGBA8 image on its first use), so a render allocates nothing. A render records the splat with the pose in push
 // constants and submits it, then what the destination needs (the RGBA8 packing, copies into the application's
-// buffers) from a second recording, kept while the destination stays the same. A pose equal to the last one
+// buffers) from a second recording. A pose equal to the last one
 // skips the splat: its result is still in the scene's buffers (a still camera costs a download).
 #include "dvs/scene.hpp"
 
@@ -31,15 +31,6 @@ geometry::SplatOptions splat_options(const SceneOptions& o) {
   return s;
 }
 
-
-// Where a render's result goes: the same destination replays the output recording.
-struct OutputKey {
-  embed::SceneImage image = embed::SceneImage::planar_f32;
-  bool on_device = false;
-  VkBuffer image_buffer = VK_NULL_HANDLE, mask_buffer = VK_NULL_HANDLE;
-  VkDeviceSize image_offset = 0, mask_offset = 0;
-  bool operator==(const OutputKey&) const = default;
-};
 
 struct PackPush {  // shaders/render/pack_rgba8.comp
   uint32_t pixels;
@@ -77,30 +68,32 @@ struct PointCloudScene::Impl {
     splatted = true;
   }
 
-  // What follows the splat for `key` (the RGBA8 packing, the copies into the application's buffers), recorded
-  // again only for another destination, and submitted; nothing for a host f32 render.
-  void output(const OutputKey& key, const vk::BufferView& device_image, const vk::BufferView& device_mask) {
-    if (key.image == embed::SceneImage::planar_f32 && !key.on_device) return;
-    if (!(output_recorded && key == output_key)) {
-      output_recorded = false;
-      if (key.image == embed::SceneImage::rgba8 && !packed.defined())
+  // What follows the splat for `image` (the RGBA8 packing, the copies into the application's buffers when
+  // `device_image` is valid), submitted; nothing for a host f32 render. The host RGBA8 recording is kept; one into
+  // application buffers is recorded every time, as the application may have replaced a buffer by another with the
+  // same handle value.
+  void output(embed::SceneImage image, const vk::BufferView& device_image, const vk::BufferView& device_mask) {
+    const bool on_device = device_image.valid();
+    if (image == embed::SceneImage::planar_f32 && !on_device) return;
+    if (on_device || !packing_recorded) {
+      packing_recorded = false;
+      if (image == embed::SceneImage::rgba8 && !packed.defined())
         packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
       output_rec.begin();
-      if (key.image == embed::SceneImage::rgba8) {
+      if (image == embed::SceneImage::rgba8) {
         const PackPush push{uint32_t(H) * uint32_t(W)};
         const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
         output_rec.dispatch(device.pipelines().get("render/pack_rgba8"),
                             {render.buffer(), mask.buffer(), packed.buffer()}, &push, sizeof push, g.x, g.y, g.z,
                             "pack_rgba8");
       }
-      if (key.on_device) {
-        const Tensor& image = key.image == embed::SceneImage::rgba8 ? packed : render;
-        output_rec.copy(image.buffer(), device_image, image.bytes());
+      if (on_device) {
+        const Tensor& result = image == embed::SceneImage::rgba8 ? packed : render;
+        output_rec.copy(result.buffer(), device_image, result.bytes());
         if (device_mask.valid()) output_rec.copy(mask.buffer(), device_mask, mask.bytes());
       }
       output_rec.end();
-      output_key = key;
-      output_recorded = true;
+      packing_recorded = !on_device;
     }
     output_rec.submit();
   }
@@ -115,8 +108,7 @@ struct PointCloudScene::Impl {
   Tensor rgb, depth, render, mask, packed;
   std::array<double, 16> splat_pose{};
   bool splatted = false;
-  OutputKey output_key;
-  bool output_recorded = false;
+  bool packing_recorded = false;  // output_rec holds the host RGBA8 packing alone
 };
 
 PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
@@ -137,31 +129,22 @@ double PointCloudScene::centre_depth() const { return impl_->centre; }
 
 void PointCloudScene::render(const Pose& pose, const HostView& image, const HostView& mask) {
   Impl& s = *impl_;
-  OutputKey key;
-  key.image = embed::host_image_kind(image, s.H, s.W);
+  const embed::SceneImage kind = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
   s.splat(pose);
-  s.output(key, {}, {});
-  const Tensor& out = key.image == embed::SceneImage::rgba8 ? s.packed : s.render;
+  s.output(kind, {}, {});
+  const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
 }
 
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
-  OutputKey key;
-  key.image = embed::device_image_kind(image, s.H, s.W);
-  key.on_device = true;
-  key.image_buffer = image.buffer;
-  key.image_offset = image.offset;
+  const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
   vk::BufferView mask_view;
-  if (embed::device_mask_wanted(mask, s.H, s.W)) {
-    key.mask_buffer = mask.buffer;
-    key.mask_offset = mask.offset;
-    mask_view = vk::BufferView{mask.buffer, mask.offset, mask.bytes(), nullptr};
-  }
+  if (embed::device_mask_wanted(mask, s.H, s.W)) mask_view = vk::BufferView{mask.buffer, mask.offset, mask.bytes(), nullptr};
   s.splat(pose);
-  s.output(key, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
+  s.output(kind, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
   return s.ctx.submitted_value();
 }
 
