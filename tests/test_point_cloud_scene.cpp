@@ -364,6 +364,10 @@ TEST_F(PointCloudSceneTest, DevicePathEqualsHostPath) {
     const auto* p = static_cast<const uint8_t*>(mapped) + 4;
     EXPECT_EQ(differing(rgba, std::vector<uint8_t>(p, p + rgba.size())), 0u);
   }
+  expect_error([&] { scene.render(Pose{}, DeviceBufferView{buffer, mask_offset, ElementType::f32, {3, H, W}}); },
+               "needs bytes");  // past the buffer's end
+  expect_error([&] { scene.render(Pose{}, DeviceBufferView{buffer, 0, ElementType::f32, {H, W, 3}}); },
+               "image: expected f32 [3,37,53] or u8 [37,53,4]");
   vkUnmapMemory(v.device(), memory);
   vkDestroyBuffer(v.device(), buffer, nullptr);
   vkFreeMemory(v.device(), memory, nullptr);

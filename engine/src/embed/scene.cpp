@@ -1,8 +1,8 @@
 // dvs/scene.hpp: PointCloudScene over the splat renderer of `dvs render` (geometry/splat.hpp) for one frame.
 // The frame and its depth are uploaded once; every buffer a render needs is made by the constructor (the packed
 // RGBA8 image on its first use), so a render allocates nothing. A render records the splat with the pose in push
-// constants and submits it, then what the destination needs (the RGBA8 packing, copies into the application's
-// buffers) from a second recording. A pose equal to the last one
+// constants and submits it, then packs it into RGBA8 when asked (a recording of its own, made once) and downloads
+// it or copies it into the application's buffers. A pose equal to the last one
 // skips the splat: its result is still in the scene's buffers (a still camera costs a download).
 #include "dvs/scene.hpp"
 
@@ -10,6 +10,7 @@
 #include <span>
 
 #include "dvs/error.hpp"
+#include "embed/device_copy.hpp"
 #include "embed/scene_camera.hpp"
 #include "embed/scene_views.hpp"
 #include "geometry/splat.hpp"
@@ -40,14 +41,13 @@ struct PackPush {  // shaders/render/pack_rgba8.comp
 
 struct PointCloudScene::Impl {
   Impl(Context& c, HostTensor rgb_host, HostTensor depth_host, const geometry::Intrinsics& K_, const SceneOptions& o)
-      : ctx(c),
-        device(c.internal()),
+      : device(c.internal()),
         H(int(depth_host.shape[1])),
         W(int(depth_host.shape[2])),
         K(K_),
         renderer(device, H, W, 1, splat_options(o)),
         splat_rec(device),
-        output_rec(device),
+        pack_rec(device),
         centre(::dvs::centre_depth(depth_host)) {
     rgb = Tensor::upload(device, rgb_host, "scene frame");
     depth = Tensor::upload(device, depth_host, "scene depth");
@@ -68,47 +68,31 @@ struct PointCloudScene::Impl {
     splatted = true;
   }
 
-  // What follows the splat for `image` (the RGBA8 packing, the copies into the application's buffers when
-  // `device_image` is valid), submitted; nothing for a host f32 render. The host RGBA8 recording is kept; one into
-  // application buffers is recorded every time, as the application may have replaced a buffer by another with the
-  // same handle value.
-  void output(embed::SceneImage image, const vk::BufferView& device_image, const vk::BufferView& device_mask) {
-    const bool on_device = device_image.valid();
-    if (image == embed::SceneImage::planar_f32 && !on_device) return;
-    if (on_device || !packing_recorded) {
-      packing_recorded = false;
-      if (image == embed::SceneImage::rgba8 && !packed.defined())
-        packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
-      output_rec.begin();
-      if (image == embed::SceneImage::rgba8) {
-        const PackPush push{uint32_t(H) * uint32_t(W)};
-        const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
-        output_rec.dispatch(device.pipelines().get("render/pack_rgba8"),
-                            {render.buffer(), mask.buffer(), packed.buffer()}, &push, sizeof push, g.x, g.y, g.z,
-                            "pack_rgba8");
-      }
-      if (on_device) {
-        const Tensor& result = image == embed::SceneImage::rgba8 ? packed : render;
-        output_rec.copy(result.buffer(), device_image, result.bytes());
-        if (device_mask.valid()) output_rec.copy(mask.buffer(), device_mask, mask.bytes());
-      }
-      output_rec.end();
-      packing_recorded = !on_device;
+  // The render packed into RGBA8 (packed), submitted and waited for; the recording is made once.
+  void pack() {
+    if (!packed.defined()) packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
+    if (!packing_recorded) {
+      const PackPush push{uint32_t(H) * uint32_t(W)};
+      const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
+      pack_rec.begin();
+      pack_rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), packed.buffer()},
+                        &push, sizeof push, g.x, g.y, g.z, "pack_rgba8");
+      pack_rec.end();
+      packing_recorded = true;
     }
-    output_rec.submit();
+    pack_rec.submit();
   }
 
-  Context& ctx;
   vk::Context& device;
   int H, W;
   geometry::Intrinsics K;
   geometry::SplatRenderer renderer;
-  vk::Recorder splat_rec, output_rec;
+  vk::Recorder splat_rec, pack_rec;
   float centre;
   Tensor rgb, depth, render, mask, packed;
   std::array<double, 16> splat_pose{};
   bool splatted = false;
-  bool packing_recorded = false;  // output_rec holds the host RGBA8 packing alone
+  bool packing_recorded = false;
 };
 
 PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
@@ -132,20 +116,29 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
   const embed::SceneImage kind = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
   s.splat(pose);
-  s.output(kind, {}, {});
+  if (kind == embed::SceneImage::rgba8) s.pack();
   const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
 }
 
+// The splat (and the packing) are waited for; the copies into the application's buffers are not (embed/device_copy:
+// they carry the barriers towards the application's use), and the ticket is the last copy's.
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
   const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
-  vk::BufferView mask_view;
-  if (embed::device_mask_wanted(mask, s.H, s.W)) mask_view = vk::BufferView{mask.buffer, mask.offset, mask.bytes(), nullptr};
+  const bool want_mask = embed::device_mask_wanted(mask, s.H, s.W);
+  if (kind == embed::SceneImage::rgba8 && !s.packed.defined())
+    s.packed = Tensor::empty(s.device, {s.H, s.W, 4}, DType::u8, "scene RGBA8 image");
+  const Tensor result = kind == embed::SceneImage::rgba8 ? s.packed : s.render.reshape({3, s.H, s.W});
+  const Tensor visible = s.mask.reshape({s.H, s.W});
+  embed::check_view_fits(s.device, image, result, "PointCloudScene's image");
+  if (want_mask) embed::check_view_fits(s.device, mask, visible, "PointCloudScene's mask");
   s.splat(pose);
-  s.output(kind, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
-  return s.ctx.submitted_value();
+  if (kind == embed::SceneImage::rgba8) s.pack();
+  uint64_t ticket = embed::copy_from_tensor(s.device, result, image, "PointCloudScene's image");
+  if (want_mask) ticket = embed::copy_from_tensor(s.device, visible, mask, "PointCloudScene's mask");
+  return ticket;
 }
 
 }  // namespace dvs
