@@ -1,14 +1,16 @@
 // dvs/scene.hpp: PointCloudScene over the splat renderer of `dvs render` (geometry/splat.hpp) for one frame.
 // The frame and its depth are uploaded once; every buffer a render needs is made by the constructor (the packed
 // RGBA8 image on its first use), so a render allocates nothing. A render records the splat with the pose in push
-// constants, and the recording is replayed as it is while the pose and the destination stay the same (a still
-// camera costs one submission).
+// constants and submits it, then packs it into RGBA8 when asked (a recording of its own, made once) and downloads
+// it or copies it into the application's buffers. A pose equal to the last one
+// skips the splat: its result is still in the scene's buffers (a still camera costs a download).
 #include "dvs/scene.hpp"
 
 #include <array>
 #include <span>
 
 #include "dvs/error.hpp"
+#include "embed/device_copy.hpp"
 #include "embed/scene_camera.hpp"
 #include "embed/scene_views.hpp"
 #include "geometry/splat.hpp"
@@ -31,16 +33,6 @@ geometry::SplatOptions splat_options(const SceneOptions& o) {
 }
 
 
-// What a recording renders and where its result goes: the same key replays the recording.
-struct RecordingKey {
-  std::array<double, 16> pose{};
-  embed::SceneImage image = embed::SceneImage::planar_f32;
-  bool on_device = false;
-  VkBuffer image_buffer = VK_NULL_HANDLE, mask_buffer = VK_NULL_HANDLE;
-  VkDeviceSize image_offset = 0, mask_offset = 0;
-  bool operator==(const RecordingKey&) const = default;
-};
-
 struct PackPush {  // shaders/render/pack_rgba8.comp
   uint32_t pixels;
 };
@@ -49,13 +41,13 @@ struct PackPush {  // shaders/render/pack_rgba8.comp
 
 struct PointCloudScene::Impl {
   Impl(Context& c, HostTensor rgb_host, HostTensor depth_host, const geometry::Intrinsics& K_, const SceneOptions& o)
-      : ctx(c),
-        device(c.internal()),
+      : device(c.internal()),
         H(int(depth_host.shape[1])),
         W(int(depth_host.shape[2])),
         K(K_),
         renderer(device, H, W, 1, splat_options(o)),
-        rec(device),
+        splat_rec(device),
+        pack_rec(device),
         centre(::dvs::centre_depth(depth_host)) {
     rgb = Tensor::upload(device, rgb_host, "scene frame");
     depth = Tensor::upload(device, depth_host, "scene depth");
@@ -63,41 +55,44 @@ struct PointCloudScene::Impl {
     mask = Tensor::empty(device, {1, H, W}, DType::f32, "scene mask");
   }
 
-  // Records (or keeps) the render for `key`; `device_image` / `device_mask` are the application's buffers.
-  void prepare(const RecordingKey& key, const glm::dmat4& T, const vk::BufferView& device_image,
-               const vk::BufferView& device_mask) {
-    if (recorded && key == last) return;
-    recorded = false;
-    if (key.image == embed::SceneImage::rgba8 && !packed.defined())
-      packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
-    rec.begin();
-    renderer.record(rec, rgb, depth, std::span<const glm::dmat4>(&T, 1), K, K, render, mask);
-    if (key.image == embed::SceneImage::rgba8) {
-      const PackPush push{uint32_t(H) * uint32_t(W)};
-      const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
-      rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), packed.buffer()}, &push,
-                   sizeof push, g.x, g.y, g.z, "pack_rgba8");
-    }
-    if (key.on_device) {
-      const Tensor& image = key.image == embed::SceneImage::rgba8 ? packed : render;
-      rec.copy(image.buffer(), device_image, image.bytes());
-      if (device_mask.valid()) rec.copy(mask.buffer(), device_mask, mask.bytes());
-    }
-    rec.end();
-    last = key;
-    recorded = true;
+  // The splat for `pose` into render and mask: skipped when they already hold it (a still camera).
+  void splat(const Pose& pose) {
+    if (splatted && pose.m == splat_pose) return;
+    const glm::dmat4 T = embed::pose_matrix(pose);
+    splatted = false;
+    splat_rec.begin();
+    renderer.record(splat_rec, rgb, depth, std::span<const glm::dmat4>(&T, 1), K, K, render, mask);
+    splat_rec.end();
+    splat_rec.submit();
+    splat_pose = pose.m;
+    splatted = true;
   }
 
-  Context& ctx;
+  // The render packed into RGBA8 (packed), submitted and waited for; the recording is made once.
+  void pack() {
+    if (!packed.defined()) packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
+    if (!packing_recorded) {
+      const PackPush push{uint32_t(H) * uint32_t(W)};
+      const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
+      pack_rec.begin();
+      pack_rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), packed.buffer()},
+                        &push, sizeof push, g.x, g.y, g.z, "pack_rgba8");
+      pack_rec.end();
+      packing_recorded = true;
+    }
+    pack_rec.submit();
+  }
+
   vk::Context& device;
   int H, W;
   geometry::Intrinsics K;
   geometry::SplatRenderer renderer;
-  vk::Recorder rec;
+  vk::Recorder splat_rec, pack_rec;
   float centre;
   Tensor rgb, depth, render, mask, packed;
-  RecordingKey last;
-  bool recorded = false;
+  std::array<double, 16> splat_pose{};
+  bool splatted = false;
+  bool packing_recorded = false;
 };
 
 PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
@@ -118,36 +113,32 @@ double PointCloudScene::centre_depth() const { return impl_->centre; }
 
 void PointCloudScene::render(const Pose& pose, const HostView& image, const HostView& mask) {
   Impl& s = *impl_;
-  const glm::dmat4 T = embed::pose_matrix(pose);
-  RecordingKey key;
-  key.pose = pose.m;
-  key.image = embed::host_image_kind(image, s.H, s.W);
+  const embed::SceneImage kind = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
-  s.prepare(key, T, {}, {});
-  s.rec.submit();
-  const Tensor& out = key.image == embed::SceneImage::rgba8 ? s.packed : s.render;
+  s.splat(pose);
+  if (kind == embed::SceneImage::rgba8) s.pack();
+  const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
 }
 
+// The splat (and the packing) are waited for; the copies into the application's buffers are not (embed/device_copy:
+// they carry the barriers towards the application's use), and the ticket is the last copy's.
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
-  const glm::dmat4 T = embed::pose_matrix(pose);
-  RecordingKey key;
-  key.pose = pose.m;
-  key.image = embed::device_image_kind(image, s.H, s.W);
-  key.on_device = true;
-  key.image_buffer = image.buffer;
-  key.image_offset = image.offset;
-  vk::BufferView mask_view;
-  if (embed::device_mask_wanted(mask, s.H, s.W)) {
-    key.mask_buffer = mask.buffer;
-    key.mask_offset = mask.offset;
-    mask_view = vk::BufferView{mask.buffer, mask.offset, mask.bytes(), nullptr};
-  }
-  s.prepare(key, T, vk::BufferView{image.buffer, image.offset, image.bytes(), nullptr}, mask_view);
-  s.rec.submit();
-  return s.ctx.submitted_value();
+  const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
+  const bool want_mask = embed::device_mask_wanted(mask, s.H, s.W);
+  if (kind == embed::SceneImage::rgba8 && !s.packed.defined())
+    s.packed = Tensor::empty(s.device, {s.H, s.W, 4}, DType::u8, "scene RGBA8 image");
+  const Tensor result = kind == embed::SceneImage::rgba8 ? s.packed : s.render.reshape({3, s.H, s.W});
+  const Tensor visible = s.mask.reshape({s.H, s.W});
+  embed::check_view_fits(s.device, image, result, "PointCloudScene's image");
+  if (want_mask) embed::check_view_fits(s.device, mask, visible, "PointCloudScene's mask");
+  s.splat(pose);
+  if (kind == embed::SceneImage::rgba8) s.pack();
+  uint64_t ticket = embed::copy_from_tensor(s.device, result, image, "PointCloudScene's image");
+  if (want_mask) ticket = embed::copy_from_tensor(s.device, visible, mask, "PointCloudScene's mask");
+  return ticket;
 }
 
 }  // namespace dvs
