@@ -93,7 +93,7 @@ std::vector<Pose> interpolate_path(const std::vector<KeyPose>& keys, int frames)
                   " (frame " + std::to_string(keys[k - 1].frame) + "): keys must be sorted by distinct frames");
     check_rigid(keys[k].pose, "interpolate_path: " + name);
   }
-  std::vector<Pose> path(size_t(frames));
+  std::vector<Pose> path(static_cast<size_t>(frames));
   for (int f = 0; f < frames; ++f) {
     if (f <= keys.front().frame) {
       path[size_t(f)] = keys.front().pose;
