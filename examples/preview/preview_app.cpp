@@ -40,8 +40,7 @@ Inputs read_inputs(const PreviewOptions& o) {
   in.frame = read_npy(o.frame_npy);
   auto& s = in.frame.shape;
   const bool u8 = in.frame.dtype == "u1";
-  const size_t rank = u8 ? 3 : 3;
-  if (s.size() == rank + 1) {  // a frame axis first
+  if (s.size() == 4) {  // a frame axis first
     if (o.frame_index >= s[0])
       throw std::runtime_error(o.frame_npy + ": --frame-index " + std::to_string(o.frame_index) + " but it holds " +
                                std::to_string(s[0]) + " frames");
@@ -53,7 +52,10 @@ Inputs read_inputs(const PreviewOptions& o) {
   const std::vector<int64_t> want = u8 ? std::vector<int64_t>{H, W, 3} : std::vector<int64_t>{3, H, W};
   if (s != want) {
     std::string got;
-    for (int64_t d : s) got += (got.empty() ? "" : "x") + std::to_string(d);
+    for (int64_t d : s) {
+      if (!got.empty()) got += 'x';
+      got += std::to_string(d);
+    }
     throw std::runtime_error(o.frame_npy + ": shape " + got + " is not a frame of --size " + std::to_string(H) + "x" +
                              std::to_string(W) + " (u8 [H,W,3] or f32 [3,H,W], optionally with a frame axis first)");
   }

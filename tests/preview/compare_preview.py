@@ -2,12 +2,14 @@
 
   compare_preview.py panel SHOT.npy RENDER.npy MASK.npy FRAME
       the preview's render panel (u8 [H,W,4] RGBA) against `dvs render --save-npy`'s frame FRAME (f32 [F,3,H,W] in
-      [-1,1]) quantised to 8 bits, round((v+1)*127.5): every channel within 1 level; alpha 255 exactly where
-      mask.npy (f32 [F,H,W]) says visible.
+      [-1,1]) quantised to 8 bits as dvs writes video, round((v+1)*127.5): every channel within 1 level (the
+      scene may round on the device); alpha 255 exactly where mask.npy (f32 [F,H,W]) is > 0, and black (0)
+      holes elsewhere (dvs/scene.hpp).
   compare_preview.py poses PREVIEW_LOG POSES.json TOLERANCE
       the poses the preview printed ("path frame I = key pose K: 16 numbers") against a trajectory JSON
       (dvs render's poses.json or the exported file): equal (TOLERANCE 0) or within TOLERANCE."""
 import json
+import math
 import re
 import sys
 
@@ -21,19 +23,21 @@ def panel(shot_path, render_path, mask_path, frame):
     if (four, three, rh, rw, mh, mw) != (4, 3, h, w, h, w) or frame >= f or mf != f:
         raise SystemExit(f"shapes differ: screenshot {h}x{w}x{four}, render {f}x{three}x{rh}x{rw}, mask {mf}x{mh}x{mw}")
     plane = h * w
-    worst, over, mask_wrong, visible = 0, 0, 0, 0
+    worst, over, mask_wrong, visible, exact = 0, 0, 0, 0, 0
     for i in range(plane):
+        seen = mask[frame * plane + i] > 0
         for c in range(3):
             v = render[(frame * 3 + c) * plane + i]
-            want = max(0, min(255, round((v + 1.0) * 127.5)))
+            want = min(255, max(0, math.floor((v + 1.0) * 127.5 + 0.5))) if seen else 0
             d = abs(shot[i * 4 + c] - want)
             worst = max(worst, d)
             over += d > 1
-        seen = mask[frame * plane + i] > 0.5
+            exact += d == 0
         visible += seen
         mask_wrong += (shot[i * 4 + 3] == 255) != seen
     print(f"panel vs dvs render frame {frame}: {visible} of {plane} pixels visible, largest difference {worst} "
-          f"level(s), {over} channel values off by more than 1, {mask_wrong} mask pixels differ")
+          f"level(s), {exact} of {3 * plane} channel values equal, {over} off by more than 1, {mask_wrong} mask pixels "
+          "differ")
     if visible < plane // 10:
         raise SystemExit("the pose shows almost nothing of the scene: the comparison would prove little")
     if over or mask_wrong:
