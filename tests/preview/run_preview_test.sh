@@ -10,6 +10,8 @@
 #   PREFIX: an installed dvs (cmake --install); "-" installs BUILD_DIR into a temporary prefix first.
 #   BUILD_DIR: the dvs build (its bin/dvs is used when PREFIX has none).
 # Needs: cmake, a C++ compiler, libglfw3-dev, zlib, xvfb-run (xvfb, xauth), python3.
+# PREVIEW_EXTRA_ARGS: more dvs-preview options for both runs, for diagnosis (e.g. --dvs-own-device: dvs on a device
+# of its own instead of the window's; ctest sets none, so the test proves the embedding).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 source_dir=$(cd "$here/../.." && pwd)
@@ -45,7 +47,7 @@ xvfb=(xvfb-run -a -s "-screen 0 2400x600x24")
 echo "== the scripted flight"
 cd "$work"
 "${xvfb[@]}" "$preview" --frame-npy scene/frames.npy --depth scene/depth.npy --size ${H}x${W} --frames $FRAMES \
-  --script "$here/preview_script.txt" --validation >preview.log 2>&1 || { cat preview.log; echo "run_preview_test: the preview failed"; exit 1; }
+  --script "$here/preview_script.txt" --validation ${PREVIEW_EXTRA_ARGS:-} >preview.log 2>&1 || { cat preview.log; echo "run_preview_test: the preview failed"; exit 1; }
 cat preview.log
 if grep -q "validation:" preview.log; then echo "run_preview_test: validation messages (above)"; exit 1; fi
 for f in shot_key2.npy shot_frame3.npy path.json path.glb; do
@@ -65,8 +67,10 @@ python3 "$here/compare_preview.py" poses preview.log from_json/poses.json 0
   --trajectory path.glb --out from_glb >render_glb.log 2>&1 || { cat render_glb.log; exit 1; }
 python3 "$here/compare_preview.py" poses preview.log from_glb/poses.json 1e-5
 
-echo "== (c) frame times at ${H}x${W}"
+echo "== (c) frame times at ${H}x${W}, the camera moving and turning"
+printf 'key D 20\nmouse -40 5\nkey W 20\nmouse 40 -5\nkey A 20\nquit\n' >timing_script.txt
 "${xvfb[@]}" "$preview" --frame-npy scene/frames.npy --depth scene/depth.npy --size ${H}x${W} --frames-to-run 60 \
-  >timing.log 2>&1 || { cat timing.log; echo "run_preview_test: the timing run failed"; exit 1; }
+  --script timing_script.txt \
+  ${PREVIEW_EXTRA_ARGS:-} >timing.log 2>&1 || { cat timing.log; echo "run_preview_test: the timing run failed"; exit 1; }
 grep "dvs-preview: window on\|frame times over" timing.log
 echo "run_preview_test: passed"
