@@ -103,13 +103,10 @@ PresentWindow::PresentWindow(const WindowOptions& options) : options_(options) {
 
   // The device: every core feature the GPU offers (dvs needs timelineSemaphore; the rest enables its optional
   // paths) and the swapchain extension.
-  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-  VkPhysicalDeviceVulkan11Features f11{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
-  f11.pNext = &f12;
-  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-  features.pNext = &f11;
-  vkGetPhysicalDeviceFeatures2(physical_, &features);
-  if (!f12.timelineSemaphore)
+  features11_.pNext = &features12_;
+  features_.pNext = &features11_;
+  vkGetPhysicalDeviceFeatures2(physical_, &features_);
+  if (!features12_.timelineSemaphore)
     throw std::runtime_error(device_name_ + " lacks timelineSemaphore, which dvs needs (" +
                              std::to_string(dvs::Context::required_features().size()) + " required features)");
   const float priority = 1.0f;
@@ -119,7 +116,7 @@ PresentWindow::PresentWindow(const WindowOptions& options) : options_(options) {
   qci.pQueuePriorities = &priority;
   const char* device_extensions[] = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
   VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-  dci.pNext = &features;
+  dci.pNext = &features_;
   dci.queueCreateInfoCount = 1;
   dci.pQueueCreateInfos = &qci;
   dci.enabledExtensionCount = 1;
@@ -248,6 +245,8 @@ dvs::HostDevice PresentWindow::host_device() const {
   h.queue_family = family_;
   h.queue = queue_;
   h.instance_api_version = VK_API_VERSION_1_2;
+  h.enabled_features = &features_;
+  h.enabled_extensions = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
   return h;  // one thread submits (this one): no queue lock needed
 }
 

@@ -54,6 +54,11 @@ class PresentWindow {
   uint32_t family_ = 0;
   VkQueue queue_ = VK_NULL_HANDLE;
   std::string device_name_;
+  // The feature chain the device was created with: HostDevice::enabled_features points at it (dvs reads it while
+  // its Context is made, to know which optional features it may use).
+  VkPhysicalDeviceFeatures2 features_{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  VkPhysicalDeviceVulkan11Features features11_{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_FEATURES};
+  VkPhysicalDeviceVulkan12Features features12_{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   VkSwapchainKHR swapchain_ = VK_NULL_HANDLE;
   VkFormat format_ = VK_FORMAT_UNDEFINED;
   std::vector<VkImage> images_;
