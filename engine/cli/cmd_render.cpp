@@ -23,7 +23,10 @@ const CommandHelp kRenderHelp{
     "scene.glb (trajectory + frame-0 point cloud, for any glTF viewer).\n",
     ""};
 
-const OptionGroup kRenderOnly{"render", {{"no-glb", "", "skip scene.glb"}}};
+const OptionGroup kRenderOnly{"render",
+                               {{"no-glb", "", "skip scene.glb"},
+                                {"save-npy", "", "also write render.npy: the render as [F,3,H,W] f32 in [-1,1], exactly "
+                                                 "as rendered (render.mp4 is lossy)"}}};
 
 }  // namespace
 
@@ -51,6 +54,7 @@ int run_render(const std::vector<std::string>& argv) {
     a.fail("--depth-fit must be error, stretch or crop, got '" + job.depth_fit + "'");
   job.hard_points = a.has("points");
   job.export_glb = !a.has("no-glb");
+  job.save_npy = a.has("save-npy");
   job.device = a.str("device");
   if (a.has("intrinsics")) {
     auto k = a.numbers("intrinsics", 4);
@@ -80,6 +84,7 @@ int run_render(const std::vector<std::string>& argv) {
             << "  " << s.render_mp4.string() << "\n  " << s.mask_mp4.string() << "\n  " << s.mask_npy.string() << "\n  "
             << s.poses_json.string() << "\n";
   if (!s.scene_glb.empty()) std::cout << "  " << s.scene_glb.string() << "\n";
+  if (!s.render_npy.empty()) std::cout << "  " << s.render_npy.string() << "\n";
   return 0;
 }
 

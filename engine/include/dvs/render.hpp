@@ -27,6 +27,7 @@ struct RenderJob {
   double fx = 0, fy = 0, cx = 0, cy = 0;  // 0 = the official default (f = 500 at 1024×576), scaled
   bool hard_points = false;          // z-buffer point splatting instead of the soft bilinear splat
   bool export_glb = true;            // scene.glb: trajectory + frame-0 point cloud
+  bool save_npy = false;             // also render.npy: the render before video encoding, [F,3,H,W] f32 in [−1,1]
   std::string device;
 };
 
@@ -35,10 +36,11 @@ struct RenderSummary {
   double fps = 0;
   double seconds_decode = 0, seconds_render = 0, seconds_write = 0;
   std::filesystem::path render_mp4, mask_mp4, mask_npy, poses_json, scene_glb;
+  std::filesystem::path render_npy;  // empty unless RenderJob::save_npy
 };
 
 // Writes render.mp4, mask.mp4, mask.npy ([F,H,W] f32, 1 = visible), poses.json and scene.glb into
-// out_dir (created). `progress` receives short status lines. `cancelled` is polled through the depth estimate
+// out_dir (created), and render.npy with RenderJob::save_npy. `progress` receives short status lines. `cancelled` is polled through the depth estimate
 // (--depth-model) and before the render; true stops with dvs::Cancelled.
 DVS_API RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress = {},
                                         const std::function<bool()>& cancelled = {});

@@ -240,6 +240,10 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
   write_video(sum.render_mp4, in.render, in.fps);
   write_video(sum.mask_mp4, mask_as_video(in.mask), in.fps);
   write_npy(sum.mask_npy, in.mask);
+  if (job.save_npy) {  // the exact values (render.mp4 is lossy), to compare with other renders
+    sum.render_npy = dir / "render.npy";
+    write_npy(sum.render_npy, in.render);
+  }
   geometry::write_trajectory_json(sum.poses_json, in.trajectory);
   if (job.export_glb) {
     sum.scene_glb = dir / "scene.glb";

@@ -1,0 +1,30 @@
+// dvs-preview's command line. Errors are std::runtime_error naming the option and what it takes.
+#pragma once
+#include <array>
+#include <optional>
+#include <string>
+
+namespace preview {
+
+struct PreviewOptions {
+  std::string frame_npy;       // u8 [H,W,3] / [F,H,W,3] or f32 [3,H,W] / [F,3,H,W] in [−1,1]
+  std::string depth;           // f32 [H,W] / [F,H,W] .npy: disparity (as dvs depth writes it) unless metric_depth
+  int frame_index = 0;         // which frame of a 4-D frame array and 3-D depth array
+  int frames = 49;             // frames of the exported path
+  int height = 480, width = 720;
+  std::optional<std::array<double, 4>> intrinsics;  // fx fy cx cy; default: dvs render's (CameraIntrinsics::dvs_default)
+  bool metric_depth = false, hard_points = false;
+  std::string script;          // scripted input (input_script.hpp)
+  bool screenshot_panel = false;  // a .png screenshot holds only the render panel
+  int frames_to_run = 0;       // stop after this many frames (0: until closed or the script quits)
+  std::string export_name = "preview_path.json";  // E: this and its .glb sibling
+  std::string gpu;             // substring of the GPU's name
+  bool own_device = false;     // dvs on a device of its own instead of the window's (for comparison only)
+  bool validation = false, vsync = false;
+  bool help = false;
+};
+
+PreviewOptions parse_options(int argc, char** argv);
+extern const char* const kPreviewUsage;
+
+}  // namespace preview
