@@ -40,6 +40,7 @@ void check(VkResult r, const char* what) {
 struct AppFeatures {
   bool timeline_semaphore = true;
   bool float16 = false;
+  bool memory_model_without_device_scope = false;
 };
 
 // The application: its instance, device and queue, and host-visible buffers it reads and writes itself.
@@ -88,6 +89,7 @@ class App {
 
     f12.timelineSemaphore = features.timeline_semaphore;
     f12.shaderFloat16 = features.float16;
+    f12.vulkanMemoryModel = features.memory_model_without_device_scope;
     features2.pNext = &f12;
     float priority = 1.0f;
     VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -369,6 +371,16 @@ TEST(HostDevice, DeviceWithoutTimelineSemaphoreIsRefusedByName) {
   bad.instance_api_version = VK_API_VERSION_1_1;
   test::expect_error([&] { Context ctx(bad, no_disk_cache()); },
                      {"timelineSemaphore", "VK_QUEUE_COMPUTE_BIT", "Vulkan 1.2", "instance_api_version"});
+  // The memory model on without its device scope: dvs's device-scope atomics would be invalid.
+  VkPhysicalDeviceVulkan12Features has12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceFeatures2 has{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &has12};
+  vkGetPhysicalDeviceFeatures2(app.physical, &has);
+  if (has12.vulkanMemoryModel) {
+    App memory_model(AppFeatures{.memory_model_without_device_scope = true});
+    test::expect_error([&] { Context ctx(memory_model.host(), no_disk_cache()); },
+                       {"vulkanMemoryModelDeviceScope = VK_TRUE"});
+    EXPECT_TRUE(memory_model.messages.empty()) << memory_model.first_message();
+  }
   HostDevice none;
   test::expect_error([&] { Context ctx(none, no_disk_cache()); },
                      {"HostDevice::instance", "HostDevice::physical_device", "HostDevice::device", "HostDevice::queue"});
