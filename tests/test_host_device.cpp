@@ -320,6 +320,19 @@ TEST(HostDevice, CopiesATensorIntoTheApplicationsBufferOrderedByTheTicket) {
     app.copy_on_app_queue(out.buffer, mirror.buffer, n * sizeof(float), ctx.timeline(), t2);
     for (size_t i = 0; i < n; ++i) ASSERT_EQ(mirror.data[i], second[i]) << "element " << i;
     EXPECT_TRUE(ctx.wait(t2));
+
+    // dvs's compute result straight into the application's buffer, by value. (lavapipe runs in order, and
+    // synchronization validation does not flag a missing barrier across a host-waited submission: tried by
+    // removing it, 2026-11-27; the barriers follow the spec but no test here proves them.)
+    Tensor x = Tensor::upload(v, HostTensor::from_f32({int64_t(n)}, first));
+    Tensor y = Tensor::empty(v, {int64_t(n)}, DType::f32, "y");
+    vk::Recorder rec(v);
+    rec.begin();
+    ops::scale(rec, x, y, 2.0f, 1.0f);
+    rec.end();
+    rec.submit();
+    ASSERT_TRUE(ctx.wait(embed::copy_from_tensor(v, y, view, "the test's output")));
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(out.data[i], 2.0f * first[i] + 1.0f) << "element " << i;
   }
   EXPECT_EQ(app.locks, app.unlocks);
   EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.first_message();
