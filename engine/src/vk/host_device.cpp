@@ -94,7 +94,8 @@ EnabledFeatures enabled_features_in(const void* chain) {
 
 std::vector<std::string> host_device_requirements() {
   return {"Vulkan 1.2 (instance apiVersion and device)", "timelineSemaphore",
-          "a queue family with VK_QUEUE_COMPUTE_BIT"};
+          "a queue family with VK_QUEUE_COMPUTE_BIT",
+          "vulkanMemoryModelDeviceScope (only where vulkanMemoryModel is enabled)"};
 }
 
 std::vector<std::string> host_device_options() {
@@ -155,6 +156,12 @@ DeviceCaps host_device_caps(const HostDevice& host) {
     missing.push_back(std::string("timelineSemaphore: create the VkDevice with "
                                   "VkPhysicalDeviceVulkan12Features::timelineSemaphore = VK_TRUE") +
                       (host.enabled_features ? "" : " and pass that feature chain in HostDevice::enabled_features"));
+  // With the Vulkan memory model on, shaders with Device-scope atomics (dvs's cast and non-finite checks) also
+  // need vulkanMemoryModelDeviceScope (VUID-RuntimeSpirv-vulkanMemoryModel-06265).
+  if (e.vulkan_memory_model && !e.vulkan_memory_model_device_scope)
+    missing.push_back("vulkanMemoryModelDeviceScope: the device was created with vulkanMemoryModel, so dvs's "
+                      "shaders with device-scope atomics need VkPhysicalDeviceVulkan12Features::"
+                      "vulkanMemoryModelDeviceScope = VK_TRUE too (or create the device without vulkanMemoryModel)");
   if (!missing.empty())
     throw Error("dvs cannot use the application's Vulkan device '" + c.name + "'; missing:" + bullet_list(missing));
 
