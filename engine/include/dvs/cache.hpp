@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 struct CacheEntry {
@@ -18,11 +20,11 @@ struct CacheEntry {
 };
 
 // The folder the entries are in for `cache_dir` as given (empty: $DVS_CACHE_DIR or ~/.cache/dvs).
-std::filesystem::path cache_folder(const std::filesystem::path& cache_dir);
+DVS_API std::filesystem::path cache_folder(const std::filesystem::path& cache_dir);
 
 // Every complete entry, most recently used first. Files still being written (a temporary name until they are
 // renamed into place whole) are not entries.
-std::vector<CacheEntry> list_cache(const std::filesystem::path& cache_dir);
+DVS_API std::vector<CacheEntry> list_cache(const std::filesystem::path& cache_dir);
 
 struct CacheCleaning {
   std::optional<double> older_than_days;  // remove entries unused for longer than this
@@ -40,9 +42,9 @@ struct CacheCleaned {
 
 // Removes entries as `what` says. Never touches a file another process is writing (those have temporary names
 // and are not entries); a process reading an entry while it is removed keeps reading it (POSIX unlink).
-CacheCleaned clean_cache(const std::filesystem::path& cache_dir, const CacheCleaning& what);
+DVS_API CacheCleaned clean_cache(const std::filesystem::path& cache_dir, const CacheCleaning& what);
 
 // "500M", "2G", "1.5GiB", "1048576" -> bytes (K/M/G/T are powers of 1024); nullopt when not a size.
-std::optional<uint64_t> parse_byte_size(const std::string& text);
+DVS_API std::optional<uint64_t> parse_byte_size(const std::string& text);
 
 }  // namespace dvs

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "dvs/pipeline.hpp"
+#include "dvs/api.hpp"
 
 namespace dvs {
 
@@ -43,7 +44,7 @@ struct DepthSummary {
 };
 
 // One line for a person: size, model, network input, windows, times (3 digits) or where the cached one came from.
-std::string describe(const DepthSummary& summary);
+DVS_API std::string describe(const DepthSummary& summary);
 
 // Estimates the depth of job.video (or takes it from the depth cache) and writes it to `out` (.npz: key
 // "depths"; .npy: the array), atomically. `out` and the cache are checked before any work; a write that still
@@ -51,8 +52,8 @@ std::string describe(const DepthSummary& summary);
 // Progress: stage "depth", steps within every window (encoder blocks, head stages; note says which), polled for
 // cancellation at each. A broken model (NaN/Inf or constant disparity) is a dvs::Error and nothing is cached.
 // Throws dvs::Error naming the file at fault.
-DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress = {},
-                            const CancelFn& cancelled = {});
+DVS_API DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress = {},
+                                    const CancelFn& cancelled = {});
 
 // A cached estimate for (video bytes, model file, input size, frames, max_res, metric): the cached .npy's path
 // when a sound entry is present (from_cache = true), else estimated now and stored there (job.cache_dir,
@@ -63,9 +64,9 @@ struct CachedDepth {
   std::string key;
   DepthSummary summary;  // of the estimate (complete only when computed now)
 };
-CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+DVS_API CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
 
 // Whether the cache holds an entry for this job (not read: a damaged one is estimated again).
-bool depth_cache_has(const DepthJob& job);
+DVS_API bool depth_cache_has(const DepthJob& job);
 
 }  // namespace dvs

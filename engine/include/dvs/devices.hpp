@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 // The four limits every op and allocation honours, the allocator's alignment and the memory dvs may hold.
@@ -28,14 +30,14 @@ struct DeviceSummary {
 
 // Every Vulkan device; `device_spec` (an index, a name substring, or "" for DVS_DEVICE / the default) marks
 // the selected one. Throws dvs::Error when there is no Vulkan device or nothing matches the spec.
-std::vector<DeviceSummary> list_devices(const std::string& device_spec = "");
+DVS_API std::vector<DeviceSummary> list_devices(const std::string& device_spec = "");
 
 // The limits of the device `device_spec` selects, lowered by DVS_LIMITS (the values a run on it plans against).
-DeviceLimits device_limits(const std::string& device_spec);
+DVS_API DeviceLimits device_limits(const std::string& device_spec);
 
 // A typical device of a driver family: "lavapipe", "nvidia", "amd", "intel", "apple" or "min" (the Vulkan
 // specification's minimums), case-insensitive, lowered by DVS_LIMITS. Throws dvs::UsageError listing the names.
-DeviceLimits profile_limits(const std::string& profile);
-std::vector<std::string> limit_profile_names();
+DVS_API DeviceLimits profile_limits(const std::string& profile);
+DVS_API std::vector<std::string> limit_profile_names();
 
 }  // namespace dvs

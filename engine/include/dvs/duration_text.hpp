@@ -4,11 +4,13 @@
 #pragma once
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
-std::string duration_text(double seconds);
+DVS_API std::string duration_text(double seconds);
 
 // "1 window", "3 windows": a count with its noun, singular when it is one.
-std::string count_text(long long n, const std::string& singular, const std::string& plural);
+DVS_API std::string count_text(long long n, const std::string& singular, const std::string& plural);
 
 }  // namespace dvs

@@ -4,15 +4,17 @@
 #include <stdexcept>
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
-class Error : public std::runtime_error {
+class DVS_API Error : public std::runtime_error {
  public:
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
 // A job stopped on request (Ctrl-C, or a CancelFn returning true); not a failure of the inputs.
-class Cancelled : public Error {
+class DVS_API Cancelled : public Error {
  public:
   Cancelled() : Error("cancelled") {}
 };

@@ -2,12 +2,14 @@
 #pragma once
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 // Every Vulkan device with its type, driver, Vulkan version, subgroup size, features and limits; marks
 // the one that `device_spec` (index, name substring, or "" for the default/DVS_DEVICE) selects.
-std::string device_report(const std::string& device_spec = "");
+DVS_API std::string device_report(const std::string& device_spec = "");
 
-const char* version();
+DVS_API const char* version();
 
 }  // namespace dvs

@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 struct LoraArgument {
@@ -13,6 +15,6 @@ struct LoraArgument {
 
 // "FILE" or "FILE:SCALE". A spec naming an existing file is that file (paths may hold ':'); otherwise what
 // follows the last ':' must be a finite number. Throws dvs::UsageError when it is not.
-LoraArgument parse_lora_argument(const std::string& spec);
+DVS_API LoraArgument parse_lora_argument(const std::string& spec);
 
 }  // namespace dvs

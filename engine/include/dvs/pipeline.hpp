@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dvs/render.hpp"
+#include "dvs/api.hpp"
 
 namespace dvs {
 
@@ -57,7 +58,7 @@ using ProgressFn = std::function<void(const std::string& stage, int step, int to
 using CancelFn = std::function<bool()>;
 
 // Any failure (dvs::Error naming the stage, or dvs::Cancelled) leaves no output of this run in out_dir.
-RunReport run_pipeline(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+DVS_API RunReport run_pipeline(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
 
 struct InversionReport {
   std::vector<StageTime> stages;
@@ -70,15 +71,15 @@ struct InversionReport {
 
 // Stages 1–5 of run_pipeline (render, VAE encode, DDIM inversion up to t0) with the same options, so a
 // later run_pipeline with those options (any prompt, guidance, k or seed) takes ε_inv from the cache.
-InversionReport run_inversion(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
+DVS_API InversionReport run_inversion(const RunOptions& options, const ProgressFn& progress = {}, const CancelFn& cancelled = {});
 
 // T5 embeddings of `prompt` exactly as the pipeline computes them ([1, max_text_seq_length, d_model] f32),
 // written to `out_npy`; returns the shape.
-std::vector<int64_t> encode_prompt(const std::filesystem::path& model, const std::string& prompt,
-                                   const std::filesystem::path& out_npy, const std::string& device = "");
+DVS_API std::vector<int64_t> encode_prompt(const std::filesystem::path& model, const std::string& prompt,
+                                           const std::filesystem::path& out_npy, const std::string& device = "");
 
 // Writes a synthetic RGB-D clip (video + exact metric depth) and a tiny random model into `dir`, and
 // returns options that run the whole pipeline on them in a few minutes on a CPU (lavapipe).
-RunOptions prepare_demo(const std::filesystem::path& dir);
+DVS_API RunOptions prepare_demo(const std::filesystem::path& dir);
 
 }  // namespace dvs

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "dvs/devices.hpp"
+#include "dvs/api.hpp"
 
 namespace dvs {
 
@@ -34,12 +35,12 @@ struct MemoryPlanReport {
 // Throws dvs::UsageError when the request does not fit the model (frames not 4k+1, a size that is not a
 // multiple of the model's latent cell, an alignment that is not a power of two), dvs::Error naming the file
 // when the model or the depth checkpoint cannot be read.
-MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request);
+DVS_API MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request);
 
 // The built-in model configurations ("cogvideox-5b-i2v": the real configuration, bf16 weights).
-bool is_builtin_model(const std::string& name);
+DVS_API bool is_builtin_model(const std::string& name);
 
 // "24GiB", "80GB", "1.5 GiB", "512MiB", "1000000" (bytes). Throws dvs::UsageError naming `option` otherwise.
-uint64_t parse_byte_size(const std::string& text, const std::string& option);
+DVS_API uint64_t parse_byte_size(const std::string& text, const std::string& option);
 
 }  // namespace dvs

@@ -9,12 +9,13 @@
 
 #include "dvs/pipeline.hpp"
 #include "dvs/render.hpp"
+#include "dvs/api.hpp"
 
 namespace dvs {
 
 enum class JobKind { run, invert };
 
-struct PreflightReport {
+struct DVS_API PreflightReport {
   std::vector<std::string> problems;  // each: what is wrong and the fix
   std::vector<std::string> notes;     // facts worth a line (sizes, the plan's peak), not problems
   bool ok() const { return problems.empty(); }
@@ -22,10 +23,10 @@ struct PreflightReport {
   std::string message() const;
 };
 
-PreflightReport preflight(const RunOptions& o, JobKind kind);
+DVS_API PreflightReport preflight(const RunOptions& o, JobKind kind);
 
 // The geometry stage's inputs alone (video, depth or depth model, camera path, size, output folder), as
 // render_novel_view needs them.
-PreflightReport preflight_render(const RenderJob& job);
+DVS_API PreflightReport preflight_render(const RenderJob& job);
 
 }  // namespace dvs

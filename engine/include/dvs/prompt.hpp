@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 struct PromptLength {
@@ -15,6 +17,6 @@ struct PromptLength {
 
 // Tokenizes `prompt` with the model folder's tokenizer. Throws dvs::Error naming the file when the model's
 // tokenizer or transformer config cannot be read.
-PromptLength prompt_length(const std::filesystem::path& model, const std::string& prompt);
+DVS_API PromptLength prompt_length(const std::filesystem::path& model, const std::string& prompt);
 
 }  // namespace dvs

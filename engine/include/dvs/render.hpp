@@ -5,6 +5,8 @@
 #include <functional>
 #include <string>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 struct RenderJob {
@@ -38,7 +40,7 @@ struct RenderSummary {
 // Writes render.mp4, mask.mp4, mask.npy ([F,H,W] f32, 1 = visible), poses.json and scene.glb into
 // out_dir (created). `progress` receives short status lines. `cancelled` is polled through the depth estimate
 // (--depth-model) and before the render; true stops with dvs::Cancelled.
-RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress = {},
-                                const std::function<bool()>& cancelled = {});
+DVS_API RenderSummary render_novel_view(const RenderJob& job, const std::function<void(const std::string&)>& progress = {},
+                                        const std::function<bool()>& cancelled = {});
 
 }  // namespace dvs

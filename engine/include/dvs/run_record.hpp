@@ -5,11 +5,13 @@
 #include <string>
 #include <vector>
 
+#include "dvs/api.hpp"
+
 namespace dvs {
 
 // A run.json turned back into `dvs run` arguments ("--video", "/abs/v.mp4", ...): every input and setting the
 // run used, so that running them repeats it. Throws dvs::Error naming the file and the key when it is not a
 // run.json dvs wrote.
-std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json);
+DVS_API std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json);
 
 }  // namespace dvs

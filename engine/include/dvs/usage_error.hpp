@@ -2,10 +2,11 @@
 // with status 2 for it, 1 for failures of the work itself, 130 when interrupted.
 #pragma once
 #include "dvs/error.hpp"
+#include "dvs/api.hpp"
 
 namespace dvs {
 
-class UsageError : public Error {
+class DVS_API UsageError : public Error {
  public:
   explicit UsageError(const std::string& what) : Error(what) {}
 };

@@ -1,5 +1,6 @@
 #include "geometry/camera.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -10,6 +11,12 @@ namespace dvs::geometry {
 Intrinsics Intrinsics::official_default(int width, int height) {
   Intrinsics k;  // 1024×576 values
   return k.scaled_to(width, height);
+}
+
+Intrinsics Intrinsics::dvs_default(int width, int height, bool squash) {
+  Intrinsics k = official_default(width, height);
+  if (!squash) k.fx = k.fy = 500.0 * std::max(double(width) / 1024.0, double(height) / 576.0);
+  return k;
 }
 
 Intrinsics Intrinsics::scaled_to(int new_width, int new_height) const {

@@ -13,6 +13,11 @@ struct Intrinsics {
   // The official default: f = 500 px, c = (512, 288) at 1024×576, scaled to width × height
   // (fx, cx by width/1024; fy, cy by height/576).
   static Intrinsics official_default(int width, int height);
+  // What dvs uses when no intrinsics are given (dvs render, dvs::CameraIntrinsics::dvs_default). The official
+  // per-axis scaling is right for a squashed frame (squash = true) but not for a centre crop, which scales both
+  // axes by one factor: then the 1024×576 frame is cropped to the working aspect and scaled to cover it, so
+  // fx = fy = 500 · max(W/1024, H/576), centred.
+  static Intrinsics dvs_default(int width, int height, bool squash);
   // The same camera seen at another image size (plain scaling of f and c, as above).
   Intrinsics scaled_to(int new_width, int new_height) const;
   // Throws dvs::Error when a value is not finite / positive or the size is empty.

@@ -23,6 +23,7 @@
 #include "io/disk_space.hpp"
 #include "io/injected_faults.hpp"
 #include "io/npy.hpp"
+#include "io/pixel_levels.hpp"
 #include "io/third_party_logs.hpp"
 #include "io/video_probe.hpp"
 
@@ -78,7 +79,7 @@ HostTensor read_frames_npy(const std::filesystem::path& path, int max_frames, Vi
     for (int c = 0; c < 3; ++c)
       for (size_t i = 0; i < plane; ++i)
         out.as<float>()[(size_t(f) * 3 + c) * plane + i] =
-            planar ? t.as<float>()[(size_t(f) * 3 + c) * plane + i] : float(t.as<uint8_t>()[(size_t(f) * plane + i) * 3 + c]) / 127.5f - 1.0f;
+            planar ? t.as<float>()[(size_t(f) * 3 + c) * plane + i] : level_to_unit(t.as<uint8_t>()[(size_t(f) * plane + i) * 3 + c]);
   vi = VideoInfo{int(W), int(H), int(F), int(s[0]), 30.0};
   return out;
 }
@@ -123,7 +124,7 @@ HostTensor read_video_rgb8_npy(const std::filesystem::path& path, int max_frames
     for (int64_t i = 0; i < H * W; ++i)
       for (int c = 0; c < 3; ++c)
         out.as<uint8_t>()[(n * H * W + i) * 3 + c] =
-            uint8_t(std::lround(std::clamp((f.as<float>()[(n * 3 + c) * H * W + i] + 1.0f) * 127.5f, 0.0f, 255.0f)));
+            unit_to_level(f.as<float>()[(n * 3 + c) * H * W + i]);
   return out;
 }
 
@@ -243,7 +244,7 @@ HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions&
       const uint8_t* row = m.ptr<uint8_t>(y);
       for (int x = 0; x < w; ++x)
         for (int c = 0; c < 3; ++c)  // BGR -> RGB planes
-          dst[(f * 3 + size_t(c)) * plane + size_t(y) * w + x] = float(row[3 * x + (2 - c)]) / 127.5f - 1.0f;
+          dst[(f * 3 + size_t(c)) * plane + size_t(y) * w + x] = level_to_unit(row[3 * x + (2 - c)]);
     }
   }
   return out;
@@ -312,8 +313,7 @@ void write_video(const std::filesystem::path& path, const HostTensor& frames, do
       for (int64_t x = 0; x < W; ++x)
         for (int c = 0; c < 3; ++c) {
           float val = v[(size_t(f) * C + size_t(C == 3 ? c : 0)) * plane + size_t(y) * W + x];
-          float u = std::clamp((val + 1.0f) * 127.5f, 0.0f, 255.0f);
-          row[3 * x + (2 - c)] = uint8_t(std::lround(u));
+          row[3 * x + (2 - c)] = unit_to_level(val);
         }
     }
     writer.write(bgr);

@@ -86,14 +86,11 @@ void require_video_file(const RenderJob& job) {
 
 }  // namespace
 
-// The default camera when none is given. The official default is f = 500 px at 1024×576 scaled per axis to the
-// working size: right for --resize squash (the official code squashes, so pixels stop being square), wrong for
-// a centre crop, which scales both axes by one factor. Under crop the 1024×576 frame is cropped to the working
-// aspect and scaled uniformly (cover), so fx = fy = 500 · max(W/1024, H/576), centred.
+// The default camera when none is given (Intrinsics::dvs_default: the official one under --resize squash, the
+// cover-scaled one under crop), else the user's --intrinsics.
 geometry::Intrinsics job_intrinsics(const RenderJob& job) {
   const int W = job.width, H = job.height;
-  geometry::Intrinsics K = geometry::Intrinsics::official_default(W, H);
-  if (!job.squash) K.fx = K.fy = 500.0 * std::max(double(W) / 1024.0, double(H) / 576.0);
+  geometry::Intrinsics K = geometry::Intrinsics::dvs_default(W, H, job.squash);
   if (job.fx != 0 || job.fy != 0 || job.cx != 0 || job.cy != 0) {
     if (!(job.fx > 0 && job.fy > 0 && job.cx > 0 && job.cy > 0))
       throw Error("--intrinsics needs all four of fx,fy,cx,cy (in pixels of the working size), all > 0");

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# The installed library as an application sees it (issue 22): installs BUILD_DIR into a fresh prefix, checks the
+# installed files, what libdvs.so exports and links, then builds tests/install/consumer/ against the prefix twice
+# (CMake's find_package, and plain c++ with pkg-config) and runs both.
+# Usage: run_install_test.sh BUILD_DIR [PREFIX]
+#   PREFIX: where to install (must be empty or absent); default a temporary folder, removed at the end unless
+#   DVS_KEEP_PREFIX=1. The prefix is printed ("installed to ..."), so a later step (examples/preview) can reuse it.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+build="$(cd "${1:?usage: run_install_test.sh BUILD_DIR [PREFIX]}" && pwd)"
+work="$(mktemp -d "${TMPDIR:-/tmp}/dvs-install-test.XXXXXX")"
+prefix="${2:-$work/prefix}"
+if [ -e "$prefix" ] && [ -n "$(ls -A "$prefix" 2>/dev/null)" ]; then
+  echo "run_install_test.sh: $prefix is not empty; give an empty or new folder" >&2
+  exit 2
+fi
+cleanup() { if [ "${DVS_KEEP_PREFIX:-0}" != 1 ]; then rm -rf "$work"; fi; }
+trap cleanup EXIT
+fail() { echo "install test: $*" >&2; exit 1; }
+step() { echo "--- $*"; }
+
+step "cmake --install $build --prefix $prefix"
+cmake --install "$build" --prefix "$prefix" >"$work/install.log" || { cat "$work/install.log" >&2; fail "cmake --install failed"; }
+echo "installed to $prefix"
+(cd "$prefix" && find . \( -type f -o -type l \) | sed 's|^\./||' | sort) >"$work/files.txt"
+echo "installed files:"
+sed 's/^/  /' "$work/files.txt"
+
+step "the installed file list"
+libdir="$(dirname "$(grep -E '(^|/)libdvs\.so$' "$work/files.txt" | head -n1)")"
+[ "$libdir" != "." ] && [ -n "$libdir" ] || fail "no libdvs.so under $prefix"
+expected=(bin/dvs include/dvs/api.hpp include/dvs/context.hpp include/dvs/error.hpp include/dvs/pipeline.hpp
+          include/dvs/scene.hpp include/dvs/views.hpp
+          "$libdir/libdvs.so" "$libdir/libdvs.so.0" "$libdir/cmake/dvs/dvsConfig.cmake"
+          "$libdir/cmake/dvs/dvsConfigVersion.cmake" "$libdir/cmake/dvs/dvsTargets.cmake" "$libdir/pkgconfig/dvs.pc")
+for f in "${expected[@]}"; do grep -Fxq "$f" "$work/files.txt" || fail "$f is not installed"; done
+for f in $(cd "$here/../../engine/include" && find dvs -name '*.hpp' -o -name '*.h'); do
+  grep -Fxq "include/$f" "$work/files.txt" || fail "the public header $f is not installed"
+done
+if grep -Eq 'include/(io|vk|tensor|pipeline|models)/|nlohmann|\.a$' "$work/files.txt"; then
+  fail "internal headers or static libraries are installed: $(grep -E 'include/(io|vk|tensor|pipeline|models)/|nlohmann|\.a$' "$work/files.txt" | head -n3)"
+fi
+lib="$prefix/$libdir/libdvs.so"
+
+step "exported symbols of libdvs.so"
+bash "$here/check_exports.sh" "$lib" "dvs::version()" "typeinfo for dvs::Error" "typeinfo for dvs::UsageError" \
+  "typeinfo for dvs::Cancelled" "dvs::Context::Context(dvs::ContextOptions const&)"
+
+step "the consumer, with find_package(dvs 0.1 CONFIG REQUIRED)"
+cmake -S "$here/consumer" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >"$work/consumer.log" 2>&1 ||
+  { cat "$work/consumer.log" >&2; fail "configuring the consumer failed"; }
+cmake --build "$work/consumer" >>"$work/consumer.log" 2>&1 || { cat "$work/consumer.log" >&2; fail "building the consumer failed"; }
+"$work/consumer/consumer" || fail "the consumer (CMake) failed"
+if readelf -d "$work/consumer/consumer" | grep -q 'NEEDED.*libdvs\.so\.0'; then :; else fail "the consumer does not link libdvs.so.0"; fi
+
+step "the consumer, with c++ \$(pkg-config --cflags --libs dvs)"
+export PKG_CONFIG_PATH="$prefix/$libdir/pkgconfig"
+[ "$(pkg-config --modversion dvs)" = "$(sed -n 's/^Version: //p' "$prefix/$libdir/pkgconfig/dvs.pc")" ] || fail "pkg-config cannot read dvs.pc"
+# shellcheck disable=SC2046
+c++ -std=c++20 -o "$work/consumer-pc" "$here/consumer/main.cpp" $(pkg-config --cflags --libs dvs) \
+  -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" || fail "building the consumer with pkg-config failed"
+"$work/consumer-pc" || fail "the consumer (pkg-config) failed"
+
+step "an unknown component is refused by name"
+mkdir -p "$work/badcomp"
+printf 'cmake_minimum_required(VERSION 3.22)\nproject(b LANGUAGES CXX)\nfind_package(dvs CONFIG REQUIRED COMPONENTS teleport)\n' \
+  >"$work/badcomp/CMakeLists.txt"
+if cmake -S "$work/badcomp" -B "$work/badcomp/build" -DCMAKE_PREFIX_PATH="$prefix" >"$work/badcomp.log" 2>&1; then
+  fail "find_package(dvs COMPONENTS teleport) succeeded"
+fi
+grep -q "no component 'teleport'" "$work/badcomp.log" || { cat "$work/badcomp.log" >&2; fail "the unknown component's message does not name it"; }
+
+echo "install test: all checks passed (prefix $prefix)"
