@@ -18,6 +18,8 @@ static int failures = 0;
     }                                             \
   } while (0)
 
+static void lock_nothing(void* user) { (void)user; }
+
 static int contains(const char* text, const char* part) { return text && strstr(text, part) != NULL; }
 
 int main(int argc, char** argv) {
@@ -36,6 +38,20 @@ int main(int argc, char** argv) {
   status = dvs_context_create(NULL, 0, NULL);
   CHECK(status == DVS_ERROR_INVALID_ARGUMENT, "NULL out: status %d", (int)status);
   CHECK(contains(dvs_last_error(), "dvs_context_create: out is NULL"), "message \"%s\"", dvs_last_error());
+
+  {
+    /* A host device with only one of the two queue-lock functions is refused before any Vulkan call. */
+    dvs_host_device host;
+    dvs_context* on_host = NULL;
+    memset(&host, 0, sizeof host);
+    host.lock_queue = lock_nothing;
+    status = dvs_context_create_on_host(&host, &on_host);
+    CHECK(status == DVS_ERROR_INVALID_ARGUMENT && on_host == NULL, "one lock function: status %d", (int)status);
+    CHECK(contains(dvs_last_error(), "lock_queue and host->unlock_queue"), "message \"%s\"", dvs_last_error());
+    status = dvs_context_create_on_host(NULL, &on_host);
+    CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "host is NULL"), "NULL host: %d %s",
+          (int)status, dvs_last_error());
+  }
 
   status = dvs_context_create(NULL, 0, &ctx);
   CHECK(status == DVS_OK && ctx != NULL, "dvs_context_create: %d %s", (int)status, dvs_last_error());

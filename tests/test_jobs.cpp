@@ -84,6 +84,21 @@ TEST_F(Jobs, CancelDuringTheWorkStopsItAndLeavesNoOutput) {
   EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npy"));
 }
 
+TEST_F(Jobs, ACancelledPipelineJobLeavesNoRunOutput) {
+  std::atomic<int> events{0};
+  std::string first_stage;
+  Job job = start_pipeline(in.run_options(in.dir / "out", in.cache), [&](const std::string& stage, int, int, const std::string&) {
+    if (events++ == 0) first_stage = stage;
+  });
+  while (events == 0 && job.poll() == JobState::running) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  job.cancel();
+  job.wait();
+  EXPECT_EQ(job.poll(), JobState::cancelled) << job.error() << " (first stage " << first_stage << ")";
+  EXPECT_THROW(job.run_report(), Cancelled);
+  for (const char* name : {"output.mp4", "render.mp4", "mask.mp4", "run.json"})
+    EXPECT_FALSE(std::filesystem::exists(in.dir / "out" / name)) << name << " left by a cancelled run";
+}
+
 TEST_F(Jobs, AFailingJobNamesTheFileAndItsGetterRethrows) {
   RunOptions o = in.run_options(in.dir / "out", in.cache);
   o.render.video = in.dir / "missing.mp4";
