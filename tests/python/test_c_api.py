@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The dvs C API (dvs/dvs.h) driven from Python's ctypes, as an application in another language would use it.
 
-usage: test_c_api.py LIBDVS_SO DVS_PROGRAM
+usage: test_c_api.py LIBDVS_SO DVS_PROGRAM [VDA_CHECKPOINT]
 
 A synthetic frame and disparity made here are built into a point-cloud scene and rendered at two poses:
   (a) at the identity pose every visible pixel equals the frame's f32 conversion, computed here (u8 / 127.5 - 1);
@@ -9,6 +9,9 @@ A synthetic frame and disparity made here are built into a point-cloud scene and
       as .npy files here, with a one-pose JSON trajectory: an independent path through the program.
 A render job on the same inputs is polled to completion and its mask.npy equals the program's. Errors: a bad size
 is DVS_ERROR_INVALID_ARGUMENT with dvs_last_error() naming the argument, a missing file is DVS_ERROR_FILE naming it.
+With VDA_CHECKPOINT (the conformance pack's tiny Video-Depth-Anything), frames made here are estimated through
+dvs_depth_estimator_estimate with a progress callback and compared bit for bit with `dvs depth` of the same frames
+written as an .npy; a callback returning nonzero cancels (DVS_ERROR_CANCELLED) and the estimator stays usable.
 Standard library only (ctypes, struct, array): numpy is not required.
 """
 import array
@@ -53,6 +56,9 @@ class RenderOptions(C.Structure):
                 ("depth_input_size", C.c_int32)]
 
 
+PROGRESS = C.CFUNCTYPE(C.c_int, C.c_char_p, C.c_int32, C.c_int32, C.c_char_p, C.c_void_p)
+
+
 def load(path):
     lib = C.CDLL(path)
     P = C.c_void_p
@@ -69,6 +75,8 @@ def load(path):
         "dvs_scene_orbit_radius": (C.c_int, [P, C.POINTER(C.c_double)]),
         "dvs_scene_destroy": (C.c_int, [P]),
         "dvs_depth_estimator_create": (C.c_int, [P, C.c_char_p, C.c_int32, C.c_int32, C.POINTER(P)]),
+        "dvs_depth_estimator_estimate": (C.c_int, [P, P, C.c_int32, C.c_int32, C.c_int32, P, PROGRESS, P]),
+        "dvs_depth_estimator_destroy": (C.c_int, [P]),
         "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_job_start_render": (C.c_int, [C.POINTER(RenderOptions), C.POINTER(P)]),
         "dvs_job_poll": (C.c_int, [P, C.POINTER(C.c_int)]),
@@ -149,7 +157,7 @@ def run_program(program, args):
 
 
 def main():
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (3, 4):
         sys.exit(__doc__)
     lib = load(sys.argv[1])
     program = sys.argv[2]
@@ -203,6 +211,8 @@ def main():
     try:
         compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K, tmp, frame, disparity, pose,
                                       moved_mask)
+        if len(sys.argv) == 4:
+            depth_of_frames(lib, program, ctx, sys.argv[3], tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     ok(lib, lib.dvs_scene_destroy(scene), "dvs_scene_destroy")
@@ -210,6 +220,53 @@ def main():
     if failures:
         sys.exit("%d check(s) failed" % len(failures))
     print("all C API checks passed (%d visible pixels at the identity, %d at the moved pose)" % (visible, moved_visible))
+
+
+def depth_of_frames(lib, program, ctx, checkpoint, tmp):
+    F, h, w, input_size = 3, 30, 44, 28
+    frames = [(5 * f + 11 * y + 7 * x + 50 * c + (x * y) % 13) % 256
+              for f in range(F) for y in range(h) for x in range(w) for c in range(3)]
+    video, expected_file = os.path.join(tmp, "frames.npy"), os.path.join(tmp, "depth_program.npy")
+    write_npy(video, "B", (F, h, w, 3), frames)
+    run_program(program, ["depth", "--video", video, "--depth-model", checkpoint, "--input-size", str(input_size),
+                          "--cache-dir", os.path.join(tmp, "cache"), "--quiet", "--out", expected_file])
+    shape, expected = read_npy_f32(expected_file)
+    check(shape == (F, h, w), "dvs depth wrote shape %s" % (shape,))
+
+    estimator = C.c_void_p()
+    ok(lib, lib.dvs_depth_estimator_create(ctx, checkpoint.encode(), input_size, -1, C.byref(estimator)),
+       "dvs_depth_estimator_create")
+    frames_c = (C.c_uint8 * len(frames))(*frames)
+    out = (C.c_float * (F * h * w))()
+    events = []
+
+    def record(stage, step, total, note, user):
+        events.append((stage.decode(), step, total))
+        return 0
+
+    callback = PROGRESS(record)
+    ok(lib, lib.dvs_depth_estimator_estimate(estimator, frames_c, F, h, w, out, callback, None),
+       "dvs_depth_estimator_estimate")
+    check(list(out) == list(expected), "depth of frames: differs from dvs depth at %d of %d values" %
+          (sum(1 for a, b in zip(out, expected) if a != b), len(expected)))
+    check(len(events) > 1 and all(e[0] == "depth" for e in events) and events[-1][1] == events[-1][2],
+          "depth progress events: %r" % events[:3])
+
+    def cancel_at_second_step(stage, step, total, note, user):
+        return 1 if step >= 2 else 0
+
+    cancel = PROGRESS(cancel_at_second_step)
+    status = lib.dvs_depth_estimator_estimate(estimator, frames_c, F, h, w, out, cancel, None)
+    check(status == 4, "cancelled estimate: status %d (%s)" % (status, lib.dvs_last_error().decode()))
+    status = lib.dvs_depth_estimator_estimate(estimator, frames_c, 0, h, w, out, PROGRESS(), None)
+    message = lib.dvs_last_error().decode()
+    check(status == DVS_ERROR_INVALID_ARGUMENT and "count" in message, "0 frames: %d %s" % (status, message))
+    again = (C.c_float * (F * h * w))()
+    ok(lib, lib.dvs_depth_estimator_estimate(estimator, frames_c, F, h, w, again, PROGRESS(), None),
+       "dvs_depth_estimator_estimate after a cancellation")
+    check(list(again) == list(expected), "depth of frames after a cancellation differs")
+    ok(lib, lib.dvs_depth_estimator_destroy(estimator), "dvs_depth_estimator_destroy")
+    print("depth of frames: %d progress events, equal to dvs depth" % len(events))
 
 
 def compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K, tmp, frame, disparity, pose,
