@@ -203,6 +203,14 @@ def main():
     check(wrong_bytes == 0, "identity pose: %d values do not quantise back to the input byte" % wrong_bytes)
     print("identity pose: %d visible pixels, largest difference from the frame %.3g" % (visible, worst))
 
+    # The same render as RGBA8 (the display path): the input bytes where visible, alpha 255 there and 0 elsewhere.
+    rgba = (C.c_uint8 * (H * W * 4))()
+    ok(lib, lib.dvs_scene_render(scene, (C.c_double * 16)(*identity), rgba, DVS_U8, None), "dvs_scene_render RGBA8")
+    wrong = sum(1 for i in range(H * W)
+                if rgba[4 * i + 3] != (255 if mask[i] > 0 else 0)
+                or (mask[i] > 0 and list(rgba[4 * i:4 * i + 3]) != frame[3 * i:3 * i + 3]))
+    check(wrong == 0, "identity pose, RGBA8: %d pixels are not the input bytes with the mask as alpha" % wrong)
+
     # (b) another pose: the program's mask of the same frame, depth and pose.
     _, moved_mask = render(lib, scene, pose)
     moved_visible = sum(1 for v in moved_mask if v > 0)
