@@ -38,6 +38,12 @@ struct HostDevice {
   VkQueue queue = VK_NULL_HANDLE;
   // The Vulkan version the application created its instance with (VkApplicationInfo::apiVersion); ≥ 1.2.
   uint32_t instance_api_version = VK_API_VERSION_1_2;
+  // What the application enabled when it created the device (dvs cannot read it back from `device`): the
+  // VkDeviceCreateInfo::pNext feature chain (VkPhysicalDeviceFeatures2 and/or VkPhysicalDeviceVulkan11/12/13Features
+  // or the individual feature structures; read only while the Context is constructed) and the
+  // ppEnabledExtensionNames. dvs uses an optional feature only where both say it is on.
+  const void* enabled_features = nullptr;
+  std::vector<std::string> enabled_extensions;
   // Optional external lock: called around every vkQueueSubmit / vkQueueWaitIdle dvs makes on `queue`, for a
   // queue the application also submits to from other threads (Vulkan requires external synchronisation).
   std::function<void()> lock_queue, unlock_queue;

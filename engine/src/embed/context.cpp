@@ -1,10 +1,11 @@
-// dvs/context.hpp over vk::Context. This first form runs on dvs's own device only; the application's device
-// (HostDevice) and the timeline semaphore are issue 22's next step.
+// dvs/context.hpp over vk::Context: dvs's own device, or the application's (HostDevice, checked by
+// vk/host_device.hpp). Tickets are values of vk::Context's timeline semaphore.
 #include "dvs/context.hpp"
 
 #include "dvs/error.hpp"
 #include "embed/public_limits.hpp"
 #include "vk/context.hpp"
+#include "vk/host_device.hpp"
 
 namespace dvs {
 
@@ -26,23 +27,23 @@ Context::Context(const ContextOptions& options) : impl_(std::make_unique<Impl>()
   impl_->ctx = std::make_unique<vk::Context>(internal_options(options));
 }
 
-Context::Context(const HostDevice&, const ContextOptions&) {
-  throw Error("dvs::Context on the application's device is not implemented yet");
+Context::Context(const HostDevice& host, const ContextOptions& options) : impl_(std::make_unique<Impl>()) {
+  impl_->ctx = std::make_unique<vk::Context>(host, internal_options(options));
 }
 
 Context::~Context() = default;
 
-std::vector<std::string> Context::required_features() { return {"Vulkan 1.2", "timelineSemaphore"}; }
-std::vector<std::string> Context::optional_features() { return {}; }
+std::vector<std::string> Context::required_features() { return vk::host_device_requirements(); }
+std::vector<std::string> Context::optional_features() { return vk::host_device_options(); }
 
 std::string Context::device_name() const { return impl_->ctx->caps().name; }
 DeviceLimits Context::limits() const { return limits_of(impl_->ctx->caps()); }
-bool Context::owns_device() const { return true; }
-VkSemaphore Context::timeline() const { return VK_NULL_HANDLE; }
+bool Context::owns_device() const { return impl_->ctx->owns_device(); }
+VkSemaphore Context::timeline() const { return impl_->ctx->timeline(); }
 uint64_t Context::submitted_value() const { return impl_->ctx->submission_count(); }
-bool Context::wait(uint64_t, uint64_t) const { return true; }  // every submission is waited for today
-void Context::wait_before_next(VkSemaphore, uint64_t) {
-  throw Error("dvs::Context::wait_before_next is not implemented yet");
+bool Context::wait(uint64_t ticket, uint64_t timeout_ns) const { return impl_->ctx->wait(ticket, timeout_ns); }
+void Context::wait_before_next(VkSemaphore semaphore, uint64_t value) {
+  impl_->ctx->wait_before_next(semaphore, value);
 }
 vk::Context& Context::internal() { return *impl_->ctx; }
 

@@ -5,8 +5,8 @@
 #include <cstring>
 #include <iostream>
 
-#include "io/injected_faults.hpp"
 #include "vk/check.hpp"
+#include "vk/host_device.hpp"
 #include "vk/memory.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/profiler.hpp"
@@ -162,6 +162,7 @@ Context::Context(const ContextOptions& options) {
     f12.uniformAndStorageBuffer8BitAccess = caps_.storage_8bit;
     f12.shaderFloat16 = caps_.float16_arithmetic;
     f12.shaderInt8 = caps_.int8_arithmetic;
+    f12.timelineSemaphore = VK_TRUE;  // core in Vulkan 1.2: every submission signals the context's timeline
     void** tail = &f12.pNext;
     std::vector<const char*> exts;
     if (caps_.subgroup_size_control) {
@@ -224,22 +225,50 @@ Context::Context(const ContextOptions& options) {
     dci.ppEnabledExtensionNames = exts.data();
     VK_CHECK(vkCreateDevice(physical_, &dci, nullptr, &device_));
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
-
-    VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
-    pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
-    pci.queueFamilyIndex = queue_family_;
-    VK_CHECK(vkCreateCommandPool(device_, &pci, nullptr, &command_pool_));
-    VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    VK_CHECK(vkCreateFence(device_, &fci, nullptr, &fence_));
-
-    allocator_ = std::make_unique<Allocator>(*this);
-    transfer_ = std::make_unique<Transfer>(*this);
-    pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file);
-    profiler_ = std::make_unique<Profiler>(env_on("DVS_PROFILE"));
+    create_services(options);
   } catch (...) {
     release();
     throw;
   }
+}
+
+Context::Context(const HostDevice& host, const ContextOptions& options) {
+  if (bool(host.lock_queue) != bool(host.unlock_queue))
+    throw Error("HostDevice: lock_queue and unlock_queue must both be set or both be empty (dvs calls them in pairs "
+                "around every vkQueueSubmit on the application's queue).");
+  caps_ = host_device_caps(host);
+  owns_device_ = false;
+  instance_ = host.instance;
+  physical_ = host.physical_device;
+  device_ = host.device;
+  queue_ = host.queue;
+  queue_family_ = host.queue_family;
+  lock_queue_ = host.lock_queue;
+  unlock_queue_ = host.unlock_queue;
+  try {
+    create_services(options);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+void Context::create_services(const ContextOptions& options) {
+  VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.queueFamilyIndex = queue_family_;
+  VK_CHECK(vkCreateCommandPool(device_, &pci, nullptr, &command_pool_));
+  VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+  type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+  type.initialValue = 0;
+  VkSemaphoreCreateInfo sci{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+  sci.pNext = &type;
+  VK_CHECK(vkCreateSemaphore(device_, &sci, nullptr, &timeline_));
+
+  allocator_ = std::make_unique<Allocator>(*this);
+  transfer_ = std::make_unique<Transfer>(*this);
+  pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file);
+  profiler_ = std::make_unique<Profiler>(env_on("DVS_PROFILE"));
 }
 
 void Context::override_limits(const LimitOverrides& extra) {
@@ -261,21 +290,31 @@ void Context::override_limits(const LimitOverrides& extra) {
 Context::~Context() { release(); }
 
 void Context::release() {
-  if (device_) vkDeviceWaitIdle(device_);
+  // dvs's own work only: on the application's device, its other queues and work are none of dvs's business.
+  if (device_ && owns_device_) vkDeviceWaitIdle(device_);
+  if (device_ && !owns_device_ && timeline_ && submissions_ > 0) {
+    VkSemaphoreWaitInfo wi{VK_STRUCTURE_TYPE_SEMAPHORE_WAIT_INFO};
+    wi.semaphoreCount = 1;
+    wi.pSemaphores = &timeline_;
+    wi.pValues = &submissions_;
+    vkWaitSemaphores(device_, &wi, UINT64_MAX);  // a lost device returns at once; nothing more to wait for
+  }
+  for (auto& [ticket, action] : pending_releases_) action();
+  pending_releases_.clear();
   if (profiler_) profiler_->print_if_enabled();
   pipelines_.reset();
   transfer_.reset();
   allocator_.reset();
-  if (fence_) vkDestroyFence(device_, fence_, nullptr);
+  if (timeline_) vkDestroySemaphore(device_, timeline_, nullptr);
   if (command_pool_) vkDestroyCommandPool(device_, command_pool_, nullptr);
-  if (device_) vkDestroyDevice(device_, nullptr);
+  if (device_ && owns_device_) vkDestroyDevice(device_, nullptr);
   if (messenger_) {
     auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
         vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
     if (destroy) destroy(instance_, messenger_, nullptr);
   }
-  if (instance_) vkDestroyInstance(instance_, nullptr);
-  fence_ = VK_NULL_HANDLE;
+  if (instance_ && owns_device_) vkDestroyInstance(instance_, nullptr);
+  timeline_ = VK_NULL_HANDLE;
   command_pool_ = VK_NULL_HANDLE;
   device_ = VK_NULL_HANDLE;
   messenger_ = VK_NULL_HANDLE;
@@ -305,19 +344,6 @@ VkCommandBuffer Context::allocate_command_buffer() {
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   VK_CHECK(vkAllocateCommandBuffers(device_, &ai, &cmd));
   return cmd;
-}
-
-void Context::submit_and_wait(VkCommandBuffer cmd) {
-  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  si.commandBufferCount = 1;
-  si.pCommandBuffers = &cmd;
-  // DVS_FAULTS=submit=N: this submission reports a lost device (io/injected_faults.hpp).
-  if (faults::fail_now(faults::Kind::submit, "vkQueueSubmit"))
-    throw_vk_error(VK_ERROR_DEVICE_LOST, "vkQueueSubmit", __FILE__, __LINE__);
-  VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence_));
-  ++submissions_;
-  VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
-  VK_CHECK(vkResetFences(device_, 1, &fence_));
 }
 
 }  // namespace dvs::vk

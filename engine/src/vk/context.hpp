@@ -1,6 +1,11 @@
 // The Vulkan context: instance (with validation layers on request), the chosen physical device, a logical
 // device with one compute queue (a compute-only family where there is one) and every optional feature dvs can use enabled, and the per-device
-// services built on it (memory, pipelines, profiling).
+// services built on it (memory, pipelines, profiling). Or, embedded (issue 22), the application's instance, device
+// and queue (dvs::HostDevice), of which dvs uses only what the application enabled and destroys nothing.
+//
+// Submissions: every vkQueueSubmit signals the context's timeline semaphore with the next value, so value n means
+// "the n-th submission has finished"; that value is the submission's ticket (the application waits for it on the
+// host or on its own queue).
 #pragma once
 #include <vulkan/vulkan.h>
 
@@ -14,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "dvs/context.hpp"
 #include "vk/device_info.hpp"
 #include "vk/device_limits.hpp"
 
@@ -46,6 +52,9 @@ std::vector<DeviceCaps> list_devices();
 class Context {
  public:
   explicit Context(const ContextOptions& options = {});
+  // The application's device: checked by host_device_caps (vk/host_device.hpp, throws naming what is missing).
+  // `options.device` and `options.validation` do not apply (the application owns the instance and its layers).
+  Context(const HostDevice& host, const ContextOptions& options);
   ~Context();
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
@@ -61,6 +70,7 @@ class Context {
   // blocks are kept; new ones follow the new alloc limit.
   void override_limits(const LimitOverrides& extra);
   bool validation_enabled() const { return validation_; }
+  bool owns_device() const { return owns_device_; }  // false on the application's device
   // The largest buffer range any dispatch has bound since the last reset (storage or texel binding; Recorder
   // notes every one): benchmarks print it next to maxStorageBufferRange.
   void note_binding(VkDeviceSize bytes) { largest_binding_ = std::max(largest_binding_, bytes); }
@@ -82,9 +92,22 @@ class Context {
   void clear_validation_messages();
   void add_validation_message(std::string msg);
 
-  // Submits one command buffer and waits for it (used by Transfer and Recorder).
+  // Submits one command buffer and waits for it (used by Transfer and Recorder); the caller keeps `cmd`.
   void submit_and_wait(VkCommandBuffer cmd);
-  uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls so far
+  // Submits without waiting and returns the ticket. The context takes `cmd` (from allocate_command_buffer) and
+  // frees it once the timeline has reached the ticket.
+  uint64_t submit(VkCommandBuffer cmd);
+  uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls so far = the last ticket
+  VkSemaphore timeline() const { return timeline_; }
+  uint64_t completed_value() const;  // the timeline's current value
+  // Blocks until the timeline reaches `ticket` (false when timeout_ns passed first); then runs what
+  // release_after queued for the tickets reached. A ticket not submitted yet is an error (it would never come).
+  bool wait(uint64_t ticket, uint64_t timeout_ns = UINT64_MAX);
+  // Runs `release` once the timeline has reached `ticket` (checked at every submission and wait, and before the
+  // context goes): keeps what a submitted command uses, such as a Tensor's storage, alive until it has run.
+  void release_after(uint64_t ticket, std::function<void()> release);
+  // The next submission waits (all commands) until `semaphore`, a timeline semaphore of this device, reaches `value`.
+  void wait_before_next(VkSemaphore semaphore, uint64_t value);
   // The hook every Recorder without its own calls between segments (empty: none). Set for a job's duration
   // with ScopedSegmentHook.
   const SegmentHook& segment_hook() const { return segment_hook_; }
@@ -93,7 +116,10 @@ class Context {
   VkCommandBuffer allocate_command_buffer();  // primary, from the context's pool
 
  private:
+  void create_services(const ContextOptions& options);  // pool, timeline, allocator, transfer, pipelines, profiler
   void release();
+  uint64_t queue_submit(VkCommandBuffer cmd);  // one vkQueueSubmit signalling the next timeline value
+  void release_reached();                      // runs the release_after actions whose tickets were reached
 
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
@@ -102,8 +128,12 @@ class Context {
   VkQueue queue_ = VK_NULL_HANDLE;
   uint32_t queue_family_ = 0;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
-  VkFence fence_ = VK_NULL_HANDLE;
+  VkSemaphore timeline_ = VK_NULL_HANDLE;
   uint64_t submissions_ = 0;
+  bool owns_device_ = true;
+  std::function<void()> lock_queue_, unlock_queue_;  // the application's queue lock (may be empty)
+  std::vector<std::pair<VkSemaphore, uint64_t>> waits_before_next_;
+  std::vector<std::pair<uint64_t, std::function<void()>>> pending_releases_;  // ticket, action
   SegmentHook segment_hook_;
   DeviceCaps caps_;
   bool validation_ = false;

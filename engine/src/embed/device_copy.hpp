@@ -1,0 +1,32 @@
+// Copies between an application's VkBuffer (dvs::DeviceBufferView) and a dvs Tensor on the same device, without a
+// round trip through the host. The recorded copy carries its own buffer barriers: against dvs's earlier and later
+// work on the tensor, against the application's earlier use of its buffer, and (for copies into the application's
+// buffer) towards host reads once the ticket is reached. The application orders its own use of the buffer with the
+// context's timeline (wait for the ticket) and wait_before_next (dvs waits for the application). The buffer must be
+// usable on dvs's queue family: the same family, or created with VK_SHARING_MODE_CONCURRENT.
+#pragma once
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <string>
+
+#include "dvs/views.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/context.hpp"
+
+namespace dvs::embed {
+
+// Throws dvs::Error naming `what` ("the depth output") when `view` cannot stand for `tensor`: no buffer, an
+// offset that is not a multiple of 4, another element type or shape, or a range past the buffer's end.
+void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, const Tensor& tensor, const std::string& what);
+
+// Record the copy into `cmd` (for callers that put it in a larger command buffer); check_view_fits first.
+void record_copy_to_tensor(VkCommandBuffer cmd, const DeviceBufferView& from, const Tensor& to);
+void record_copy_from_tensor(VkCommandBuffer cmd, const Tensor& from, const DeviceBufferView& to);
+
+// Check, record and submit on their own, without waiting: return the ticket (a value of ctx.timeline()). The
+// tensor's storage is kept alive until the ticket is reached; the application's buffer must stay valid until then.
+uint64_t copy_to_tensor(vk::Context& ctx, const DeviceBufferView& from, const Tensor& to, const std::string& what);
+uint64_t copy_from_tensor(vk::Context& ctx, const Tensor& from, const DeviceBufferView& to, const std::string& what);
+
+}  // namespace dvs::embed
