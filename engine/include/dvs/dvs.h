@@ -74,6 +74,11 @@ typedef struct dvs_host_device {
   uint32_t queue_family;
   VkQueue queue;
   uint32_t instance_api_version; /* VkApplicationInfo::apiVersion of the instance; >= VK_API_VERSION_1_2 */
+  /* What the application enabled when it created the device (dvs cannot read it back): the VkDeviceCreateInfo::pNext
+   * feature chain (read during dvs_context_create_on_host only) and the enabled extension names. */
+  const void* enabled_features;
+  const char* const* enabled_extensions;
+  uint32_t enabled_extension_count;
   void (*lock_queue)(void* user_data);
   void (*unlock_queue)(void* user_data);
   void* user_data;

@@ -38,6 +38,12 @@ dvs_status dvs_context_create_on_host(const dvs_host_device* host, dvs_context**
     h.queue_family = host->queue_family;
     h.queue = host->queue;
     h.instance_api_version = host->instance_api_version;
+    h.enabled_features = host->enabled_features;
+    if (host->enabled_extension_count) require(host->enabled_extensions, call, "host->enabled_extensions");
+    for (uint32_t i = 0; i < host->enabled_extension_count; ++i) {
+      require(host->enabled_extensions[i], call, "an entry of host->enabled_extensions");
+      h.enabled_extensions.push_back(host->enabled_extensions[i]);
+    }
     if (host->lock_queue) {
       h.lock_queue = [f = host->lock_queue, user = host->user_data] { f(user); };
       h.unlock_queue = [f = host->unlock_queue, user = host->user_data] { f(user); };
