@@ -24,7 +24,7 @@ if [ -n "$leaks" ]; then
   status=1
 fi
 for want in "$@"; do
-  if ! printf '%s\n' "$symbols" | grep -Fxq -- "$want"; then
+  if ! grep -Fxq -- "$want" <<<"$symbols"; then
     echo "$lib does not export '$want' (a public declaration without DVS_API, or the definition does not see it)" >&2
     status=1
   fi

@@ -46,12 +46,30 @@ step "exported symbols of libdvs.so"
 bash "$here/check_exports.sh" "$lib" "dvs::version()" "typeinfo for dvs::Error" "typeinfo for dvs::UsageError" \
   "typeinfo for dvs::Cancelled" "dvs::Context::Context(dvs::ContextOptions const&)"
 
+step "what libdvs.so links: no OpenCV videoio/imgcodecs, FFmpeg or GDAL"
+readelf -d "$lib" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/  NEEDED \1/p'
+if readelf -d "$lib" | grep -E '\(NEEDED\).*(videoio|imgcodecs|avcodec|avformat|gdal)'; then fail "libdvs.so needs a video library"; fi
+if ldd "$lib" | grep -E 'videoio|imgcodecs|avcodec|avformat|gdal'; then fail "libdvs.so's closure (ldd) holds a video library"; fi
+if grep -q 'not found' <<<"$(ldd "$lib")"; then ldd "$lib" >&2; fail "libdvs.so needs a library that is not found"; fi
+
+video_lib="$prefix/$libdir/libdvs_video.so"
+if [ -f "$video_lib" ]; then
+  step "libdvs_video.so: exports, and registers with libdvs.so's own video registry"
+  bash "$here/check_exports.sh" "$video_lib" "dvs::enable_video_files()"
+  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 1 ] || fail "libdvs_video.so exports more than dvs::enable_video_files()"
+  grep -q ' U dvs::detail::set_video_backend' <<<"$(nm -D -C "$video_lib")" ||
+    fail "libdvs_video.so does not take dvs::detail::set_video_backend from libdvs.so (it would register with a copy)"
+  for f in "$libdir/libdvs_video.so" "$libdir/libdvs_video.so.0" "$libdir/cmake/dvs/dvsVideoTargets.cmake" "$libdir/pkgconfig/dvs-video.pc"; do
+    grep -Fxq "$f" "$work/files.txt" || fail "$f is not installed"
+  done
+fi
+
 step "the consumer, with find_package(dvs 0.1 CONFIG REQUIRED)"
 cmake -S "$here/consumer" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >"$work/consumer.log" 2>&1 ||
   { cat "$work/consumer.log" >&2; fail "configuring the consumer failed"; }
 cmake --build "$work/consumer" >>"$work/consumer.log" 2>&1 || { cat "$work/consumer.log" >&2; fail "building the consumer failed"; }
 "$work/consumer/consumer" || fail "the consumer (CMake) failed"
-if readelf -d "$work/consumer/consumer" | grep -q 'NEEDED.*libdvs\.so\.0'; then :; else fail "the consumer does not link libdvs.so.0"; fi
+grep -q 'NEEDED.*libdvs\.so\.0' <<<"$(readelf -d "$work/consumer/consumer")" || fail "the consumer does not link libdvs.so.0"
 
 step "the consumer, with c++ \$(pkg-config --cflags --libs dvs)"
 export PKG_CONFIG_PATH="$prefix/$libdir/pkgconfig"
@@ -61,6 +79,34 @@ c++ -std=c++20 -o "$work/consumer-pc" "$here/consumer/main.cpp" $(pkg-config --c
   -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" || fail "building the consumer with pkg-config failed"
 "$work/consumer-pc" || fail "the consumer (pkg-config) failed"
 
+if [ -f "$video_lib" ]; then
+  step "reading a video: linked with dvs::video it works, with dvs::core alone the error names the component"
+  # shellcheck disable=SC2046
+  c++ -std=c++17 -o "$work/make_video" "$here/make_video.cpp" $(pkg-config --cflags --libs opencv4) || fail "building make_video failed"
+  "$work/make_video" "$work/clip.mp4" || fail "make_video could not write a test video"
+  cmake -S "$here/video_consumer" -B "$work/video_consumer" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release \
+    >"$work/video_consumer.log" 2>&1 || { cat "$work/video_consumer.log" >&2; fail "configuring the video consumers failed"; }
+  cmake --build "$work/video_consumer" >>"$work/video_consumer.log" 2>&1 || { cat "$work/video_consumer.log" >&2; fail "building the video consumers failed"; }
+  grep -q 'NEEDED.*libdvs_video\.so\.0' <<<"$(readelf -d "$work/video_consumer/read_video_file")" || fail "read_video_file does not link libdvs_video"
+  if grep -q 'NEEDED.*libdvs_video' <<<"$(readelf -d "$work/video_consumer/read_video_core_only")"; then fail "read_video_core_only links libdvs_video"; fi
+  "$work/video_consumer/read_video_file" "$work/clip.mp4" "5 frames of 48x64" || fail "the consumer with dvs::video cannot read the video"
+  "$work/video_consumer/read_video_core_only" "$work/clip.mp4" "needs dvs's video component" ||
+    fail "the consumer with dvs::core alone does not get the 'needs dvs's video component' error"
+  # pkg-config's dvs-video, as an application without CMake links it
+  # shellcheck disable=SC2046
+  c++ -std=c++20 -DCONSUMER_LINKS_VIDEO=1 -o "$work/read_video_pc" "$here/video_consumer/main.cpp" \
+    $(pkg-config --cflags --libs dvs-video) -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" || fail "building with pkg-config dvs-video failed"
+  "$work/read_video_pc" "$work/clip.mp4" "5 frames of 48x64" || fail "the pkg-config dvs-video consumer cannot read the video"
+else
+  step "no libdvs_video.so (a DVS_VIDEO_IO=OFF build): find_package(dvs COMPONENTS video) fails, saying so"
+  if cmake -S "$here/video_consumer" -B "$work/video_consumer" -DCMAKE_PREFIX_PATH="$prefix" >"$work/video_consumer.log" 2>&1; then
+    fail "find_package(dvs COMPONENTS video) succeeded without a video component"
+  fi
+  # CMake wraps the message's lines: compare with the line breaks and indentation folded into single spaces
+  grep -q "built without its video component" <<<"$(tr -s ' \n' '  ' <"$work/video_consumer.log")" ||
+    { cat "$work/video_consumer.log" >&2; fail "the missing video component's message does not say so"; }
+fi
+
 step "an unknown component is refused by name"
 mkdir -p "$work/badcomp"
 printf 'cmake_minimum_required(VERSION 3.22)\nproject(b LANGUAGES CXX)\nfind_package(dvs CONFIG REQUIRED COMPONENTS teleport)\n' \
@@ -68,6 +114,6 @@ printf 'cmake_minimum_required(VERSION 3.22)\nproject(b LANGUAGES CXX)\nfind_pac
 if cmake -S "$work/badcomp" -B "$work/badcomp/build" -DCMAKE_PREFIX_PATH="$prefix" >"$work/badcomp.log" 2>&1; then
   fail "find_package(dvs COMPONENTS teleport) succeeded"
 fi
-grep -q "no component 'teleport'" "$work/badcomp.log" || { cat "$work/badcomp.log" >&2; fail "the unknown component's message does not name it"; }
+grep -q "no component 'teleport'" <<<"$(tr -s ' \n' '  ' <"$work/badcomp.log")" || { cat "$work/badcomp.log" >&2; fail "the unknown component's message does not name it"; }
 
 echo "install test: all checks passed (prefix $prefix)"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The dvs C API (dvs/dvs.h) driven from Python's ctypes, as an application in another language would use it.
 
-usage: test_c_api.py LIBDVS_SO DVS_PROGRAM [VDA_CHECKPOINT]
+usage: test_c_api.py LIBDVS_SO DVS_PROGRAM [--vda VDA_CHECKPOINT] [--video-lib LIBDVS_VIDEO_SO]
 
 A synthetic frame and disparity made here are built into a point-cloud scene and rendered at two poses:
   (a) at the identity pose every visible pixel equals the frame's f32 conversion, computed here (u8 / 127.5 - 1);
@@ -9,7 +9,8 @@ A synthetic frame and disparity made here are built into a point-cloud scene and
       as .npy files here, with a one-pose JSON trajectory: an independent path through the program.
 A render job on the same inputs is polled to completion and its mask.npy equals the program's. Errors: a bad size
 is DVS_ERROR_INVALID_ARGUMENT with dvs_last_error() naming the argument, a missing file is DVS_ERROR_FILE naming it.
-With VDA_CHECKPOINT (the conformance pack's tiny Video-Depth-Anything), frames made here are estimated through
+--video-lib loads dvs's video component beside the core (it registers itself when loaded), which the render job
+needs to write its .mp4 files. With --vda VDA_CHECKPOINT (the conformance pack's tiny Video-Depth-Anything), frames made here are estimated through
 dvs_depth_estimator_estimate with a progress callback and compared bit for bit with `dvs depth` of the same frames
 written as an .npy; a callback returning nonzero cancels (DVS_ERROR_CANCELLED) and the estimator stays usable.
 Standard library only (ctypes, struct, array): numpy is not required.
@@ -157,10 +158,14 @@ def run_program(program, args):
 
 
 def main():
-    if len(sys.argv) not in (3, 4):
+    args = sys.argv[1:]
+    options = dict(zip(args[2::2], args[3::2]))
+    if len(args) < 2 or len(args) % 2 or set(options) - {"--vda", "--video-lib"}:
         sys.exit(__doc__)
-    lib = load(sys.argv[1])
-    program = sys.argv[2]
+    lib = load(args[0])
+    program = args[1]
+    if "--video-lib" in options:
+        C.CDLL(options["--video-lib"], mode=C.RTLD_GLOBAL)
     print("dvs", lib.dvs_version().decode())
     frame, disparity = synthetic_inputs()
     identity = [1.0 if i % 5 == 0 else 0.0 for i in range(16)]
@@ -219,8 +224,8 @@ def main():
     try:
         compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K, tmp, frame, disparity, pose,
                                       moved_mask)
-        if len(sys.argv) == 4:
-            depth_of_frames(lib, program, ctx, sys.argv[3], tmp)
+        if "--vda" in options:
+            depth_of_frames(lib, program, ctx, options["--vda"], tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     ok(lib, lib.dvs_scene_destroy(scene), "dvs_scene_destroy")

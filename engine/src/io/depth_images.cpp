@@ -1,9 +1,5 @@
 #include "io/depth_images.hpp"
 
-#ifndef DVS_VIDEO_IO
-#define DVS_VIDEO_IO 1  // CMake defines it as 0 for this file in a DVS_VIDEO_IO=OFF build
-#endif
-
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -12,12 +8,8 @@
 #include <string>
 #include <vector>
 
-#if DVS_VIDEO_IO
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#endif
-
 #include "dvs/error.hpp"
+#include "io/video_backend.hpp"
 
 
 namespace dvs {
@@ -92,30 +84,14 @@ void check_declared_size(const std::filesystem::path& file, const char* kind) {
     throw Error(what + ", more than its " + std::to_string(file_size) + " bytes can hold (corrupt file?)");
 }
 
-// One single-channel image as [H,W] f32, through OpenCV (PNG 8/16-bit, EXR float).
+// One single-channel image as [H,W] f32, through the video component (OpenCV: PNG 8/16-bit, EXR float).
 HostTensor read_single_channel(const std::filesystem::path& file, const char* kind) {
   const std::string name = file.string();
   if (!std::filesystem::is_regular_file(file)) throw Error(name + ": cannot open the depth image (no such file)");
-#if !DVS_VIDEO_IO
-  throw Error(name + ": cannot read " + kind + " depth images: built without video I/O (DVS_VIDEO_IO=OFF)");
-#else
+  const VideoBackend* backend = video_backend();
+  if (!backend) needs_video_component(file, std::string("reading ") + kind + " depth images");
   check_declared_size(file, kind);
-  cv::Mat img;
-  try {
-    img = cv::imread(name, cv::IMREAD_UNCHANGED | cv::IMREAD_ANYDEPTH);
-  } catch (const cv::Exception& e) {
-    throw Error(name + ": cannot read the " + kind + " depth image (" + e.what() + ")");
-  }
-  if (img.empty()) throw Error(name + ": not a readable " + kind + " image (corrupt or truncated?)");
-  if (img.channels() != 1)
-    throw Error(name + ": depth images must be single-channel (grayscale); this one has " +
-                std::to_string(img.channels()) + " channels");
-  cv::Mat f;
-  img.convertTo(f, CV_32F);  // integers keep their stored values
-  HostTensor out({int64_t(f.rows), int64_t(f.cols)}, DType::f32);
-  for (int y = 0; y < f.rows; ++y) std::memcpy(out.as<float>() + size_t(y) * f.cols, f.ptr<float>(y), size_t(f.cols) * 4);
-  return out;
-#endif
+  return backend->read_depth_image(file, kind);
 }
 
 }  // namespace
@@ -148,11 +124,7 @@ bool natural_less(const std::string& a, const std::string& b) {
 
 HostTensor read_depth_png(const std::filesystem::path& file) { return read_single_channel(file, "PNG"); }
 
-HostTensor read_depth_exr(const std::filesystem::path& file) {
-  // OpenCV reads EXR only when this is set before the first EXR read (a security default).
-  setenv("OPENCV_IO_ENABLE_OPENEXR", "1", 0);
-  return read_single_channel(file, "EXR");
-}
+HostTensor read_depth_exr(const std::filesystem::path& file) { return read_single_channel(file, "EXR"); }
 
 std::vector<std::filesystem::path> depth_image_files(const std::filesystem::path& folder) {
   const std::string name = folder.string();

@@ -9,6 +9,10 @@ namespace dvs {
 // opened: FFmpeg's log level is read by OpenCV when its backend starts.
 void set_third_party_logs(bool verbose);
 bool third_party_logs_verbose();
+// Whether set_third_party_logs was called; remember_third_party_logs records a choice without passing it on to the
+// video component (the component's own copy of this state, in libdvs_video, is set through it).
+bool third_party_logs_chosen();
+void remember_third_party_logs(bool verbose);
 
 // While alive, and while the libraries are quiet, file descriptor 2 points at /dev/null: for the few
 // library calls that print with fprintf(stderr) whatever their log level (OpenCV's codec-tag fallback, the

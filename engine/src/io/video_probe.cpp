@@ -6,6 +6,8 @@
 #include <optional>
 #include <vector>
 
+#include "dvs/error.hpp"
+
 namespace dvs {
 namespace {
 
@@ -130,6 +132,20 @@ std::string video_file_problem(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return "";
   return iso_media_problem(in, size);
+}
+
+// A video that holds fewer frames than were asked for (--frames). `announced` is the container's own count (0 when
+// it does not say); more than were decoded means the file stops early. run needs 4k+1 frames, render and depth
+// take any count, so both are suggested.
+void throw_too_few_frames(const std::string& name, int have, int wanted, int announced) {
+  const int fit = (have - 1) / 4 * 4 + 1;
+  std::string why;
+  if (announced > have)
+    why = " (the file is truncated or damaged: its header announces " + std::to_string(announced) +
+          " frames but decoding stops after frame " + std::to_string(have) + ")";
+  throw Error(name + ": holds " + std::to_string(have) + " frames, fewer than --frames " + std::to_string(wanted) + why +
+              "; use --frames " + std::to_string(fit) + " (the largest 4k+1 it has, as dvs run needs; dvs render and "
+              "dvs depth take any count up to " + std::to_string(have) + "), or leave --frames out to use them all");
 }
 
 }  // namespace dvs

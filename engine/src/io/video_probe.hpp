@@ -14,4 +14,8 @@ namespace dvs {
 // 'mdat' box of 51234 bytes that starts at byte 48, and its index ('moov' box) is missing, ...".
 std::string video_file_problem(const std::filesystem::path& path);
 
+// dvs::Error for a video that holds fewer frames than --frames asked for (`announced`: the container's own count, 0
+// when it does not say), with the --frames that works.
+[[noreturn]] void throw_too_few_frames(const std::string& name, int have, int wanted, int announced);
+
 }  // namespace dvs
