@@ -22,6 +22,7 @@
 #include "spec/vda_config.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
+#include "support/random_vda.hpp"
 #include "support/vda_pack.hpp"
 
 namespace dvs {
@@ -33,22 +34,7 @@ struct Event {
   std::string note;
 };
 
-// The pack's tiny architecture with seeded random weights, as a .safetensors with its config.json beside it;
-// `poison` names a tensor filled with NaN, `fill` tensors filled with a value.
-std::filesystem::path random_vda(const std::filesystem::path& dir, const std::string& poison = "",
-                                 const std::map<std::string, float>& fill = {}) {
-  std::filesystem::create_directories(dir);
-  const VdaConfig cfg = vda_config_from_json(test::vda_model_config(), "pack config");
-  auto tensors = vda_random_checkpoint(cfg, 11);
-  for (auto& [name, t] : tensors) {
-    if (name == poison) t = HostTensor::from_f32(t.shape, std::vector<float>(size_t(t.numel()), std::nanf("")));
-    if (fill.count(name)) t = HostTensor::from_f32(t.shape, std::vector<float>(size_t(t.numel()), fill.at(name)));
-  }
-  const auto file = dir / "vda_random.safetensors";
-  write_safetensors(file, tensors);
-  std::filesystem::copy_file(test::vda_golden_path() / "model" / "config.json", dir / "config.json");
-  return file;
-}
+using test::random_vda;
 
 size_t cache_entries(const std::filesystem::path& cache) {
   size_t n = 0;

@@ -15,7 +15,7 @@
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
 #include "pipeline/cache_entry.hpp"
-#include "pipeline/depth_forecast.hpp"
+#include "pipeline/frames_depth.hpp"
 #include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
 #include "pipeline/inversion_cache.hpp"
@@ -72,15 +72,13 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
   vk::ContextOptions copt;
   copt.device = job.device;
   vk::Context ctx(copt);
-  // An estimate whose tensors cannot be allocated on this device is refused before the model loads, with the
-  // network input that fits (the figures dvs plan and run's preflight use).
-  const vk::DeviceCaps& caps = ctx.caps();
-  if (const std::string p = vda_fit_problem(VdaModel::inspect(job.model), s.height, s.width, job.input_size,
-                                            caps.max_memory_allocation_size, std::nullopt, ctx.allocator().alignment(),
-                                            "device " + caps.name + (caps.forced_limits.any() ? " lowered by DVS_LIMITS" : ""),
-                                            job.input_size_option);
-      !p.empty())
-    throw Error(p);
+  FramesDepthOptions fo;
+  fo.input_size = job.input_size;
+  fo.input_size_option = job.input_size_option;
+  fo.model_file = job.model;
+  fo.forecast_after_s = job.forecast_after_s;
+  fo.notice = job.notice;
+  check_vda_fits(ctx, VdaModel::inspect(job.model), s.height, s.width, fo);
   t = std::chrono::steady_clock::now();
   VdaModel model = VdaModel::load(ctx, job.model);
   if (job.metric) model.set_metric(*job.metric);
@@ -89,39 +87,7 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
   s.weight_bytes = model.weight_bytes();
   s.seconds_load = seconds_since(t);
   if (cancelled && cancelled()) throw Cancelled();
-
-  t = std::chrono::steady_clock::now();
-  s.windows = int(vda_window_frames(s.frames, model.config()).size());
-  DepthForecastInput fi;
-  fi.cfg = model.config();
-  fi.frame_height = s.height, fi.frame_width = s.width;
-  fi.input_size = job.input_size;
-  fi.windows = s.windows;
-  fi.input_size_option = job.input_size_option;
-  fi.threshold_s = job.forecast_after_s;
-  DepthForecast forecast(fi);
-  VdaVideoOptions o;
-  o.input_size = job.input_size;
-  o.on_step = [&](const VdaStep& st) {
-    // Cancellation first: a step can take seconds on a CPU device, and Ctrl-C must not wait for a window.
-    if (cancelled && cancelled()) throw Cancelled();
-    crash_point("step", "depth", (st.window - 1) * st.total + st.done);
-    if (auto m = forecast.on_step(st, seconds_since(t))) notify(job, progress, *m);
-    if (progress)
-      progress("depth", (st.window - 1) * st.total + st.done, st.windows * st.total,
-               (st.windows > 1 ? "window " + std::to_string(st.window) + "/" + std::to_string(st.windows) + ": " : "") + st.what);
-  };
-  VdaVideoResult r;
-  try {
-    r = vda_video_depth(model, frames, o);
-  } catch (const VdaBrokenOutput& e) {
-    throw Error(job.model.string() + ": " + e.what() + "; the estimate is refused, not cached. Usual causes: weights "
-                "holding NaN/Inf (dvs-weights inspect --values " + job.model.string() + " lists them) or a damaged file");
-  }
-  s.input_height = int(r.input.height), s.input_width = int(r.input.width);
-  s.seconds_depth = seconds_since(t);
-  s.peak_device_bytes = ctx.allocator().stats().peak_bytes_reserved;
-  return r.depth;
+  return estimate_frames_depth(model, frames, fo, progress, cancelled, s);
 }
 
 // What a cached estimate says of itself: sizes from the array, the rest from the checkpoint's headers.

@@ -1,0 +1,73 @@
+// dvs/depth_frames.hpp: Video-Depth-Anything loaded once on a dvs::Context, run on frames the application hands
+// over. The estimate itself is estimate_depth's (pipeline/frames_depth.hpp), so the disparity equals `dvs depth`'s
+// for the same frames.
+#include "dvs/depth_frames.hpp"
+
+#include <cstring>
+#include <optional>
+
+#include "dvs/error.hpp"
+#include "models/vda/vda_model.hpp"
+#include "pipeline/frames_depth.hpp"
+
+namespace dvs {
+
+struct DepthEstimator::Impl {
+  Context* ctx = nullptr;
+  FramesDepthOptions options;
+  std::optional<VdaModel> model;
+};
+
+namespace {
+
+constexpr const char* kWhere = "dvs::DepthEstimator::estimate";
+
+void check_views(const HostView& frames, const HostView& out) {
+  const auto& f = frames.shape;
+  if (frames.type != ElementType::u8 || f.size() != 4 || f[3] != 3 || f[0] < 1 || f[1] < 1 || f[2] < 1)
+    throw Error(std::string(kWhere) + ": frames must be u8 [F,H,W,3] RGB with F, H, W >= 1, got " + frames.describe());
+  if (!frames.data) throw Error(std::string(kWhere) + ": frames.data is null (give the frames' memory)");
+  const std::vector<int64_t> want{f[0], f[1], f[2]};
+  if (out.type != ElementType::f32 || out.shape != want)
+    throw Error(std::string(kWhere) + ": out must be f32 [" + std::to_string(f[0]) + "x" + std::to_string(f[1]) + "x" +
+                std::to_string(f[2]) + "] (the frames' F, H, W), got " + out.describe());
+  if (!out.data) throw Error(std::string(kWhere) + ": out.data is null (give memory for the disparity)");
+}
+
+}  // namespace
+
+DepthEstimator::DepthEstimator(Context& ctx, const std::filesystem::path& model, const DepthModelOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  if (!std::filesystem::is_regular_file(model))
+    throw Error(model.string() + ": no such depth model (give a video_depth_anything_vit{s,b,l}.pth or a "
+                ".safetensors of it; README.md says where the checkpoints are)");
+  if (options.input_size < 14 || options.input_size > 4096)
+    throw Error("dvs::DepthModelOptions::input_size must be in [14, 4096] (the model's default is 518), got " +
+                std::to_string(options.input_size));
+  impl_->ctx = &ctx;
+  impl_->options.input_size = options.input_size;
+  impl_->options.input_size_option = "DepthModelOptions::input_size";
+  impl_->options.model_file = model;
+  VdaModel::inspect(model);  // another model's file is named before any upload
+  impl_->model.emplace(VdaModel::load(ctx.internal(), model));
+  if (options.metric) impl_->model->set_metric(*options.metric);
+}
+
+DepthEstimator::~DepthEstimator() = default;
+
+bool DepthEstimator::metric() const { return impl_->model->config().metric; }
+
+void DepthEstimator::estimate(const HostView& frames, const HostView& out, const ProgressFn& progress,
+                              const CancelFn& cancelled) {
+  check_views(frames, out);
+  VdaModel& model = *impl_->model;
+  check_vda_fits(impl_->ctx->internal(), model.config(), int(frames.shape[1]), int(frames.shape[2]), impl_->options);
+  if (cancelled && cancelled()) throw Cancelled();
+  HostTensor in(frames.shape, DType::u8);
+  std::memcpy(in.data.data(), frames.data, in.bytes());
+  DepthSummary summary;
+  const HostTensor depth = estimate_frames_depth(model, in, impl_->options, progress, cancelled, summary);
+  std::memcpy(out.data, depth.data.data(), depth.bytes());
+}
+
+}  // namespace dvs

@@ -1,0 +1,199 @@
+// dvs/job.hpp: run_pipeline, render_novel_view and estimate_depth on a thread of their own. The thread owns nothing
+// but the shared State; the Job handle cancels and joins it when destroyed, so a job never outlives its handle.
+// Whatever the work throws is kept (std::exception_ptr) and rethrown by the result getters on the caller's thread.
+#include "dvs/job.hpp"
+
+#include <atomic>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "dvs/error.hpp"
+
+namespace dvs {
+
+struct Job::State {
+  std::atomic<JobState> state{JobState::running};
+  std::atomic<bool> cancel_asked{false};
+  std::string kind;  // "pipeline", "render" or "depth": which result getter applies
+  mutable std::mutex mutex;
+  std::condition_variable finished;
+  JobProgress progress;  // guarded by mutex
+  std::string error;     // guarded by mutex; set before `state` leaves running
+  std::exception_ptr exception;
+  std::optional<RunReport> run_report;
+  std::optional<RenderSummary> render_summary;
+  std::optional<DepthSummary> depth_summary;
+  std::thread thread;
+
+  // The caller's progress callback behind the job's own record of the last event. An exception from the callback
+  // fails the job as a dvs::Error (the blocking call then cleans up as for any failure), not the process.
+  ProgressFn progress_fn(ProgressFn user) {
+    return [this, user = std::move(user)](const std::string& stage, int step, int total, const std::string& note) {
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        progress = {stage, note, step, total};
+      }
+      if (!user) return;
+      try {
+        user(stage, step, total, note);
+      } catch (const Cancelled&) {
+        throw;
+      } catch (const std::exception& e) {
+        throw Error("the job's progress callback threw: " + std::string(e.what()));
+      } catch (...) {
+        throw Error("the job's progress callback threw an exception that is not a std::exception");
+      }
+    };
+  }
+  CancelFn cancel_fn() {
+    return [this] { return cancel_asked.load(); };
+  }
+
+  template <class Work>
+  void run(Work work) {
+    JobState end = JobState::succeeded;
+    std::string message;
+    std::exception_ptr caught;
+    try {
+      work();
+    } catch (const Cancelled& e) {
+      end = JobState::cancelled, message = e.what(), caught = std::current_exception();
+    } catch (const std::exception& e) {
+      end = JobState::failed, message = e.what(), caught = std::current_exception();
+    } catch (...) {
+      end = JobState::failed, message = "the job failed with an exception that is not a std::exception";
+      caught = std::current_exception();
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      exception = caught;
+      if (end == JobState::failed) error = message;
+      state = end;
+    }
+    finished.notify_all();
+  }
+
+  // Waits for the end of the work, then rethrows what it threw, or refuses a getter of another kind of job.
+  void check_result(const char* getter, const char* want) {
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      finished.wait(lock, [this] { return state != JobState::running; });
+    }
+    if (exception) std::rethrow_exception(exception);
+    if (kind != want)
+      throw Error(std::string("dvs::Job::") + getter + ": this is a " + kind + " job; its result is " +
+                  (kind == "pipeline" ? "run_report()" : kind == "render" ? "render_summary()" : "depth_summary()"));
+  }
+
+  void stop() {
+    cancel_asked = true;
+    if (thread.joinable()) thread.join();
+  }
+};
+
+Job::Job(std::shared_ptr<State> state) : state_(std::move(state)) {}
+Job::Job(Job&&) noexcept = default;
+Job& Job::operator=(Job&& other) noexcept {
+  if (this != &other) {
+    if (state_) state_->stop();
+    state_ = std::move(other.state_);
+  }
+  return *this;
+}
+Job::~Job() {
+  if (state_) state_->stop();
+}
+
+namespace {
+void check_handle(const std::shared_ptr<Job::State>& s, const char* call) {
+  if (!s) throw Error(std::string("dvs::Job::") + call + ": this Job was moved from; use the Job it was moved to");
+}
+}  // namespace
+
+JobState Job::poll() const {
+  check_handle(state_, "poll");
+  return state_->state.load();
+}
+
+JobProgress Job::progress() const {
+  check_handle(state_, "progress");
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return state_->progress;
+}
+
+bool Job::wait_for(std::chrono::milliseconds limit) {
+  check_handle(state_, "wait_for");
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  return state_->finished.wait_for(lock, limit, [this] { return state_->state != JobState::running; });
+}
+
+void Job::wait() {
+  check_handle(state_, "wait");
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  state_->finished.wait(lock, [this] { return state_->state != JobState::running; });
+}
+
+void Job::cancel() {
+  check_handle(state_, "cancel");
+  state_->cancel_asked = true;
+}
+
+std::string Job::error() const {
+  check_handle(state_, "error");
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return state_->error;
+}
+
+RunReport Job::run_report() {
+  check_handle(state_, "run_report");
+  state_->check_result("run_report", "pipeline");
+  return *state_->run_report;
+}
+
+RenderSummary Job::render_summary() {
+  check_handle(state_, "render_summary");
+  state_->check_result("render_summary", "render");
+  return *state_->render_summary;
+}
+
+DepthSummary Job::depth_summary() {
+  check_handle(state_, "depth_summary");
+  state_->check_result("depth_summary", "depth");
+  return *state_->depth_summary;
+}
+
+// The work's inputs are copied into the thread's closure: the caller's objects may go away at once.
+Job start_pipeline(const RunOptions& options, const ProgressFn& progress) {
+  auto s = std::make_shared<Job::State>();
+  s->kind = "pipeline";
+  s->thread = std::thread([st = s.get(), options, fn = s->progress_fn(progress)] {
+    st->run([&] { st->run_report = run_pipeline(options, fn, st->cancel_fn()); });
+  });
+  return Job(s);
+}
+
+Job start_render(const RenderJob& job, const ProgressFn& progress) {
+  auto s = std::make_shared<Job::State>();
+  s->kind = "render";
+  s->thread = std::thread([st = s.get(), job, fn = s->progress_fn(progress)] {
+    st->run([&] {
+      st->render_summary = render_novel_view(job, [&](const std::string& line) { fn("render", 0, 0, line); },
+                                             st->cancel_fn());
+    });
+  });
+  return Job(s);
+}
+
+Job start_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress) {
+  auto s = std::make_shared<Job::State>();
+  s->kind = "depth";
+  s->thread = std::thread([st = s.get(), job, out, fn = s->progress_fn(progress)] {
+    st->run([&] { st->depth_summary = estimate_depth(job, out, fn, st->cancel_fn()); });
+  });
+  return Job(s);
+}
+
+}  // namespace dvs

@@ -1,0 +1,195 @@
+/* The C API compiled as C (C99): dvs/dvs.h must be a C header. Checks the calls that need no model: version, the
+ * argument errors and their messages, a context and its timeline, option defaults, a job whose input is missing (its
+ * status and message come back through dvs_job_result), and a context on a device the test creates itself (a scene
+ * rendered there takes the application's queue lock; dvs destroys nothing of the application's). Exit status 0 =
+ * every check passed. */
+#include <stdio.h>
+#include <string.h>
+
+#include "dvs/dvs.h"
+
+static int failures = 0;
+
+#define CHECK(cond, ...)                          \
+  do {                                            \
+    if (!(cond)) {                                \
+      ++failures;                                 \
+      printf("FAIL %s:%d: ", __FILE__, __LINE__); \
+      printf(__VA_ARGS__);                        \
+      printf("\n");                               \
+    }                                             \
+  } while (0)
+
+static void lock_nothing(void* user) { (void)user; }
+
+static int locks = 0;
+static void count_lock(void* user) { ++*(int*)user; }
+
+/* The application's side: its own instance and device (Vulkan 1.2, timelineSemaphore), handed to dvs with a queue
+ * lock that counts its calls; a scene rendered there must take the lock around its submissions. */
+static void host_device_round_trip(void) {
+  VkApplicationInfo app = {VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  VkInstanceCreateInfo ici = {VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  VkInstance instance = VK_NULL_HANDLE;
+  VkPhysicalDevice gpus[8];
+  uint32_t gpu_count = 8, family_count = 16, family = UINT32_MAX, i;
+  VkQueueFamilyProperties families[16];
+  VkPhysicalDeviceVulkan12Features f12 = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  float priority = 1.0f;
+  VkDeviceQueueCreateInfo qci = {VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  VkDeviceCreateInfo dci = {VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  VkDevice device = VK_NULL_HANDLE;
+  dvs_host_device host;
+  dvs_context* ctx = NULL;
+  dvs_scene* scene = NULL;
+  dvs_intrinsics k;
+  uint8_t frame[8 * 8 * 3];
+  float depth[8 * 8], image[3 * 8 * 8], mask[8 * 8];
+  float want;
+  const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  dvs_status status;
+
+  app.apiVersion = VK_API_VERSION_1_2;
+  ici.pApplicationInfo = &app;
+  if (vkCreateInstance(&ici, NULL, &instance) != VK_SUCCESS ||
+      vkEnumeratePhysicalDevices(instance, &gpu_count, gpus) < 0 || gpu_count == 0) {
+    CHECK(0, "the test's own Vulkan instance");
+    return;
+  }
+  vkGetPhysicalDeviceQueueFamilyProperties(gpus[0], &family_count, families);
+  for (i = 0; i < family_count && family == UINT32_MAX; ++i)
+    if (families[i].queueFlags & VK_QUEUE_COMPUTE_BIT) family = i;
+  qci.queueFamilyIndex = family;
+  qci.queueCount = 1;
+  qci.pQueuePriorities = &priority;
+  f12.timelineSemaphore = VK_TRUE;
+  dci.pNext = &f12;
+  dci.queueCreateInfoCount = 1;
+  dci.pQueueCreateInfos = &qci;
+  CHECK(vkCreateDevice(gpus[0], &dci, NULL, &device) == VK_SUCCESS, "the test's own device");
+
+  memset(&host, 0, sizeof host);
+  host.instance = instance;
+  host.physical_device = gpus[0];
+  host.device = device;
+  host.queue_family = family;
+  vkGetDeviceQueue(device, family, 0, &host.queue);
+  host.instance_api_version = VK_API_VERSION_1_2;
+  host.enabled_features = &f12;
+  host.lock_queue = count_lock;
+  host.unlock_queue = count_lock;
+  host.user_data = &locks;
+  status = dvs_context_create_on_host(&host, &ctx);
+  CHECK(status == DVS_OK, "dvs_context_create_on_host: %d %s", (int)status, dvs_last_error());
+  if (ctx) {
+    for (i = 0; i < 8 * 8; ++i) {
+      frame[3 * i] = (uint8_t)(4 * i), frame[3 * i + 1] = (uint8_t)(255 - 3 * i), frame[3 * i + 2] = (uint8_t)(i % 7);
+      depth[i] = 0.5f + (float)i / 128.0f;
+    }
+    CHECK(dvs_intrinsics_default(8, 8, 0, &k) == DVS_OK, "intrinsics");
+    status = dvs_scene_create(ctx, frame, DVS_U8, 8, 8, depth, &k, NULL, &scene);
+    CHECK(status == DVS_OK, "scene on the host device: %s", dvs_last_error());
+    if (scene) {
+      status = dvs_scene_render(scene, identity, image, DVS_F32, mask);
+      CHECK(status == DVS_OK, "render on the host device: %s", dvs_last_error());
+      CHECK(locks > 0 && locks % 2 == 0, "the queue lock was called %d times (lock and unlock in pairs)", locks);
+      /* At the identity a pixel is its input value (up to the splat's float rounding, far below an 8-bit step). */
+      want = (float)frame[3 * 27] / 127.5f - 1.0f;
+      CHECK(mask[27] == 1.0f && image[27] > want - 1e-3f && image[27] < want + 1e-3f, "pixel 27: %g, not %g (mask %g)",
+            image[27], want, mask[27]);
+    }
+    CHECK(dvs_scene_destroy(scene) == DVS_OK, "scene destroy");
+    CHECK(dvs_context_destroy(ctx) == DVS_OK, "context destroy");
+  }
+  /* dvs destroyed nothing of the application's: its device and instance are still ours to destroy. */
+  if (device) vkDestroyDevice(device, NULL);
+  vkDestroyInstance(instance, NULL);
+}
+
+static int contains(const char* text, const char* part) { return text && strstr(text, part) != NULL; }
+
+int main(int argc, char** argv) {
+  const char* dir = argc > 1 ? argv[1] : "/tmp";
+  char path[1024];
+  dvs_context* ctx = NULL;
+  dvs_depth_estimator* estimator = NULL;
+  dvs_render_options options;
+  dvs_job* job = NULL;
+  dvs_job_state state = DVS_JOB_RUNNING;
+  dvs_status status;
+  char name[256], error[1024];
+
+  CHECK(strlen(dvs_version()) >= 5, "version \"%s\"", dvs_version());
+
+  status = dvs_context_create(NULL, 0, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT, "NULL out: status %d", (int)status);
+  CHECK(contains(dvs_last_error(), "dvs_context_create: out is NULL"), "message \"%s\"", dvs_last_error());
+
+  {
+    /* A host device with only one of the two queue-lock functions is refused before any Vulkan call. */
+    dvs_host_device host;
+    dvs_context* on_host = NULL;
+    memset(&host, 0, sizeof host);
+    host.lock_queue = lock_nothing;
+    status = dvs_context_create_on_host(&host, &on_host);
+    CHECK(status == DVS_ERROR_INVALID_ARGUMENT && on_host == NULL, "one lock function: status %d", (int)status);
+    CHECK(contains(dvs_last_error(), "lock_queue and host->unlock_queue"), "message \"%s\"", dvs_last_error());
+    status = dvs_context_create_on_host(NULL, &on_host);
+    CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "host is NULL"), "NULL host: %d %s",
+          (int)status, dvs_last_error());
+  }
+
+  status = dvs_context_create(NULL, 0, &ctx);
+  CHECK(status == DVS_OK && ctx != NULL, "dvs_context_create: %d %s", (int)status, dvs_last_error());
+  if (!ctx) return 1;
+  CHECK(dvs_context_device_name(ctx, name, sizeof name) == DVS_OK && name[0] != '\0', "device name");
+  printf("device: %s\n", name);
+  /* A buffer too small for the name is filled and terminated, not overrun. */
+  name[3] = 'x';
+  CHECK(dvs_context_device_name(ctx, name, 3) == DVS_OK && strlen(name) == 2 && name[3] == 'x', "truncation");
+
+  {
+    /* The timeline semaphore exists from the start; value 0 is reached at once. */
+    VkSemaphore timeline = VK_NULL_HANDLE;
+    int32_t reached = 0;
+    CHECK(dvs_context_timeline(ctx, &timeline) == DVS_OK && timeline != VK_NULL_HANDLE, "timeline: %s", dvs_last_error());
+    CHECK(dvs_context_wait(ctx, 0, 0, &reached) == DVS_OK && reached == 1, "wait(0): %d %s", (int)reached,
+          dvs_last_error());
+  }
+
+  snprintf(path, sizeof path, "%s/none.pth", dir);
+  status = dvs_depth_estimator_create(ctx, path, 0, -1, &estimator);
+  CHECK(status == DVS_ERROR_FILE && estimator == NULL, "missing model: status %d", (int)status);
+  CHECK(contains(dvs_last_error(), "none.pth: no such depth model"), "message \"%s\"", dvs_last_error());
+  status = dvs_depth_estimator_create(ctx, path, 0, 2, &estimator);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "metric must be"), "metric 2: %d %s",
+        (int)status, dvs_last_error());
+
+  CHECK(dvs_render_options_default(&options) == DVS_OK, "dvs_render_options_default");
+  CHECK(options.frames == 49 && options.height == 480 && options.width == 720 &&
+            strcmp(options.trajectory, "loop1") == 0 && options.depth_input_size == 518,
+        "render defaults: %d %dx%d %s %d", options.frames, options.height, options.width, options.trajectory,
+        options.depth_input_size);
+
+  snprintf(path, sizeof path, "%s/missing.mp4", dir);
+  options.video = path;
+  options.depth = path;
+  options.out_dir = dir;
+  CHECK(dvs_job_start_render(&options, &job) == DVS_OK && job != NULL, "start: %s", dvs_last_error());
+  status = dvs_job_result(job);
+  CHECK(status == DVS_ERROR_FILE, "failing job: status %d", (int)status);
+  CHECK(contains(dvs_last_error(), "missing.mp4"), "failing job: message \"%s\"", dvs_last_error());
+  CHECK(dvs_job_poll(job, &state) == DVS_OK && state == DVS_JOB_FAILED, "failing job: state %d", (int)state);
+  CHECK(dvs_job_error(job, error, sizeof error) == DVS_OK && contains(error, "missing.mp4"), "job error \"%s\"", error);
+  CHECK(dvs_job_destroy(job) == DVS_OK, "dvs_job_destroy");
+  CHECK(dvs_job_destroy(NULL) == DVS_OK, "destroying NULL");
+
+  status = dvs_job_poll(NULL, &state);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_job_poll: job is NULL"),
+        "NULL job: %d %s", (int)status, dvs_last_error());
+
+  CHECK(dvs_context_destroy(ctx) == DVS_OK, "dvs_context_destroy");
+  host_device_round_trip();
+  printf("%s\n", failures ? "FAILED" : "all checks passed");
+  return failures ? 1 : 0;
+}
