@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iostream>
 
 #include "dvs/error.hpp"
 #include "io/npy.hpp"
@@ -117,6 +118,9 @@ HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames, in
 
 void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps) {
   if (const VideoBackend* backend = video_backend()) return backend->write_video(path, frames, fps);
+  // Not silent: an application that links only dvs::core and asks for a job's .mp4 files gets frame arrays.
+  std::cerr << "dvs: warning: " << path.string() << ": written as an .npy frame array (f32 [F,3,H,W] in [-1,1]) "
+            << "under this name: this program has no video component (link dvs::video for .mp4 files)\n";
   const Shape& s = frames.shape;
   int64_t F = 0, C = 0, H = 0, W = 0;
   if (s.size() == 4 && (s[1] == 3 || s[1] == 1)) F = s[0], C = s[1], H = s[2], W = s[3];
