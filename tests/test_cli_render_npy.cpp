@@ -21,16 +21,22 @@ namespace {
 
 class CliRenderNpy : public test::GpuTest {};
 
-TEST_F(CliRenderNpy, RenderNpyEqualsTheSplatRenderOfTheClip) {
-  test::TempDir dir;
+// A synthetic 48×64 RGB-D clip of `frames` frames as dir/scene.mp4 and its metric depth as dir/depth.npy.
+geometry::RgbdClip write_scene_clip(const std::filesystem::path& dir, int frames) {
   geometry::SyntheticSceneSpec spec;
-  spec.frames = 5;
+  spec.frames = frames;
   spec.height = 48;
   spec.width = 64;
   spec.K = geometry::Intrinsics::official_default(64, 48);
-  const auto scene = geometry::render_synthetic(spec);
+  auto scene = geometry::render_synthetic(spec);
   write_video(dir / "scene.mp4", scene.rgb, 12.0);
   write_npy(dir / "depth.npy", scene.depth);
+  return scene;
+}
+
+TEST_F(CliRenderNpy, RenderNpyEqualsTheSplatRenderOfTheClip) {
+  test::TempDir dir;
+  const auto scene = write_scene_clip(dir.path, 5);
   const auto r = test::run_command(test::program("dvs") + " render --video " + (dir / "scene.mp4").string() +
                                    " --depth " + (dir / "depth.npy").string() +
                                    " --metric-depth --size 48x64 --frames 5 --no-glb --trajectory arc_left:10 "
@@ -68,14 +74,7 @@ TEST_F(CliRenderNpy, RenderNpyEqualsTheSplatRenderOfTheClip) {
 
 TEST(CliRenderNpyOff, NoRenderNpyWithoutTheOption) {
   test::TempDir dir;
-  geometry::SyntheticSceneSpec spec;
-  spec.frames = 2;
-  spec.height = 48;
-  spec.width = 64;
-  spec.K = geometry::Intrinsics::official_default(64, 48);
-  const auto scene = geometry::render_synthetic(spec);
-  write_video(dir / "scene.mp4", scene.rgb, 12.0);
-  write_npy(dir / "depth.npy", scene.depth);
+  write_scene_clip(dir.path, 2);
   const auto r = test::run_command(test::program("dvs") + " render --video " + (dir / "scene.mp4").string() +
                                    " --depth " + (dir / "depth.npy").string() +
                                    " --metric-depth --size 48x64 --frames 2 --no-glb --trajectory pan_left:5 --out " +
