@@ -17,6 +17,7 @@
 #include "fly_camera.hpp"
 #include "input_script.hpp"
 #include "npy_arrays.hpp"
+#include "preview_inputs.hpp"
 #include "png_file.hpp"
 #include "present_window.hpp"
 
@@ -26,73 +27,6 @@ namespace {
 
 constexpr double kLookRadiansPerPixel = 0.003;
 constexpr double kStepOfRadius = 0.01;  // a frame of W moves 1% of the orbit radius (× the scroll speed)
-
-// The frame (u8 [H,W,3] or f32 [3,H,W] of frame_index) and its depth (f32 [H,W]), checked against --size.
-struct Inputs {
-  NpyArray frame, depth;
-  dvs::HostView frame_view, depth_view;
-  std::vector<uint8_t> frame_rgba;  // the input panel
-};
-
-Inputs read_inputs(const PreviewOptions& o) {
-  Inputs in;
-  const int64_t H = o.height, W = o.width;
-  in.frame = read_npy(o.frame_npy);
-  auto& s = in.frame.shape;
-  const bool u8 = in.frame.dtype == "u1";
-  if (s.size() == 4) {  // a frame axis first
-    if (o.frame_index >= s[0])
-      throw std::runtime_error(o.frame_npy + ": --frame-index " + std::to_string(o.frame_index) + " but it holds " +
-                               std::to_string(s[0]) + " frames");
-    const size_t plane = in.frame.bytes.size() / size_t(s[0]);
-    in.frame.bytes.erase(in.frame.bytes.begin(), in.frame.bytes.begin() + std::ptrdiff_t(plane * size_t(o.frame_index)));
-    in.frame.bytes.resize(plane);
-    s.erase(s.begin());
-  }
-  const std::vector<int64_t> want = u8 ? std::vector<int64_t>{H, W, 3} : std::vector<int64_t>{3, H, W};
-  if (s != want) {
-    std::string got;
-    for (int64_t d : s) {
-      if (!got.empty()) got += 'x';
-      got += std::to_string(d);
-    }
-    throw std::runtime_error(o.frame_npy + ": shape " + got + " is not a frame of --size " + std::to_string(H) + "x" +
-                             std::to_string(W) + " (u8 [H,W,3] or f32 [3,H,W], optionally with a frame axis first)");
-  }
-  in.frame_view = {in.frame.bytes.data(), u8 ? dvs::ElementType::u8 : dvs::ElementType::f32, want};
-  in.frame_rgba.resize(size_t(H * W * 4));
-  for (int64_t i = 0; i < H * W; ++i)
-    for (int c = 0; c < 3; ++c) {
-      uint8_t v;
-      if (u8) {
-        v = in.frame.bytes[size_t(i * 3 + c)];
-      } else {
-        float f;
-        std::memcpy(&f, &in.frame.bytes[size_t((c * H * W + i) * 4)], 4);
-        v = uint8_t(std::lround(std::clamp((f + 1.0f) * 127.5f, 0.0f, 255.0f)));
-      }
-      in.frame_rgba[size_t(i * 4 + c)] = v;
-      in.frame_rgba[size_t(i * 4 + 3)] = 255;
-    }
-
-  in.depth = read_npy(o.depth);
-  auto& d = in.depth.shape;
-  if (in.depth.dtype != "f4") throw std::runtime_error(o.depth + ": depth must be float32, not uint8");
-  if (d.size() == 3) {
-    if (o.frame_index >= d[0])
-      throw std::runtime_error(o.depth + ": --frame-index " + std::to_string(o.frame_index) + " but it holds " +
-                               std::to_string(d[0]) + " frames of depth");
-    const size_t plane = in.depth.bytes.size() / size_t(d[0]);
-    in.depth.bytes.erase(in.depth.bytes.begin(), in.depth.bytes.begin() + std::ptrdiff_t(plane * size_t(o.frame_index)));
-    in.depth.bytes.resize(plane);
-    d.erase(d.begin());
-  }
-  if (d != std::vector<int64_t>{H, W})
-    throw std::runtime_error(o.depth + ": depth must be f32 [H,W] (or [F,H,W]) at the frame's size " + std::to_string(H) +
-                             "x" + std::to_string(W));
-  in.depth_view = {in.depth.bytes.data(), dvs::ElementType::f32, {H, W}};
-  return in;
-}
 
 std::string pose_text(const dvs::Pose& p) {
   std::string out;
@@ -154,10 +88,10 @@ void run_preview(const PreviewOptions& o) {
   std::cout << "dvs-preview: window on " << window.device_name() << "; dvs on " << ctx->device_name()
             << (ctx->owns_device() ? " (its own device)" : " (the window's device)") << std::endl;
 
-  dvs::CameraIntrinsics K = dvs::CameraIntrinsics::dvs_default(W, H);
+  dvs::CameraIntrinsics K = dvs::CameraIntrinsics::dvs_default(W, H, o.squash);
   if (o.intrinsics) K = {(*o.intrinsics)[0], (*o.intrinsics)[1], (*o.intrinsics)[2], (*o.intrinsics)[3], W, H};
   dvs::SceneOptions so;
-  so.depth_is_disparity = !o.metric_depth;
+  so.depth_is_disparity = in.depth_is_disparity;
   so.hard_points = o.hard_points;
   dvs::PointCloudScene scene(*ctx, in.frame_view, in.depth_view, K, so);
   const double radius = scene.orbit_radius();

@@ -7,19 +7,24 @@
 namespace preview {
 
 const char* const kPreviewUsage =
-    "usage: dvs-preview --frame-npy FRAME.npy --depth DEPTH.npy [options]\n"
+    "usage: dvs-preview (--video VIDEO | --frame-npy FRAME.npy) --depth DEPTH.npz|.npy [options]\n"
     "\n"
     "Shows the point cloud of one video frame from a camera you fly, beside the input frame and the mask of what\n"
     "is visible. Place key poses, scrub and play the path, export it as a trajectory JSON + .glb that\n"
     "`dvs run/render --trajectory` take.\n"
     "\n"
     "inputs:\n"
-    "  --frame-npy FILE     the frame: u8 [H,W,3] or f32 [3,H,W] in [-1,1] (or [F,...]: see --frame-index)\n"
-    "  --video FILE         not read by this example: save the frame with `dvs` or numpy as .npy\n"
-    "  --depth FILE         f32 [H,W] (or [F,H,W]) .npy: disparity as `dvs depth --out D.npy` writes it\n"
+    "  --video FILE         the video (.mp4, ...: dvs's video component), brought to --size as dvs render does\n"
+    "  --frame-npy FILE     or the frame: u8 [H,W,3] or f32 [3,H,W] in [-1,1] (or [F,...]: see --frame-index)\n"
+    "  --depth FILE         the clip's depth as `dvs depth` writes it: .npz (key depths, or FILE.npz:KEY) or .npy\n"
+    "                       [F,H,W], disparity converted over the whole clip and mapped to --size as dvs render\n"
+    "                       does; or one frame f32 [H,W] .npy at --size\n"
+    "  --depth-model CKPT   not in this example yet: estimate with `dvs depth --video V --depth-model CKPT --out D.npz`\n"
     "  --metric-depth       the depth holds metric depth instead of disparity\n"
-    "  --frame-index N      frame N of a frame array / depth array with a frame axis (default 0)\n"
-    "  --size HxW           the frame's size (default 480x720)\n"
+    "  --frame-index N      frame N of the video / frame array and of the depth (default 0)\n"
+    "  --size HxW           the working size (default 480x720)\n"
+    "  --squash             squash the video to --size instead of cropping its centre (dvs render --squash)\n"
+    "  --depth-fit MODE     depth of another aspect than the video: error (default), stretch, crop\n"
     "  --intrinsics fx,fy,cx,cy  pixels (default: dvs render's, f = 500 at 1024x576 scaled)\n"
     "  --hard-points        z-buffer point splat instead of the soft splat (dvs render --hard-points)\n"
     "path:\n"
@@ -60,13 +65,13 @@ PreviewOptions parse_options(int argc, char** argv) {
     };
     if (a == "-h" || a == "--help") o.help = true;
     else if (a == "--frame-npy") o.frame_npy = value();
-    else if (a == "--video")
-      throw std::runtime_error("--video: this example reads frames as .npy only (no video decoder linked): save frame "
-                               "N as u8 [H,W,3] with numpy or OpenCV and give --frame-npy");
+    else if (a == "--video") o.video = value();
+    else if (a == "--squash") o.squash = true;
+    else if (a == "--depth-fit") o.depth_fit = value();
     else if (a == "--depth") o.depth = value();
     else if (a == "--depth-model")
-      throw std::runtime_error("--depth-model: not in this example; estimate first with `dvs depth --video V --model "
-                               "M --out D.npy` and give --depth D.npy");
+      throw std::runtime_error("--depth-model: not in this example; estimate first with `dvs depth --video V --depth-model "
+                               "M --out D.npz` and give --depth D.npz");
     else if (a == "--metric-depth") o.metric_depth = true;
     else if (a == "--hard-points") o.hard_points = true;
     else if (a == "--frame-index") o.frame_index = to_int(a, value(), 0);
@@ -104,8 +109,10 @@ PreviewOptions parse_options(int argc, char** argv) {
     else throw std::runtime_error("unknown option '" + a + "' (dvs-preview --help lists them)");
   }
   if (o.help) return o;
-  if (o.frame_npy.empty()) throw std::runtime_error("give the frame: --frame-npy FRAME.npy (dvs-preview --help)");
-  if (o.depth.empty()) throw std::runtime_error("give its depth: --depth DEPTH.npy (dvs-preview --help)");
+  if (o.frame_npy.empty() == o.video.empty())
+    throw std::runtime_error("give the frame: --video VIDEO or --frame-npy FRAME.npy, one of them (dvs-preview --help)");
+  if (o.depth.empty()) throw std::runtime_error("give its depth: --depth DEPTH.npz|.npy (dvs-preview --help)");
+  if (o.squash && o.video.empty()) throw std::runtime_error("--squash applies to --video only (a frame array is at --size)");
   return o;
 }
 

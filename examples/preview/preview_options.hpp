@@ -8,8 +8,11 @@ namespace preview {
 
 struct PreviewOptions {
   std::string frame_npy;       // u8 [H,W,3] / [F,H,W,3] or f32 [3,H,W] / [F,3,H,W] in [−1,1]
-  std::string depth;           // f32 [H,W] / [F,H,W] .npy: disparity (as dvs depth writes it) unless metric_depth
-  int frame_index = 0;         // which frame of a 4-D frame array and 3-D depth array
+  std::string video;           // or a video file (dvs's video component), brought to --size as dvs render does
+  bool squash = false;         // the video is squashed to --size instead of centre-cropped (dvs render --squash)
+  std::string depth;           // .npz / .npy [F,H,W] (or one frame [H,W]): disparity (as dvs depth writes it) unless metric_depth
+  std::string depth_fit = "error";  // depth of another aspect than the video (dvs render --depth-fit)
+  int frame_index = 0;         // which frame of the video, frame array and depth
   int frames = 49;             // frames of the exported path
   int height = 480, width = 720;
   std::optional<std::array<double, 4>> intrinsics;  // fx fy cx cy; default: dvs render's (CameraIntrinsics::dvs_default)

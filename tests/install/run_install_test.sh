@@ -55,8 +55,10 @@ if grep -q 'not found' <<<"$(ldd "$lib")"; then ldd "$lib" >&2; fail "libdvs.so 
 video_lib="$prefix/$libdir/libdvs_video.so"
 if [ -f "$video_lib" ]; then
   step "libdvs_video.so: exports, and registers with libdvs.so's own video registry"
-  bash "$here/check_exports.sh" "$video_lib" "dvs::enable_video_files()"
-  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 1 ] || fail "libdvs_video.so exports more than dvs::enable_video_files()"
+  bash "$here/check_exports.sh" "$video_lib" "dvs::enable_video_files()" \
+    "dvs::read_video_frames(std::filesystem::__cxx11::path const&, int, int, int, int, bool)"
+  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 2 ] ||
+    fail "libdvs_video.so exports more than dvs::enable_video_files() and dvs::read_video_frames"
   grep -q ' U dvs::detail::set_video_backend' <<<"$(nm -D -C "$video_lib")" ||
     fail "libdvs_video.so does not take dvs::detail::set_video_backend from libdvs.so (it would register with a copy)"
   for f in "$libdir/libdvs_video.so" "$libdir/libdvs_video.so.0" "$libdir/cmake/dvs/dvsVideoTargets.cmake" "$libdir/pkgconfig/dvs-video.pc"; do

@@ -5,7 +5,10 @@
 #       (8-bit quantisation of the f32: within 1 level; the visibility mask exactly);
 #   (b) the exported JSON holds exactly the poses the preview printed, `dvs render` reads it back to the same
 #       doubles (its poses.json), and reads the exported .glb to the same poses within float precision (1e-5);
-#   (c) the preview's frame times at 480x720 (mean / median over 60 frames).
+#   (c) the preview's frame times at 480x720 (mean / median over 60 frames);
+#   (d) a run from a VIDEO (288x512, cropped and scaled to 480x720) and its .npz depth whose disparity range spans
+#       the clip (a box moving closer), at --frame-index 3: the panel at path frame 3 equals `dvs render`'s frame 3
+#       (the depth converted over the whole clip and mapped to the working size as dvs render maps it).
 # usage: run_preview_test.sh PREFIX BUILD_DIR
 #   PREFIX: an installed dvs (cmake --install); "-" installs BUILD_DIR into a temporary prefix first.
 #   BUILD_DIR: the dvs build (its bin/dvs is used when PREFIX has none).
@@ -73,4 +76,23 @@ printf 'key D 20\nmouse -40 5\nkey W 20\nmouse 40 -5\nkey A 20\nquit\n' >timing_
   --script timing_script.txt \
   ${PREVIEW_EXTRA_ARGS:-} >timing.log 2>&1 || { cat timing.log; echo "run_preview_test: the timing run failed"; exit 1; }
 grep "dvs-preview: window on\|frame times over" timing.log
+
+echo "== (d) from a video and its .npz depth, frame 3 of 5"
+video_lib=$(find "$prefix" -name 'libdvs_video.so' -print -quit)
+if [ -z "$video_lib" ]; then
+  echo "run_preview_test: (d) not run: this dvs has no video component (DVS_VIDEO_IO=OFF)"
+else
+  python3 "$here/make_scene.py" "$work/clip" 288 512 $FRAMES moving
+  c++ -std=c++17 -O1 -o "$work/make_video" "$here/make_video.cpp" $(pkg-config --cflags --libs opencv4) \
+    || { echo "run_preview_test: building make_video (OpenCV) failed"; exit 1; }
+  "$work/make_video" "$work/clip/frames.rgb" $FRAMES 288 512 "$work/clip/clip.mp4"
+  mkdir "$work/video_run" && cd "$work/video_run"
+  "${xvfb[@]}" "$preview" --video ../clip/clip.mp4 --depth ../clip/depth.npz --frame-index 3 --size ${H}x${W} \
+    --frames $FRAMES --script "$here/preview_script.txt" --validation ${PREVIEW_EXTRA_ARGS:-} >preview.log 2>&1 \
+    || { cat preview.log; echo "run_preview_test: the preview from a video failed"; exit 1; }
+  if grep -q "validation:" preview.log; then cat preview.log; echo "run_preview_test: validation messages (above)"; exit 1; fi
+  "$dvs" render --video ../clip/clip.mp4 --depth ../clip/depth.npz --size ${H}x${W} --frames $FRAMES --no-glb \
+    --trajectory path.json --save-npy --out from_json >render_json.log 2>&1 || { cat render_json.log; exit 1; }
+  python3 "$here/compare_preview.py" panel shot_frame3.npy from_json/render.npy from_json/mask.npy 3
+fi
 echo "run_preview_test: passed"

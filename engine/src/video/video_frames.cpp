@@ -1,0 +1,49 @@
+// dvs::read_video_frames (dvs/video.hpp): the video component's public reader of frames into host memory. It calls
+// the same OpenCV reader the core's read_video forwards to (so the frames are dvs render's, level for level) and
+// hands back 8-bit RGB, the layout applications and the embedding API take.
+#include <string>
+
+#include "dvs/error.hpp"
+#include "dvs/video.hpp"
+#include "io/pixel_levels.hpp"
+#include "video/opencv_video.hpp"
+
+namespace dvs {
+
+VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,
+                              bool squash) {
+  const std::string name = path.string();
+  if (first < 0 || count < 1)
+    throw Error(name + ": read_video_frames takes first ≥ 0 and count ≥ 1, got first " + std::to_string(first) +
+                ", count " + std::to_string(count));
+  if (height < 0 || width < 0 || (height == 0) != (width == 0))
+    throw Error(name + ": read_video_frames takes a working size with both height and width > 0 (or both 0 for the "
+                "file's size), got " + std::to_string(height) + "x" + std::to_string(width));
+  VideoReadOptions o;
+  o.max_frames = first + count;  // decoding is sequential; a frame decodes the same whatever follows it
+  o.height = height;
+  o.width = width;
+  o.resize = squash ? ResizeMode::squash : ResizeMode::crop;
+  VideoInfo info;
+  const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]; too few: dvs::Error
+
+  VideoFrames out;
+  out.first = first;
+  out.count = count;
+  out.height = int(planes.shape[2]);
+  out.width = int(planes.shape[3]);
+  out.source_height = info.height;
+  out.source_width = info.width;
+  out.frames_in_file = info.frames_in_file;
+  out.fps = info.fps;
+  const size_t plane = size_t(out.height) * size_t(out.width);
+  out.rgb.resize(size_t(count) * plane * 3);
+  const float* src = planes.as<float>();
+  for (size_t f = 0; f < size_t(count); ++f)
+    for (size_t i = 0; i < plane; ++i)
+      for (size_t c = 0; c < 3; ++c)  // the reader's levels back exactly: unit_to_level(level_to_unit(v)) = v
+        out.rgb[(f * plane + i) * 3 + c] = unit_to_level(src[((size_t(first) + f) * 3 + c) * plane + i]);
+  return out;
+}
+
+}  // namespace dvs
