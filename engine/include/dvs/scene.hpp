@@ -56,8 +56,9 @@ class DVS_API PointCloudScene {
   // or u8 [H,W,4] RGBA (alpha 255 where visible, holes black with alpha 0); mask (optional, data may be null): f32
   // [H,W], 1 = visible.
   void render(const Pose& pose, const HostView& image, const HostView& mask = {});
-  // The same into application buffers; returns at once with the timeline ticket the copies signal
-  // (Context::wait, or a wait on Context::timeline() in the application's own submission).
+  // The same into application buffers; returns the timeline ticket the copies signal (Context::wait, or a wait on
+  // Context::timeline() in the application's own submission). Today the splat itself is waited for inside the call
+  // and only the copies into the buffers run on after it returns.
   uint64_t render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask = {});
 
  private:
