@@ -1,5 +1,5 @@
-// dvs::load_depth_frame (dvs/depth_file.hpp): one frame of a clip's depth file as dvs render takes it. Expected
-// values from the official conversion written out here (dn over the WHOLE clip, z = 10000 / max(3900·dn, 1e-5)).
+// dvs::load_depth_frame (dvs/depth_file.hpp): one frame of a clip's depth (a file, or in memory) as dvs render
+// takes it. Expected values from the official conversion written out here (dn over the WHOLE clip, z = 10000 / max(3900·dn, 1e-5)).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -80,6 +80,35 @@ TEST(DepthFileFrame, ErrorsNameTheFile) {
   dvs::DepthFileOptions o;
   o.depth_fit = "sideways";
   EXPECT_THROW(dvs::load_depth_frame(dir / "depth.npy", 0, 4, 6, o), dvs::Error);
+}
+
+// The clip's disparity in memory (what DepthEstimator writes): converted over the whole clip and centre-cropped
+// from the video's size like the file form, so `--depth-model` frames equal `--depth` frames.
+TEST(DepthFileFrame, ClipInMemoryIsConvertedAndMappedAsAFileIs) {
+  const int H = 8, W = 16;
+  dvs::HostTensor disparity = clip_disparity(H, W);
+  const dvs::HostView clip{disparity.as<float>(), dvs::ElementType::f32, {3, H, W}};
+  dvs::DepthFileOptions o;
+  o.source_height = H;
+  o.source_width = W;
+  const dvs::DepthFrame d = dvs::load_depth_frame(clip, 2, 8, 8, o);
+  EXPECT_EQ(d.frames_in_file, 3);
+  const float lo = 1, hi = float(H * W + 40);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) {
+      const float want = official_depth(disparity.as<float>()[2 * H * W + y * W + x + 4], lo, hi);
+      EXPECT_NEAR(d.depth[size_t(y * 8 + x)], want, 1e-6f * want) << "row " << y << ", column " << x;
+    }
+}
+
+TEST(DepthFileFrame, ClipInMemoryErrorsSayWhatIsWrong) {
+  dvs::HostTensor disparity = clip_disparity(4, 6);
+  const dvs::HostView clip{disparity.as<float>(), dvs::ElementType::f32, {3, 4, 6}};
+  dvs::test::expect_error([&] { dvs::load_depth_frame(clip, 3, 4, 6); }, "depth in memory", "holds 3 frame(s)");
+  const dvs::HostView flat{disparity.as<float>(), dvs::ElementType::f32, {3 * 4, 6}};
+  dvs::test::expect_error([&] { dvs::load_depth_frame(flat, 0, 4, 6); }, "depth in memory", "f32 [F,H,W]");
+  const dvs::HostView bytes{disparity.as<float>(), dvs::ElementType::u8, {3, 4, 6}};
+  dvs::test::expect_error([&] { dvs::load_depth_frame(bytes, 0, 4, 6); }, "depth in memory", "f32 [F,H,W]");
 }
 
 }  // namespace

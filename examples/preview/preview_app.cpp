@@ -16,6 +16,7 @@
 #include "dvs/trajectory.hpp"
 #include "fly_camera.hpp"
 #include "input_script.hpp"
+#include "model_depth.hpp"
 #include "npy_arrays.hpp"
 #include "preview_inputs.hpp"
 #include "png_file.hpp"
@@ -87,6 +88,7 @@ void run_preview(const PreviewOptions& o) {
       o.own_device ? std::make_unique<dvs::Context>() : std::make_unique<dvs::Context>(window.host_device());
   std::cout << "dvs-preview: window on " << window.device_name() << "; dvs on " << ctx->device_name()
             << (ctx->owns_device() ? " (its own device)" : " (the window's device)") << std::endl;
+  if (!o.depth_model.empty()) estimate_model_depth(o, *ctx, in);
 
   dvs::CameraIntrinsics K = dvs::CameraIntrinsics::dvs_default(W, H, o.squash);
   if (o.intrinsics) K = {(*o.intrinsics)[0], (*o.intrinsics)[1], (*o.intrinsics)[2], (*o.intrinsics)[3], W, H};

@@ -108,6 +108,7 @@ Inputs read_inputs(const PreviewOptions& o) {
                       : dvs::HostView{in.frame_rgb.data(), dvs::ElementType::u8, {H, W, 3}};
   make_panel(o, in);
 
+  if (!o.depth_model.empty()) return in;  // estimated once dvs's context exists (model_depth.hpp)
   if (!read_single_depth_npy(o, in)) {  // the clip's depth file, converted and mapped exactly as dvs render does
     dvs::DepthFileOptions d;
     d.metric_depth = o.metric_depth;

@@ -2,12 +2,13 @@
 
 #include <cstdlib>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace preview {
 
 const char* const kPreviewUsage =
-    "usage: dvs-preview (--video VIDEO | --frame-npy FRAME.npy) --depth DEPTH.npz|.npy [options]\n"
+    "usage: dvs-preview (--video VIDEO | --frame-npy FRAME.npy) (--depth DEPTH.npz|.npy | --depth-model CKPT) [options]\n"
     "\n"
     "Shows the point cloud of one video frame from a camera you fly, beside the input frame and the mask of what\n"
     "is visible. Place key poses, scrub and play the path, export it as a trajectory JSON + .glb that\n"
@@ -19,7 +20,9 @@ const char* const kPreviewUsage =
     "  --depth FILE         the clip's depth as `dvs depth` writes it: .npz (key depths, or FILE.npz:KEY) or .npy\n"
     "                       [F,H,W], disparity converted over the whole clip and mapped to --size as dvs render\n"
     "                       does; or one frame f32 [H,W] .npy at --size\n"
-    "  --depth-model CKPT   not in this example yet: estimate with `dvs depth --video V --depth-model CKPT --out D.npz`\n"
+    "  --depth-model CKPT   or estimate it here (with --video): Video-Depth-Anything on the first --frames frames,\n"
+    "                       as `dvs render --depth-model CKPT --frames N` does\n"
+    "  --depth-input-size N its network input's short side (default 518)\n"
     "  --metric-depth       the depth holds metric depth instead of disparity\n"
     "  --frame-index N      frame N of the video / frame array and of the depth (default 0)\n"
     "  --size HxW           the working size (default 480x720)\n"
@@ -69,9 +72,8 @@ PreviewOptions parse_options(int argc, char** argv) {
     else if (a == "--squash") o.squash = true;
     else if (a == "--depth-fit") o.depth_fit = value();
     else if (a == "--depth") o.depth = value();
-    else if (a == "--depth-model")
-      throw std::runtime_error("--depth-model: not in this example; estimate first with `dvs depth --video V --depth-model "
-                               "M --out D.npz` and give --depth D.npz");
+    else if (a == "--depth-model") o.depth_model = value();
+    else if (a == "--depth-input-size") o.depth_input_size = to_int(a, value(), 14);
     else if (a == "--metric-depth") o.metric_depth = true;
     else if (a == "--hard-points") o.hard_points = true;
     else if (a == "--frame-index") o.frame_index = to_int(a, value(), 0);
@@ -111,7 +113,13 @@ PreviewOptions parse_options(int argc, char** argv) {
   if (o.help) return o;
   if (o.frame_npy.empty() == o.video.empty())
     throw std::runtime_error("give the frame: --video VIDEO or --frame-npy FRAME.npy, one of them (dvs-preview --help)");
-  if (o.depth.empty()) throw std::runtime_error("give its depth: --depth DEPTH.npz|.npy (dvs-preview --help)");
+  if (o.depth.empty() == o.depth_model.empty())
+    throw std::runtime_error("give its depth: --depth DEPTH.npz|.npy or --depth-model CKPT, one of them (dvs-preview --help)");
+  if (!o.depth_model.empty() && o.video.empty())
+    throw std::runtime_error("--depth-model estimates the depth of a video: give --video VIDEO (or --depth with --frame-npy)");
+  if (!o.depth_model.empty() && o.frame_index >= o.frames)
+    throw std::runtime_error("--frame-index " + std::to_string(o.frame_index) + " is not among the " +
+                             std::to_string(o.frames) + " frames --depth-model estimates (--frames N, N > --frame-index)");
   if (o.squash && o.video.empty()) throw std::runtime_error("--squash applies to --video only (a frame array is at --size)");
   return o;
 }

@@ -11,6 +11,8 @@ struct PreviewOptions {
   std::string video;           // or a video file (dvs's video component), brought to --size as dvs render does
   bool squash = false;         // the video is squashed to --size instead of centre-cropped (dvs render --squash)
   std::string depth;           // .npz / .npy [F,H,W] (or one frame [H,W]): disparity (as dvs depth writes it) unless metric_depth
+  std::string depth_model;     // or a Video-Depth-Anything checkpoint: the clip's depth estimated here (--video only)
+  int depth_input_size = 518;  // its network input's short side (dvs render --depth-input-size)
   std::string depth_fit = "error";  // depth of another aspect than the video (dvs render --depth-fit)
   int frame_index = 0;         // which frame of the video, frame array and depth
   int frames = 49;             // frames of the exported path

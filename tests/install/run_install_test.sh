@@ -56,9 +56,10 @@ video_lib="$prefix/$libdir/libdvs_video.so"
 if [ -f "$video_lib" ]; then
   step "libdvs_video.so: exports, and registers with libdvs.so's own video registry"
   bash "$here/check_exports.sh" "$video_lib" "dvs::enable_video_files()" \
-    "dvs::read_video_frames(std::filesystem::__cxx11::path const&, int, int, int, int, bool)"
-  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 2 ] ||
-    fail "libdvs_video.so exports more than dvs::enable_video_files() and dvs::read_video_frames"
+    "dvs::read_video_frames(std::filesystem::__cxx11::path const&, int, int, int, int, bool)" \
+    "dvs::read_video_frames_for_depth(std::filesystem::__cxx11::path const&, int, int)"
+  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 3 ] ||
+    fail "libdvs_video.so exports more than dvs::enable_video_files(), dvs::read_video_frames and read_video_frames_for_depth"
   grep -q ' U dvs::detail::set_video_backend' <<<"$(nm -D -C "$video_lib")" ||
     fail "libdvs_video.so does not take dvs::detail::set_video_backend from libdvs.so (it would register with a copy)"
   for f in "$libdir/libdvs_video.so" "$libdir/libdvs_video.so.0" "$libdir/cmake/dvs/dvsVideoTargets.cmake" "$libdir/pkgconfig/dvs-video.pc"; do

@@ -8,7 +8,9 @@
 #   (c) the preview's frame times at 480x720 (mean / median over 60 frames);
 #   (d) a run from a VIDEO (288x512, cropped and scaled to 480x720) and its .npz depth whose disparity range spans
 #       the clip (a box moving closer), at --frame-index 3: the panel at path frame 3 equals `dvs render`'s frame 3
-#       (the depth converted over the whole clip and mapped to the working size as dvs render maps it).
+#       (the depth converted over the whole clip and mapped to the working size as dvs render maps it);
+#   (e) the same video with --depth-model (the conformance pack's tiny Video-Depth-Anything, network input 28): the
+#       preview estimates the clip itself; its panel at path frame 3 equals `dvs render --depth-model`'s frame 3.
 # usage: run_preview_test.sh PREFIX BUILD_DIR
 #   PREFIX: an installed dvs (cmake --install); "-" installs BUILD_DIR into a temporary prefix first.
 #   BUILD_DIR: the dvs build (its bin/dvs is used when PREFIX has none).
@@ -94,5 +96,21 @@ else
   "$dvs" render --video ../clip/clip.mp4 --depth ../clip/depth.npz --size ${H}x${W} --frames $FRAMES --no-glb \
     --trajectory path.json --save-npy --out from_json >render_json.log 2>&1 || { cat render_json.log; exit 1; }
   python3 "$here/compare_preview.py" panel shot_frame3.npy from_json/render.npy from_json/mask.npy 3
+
+  echo "== (e) the same video with --depth-model (estimated in the preview), frame 3 of 5"
+  vda="$source_dir/tests/golden/vda-A/model/video_depth_anything_tiny.pth"
+  t0=$(date +%s)
+  mkdir "$work/model_run" && cd "$work/model_run"
+  "${xvfb[@]}" "$preview" --video ../clip/clip.mp4 --depth-model "$vda" --depth-input-size 28 --frame-index 3 \
+    --size ${H}x${W} --frames $FRAMES --script "$here/preview_script.txt" --validation ${PREVIEW_EXTRA_ARGS:-} \
+    >preview.log 2>&1 || { cat preview.log; echo "run_preview_test: the preview with --depth-model failed"; exit 1; }
+  if grep -q "validation:" preview.log; then cat preview.log; echo "run_preview_test: validation messages (above)"; exit 1; fi
+  grep -q "dvs-preview: estimating the depth of $FRAMES frame" preview.log \
+    || { cat preview.log; echo "run_preview_test: the preview did not say it estimated the depth"; exit 1; }
+  DVS_CACHE_DIR="$work/model_run/cache" "$dvs" render --video ../clip/clip.mp4 --depth-model "$vda" \
+    --depth-input-size 28 --size ${H}x${W} --frames $FRAMES --no-glb --trajectory path.json --save-npy \
+    --out from_json >render_json.log 2>&1 || { cat render_json.log; exit 1; }
+  python3 "$here/compare_preview.py" panel shot_frame3.npy from_json/render.npy from_json/mask.npy 3
+  echo "(e) took $(( $(date +%s) - t0 )) s"
 fi
 echo "run_preview_test: passed"

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "dvs/api.hpp"
+#include "dvs/views.hpp"
 
 namespace dvs {
 
@@ -30,6 +31,12 @@ struct DepthFrame {
 // --depth reads them) at height × width. Throws dvs::Error naming the file (unreadable, wrong shape or values,
 // frame_index ≥ its frame count, an aspect ratio the fit refuses).
 DVS_API DepthFrame load_depth_frame(const std::filesystem::path& path, int frame_index, int height, int width,
+                                    const DepthFileOptions& options = {});
+// The same for a clip's depth in memory: `clip` f32 [F,h,w] as DepthEstimator gives it (disparity, or metric depth
+// with options.metric_depth) for frames of VideoFrames from read_video_frames_for_depth (pass its source_height/
+// width in options). Converted and mapped by the one implementation of the file form, so frame k equals what
+// `dvs render --depth-model` renders for frame k. Errors name the clip as "depth in memory".
+DVS_API DepthFrame load_depth_frame(const HostView& clip, int frame_index, int height, int width,
                                     const DepthFileOptions& options = {});
 
 }  // namespace dvs

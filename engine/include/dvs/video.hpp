@@ -35,5 +35,11 @@ struct VideoFrames {
 // first + count, count < 1). Defined in libdvs_video.
 DVS_API VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,
                                       bool squash = false);
+// The first `count` frames of `path` as `dvs render --depth-model` and `dvs depth` feed them to the depth network
+// (DepthEstimator, dvs/depth_frames.hpp): at the file's size, scaled down (both sides, bilinear) when its long side
+// exceeds max_long_side (their --max-res; 0: no limit). The depth it gives maps onto the working frame with
+// load_depth_frame (dvs/depth_file.hpp) and source_height/width. Throws dvs::Error naming the file (cannot be
+// opened, fewer than `count` frames, count < 1). Defined in libdvs_video.
+DVS_API VideoFrames read_video_frames_for_depth(const std::filesystem::path& path, int count, int max_long_side = 1280);
 
 }  // namespace dvs

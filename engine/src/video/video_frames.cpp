@@ -46,4 +46,29 @@ VideoFrames read_video_frames(const std::filesystem::path& path, int first, int 
   return out;
 }
 
+VideoFrames read_video_frames_for_depth(const std::filesystem::path& path, int count, int max_long_side) {
+  const std::string name = path.string();
+  if (count < 1 || max_long_side < 0)
+    throw Error(name + ": read_video_frames_for_depth takes count ≥ 1 and max_long_side ≥ 0, got count " +
+                std::to_string(count) + ", max_long_side " + std::to_string(max_long_side));
+  VideoInfo info;
+  // The depth estimate's own reader (pipeline/depth_estimate.cpp decodes with it), so the frames are its frames.
+  const HostTensor rgb = opencv_read_video_rgb8(path, count, max_long_side, &info);
+  if (rgb.shape[0] < count)
+    throw Error(name + ": " + std::to_string(count) + " frame(s) asked for, but the video holds only " +
+                std::to_string(rgb.shape[0]) + " (give fewer frames)");
+  VideoFrames out;
+  out.first = 0;
+  out.count = count;
+  out.height = int(rgb.shape[1]);
+  out.width = int(rgb.shape[2]);
+  out.source_height = info.height;
+  out.source_width = info.width;
+  out.frames_in_file = info.frames_in_file;
+  out.fps = info.fps;
+  const uint8_t* src = rgb.as<uint8_t>();
+  out.rgb.assign(src, src + size_t(count) * size_t(out.height) * size_t(out.width) * 3);
+  return out;
+}
+
 }  // namespace dvs
