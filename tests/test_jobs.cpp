@@ -84,6 +84,34 @@ TEST_F(Jobs, CancelDuringTheWorkStopsItAndLeavesNoOutput) {
   EXPECT_FALSE(std::filesystem::exists(in.dir / "d.npy"));
 }
 
+// A whole run as a job: it finishes, reports every stage, and its output is the blocking call's, byte for byte (each
+// with a cache of its own, so the job computes its inversion instead of reading the blocking run's).
+TEST_F(Jobs, APipelineJobWritesWhatTheBlockingRunWrites) {
+  run_pipeline(in.run_options(in.dir / "blocking", in.cache));
+  std::vector<std::string> stages;
+  Job job = start_pipeline(in.run_options(in.dir / "job", in.dir / "job_cache"),
+                           [&](const std::string& stage, int, int, const std::string&) {
+                             if (stages.empty() || stages.back() != stage) stages.push_back(stage);
+                           });
+  ASSERT_TRUE(job.wait_for(std::chrono::minutes(10))) << "the pipeline job did not finish";
+  ASSERT_EQ(job.poll(), JobState::succeeded) << job.error();
+  const RunReport report = job.run_report();
+  EXPECT_FALSE(report.inversion_from_cache) << "the job's cache was empty";
+  EXPECT_GE(stages.size(), 3u) << "a run reports its stages";
+  EXPECT_EQ(report.output_mp4, in.dir / "job" / "output.mp4");
+  for (const char* name : {"output.mp4", "render.mp4", "mask.mp4"}) {
+    const std::string made = test::read_text(in.dir / "job" / name);
+    EXPECT_GT(made.size(), 1000u) << name << " missing or empty";
+    EXPECT_EQ(made, test::read_text(in.dir / "blocking" / name)) << name;
+  }
+  // The comparison can fail: another seed gives another output.
+  RunOptions other = in.run_options(in.dir / "other", in.cache);
+  other.seed += 1;
+  run_pipeline(other);
+  EXPECT_NE(test::read_text(in.dir / "other" / "output.mp4"), test::read_text(in.dir / "job" / "output.mp4"));
+  EXPECT_THROW(job.render_summary(), Error) << "a pipeline job has no render summary";
+}
+
 TEST_F(Jobs, ACancelledPipelineJobLeavesNoRunOutput) {
   std::atomic<int> events{0};
   std::string first_stage;
