@@ -32,7 +32,6 @@ geometry::SplatOptions splat_options(const SceneOptions& o) {
   return s;
 }
 
-
 struct PackPush {  // shaders/render/pack_rgba8.comp
   uint32_t pixels;
 };
@@ -68,9 +67,15 @@ struct PointCloudScene::Impl {
     splatted = true;
   }
 
-  // The render packed into RGBA8 (packed), submitted and waited for; the recording is made once.
-  void pack() {
+  // The RGBA8 image, made on its first use.
+  const Tensor& packed_image() {
     if (!packed.defined()) packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
+    return packed;
+  }
+
+  // The render packed into RGBA8 (packed_image), submitted and waited for; the recording is made once.
+  void pack() {
+    packed_image();
     if (!packing_recorded) {
       const PackPush push{uint32_t(H) * uint32_t(W)};
       const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
@@ -128,9 +133,7 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
   Impl& s = *impl_;
   const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
   const bool want_mask = embed::device_mask_wanted(mask, s.H, s.W);
-  if (kind == embed::SceneImage::rgba8 && !s.packed.defined())
-    s.packed = Tensor::empty(s.device, {s.H, s.W, 4}, DType::u8, "scene RGBA8 image");
-  const Tensor result = kind == embed::SceneImage::rgba8 ? s.packed : s.render.reshape({3, s.H, s.W});
+  const Tensor result = kind == embed::SceneImage::rgba8 ? s.packed_image() : s.render.reshape({3, s.H, s.W});
   const Tensor visible = s.mask.reshape({s.H, s.W});
   embed::check_view_fits(s.device, image, result, "PointCloudScene's image");
   if (want_mask) embed::check_view_fits(s.device, mask, visible, "PointCloudScene's mask");

@@ -9,6 +9,23 @@
 #include "video/opencv_video.hpp"
 
 namespace dvs {
+namespace {
+
+// What both readers report besides the pixels: which frames, their size, and the file's.
+VideoFrames frames_described(int first, int count, int height, int width, const VideoInfo& info) {
+  VideoFrames out;
+  out.first = first;
+  out.count = count;
+  out.height = height;
+  out.width = width;
+  out.source_height = info.height;
+  out.source_width = info.width;
+  out.frames_in_file = info.frames_in_file;
+  out.fps = info.fps;
+  return out;
+}
+
+}  // namespace
 
 VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,
                               bool squash) {
@@ -27,15 +44,7 @@ VideoFrames read_video_frames(const std::filesystem::path& path, int first, int 
   VideoInfo info;
   const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]; too few: dvs::Error
 
-  VideoFrames out;
-  out.first = first;
-  out.count = count;
-  out.height = int(planes.shape[2]);
-  out.width = int(planes.shape[3]);
-  out.source_height = info.height;
-  out.source_width = info.width;
-  out.frames_in_file = info.frames_in_file;
-  out.fps = info.fps;
+  VideoFrames out = frames_described(first, count, int(planes.shape[2]), int(planes.shape[3]), info);
   const size_t plane = size_t(out.height) * size_t(out.width);
   out.rgb.resize(size_t(count) * plane * 3);
   const float* src = planes.as<float>();
@@ -57,15 +66,7 @@ VideoFrames read_video_frames_for_depth(const std::filesystem::path& path, int c
   if (rgb.shape[0] < count)
     throw Error(name + ": " + std::to_string(count) + " frame(s) asked for, but the video holds only " +
                 std::to_string(rgb.shape[0]) + " (give fewer frames)");
-  VideoFrames out;
-  out.first = 0;
-  out.count = count;
-  out.height = int(rgb.shape[1]);
-  out.width = int(rgb.shape[2]);
-  out.source_height = info.height;
-  out.source_width = info.width;
-  out.frames_in_file = info.frames_in_file;
-  out.fps = info.fps;
+  VideoFrames out = frames_described(0, count, int(rgb.shape[1]), int(rgb.shape[2]), info);
   const uint8_t* src = rgb.as<uint8_t>();
   out.rgb.assign(src, src + size_t(count) * size_t(out.height) * size_t(out.width) * 3);
   return out;
