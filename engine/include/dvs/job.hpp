@@ -12,6 +12,10 @@
 
 namespace dvs {
 
+class Context;
+struct ClipView;
+struct ClipResultViews;
+
 enum class JobState { running, succeeded, failed, cancelled };
 
 struct JobProgress {
@@ -42,6 +46,8 @@ class DVS_API Job {
   explicit Job(std::shared_ptr<State> state);
   std::shared_ptr<State> state_;
   friend DVS_API Job start_pipeline(const RunOptions&, const ProgressFn&);
+  friend DVS_API Job start_pipeline(Context&, const RunOptions&, const ClipView&, const ClipResultViews&,
+                                    const ProgressFn&);  // dvs/clip_run.hpp
   friend DVS_API Job start_render(const RenderJob&, const ProgressFn&);
   friend DVS_API Job start_depth(const DepthJob&, const std::filesystem::path&, const ProgressFn&);
 };
