@@ -22,8 +22,169 @@ static int failures = 0;
 
 static void lock_nothing(void* user) { (void)user; }
 
+static int contains(const char* text, const char* part) { return text && strstr(text, part) != NULL; }
+
 static int locks = 0;
 static void count_lock(void* user) { ++*(int*)user; }
+
+/* A host-visible, coherent buffer (mapped into *data) or a device-local optimal image of the test's device. */
+static uint32_t memory_type(VkPhysicalDevice gpu, uint32_t bits, VkMemoryPropertyFlags want) {
+  VkPhysicalDeviceMemoryProperties mem;
+  uint32_t t;
+  vkGetPhysicalDeviceMemoryProperties(gpu, &mem);
+  for (t = 0; t < mem.memoryTypeCount; ++t)
+    if (((bits >> t) & 1) && (mem.memoryTypes[t].propertyFlags & want) == want) return t;
+  return 0;
+}
+
+static VkBuffer mapped_buffer(VkPhysicalDevice gpu, VkDevice device, VkDeviceSize bytes, VkDeviceMemory* memory,
+                              void** data) {
+  VkBufferCreateInfo bci = {VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  VkMemoryAllocateInfo mai = {VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  VkMemoryRequirements req;
+  VkBuffer buffer = VK_NULL_HANDLE;
+  bci.size = bytes;
+  bci.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  vkCreateBuffer(device, &bci, NULL, &buffer);
+  vkGetBufferMemoryRequirements(device, buffer, &req);
+  mai.allocationSize = req.size;
+  mai.memoryTypeIndex = memory_type(gpu, req.memoryTypeBits,
+                                    VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+  vkAllocateMemory(device, &mai, NULL, memory);
+  vkBindBufferMemory(device, buffer, *memory, 0);
+  vkMapMemory(device, *memory, 0, VK_WHOLE_SIZE, 0, data);
+  memset(*data, 0, (size_t)bytes);
+  return buffer;
+}
+
+static VkImage device_image(VkPhysicalDevice gpu, VkDevice device, VkFormat format, VkDeviceMemory* memory) {
+  VkImageCreateInfo ci = {VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  VkMemoryAllocateInfo mai = {VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  VkMemoryRequirements req;
+  VkImage image = VK_NULL_HANDLE;
+  ci.imageType = VK_IMAGE_TYPE_2D;
+  ci.format = format;
+  ci.extent.width = 8, ci.extent.height = 8, ci.extent.depth = 1;
+  ci.mipLevels = 1, ci.arrayLayers = 1, ci.samples = VK_SAMPLE_COUNT_1_BIT;
+  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ci.usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  vkCreateImage(device, &ci, NULL, &image);
+  vkGetImageMemoryRequirements(device, image, &req);
+  mai.allocationSize = req.size;
+  mai.memoryTypeIndex = memory_type(gpu, req.memoryTypeBits, 0);
+  vkAllocateMemory(device, &mai, NULL, memory);
+  vkBindImageMemory(device, image, *memory, 0);
+  return image;
+}
+
+/* The device-memory calls on the 8x8 scene: a render into the test's buffers (waited for with dvs_context_wait),
+ * a render into its RGBA8 image that first waits for the test's own semaphore (dvs_context_wait_before_next,
+ * signalled from the host after the call returned), read back by the test's submission waiting on dvs's timeline;
+ * both equal the host render `want` (u8 [8,8,4]) byte for byte. And the refusals: an sRGB image, a NULL ticket. */
+static void device_memory_calls(VkPhysicalDevice gpu, VkDevice device, uint32_t family, dvs_context* ctx,
+                                dvs_scene* scene, const double pose[16], const uint8_t* want, const float* want_mask) {
+  VkDeviceMemory image_memory, mask_memory, back_memory, rgba_memory, srgb_memory;
+  void *image_data, *mask_data, *back_data;
+  VkBuffer image = mapped_buffer(gpu, device, 8 * 8 * 4, &image_memory, &image_data);
+  VkBuffer mask = mapped_buffer(gpu, device, 8 * 8 * 4, &mask_memory, &mask_data);
+  VkBuffer back = mapped_buffer(gpu, device, 8 * 8 * 4, &back_memory, &back_data);
+  VkImage rgba = device_image(gpu, device, VK_FORMAT_R8G8B8A8_UNORM, &rgba_memory);
+  VkImage srgb = device_image(gpu, device, VK_FORMAT_R8G8B8A8_SRGB, &srgb_memory);
+  VkSemaphoreTypeCreateInfo type = {VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+  VkSemaphoreCreateInfo sci = {VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+  VkSemaphoreSignalInfo signal = {VK_STRUCTURE_TYPE_SEMAPHORE_SIGNAL_INFO};
+  VkSemaphore app_semaphore = VK_NULL_HANDLE, timeline = VK_NULL_HANDLE;
+  VkCommandPoolCreateInfo pci = {VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  VkCommandPool pool = VK_NULL_HANDLE;
+  VkCommandBufferAllocateInfo cai = {VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  VkCommandBuffer cmd = VK_NULL_HANDLE;
+  VkCommandBufferBeginInfo bi = {VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  VkBufferImageCopy region;
+  VkTimelineSemaphoreSubmitInfo tsi = {VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  VkPipelineStageFlags stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  VkSubmitInfo si = {VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  VkQueue queue = VK_NULL_HANDLE;
+  dvs_device_image target;
+  uint64_t ticket = 0, second = 0, submitted = 0;
+  int32_t reached = 0;
+
+  CHECK(dvs_scene_render_to_buffers(scene, pose, image, 0, DVS_U8, mask, 0, &ticket) == DVS_OK,
+        "render_to_buffers: %s", dvs_last_error());
+  CHECK(dvs_context_submitted_value(ctx, &submitted) == DVS_OK && submitted == ticket && ticket > 0,
+        "submitted value %llu, ticket %llu", (unsigned long long)submitted, (unsigned long long)ticket);
+  CHECK(dvs_context_wait(ctx, ticket, UINT64_MAX, &reached) == DVS_OK && reached == 1, "wait: %s", dvs_last_error());
+  CHECK(memcmp(image_data, want, 8 * 8 * 4) == 0, "the RGBA8 buffer differs from the host render");
+  CHECK(memcmp(mask_data, want_mask, 8 * 8 * 4) == 0, "the mask buffer differs from the host render");
+
+  /* Into the image, after the application's semaphore reaches 1 (signalled only once the call has returned: the
+   * call does not wait for it). */
+  type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+  sci.pNext = &type;
+  vkCreateSemaphore(device, &sci, NULL, &app_semaphore);
+  CHECK(dvs_context_wait_before_next(ctx, app_semaphore, 1) == DVS_OK, "wait_before_next: %s", dvs_last_error());
+  memset(&target, 0, sizeof target);
+  target.image = rgba;
+  target.format = VK_FORMAT_R8G8B8A8_UNORM;
+  target.width = 8, target.height = 8;
+  target.layout = VK_IMAGE_LAYOUT_UNDEFINED;
+  target.final_layout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_OK, "render_to_images: %s",
+        dvs_last_error());
+  CHECK(second > ticket, "the second ticket %llu is not after the first %llu", (unsigned long long)second,
+        (unsigned long long)ticket);
+  signal.semaphore = app_semaphore;
+  signal.value = 1;
+  vkSignalSemaphore(device, &signal);
+
+  /* The application's read-back waits for dvs's ticket on the timeline (nothing on the host in between). */
+  dvs_context_timeline(ctx, &timeline);
+  pci.queueFamilyIndex = family;
+  vkCreateCommandPool(device, &pci, NULL, &pool);
+  cai.commandPool = pool, cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY, cai.commandBufferCount = 1;
+  vkAllocateCommandBuffers(device, &cai, &cmd);
+  vkBeginCommandBuffer(cmd, &bi);
+  memset(&region, 0, sizeof region);
+  region.imageSubresource.aspectMask = VK_IMAGE_ASPECT_COLOR_BIT;
+  region.imageSubresource.layerCount = 1;
+  region.imageExtent.width = 8, region.imageExtent.height = 8, region.imageExtent.depth = 1;
+  vkCmdCopyImageToBuffer(cmd, rgba, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, back, 1, &region);
+  vkEndCommandBuffer(cmd);
+  tsi.waitSemaphoreValueCount = 1;
+  tsi.pWaitSemaphoreValues = &second;
+  si.pNext = &tsi;
+  si.waitSemaphoreCount = 1;
+  si.pWaitSemaphores = &timeline;
+  si.pWaitDstStageMask = &stage;
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  vkGetDeviceQueue(device, family, 0, &queue);
+  CHECK(vkQueueSubmit(queue, 1, &si, VK_NULL_HANDLE) == VK_SUCCESS, "the test's read-back submission");
+  vkQueueWaitIdle(queue);
+  CHECK(memcmp(back_data, want, 8 * 8 * 4) == 0, "the RGBA8 image differs from the host render");
+
+  /* Refusals name what is wrong. */
+  target.image = srgb;
+  target.format = VK_FORMAT_R8G8B8A8_SRGB;
+  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_ERROR_FILE &&
+            contains(dvs_last_error(), "sRGB"), "sRGB image: %s", dvs_last_error());
+  CHECK(dvs_scene_render_to_buffers(scene, pose, image, 0, DVS_U8, VK_NULL_HANDLE, 0, NULL) ==
+            DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "ticket is NULL"), "NULL ticket: %s",
+        dvs_last_error());
+  CHECK(dvs_context_wait_before_next(ctx, VK_NULL_HANDLE, 1) == DVS_ERROR_INVALID_ARGUMENT, "NULL semaphore");
+
+  vkDestroyCommandPool(device, pool, NULL);
+  vkDestroySemaphore(device, app_semaphore, NULL);
+  vkDestroyImage(device, rgba, NULL);
+  vkDestroyImage(device, srgb, NULL);
+  vkDestroyBuffer(device, image, NULL);
+  vkDestroyBuffer(device, mask, NULL);
+  vkDestroyBuffer(device, back, NULL);
+  vkFreeMemory(device, image_memory, NULL);
+  vkFreeMemory(device, mask_memory, NULL);
+  vkFreeMemory(device, back_memory, NULL);
+  vkFreeMemory(device, rgba_memory, NULL);
+  vkFreeMemory(device, srgb_memory, NULL);
+}
 
 /* The application's side: its own instance and device (Vulkan 1.2, timelineSemaphore), handed to dvs with a queue
  * lock that counts its calls; a scene rendered there must take the lock around its submissions. */
@@ -45,6 +206,8 @@ static void host_device_round_trip(void) {
   dvs_intrinsics k;
   uint8_t frame[8 * 8 * 3];
   float depth[8 * 8], image[3 * 8 * 8], mask[8 * 8];
+  uint8_t rgba[8 * 8 * 4];
+  const double moved[16] = {1, 0, 0, -0.05, 0, 1, 0, 0.02, 0, 0, 1, 0, 0, 0, 0, 1};
   float want;
   const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   dvs_status status;
@@ -97,6 +260,9 @@ static void host_device_round_trip(void) {
       want = (float)frame[3 * 27] / 127.5f - 1.0f;
       CHECK(mask[27] == 1.0f && image[27] > want - 1e-3f && image[27] < want + 1e-3f, "pixel 27: %g, not %g (mask %g)",
             image[27], want, mask[27]);
+      status = dvs_scene_render(scene, moved, rgba, DVS_U8, mask);
+      CHECK(status == DVS_OK, "RGBA8 render on the host device: %s", dvs_last_error());
+      device_memory_calls(gpus[0], device, family, ctx, scene, moved, rgba, mask);
     }
     CHECK(dvs_scene_destroy(scene) == DVS_OK, "scene destroy");
     CHECK(dvs_context_destroy(ctx) == DVS_OK, "context destroy");
@@ -105,8 +271,6 @@ static void host_device_round_trip(void) {
   if (device) vkDestroyDevice(device, NULL);
   vkDestroyInstance(instance, NULL);
 }
-
-static int contains(const char* text, const char* part) { return text && strstr(text, part) != NULL; }
 
 int main(int argc, char** argv) {
   const char* dir = argc > 1 ? argv[1] : "/tmp";

@@ -127,6 +127,39 @@ DVS_API dvs_status dvs_scene_render(dvs_scene* scene, const double pose[16], voi
 DVS_API dvs_status dvs_scene_orbit_radius(const dvs_scene* scene, double* out);
 DVS_API dvs_status dvs_scene_destroy(dvs_scene* scene);
 
+/* ---- the application's device memory: scene renders that never block, ordering with the application ------- */
+/* (dvs/scene.hpp, dvs/views.hpp, dvs/context.hpp). A render into device memory returns *ticket, a value of the
+ * context's timeline (dvs_context_timeline): the application waits for it on its own queue (a timeline-semaphore
+ * wait in its submission) or on the host (dvs_context_wait). The call waits only for the previous render of the
+ * same scene. Buffers and images must stay valid until the ticket is reached. */
+
+/* Into VkBuffers (TRANSFER_DST usage, offsets multiples of 4): image DVS_F32 [3,H,W] or DVS_U8 [H,W,4] as
+ * dvs_scene_render; mask f32 [H,W], or VK_NULL_HANDLE for none. */
+DVS_API dvs_status dvs_scene_render_to_buffers(dvs_scene* scene, const double pose[16], VkBuffer image,
+                                               VkDeviceSize image_offset, dvs_element_type image_type, VkBuffer mask,
+                                               VkDeviceSize mask_offset, uint64_t* ticket);
+
+/* A 2-D image of the context's device (dvs::DeviceImageView): one mip level, one layer, colour, TRANSFER_DST usage,
+ * exclusive to the context's queue family or CONCURRENT. layout: what it is in when dvs's work starts (UNDEFINED =
+ * contents may be discarded); final_layout: what dvs leaves it in (e.g. SHADER_READ_ONLY_OPTIMAL). */
+typedef struct dvs_device_image {
+  VkImage image;
+  VkFormat format; /* VK_FORMAT_R8G8B8A8_UNORM for the image (not _SRGB), VK_FORMAT_R32_SFLOAT for the mask */
+  uint32_t width, height;
+  VkImageLayout layout;
+  VkImageLayout final_layout;
+} dvs_device_image;
+
+/* Into images of the scene's width x height: image RGBA8 (alpha 255 where visible), mask (NULL = none) 1 = visible. */
+DVS_API dvs_status dvs_scene_render_to_images(dvs_scene* scene, const double pose[16], const dvs_device_image* image,
+                                              const dvs_device_image* mask, uint64_t* ticket);
+
+/* The last timeline value dvs has submitted (dvs::Context::submitted_value). */
+DVS_API dvs_status dvs_context_submitted_value(const dvs_context* context, uint64_t* out);
+/* dvs's next submission on this context waits until semaphore (a timeline semaphore of the same device) reaches
+ * value: how the application orders its own writes of a buffer or image before dvs uses it. */
+DVS_API dvs_status dvs_context_wait_before_next(dvs_context* context, VkSemaphore semaphore, uint64_t value);
+
 /* ---- depth of frames in memory (dvs/depth_frames.hpp) ------------------------------------------------------ */
 
 /* Loads a Video-Depth-Anything checkpoint (.pth, or a .safetensors of it) once. input_size: the network input's

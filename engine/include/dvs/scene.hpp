@@ -41,6 +41,12 @@ class DVS_API PointCloudScene {
   // converted exactly as `dvs render` converts a one-frame depth file, or metric depth). Uploaded once.
   PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth, const CameraIntrinsics& intrinsics,
                   const SceneOptions& options = {});
+  // The same from the application's device buffers (dvs/views.hpp; TRANSFER_SRC usage), with the same shapes and
+  // the same conversions, so the scene equals the one built from the same values in host memory. The values are
+  // copied on the device and the call returns when the scene is built (it waits: order the application's writes
+  // before it with Context::wait_before_next, or finish them).
+  PointCloudScene(Context& ctx, const DeviceBufferView& frame, const DeviceBufferView& depth,
+                  const CameraIntrinsics& intrinsics, const SceneOptions& options = {});
   ~PointCloudScene();
   PointCloudScene(const PointCloudScene&) = delete;
   PointCloudScene& operator=(const PointCloudScene&) = delete;
@@ -56,10 +62,16 @@ class DVS_API PointCloudScene {
   // or u8 [H,W,4] RGBA (alpha 255 where visible, holes black with alpha 0); mask (optional, data may be null): f32
   // [H,W], 1 = visible.
   void render(const Pose& pose, const HostView& image, const HostView& mask = {});
-  // The same into application buffers; returns the timeline ticket the copies signal (Context::wait, or a wait on
-  // Context::timeline() in the application's own submission). Today the splat itself is waited for inside the call
-  // and only the copies into the buffers run on after it returns.
+  // The same into application buffers (image f32 [3,H,W] or u8 [H,W,4], mask f32 [H,W] or no buffer). Returns the
+  // timeline ticket of the render's last submission (Context::wait, or a wait on Context::timeline() in the
+  // application's own submission): the call waits for nothing but the previous render of this scene, whose
+  // buffers it reuses (on the host, only if that has not finished yet). The views must stay valid until the
+  // ticket is reached.
   uint64_t render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask = {});
+  // The same into application images (dvs/views.hpp): image VK_FORMAT_R8G8B8A8_UNORM (RGBA as the u8 render),
+  // mask VK_FORMAT_R32_SFLOAT (optional: image VK_NULL_HANDLE), both width × height of the scene. Each is moved
+  // from its `layout` to its `final_layout` in the same submission as the copy.
+  uint64_t render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask = {});
 
  private:
   struct Impl;

@@ -1,5 +1,5 @@
 // Memory the application owns, handed to dvs without a round trip through files: host memory (a pointer and a
-// shape) and device memory (a VkBuffer of the application's device, see dvs/context.hpp). dvs never frees,
+// shape) and device memory (a VkBuffer or a 2-D VkImage of the application's device, see dvs/context.hpp). dvs never frees,
 // keeps or reallocates what a view points at; a view must stay valid until the call that takes it returns (for a
 // device view: until the timeline value that call returns is reached).
 #pragma once
@@ -37,6 +37,24 @@ struct DVS_API DeviceBufferView {
 
   int64_t elements() const;
   uint64_t bytes() const;
+};
+
+// A 2-D VkImage of the context's device: one mip level, one array layer, colour. Created with TRANSFER_DST usage
+// (dvs writes it) or TRANSFER_SRC (dvs reads it), exclusive to the context's queue family or
+// VK_SHARING_MODE_CONCURRENT. Formats: VK_FORMAT_R8G8B8A8_UNORM for images (not _SRGB: the bytes are the render's
+// own levels, an sRGB view would convert them), VK_FORMAT_R32_SFLOAT for masks. dvs moves the image from `layout`
+// (the layout it is in when dvs's work starts; UNDEFINED = its contents may be discarded) to the transfer layout and,
+// in the same submission, to `final_layout` (e.g. SHADER_READ_ONLY_OPTIMAL or TRANSFER_SRC_OPTIMAL), where the
+// application finds it once the returned ticket is reached. Vulkan cannot report an image's size, format or usage:
+// dvs trusts width, height and format, and the validation layer catches an image that differs.
+struct DVS_API DeviceImageView {
+  VkImage image = VK_NULL_HANDLE;
+  VkFormat format = VK_FORMAT_UNDEFINED;
+  uint32_t width = 0, height = 0;
+  VkImageLayout layout = VK_IMAGE_LAYOUT_UNDEFINED;
+  VkImageLayout final_layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+
+  std::string describe() const;  // "VK_FORMAT_R8G8B8A8_UNORM 720x480"
 };
 
 }  // namespace dvs

@@ -2,8 +2,13 @@
 // The frame and its depth are uploaded once; every buffer a render needs is made by the constructor (the packed
 // RGBA8 image on its first use), so a render allocates nothing. A render records the splat with the pose in push
 // constants and submits it, then packs it into RGBA8 when asked (a recording of its own, made once) and downloads
-// it or copies it into the application's buffers. A pose equal to the last one
-// skips the splat: its result is still in the scene's buffers (a still camera costs a download).
+// it or copies it into the application's buffers or images. A pose equal to the last one skips the splat: its
+// result is still in the scene's buffers (a still camera costs a download).
+//
+// Renders into the application's device memory wait for nothing: splat, pack and copies are submitted one after
+// the other on the context's queue (each later one's barriers order it after the earlier ones) and the last
+// ticket is returned. The next render of the scene waits on the host for that ticket before it resubmits the
+// recordings or overwrites the scene's buffers (usually long reached: a frame later), as does the destructor.
 #include "dvs/scene.hpp"
 
 #include <array>
@@ -11,6 +16,7 @@
 
 #include "dvs/error.hpp"
 #include "embed/device_copy.hpp"
+#include "embed/device_image_copy.hpp"
 #include "embed/scene_camera.hpp"
 #include "embed/scene_views.hpp"
 #include "geometry/splat.hpp"
@@ -54,15 +60,37 @@ struct PointCloudScene::Impl {
     mask = Tensor::empty(device, {1, H, W}, DType::f32, "scene mask");
   }
 
+  ~Impl() {
+    try {
+      settle();
+    } catch (...) {  // a lost device: nothing left to wait for
+    }
+  }
+
+  // Waits (on the host) for the previous render's submissions, once: before the recordings are submitted again or
+  // the scene's buffers are overwritten.
+  void settle() {
+    if (pending) device.wait(pending);
+    pending = 0;
+  }
+
+  // How a recording is submitted: waited for (host renders) or not (device renders, whose ticket is kept).
+  void submit(vk::Recorder& rec, bool wait) {
+    if (wait)
+      rec.submit();
+    else
+      pending = rec.submit_without_wait();
+  }
+
   // The splat for `pose` into render and mask: skipped when they already hold it (a still camera).
-  void splat(const Pose& pose) {
+  void splat(const Pose& pose, bool wait) {
     if (splatted && pose.m == splat_pose) return;
     const glm::dmat4 T = embed::pose_matrix(pose);
     splatted = false;
     splat_rec.begin();
     renderer.record(splat_rec, rgb, depth, std::span<const glm::dmat4>(&T, 1), K, K, render, mask);
     splat_rec.end();
-    splat_rec.submit();
+    submit(splat_rec, wait);
     splat_pose = pose.m;
     splatted = true;
   }
@@ -73,8 +101,8 @@ struct PointCloudScene::Impl {
     return packed;
   }
 
-  // The render packed into RGBA8 (packed_image), submitted and waited for; the recording is made once.
-  void pack() {
+  // The render packed into RGBA8 (packed_image); the recording is made once.
+  void pack(bool wait) {
     packed_image();
     if (!packing_recorded) {
       const PackPush push{uint32_t(H) * uint32_t(W)};
@@ -85,7 +113,27 @@ struct PointCloudScene::Impl {
       pack_rec.end();
       packing_recorded = true;
     }
-    pack_rec.submit();
+    submit(pack_rec, wait);
+  }
+
+  // One command buffer of copies into the application's memory, submitted without a wait; its ticket is the
+  // render's.
+  template <class Record>
+  uint64_t submit_copies(Record record) {
+    VkCommandBuffer cmd = device.allocate_command_buffer();
+    VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    if (vkBeginCommandBuffer(cmd, &bi) != VK_SUCCESS) {
+      vkFreeCommandBuffers(device.device(), device.command_pool(), 1, &cmd);
+      throw Error("PointCloudScene: vkBeginCommandBuffer failed (out of memory?)");
+    }
+    record(cmd);
+    if (vkEndCommandBuffer(cmd) != VK_SUCCESS) {
+      vkFreeCommandBuffers(device.device(), device.command_pool(), 1, &cmd);
+      throw Error("PointCloudScene: vkEndCommandBuffer failed (out of memory?)");
+    }
+    pending = device.submit(cmd);  // the context frees cmd once it has run
+    return pending;
   }
 
   vk::Context& device;
@@ -98,6 +146,7 @@ struct PointCloudScene::Impl {
   std::array<double, 16> splat_pose{};
   bool splatted = false;
   bool packing_recorded = false;
+  uint64_t pending = 0;  // the last ticket of a render not waited for (0: none)
 };
 
 PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
@@ -108,6 +157,36 @@ PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const Host
   HostTensor z = embed::scene_depth(depth, H, W, options.depth_is_disparity ? DepthValues::disparity : DepthValues::depth);
   impl_ = std::make_unique<Impl>(ctx, std::move(rgb), std::move(z), K, options);
 }
+
+namespace {
+
+// An input in the application's device buffer brought to the host (copied into a dvs tensor on the device, waited
+// for, downloaded), so the device-built scene converts it with the host constructor's own code: bit-identical.
+struct FetchedInput {
+  HostTensor values;
+  HostView view() { return HostView{values.data.data(), values.dtype == DType::u8 ? ElementType::u8 : ElementType::f32,
+                                    values.shape}; }
+};
+
+FetchedInput fetch(Context& ctx, const DeviceBufferView& from, const char* arg) {
+  bool sized = from.shape.size() == 2 || from.shape.size() == 3;
+  for (int64_t d : from.shape) sized = sized && d > 0;
+  if (!sized)
+    throw Error(std::string("PointCloudScene: ") + arg + ": the device view's shape must have 2 or 3 dimensions, " +
+                "each >= 1 (frame u8 [H,W,3] or f32 [3,H,W], depth f32 [H,W])");
+  vk::Context& device = ctx.internal();
+  const Tensor t = Tensor::empty(device, from.shape, from.type == ElementType::u8 ? DType::u8 : DType::f32,
+                                 std::string("scene ") + arg + " from the application");
+  device.wait(embed::copy_to_tensor(device, from, t, std::string("PointCloudScene's ") + arg));
+  return FetchedInput{t.download(device)};
+}
+
+}  // namespace
+
+PointCloudScene::PointCloudScene(Context& ctx, const DeviceBufferView& frame, const DeviceBufferView& depth,
+                                 const CameraIntrinsics& intrinsics, const SceneOptions& options)
+    : PointCloudScene(ctx, fetch(ctx, frame, "frame").view(), fetch(ctx, depth, "depth").view(), intrinsics,
+                      options) {}
 
 PointCloudScene::~PointCloudScene() = default;
 
@@ -120,15 +199,16 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
   Impl& s = *impl_;
   const embed::SceneImage kind = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
-  s.splat(pose);
-  if (kind == embed::SceneImage::rgba8) s.pack();
+  s.settle();
+  s.splat(pose, true);
+  if (kind == embed::SceneImage::rgba8) s.pack(true);
   const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
 }
 
-// The splat (and the packing) are waited for; the copies into the application's buffers are not (embed/device_copy:
-// they carry the barriers towards the application's use), and the ticket is the last copy's.
+// Nothing is waited for but the previous render (settle): the copies carry the barriers towards the application's
+// use (embed/device_copy), and the ticket is theirs.
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
   const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
@@ -137,11 +217,29 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
   const Tensor visible = s.mask.reshape({s.H, s.W});
   embed::check_view_fits(s.device, image, result, "PointCloudScene's image");
   if (want_mask) embed::check_view_fits(s.device, mask, visible, "PointCloudScene's mask");
-  s.splat(pose);
-  if (kind == embed::SceneImage::rgba8) s.pack();
-  uint64_t ticket = embed::copy_from_tensor(s.device, result, image, "PointCloudScene's image");
-  if (want_mask) ticket = embed::copy_from_tensor(s.device, visible, mask, "PointCloudScene's mask");
-  return ticket;
+  s.settle();
+  s.splat(pose, false);
+  if (kind == embed::SceneImage::rgba8) s.pack(false);
+  return s.submit_copies([&](VkCommandBuffer cmd) {
+    embed::record_copy_from_tensor(cmd, result, image);
+    if (want_mask) embed::record_copy_from_tensor(cmd, visible, mask);
+  });
+}
+
+// The same into images: RGBA8 only (a planar f32 render has no image format), the mask as R32_SFLOAT.
+uint64_t PointCloudScene::render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask) {
+  Impl& s = *impl_;
+  embed::check_image_fits(image, embed::ImageTexels::rgba8, s.H, s.W, "PointCloudScene's image");
+  const bool want_mask = mask.image != VK_NULL_HANDLE;
+  if (want_mask) embed::check_image_fits(mask, embed::ImageTexels::r32f, s.H, s.W, "PointCloudScene's mask");
+  const Tensor& result = s.packed_image();
+  s.settle();
+  s.splat(pose, false);
+  s.pack(false);
+  return s.submit_copies([&](VkCommandBuffer cmd) {
+    embed::record_copy_to_image(cmd, result, image);
+    if (want_mask) embed::record_copy_to_image(cmd, s.mask, mask);
+  });
 }
 
 }  // namespace dvs

@@ -97,6 +97,9 @@ class Context {
   // Submits without waiting and returns the ticket. The context takes `cmd` (from allocate_command_buffer) and
   // frees it once the timeline has reached the ticket.
   uint64_t submit(VkCommandBuffer cmd);
+  // Submits without waiting and returns the ticket; the caller keeps `cmd` and must not reset or resubmit it
+  // before the ticket is reached (Recorder::submit_without_wait).
+  uint64_t submit_kept(VkCommandBuffer cmd) { return queue_submit(cmd); }
   uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls so far = the last ticket
   VkSemaphore timeline() const { return timeline_; }
   uint64_t completed_value() const;  // the timeline's current value

@@ -357,6 +357,14 @@ void Recorder::submit() {
   collect_timestamps(uint32_t(query_labels_.size()));
 }
 
+uint64_t Recorder::submit_without_wait() {
+  if (recording_) end();
+  if (!recorded_ || segments_ != 1 || flushed_segments_ != 0)
+    throw Error("internal: Recorder::submit_without_wait needs a recording of exactly one segment");
+  ++submissions_;
+  return ctx_.submit_kept(cmds_[0]);
+}
+
 void Recorder::collect_timestamps(uint32_t pairs) {
   if (pairs == 0) return;
   const uint32_t total = pairs * 2;

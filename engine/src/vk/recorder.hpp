@@ -68,6 +68,10 @@ class Recorder {
   // begin drops it).
   void submit();
   void set_segment_hook(SegmentHook hook) { hook_ = std::move(hook); }  // empty: use the context's
+  // Submits a recording of one segment without waiting and returns its ticket (a render loop that must not block:
+  // the embedded scene). The caller waits for the ticket before it submits, begins or drops the recording again.
+  // GPU times (profiling) are not collected for such a submission.
+  uint64_t submit_without_wait();
 
   Context& context() { return ctx_; }
   bool recording() const { return recording_; }
