@@ -26,15 +26,18 @@ int64_t DeviceBufferView::elements() const { return product(shape); }
 uint64_t DeviceBufferView::bytes() const { return uint64_t(elements()) * element_bytes(type); }
 
 std::string DeviceImageView::describe() const {
-  std::string f;
-  switch (format) {
-    case VK_FORMAT_R8G8B8A8_UNORM: f = "VK_FORMAT_R8G8B8A8_UNORM"; break;
-    case VK_FORMAT_R8G8B8A8_SRGB: f = "VK_FORMAT_R8G8B8A8_SRGB"; break;
-    case VK_FORMAT_R32_SFLOAT: f = "VK_FORMAT_R32_SFLOAT"; break;
-    case VK_FORMAT_UNDEFINED: f = "VK_FORMAT_UNDEFINED"; break;
-    default: f = "VkFormat " + std::to_string(int(format));
-  }
-  return f + " " + std::to_string(width) + "x" + std::to_string(height);
+  const char* name = format == VK_FORMAT_R8G8B8A8_UNORM  ? "VK_FORMAT_R8G8B8A8_UNORM"
+                     : format == VK_FORMAT_R8G8B8A8_SRGB ? "VK_FORMAT_R8G8B8A8_SRGB"
+                     : format == VK_FORMAT_R32_SFLOAT    ? "VK_FORMAT_R32_SFLOAT"
+                     : format == VK_FORMAT_UNDEFINED     ? "VK_FORMAT_UNDEFINED"
+                                                         : nullptr;
+  std::string s = name ? name : "VkFormat ";
+  if (!name) s += std::to_string(int(format));
+  s += ' ';
+  s += std::to_string(width);
+  s += 'x';
+  s += std::to_string(height);
+  return s;
 }
 
 }  // namespace dvs
