@@ -25,7 +25,7 @@ uint32_t memory_type(VkPhysicalDevice physical, uint32_t bits, VkMemoryPropertyF
   vkGetPhysicalDeviceMemoryProperties(physical, &props);
   for (uint32_t i = 0; i < props.memoryTypeCount; ++i)
     if ((bits & (1u << i)) && (props.memoryTypes[i].propertyFlags & want) == want) return i;
-  throw std::runtime_error("Vulkan: no host-visible, coherent memory type for the staging buffer");
+  throw std::runtime_error("Vulkan: no memory type with the properties asked for (a staging buffer or a panel image)");
 }
 
 }  // namespace
@@ -218,6 +218,10 @@ PresentWindow::~PresentWindow() {
   if (device_) {
     vkDeviceWaitIdle(device_);
     destroy_swapchain();
+    for (DevicePanel& p : device_panels_) {
+      vkDestroyImage(device_, p.image, nullptr);
+      vkFreeMemory(device_, p.memory, nullptr);
+    }
     if (mapped_) vkUnmapMemory(device_, staging_memory_);
     vkDestroyBuffer(device_, staging_, nullptr);
     vkFreeMemory(device_, staging_memory_, nullptr);
@@ -235,6 +239,35 @@ PresentWindow::~PresentWindow() {
   if (instance_) vkDestroyInstance(instance_, nullptr);
   if (window_) glfwDestroyWindow(window_);
   glfwTerminate();
+}
+
+VkImage PresentWindow::device_panel(int i, VkFormat format) {
+  device_panels_.resize(size_t(options_.panels));
+  DevicePanel& p = device_panels_.at(size_t(i));
+  if (p.image) return p.image;
+  VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  ci.imageType = VK_IMAGE_TYPE_2D;
+  ci.format = format;
+  ci.extent = {uint32_t(options_.panel_width), uint32_t(options_.panel_height), 1};
+  ci.mipLevels = 1;
+  ci.arrayLayers = 1;
+  ci.samples = VK_SAMPLE_COUNT_1_BIT;
+  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ci.usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  check(vkCreateImage(device_, &ci, nullptr, &p.image), "vkCreateImage (a panel image)");
+  VkMemoryRequirements req{};
+  vkGetImageMemoryRequirements(device_, p.image, &req);
+  VkMemoryAllocateInfo mai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  mai.allocationSize = req.size;
+  mai.memoryTypeIndex = memory_type(physical_, req.memoryTypeBits, 0);
+  check(vkAllocateMemory(device_, &mai, nullptr, &p.memory), "vkAllocateMemory (a panel image)");
+  check(vkBindImageMemory(device_, p.image, p.memory, 0), "vkBindImageMemory (a panel image)");
+  return p.image;
+}
+
+void PresentWindow::wait_before_present(VkSemaphore semaphore, uint64_t value) {
+  present_wait_ = semaphore;
+  present_wait_value_ = value;
 }
 
 dvs::HostDevice PresentWindow::host_device() const {
@@ -301,8 +334,20 @@ void PresentWindow::present() {
                        nullptr, 1, &to_copy);
   std::vector<VkBufferImageCopy> regions;
   const uint32_t W = uint32_t(options_.panel_width), H = uint32_t(options_.panel_height);
+  std::vector<VkImageBlit> blits(options_.panels);
   for (uint32_t p = 0; p < uint32_t(options_.panels); ++p) {
     if (p * W >= extent_.width) break;  // a window smaller than asked for shows what fits
+    if (p < device_panels_.size() && device_panels_[p].image) {  // blitted below
+      const int32_t w = int32_t(std::min(W, extent_.width - p * W)), h = int32_t(std::min(H, extent_.height));
+      VkImageBlit& b = blits[p];
+      b.srcSubresource = b.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+      b.srcOffsets[1] = {w, h, 1};
+      b.dstOffsets[0] = {int32_t(p * W), 0, 0};
+      b.dstOffsets[1] = {int32_t(p * W) + w, h, 1};
+      vkCmdBlitImage(commands_, device_panels_[p].image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, images_[index],
+                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &b, VK_FILTER_NEAREST);
+      continue;
+    }
     VkBufferImageCopy c{};
     c.bufferOffset = VkDeviceSize(p) * W * H * 4;
     c.bufferRowLength = W;
@@ -312,8 +357,9 @@ void PresentWindow::present() {
     c.imageExtent = {std::min(W, extent_.width - p * W), std::min(H, extent_.height), 1};
     regions.push_back(c);
   }
-  vkCmdCopyBufferToImage(commands_, staging_, images_[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                         uint32_t(regions.size()), regions.data());
+  if (!regions.empty())
+    vkCmdCopyBufferToImage(commands_, staging_, images_[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                           uint32_t(regions.size()), regions.data());
   VkImageMemoryBarrier to_present = to_copy;
   to_present.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
   to_present.dstAccessMask = 0;
@@ -323,11 +369,19 @@ void PresentWindow::present() {
                        nullptr, 1, &to_present);
   check(vkEndCommandBuffer(commands_), "vkEndCommandBuffer");
 
-  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  // The acquired image, and (for device panels) the renderer's ticket on its timeline.
+  const VkSemaphore waits[2] = {acquired_, present_wait_};
+  const uint64_t wait_values[2] = {0, present_wait_value_};
+  const VkPipelineStageFlags wait_stages[2] = {VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT};
+  VkTimelineSemaphoreSubmitInfo timeline{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  timeline.waitSemaphoreValueCount = present_wait_ ? 2 : 1;
+  timeline.pWaitSemaphoreValues = wait_values;
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  submit.waitSemaphoreCount = 1;
-  submit.pWaitSemaphores = &acquired_;
-  submit.pWaitDstStageMask = &wait_stage;
+  submit.pNext = &timeline;
+  submit.waitSemaphoreCount = present_wait_ ? 2 : 1;
+  submit.pWaitSemaphores = waits;
+  submit.pWaitDstStageMask = wait_stages;
+  present_wait_ = VK_NULL_HANDLE;
   submit.commandBufferCount = 1;
   submit.pCommandBuffers = &commands_;
   submit.signalSemaphoreCount = 1;

@@ -2,7 +2,8 @@
 // and swapchain. The device is created with what dvs::Context::required_features() asks for (Vulkan 1.2,
 // timelineSemaphore) and every other core feature the GPU has, so dvs can use its optional paths; host_device()
 // hands the objects to dvs::Context. Each frame the caller fills panels of a host-visible RGBA8 buffer, and
-// present() copies them side by side into the swapchain image (vkCmdCopyBufferToImage: no graphics pipeline).
+// present() copies them side by side into the swapchain image (vkCmdCopyBufferToImage: no graphics pipeline);
+// a panel may instead come from a device image dvs rendered into (device_panel, blitted: --device-image).
 #pragma once
 #define GLFW_INCLUDE_VULKAN
 #include <GLFW/glfw3.h>
@@ -35,6 +36,12 @@ class PresentWindow {
 
   // Panel i's pixels, RGBA8 row-major [H,W,4], in host memory; write them, then present().
   uint8_t* panel(int i);
+  // Or panel i shown from an image on the device (made on the first call, panel-sized, TRANSFER_DST and
+  // TRANSFER_SRC usage) that dvs renders into: present() blits it (converting the format: R32_SFLOAT shows in red)
+  // from TRANSFER_SRC_OPTIMAL, the layout the renderer must leave it in, without a host round trip.
+  VkImage device_panel(int i, VkFormat format);
+  // The next present()'s copies wait (on the device) until `semaphore` (a timeline) reaches `value`: dvs's ticket.
+  void wait_before_present(VkSemaphore semaphore, uint64_t value);
   // Copies every panel into the next swapchain image and presents it; waits for the previous frame first.
   void present();
   // The whole window as last presented (RGBA8 [H, panels·W, 4]), for a PNG screenshot.
@@ -73,6 +80,13 @@ class PresentWindow {
   VkExtent2D extent_{};
   bool bgra_ = false;            // the swapchain stores B,G,R,A: panels are swizzled into the staging buffer
   std::vector<uint8_t> pixels_;  // the panels, one after the other, each [H,W,4] RGBA
+  struct DevicePanel {
+    VkImage image = VK_NULL_HANDLE;
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+  };
+  std::vector<DevicePanel> device_panels_;  // per panel; no image: the panel comes from host memory
+  VkSemaphore present_wait_ = VK_NULL_HANDLE;
+  uint64_t present_wait_value_ = 0;
 };
 
 }  // namespace preview

@@ -107,6 +107,15 @@ void run_preview(const PreviewOptions& o) {
   int path_frame = -1;  // the path frame shown while scrubbing or playing; −1 = flying freely
   bool playing = false;
   std::vector<float> mask(size_t(H) * size_t(W));
+  // The render and mask panels as device images dvs renders into (not with --host-round-trip or a device of dvs's
+  // own, whose images the window could not draw); the mask shows in red (an R32 image blitted).
+  const bool on_device = !o.host_round_trip && !o.own_device;
+  VkImage render_panel = on_device ? window.device_panel(1, VK_FORMAT_R8G8B8A8_UNORM) : VK_NULL_HANDLE;
+  VkImage mask_panel_image = on_device ? window.device_panel(2, VK_FORMAT_R32_SFLOAT) : VK_NULL_HANDLE;
+  auto panel_image = [&](VkImage image, VkFormat format) {
+    return dvs::DeviceImageView{image, format, uint32_t(W), uint32_t(H), VK_IMAGE_LAYOUT_UNDEFINED,
+                                VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
+  };
   FrameTimes times, recent, render_times;
   auto last_report = std::chrono::steady_clock::now();
 
@@ -225,16 +234,32 @@ void run_preview(const PreviewOptions& o) {
 
     const dvs::Pose pose = camera.pose();
     const auto render_start = std::chrono::steady_clock::now();
-    scene.render(pose, {window.panel(1), dvs::ElementType::u8, {H, W, 4}}, {mask.data(), dvs::ElementType::f32, {H, W}});
+    if (on_device) {
+      // Into the window's images, drawn by present() once dvs's ticket is reached: nothing waits on the host.
+      const uint64_t ticket = scene.render(pose, panel_image(render_panel, VK_FORMAT_R8G8B8A8_UNORM),
+                                           panel_image(mask_panel_image, VK_FORMAT_R32_SFLOAT));
+      window.wait_before_present(ctx->timeline(), ticket);
+    } else {
+      scene.render(pose, {window.panel(1), dvs::ElementType::u8, {H, W, 4}}, {mask.data(), dvs::ElementType::f32, {H, W}});
+    }
     render_times.ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - render_start).count());
-    uint8_t* mask_panel = window.panel(2);
-    for (size_t i = 0; i < mask.size(); ++i) {
-      const uint8_t v = mask[i] > 0.5f ? 255 : 0;
-      mask_panel[i * 4] = mask_panel[i * 4 + 1] = mask_panel[i * 4 + 2] = v;
-      mask_panel[i * 4 + 3] = 255;
-    }
+    auto fill_mask_panel = [&] {
+      uint8_t* mask_panel = window.panel(2);
+      for (size_t i = 0; i < mask.size(); ++i) {
+        const uint8_t v = mask[i] > 0.5f ? 255 : 0;
+        mask_panel[i * 4] = mask_panel[i * 4 + 1] = mask_panel[i * 4 + 2] = v;
+        mask_panel[i * 4 + 3] = 255;
+      }
+    };
+    if (!on_device) fill_mask_panel();
     if (!pending_screenshot.empty()) {  // the render panel exactly as rendered (before any overlay)
+      // On the device path the same pose again into host memory for the file (the splat is not redone: the scene
+      // keeps it); it equals the device image byte for byte (tests/test_scene_device_memory.cpp).
+      if (on_device) {
+        scene.render(pose, {window.panel(1), dvs::ElementType::u8, {H, W, 4}}, {mask.data(), dvs::ElementType::f32, {H, W}});
+        fill_mask_panel();
+      }
       screenshot(pending_screenshot, pose);
       pending_screenshot.clear();
     }

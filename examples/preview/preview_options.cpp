@@ -40,6 +40,8 @@ const char* const kPreviewUsage =
     "device:\n"
     "  --gpu NAME           the GPU whose name contains NAME\n"
     "  --dvs-own-device     dvs on a device of its own (comparison only; default: the window's device)\n"
+    "  --host-round-trip    the render and mask through host memory (comparison only; default: dvs renders into\n"
+    "                       device images of the window's, drawn without a host wait)\n"
     "  --validation         the Khronos validation layer   --vsync  FIFO present (default: unthrottled)\n"
     "\n"
     "keys: W/S forward/back, A/D left/right, Q/E up/down, left-drag look, scroll speed, K key pose,\n"
@@ -106,6 +108,7 @@ PreviewOptions parse_options(int argc, char** argv) {
     else if (a == "--export") o.export_name = value();
     else if (a == "--gpu") o.gpu = value();
     else if (a == "--dvs-own-device") o.own_device = true;
+    else if (a == "--host-round-trip") o.host_round_trip = true;
     else if (a == "--validation") o.validation = true;
     else if (a == "--vsync") o.vsync = true;
     else throw std::runtime_error("unknown option '" + a + "' (dvs-preview --help lists them)");

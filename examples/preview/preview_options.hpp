@@ -25,6 +25,7 @@ struct PreviewOptions {
   std::string export_name = "preview_path.json";  // E: this and its .glb sibling
   std::string gpu;             // substring of the GPU's name
   bool own_device = false;     // dvs on a device of its own instead of the window's (for comparison only)
+  bool host_round_trip = false;  // the render through host memory instead of into the window's device images
   bool validation = false, vsync = false;
   bool help = false;
 };
