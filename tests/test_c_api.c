@@ -1,8 +1,9 @@
 /* The C API compiled as C (C99): dvs/dvs.h must be a C header. Checks the calls that need no model: version, the
  * argument errors and their messages, a context and its timeline, option defaults, a job whose input is missing (its
  * status and message come back through dvs_job_result), and a context on a device the test creates itself (a scene
- * rendered there takes the application's queue lock; dvs destroys nothing of the application's). Exit status 0 =
- * every check passed. */
+ * rendered there takes the application's queue lock; dvs destroys nothing of the application's; its renders into the
+ * test's own buffers and image, ordered by semaphores both ways, equal the host render byte for byte). Exit status
+ * 0 = every check passed. */
 #include <stdio.h>
 #include <string.h>
 
