@@ -147,6 +147,30 @@ TEST_F(SceneDeviceMemoryTest, ImagesReadBackByTheApplicationEqualTheHostRender) 
   EXPECT_LT(visible, kPixels);  // the moved camera shows holes: an all-visible copy would not test the mask
 }
 
+TEST_F(SceneDeviceMemoryTest, AnRGBA8MaskImageIsWhiteWhereVisibleAndBlackElsewhere) {
+  // The display form of the mask (what a window blits as it is): opaque white where the f32 mask is 1, opaque
+  // black where it is 0, checked pixel by pixel against the host render's mask.
+  AppDevice::Image& image = rgba_image();
+  AppDevice::Image& mask = rgba_image();
+  AppDevice::Buffer& mask_back = app.buffer(kPixels * 4);
+  const Pose pose = moved(-0.04, 0.02);
+  const VkImageLayout U = VK_IMAGE_LAYOUT_UNDEFINED, T = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+  const uint64_t ticket = scene.render(pose, image_view(image, U, T), image_view(mask, U, T));
+  app.submit([&](VkCommandBuffer cmd) { AppDevice::record_image_readback(cmd, mask, T, mask_back.buffer); },
+             {{ctx.timeline(), ticket}});
+  const HostRender want = render_on_host(scene, pose);
+  const auto* got = static_cast<const uint8_t*>(mask_back.data);
+  size_t wrong = 0, visible = 0;
+  for (size_t i = 0; i < kPixels; ++i) {
+    const uint8_t v = want.mask[i] > 0.0f ? 255 : 0;
+    visible += v == 255;
+    wrong += !(got[4 * i] == v && got[4 * i + 1] == v && got[4 * i + 2] == v && got[4 * i + 3] == 255);
+  }
+  EXPECT_EQ(wrong, 0u) << "pixels of the RGBA8 mask differ from the host mask";
+  EXPECT_GT(visible, 0u);
+  EXPECT_LT(visible, kPixels);  // holes and visible pixels both present
+}
+
 TEST_F(SceneDeviceMemoryTest, BuffersReadBackByTheApplicationEqualTheHostRender) {
   AppDevice::Buffer& image = app.buffer(kPixels * 4);
   AppDevice::Buffer& mask = app.buffer(kPixels * 4);
@@ -274,8 +298,9 @@ TEST_F(SceneDeviceMemoryTest, WrongImagesAreRefusedSayingWhatIsWrong) {
   test::expect_error([&] { scene.render(pose, image_view(small, U, S)); }, {"PointCloudScene's image", "wrong size", "53x37"});
   test::expect_error([&] { scene.render(pose, DeviceImageView{}); }, {"PointCloudScene's image", "VK_NULL_HANDLE"});
   test::expect_error([&] { scene.render(pose, image_view(rgba, U, U)); }, {"PointCloudScene's image", "final_layout"});
-  test::expect_error([&] { scene.render(pose, image_view(rgba, U, S), image_view(rgba, U, S)); },
-                     {"PointCloudScene's mask", "VK_FORMAT_R32_SFLOAT"});
+  AppDevice::Image& r8 = app.image(VK_FORMAT_R8_UNORM, W, H, kImageUsage);
+  test::expect_error([&] { scene.render(pose, image_view(rgba, U, S), image_view(r8, U, S)); },
+                     {"PointCloudScene's mask", "VK_FORMAT_R32_SFLOAT", "VK_FORMAT_R8G8B8A8_UNORM"});
   // Nothing was submitted by a refused call: the next render still works.
   const uint64_t before = ctx.submitted_value();
   EXPECT_GT(scene.render(pose, image_view(rgba, U, S)), before);

@@ -37,7 +37,7 @@ class PresentWindow {
   // Panel i's pixels, RGBA8 row-major [H,W,4], in host memory; write them, then present().
   uint8_t* panel(int i);
   // Or panel i shown from an image on the device (made on the first call, panel-sized, TRANSFER_DST and
-  // TRANSFER_SRC usage) that dvs renders into: present() blits it (converting the format: R32_SFLOAT shows in red)
+  // TRANSFER_SRC usage) that dvs renders into: present() blits it (converting the format)
   // from TRANSFER_SRC_OPTIMAL, the layout the renderer must leave it in, without a host round trip.
   VkImage device_panel(int i, VkFormat format);
   // The next present()'s copies wait (on the device) until `semaphore` (a timeline) reaches `value`: dvs's ticket.

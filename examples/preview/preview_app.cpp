@@ -108,10 +108,10 @@ void run_preview(const PreviewOptions& o) {
   bool playing = false;
   std::vector<float> mask(size_t(H) * size_t(W));
   // The render and mask panels as device images dvs renders into (not with --host-round-trip or a device of dvs's
-  // own, whose images the window could not draw); the mask shows in red (an R32 image blitted).
+  // own, whose images the window could not draw); the mask as dvs's RGBA8 display form (white where visible).
   const bool on_device = !o.host_round_trip && !o.own_device;
   VkImage render_panel = on_device ? window.device_panel(1, VK_FORMAT_R8G8B8A8_UNORM) : VK_NULL_HANDLE;
-  VkImage mask_panel_image = on_device ? window.device_panel(2, VK_FORMAT_R32_SFLOAT) : VK_NULL_HANDLE;
+  VkImage mask_panel_image = on_device ? window.device_panel(2, VK_FORMAT_R8G8B8A8_UNORM) : VK_NULL_HANDLE;
   auto panel_image = [&](VkImage image, VkFormat format) {
     return dvs::DeviceImageView{image, format, uint32_t(W), uint32_t(H), VK_IMAGE_LAYOUT_UNDEFINED,
                                 VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
@@ -237,7 +237,7 @@ void run_preview(const PreviewOptions& o) {
     if (on_device) {
       // Into the window's images, drawn by present() once dvs's ticket is reached: nothing waits on the host.
       const uint64_t ticket = scene.render(pose, panel_image(render_panel, VK_FORMAT_R8G8B8A8_UNORM),
-                                           panel_image(mask_panel_image, VK_FORMAT_R32_SFLOAT));
+                                           panel_image(mask_panel_image, VK_FORMAT_R8G8B8A8_UNORM));
       window.wait_before_present(ctx->timeline(), ticket);
     } else {
       scene.render(pose, {window.panel(1), dvs::ElementType::u8, {H, W, 4}}, {mask.data(), dvs::ElementType::f32, {H, W}});

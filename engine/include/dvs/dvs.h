@@ -144,7 +144,8 @@ DVS_API dvs_status dvs_scene_render_to_buffers(dvs_scene* scene, const double po
  * contents may be discarded); final_layout: what dvs leaves it in (e.g. SHADER_READ_ONLY_OPTIMAL). */
 typedef struct dvs_device_image {
   VkImage image;
-  VkFormat format; /* VK_FORMAT_R8G8B8A8_UNORM for the image (not _SRGB), VK_FORMAT_R32_SFLOAT for the mask */
+  VkFormat format; /* VK_FORMAT_R8G8B8A8_UNORM for the image (not _SRGB), VK_FORMAT_R32_SFLOAT (1 = visible) or
+                     VK_FORMAT_R8G8B8A8_UNORM (opaque white where visible, black elsewhere) for the mask */
   uint32_t width, height;
   VkImageLayout layout;
   VkImageLayout final_layout;

@@ -69,7 +69,8 @@ class DVS_API PointCloudScene {
   // ticket is reached.
   uint64_t render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask = {});
   // The same into application images (dvs/views.hpp): image VK_FORMAT_R8G8B8A8_UNORM (RGBA as the u8 render),
-  // mask VK_FORMAT_R32_SFLOAT (optional: image VK_NULL_HANDLE), both width × height of the scene. Each is moved
+  // mask VK_FORMAT_R32_SFLOAT (1 = visible) or VK_FORMAT_R8G8B8A8_UNORM (opaque white where visible, opaque black
+  // elsewhere: ready to draw) or none (image VK_NULL_HANDLE), both width × height of the scene. Each is moved
   // from its `layout` to its `final_layout` in the same submission as the copy.
   uint64_t render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask = {});
 

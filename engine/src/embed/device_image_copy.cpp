@@ -58,7 +58,9 @@ void check_image_fits(const DeviceImageView& view, ImageTexels texels, int heigh
                 "decode as sRGB when sampled; create it (or a view of it) as " + std::string(want_name) +
                 " and convert where the application wants sRGB.");
   if (view.format != want)
-    throw Error(head + " has the wrong format: it must be " + want_name + ".");
+    throw Error(head + " has the wrong format: it must be " + want_name +
+                (texels == ImageTexels::r32f ? " (a mask may also be VK_FORMAT_R8G8B8A8_UNORM: white where visible)" : "") +
+                ".");
   if (int64_t(view.width) != width || int64_t(view.height) != height)
     throw Error(head + " has the wrong size: it must be " + std::to_string(width) + "x" + std::to_string(height) +
                 " (width x height), the scene's.");

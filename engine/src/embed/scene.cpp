@@ -40,6 +40,17 @@ geometry::SplatOptions splat_options(const SceneOptions& o) {
 
 struct PackPush {  // shaders/render/pack_rgba8.comp
   uint32_t pixels;
+  uint32_t mask_only;
+};
+
+// One RGBA8 packing of the scene's render (the colour image) or of its mask alone (a white/black display image):
+// its output and its recording, both made on first use.
+struct Packing {
+  explicit Packing(vk::Context& device, bool mask_only_) : rec(device), mask_only(mask_only_) {}
+  vk::Recorder rec;
+  Tensor out;
+  bool mask_only;
+  bool recorded = false;
 };
 
 }  // namespace
@@ -52,7 +63,8 @@ struct PointCloudScene::Impl {
         K(K_),
         renderer(device, H, W, 1, splat_options(o)),
         splat_rec(device),
-        pack_rec(device),
+        colour_packing(device, false),
+        mask_packing(device, true),
         centre(::dvs::centre_depth(depth_host)) {
     rgb = Tensor::upload(device, rgb_host, "scene frame");
     depth = Tensor::upload(device, depth_host, "scene depth");
@@ -95,26 +107,29 @@ struct PointCloudScene::Impl {
     splatted = true;
   }
 
-  // The RGBA8 image, made on its first use.
-  const Tensor& packed_image() {
-    if (!packed.defined()) packed = Tensor::empty(device, {H, W, 4}, DType::u8, "scene RGBA8 image");
-    return packed;
+  // The RGBA8 image of `p` (colour_packing: the render; mask_packing: the mask), made on its first use.
+  const Tensor& packed_image(Packing& p) {
+    if (!p.out.defined())
+      p.out = Tensor::empty(device, {H, W, 4}, DType::u8, p.mask_only ? "scene RGBA8 mask" : "scene RGBA8 image");
+    return p.out;
   }
+  const Tensor& packed_image() { return packed_image(colour_packing); }
 
-  // The render packed into RGBA8 (packed_image); the recording is made once.
-  void pack(bool wait) {
-    packed_image();
-    if (!packing_recorded) {
-      const PackPush push{uint32_t(H) * uint32_t(W)};
+  // The render (or the mask) packed into RGBA8; the recording is made once.
+  void pack(Packing& p, bool wait) {
+    packed_image(p);
+    if (!p.recorded) {
+      const PackPush push{uint32_t(H) * uint32_t(W), p.mask_only ? 1u : 0u};
       const ops::Grid g = ops::grid_1d(device.caps(), int64_t(push.pixels), 64);
-      pack_rec.begin();
-      pack_rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), packed.buffer()},
-                        &push, sizeof push, g.x, g.y, g.z, "pack_rgba8");
-      pack_rec.end();
-      packing_recorded = true;
+      p.rec.begin();
+      p.rec.dispatch(device.pipelines().get("render/pack_rgba8"), {render.buffer(), mask.buffer(), p.out.buffer()},
+                     &push, sizeof push, g.x, g.y, g.z, "pack_rgba8");
+      p.rec.end();
+      p.recorded = true;
     }
-    submit(pack_rec, wait);
+    submit(p.rec, wait);
   }
+  void pack(bool wait) { pack(colour_packing, wait); }
 
   // One command buffer of copies into the application's memory, submitted without a wait; its ticket is the
   // render's.
@@ -140,12 +155,12 @@ struct PointCloudScene::Impl {
   int H, W;
   geometry::Intrinsics K;
   geometry::SplatRenderer renderer;
-  vk::Recorder splat_rec, pack_rec;
+  vk::Recorder splat_rec;
+  Packing colour_packing, mask_packing;
   float centre;
-  Tensor rgb, depth, render, mask, packed;
+  Tensor rgb, depth, render, mask;
   std::array<double, 16> splat_pose{};
   bool splatted = false;
-  bool packing_recorded = false;
   uint64_t pending = 0;  // the last ticket of a render not waited for (0: none)
 };
 
@@ -202,7 +217,7 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
   s.settle();
   s.splat(pose, true);
   if (kind == embed::SceneImage::rgba8) s.pack(true);
-  const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed : s.render;
+  const Tensor& out = kind == embed::SceneImage::rgba8 ? s.packed_image() : s.render;
   s.device.transfer().download(out.buffer(), image.data, out.bytes());
   if (want_mask) s.device.transfer().download(s.mask.buffer(), mask.data, s.mask.bytes());
 }
@@ -226,19 +241,26 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
   });
 }
 
-// The same into images: RGBA8 only (a planar f32 render has no image format), the mask as R32_SFLOAT.
+// The same into images: RGBA8 only (a planar f32 render has no image format); the mask as R32_SFLOAT values or as
+// an RGBA8 display image (white where visible, black elsewhere).
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask) {
   Impl& s = *impl_;
   embed::check_image_fits(image, embed::ImageTexels::rgba8, s.H, s.W, "PointCloudScene's image");
   const bool want_mask = mask.image != VK_NULL_HANDLE;
-  if (want_mask) embed::check_image_fits(mask, embed::ImageTexels::r32f, s.H, s.W, "PointCloudScene's mask");
+  const bool mask_rgba8 = want_mask && mask.format == VK_FORMAT_R8G8B8A8_UNORM;
+  // Any other format is refused by check_image_fits as not R32_SFLOAT, the values' own format.
+  if (want_mask)
+    embed::check_image_fits(mask, mask_rgba8 ? embed::ImageTexels::rgba8 : embed::ImageTexels::r32f, s.H, s.W,
+                            "PointCloudScene's mask");
   const Tensor& result = s.packed_image();
+  const Tensor& mask_texels = mask_rgba8 ? s.packed_image(s.mask_packing) : s.mask;
   s.settle();
   s.splat(pose, false);
   s.pack(false);
+  if (mask_rgba8) s.pack(s.mask_packing, false);
   return s.submit_copies([&](VkCommandBuffer cmd) {
     embed::record_copy_to_image(cmd, result, image);
-    if (want_mask) embed::record_copy_to_image(cmd, s.mask, mask);
+    if (want_mask) embed::record_copy_to_image(cmd, mask_texels, mask);
   });
 }
 
