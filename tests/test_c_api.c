@@ -304,6 +304,17 @@ int main(int argc, char** argv) {
           (int)status, dvs_last_error());
   }
 
+  {
+    /* What a host device needs, before any context: the device this test makes enables Vulkan 1.2 and
+     * timelineSemaphore, so both must be listed as required; the optional list is another one. */
+    char required[4096], optional[4096];
+    CHECK(dvs_context_requirements(0, required, sizeof required) == DVS_OK, "requirements: %s", dvs_last_error());
+    CHECK(dvs_context_requirements(1, optional, sizeof optional) == DVS_OK, "options: %s", dvs_last_error());
+    CHECK(contains(required, "Vulkan 1.2") && contains(required, "timelineSemaphore\n"), "required: \"%s\"", required);
+    CHECK(!contains(optional, "timelineSemaphore") && strcmp(required, optional) != 0, "optional: \"%s\"", optional);
+    CHECK(dvs_context_requirements(0, NULL, 8) == DVS_ERROR_INVALID_ARGUMENT, "NULL buffer accepted");
+  }
+
   status = dvs_context_create(NULL, 0, &ctx);
   CHECK(status == DVS_OK && ctx != NULL, "dvs_context_create: %d %s", (int)status, dvs_last_error());
   if (!ctx) return 1;

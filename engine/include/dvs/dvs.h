@@ -94,6 +94,11 @@ DVS_API dvs_status dvs_context_timeline(const dvs_context* context, VkSemaphore*
 /* Blocks until the timeline reaches ticket, at most timeout_ns; *reached (may be NULL) is 1 when it did, 0 when
  * the wait timed out. */
 DVS_API dvs_status dvs_context_wait(const dvs_context* context, uint64_t ticket, uint64_t timeout_ns, int32_t* reached);
+/* What a device given to dvs_context_create_on_host must have been created with (optional = 0: "Vulkan 1.2",
+ * "timelineSemaphore", ...; dvs::Context::required_features) or what dvs uses when it was (optional = 1: 16-bit
+ * storage, ...; dvs::Context::optional_features): the names one per line, copied into buffer (size bytes; 4096
+ * always suffice). Needs no context: ask before creating the device. */
+DVS_API dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size);
 
 /* ---- scene: the splat render of one frame from any pose (dvs/scene.hpp) ------------------------------------ */
 

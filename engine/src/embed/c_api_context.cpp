@@ -73,6 +73,15 @@ dvs_status dvs_context_timeline(const dvs_context* context, VkSemaphore* out) {
   });
 }
 
+dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size) {
+  return guarded(DVS_ERROR_DEVICE, [&] {
+    std::string lines;
+    for (const std::string& name : optional ? dvs::Context::optional_features() : dvs::Context::required_features())
+      lines += name + "\n";
+    copy_out(lines, buffer, size, "dvs_context_requirements", "buffer");
+  });
+}
+
 dvs_status dvs_context_wait(const dvs_context* context, uint64_t ticket, uint64_t timeout_ns, int32_t* reached) {
   return guarded(DVS_ERROR_DEVICE, [&] {
     require(context, "dvs_context_wait", "context");
