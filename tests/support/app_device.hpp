@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <gtest/gtest.h>
+
 #include "dvs/context.hpp"
 #include "vk/device_info.hpp"
 
@@ -22,12 +24,20 @@ inline void app_check(VkResult r, const char* what) {
   if (r != VK_SUCCESS) throw std::runtime_error(std::string("test application: ") + what + " failed: " + std::to_string(r));
 }
 
+// What the application enables on its device.
+struct AppFeatures {
+  bool timeline_semaphore = true;
+  bool float16 = false;
+  bool memory_model_without_device_scope = false;
+};
+
 class AppDevice {
  public:
   struct Buffer {
     VkBuffer buffer = VK_NULL_HANDLE;
     VkDeviceMemory memory = VK_NULL_HANDLE;
     void* data = nullptr;  // mapped, coherent
+    float* f32() const { return static_cast<float*>(data); }
   };
   struct Image {
     VkImage image = VK_NULL_HANDLE;
@@ -36,7 +46,7 @@ class AppDevice {
     uint32_t width = 0, height = 0;
   };
 
-  AppDevice() {
+  explicit AppDevice(AppFeatures features = {}) {
     // The layer reads its enables at vkCreateInstance; QueueSubmit synchronization validation has no
     // VkValidationFeatureEnableEXT of its own in this layer version (1.3.239), only this name. On Linux the list
     // is ':'-separated (',' is silently ignored: tried 2026-11-27).
@@ -84,7 +94,9 @@ class AppDevice {
     vkGetPhysicalDeviceQueueFamilyProperties(physical, &nq, families.data());
     family = uint32_t(vk::pick_compute_queue_family(families));
 
-    f12.timelineSemaphore = VK_TRUE;
+    f12.timelineSemaphore = features.timeline_semaphore;
+    f12.shaderFloat16 = features.float16;
+    f12.vulkanMemoryModel = features.memory_model_without_device_scope;
     features2.pNext = &f12;
     float priority = 1.0f;
     VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
@@ -112,6 +124,7 @@ class AppDevice {
       vkDestroyImage(device, i.image, nullptr);
       vkFreeMemory(device, i.memory, nullptr);
     }
+    for (VkSemaphore sem : semaphores) vkDestroySemaphore(device, sem, nullptr);
     vkDestroyCommandPool(device, pool, nullptr);
     vkDestroyDevice(device, nullptr);
     auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
@@ -122,6 +135,7 @@ class AppDevice {
   AppDevice(const AppDevice&) = delete;
   AppDevice& operator=(const AppDevice&) = delete;
 
+  // The device for dvs, with a queue lock that counts dvs's submissions and checks they come in pairs.
   HostDevice host() {
     HostDevice h;
     h.instance = instance;
@@ -131,7 +145,27 @@ class AppDevice {
     h.queue = queue;
     h.instance_api_version = VK_API_VERSION_1_2;
     h.enabled_features = &features2;
+    h.lock_queue = [this] {
+      EXPECT_FALSE(queue_locked) << "dvs took the queue lock twice without unlocking";
+      queue_locked = true;
+      ++locks;
+    };
+    h.unlock_queue = [this] {
+      EXPECT_TRUE(queue_locked) << "dvs unlocked the queue without locking it";
+      queue_locked = false;
+      ++unlocks;
+    };
     return h;
+  }
+
+  VkSemaphore timeline_semaphore() {
+    VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+    type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+    VkSemaphoreCreateInfo sci{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO, &type};
+    VkSemaphore sem = VK_NULL_HANDLE;
+    app_check(vkCreateSemaphore(device, &sci, nullptr, &sem), "vkCreateSemaphore");
+    semaphores.push_back(sem);
+    return sem;
   }
 
   // A host-visible, coherent, mapped buffer of `bytes` (zeroed) with both transfer usages.
@@ -241,6 +275,24 @@ class AppDevice {
                          0, nullptr);
   }
 
+  // The application's own copy of `bytes` from `src` to `dst` for the host to read, after `wait` reaches `value`
+  // (no wait when `wait` is null); waited for with a fence.
+  void copy_buffer(VkBuffer src, VkBuffer dst, VkDeviceSize bytes, VkSemaphore wait = VK_NULL_HANDLE, uint64_t value = 0) {
+    std::vector<std::pair<VkSemaphore, uint64_t>> waits;
+    if (wait) waits.push_back({wait, value});
+    submit(
+        [&](VkCommandBuffer cmd) {
+          VkBufferCopy region{0, 0, bytes};
+          vkCmdCopyBuffer(cmd, src, dst, 1, &region);
+          VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+          to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+          to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+          vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0,
+                               nullptr, 0, nullptr);
+        },
+        waits);
+  }
+
   std::string first_message() const { return messages.empty() ? "" : messages[0]; }
 
   VkInstance instance = VK_NULL_HANDLE;
@@ -254,7 +306,10 @@ class AppDevice {
   VkPhysicalDeviceFeatures2 features2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   std::deque<Buffer> buffers;  // references to elements stay valid
   std::deque<Image> images;
+  std::vector<VkSemaphore> semaphores;
   std::vector<std::string> messages;
+  bool queue_locked = false;
+  int locks = 0, unlocks = 0;
 
  private:
   static VKAPI_ATTR VkBool32 VKAPI_CALL record(VkDebugUtilsMessageSeverityFlagBitsEXT, VkDebugUtilsMessageTypeFlagsEXT,
