@@ -4,6 +4,7 @@
 // into the application's views.
 #include "dvs/clip_run.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <optional>
