@@ -251,6 +251,35 @@ DVS_API dvs_status dvs_job_result(dvs_job* job);
 /* Cancels a running job, waits for it to stop, frees it. */
 DVS_API dvs_status dvs_job_destroy(dvs_job* job);
 
+/* A whole run on a clip in memory (dvs/clip_run.hpp), on `context`: frames, depth and camera path in, the new view,
+ * its mask and the sampled latent out; nothing is written but the inversion and latent caches (options->use_cache,
+ * cache_dir). options as dvs_job_start_pipeline's, except that render.video, render.depth, render.depth_model and
+ * render.out_dir must be NULL, render.height/width must be the frames' size and render.frames 0 or count
+ * (render.device is ignored: the context is the device); each mismatch is DVS_ERROR_FILE naming the option.
+ *   frames: u8 [count,height,width,3] RGB at the working size (height, width multiples of 8; count = 4k+1).
+ *   depth:  f32 [count,height,width], disparity (dvs_depth_estimator_estimate's), or metric depth with
+ *           options->render.metric_depth.
+ *   poses:  16*count doubles, one row-major 4x4 world-to-camera transform per frame (dvs_scene_render's
+ *           convention), or NULL for the path options->render.trajectory names.
+ *   output: u8 [count,height,width,3], the new view. mask: f32 [count,height,width] (1 = visible in the render), or
+ *           NULL. latent: f32 [Fl,C,h,w] (dvs_clip_latent_shape; latent_floats = their product, checked), or NULL.
+ * Given the frames a video decode gives and the depth a depth file holds, the latent is the one `dvs run` samples. */
+DVS_API dvs_status dvs_run_pipeline_clip(dvs_context* context, const dvs_pipeline_options* options,
+                                         const uint8_t* frames, int32_t count, int32_t height, int32_t width,
+                                         const float* depth, const double* poses, uint8_t* output, float* mask,
+                                         float* latent, size_t latent_floats, dvs_progress_fn progress, void* user);
+/* The same on a thread of its own; *out receives the job at once (dvs_job_poll, dvs_job_result, ...). The context,
+ * frames, depth, output, mask and latent must stay valid, and the context unused by other calls, until the job has
+ * finished; options and poses are copied. */
+DVS_API dvs_status dvs_job_start_pipeline_clip(dvs_context* context, const dvs_pipeline_options* options,
+                                               const uint8_t* frames, int32_t count, int32_t height, int32_t width,
+                                               const float* depth, const double* poses, uint8_t* output, float* mask,
+                                               float* latent, size_t latent_floats, dvs_job** out);
+/* The sampled latent's shape [Fl, C, h, w] for a clip of count x height x width, read from options->model's VAE
+ * config (Fl = (count-1)/4+1 for CogVideoX): latent_floats = shape[0]*shape[1]*shape[2]*shape[3]. */
+DVS_API dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t count, int32_t height,
+                                         int32_t width, int64_t shape[4]);
+
 #ifdef __cplusplus
 }
 #endif

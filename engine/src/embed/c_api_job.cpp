@@ -2,6 +2,7 @@
 // structs' own defaults, so the two never drift apart).
 #include "embed/c_api_guard.hpp"
 #include "embed/c_api_handles.hpp"
+#include "embed/c_api_options.hpp"
 
 using namespace dvs::capi;
 
@@ -25,7 +26,27 @@ dvs::RenderJob render_job(const dvs_render_options& o) {
   return j;
 }
 
-dvs_status start(dvs_job** out, const char* call, const char* kind, const std::function<dvs::Job()>& begin) {
+}  // namespace
+
+dvs::RunOptions dvs::capi::run_options(const dvs_pipeline_options& options) {
+  dvs::RunOptions r;
+  r.render = render_job(options.render);
+  r.model = text(options.model);
+  r.prompt = text(options.prompt);
+  r.negative_prompt = text(options.negative_prompt);
+  if (options.preset) r.preset = options.preset;
+  r.cache_dir = text(options.cache_dir);
+  r.lora = text(options.lora);
+  r.steps = options.steps, r.inversion_steps = options.inversion_steps;
+  r.strength = options.strength, r.k = options.k, r.delta = options.delta, r.guidance = options.guidance;
+  r.lora_scale = options.lora_scale;
+  r.seed = options.seed;
+  r.use_cache = options.use_cache != 0;
+  return r;
+}
+
+dvs_status dvs::capi::start_job(dvs_job** out, const char* call, const char* kind,
+                                const std::function<dvs::Job()>& begin) {
   return guarded(DVS_ERROR_FILE, [&] {
     require(out, call, "out");
     *out = nullptr;
@@ -33,8 +54,6 @@ dvs_status start(dvs_job** out, const char* call, const char* kind, const std::f
     *out = handle.release();
   });
 }
-
-}  // namespace
 
 extern "C" {
 
@@ -69,35 +88,22 @@ dvs_status dvs_pipeline_options_default(dvs_pipeline_options* out) {
 }
 
 dvs_status dvs_job_start_render(const dvs_render_options* options, dvs_job** out) {
-  return start(out, "dvs_job_start_render", "render", [&] {
+  return start_job(out, "dvs_job_start_render", "render", [&] {
     require(options, "dvs_job_start_render", "options");
     return dvs::start_render(render_job(*options));
   });
 }
 
 dvs_status dvs_job_start_pipeline(const dvs_pipeline_options* options, dvs_job** out) {
-  return start(out, "dvs_job_start_pipeline", "pipeline", [&] {
+  return start_job(out, "dvs_job_start_pipeline", "pipeline", [&] {
     require(options, "dvs_job_start_pipeline", "options");
-    dvs::RunOptions r;
-    r.render = render_job(options->render);
-    r.model = text(options->model);
-    r.prompt = text(options->prompt);
-    r.negative_prompt = text(options->negative_prompt);
-    if (options->preset) r.preset = options->preset;
-    r.cache_dir = text(options->cache_dir);
-    r.lora = text(options->lora);
-    r.steps = options->steps, r.inversion_steps = options->inversion_steps;
-    r.strength = options->strength, r.k = options->k, r.delta = options->delta, r.guidance = options->guidance;
-    r.lora_scale = options->lora_scale;
-    r.seed = options->seed;
-    r.use_cache = options->use_cache != 0;
-    return dvs::start_pipeline(r);
+    return dvs::start_pipeline(run_options(*options));
   });
 }
 
 dvs_status dvs_job_start_depth(const char* video, const char* model, const char* out_file, int32_t input_size,
                                int32_t frames, dvs_job** out) {
-  return start(out, "dvs_job_start_depth", "depth", [&] {
+  return start_job(out, "dvs_job_start_depth", "depth", [&] {
     const char* call = "dvs_job_start_depth";
     require(video, call, "video");
     require(model, call, "model");

@@ -1,6 +1,7 @@
-// dvs/job.hpp: run_pipeline, render_novel_view and estimate_depth on a thread of their own. The thread owns nothing
-// but the shared State; the Job handle cancels and joins it when destroyed, so a job never outlives its handle.
-// Whatever the work throws is kept (std::exception_ptr) and rethrown by the result getters on the caller's thread.
+// dvs/job.hpp: run_pipeline (on files or on a clip in memory), render_novel_view and estimate_depth on a thread of
+// their own. The thread owns nothing but the shared State; the Job handle cancels and joins it when destroyed, so a
+// job never outlives its handle. Whatever the work throws is kept (std::exception_ptr) and rethrown by the result
+// getters on the caller's thread.
 #include "dvs/job.hpp"
 
 #include <atomic>
@@ -10,6 +11,7 @@
 #include <optional>
 #include <thread>
 
+#include "dvs/clip_run.hpp"
 #include "dvs/error.hpp"
 
 namespace dvs {
@@ -171,6 +173,18 @@ Job start_pipeline(const RunOptions& options, const ProgressFn& progress) {
   s->kind = "pipeline";
   s->thread = std::thread([st = s.get(), options, fn = s->progress_fn(progress)] {
     st->run([&] { st->run_report = run_pipeline(options, fn, st->cancel_fn()); });
+  });
+  return Job(s);
+}
+
+// The clip's memory, the views and the context are the caller's (dvs/clip_run.hpp: valid until the job has finished);
+// the options, the view descriptions and the poses are copied.
+Job start_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
+                   const ProgressFn& progress) {
+  auto s = std::make_shared<Job::State>();
+  s->kind = "pipeline";
+  s->thread = std::thread([st = s.get(), &ctx, options, clip, out, fn = s->progress_fn(progress)] {
+    st->run([&] { st->run_report = run_pipeline(ctx, options, clip, out, fn, st->cancel_fn()); });
   });
   return Job(s);
 }

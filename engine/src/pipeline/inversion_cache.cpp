@@ -50,6 +50,12 @@ std::string InversionCache::key(const std::vector<std::string>& parts) {
   return f.hex();
 }
 
+std::string InversionCache::bytes_key(const void* data, size_t bytes) {
+  Fnv f;
+  f.add(data, bytes);
+  return f.hex();
+}
+
 std::filesystem::path InversionCache::file(const std::string& key) const { return dir_ / (prefix_ + "-" + key + ".npy"); }
 
 Tensor InversionCache::load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected) const {

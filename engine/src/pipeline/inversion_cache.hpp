@@ -17,6 +17,8 @@ class InversionCache {
   // dir empty: $DVS_CACHE_DIR or ~/.cache/dvs, + /inversions. Entries are <prefix>-<key>.npy.
   explicit InversionCache(std::filesystem::path dir = {}, std::string prefix = "eps_inv");
   static std::string key(const std::vector<std::string>& parts);
+  // The same hash of `bytes` bytes in memory (a clip handed over in memory is named by its contents).
+  static std::string bytes_key(const void* data, size_t bytes);
   // Undefined when absent. An entry that is not a finite f32 array of `shape` (damaged, truncated, NaN/Inf) is
   // never reused: it is removed and `rejected` (when given) says why.
   Tensor load(vk::Context& ctx, const std::string& key, const Shape& shape, std::string* rejected = nullptr) const;

@@ -153,13 +153,16 @@ std::string intrinsics_key(const geometry::Intrinsics& K) {
 
 // The splat's float atomics may reorder sums, so the rendered bytes themselves are not a stable key: the
 // inputs and render options that determine them are.
-std::vector<std::string> render_key_parts(const RunOptions& o, int frames) {
+std::vector<std::string> render_key_parts(const RunOptions& o, int frames, const std::vector<std::string>& input) {
   const RenderJob& j = o.render;
   // --depth-fit and --trim-depth decide which depth pixels and frames meet which video ones.
-  return {model_fingerprint(o.model), file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory,
-          std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width), j.squash ? "squash" : "crop",
-          j.metric_depth ? "depth" : "disparity", j.hard_points ? "points" : "soft", intrinsics_key(job_intrinsics(j)),
-          "fit " + j.depth_fit, j.trim_depth ? "trim" : "no trim"};
+  std::vector<std::string> parts{model_fingerprint(o.model)};
+  parts.insert(parts.end(), input.begin(), input.end());
+  parts.insert(parts.end(), {std::to_string(frames) + "x" + std::to_string(j.height) + "x" + std::to_string(j.width),
+                             j.squash ? "squash" : "crop", j.metric_depth ? "depth" : "disparity",
+                             j.hard_points ? "points" : "soft", intrinsics_key(job_intrinsics(j)), "fit " + j.depth_fit,
+                             j.trim_depth ? "trim" : "no trim"});
+  return parts;
 }
 
 std::string exact(double v) {
@@ -170,12 +173,22 @@ std::string exact(double v) {
 
 }  // namespace
 
+std::vector<std::string> file_input_key(const RunOptions& o) {
+  const RenderJob& j = o.render;
+  return {file_fingerprint(j.video), file_fingerprint(j.depth), j.trajectory};
+}
+
 std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg) {
+  return latent_cache_key(o, jp, frames, dynamic_cfg, file_input_key(o));
+}
+
+std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg,
+                             const std::vector<std::string>& input) {
   const Settings& st = jp.settings;
   // Everything the sampled latent depends on except the VAE options (--vae-tiling, --vae-tile) and the device:
   // a run whose decode failed is re-run with other ones and reuses the latent (run.json records the VAE
   // options it was encoded with).
-  std::vector<std::string> parts = render_key_parts(o, frames);
+  std::vector<std::string> parts = render_key_parts(o, frames, input);
   parts.insert(parts.end(),
                {"latent v1", o.render.depth_fit, o.render.trim_depth ? "trim" : "no trim", o.preset,
                 std::to_string(st.steps), exact(st.strength), std::to_string(st.inversion_steps),
@@ -236,13 +249,17 @@ std::string LatentCache::store(vk::Context& ctx, const Tensor& latent, const nlo
 }
 
 std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames) {
+  return inversion_cache_key(o, jp, frames, file_input_key(o));
+}
+
+std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames, const std::vector<std::string>& input) {
   const Settings& st = jp.settings;
   // Keyed by what the inversion reads: x0 (the render, encoded with or without tiling), the image latent (a
   // posterior sample drawn with the seed under the official preset, the mean under paper), the schedule up to
   // t0, and the transformer with its LoRA. Not the prompt, negative prompt, guidance or k: the inversion runs
   // on the empty prompt without guidance.
   const auto tiling = vae_tiling(o);
-  std::vector<std::string> parts = render_key_parts(o, frames);
+  std::vector<std::string> parts = render_key_parts(o, frames, input);
   parts.insert(parts.end(),
                {o.preset, std::to_string(st.inversion_steps), std::to_string(jp.plan.t0()),
                 st.official ? "image latent sampled with seed " + std::to_string(o.seed) : "image latent mean",
@@ -255,9 +272,15 @@ std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int fram
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages) {
+  return invert_render(ctx, transformer, o, jp, frames, file_input_key(o), enc, text_empty, stages);
+}
+
+InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
+                              const JobPlan& jp, int frames, const std::vector<std::string>& input,
+                              const EncodedRender& enc, const Tensor& text_empty, StageTracker& stages) {
   const Settings& st = jp.settings;
   const int t0 = jp.plan.t0();
-  const std::string key = inversion_cache_key(o, jp, frames);
+  const std::string key = inversion_cache_key(o, jp, frames, input);
   InversionCache cache(o.cache_dir);
   InversionResult r;
   if (o.use_cache) {

@@ -71,18 +71,30 @@ struct InversionResult {
   std::filesystem::path cache_file;  // empty without the cache
 };
 
-// DDIM inversion of x0_mean up to the plan's t0 with the "" prompt embedding `text_empty`, through the on-disk
-// cache (keyed by everything ε_inv depends on, LoRA and tiling included).
-// The inversion cache's key: a hash of everything ε_inv depends on and nothing else.
-std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames);
+// What names the clip of a run on files in the caches' keys: the video's and the depth's fingerprints and the
+// trajectory. A clip in memory is named by its bytes' fingerprint instead (pipeline/clip_input.hpp).
+std::vector<std::string> file_input_key(const RunOptions& o);
 
+// The inversion cache's key: a hash of everything ε_inv depends on and nothing else; `input` names the clip
+// (the three-argument form: the files o names).
+std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames);
+std::string inversion_cache_key(const RunOptions& o, const JobPlan& jp, int frames, const std::vector<std::string>& input);
+
+// DDIM inversion of x0_mean up to the plan's t0 with the "" prompt embedding `text_empty`, through the on-disk
+// cache (keyed by everything ε_inv depends on, LoRA and tiling included; `input` names the clip, by default the
+// files o names).
 InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
                               const JobPlan& jp, int frames, const EncodedRender& enc, const Tensor& text_empty,
                               StageTracker& stages);
+InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& transformer, const RunOptions& o,
+                              const JobPlan& jp, int frames, const std::vector<std::string>& input,
+                              const EncodedRender& enc, const Tensor& text_empty, StageTracker& stages);
 
 // The sampled latent on disk, in the inversion cache's folder (latent-<key>.npy and its .json metadata),
 // written before the decode: a run that fails or is interrupted in the decode is re-run straight to it.
 std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg);
+std::string latent_cache_key(const RunOptions& o, const JobPlan& jp, int frames, bool dynamic_cfg,
+                             const std::vector<std::string>& input);
 
 struct CachedLatent {
   Tensor latent;       // what the decode takes (the final x0 prediction, diffusion layout)

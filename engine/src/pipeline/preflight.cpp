@@ -80,12 +80,20 @@ class Checker {
   PreflightReport& r_;
 };
 
+// The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
+void check_trajectory(const RunOptions& o, Checker& c) {
+  const RenderJob& j = o.render;
+  c.attempt("--trajectory " + j.trajectory, [&] {
+    for (const auto& w : geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0).warnings) c.note("warning: " + w);
+  });
+}
+
 // The video's frames as the container says (for the depth estimate's plan); nothing when it cannot be read.
 struct VideoFacts {
   int64_t frames = 0, height = 0, width = 0;
 };
 
-std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c) {
+std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const PreflightScope& scope) {
   const RenderJob& j = o.render;
   if (j.height <= 0 || j.width <= 0 || j.height % 8 || j.width % 8)
     c.problem("--size " + hw(j.height, j.width) + ": height and width must be positive multiples of 8 (the VAE works on " +
@@ -94,6 +102,10 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c) {
       ((j.fx != 0 || j.fy != 0 || j.cx != 0 || j.cy != 0) && !(j.fx > 0 && j.fy > 0 && j.cx > 0 && j.cy > 0)))
     c.problem("--intrinsics: fx, fy, cx, cy must all be > 0 (pixels of the working size), or leave the option out for " +
               std::string("the default"));
+  if (!scope.input_files) {  // a clip in memory: its views are checked by the run itself
+    if (scope.trajectory) check_trajectory(o, c);
+    return std::nullopt;
+  }
   // The video: opened and its --frames decoded small (one frame when all are used), which finds a file that stops
   // before --frames; the container's frame count covers the rest.
   std::optional<int64_t> video_frames;
@@ -154,10 +166,7 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c) {
       }
     });
   }
-  // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
-  c.attempt("--trajectory " + j.trajectory, [&] {
-    for (const auto& w : geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0).warnings) c.note("warning: " + w);
-  });
+  if (scope.trajectory) check_trajectory(o, c);
   // The output folder: an existing folder we may write into, or creatable below one.
   if (auto p = folder_write_problem(j.out_dir, "give another --out DIR")) c.problem(*p);
   return facts;
@@ -316,13 +325,14 @@ void plan_depth_stage(const RunOptions& o, const std::optional<VideoFacts>& vide
 // every stage against maxMemoryAllocationSize (DVS_LIMITS included), with the VAE tiling the run was given.
 // The plan's VAE figures are the ones the VAE's calls check before any work (CogVideoXVae::*_footprint): what
 // passes here runs, what fails here would fail there.
-void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<VideoFacts>& video, Checker& c) {
+void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<VideoFacts>& video, Checker& c,
+                  const vk::DeviceCaps* device) {
   if (!m.transformer || !m.vae || !m.t5 || (o.render.frames - 1) % 4 != 0) return;
   const int64_t r = m.vae->spatial_ratio();
   if (m.transformer->learned_pos && (o.render.height != m.transformer->sample_height * r ||
                                      o.render.width != m.transformer->sample_width * r))
     return;  // check_model_fit names the size this model takes; no size of its own runs
-  const vk::DeviceCaps* chosen = chosen_device(o.render.device, c);
+  const vk::DeviceCaps* chosen = device ? device : chosen_device(o.render.device, c);
   if (!chosen) return;
   const vk::DeviceCaps& dev = *chosen;
   c.attempt("memory plan", [&] {
@@ -366,7 +376,9 @@ std::string PreflightReport::message() const {
   return m;
 }
 
-PreflightReport preflight(const RunOptions& o, JobKind kind) {
+PreflightReport preflight(const RunOptions& o, JobKind kind) { return preflight(o, kind, PreflightScope{}); }
+
+PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScope& scope) {
   PreflightReport r;
   Checker c(r);
   std::optional<Settings> st;
@@ -376,7 +388,7 @@ PreflightReport preflight(const RunOptions& o, JobKind kind) {
     if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
       c.problem("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
   }
-  const std::optional<VideoFacts> video = check_inputs(o, c);
+  const std::optional<VideoFacts> video = check_inputs(o, c, scope);
   const ModelFacts m = check_model(o, c);
   if (std::filesystem::is_directory(o.model) && st)
     c.attempt("", [&] {
@@ -388,7 +400,7 @@ PreflightReport preflight(const RunOptions& o, JobKind kind) {
     });
   check_model_fit(o, m, c);
   check_lora(o, m, c);
-  check_memory(o, m, video, c);
+  check_memory(o, m, video, c, scope.device);
   return r;
 }
 
@@ -398,15 +410,15 @@ PreflightReport preflight_render(const RenderJob& job) {
   RunOptions o;
   o.render = job;
   o.cache_dir = job.depth_cache_dir;  // where render's --depth-model keeps its estimate
-  check_inputs(o, c);
+  check_inputs(o, c, PreflightScope{});
   // The render's buffers against the device's limits (the same figures the renderer chunks with).
   if (const vk::DeviceCaps* dev = chosen_device(job.device, c))
     if (auto p = render_limits_problem(job, *dev)) c.problem(*p);
   return r;
 }
 
-void require_preflight(const RunOptions& o, JobKind kind) {
-  const PreflightReport r = preflight(o, kind);
+void require_preflight(const RunOptions& o, JobKind kind, const PreflightScope& scope) {
+  const PreflightReport r = preflight(o, kind, scope);
   if (!r.ok()) throw Error(r.message());
 }
 

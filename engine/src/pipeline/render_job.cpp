@@ -43,10 +43,13 @@ std::string frame_list(const std::vector<int>& frames) {
   return out;
 }
 
-// Frames of the render that show nothing of the scene (no visible pixel in the mask). When every frame after the
-// first is empty the camera left the scene at once (wrong units, magnitude, convention or depth) and a run would
-// invent the whole clip: an error, before any long work. When only some are, a warning on stderr naming them
-// (a path may pass a gap on purpose; the model then fills those frames from the others).
+void require_video_file(const RenderJob& job) {
+  if (!std::filesystem::is_regular_file(job.video)) throw Error(job.video.string() + ": no such video file (give --video FILE)");
+}
+
+}  // namespace
+
+// The frames that show nothing of the scene: see render_stage.hpp.
 void check_visibility(const HostTensor& mask, const RenderJob& job, double radius,
                       const std::function<void(const std::string&)>& say) {
   const int64_t F = mask.shape[0], plane = mask.shape[1] * mask.shape[2];
@@ -79,12 +82,6 @@ void check_visibility(const HostTensor& mask, const RenderJob& job, double radiu
                 "depth is what it claims (--metric-depth for metric depth)");
   std::cerr << "dvs: warning: " << which << "; the model has to invent them. Look at mask.mp4, or use a smaller move\n";
 }
-
-void require_video_file(const RenderJob& job) {
-  if (!std::filesystem::is_regular_file(job.video)) throw Error(job.video.string() + ": no such video file (give --video FILE)");
-}
-
-}  // namespace
 
 // The default camera when none is given (Intrinsics::dvs_default: the official one under --resize squash, the
 // cover-scaled one under crop), else the user's --intrinsics.

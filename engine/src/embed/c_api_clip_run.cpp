@@ -1,0 +1,104 @@
+// dvs/dvs.h: a whole run on a clip in memory (dvs/clip_run.hpp) from C, blocking or as a job, and the latent's shape
+// for sizing its buffer. Pointers and sizes are checked here (DVS_ERROR_INVALID_ARGUMENT); the options and the
+// clip's contents by the run (DVS_ERROR_FILE naming the option or view).
+#include <cstring>
+
+#include "dvs/clip_run.hpp"
+#include "embed/c_api_guard.hpp"
+#include "embed/c_api_handles.hpp"
+#include "embed/c_api_options.hpp"
+#include "pipeline/clip_input.hpp"
+
+using namespace dvs::capi;
+
+namespace {
+
+// The C arguments of a clip run as the C++ call's views.
+struct ClipCall {
+  dvs::RunOptions options;
+  dvs::ClipView clip;
+  dvs::ClipResultViews out;
+};
+
+ClipCall clip_call(const char* call, const dvs_context* context, const dvs_pipeline_options* options,
+                   const uint8_t* frames, int32_t count, int32_t height, int32_t width, const float* depth,
+                   const double* poses, uint8_t* output, float* mask, float* latent, size_t latent_floats) {
+  require(context, call, "context");
+  require(options, call, "options");
+  require(frames, call, "frames");
+  require(depth, call, "depth");
+  require(output, call, "output");
+  for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
+    if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+  ClipCall c;
+  c.options = run_options(*options);
+  const int64_t F = count, H = height, W = width;
+  c.clip.frames = {const_cast<uint8_t*>(frames), dvs::ElementType::u8, {F, H, W, 3}};
+  c.clip.depth = {const_cast<float*>(depth), dvs::ElementType::f32, {F, H, W}};
+  if (poses) {
+    c.clip.poses.resize(size_t(F));
+    for (int64_t i = 0; i < F; ++i) std::memcpy(c.clip.poses[size_t(i)].m.data(), poses + 16 * i, 16 * sizeof(double));
+  }
+  c.out.output = {output, dvs::ElementType::u8, {F, H, W, 3}};
+  if (mask) c.out.mask = {mask, dvs::ElementType::f32, {F, H, W}};
+  if (latent) {
+    const std::vector<int64_t> shape = dvs::clip_latent_shape(c.options.model, F, H, W);
+    const size_t floats = size_t(shape[0] * shape[1] * shape[2] * shape[3]);
+    if (latent_floats != floats)
+      throw dvs::UsageError(std::string(call) + ": latent_floats is " + std::to_string(latent_floats) + " but the latent is [" +
+                            std::to_string(shape[0]) + "," + std::to_string(shape[1]) + "," + std::to_string(shape[2]) +
+                            "," + std::to_string(shape[3]) + "] = " + std::to_string(floats) +
+                            " floats (dvs_clip_latent_shape gives the shape)");
+    c.out.latent = {latent, dvs::ElementType::f32, shape};
+  }
+  return c;
+}
+
+}  // namespace
+
+extern "C" {
+
+dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t count, int32_t height, int32_t width,
+                                 int64_t shape[4]) {
+  return guarded(DVS_ERROR_FILE, [&] {
+    const char* call = "dvs_clip_latent_shape";
+    require(options, call, "options");
+    require(shape, call, "shape");
+    require(options->model, call, "options->model");
+    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
+      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    const std::vector<int64_t> s = dvs::clip_latent_shape(options->model, count, height, width);
+    std::copy(s.begin(), s.end(), shape);
+  });
+}
+
+dvs_status dvs_run_pipeline_clip(dvs_context* context, const dvs_pipeline_options* options, const uint8_t* frames,
+                                 int32_t count, int32_t height, int32_t width, const float* depth, const double* poses,
+                                 uint8_t* output, float* mask, float* latent, size_t latent_floats,
+                                 dvs_progress_fn progress, void* user) {
+  return guarded(DVS_ERROR_FILE, [&] {
+    const ClipCall c = clip_call("dvs_run_pipeline_clip", context, options, frames, count, height, width, depth, poses,
+                                 output, mask, latent, latent_floats);
+    bool cancel = false;
+    dvs::ProgressFn fn;
+    if (progress)
+      fn = [&](const std::string& stage, int step, int total, const std::string& note) {
+        if (progress(stage.c_str(), step, total, note.c_str(), user) != 0) cancel = true;
+      };
+    dvs::run_pipeline(*context->context, c.options, c.clip, c.out, fn, [&] { return cancel; });
+  });
+}
+
+dvs_status dvs_job_start_pipeline_clip(dvs_context* context, const dvs_pipeline_options* options,
+                                       const uint8_t* frames, int32_t count, int32_t height, int32_t width,
+                                       const float* depth, const double* poses, uint8_t* output, float* mask,
+                                       float* latent, size_t latent_floats, dvs_job** out) {
+  const char* call = "dvs_job_start_pipeline_clip";
+  return start_job(out, call, "pipeline", [&] {
+    const ClipCall c =
+        clip_call(call, context, options, frames, count, height, width, depth, poses, output, mask, latent, latent_floats);
+    return dvs::start_pipeline(*context->context, c.options, c.clip, c.out);
+  });
+}
+
+}  // extern "C"

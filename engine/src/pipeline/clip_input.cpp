@@ -1,0 +1,98 @@
+#include "pipeline/clip_input.hpp"
+
+#include <cstdio>
+#include <cstring>
+
+#include "dvs/error.hpp"
+#include "geometry/splat.hpp"
+#include "geometry/trajectory.hpp"
+#include "io/depth.hpp"
+#include "io/json_file.hpp"
+#include "io/pixel_levels.hpp"
+#include "pipeline/inversion_cache.hpp"
+#include "spec/cogvideox_config.hpp"
+
+namespace dvs {
+
+HostTensor frames_from_levels(const uint8_t* rgb, int64_t frames, int64_t height, int64_t width) {
+  const int64_t plane = height * width;
+  HostTensor out({frames, 3, height, width}, DType::f32);
+  float* dst = out.as<float>();
+  for (int64_t f = 0; f < frames; ++f)
+    for (int64_t i = 0; i < plane; ++i)
+      for (int64_t c = 0; c < 3; ++c) dst[(f * 3 + c) * plane + i] = level_to_unit(rgb[(f * plane + i) * 3 + c]);
+  return out;
+}
+
+ClipInput clip_input(const RenderJob& job, HostTensor rgb, const HostTensor& depth_values, const std::string& depth_name,
+                     const std::optional<std::vector<glm::dmat4>>& poses) {
+  ClipInput c;
+  const int F = int(rgb.shape[0]);
+  c.rgb = std::move(rgb);
+  DepthOptions dopt;
+  dopt.values = job.metric_depth ? DepthValues::depth : DepthValues::disparity;
+  c.depth = depth_from_array(depth_values, depth_name, dopt);  // the depth file's conversion and checks
+  if (poses) {
+    c.trajectory.transforms = *poses;
+    c.trajectory.description = std::to_string(F) + " poses given in memory";
+  } else {
+    try {
+      c.trajectory = geometry::load_trajectory(job.trajectory, F, geometry::official_radius(centre_depth(c.depth)));
+    } catch (const Error& e) {
+      throw Error("RunOptions::render.trajectory: " + std::string(e.what()));
+    }
+  }
+  return c;
+}
+
+RenderedInput render_clip_input(vk::Context& ctx, const RenderJob& job, const ClipInput& clip, StageTracker& stages) {
+  stages.begin("render", "rendering the clip");
+  auto say = [&](const std::string& s) { stages.say(0, 0, s); };
+  if (auto p = render_limits_problem(job, ctx.caps())) throw Error(*p);
+  RenderedInput r;
+  r.rgb = clip.rgb;
+  r.depth = clip.depth;
+  r.trajectory = clip.trajectory;
+  r.K = job_intrinsics(job);
+  say("trajectory " + r.trajectory.description);
+  for (const auto& w : r.trajectory.warnings) say("warning: " + w);
+  geometry::SplatOptions sopt;
+  sopt.mode = job.hard_points ? geometry::SplatMode::hard_point : geometry::SplatMode::soft_bilinear;
+  say("rendering on " + ctx.caps().name);
+  geometry::RenderedClip rendered = geometry::render_clip(ctx, r.rgb, r.depth, r.trajectory, r.K, sopt);
+  r.render = std::move(rendered.render);
+  r.mask = std::move(rendered.mask);
+  check_visibility(r.mask, job, geometry::official_radius(centre_depth(r.depth)), say);
+  stages.end();
+  return r;
+}
+
+std::vector<std::string> clip_input_key(const void* frames, size_t frame_bytes, const std::string& frames_type,
+                                        const HostTensor& depth_values, const std::optional<std::vector<glm::dmat4>>& poses,
+                                        const std::string& trajectory) {
+  std::vector<std::string> parts{"clip frames " + frames_type + " " + InversionCache::bytes_key(frames, frame_bytes),
+                                 "clip depth " + InversionCache::bytes_key(depth_values.data.data(), depth_values.bytes())};
+  if (!poses) {
+    parts.push_back(trajectory);
+    return parts;
+  }
+  std::string text = "poses";
+  for (const glm::dmat4& T : *poses)
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, " %.17g", T[c][r]);  // glm is column-major; row-major as run.json lists them
+        text += buf;
+      }
+  parts.push_back(InversionCache::key({text}));
+  return parts;
+}
+
+std::vector<int64_t> clip_latent_shape(const std::filesystem::path& model, int64_t frames, int64_t height, int64_t width) {
+  const VaeConfig v = VaeConfig::from_json(
+      read_json_file(model / "vae" / "config.json", "give the CogVideoX-5b-I2V folder (RunOptions::model)"));
+  const int64_t r = v.spatial_ratio();
+  return {(frames - 1) / v.temporal_compression_ratio + 1, v.latent_channels, height / r, width / r};
+}
+
+}  // namespace dvs
