@@ -26,6 +26,7 @@
 #include "io/npy.hpp"
 #include "io/video.hpp"
 #include "pipeline/clip_input.hpp"
+#include "support/app_device.hpp"
 #include "support/expect_error.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -301,109 +302,15 @@ TEST_F(ClipRun, RefusedOptionsAndViewsNameThemselves) {
   EXPECT_FALSE(std::filesystem::exists(s.in.dir / "refused_cache")) << "a refused run wrote to the cache";
 }
 
-// (d) The application's device: a minimal application (its instance with the validation layer, its device with the
-// features dvs requires, a buffer of its own) hands its objects over; the run samples the same latent, and afterwards
+// (d) The application's device: the test application of support/app_device.hpp (the validation layer with
+// synchronization validation across submissions, a queue lock, a buffer of its own) hands its objects over; the run samples the same latent, and afterwards
 // the application's buffer holds what it held and its device and queue still take its own work.
-VKAPI_ATTR VkBool32 VKAPI_CALL app_message(VkDebugUtilsMessageSeverityFlagBitsEXT, VkDebugUtilsMessageTypeFlagsEXT,
-                                           const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
-  static_cast<std::vector<std::string>*>(user)->push_back(data && data->pMessage ? data->pMessage : "");
-  return VK_FALSE;
-}
-
-struct App {
-  VkInstance instance = VK_NULL_HANDLE;
-  VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
-  VkPhysicalDevice physical = VK_NULL_HANDLE;
-  VkDevice device = VK_NULL_HANDLE;
-  VkQueue queue = VK_NULL_HANDLE;
-  uint32_t family = 0;
-  VkBuffer buffer = VK_NULL_HANDLE;
-  VkDeviceMemory memory = VK_NULL_HANDLE;
-  uint32_t* words = nullptr;  // the buffer, mapped
-  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-  std::vector<std::string> messages;
-
-  App() {
-    VkApplicationInfo ai{VK_STRUCTURE_TYPE_APPLICATION_INFO};
-    ai.apiVersion = VK_API_VERSION_1_2;
-    const char* layer = "VK_LAYER_KHRONOS_validation";
-    const char* ext = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
-    VkInstanceCreateInfo ici{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
-    ici.pApplicationInfo = &ai;
-    ici.enabledLayerCount = 1, ici.ppEnabledLayerNames = &layer;
-    ici.enabledExtensionCount = 1, ici.ppEnabledExtensionNames = &ext;
-    EXPECT_EQ(vkCreateInstance(&ici, nullptr, &instance), VK_SUCCESS);
-    VkDebugUtilsMessengerCreateInfoEXT mci{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-    mci.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-    mci.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;
-    mci.pfnUserCallback = app_message;
-    mci.pUserData = &messages;
-    auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
-    EXPECT_EQ(create(instance, &mci, nullptr, &messenger), VK_SUCCESS);
-    uint32_t n = 0;
-    vkEnumeratePhysicalDevices(instance, &n, nullptr);
-    std::vector<VkPhysicalDevice> pds(n);
-    vkEnumeratePhysicalDevices(instance, &n, pds.data());
-    std::vector<vk::DeviceCaps> caps;
-    for (uint32_t i = 0; i < n; ++i) caps.push_back(vk::query_device_caps(pds[i], i));
-    physical = pds[vk::select_device(caps, "")];  // the device the rest of the suite uses
-    uint32_t nq = 0;
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &nq, nullptr);
-    std::vector<VkQueueFamilyProperties> families(nq);
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &nq, families.data());
-    family = uint32_t(vk::pick_compute_queue_family(families));
-    f12.timelineSemaphore = VK_TRUE;
-    features.pNext = &f12;
-    const float priority = 1.0f;
-    VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    qci.queueFamilyIndex = family, qci.queueCount = 1, qci.pQueuePriorities = &priority;
-    VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    dci.pNext = &features;
-    dci.queueCreateInfoCount = 1, dci.pQueueCreateInfos = &qci;
-    EXPECT_EQ(vkCreateDevice(physical, &dci, nullptr, &device), VK_SUCCESS);
-    vkGetDeviceQueue(device, family, 0, &queue);
-    // The application's own buffer: host-visible, filled with a pattern it checks afterwards.
-    VkBufferCreateInfo bci{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
-    bci.size = 4096;
-    bci.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-    EXPECT_EQ(vkCreateBuffer(device, &bci, nullptr, &buffer), VK_SUCCESS);
-    VkMemoryRequirements req{};
-    vkGetBufferMemoryRequirements(device, buffer, &req);
-    VkPhysicalDeviceMemoryProperties mem{};
-    vkGetPhysicalDeviceMemoryProperties(physical, &mem);
-    const VkMemoryPropertyFlags want = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-    uint32_t type = 0;
-    while (!((req.memoryTypeBits >> type) & 1) || (mem.memoryTypes[type].propertyFlags & want) != want) ++type;
-    VkMemoryAllocateInfo mai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-    mai.allocationSize = req.size, mai.memoryTypeIndex = type;
-    EXPECT_EQ(vkAllocateMemory(device, &mai, nullptr, &memory), VK_SUCCESS);
-    EXPECT_EQ(vkBindBufferMemory(device, buffer, memory, 0), VK_SUCCESS);
-    void* p = nullptr;
-    EXPECT_EQ(vkMapMemory(device, memory, 0, VK_WHOLE_SIZE, 0, &p), VK_SUCCESS);
-    words = static_cast<uint32_t*>(p);
-    for (uint32_t i = 0; i < 1024; ++i) words[i] = 0x9e3779b9u * (i + 1);
-  }
-  ~App() {
-    vkDestroyBuffer(device, buffer, nullptr);
-    vkFreeMemory(device, memory, nullptr);
-    vkDestroyDevice(device, nullptr);
-    reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT"))(
-        instance, messenger, nullptr);
-    vkDestroyInstance(instance, nullptr);
-  }
-  HostDevice host() {
-    HostDevice h;
-    h.instance = instance, h.physical_device = physical, h.device = device;
-    h.queue_family = family, h.queue = queue;
-    h.enabled_features = &features;
-    return h;
-  }
-};
-
 TEST_F(ClipRun, RunsOnTheApplicationsDeviceAndLeavesItsObjectsAsTheyWere) {
   Shared& s = *shared;
-  App app;
+  test::AppDevice app;
+  test::AppDevice::Buffer& mine = app.buffer(4096);  // the application's own buffer, with a pattern it checks after
+  auto* words = static_cast<uint32_t*>(mine.data);
+  for (uint32_t i = 0; i < 1024; ++i) words[i] = 0x9e3779b9u * (i + 1);
   Results r(latent_shape());
   {
     ContextOptions co;
@@ -413,7 +320,7 @@ TEST_F(ClipRun, RunsOnTheApplicationsDeviceAndLeavesItsObjectsAsTheyWere) {
     run(clip(), options(s.in.dir / "host_cache"), r, nullptr, &ctx);
   }
   EXPECT_EQ(r.latent, memory().latent) << "another latent on the application's device";
-  for (uint32_t i = 0; i < 1024; ++i) ASSERT_EQ(app.words[i], 0x9e3779b9u * (i + 1)) << "the application's buffer, word " << i;
+  for (uint32_t i = 0; i < 1024; ++i) ASSERT_EQ(words[i], 0x9e3779b9u * (i + 1)) << "the application's buffer, word " << i;
   // Its device and queue still take work: an empty submission signals its fence.
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   VkFence fence = VK_NULL_HANDLE;
@@ -422,7 +329,9 @@ TEST_F(ClipRun, RunsOnTheApplicationsDeviceAndLeavesItsObjectsAsTheyWere) {
   EXPECT_EQ(vkWaitForFences(app.device, 1, &fence, VK_TRUE, UINT64_MAX), VK_SUCCESS);
   vkDestroyFence(app.device, fence, nullptr);
   EXPECT_EQ(vkDeviceWaitIdle(app.device), VK_SUCCESS);
-  EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.messages[0];
+  EXPECT_EQ(app.locks, app.unlocks);
+  EXPECT_GT(app.locks, 0) << "dvs submitted without the application's queue lock";
+  EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.first_message();
 }
 
 // (e) The job form: the same latent; cancelling stops it.
