@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <thread>
 
@@ -303,8 +304,9 @@ TEST_F(ClipRun, RefusedOptionsAndViewsNameThemselves) {
 }
 
 // (d) The application's device: the test application of support/app_device.hpp (the validation layer with
-// synchronization validation across submissions, a queue lock, a buffer of its own) hands its objects over; the run samples the same latent, and afterwards
-// the application's buffer holds what it held and its device and queue still take its own work.
+// synchronization validation across submissions, a queue lock, a buffer of its own) hands its objects over; the run
+// samples the same latent, and afterwards the application's buffer holds what it held and its device and queue still
+// take its own work.
 TEST_F(ClipRun, RunsOnTheApplicationsDeviceAndLeavesItsObjectsAsTheyWere) {
   Shared& s = *shared;
   test::AppDevice app;
@@ -331,6 +333,78 @@ TEST_F(ClipRun, RunsOnTheApplicationsDeviceAndLeavesItsObjectsAsTheyWere) {
   EXPECT_EQ(vkDeviceWaitIdle(app.device), VK_SUCCESS);
   EXPECT_EQ(app.locks, app.unlocks);
   EXPECT_GT(app.locks, 0) << "dvs submitted without the application's queue lock";
+  EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.first_message();
+}
+
+// (d') The clip and the results in the application's device buffers (ClipDeviceView, ClipResultDeviceViews): the same
+// numbers as the run on host views, the results in its buffers when the call returns (and when its job ends), and
+// wrong buffers named before any work.
+TEST_F(ClipRun, TakesAndGivesTheApplicationsDeviceBuffers) {
+  Shared& s = *shared;
+  const Results& want = memory();
+  test::AppDevice app;
+  const size_t pixels = size_t(F) * H * W;
+  test::AppDevice::Buffer &frames = app.buffer(pixels * 3), &depth = app.buffer(pixels * 4);
+  test::AppDevice::Buffer &output = app.buffer(pixels * 3), &render = app.buffer(pixels * 3 * 4),
+                          &mask = app.buffer(pixels * 4), &latent = app.buffer(want.latent.size() * 4);
+  std::memcpy(frames.data, s.frames.rgb.data(), pixels * 3);
+  std::memcpy(depth.data, s.depth.data.data(), pixels * 4);
+  ClipDeviceView clip;
+  clip.frames = {frames.buffer, 0, ElementType::u8, {F, H, W, 3}};
+  clip.depth = {depth.buffer, 0, ElementType::f32, {F, H, W}};
+  ClipResultDeviceViews out;
+  out.output = {output.buffer, 0, ElementType::u8, {F, H, W, 3}};
+  out.render = {render.buffer, 0, ElementType::f32, {F, 3, H, W}};
+  out.mask = {mask.buffer, 0, ElementType::f32, {F, H, W}};
+  out.latent = {latent.buffer, 0, ElementType::f32, want.latent_shape};
+  auto same = [](const test::AppDevice::Buffer& b, const auto& v) {
+    return std::memcmp(b.data, v.data(), v.size() * sizeof(v[0])) == 0;
+  };
+  {
+    ContextOptions co;
+    co.pipeline_cache_file = "-";
+    Context ctx(app.host(), co);
+    const RunOptions o = options(s.in.dir / "device_cache");
+    // Refused before any work, each naming the buffer: no progress event, nothing in the cache.
+    struct Case {
+      std::string what, detail;
+      std::function<void(ClipDeviceView&, ClipResultDeviceViews&)> spoil;
+    };
+    test::AppDevice::Buffer& small = app.buffer(64);
+    const std::vector<Case> cases{
+        {"ClipDeviceView::frames", "holds at most", [&](ClipDeviceView& c, ClipResultDeviceViews&) { c.frames.buffer = small.buffer; }},
+        {"ClipDeviceView::depth", "multiple of 4", [](ClipDeviceView& c, ClipResultDeviceViews&) { c.depth.offset = 2; }},
+        {"ClipResultDeviceViews::output", "VK_NULL_HANDLE", [](ClipDeviceView&, ClipResultDeviceViews& r) { r.output.buffer = VK_NULL_HANDLE; }},
+        {"ClipResultDeviceViews::latent", "holds at most", [&](ClipDeviceView&, ClipResultDeviceViews& r) { r.latent.buffer = small.buffer; }},
+        {"ClipResultDeviceViews::mask", "expected f32", [](ClipDeviceView&, ClipResultDeviceViews& r) { r.mask.shape = {F, H, W, 1}; }},
+    };
+    for (const Case& k : cases) {
+      ClipDeviceView c = clip;
+      ClipResultDeviceViews r = out;
+      k.spoil(c, r);
+      std::vector<std::string> stages;
+      test::expect_error([&] {
+        run_pipeline(ctx, o, c, r, [&](const std::string& stage, int, int, const std::string&) { stages.push_back(stage); });
+      }, {k.what, k.detail});
+      EXPECT_TRUE(stages.empty()) << k.what << ": refused after work began";
+    }
+    EXPECT_FALSE(std::filesystem::exists(s.in.dir / "device_cache")) << "a refused run wrote to the cache";
+
+    run_pipeline(ctx, o, clip, out);  // the results are in the buffers when it returns
+    EXPECT_TRUE(same(output, want.output)) << "the output differs from the run on host views";
+    EXPECT_TRUE(same(render, want.render)) << "the render differs";
+    EXPECT_TRUE(same(mask, want.mask)) << "the mask differs";
+    EXPECT_TRUE(same(latent, want.latent)) << "the latent differs";
+
+    // The job form (the latent now from the cache), into cleared buffers.
+    for (auto* b : {&output, &render, &mask, &latent}) std::memset(b->data, 0, 64);
+    Job job = start_pipeline(ctx, o, clip, out);
+    ASSERT_TRUE(job.wait_for(std::chrono::minutes(10)));
+    ASSERT_EQ(job.poll(), JobState::succeeded) << job.error();
+    EXPECT_TRUE(same(output, want.output) && same(render, want.render) && same(mask, want.mask) && same(latent, want.latent))
+        << "the job's results differ";
+  }
+  EXPECT_EQ(app.locks, app.unlocks);
   EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.first_message();
 }
 

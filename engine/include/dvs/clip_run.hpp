@@ -51,4 +51,29 @@ DVS_API RunReport run_pipeline(Context& ctx, const RunOptions& options, const Cl
 DVS_API Job start_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
                            const ProgressFn& progress = {});
 
+// The same clip in the application's device buffers (dvs/views.hpp: VkBuffers of the context's device, so a
+// HostDevice context; inputs with TRANSFER_SRC usage, results with TRANSFER_DST), in the forms of ClipView and
+// ClipResultViews; a result whose buffer is VK_NULL_HANDLE is not wanted (output is required). The application's
+// writes of the inputs must be finished or ordered before the call (on the same queue, or by
+// Context::wait_before_next). The inputs are copied in at the start (the render stage runs on host memory), the
+// sampled latent is copied device to device, and the call returns once every copy into the application's buffers
+// has finished: its buffers can be used at once. Shapes, types and buffer ranges are checked before any work.
+struct ClipDeviceView {
+  DeviceBufferView frames;  // u8 [F,H,W,3] or f32 [F,3,H,W]
+  DeviceBufferView depth;   // f32 [F,H,W]
+  std::vector<Pose> poses;  // as ClipView::poses
+};
+
+struct ClipResultDeviceViews {
+  DeviceBufferView output, render;  // u8 [F,H,W,3] or f32 [F,3,H,W]
+  DeviceBufferView mask;            // f32 [F,H,W]
+  DeviceBufferView latent;          // f32 [Fl,C,h,w]
+};
+
+DVS_API RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
+                               const ClipResultDeviceViews& out, const ProgressFn& progress = {},
+                               const CancelFn& cancelled = {});
+DVS_API Job start_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
+                           const ClipResultDeviceViews& out, const ProgressFn& progress = {});
+
 }  // namespace dvs

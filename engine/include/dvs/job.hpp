@@ -15,6 +15,8 @@ namespace dvs {
 class Context;
 struct ClipView;
 struct ClipResultViews;
+struct ClipDeviceView;
+struct ClipResultDeviceViews;
 
 enum class JobState { running, succeeded, failed, cancelled };
 
@@ -47,6 +49,8 @@ class DVS_API Job {
   std::shared_ptr<State> state_;
   friend DVS_API Job start_pipeline(const RunOptions&, const ProgressFn&);
   friend DVS_API Job start_pipeline(Context&, const RunOptions&, const ClipView&, const ClipResultViews&,
+                                    const ProgressFn&);  // dvs/clip_run.hpp
+  friend DVS_API Job start_pipeline(Context&, const RunOptions&, const ClipDeviceView&, const ClipResultDeviceViews&,
                                     const ProgressFn&);  // dvs/clip_run.hpp
   friend DVS_API Job start_render(const RenderJob&, const ProgressFn&);
   friend DVS_API Job start_depth(const DepthJob&, const std::filesystem::path&, const ProgressFn&);

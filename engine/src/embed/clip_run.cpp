@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <optional>
 
 #include "dvs/error.hpp"
+#include "embed/device_copy.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/clip_input.hpp"
 #include "pipeline/memory_advice.hpp"
@@ -27,27 +29,48 @@ std::string dims(const std::vector<int64_t>& s) {
   return "[" + t + "]";
 }
 
+// What the checks need of a view, host or device: its element type and shape, whether it is given, its name.
+struct Array {
+  std::string name;  // "ClipView::frames", "ClipResultDeviceViews::latent", ...
+  ElementType type = ElementType::f32;
+  std::vector<int64_t> shape;
+  bool given = false;
+  std::string text;     // "u8[9x64x64x3]"
+  std::string missing;  // why it is not given: "the view's data pointer is null" / "... buffer is VK_NULL_HANDLE"
+};
+
+std::string describe(ElementType type, const std::vector<int64_t>& shape) {
+  return HostView{nullptr, type, shape}.describe();
+}
+Array array(std::string name, const HostView& v) {
+  return {std::move(name), v.type, v.shape, v.data != nullptr, v.describe(), "the view's data pointer is null"};
+}
+Array array(std::string name, const DeviceBufferView& v) {
+  return {std::move(name), v.type, v.shape, v.buffer != VK_NULL_HANDLE, describe(v.type, v.shape),
+          "the view's buffer is VK_NULL_HANDLE"};
+}
+
 // Where a frames-like view's pixels are: u8 [F,H,W,3] or f32 [F,3,H,W].
-bool rgb8(const HostView& v, int64_t F, int64_t H, int64_t W) {
+bool rgb8(const Array& v, int64_t F, int64_t H, int64_t W) {
   return v.type == ElementType::u8 && v.shape == std::vector<int64_t>{F, H, W, 3};
 }
-bool planar(const HostView& v, int64_t F, int64_t H, int64_t W) {
+bool planar(const Array& v, int64_t F, int64_t H, int64_t W) {
   return v.type == ElementType::f32 && v.shape == std::vector<int64_t>{F, 3, H, W};
 }
 
-void check_result_view(const char* name, const HostView& v, int64_t F, int64_t H, int64_t W, bool required) {
-  if (!v.data) {
-    if (required) refuse(std::string(name) + ": the view's data pointer is null (give memory for the new view)");
+void check_result_view(const Array& v, int64_t F, int64_t H, int64_t W, bool required) {
+  if (!v.given) {
+    if (required) refuse(v.name + ": " + v.missing + " (give memory for the new view)");
     return;
   }
   if (!rgb8(v, F, H, W) && !planar(v, F, H, W))
-    refuse(std::string(name) + ": expected u8 " + dims({F, H, W, 3}) + " or f32 " + dims({F, 3, H, W}) +
-           " (the clip's F,H,W), got " + v.describe());
+    refuse(v.name + ": expected u8 " + dims({F, H, W, 3}) + " or f32 " + dims({F, 3, H, W}) +
+           " (the clip's F,H,W), got " + v.text);
 }
 
-void check_f32_view(const char* name, const HostView& v, const std::vector<int64_t>& shape, const std::string& why) {
-  if (v.data && (v.type != ElementType::f32 || v.shape != shape))
-    refuse(std::string(name) + ": expected f32 " + dims(shape) + " (" + why + "), got " + v.describe());
+void check_f32_view(const Array& v, const std::vector<int64_t>& shape, const std::string& why) {
+  if (v.given && (v.type != ElementType::f32 || v.shape != shape))
+    refuse(v.name + ": expected f32 " + dims(shape) + " (" + why + "), got " + v.text);
 }
 
 // The frames' F, H, W; the frames and depth views checked.
@@ -55,26 +78,39 @@ struct ClipSize {
   int64_t F = 0, H = 0, W = 0;
 };
 
-ClipSize check_clip(const ClipView& clip) {
-  const auto& s = clip.frames.shape;
+ClipSize check_clip(const Array& frames, const Array& depth, size_t poses, const std::string& poses_name) {
+  const auto& s = frames.shape;
   ClipSize z;
-  if (clip.frames.type == ElementType::u8 && s.size() == 4 && s[3] == 3) z = {s[0], s[1], s[2]};
-  else if (clip.frames.type == ElementType::f32 && s.size() == 4 && s[1] == 3) z = {s[0], s[2], s[3]};
-  else refuse("ClipView::frames: expected u8 [F,H,W,3] RGB or f32 [F,3,H,W] in [-1,1], got " + clip.frames.describe());
-  if (!clip.frames.data) refuse("ClipView::frames: the view's data pointer is null (give the frames' memory)");
+  if (frames.type == ElementType::u8 && s.size() == 4 && s[3] == 3) z = {s[0], s[1], s[2]};
+  else if (frames.type == ElementType::f32 && s.size() == 4 && s[1] == 3) z = {s[0], s[2], s[3]};
+  else refuse(frames.name + ": expected u8 [F,H,W,3] RGB or f32 [F,3,H,W] in [-1,1], got " + frames.text);
+  if (!frames.given) refuse(frames.name + ": " + frames.missing + " (give the frames' memory)");
   if (z.F < 1 || (z.F - 1) % 4 != 0)
-    refuse("ClipView::frames: " + std::to_string(z.F) + " frames; the model takes 4k+1 (e.g. " +
+    refuse(frames.name + ": " + std::to_string(z.F) + " frames; the model takes 4k+1 (e.g. " +
            std::to_string(std::max<int64_t>(1, (z.F - 1) / 4 * 4 + 1)) + "): give that many");
   if (z.H < 8 || z.W < 8 || z.H % 8 || z.W % 8)
-    refuse("ClipView::frames: " + std::to_string(z.H) + "x" + std::to_string(z.W) +
+    refuse(frames.name + ": " + std::to_string(z.H) + "x" + std::to_string(z.W) +
            " (HxW); height and width must be positive multiples of 8 (the VAE works on 8x8 pixel cells): resize the frames");
-  if (clip.depth.type != ElementType::f32 || clip.depth.shape != std::vector<int64_t>{z.F, z.H, z.W})
-    refuse("ClipView::depth: expected f32 " + dims({z.F, z.H, z.W}) + " (the frames' F,H,W), got " + clip.depth.describe());
-  if (!clip.depth.data) refuse("ClipView::depth: the view's data pointer is null (give the depth's memory)");
-  if (!clip.poses.empty() && int64_t(clip.poses.size()) != z.F)
-    refuse("ClipView::poses: " + std::to_string(clip.poses.size()) + " poses for " + std::to_string(z.F) +
+  if (depth.type != ElementType::f32 || depth.shape != std::vector<int64_t>{z.F, z.H, z.W})
+    refuse(depth.name + ": expected f32 " + dims({z.F, z.H, z.W}) + " (the frames' F,H,W), got " + depth.text);
+  if (!depth.given) refuse(depth.name + ": " + depth.missing + " (give the depth's memory)");
+  if (poses != 0 && int64_t(poses) != z.F)
+    refuse(poses_name + ": " + std::to_string(poses) + " poses for " + std::to_string(z.F) +
            " frames: give one per frame, or none to use RunOptions::render.trajectory");
   return z;
+}
+
+// The result views checked against the clip's size (and the latent against the model's VAE config).
+void check_results(const RunOptions& o, const ClipSize& z, const Array& output, const Array& render, const Array& mask,
+                   const Array& latent) {
+  check_result_view(output, z.F, z.H, z.W, true);
+  check_result_view(render, z.F, z.H, z.W, false);
+  check_f32_view(mask, {z.F, z.H, z.W}, "the clip's F,H,W");
+  if (latent.given) {
+    if (!std::filesystem::is_directory(o.model))
+      refuse("RunOptions::model " + o.model.string() + ": no such model folder (give the CogVideoX-5b-I2V folder)");
+    check_f32_view(latent, clip_latent_shape(o.model, z.F, z.H, z.W), "[Fl,C,h,w] from the model's VAE config");
+  }
 }
 
 // The run's options: the file options refused, the size and frame count the clip's.
@@ -116,26 +152,56 @@ std::vector<glm::dmat4> pose_matrices(const std::vector<Pose>& poses) {
   return out;
 }
 
-void put_frames(const HostTensor& frames, const HostView& view) {
-  if (!view.data) return;
-  if (view.type == ElementType::f32) {
-    std::memcpy(view.data, frames.data.data(), frames.bytes());
-    return;
-  }
-  const int64_t F = frames.shape[0], plane = frames.shape[2] * frames.shape[3];
+// Frames [F,3,H,W] in [−1,1] in the view's form: the same f32 values, or u8 [F,H,W,3] levels rounded as the video
+// writer rounds them.
+HostTensor frames_as(const HostTensor& frames, ElementType type) {
+  if (type == ElementType::f32) return frames;
+  const int64_t F = frames.shape[0], H = frames.shape[2], W = frames.shape[3], plane = H * W;
+  HostTensor levels({F, H, W, 3}, DType::u8);
   const float* src = frames.as<float>();
-  auto* dst = static_cast<uint8_t*>(view.data);
+  auto* dst = levels.as<uint8_t>();
   for (int64_t f = 0; f < F; ++f)
     for (int64_t i = 0; i < plane; ++i)
       for (int64_t c = 0; c < 3; ++c) dst[(f * plane + i) * 3 + c] = unit_to_level(src[(f * 3 + c) * plane + i]);
+  return levels;
 }
 
-// The ends of a run on a clip in memory: the clip from memory, the results into the views, nothing on disk but the
-// caches.
+// Where a run's results go: the application's host views or device buffers.
+using PutResults = std::function<void(vk::Context&, const RunResults&)>;
+
+PutResults into_host(const ClipResultViews& out) {
+  return [out](vk::Context& ctx, const RunResults& r) {
+    auto put = [](const HostTensor& t, const HostView& view) {
+      if (view.data) std::memcpy(view.data, t.data.data(), t.bytes());
+    };
+    put(frames_as(r.output, out.output.type), out.output);
+    if (out.render.data) put(frames_as(r.in.render, out.render.type), out.render);
+    put(r.in.mask, out.mask);
+    if (out.latent.data) put(r.latent.download(ctx), out.latent);
+  };
+}
+
+// The host results uploaded and copied into the buffers, the latent copied device to device; the last copy waited for.
+PutResults into_device(const ClipResultDeviceViews& out) {
+  return [out](vk::Context& ctx, const RunResults& r) {
+    uint64_t last = 0;
+    auto put = [&](const HostTensor& t, const DeviceBufferView& view, const char* name) {
+      if (view.buffer) last = embed::copy_from_tensor(ctx, Tensor::upload(ctx, t, name), view, name);
+    };
+    put(frames_as(r.output, out.output.type), out.output, "ClipResultDeviceViews::output");
+    if (out.render.buffer) put(frames_as(r.in.render, out.render.type), out.render, "ClipResultDeviceViews::render");
+    put(r.in.mask, out.mask, "ClipResultDeviceViews::mask");
+    if (out.latent.buffer) last = embed::copy_from_tensor(ctx, r.latent, out.latent, "ClipResultDeviceViews::latent");
+    if (last) ctx.wait(last);
+  };
+}
+
+// The ends of a run on a clip in memory: the clip from memory, the results into the application's memory, nothing on
+// disk but the caches.
 class ClipEnds : public RunEnds {
  public:
-  ClipEnds(vk::Context& ctx, ClipInput clip, std::vector<std::string> key, bool poses, const ClipResultViews& out)
-      : ctx_(ctx), clip_(std::move(clip)), key_(std::move(key)), poses_(poses), out_(out) {}
+  ClipEnds(vk::Context& ctx, ClipInput clip, std::vector<std::string> key, bool poses, PutResults put)
+      : ctx_(ctx), clip_(std::move(clip)), key_(std::move(key)), poses_(poses), put_(std::move(put)) {}
   void check(const RunOptions& o) override {
     PreflightScope scope;
     scope.input_files = false;
@@ -149,15 +215,7 @@ class ClipEnds : public RunEnds {
   }
   void write(vk::Context& ctx, const RunResults& r, RunReport&, StageTracker& stages) override {
     stages.begin("write", "copying the results into the application's memory");
-    put_frames(r.output, out_.output);
-    put_frames(r.in.render, out_.render);
-    if (out_.mask.data) std::memcpy(out_.mask.data, r.in.mask.data.data(), r.in.mask.bytes());
-    if (out_.latent.data) {
-      const HostTensor latent = r.latent.download(ctx);
-      if (latent.shape != out_.latent.shape)
-        throw Error("internal: the sampled latent is [" + shape_str(latent.shape) + "], the view " + out_.latent.describe());
-      std::memcpy(out_.latent.data, latent.data.data(), latent.bytes());
-    }
+    put_(ctx, r);
     stages.end();
   }
   void finish(const RunOptions&, const RunReport&, const RunRecordExtras&, StageTracker& stages) override {
@@ -169,45 +227,69 @@ class ClipEnds : public RunEnds {
   ClipInput clip_;
   std::vector<std::string> key_;
   bool poses_;
-  ClipResultViews out_;
+  PutResults put_;
 };
+
+// The run on a checked clip whose frames and depth are in host memory (the application's, or fetched from its
+// buffers).
+RunReport run_clip(Context& ctx, const RunOptions& o, const ClipSize& z, const HostView& frames, const HostView& depth,
+                   const std::string& depth_name, const std::vector<Pose>& poses, PutResults put,
+                   const ProgressFn& progress, const CancelFn& cancelled) {
+  // The clip converted (and its depth checked as a depth file's) before any device work.
+  HostTensor depth_values({z.F, z.H, z.W}, DType::f32);
+  std::memcpy(depth_values.data.data(), depth.data, depth_values.bytes());
+  HostTensor rgb;
+  if (frames.type == ElementType::u8) {
+    rgb = frames_from_levels(static_cast<const uint8_t*>(frames.data), z.F, z.H, z.W);
+  } else {
+    rgb = HostTensor({z.F, 3, z.H, z.W}, DType::f32);
+    std::memcpy(rgb.data.data(), frames.data, rgb.bytes());
+  }
+  std::optional<std::vector<glm::dmat4>> matrices;
+  if (!poses.empty()) matrices = pose_matrices(poses);
+  std::vector<std::string> key = clip_input_key(frames.data, size_t(frames.bytes()),
+                                                frames.type == ElementType::u8 ? "u8" : "f32", depth_values, matrices,
+                                                o.render.trajectory);
+  ClipEnds ends(ctx.internal(), clip_input(o.render, std::move(rgb), depth_values, depth_name, matrices),
+                std::move(key), !poses.empty(), std::move(put));
+  StageTracker stages(progress, cancelled);
+  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
+  return stages.run([&] { return run_stages(o, ends, &ctx.internal(), stages); });
+}
 
 }  // namespace
 
 RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
                        const ProgressFn& progress, const CancelFn& cancelled) {
-  const ClipSize z = check_clip(clip);
-  const bool poses = !clip.poses.empty();
-  const RunOptions o = clip_options(options, z, poses);
-  check_result_view("ClipResultViews::output", out.output, z.F, z.H, z.W, true);
-  check_result_view("ClipResultViews::render", out.render, z.F, z.H, z.W, false);
-  check_f32_view("ClipResultViews::mask", out.mask, {z.F, z.H, z.W}, "the clip's F,H,W");
-  if (out.latent.data) {
-    if (!std::filesystem::is_directory(o.model))
-      refuse("RunOptions::model " + o.model.string() + ": no such model folder (give the CogVideoX-5b-I2V folder)");
-    check_f32_view("ClipResultViews::latent", out.latent, clip_latent_shape(o.model, z.F, z.H, z.W),
-                   "[Fl,C,h,w] from the model's VAE config");
-  }
-  // The clip converted (and its depth checked as a depth file's) before any device work.
-  HostTensor depth_values({z.F, z.H, z.W}, DType::f32);
-  std::memcpy(depth_values.data.data(), clip.depth.data, depth_values.bytes());
-  HostTensor rgb;
-  if (clip.frames.type == ElementType::u8) {
-    rgb = frames_from_levels(static_cast<const uint8_t*>(clip.frames.data), z.F, z.H, z.W);
-  } else {
-    rgb = HostTensor({z.F, 3, z.H, z.W}, DType::f32);
-    std::memcpy(rgb.data.data(), clip.frames.data, rgb.bytes());
-  }
-  std::optional<std::vector<glm::dmat4>> matrices;
-  if (poses) matrices = pose_matrices(clip.poses);
-  std::vector<std::string> key = clip_input_key(clip.frames.data, size_t(clip.frames.bytes()),
-                                                clip.frames.type == ElementType::u8 ? "u8" : "f32", depth_values,
-                                                matrices, o.render.trajectory);
-  ClipEnds ends(ctx.internal(), clip_input(o.render, std::move(rgb), depth_values, "ClipView::depth", matrices),
-                std::move(key), poses, out);
-  StageTracker stages(progress, cancelled);
-  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
-  return stages.run([&] { return run_stages(o, ends, &ctx.internal(), stages); });
+  const ClipSize z = check_clip(array("ClipView::frames", clip.frames), array("ClipView::depth", clip.depth),
+                                clip.poses.size(), "ClipView::poses");
+  const RunOptions o = clip_options(options, z, !clip.poses.empty());
+  check_results(o, z, array("ClipResultViews::output", out.output), array("ClipResultViews::render", out.render),
+                array("ClipResultViews::mask", out.mask), array("ClipResultViews::latent", out.latent));
+  return run_clip(ctx, o, z, clip.frames, clip.depth, "ClipView::depth", clip.poses, into_host(out), progress,
+                  cancelled);
+}
+
+RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
+                       const ClipResultDeviceViews& out, const ProgressFn& progress, const CancelFn& cancelled) {
+  const Array frames = array("ClipDeviceView::frames", clip.frames), depth = array("ClipDeviceView::depth", clip.depth);
+  const ClipSize z = check_clip(frames, depth, clip.poses.size(), "ClipDeviceView::poses");
+  const RunOptions o = clip_options(options, z, !clip.poses.empty());
+  const Array results[4] = {array("ClipResultDeviceViews::output", out.output),
+                            array("ClipResultDeviceViews::render", out.render),
+                            array("ClipResultDeviceViews::mask", out.mask),
+                            array("ClipResultDeviceViews::latent", out.latent)};
+  check_results(o, z, results[0], results[1], results[2], results[3]);
+  // Every buffer's range (and offset) before any work.
+  vk::Context& device = ctx.internal();
+  for (const auto& [view, a] : {std::pair{&clip.frames, &frames}, {&clip.depth, &depth}, {&out.output, &results[0]},
+                                {&out.render, &results[1]}, {&out.mask, &results[2]}, {&out.latent, &results[3]}})
+    if (a->given) embed::check_view_fits(device, *view, view->type, view->shape, a->name);
+  HostTensor frames_host = embed::fetch_view(device, clip.frames, frames.name);
+  HostTensor depth_host = embed::fetch_view(device, clip.depth, depth.name);
+  return run_clip(ctx, o, z, HostView{frames_host.data.data(), clip.frames.type, clip.frames.shape},
+                  HostView{depth_host.data.data(), ElementType::f32, clip.depth.shape}, depth.name, clip.poses,
+                  into_device(out), progress, cancelled);
 }
 
 }  // namespace dvs

@@ -58,19 +58,32 @@ uint64_t end_and_submit(vk::Context& ctx, VkCommandBuffer cmd, const Tensor& kee
 
 }  // namespace
 
-void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, const Tensor& tensor, const std::string& what) {
+void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, ElementType type, const std::vector<int64_t>& shape,
+                     const std::string& what) {
   const std::string head = "The device buffer given for " + what + " (" + describe(view) + ")";
   if (!view.buffer) throw Error(head + " has no VkBuffer (VK_NULL_HANDLE): pass a buffer of the context's device.");
   if (view.offset % 4 != 0)
     throw Error(head + " starts at offset " + std::to_string(view.offset) + ", which is not a multiple of 4.");
-  if (dtype_of(view.type) != tensor.dtype() || view.shape != tensor.shape())
-    throw Error(head + " does not match what dvs has there, " + tensor.describe() +
+  if (view.type != type || view.shape != shape)
+    throw Error(head + " does not match what dvs has there, " + describe(DeviceBufferView{VK_NULL_HANDLE, 0, type, shape}) +
                 ": give a view of that element type and shape.");
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(ctx.device(), view.buffer, &req);  // at least the buffer's size
   if (view.offset + view.bytes() > req.size)
     throw Error(head + " needs bytes " + std::to_string(view.offset) + ".." + std::to_string(view.offset + view.bytes()) +
                 " but the buffer holds at most " + std::to_string(req.size) + ".");
+}
+
+void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, const Tensor& tensor, const std::string& what) {
+  check_view_fits(ctx, view, tensor.dtype() == DType::u8 ? ElementType::u8 : ElementType::f32, tensor.shape(), what);
+  if (dtype_of(view.type) != tensor.dtype())  // a tensor of another element type than f32/u8
+    throw Error("internal: " + what + ": dvs holds " + tensor.describe() + " there");
+}
+
+HostTensor fetch_view(vk::Context& ctx, const DeviceBufferView& from, const std::string& what) {
+  const Tensor t = Tensor::empty(ctx, from.shape, dtype_of(from.type), what + " from the application");
+  ctx.wait(copy_to_tensor(ctx, from, t, what));
+  return t.download(ctx);
 }
 
 void record_copy_to_tensor(VkCommandBuffer cmd, const DeviceBufferView& from, const Tensor& to) {

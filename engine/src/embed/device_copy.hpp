@@ -9,8 +9,10 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "dvs/views.hpp"
+#include "io/host_tensor.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/context.hpp"
 
@@ -19,6 +21,14 @@ namespace dvs::embed {
 // Throws dvs::Error naming `what` ("the depth output") when `view` cannot stand for `tensor`: no buffer, an
 // offset that is not a multiple of 4, another element type or shape, or a range past the buffer's end.
 void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, const Tensor& tensor, const std::string& what);
+
+// The same check against an element type and shape, before the tensor exists (a run's result views, checked before
+// any work).
+void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, ElementType type, const std::vector<int64_t>& shape,
+                     const std::string& what);
+
+// The view's elements brought to the host: copied into a dvs tensor of the view's shape, waited for, downloaded.
+HostTensor fetch_view(vk::Context& ctx, const DeviceBufferView& from, const std::string& what);
 
 // Record the copy into `cmd` (for callers that put it in a larger command buffer); check_view_fits first.
 void record_copy_to_tensor(VkCommandBuffer cmd, const DeviceBufferView& from, const Tensor& to);

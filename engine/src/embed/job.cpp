@@ -177,16 +177,31 @@ Job start_pipeline(const RunOptions& options, const ProgressFn& progress) {
   return Job(s);
 }
 
-// The clip's memory, the views and the context are the caller's (dvs/clip_run.hpp: valid until the job has finished);
-// the options, the view descriptions and the poses are copied.
-Job start_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
-                   const ProgressFn& progress) {
+namespace {
+
+// The clip's memory (or buffers), the views and the context are the caller's (dvs/clip_run.hpp: valid until the job
+// has finished); the options, the view descriptions and the poses are copied.
+template <class Clip, class Results>
+std::shared_ptr<Job::State> start_clip_job(Context& ctx, const RunOptions& options, const Clip& clip, const Results& out,
+                                           const ProgressFn& progress) {
   auto s = std::make_shared<Job::State>();
   s->kind = "pipeline";
   s->thread = std::thread([st = s.get(), &ctx, options, clip, out, fn = s->progress_fn(progress)] {
     st->run([&] { st->run_report = run_pipeline(ctx, options, clip, out, fn, st->cancel_fn()); });
   });
-  return Job(s);
+  return s;
+}
+
+}  // namespace
+
+Job start_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
+                   const ProgressFn& progress) {
+  return Job(start_clip_job(ctx, options, clip, out, progress));
+}
+
+Job start_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip, const ClipResultDeviceViews& out,
+                   const ProgressFn& progress) {
+  return Job(start_clip_job(ctx, options, clip, out, progress));
 }
 
 Job start_render(const RenderJob& job, const ProgressFn& progress) {

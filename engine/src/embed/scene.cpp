@@ -189,11 +189,7 @@ FetchedInput fetch(Context& ctx, const DeviceBufferView& from, const char* arg) 
   if (!sized)
     throw Error(std::string("PointCloudScene: ") + arg + ": the device view's shape must have 2 or 3 dimensions, " +
                 "each >= 1 (frame u8 [H,W,3] or f32 [3,H,W], depth f32 [H,W])");
-  vk::Context& device = ctx.internal();
-  const Tensor t = Tensor::empty(device, from.shape, from.type == ElementType::u8 ? DType::u8 : DType::f32,
-                                 std::string("scene ") + arg + " from the application");
-  device.wait(embed::copy_to_tensor(device, from, t, std::string("PointCloudScene's ") + arg));
-  return FetchedInput{t.download(device)};
+  return FetchedInput{embed::fetch_view(ctx.internal(), from, std::string("PointCloudScene's ") + arg)};
 }
 
 }  // namespace
