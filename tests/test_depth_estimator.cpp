@@ -1,7 +1,7 @@
 // dvs::DepthEstimator (dvs/depth_frames.hpp) with a tiny random Video-Depth-Anything model: the disparity of frames
 // in memory equals estimate_depth's .npy of the same video bit for bit (the frames decoded by the production
 // decoder), the model is loaded once (the checkpoint can go after the constructor), wrong views are named, and a
-// cancellation stops the estimate and leaves the estimator usable.
+// cancellation stops the estimate and leaves the estimator usable; the device-buffer form gives the same values.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -12,6 +12,8 @@
 #include "dvs/error.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
+#include "support/app_device.hpp"
+#include "support/expect_error.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/random_vda.hpp"
 #include "vk/context.hpp"
@@ -113,6 +115,39 @@ TEST_F(DepthEstimatorTest, WrongViewsAreNamed) {
   m = message(frames_view(), no_memory);
   EXPECT_NE(m.find("out.data is null"), std::string::npos) << m;
   EXPECT_EQ(out[0], -7.f) << "a refused call wrote its output";
+}
+
+TEST_F(DepthEstimatorTest, TheDeviceFormTakesAndGivesTheApplicationsBuffersWithTheSameValues) {
+  // Frames in the application's buffer, the disparity out to another, on its device (synchronization validation
+  // across submissions): the values of the host form, bit for bit; wrong buffers named before any work.
+  std::vector<float> want;
+  {
+    DepthEstimator estimator(ctx, model, options());
+    estimator.estimate(frames_view(), out_view(want));
+  }
+  test::AppDevice app;
+  ContextOptions co;
+  co.pipeline_cache_file = "-";
+  Context on_app(app.host(), co);
+  DepthEstimator estimator(on_app, model, options());
+  const std::vector<int64_t> fhw{frames.shape[0], frames.shape[1], frames.shape[2]};
+  test::AppDevice::Buffer& in_buffer = app.buffer(frames.bytes());
+  test::AppDevice::Buffer& out_buffer = app.buffer(want.size() * sizeof(float));
+  std::memcpy(in_buffer.data, frames.data.data(), frames.bytes());
+  const DeviceBufferView in_view{in_buffer.buffer, 0, ElementType::u8, frames.shape};
+  const DeviceBufferView out_view_device{out_buffer.buffer, 0, ElementType::f32, fhw};
+  test::AppDevice::Buffer& small = app.buffer(16);
+  int events = 0;
+  const ProgressFn count = [&](const std::string&, int, int, const std::string&) { ++events; };
+  test::expect_error([&] { estimator.estimate(in_view, DeviceBufferView{small.buffer, 0, ElementType::f32, fhw}, count); },
+                     {"DepthEstimator::estimate's out", "holds at most"});
+  test::expect_error([&] { estimator.estimate(DeviceBufferView{}, out_view_device, count); }, {"frames must be u8"});
+  EXPECT_EQ(events, 0) << "a refused estimate began work";
+  estimator.estimate(in_view, out_view_device);
+  EXPECT_EQ(std::memcmp(out_buffer.data, want.data(), want.size() * sizeof(float)), 0)
+      << "the disparity in the application's buffer differs from the host form's";
+  EXPECT_EQ(app.locks, app.unlocks);
+  EXPECT_TRUE(app.messages.empty()) << app.messages.size() << " validation message(s): " << app.first_message();
 }
 
 TEST_F(DepthEstimatorTest, AMissingModelIsNamed) {

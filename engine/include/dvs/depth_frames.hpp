@@ -31,6 +31,11 @@ class DVS_API DepthEstimator {
   // Progress and cancellation as estimate_depth (stage "depth").
   void estimate(const HostView& frames, const HostView& out, const ProgressFn& progress = {},
                 const CancelFn& cancelled = {});
+  // The same with the frames in, and the disparity out to, the application's device buffers (dvs/views.hpp; a
+  // HostDevice context). The frames are copied in at the start (the network's input resize runs on the host); the
+  // call returns once the disparity is in `out`. Types, shapes, offsets and ranges are checked before any work.
+  void estimate(const DeviceBufferView& frames, const DeviceBufferView& out, const ProgressFn& progress = {},
+                const CancelFn& cancelled = {});
 
  private:
   struct Impl;

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "dvs/error.hpp"
+#include "embed/device_copy.hpp"
 #include "models/vda/vda_model.hpp"
 #include "pipeline/frames_depth.hpp"
 
@@ -22,16 +23,32 @@ namespace {
 
 constexpr const char* kWhere = "dvs::DepthEstimator::estimate";
 
-void check_views(const HostView& frames, const HostView& out) {
-  const auto& f = frames.shape;
-  if (frames.type != ElementType::u8 || f.size() != 4 || f[3] != 3 || f[0] < 1 || f[1] < 1 || f[2] < 1)
-    throw Error(std::string(kWhere) + ": frames must be u8 [F,H,W,3] RGB with F, H, W >= 1, got " + frames.describe());
-  if (!frames.data) throw Error(std::string(kWhere) + ": frames.data is null (give the frames' memory)");
+// frames u8 [F,H,W,3] and out f32 [F,H,W], named by `what` ("frames.data is null", "the frames' buffer is
+// VK_NULL_HANDLE") when not given.
+void check_views(ElementType frames_type, const std::vector<int64_t>& f, const std::string& frames_text, bool frames_given,
+                 ElementType out_type, const std::vector<int64_t>& out_shape, const std::string& out_text, bool out_given,
+                 const std::string& frames_missing, const std::string& out_missing) {
+  if (frames_type != ElementType::u8 || f.size() != 4 || f[3] != 3 || f[0] < 1 || f[1] < 1 || f[2] < 1)
+    throw Error(std::string(kWhere) + ": frames must be u8 [F,H,W,3] RGB with F, H, W >= 1, got " + frames_text);
+  if (!frames_given) throw Error(std::string(kWhere) + ": " + frames_missing + " (give the frames' memory)");
   const std::vector<int64_t> want{f[0], f[1], f[2]};
-  if (out.type != ElementType::f32 || out.shape != want)
+  if (out_type != ElementType::f32 || out_shape != want)
     throw Error(std::string(kWhere) + ": out must be f32 [" + std::to_string(f[0]) + "x" + std::to_string(f[1]) + "x" +
-                std::to_string(f[2]) + "] (the frames' F, H, W), got " + out.describe());
-  if (!out.data) throw Error(std::string(kWhere) + ": out.data is null (give memory for the disparity)");
+                std::to_string(f[2]) + "] (the frames' F, H, W), got " + out_text);
+  if (!out_given) throw Error(std::string(kWhere) + ": " + out_missing + " (give memory for the disparity)");
+}
+
+void check_views(const HostView& frames, const HostView& out) {
+  check_views(frames.type, frames.shape, frames.describe(), frames.data != nullptr, out.type, out.shape, out.describe(),
+              out.data != nullptr, "frames.data is null", "out.data is null");
+}
+
+void check_views(vk::Context& ctx, const DeviceBufferView& frames, const DeviceBufferView& out) {
+  auto text = [](const DeviceBufferView& v) { return HostView{nullptr, v.type, v.shape}.describe(); };
+  check_views(frames.type, frames.shape, text(frames), frames.buffer != VK_NULL_HANDLE, out.type, out.shape, text(out),
+              out.buffer != VK_NULL_HANDLE, "the frames' buffer is VK_NULL_HANDLE", "the output buffer is VK_NULL_HANDLE");
+  embed::check_view_fits(ctx, frames, frames.type, frames.shape, std::string(kWhere) + "'s frames");
+  embed::check_view_fits(ctx, out, out.type, out.shape, std::string(kWhere) + "'s out");
 }
 
 }  // namespace
@@ -68,6 +85,19 @@ void DepthEstimator::estimate(const HostView& frames, const HostView& out, const
   DepthSummary summary;
   const HostTensor depth = estimate_frames_depth(model, in, impl_->options, progress, cancelled, summary);
   std::memcpy(out.data, depth.data.data(), depth.bytes());
+}
+
+void DepthEstimator::estimate(const DeviceBufferView& frames, const DeviceBufferView& out, const ProgressFn& progress,
+                              const CancelFn& cancelled) {
+  vk::Context& device = impl_->ctx->internal();
+  check_views(device, frames, out);
+  check_vda_fits(device, impl_->model->config(), int(frames.shape[1]), int(frames.shape[2]), impl_->options);
+  HostTensor in = embed::fetch_view(device, frames, std::string(kWhere) + "'s frames");
+  HostTensor disparity(out.shape, DType::f32);
+  estimate(HostView{in.data.data(), ElementType::u8, in.shape}, HostView{disparity.data.data(), ElementType::f32, out.shape},
+           progress, cancelled);
+  device.wait(embed::copy_from_tensor(device, Tensor::upload(device, disparity, "disparity for the application"), out,
+                                      std::string(kWhere) + "'s out"));
 }
 
 }  // namespace dvs
