@@ -179,6 +179,16 @@ DVS_API dvs_status dvs_depth_estimator_metric(const dvs_depth_estimator* estimat
 DVS_API dvs_status dvs_depth_estimator_estimate(dvs_depth_estimator* estimator, const uint8_t* frames, int32_t count,
                                                 int32_t height, int32_t width, float* out, dvs_progress_fn progress,
                                                 void* user);
+/* A range of a VkBuffer of the context's device: elements from `offset` (a multiple of 4) on. */
+typedef struct dvs_buffer_range {
+  VkBuffer buffer; /* VK_NULL_HANDLE = not given */
+  VkDeviceSize offset;
+} dvs_buffer_range;
+/* The same on the application's device buffers (a context made with dvs_context_create_on_host): frames u8
+ * [F,H,W,3] in, disparity f32 [F,H,W] out; returns once the disparity is in `out`. Checked before any work. */
+DVS_API dvs_status dvs_depth_estimator_estimate_device(dvs_depth_estimator* estimator, dvs_buffer_range frames,
+                                                       int32_t count, int32_t height, int32_t width,
+                                                       dvs_buffer_range out, dvs_progress_fn progress, void* user);
 DVS_API dvs_status dvs_depth_estimator_destroy(dvs_depth_estimator* estimator);
 
 /* ---- jobs: long work on a thread of its own (dvs/job.hpp) ------------------------------------------------- */
@@ -275,6 +285,15 @@ DVS_API dvs_status dvs_job_start_pipeline_clip(dvs_context* context, const dvs_p
                                                const uint8_t* frames, int32_t count, int32_t height, int32_t width,
                                                const float* depth, const double* poses, uint8_t* output, float* mask,
                                                float* latent, size_t latent_floats, dvs_job** out);
+/* dvs_run_pipeline_clip with the clip in, and the results out to, the application's VkBuffers (dvs::run_pipeline on a
+ * ClipDeviceView; a context made with dvs_context_create_on_host): frames u8 [F,H,W,3], depth f32 [F,H,W], output u8
+ * [F,H,W,3] (required), mask f32 [F,H,W] and latent f32 (dvs_clip_latent_shape) optional (buffer VK_NULL_HANDLE).
+ * Every range is checked before any work; returns once the results are in the buffers. */
+DVS_API dvs_status dvs_run_pipeline_clip_device(dvs_context* context, const dvs_pipeline_options* options,
+                                                dvs_buffer_range frames, int32_t count, int32_t height, int32_t width,
+                                                dvs_buffer_range depth, const double* poses, dvs_buffer_range output,
+                                                dvs_buffer_range mask, dvs_buffer_range latent,
+                                                dvs_progress_fn progress, void* user);
 /* The sampled latent's shape [Fl, C, h, w] for a clip of count x height x width, read from options->model's VAE
  * config (Fl = (count-1)/4+1 for CogVideoX): latent_floats = shape[0]*shape[1]*shape[2]*shape[3]. */
 DVS_API dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t count, int32_t height,

@@ -13,6 +13,15 @@ using namespace dvs::capi;
 
 namespace {
 
+// 16·F row-major doubles as F poses (none for NULL: the options' trajectory).
+std::vector<dvs::Pose> pose_list(const double* poses, int64_t F) {
+  std::vector<dvs::Pose> list;
+  if (!poses) return list;
+  list.resize(size_t(F));
+  for (int64_t i = 0; i < F; ++i) std::memcpy(list[size_t(i)].m.data(), poses + 16 * i, 16 * sizeof(double));
+  return list;
+}
+
 // The C arguments of a clip run as the C++ call's views.
 struct ClipCall {
   dvs::RunOptions options;
@@ -35,10 +44,7 @@ ClipCall clip_call(const char* call, const dvs_context* context, const dvs_pipel
   const int64_t F = count, H = height, W = width;
   c.clip.frames = {const_cast<uint8_t*>(frames), dvs::ElementType::u8, {F, H, W, 3}};
   c.clip.depth = {const_cast<float*>(depth), dvs::ElementType::f32, {F, H, W}};
-  if (poses) {
-    c.clip.poses.resize(size_t(F));
-    for (int64_t i = 0; i < F; ++i) std::memcpy(c.clip.poses[size_t(i)].m.data(), poses + 16 * i, 16 * sizeof(double));
-  }
+  c.clip.poses = pose_list(poses, F);
   c.out.output = {output, dvs::ElementType::u8, {F, H, W, 3}};
   if (mask) c.out.mask = {mask, dvs::ElementType::f32, {F, H, W}};
   if (latent) {
@@ -79,13 +85,34 @@ dvs_status dvs_run_pipeline_clip(dvs_context* context, const dvs_pipeline_option
   return guarded(DVS_ERROR_FILE, [&] {
     const ClipCall c = clip_call("dvs_run_pipeline_clip", context, options, frames, count, height, width, depth, poses,
                                  output, mask, latent, latent_floats);
-    bool cancel = false;
-    dvs::ProgressFn fn;
-    if (progress)
-      fn = [&](const std::string& stage, int step, int total, const std::string& note) {
-        if (progress(stage.c_str(), step, total, note.c_str(), user) != 0) cancel = true;
-      };
-    dvs::run_pipeline(*context->context, c.options, c.clip, c.out, fn, [&] { return cancel; });
+    CProgress p{progress, user};
+    dvs::run_pipeline(*context->context, c.options, c.clip, c.out, p.fn(), p.cancelled());
+  });
+}
+
+dvs_status dvs_run_pipeline_clip_device(dvs_context* context, const dvs_pipeline_options* options,
+                                        dvs_buffer_range frames, int32_t count, int32_t height, int32_t width,
+                                        dvs_buffer_range depth, const double* poses, dvs_buffer_range output,
+                                        dvs_buffer_range mask, dvs_buffer_range latent, dvs_progress_fn progress,
+                                        void* user) {
+  return guarded(DVS_ERROR_FILE, [&] {
+    const char* call = "dvs_run_pipeline_clip_device";
+    require(context, call, "context");
+    require(options, call, "options");
+    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
+      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    const dvs::RunOptions o = run_options(*options);
+    const int64_t F = count, H = height, W = width;
+    dvs::ClipDeviceView clip;
+    clip.frames = {frames.buffer, frames.offset, dvs::ElementType::u8, {F, H, W, 3}};
+    clip.depth = {depth.buffer, depth.offset, dvs::ElementType::f32, {F, H, W}};
+    clip.poses = pose_list(poses, F);
+    dvs::ClipResultDeviceViews out;
+    out.output = {output.buffer, output.offset, dvs::ElementType::u8, {F, H, W, 3}};
+    out.mask = {mask.buffer, mask.offset, dvs::ElementType::f32, {F, H, W}};
+    if (latent.buffer) out.latent = {latent.buffer, latent.offset, dvs::ElementType::f32, dvs::clip_latent_shape(o.model, F, H, W)};
+    CProgress p{progress, user};
+    dvs::run_pipeline(*context->context, o, clip, out, p.fn(), p.cancelled());
   });
 }
 

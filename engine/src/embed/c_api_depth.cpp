@@ -44,13 +44,23 @@ dvs_status dvs_depth_estimator_estimate(dvs_depth_estimator* estimator, const ui
       if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
     const dvs::HostView in{const_cast<uint8_t*>(frames), dvs::ElementType::u8, {count, height, width, 3}};
     const dvs::HostView o{out, dvs::ElementType::f32, {count, height, width}};
-    bool cancel = false;
-    dvs::ProgressFn fn;
-    if (progress)
-      fn = [&](const std::string& stage, int step, int total, const std::string& note) {
-        if (progress(stage.c_str(), step, total, note.c_str(), user) != 0) cancel = true;
-      };
-    estimator->estimator->estimate(in, o, fn, [&] { return cancel; });
+    CProgress p{progress, user};
+    estimator->estimator->estimate(in, o, p.fn(), p.cancelled());
+  });
+}
+
+dvs_status dvs_depth_estimator_estimate_device(dvs_depth_estimator* estimator, dvs_buffer_range frames, int32_t count,
+                                               int32_t height, int32_t width, dvs_buffer_range out,
+                                               dvs_progress_fn progress, void* user) {
+  return guarded(DVS_ERROR_FILE, [&] {
+    const char* call = "dvs_depth_estimator_estimate_device";
+    require(estimator, call, "estimator");
+    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
+      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    const dvs::DeviceBufferView in{frames.buffer, frames.offset, dvs::ElementType::u8, {count, height, width, 3}};
+    const dvs::DeviceBufferView o{out.buffer, out.offset, dvs::ElementType::f32, {count, height, width}};
+    CProgress p{progress, user};
+    estimator->estimator->estimate(in, o, p.fn(), p.cancelled());
   });
 }
 

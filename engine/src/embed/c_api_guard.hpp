@@ -5,6 +5,7 @@
 #include <string>
 
 #include "dvs/dvs.h"
+#include "dvs/pipeline.hpp"
 #include "dvs/usage_error.hpp"
 
 namespace dvs::capi {
@@ -29,6 +30,22 @@ dvs_status guarded(dvs_status error_status, Body&& body) noexcept {
 
 // Throws UsageError "<call>: <name> is NULL" for a missing pointer argument.
 void require(const void* pointer, const char* call, const char* name);
+
+// A C progress callback (nonzero = cancel) as the C++ call's progress and cancellation.
+struct CProgress {
+  dvs_progress_fn progress = nullptr;
+  void* user = nullptr;
+  bool cancel = false;
+  ProgressFn fn() {
+    if (!progress) return {};
+    return [this](const std::string& stage, int step, int total, const std::string& note) {
+      if (progress(stage.c_str(), step, total, note.c_str(), user) != 0) cancel = true;
+    };
+  }
+  CancelFn cancelled() {
+    return [this] { return cancel; };
+  }
+};
 
 // Copies `text` into buffer (size bytes, NUL-terminated, truncated to fit). buffer may be NULL only with size 0.
 void copy_out(const std::string& text, char* buffer, size_t size, const char* call, const char* name);
