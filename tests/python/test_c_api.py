@@ -60,6 +60,14 @@ class RenderOptions(C.Structure):
 PROGRESS = C.CFUNCTYPE(C.c_int, C.c_char_p, C.c_int32, C.c_int32, C.c_char_p, C.c_void_p)
 
 
+def bind(lib, sig):
+    """Gives each function named in sig ({name: (restype, argtypes)}) its C signature; returns lib."""
+    for name, (res, args) in sig.items():
+        f = getattr(lib, name)
+        f.restype, f.argtypes = res, args
+    return lib
+
+
 def load(path):
     lib = C.CDLL(path)
     P = C.c_void_p
@@ -86,10 +94,7 @@ def load(path):
         "dvs_job_result": (C.c_int, [P]),
         "dvs_job_destroy": (C.c_int, [P]),
     }
-    for name, (res, args) in sig.items():
-        f = getattr(lib, name)
-        f.restype, f.argtypes = res, args
-    return lib
+    return bind(lib, sig)
 
 
 def ok(lib, status, call):

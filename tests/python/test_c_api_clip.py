@@ -17,8 +17,8 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_c_api import (DVS_ERROR_FILE, DVS_ERROR_INVALID_ARGUMENT, PROGRESS, RenderOptions, check,  # noqa: E402
-                        failures, f32, ok, read_npy_f32, run_program, write_npy)
+from test_c_api import (DVS_ERROR_FILE, DVS_ERROR_INVALID_ARGUMENT, PROGRESS, RenderOptions, bind,  # noqa: E402
+                        check, failures, f32, ok, read_npy_f32, run_program, write_npy)
 
 F, H, W = 9, 64, 64
 STEPS, INVERSION_STEPS, PROMPT = 4, 3, "a red fox"
@@ -49,10 +49,7 @@ def load(path):
         "dvs_job_result": (C.c_int, [P]),
         "dvs_job_destroy": (C.c_int, [P]),
     }
-    for name, (res, args) in sig.items():
-        f = getattr(lib, name)
-        f.restype, f.argtypes = res, args
-    return lib
+    return bind(lib, sig)
 
 
 def synthetic_clip():

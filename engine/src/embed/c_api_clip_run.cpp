@@ -37,8 +37,7 @@ ClipCall clip_call(const char* call, const dvs_context* context, const dvs_pipel
   require(frames, call, "frames");
   require(depth, call, "depth");
   require(output, call, "output");
-  for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
-    if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+  check_clip_size(count, height, width, call);
   ClipCall c;
   c.options = run_options(*options);
   const int64_t F = count, H = height, W = width;
@@ -71,8 +70,7 @@ dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t co
     require(options, call, "options");
     require(shape, call, "shape");
     require(options->model, call, "options->model");
-    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
-      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    check_clip_size(count, height, width, call);
     const std::vector<int64_t> s = dvs::clip_latent_shape(options->model, count, height, width);
     std::copy(s.begin(), s.end(), shape);
   });
@@ -99,8 +97,7 @@ dvs_status dvs_run_pipeline_clip_device(dvs_context* context, const dvs_pipeline
     const char* call = "dvs_run_pipeline_clip_device";
     require(context, call, "context");
     require(options, call, "options");
-    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
-      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    check_clip_size(count, height, width, call);
     const dvs::RunOptions o = run_options(*options);
     const int64_t F = count, H = height, W = width;
     dvs::ClipDeviceView clip;

@@ -40,8 +40,7 @@ dvs_status dvs_depth_estimator_estimate(dvs_depth_estimator* estimator, const ui
     require(estimator, call, "estimator");
     require(frames, call, "frames");
     require(out, call, "out");
-    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
-      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    check_clip_size(count, height, width, call);
     const dvs::HostView in{const_cast<uint8_t*>(frames), dvs::ElementType::u8, {count, height, width, 3}};
     const dvs::HostView o{out, dvs::ElementType::f32, {count, height, width}};
     CProgress p{progress, user};
@@ -55,8 +54,7 @@ dvs_status dvs_depth_estimator_estimate_device(dvs_depth_estimator* estimator, d
   return guarded(DVS_ERROR_FILE, [&] {
     const char* call = "dvs_depth_estimator_estimate_device";
     require(estimator, call, "estimator");
-    for (auto [value, name] : {std::pair{count, "count"}, {height, "height"}, {width, "width"}})
-      if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+    check_clip_size(count, height, width, call);
     const dvs::DeviceBufferView in{frames.buffer, frames.offset, dvs::ElementType::u8, {count, height, width, 3}};
     const dvs::DeviceBufferView o{out.buffer, out.offset, dvs::ElementType::f32, {count, height, width}};
     CProgress p{progress, user};

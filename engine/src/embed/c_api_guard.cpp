@@ -1,5 +1,6 @@
 #include "embed/c_api_guard.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <new>
 
@@ -43,6 +44,32 @@ dvs_status status_of_current_exception(dvs_status error_status) {
 
 void require(const void* pointer, const char* call, const char* name) {
   if (!pointer) throw UsageError(std::string(call) + ": " + name + " is NULL");
+}
+
+void check_size(int32_t value, const char* call, const char* name) {
+  if (value < 1) throw UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
+}
+
+void check_clip_size(int32_t count, int32_t height, int32_t width, const char* call) {
+  check_size(count, call, "count");
+  check_size(height, call, "height");
+  check_size(width, call, "width");
+}
+
+ElementType element_type(dvs_element_type t, const char* call, const char* name) {
+  if (t == DVS_F32) return ElementType::f32;
+  if (t == DVS_U8) return ElementType::u8;
+  throw UsageError(std::string(call) + ": " + name + " must be DVS_F32 or DVS_U8, got " + std::to_string(int(t)));
+}
+
+Pose pose_of(const double pose[16]) {
+  Pose p;
+  std::copy(pose, pose + 16, p.m.begin());
+  return p;
+}
+
+std::vector<int64_t> scene_image_shape(ElementType type, int64_t height, int64_t width) {
+  return type == ElementType::u8 ? std::vector<int64_t>{height, width, 4} : std::vector<int64_t>{3, height, width};
 }
 
 void copy_out(const std::string& text, char* buffer, size_t size, const char* call, const char* name) {

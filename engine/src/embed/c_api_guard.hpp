@@ -6,6 +6,8 @@
 
 #include "dvs/dvs.h"
 #include "dvs/pipeline.hpp"
+#include "dvs/scene.hpp"
+#include "dvs/views.hpp"
 #include "dvs/usage_error.hpp"
 
 namespace dvs::capi {
@@ -46,6 +48,21 @@ struct CProgress {
     return [this] { return cancel; };
   }
 };
+
+// Throws UsageError "<call>: <name> must be >= 1, got N" for a count or size below 1.
+void check_size(int32_t value, const char* call, const char* name);
+
+// check_size of a clip's count, height and width.
+void check_clip_size(int32_t count, int32_t height, int32_t width, const char* call);
+
+// DVS_F32 / DVS_U8 as dvs::ElementType; anything else a UsageError naming the argument.
+ElementType element_type(dvs_element_type t, const char* call, const char* name);
+
+// 16 row-major doubles as a Pose.
+Pose pose_of(const double pose[16]);
+
+// The shape of a scene's rendered image in `type`: u8 [H,W,4] RGBA or f32 [3,H,W].
+std::vector<int64_t> scene_image_shape(ElementType type, int64_t height, int64_t width);
 
 // Copies `text` into buffer (size bytes, NUL-terminated, truncated to fit). buffer may be NULL only with size 0.
 void copy_out(const std::string& text, char* buffer, size_t size, const char* call, const char* name);

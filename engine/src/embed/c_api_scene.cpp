@@ -5,20 +5,6 @@
 
 using namespace dvs::capi;
 
-namespace {
-
-void check_size(int32_t value, const char* call, const char* name) {
-  if (value < 1) throw dvs::UsageError(std::string(call) + ": " + name + " must be >= 1, got " + std::to_string(value));
-}
-
-dvs::ElementType element_type(dvs_element_type t, const char* call, const char* name) {
-  if (t == DVS_F32) return dvs::ElementType::f32;
-  if (t == DVS_U8) return dvs::ElementType::u8;
-  throw dvs::UsageError(std::string(call) + ": " + name + " must be DVS_F32 or DVS_U8, got " + std::to_string(int(t)));
-}
-
-}  // namespace
-
 extern "C" {
 
 dvs_status dvs_intrinsics_default(int32_t width, int32_t height, int32_t squash, dvs_intrinsics* out) {
@@ -68,12 +54,10 @@ dvs_status dvs_scene_render(dvs_scene* scene, const double pose[16], void* image
     require(image, call, "image");
     const int64_t h = scene->scene->height(), w = scene->scene->width();
     dvs::HostView img{image, element_type(image_type, call, "image_type"), {}};
-    img.shape = img.type == dvs::ElementType::u8 ? std::vector<int64_t>{h, w, 4} : std::vector<int64_t>{3, h, w};
+    img.shape = scene_image_shape(img.type, h, w);
     dvs::HostView m;
     if (mask) m = {mask, dvs::ElementType::f32, {h, w}};
-    dvs::Pose p;
-    std::copy(pose, pose + 16, p.m.begin());
-    scene->scene->render(p, img, m);
+    scene->scene->render(pose_of(pose), img, m);
   });
 }
 

@@ -1,20 +1,12 @@
 // dvs/dvs.h: the device-memory calls — scene renders into the application's buffers and images, and the context
 // calls that order dvs's work with the application's (its timeline's last value, waiting for the application's
 // semaphore). Handles and sizes are checked here, naming the argument, before the C++ views are built.
-#include <algorithm>
-
 #include "embed/c_api_guard.hpp"
 #include "embed/c_api_handles.hpp"
 
 using namespace dvs::capi;
 
 namespace {
-
-dvs::Pose pose_of(const double pose[16]) {
-  dvs::Pose p;
-  std::copy(pose, pose + 16, p.m.begin());
-  return p;
-}
 
 dvs::DeviceImageView image_view(const dvs_device_image& i) {
   dvs::DeviceImageView v;
@@ -40,12 +32,9 @@ dvs_status dvs_scene_render_to_buffers(dvs_scene* scene, const double pose[16], 
     require(scene, call, "scene");
     require(pose, call, "pose");
     if (!image) throw dvs::UsageError(std::string(call) + ": image is VK_NULL_HANDLE (pass a VkBuffer of the context's device)");
-    if (image_type != DVS_F32 && image_type != DVS_U8)
-      throw dvs::UsageError(std::string(call) + ": image_type must be DVS_F32 or DVS_U8, got " +
-                            std::to_string(int(image_type)));
     const int64_t h = scene->scene->height(), w = scene->scene->width();
-    dvs::DeviceBufferView img{image, image_offset, dvs::ElementType::f32, {3, h, w}};
-    if (image_type == DVS_U8) img.type = dvs::ElementType::u8, img.shape = {h, w, 4};
+    dvs::DeviceBufferView img{image, image_offset, element_type(image_type, call, "image_type"), {}};
+    img.shape = scene_image_shape(img.type, h, w);
     dvs::DeviceBufferView m;
     if (mask) m = {mask, mask_offset, dvs::ElementType::f32, {h, w}};
     *ticket = scene->scene->render(pose_of(pose), img, m);

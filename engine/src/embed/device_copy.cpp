@@ -17,6 +17,19 @@ std::string describe(const DeviceBufferView& v) {
   return s + "]";
 }
 
+void pipeline_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src, VkPipelineStageFlags dst,
+                      const VkBufferMemoryBarrier& barrier) {
+  vkCmdPipelineBarrier(cmd, src, dst, 0, 0, nullptr, 1, &barrier, 0, nullptr);
+}
+
+// The copy holds the tensor's storage until it has run.
+uint64_t keeping(vk::Context& ctx, uint64_t ticket, const Tensor& keep) {
+  ctx.release_after(ticket, [keep]() {});
+  return ticket;
+}
+
+}  // namespace
+
 VkBufferMemoryBarrier buffer_barrier(VkBuffer buffer, VkDeviceSize offset, VkDeviceSize size, VkAccessFlags src,
                                      VkAccessFlags dst) {
   VkBufferMemoryBarrier b{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
@@ -29,34 +42,6 @@ VkBufferMemoryBarrier buffer_barrier(VkBuffer buffer, VkDeviceSize offset, VkDev
   b.size = size;
   return b;
 }
-
-void pipeline_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src, VkPipelineStageFlags dst,
-                      const VkBufferMemoryBarrier& barrier) {
-  vkCmdPipelineBarrier(cmd, src, dst, 0, 0, nullptr, 1, &barrier, 0, nullptr);
-}
-
-// dvs's own work on a tensor: compute shaders and transfers.
-constexpr VkPipelineStageFlags kDvsStages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
-constexpr VkAccessFlags kDvsWrites = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-constexpr VkAccessFlags kDvsAccesses =
-    VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-
-VkCommandBuffer begin(vk::Context& ctx) {
-  VkCommandBuffer cmd = ctx.allocate_command_buffer();
-  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
-  return cmd;
-}
-
-uint64_t end_and_submit(vk::Context& ctx, VkCommandBuffer cmd, const Tensor& keep) {
-  VK_CHECK(vkEndCommandBuffer(cmd));
-  const uint64_t ticket = ctx.submit(cmd);
-  ctx.release_after(ticket, [keep]() {});  // the copy holds the tensor's storage until it has run
-  return ticket;
-}
-
-}  // namespace
 
 void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, ElementType type, const std::vector<int64_t>& shape,
                      const std::string& what) {
@@ -123,18 +108,24 @@ void record_copy_from_tensor(VkCommandBuffer cmd, const Tensor& from, const Devi
                    buffer_barrier(t.buffer, t.offset, bytes, 0, kDvsWrites));
 }
 
+uint64_t submit_recorded(vk::Context& ctx, const std::function<void(VkCommandBuffer)>& record) {
+  VkCommandBuffer cmd = ctx.allocate_command_buffer();
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  record(cmd);
+  VK_CHECK(vkEndCommandBuffer(cmd));
+  return ctx.submit(cmd);
+}
+
 uint64_t copy_to_tensor(vk::Context& ctx, const DeviceBufferView& from, const Tensor& to, const std::string& what) {
   check_view_fits(ctx, from, to, what);
-  VkCommandBuffer cmd = begin(ctx);
-  record_copy_to_tensor(cmd, from, to);
-  return end_and_submit(ctx, cmd, to);
+  return keeping(ctx, submit_recorded(ctx, [&](VkCommandBuffer cmd) { record_copy_to_tensor(cmd, from, to); }), to);
 }
 
 uint64_t copy_from_tensor(vk::Context& ctx, const Tensor& from, const DeviceBufferView& to, const std::string& what) {
   check_view_fits(ctx, to, from, what);
-  VkCommandBuffer cmd = begin(ctx);
-  record_copy_from_tensor(cmd, from, to);
-  return end_and_submit(ctx, cmd, from);
+  return keeping(ctx, submit_recorded(ctx, [&](VkCommandBuffer cmd) { record_copy_from_tensor(cmd, from, to); }), from);
 }
 
 }  // namespace dvs::embed

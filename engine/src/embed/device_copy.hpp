@@ -8,6 +8,7 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,17 @@
 #include "vk/context.hpp"
 
 namespace dvs::embed {
+
+// dvs's own work on a tensor (compute shaders and transfers): the stages and accesses the copies' barriers order
+// against.
+constexpr VkPipelineStageFlags kDvsStages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
+constexpr VkAccessFlags kDvsWrites = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+constexpr VkAccessFlags kDvsAccesses =
+    VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+
+// A barrier on bytes [offset, offset + size) of `buffer`, no queue-family transfer.
+VkBufferMemoryBarrier buffer_barrier(VkBuffer buffer, VkDeviceSize offset, VkDeviceSize size, VkAccessFlags src,
+                                     VkAccessFlags dst);
 
 // Throws dvs::Error naming `what` ("the depth output") when `view` cannot stand for `tensor`: no buffer, an
 // offset that is not a multiple of 4, another element type or shape, or a range past the buffer's end.
@@ -33,6 +45,10 @@ HostTensor fetch_view(vk::Context& ctx, const DeviceBufferView& from, const std:
 // Record the copy into `cmd` (for callers that put it in a larger command buffer); check_view_fits first.
 void record_copy_to_tensor(VkCommandBuffer cmd, const DeviceBufferView& from, const Tensor& to);
 void record_copy_from_tensor(VkCommandBuffer cmd, const Tensor& from, const DeviceBufferView& to);
+
+// `record` into a one-time command buffer of its own, submitted without a wait; returns its ticket (the context
+// frees the command buffer once it has run). For copies the caller records itself (several into one submission).
+uint64_t submit_recorded(vk::Context& ctx, const std::function<void(VkCommandBuffer)>& record);
 
 // Check, record and submit on their own, without waiting: return the ticket (a value of ctx.timeline()). The
 // tensor's storage is kept alive until the ticket is reached; the application's buffer must stay valid until then.

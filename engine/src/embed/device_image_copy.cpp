@@ -2,13 +2,10 @@
 #include "embed/device_image_copy.hpp"
 
 #include "dvs/error.hpp"
+#include "embed/device_copy.hpp"
 
 namespace dvs::embed {
 namespace {
-
-// dvs's own work on a tensor: compute shaders and transfers.
-constexpr VkPipelineStageFlags kDvsStages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
-constexpr VkAccessFlags kDvsWrites = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
 
 VkImageMemoryBarrier image_barrier(VkImage image, VkImageLayout from, VkImageLayout to, VkAccessFlags src,
                                    VkAccessFlags dst) {
@@ -78,13 +75,8 @@ void record_copy_to_image(VkCommandBuffer cmd, const Tensor& from, const DeviceI
   const vk::BufferView& t = from.buffer();
   // dvs's writes of the tensor, and every earlier use of the image (the application's, in any stage), come before
   // the copy; the image moves to the transfer layout (from UNDEFINED its contents are dropped).
-  VkBufferMemoryBarrier tensor_ready{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
-  tensor_ready.srcAccessMask = kDvsWrites;
-  tensor_ready.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  tensor_ready.srcQueueFamilyIndex = tensor_ready.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  tensor_ready.buffer = t.buffer;
-  tensor_ready.offset = t.offset;
-  tensor_ready.size = from.bytes();
+  const VkBufferMemoryBarrier tensor_ready =
+      buffer_barrier(t.buffer, t.offset, from.bytes(), kDvsWrites, VK_ACCESS_TRANSFER_READ_BIT);
   vkCmdPipelineBarrier(cmd, kDvsStages, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 1, &tensor_ready, 0, nullptr);
   const VkImageMemoryBarrier to_transfer =
       image_barrier(to.image, to.layout, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,

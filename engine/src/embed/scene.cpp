@@ -133,21 +133,8 @@ struct PointCloudScene::Impl {
 
   // One command buffer of copies into the application's memory, submitted without a wait; its ticket is the
   // render's.
-  template <class Record>
-  uint64_t submit_copies(Record record) {
-    VkCommandBuffer cmd = device.allocate_command_buffer();
-    VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    if (vkBeginCommandBuffer(cmd, &bi) != VK_SUCCESS) {
-      vkFreeCommandBuffers(device.device(), device.command_pool(), 1, &cmd);
-      throw Error("PointCloudScene: vkBeginCommandBuffer failed (out of memory?)");
-    }
-    record(cmd);
-    if (vkEndCommandBuffer(cmd) != VK_SUCCESS) {
-      vkFreeCommandBuffers(device.device(), device.command_pool(), 1, &cmd);
-      throw Error("PointCloudScene: vkEndCommandBuffer failed (out of memory?)");
-    }
-    pending = device.submit(cmd);  // the context frees cmd once it has run
+  uint64_t submit_copies(const std::function<void(VkCommandBuffer)>& record) {
+    pending = embed::submit_recorded(device, record);
     return pending;
   }
 
