@@ -1,10 +1,12 @@
 // Golden checks of the CogVideoX 3D causal VAE against the pack (DVS_GOLDEN_DIR): cases vae_encode,
 // vae_decode, vae_tiling_disabled_explicit, vae_frame_batching (17 frames: two encode and two decode
-// batches with the conv cache) and vae_tiled. Tolerances are the cases.json ones (|ours − golden| ≤
+// batches with the conv cache), vae_tiled and vae_decode_even_latent (added to our copy of pack A by
+// tests/golden_tools/make_vae_even_latent_decode.py with diffusers' own VAE code). Tolerances are the cases.json ones (|ours − golden| ≤
 // atol + rtol·|golden|); every check prints the max error it saw. Sizes come from the pack's vae/config.json
 // and tiling settings from cases.json, so any pack of this format can be run.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cmath>
@@ -18,6 +20,7 @@
 #include "io/npy.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/job_stages.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
@@ -252,6 +255,60 @@ TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
               rec["encode_mean"].get<double>(), dec, rec["decode"].get<double>());
   EXPECT_NEAR(enc, rec["encode_mean"].get<double>(), 1e-3 * rec["encode_mean"].get<double>() + 1e-4);
   EXPECT_NEAR(dec, rec["decode"].get<double>(), 1e-3 * rec["decode"].get<double>() + 1e-3);
+}
+
+// Which decoded frames dvs keeps for an even latent count, against diffusers' decode of even-count latents
+// (case vae_decode_even_latent: each latent decoded by AutoencoderKLCogVideoX itself to 4·Fl frames). First the
+// whole decode must match; then decode_latent, what `dvs run` writes for a 4·Fl − 3 frame video, must return the
+// golden's frames 3 .. 4·Fl − 1 (clamped to [−1, 1]). Keeping the first 4·Fl − 3 instead, or any other offset,
+// fails here: the test also checks that the golden's frames differ by more than the tolerance under a shift.
+TEST_F(VaeGolden, EvenLatentCountDecode) {
+  const nlohmann::json* found = nullptr;
+  for (const auto& c : cases()["cases"])
+    if (c["name"] == "vae_decode_even_latent") found = &c;
+  if (!found) GTEST_SKIP() << pack() << "/cases.json has no case vae_decode_even_latent (our pack A has it)";
+  const nlohmann::json& c = *found;
+  const Tol tol = tol_of(c["tolerance"]);
+  std::vector<std::string> inputs, outputs;
+  for (const auto& f : c["files"]) (f["role"] == "input" ? inputs : outputs).push_back(f["file"].get<std::string>());
+  ASSERT_EQ(inputs.size(), outputs.size());
+  ASSERT_FALSE(inputs.empty());
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const HostTensor scaled = load(inputs[i]);  // [1, C, Fl, h, w], diffusion units
+    const HostTensor want_all = load(outputs[i]);  // [1, 3, 4·Fl, H, W]
+    const int64_t C = scaled.shape[1], Fl = scaled.shape[2], h = scaled.shape[3], w = scaled.shape[4];
+    ASSERT_EQ(Fl % 2, 0) << inputs[i] << " is not an even latent count";
+    ASSERT_EQ(want_all.shape[2], 4 * Fl) << outputs[i];
+    expect_close(inputs[i] + " decode", dl(vae().decode(up(divided(scaled, scaling())))), want_all, tol);
+
+    // decode_latent takes the diffusion latent as [Fl, C, h, w].
+    std::vector<float> fc(size_t(scaled.numel()));
+    const std::vector<float> cf = scaled.to_f32();
+    for (int64_t f = 0; f < Fl; ++f)
+      for (int64_t ch = 0; ch < C; ++ch)
+        std::copy_n(cf.begin() + (ch * Fl + f) * h * w, h * w, fc.begin() + (f * C + ch) * h * w);
+    const int frames = int(4 * Fl - 3);
+    const HostTensor kept = dvs::decode_latent(ctx(), vae(), dvs::RunOptions{},
+                                               up(HostTensor::from_f32({Fl, C, h, w}, fc)), scaling(), frames);
+    const int64_t H = want_all.shape[3], W = want_all.shape[4], plane = H * W;
+    ASSERT_EQ(kept.shape, (dvs::Shape{frames, 3, H, W}));
+    // The golden's frames from `first` on, clamped, as [frames, 3, H, W].
+    const std::vector<float> g = want_all.to_f32();
+    auto golden_from = [&](int64_t first) {
+      std::vector<float> v(size_t(frames * 3 * plane));
+      for (int64_t f = 0; f < frames; ++f)
+        for (int64_t ch = 0; ch < 3; ++ch)
+          for (int64_t p = 0; p < plane; ++p)
+            v[size_t((f * 3 + ch) * plane + p)] = std::clamp(g[size_t((ch * 4 * Fl + f + first) * plane + p)], -1.0f, 1.0f);
+      return HostTensor::from_f32(kept.shape, v);
+    };
+    expect_close(inputs[i] + " kept frames", kept, golden_from(3), tol);
+    // The golden tells the offsets apart: keeping the first frames (offset 0) would be far outside tolerance.
+    const std::vector<float> last = golden_from(3).to_f32(), first = golden_from(0).to_f32();
+    double shift = 0;
+    for (size_t k = 0; k < last.size(); ++k) shift = std::max(shift, std::fabs(double(last[k]) - double(first[k])));
+    EXPECT_GT(shift, 100 * (tol.atol + tol.rtol)) << "the golden cannot tell frame offsets 0 and 3 apart";
+  }
 }
 
 // Timing on a mid size with the pack's weights (not part of the suite: run with

@@ -390,8 +390,8 @@ TEST_F(VaeReference, EvenFrames) { check_clip(ctx(), vae_dir(), 1, 24, 8, 8, 5);
 // 0..3 at latent 0's position and 4·k..4·k+3 at latent k's. The video's frames are latent 0's one frame, then four
 // per later latent: the last 4·Fl − 3. decode_latent (what `dvs run` writes) must return exactly the reference's
 // frames 3.. (clamped); keeping the first 4·Fl − 3 instead shifts every frame after 0 by three and fails here.
-// (A golden of the authors' pipeline at an even latent count needs PyTorch and diffusers; the reference here is
-// the plain-C++ restatement of diffusers' decode that the pack's vae cases check above.)
+// (The reference here is the plain-C++ restatement of diffusers' decode; VaeGolden.EvenLatentCountDecode checks the
+// same choice against diffusers' own decode of even-count latents, case vae_decode_even_latent.)
 TEST_F(VaeReference, EvenLatentCountKeepsTheLastFourFlMinusThreeFrames) {
   RefVae ref(vae_dir());
   dvs::models::CogVideoXVae vae(ctx(), vae_dir());

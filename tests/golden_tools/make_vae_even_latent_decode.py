@@ -1,0 +1,242 @@
+#!/usr/bin/python3
+"""Adds the case `vae_decode_even_latent` to a CogVideoX conformance pack (tests/golden/A format).
+
+The decode of an EVEN number of latent frames, computed by diffusers' own AutoencoderKLCogVideoX
+(autoencoder_kl_cogvideox.py, upsampling.py, activations.py of the given diffusers source tree) on the pack's
+VAE weights, float32 on the CPU, exactly as the pack's `vae_decode` case was made: vae.decode(scaled / scaling).
+
+Why: with an even latent count every decode batch is even, so diffusers' time upsampling doubles latent frame
+0 like the others and 4*Fl frames come out for a 4*Fl - 3 frame video. dvs keeps the last 4*Fl - 3. The test
+tests/golden_vae.cpp (VaeGolden.EvenLatentCountDecode) checks dvs's whole decode and the frames it keeps
+against this golden, so the choice is proven by the library's output, not argued.
+
+Not run by the build or the tests (they read the files it wrote). To remake the files:
+    git -C <diffusers clone> archive 58eb52c0803ea9af3abec60841c2a093bdf1f951 src/diffusers | tar -x -C /tmp/d
+    /usr/bin/python3 tests/golden_tools/make_vae_even_latent_decode.py --diffusers /tmp/d/src --pack tests/golden/A
+Needs numpy and torch (Debian python3-torch 1.13 is what made the committed files). Only modules without model
+math are stubbed (config registration, logging, the model base class, output containers, imports the VAE
+never calls); every layer the decode runs is diffusers' own code. The stubs are listed in the case's "shims".
+"""
+import argparse
+import dataclasses
+import importlib
+import inspect
+import json
+import os
+import struct
+import sys
+import types
+
+import numpy as np
+import torch
+import torch.nn as nn
+
+CASE = "vae_decode_even_latent"
+# (name, latent frames, latent height, latent width, seed): two decode batches [0:2],[2:4]; one batch of 2.
+LATENTS = [("even4", 4, 3, 5, 4), ("even2", 2, 4, 3, 2)]
+
+SHIMS = [
+    "diffusers, diffusers.models, diffusers.models.autoencoders := bare packages over the source tree "
+    "(their __init__ files, which import the whole library, are not run)",
+    "diffusers.configuration_utils := ConfigMixin (empty) and register_to_config (records the bound __init__ "
+    "arguments as self.config before __init__ runs, as diffusers does)",
+    "diffusers.models.modeling_utils.ModelMixin := torch.nn.Module; diffusers.loaders.single_file_model."
+    "FromOriginalModelMixin := empty class (checkpoint conversion only)",
+    "diffusers.utils := logging.get_logger, deprecate (no-op), BaseOutput (plain base of the output dataclasses), "
+    "is_torch_version, is_torch_npu_available() = False; utils.accelerate_utils.apply_forward_hook := identity; "
+    "utils.torch_utils.randn_tensor (posterior sampling only, unused by decode)",
+    "diffusers.models.normalization, attention_processor, unets.unet_2d_blocks := placeholder classes "
+    "(imported by modules shared with other models; no CogVideoX VAE layer uses them)",
+    "weights := read from the pack's safetensors by a small reader (the file format, F32 only) and loaded with "
+    "load_state_dict(strict=True)",
+]
+
+
+def install_stubs(src):
+    def package(name, path):
+        m = types.ModuleType(name)
+        m.__path__ = [path]
+        sys.modules[name] = m
+        return m
+
+    def module(name, **attrs):
+        m = types.ModuleType(name)
+        m.__dict__.update(attrs)
+        sys.modules[name] = m
+        return m
+
+    root = os.path.join(src, "diffusers")
+    package("diffusers", root)
+    package("diffusers.models", os.path.join(root, "models"))
+    package("diffusers.models.autoencoders", os.path.join(root, "models", "autoencoders"))
+    package("diffusers.models.unets", os.path.join(root, "models", "unets"))
+    package("diffusers.loaders", os.path.join(root, "loaders"))
+
+    class BaseOutput:
+        pass
+
+    def is_torch_version(op, version):
+        have = tuple(int(p) for p in torch.__version__.split("+")[0].split("a")[0].split(".")[:2])
+        want = tuple(int(p) for p in version.split(".")[:2])
+        return {"<": have < want, "<=": have <= want, ">": have > want, ">=": have >= want, "==": have == want}[op]
+
+    import logging as pylogging
+
+    logging_mod = types.SimpleNamespace(get_logger=pylogging.getLogger)
+    utils = package("diffusers.utils", os.path.join(root, "utils"))
+    utils.__dict__.update(
+        logging=logging_mod,
+        deprecate=lambda *a, **k: None,
+        BaseOutput=BaseOutput,
+        is_torch_version=is_torch_version,
+        is_torch_npu_available=lambda: False,
+    )
+    module("diffusers.utils.import_utils", is_torch_version=is_torch_version, is_torch_npu_available=lambda: False)
+    module("diffusers.utils.accelerate_utils", apply_forward_hook=lambda f: f)
+    module("diffusers.utils.torch_utils", randn_tensor=lambda *a, **k: torch.randn(*a, **k))
+
+    def register_to_config(init):
+        def wrapper(self, *args, **kwargs):
+            bound = inspect.signature(init).bind(self, *args, **kwargs)
+            bound.apply_defaults()
+            values = dict(bound.arguments)
+            values.pop("self")
+            object.__setattr__(self, "config", types.SimpleNamespace(**values))
+            init(self, *args, **kwargs)
+
+        return wrapper
+
+    module("diffusers.configuration_utils", ConfigMixin=type("ConfigMixin", (), {}), register_to_config=register_to_config)
+    module("diffusers.loaders.single_file_model", FromOriginalModelMixin=type("FromOriginalModelMixin", (), {}))
+    module("diffusers.models.modeling_utils", ModelMixin=nn.Module)
+    placeholder = type("Placeholder", (nn.Module,), {})
+    module("diffusers.models.normalization", RMSNorm=placeholder)
+    module("diffusers.models.attention_processor", SpatialNorm=placeholder)
+    module(
+        "diffusers.models.unets.unet_2d_blocks",
+        AutoencoderTinyBlock=placeholder,
+        UNetMidBlock2D=placeholder,
+        get_down_block=None,
+        get_up_block=None,
+    )
+
+
+def read_safetensors_f32(path):
+    with open(path, "rb") as f:
+        n = struct.unpack("<Q", f.read(8))[0]
+        header = json.loads(f.read(n))
+        data = f.read()
+    out = {}
+    for name, info in header.items():
+        if name == "__metadata__":
+            continue
+        if info["dtype"] != "F32":
+            sys.exit(f"{path}: tensor {name} is {info['dtype']}; this reader takes F32 packs only")
+        a, b = info["data_offsets"]
+        out[name] = torch.from_numpy(np.frombuffer(data[a:b], dtype="<f4").reshape(info["shape"]).copy())
+    return out
+
+
+def stats(a):
+    return {
+        "min": float(a.min()),
+        "max": float(a.max()),
+        "mean": float(a.mean()),
+        "std": float(a.std()),
+        "absmax": float(np.abs(a).max()),
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--diffusers", required=True, help="the src/ folder of a diffusers source tree")
+    ap.add_argument("--pack", required=True, help="the pack folder (its model/vae and cases.json)")
+    ap.add_argument("--commit", default="58eb52c0803ea9af3abec60841c2a093bdf1f951", help="recorded as provenance")
+    args = ap.parse_args()
+
+    install_stubs(args.diffusers)
+    akl = importlib.import_module("diffusers.models.autoencoders.autoencoder_kl_cogvideox")
+    vae_dir = os.path.join(args.pack, "model", "vae")
+    cfg = json.load(open(os.path.join(vae_dir, "config.json")))
+    vae = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
+    vae.load_state_dict(read_safetensors_f32(os.path.join(vae_dir, "diffusion_pytorch_model.safetensors")), strict=True)
+    vae.eval()
+    vae64 = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
+    vae64.load_state_dict(vae.state_dict(), strict=True)
+    vae64.double().eval()
+    scaling = cfg["scaling_factor"]
+    cl = cfg["latent_channels"]
+
+    reproduced = {}
+    # The stubs must not change the math: the pack's own decode goldens are reproduced first.
+    for case_name, latent, frames_file, divide in [("vae_decode", "vae/encode_scaled_latent.npy", "vae/decode_frames.npy", True),
+                                                   ("vae_frame_batching", "vae/chunk17_encode_mean.npy",
+                                                    "vae/chunk17_decode_frames.npy", False)]:
+        # Bit-exactness across machines is not expected (CPU kernels and threads reorder fp32 sums): the bar is the
+        # pack's tolerance, and the float64 run shows the fp32 noise already inside the golden.
+        z = torch.from_numpy(np.load(os.path.join(args.pack, latent)))
+        with torch.no_grad():
+            got = vae.decode(z / scaling if divide else z).sample.numpy()
+            got64 = vae64.decode(z.double() / scaling if divide else z.double()).sample.numpy()
+        want = np.load(os.path.join(args.pack, frames_file))
+        tol = next(c for c in json.load(open(os.path.join(args.pack, "cases.json")))["cases"] if c["name"] == case_name)
+        tol = tol["tolerance"].get("decode", tol["tolerance"])
+        ok = got.shape == want.shape and bool(np.all(np.abs(got - want) <= tol["atol"] + tol["rtol"] * np.abs(want)))
+        print(f"reproduces the pack's {case_name}: max |fp32 - golden| = {np.abs(got - want).max():.3g}, "
+              f"max |fp64 - golden| = {np.abs(got64 - want).max():.3g} (tolerance {tol})")
+        reproduced[case_name] = {"max_abs_diff_fp32": float(np.abs(got - want).max()),
+                                 "max_abs_diff_fp64": float(np.abs(got64 - want).max())}
+        if not ok:
+            sys.exit(f"the stubbed diffusers does not reproduce the pack's {case_name} ({frames_file}); nothing written")
+
+    files, deviation = [], {}
+    for name, fl, h, w, seed in LATENTS:
+        g = torch.Generator().manual_seed(seed)
+        scaled = (scaling * torch.randn(1, cl, fl, h, w, generator=g)).float()
+        with torch.no_grad():
+            frames = vae.decode(scaled / scaling).sample
+            frames64 = vae64.decode(scaled.double() / scaling).sample
+        assert frames.shape[2] == 4 * fl, f"diffusers decoded {frames.shape[2]} frames for {fl} latent frames"
+        deviation[name] = float((frames.double() - frames64).abs().max())
+        lat, out = f"vae/{name}_scaled_latent.npy", f"vae/{name}_decode_frames.npy"
+        np.save(os.path.join(args.pack, lat), scaled.numpy())
+        np.save(os.path.join(args.pack, out), frames.numpy())
+        files.append({"file": lat, "shape": list(scaled.shape), "dtype": "float32", "role": "input",
+                      "meaning": f"scaled latent, {fl} latent frames (even); divide by {scaling} before decode",
+                      "layout": "B,Cl,Fl,Hl,Wl", "stats": stats(scaled.numpy())})
+        files.append({"file": out, "shape": list(frames.shape), "dtype": "float32", "role": "output",
+                      "meaning": f"decoded frames (not clamped): 4*Fl = {4 * fl}; a video of 4*Fl-3 = {4 * fl - 3} "
+                                 "frames keeps the last 4*Fl-3",
+                      "layout": "B,C,F,H,W", "stats": stats(frames.numpy())})
+        print(f"{name}: latent {tuple(scaled.shape)} -> frames {tuple(frames.shape)}, fp64 deviation {deviation[name]:.3g}")
+
+    case = {
+        "name": CASE,
+        "description": "AutoencoderKLCogVideoX.decode of an EVEN number of latent frames with default frame batching "
+                       "(num_latent_frames_batch_size=2: Fl=4 decodes as [0:2],[2:4]; Fl=2 as one batch) and no "
+                       "tiling. Each even batch's temporal upsampling doubles every frame, latent frame 0 included, "
+                       "so 4*Fl frames come out; frames 0..3 stand at latent frame 0. Added by the dvs project "
+                       "(not part of the shared pack) with tests/golden_tools/make_vae_even_latent_decode.py.",
+        "call": "vae.decode(scaled_latent / scaling_factor).sample",
+        "tolerance": {"atol": 0.0005, "rtol": 0.0001},
+        "files": files,
+        "fp64_max_abs_deviation": deviation,
+        "generated_by": {"script": "tests/golden_tools/make_vae_even_latent_decode.py",
+                         "diffusers": f"github:huggingface/diffusers {args.commit}",
+                         "torch": torch.__version__, "device": "cpu", "dtype": "float32"},
+        "shims": SHIMS,
+        "reproduces_pack_cases": reproduced,
+    }
+    cases_path = os.path.join(args.pack, "cases.json")
+    pack = json.load(open(cases_path))
+    pack["cases"] = [c for c in pack["cases"] if c.get("name") != CASE] + [case]
+    tmp = cases_path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(pack, f, indent=1)
+        f.write("\n")
+    os.replace(tmp, cases_path)
+    print(f"{cases_path}: case {CASE} written")
+
+
+if __name__ == "__main__":
+    main()
