@@ -23,13 +23,15 @@ import importlib
 import inspect
 import json
 import os
-import struct
 import sys
 import types
 
 import numpy as np
 import torch
 import torch.nn as nn
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "bench", "gpu"))
+from torch_ref import st_read  # noqa: E402  (the project's safetensors reader: the package may be absent)
 
 CASE = "vae_decode_even_latent"
 # (name, latent frames, latent height, latent width, seed): two decode batches [0:2],[2:4]; one batch of 2.
@@ -47,8 +49,8 @@ SHIMS = [
     "utils.torch_utils.randn_tensor (posterior sampling only, unused by decode)",
     "diffusers.models.normalization, attention_processor, unets.unet_2d_blocks := placeholder classes "
     "(imported by modules shared with other models; no CogVideoX VAE layer uses them)",
-    "weights := read from the pack's safetensors by a small reader (the file format, F32 only) and loaded with "
-    "load_state_dict(strict=True)",
+    "weights := read from the pack's safetensors by bench/gpu/torch_ref.py's reader (the file format) and loaded "
+    "with load_state_dict(strict=True)",
 ]
 
 
@@ -121,22 +123,6 @@ def install_stubs(src):
     )
 
 
-def read_safetensors_f32(path):
-    with open(path, "rb") as f:
-        n = struct.unpack("<Q", f.read(8))[0]
-        header = json.loads(f.read(n))
-        data = f.read()
-    out = {}
-    for name, info in header.items():
-        if name == "__metadata__":
-            continue
-        if info["dtype"] != "F32":
-            sys.exit(f"{path}: tensor {name} is {info['dtype']}; this reader takes F32 packs only")
-        a, b = info["data_offsets"]
-        out[name] = torch.from_numpy(np.frombuffer(data[a:b], dtype="<f4").reshape(info["shape"]).copy())
-    return out
-
-
 def stats(a):
     return {
         "min": float(a.min()),
@@ -159,7 +145,7 @@ def main():
     vae_dir = os.path.join(args.pack, "model", "vae")
     cfg = json.load(open(os.path.join(vae_dir, "config.json")))
     vae = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
-    vae.load_state_dict(read_safetensors_f32(os.path.join(vae_dir, "diffusion_pytorch_model.safetensors")), strict=True)
+    vae.load_state_dict(st_read(os.path.join(vae_dir, "diffusion_pytorch_model.safetensors")), strict=True)
     vae.eval()
     vae64 = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
     vae64.load_state_dict(vae.state_dict(), strict=True)
