@@ -82,4 +82,19 @@ if grep -q '"check": *"FAIL"\|"error":' "$DJ"; then
   echo "stage_bench: some dvs cases failed their check or errored (see $DJ)"
   status=1
 fi
+# Smoke with a torch block folder (STAGE_SMOKE_BLOCK): every dvs family's block must have been compared, and at these
+# tiny shapes its error against torch's fp32 reference must be fp32-sized (below 1e-3 relative L2; torch bf16's is
+# ~7e-3, so a relative goal alone would let a 1 % error pass). On the device the comparison is a figure, not a verdict.
+if [ $SMOKE -eq 1 ] && [ -n "${STAGE_SMOKE_BLOCK:-}" ]; then
+  "$PY" - "$DJ" <<'PYEOF' || status=1
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+blocks = [l for l in lines if l.get("source") == "dvs" and l.get("case") == "block"]
+errors = {l["impl"]: l["rel_l2_vs_fp32"] for l in lines if l.get("case") == "block_error" and l["impl"].startswith("dvs_")}
+bad = [f"{k} {v:.3g}" for k, v in errors.items() if not v < 1e-3]
+if not blocks or len(errors) != len(blocks) or bad:
+    sys.exit(f"stage_bench: {len(blocks)} dvs block cases, {len(errors)} compared with torch's fp32; over 1e-3: {bad}")
+print(f"stage_bench: the dvs block agrees with torch's fp32 reference: {errors}")
+PYEOF
+fi
 exit $status
