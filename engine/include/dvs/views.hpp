@@ -37,6 +37,7 @@ struct DVS_API DeviceBufferView {
 
   int64_t elements() const;
   uint64_t bytes() const;
+  std::string describe() const;  // "u8[9x480x720x3]", as HostView's
 };
 
 // A 2-D VkImage of the context's device: one mip level, one array layer, colour. Created with TRANSFER_DST usage

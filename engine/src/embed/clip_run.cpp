@@ -12,6 +12,7 @@
 
 #include "dvs/error.hpp"
 #include "embed/device_copy.hpp"
+#include "embed/view_facts.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/clip_input.hpp"
 #include "pipeline/memory_advice.hpp"
@@ -29,36 +30,18 @@ std::string dims(const std::vector<int64_t>& s) {
   return "[" + t + "]";
 }
 
-// What the checks need of a view, host or device: its element type and shape, whether it is given, its name.
-struct Array {
-  std::string name;  // "ClipView::frames", "ClipResultDeviceViews::latent", ...
-  ElementType type = ElementType::f32;
-  std::vector<int64_t> shape;
-  bool given = false;
-  std::string text;     // "u8[9x64x64x3]"
-  std::string missing;  // why it is not given: "the view's data pointer is null" / "... buffer is VK_NULL_HANDLE"
-};
-
-std::string describe(ElementType type, const std::vector<int64_t>& shape) {
-  return HostView{nullptr, type, shape}.describe();
-}
-Array array(std::string name, const HostView& v) {
-  return {std::move(name), v.type, v.shape, v.data != nullptr, v.describe(), "the view's data pointer is null"};
-}
-Array array(std::string name, const DeviceBufferView& v) {
-  return {std::move(name), v.type, v.shape, v.buffer != VK_NULL_HANDLE, describe(v.type, v.shape),
-          "the view's buffer is VK_NULL_HANDLE"};
-}
+using embed::facts;
+using embed::ViewFacts;
 
 // Where a frames-like view's pixels are: u8 [F,H,W,3] or f32 [F,3,H,W].
-bool rgb8(const Array& v, int64_t F, int64_t H, int64_t W) {
+bool rgb8(const ViewFacts& v, int64_t F, int64_t H, int64_t W) {
   return v.type == ElementType::u8 && v.shape == std::vector<int64_t>{F, H, W, 3};
 }
-bool planar(const Array& v, int64_t F, int64_t H, int64_t W) {
+bool planar(const ViewFacts& v, int64_t F, int64_t H, int64_t W) {
   return v.type == ElementType::f32 && v.shape == std::vector<int64_t>{F, 3, H, W};
 }
 
-void check_result_view(const Array& v, int64_t F, int64_t H, int64_t W, bool required) {
+void check_result_view(const ViewFacts& v, int64_t F, int64_t H, int64_t W, bool required) {
   if (!v.given) {
     if (required) refuse(v.name + ": " + v.missing + " (give memory for the new view)");
     return;
@@ -68,7 +51,7 @@ void check_result_view(const Array& v, int64_t F, int64_t H, int64_t W, bool req
            " (the clip's F,H,W), got " + v.text);
 }
 
-void check_f32_view(const Array& v, const std::vector<int64_t>& shape, const std::string& why) {
+void check_f32_view(const ViewFacts& v, const std::vector<int64_t>& shape, const std::string& why) {
   if (v.given && (v.type != ElementType::f32 || v.shape != shape))
     refuse(v.name + ": expected f32 " + dims(shape) + " (" + why + "), got " + v.text);
 }
@@ -78,7 +61,7 @@ struct ClipSize {
   int64_t F = 0, H = 0, W = 0;
 };
 
-ClipSize check_clip(const Array& frames, const Array& depth, size_t poses, const std::string& poses_name) {
+ClipSize check_clip(const ViewFacts& frames, const ViewFacts& depth, size_t poses, const std::string& poses_name) {
   const auto& s = frames.shape;
   ClipSize z;
   if (frames.type == ElementType::u8 && s.size() == 4 && s[3] == 3) z = {s[0], s[1], s[2]};
@@ -101,8 +84,8 @@ ClipSize check_clip(const Array& frames, const Array& depth, size_t poses, const
 }
 
 // The result views checked against the clip's size (and the latent against the model's VAE config).
-void check_results(const RunOptions& o, const ClipSize& z, const Array& output, const Array& render, const Array& mask,
-                   const Array& latent) {
+void check_results(const RunOptions& o, const ClipSize& z, const ViewFacts& output, const ViewFacts& render,
+                   const ViewFacts& mask, const ViewFacts& latent) {
   check_result_view(output, z.F, z.H, z.W, true);
   check_result_view(render, z.F, z.H, z.W, false);
   check_f32_view(mask, {z.F, z.H, z.W}, "the clip's F,H,W");
@@ -172,7 +155,10 @@ using PutResults = std::function<void(vk::Context&, const RunResults&)>;
 PutResults into_host(const ClipResultViews& out) {
   return [out](vk::Context& ctx, const RunResults& r) {
     auto put = [](const HostTensor& t, const HostView& view) {
-      if (view.data) std::memcpy(view.data, t.data.data(), t.bytes());
+      if (!view.data) return;
+      if (t.bytes() != view.bytes())  // the views were checked against the clip; never write past the application's
+        throw Error("internal: " + std::to_string(t.bytes()) + " bytes of results for the view " + view.describe());
+      std::memcpy(view.data, t.data.data(), t.bytes());
     };
     put(frames_as(r.output, out.output.type), out.output);
     if (out.render.data) put(frames_as(r.in.render, out.render.type), out.render);
@@ -261,24 +247,25 @@ RunReport run_clip(Context& ctx, const RunOptions& o, const ClipSize& z, const H
 
 RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
                        const ProgressFn& progress, const CancelFn& cancelled) {
-  const ClipSize z = check_clip(array("ClipView::frames", clip.frames), array("ClipView::depth", clip.depth),
-                                clip.poses.size(), "ClipView::poses");
+  const ClipSize z =
+      check_clip(facts("ClipView::frames", clip.frames), facts("ClipView::depth", clip.depth), clip.poses.size(),
+                 "ClipView::poses");
   const RunOptions o = clip_options(options, z, !clip.poses.empty());
-  check_results(o, z, array("ClipResultViews::output", out.output), array("ClipResultViews::render", out.render),
-                array("ClipResultViews::mask", out.mask), array("ClipResultViews::latent", out.latent));
+  check_results(o, z, facts("ClipResultViews::output", out.output), facts("ClipResultViews::render", out.render),
+                facts("ClipResultViews::mask", out.mask), facts("ClipResultViews::latent", out.latent));
   return run_clip(ctx, o, z, clip.frames, clip.depth, "ClipView::depth", clip.poses, into_host(out), progress,
                   cancelled);
 }
 
 RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
                        const ClipResultDeviceViews& out, const ProgressFn& progress, const CancelFn& cancelled) {
-  const Array frames = array("ClipDeviceView::frames", clip.frames), depth = array("ClipDeviceView::depth", clip.depth);
+  const ViewFacts frames = facts("ClipDeviceView::frames", clip.frames), depth = facts("ClipDeviceView::depth", clip.depth);
   const ClipSize z = check_clip(frames, depth, clip.poses.size(), "ClipDeviceView::poses");
   const RunOptions o = clip_options(options, z, !clip.poses.empty());
-  const Array results[4] = {array("ClipResultDeviceViews::output", out.output),
-                            array("ClipResultDeviceViews::render", out.render),
-                            array("ClipResultDeviceViews::mask", out.mask),
-                            array("ClipResultDeviceViews::latent", out.latent)};
+  const ViewFacts results[4] = {facts("ClipResultDeviceViews::output", out.output),
+                                facts("ClipResultDeviceViews::render", out.render),
+                                facts("ClipResultDeviceViews::mask", out.mask),
+                                facts("ClipResultDeviceViews::latent", out.latent)};
   check_results(o, z, results[0], results[1], results[2], results[3]);
   // Every buffer's range (and offset) before any work.
   vk::Context& device = ctx.internal();

@@ -8,6 +8,7 @@
 
 #include "dvs/error.hpp"
 #include "embed/device_copy.hpp"
+#include "embed/view_facts.hpp"
 #include "models/vda/vda_model.hpp"
 #include "pipeline/frames_depth.hpp"
 
@@ -23,30 +24,26 @@ namespace {
 
 constexpr const char* kWhere = "dvs::DepthEstimator::estimate";
 
-// frames u8 [F,H,W,3] and out f32 [F,H,W], named by `what` ("frames.data is null", "the frames' buffer is
-// VK_NULL_HANDLE") when not given.
-void check_views(ElementType frames_type, const std::vector<int64_t>& f, const std::string& frames_text, bool frames_given,
-                 ElementType out_type, const std::vector<int64_t>& out_shape, const std::string& out_text, bool out_given,
-                 const std::string& frames_missing, const std::string& out_missing) {
-  if (frames_type != ElementType::u8 || f.size() != 4 || f[3] != 3 || f[0] < 1 || f[1] < 1 || f[2] < 1)
-    throw Error(std::string(kWhere) + ": frames must be u8 [F,H,W,3] RGB with F, H, W >= 1, got " + frames_text);
-  if (!frames_given) throw Error(std::string(kWhere) + ": " + frames_missing + " (give the frames' memory)");
+// frames u8 [F,H,W,3] and out f32 [F,H,W], host or device (each view's `missing` says why it is not given).
+void check_views(const embed::ViewFacts& frames, const embed::ViewFacts& out) {
+  const auto& f = frames.shape;
+  if (frames.type != ElementType::u8 || f.size() != 4 || f[3] != 3 || f[0] < 1 || f[1] < 1 || f[2] < 1)
+    throw Error(std::string(kWhere) + ": frames must be u8 [F,H,W,3] RGB with F, H, W >= 1, got " + frames.text);
+  if (!frames.given) throw Error(std::string(kWhere) + ": " + frames.missing + " (give the frames' memory)");
   const std::vector<int64_t> want{f[0], f[1], f[2]};
-  if (out_type != ElementType::f32 || out_shape != want)
+  if (out.type != ElementType::f32 || out.shape != want)
     throw Error(std::string(kWhere) + ": out must be f32 [" + std::to_string(f[0]) + "x" + std::to_string(f[1]) + "x" +
-                std::to_string(f[2]) + "] (the frames' F, H, W), got " + out_text);
-  if (!out_given) throw Error(std::string(kWhere) + ": " + out_missing + " (give memory for the disparity)");
+                std::to_string(f[2]) + "] (the frames' F, H, W), got " + out.text);
+  if (!out.given) throw Error(std::string(kWhere) + ": " + out.missing + " (give memory for the disparity)");
 }
 
 void check_views(const HostView& frames, const HostView& out) {
-  check_views(frames.type, frames.shape, frames.describe(), frames.data != nullptr, out.type, out.shape, out.describe(),
-              out.data != nullptr, "frames.data is null", "out.data is null");
+  check_views(embed::facts("frames", frames, "frames.data is null"), embed::facts("out", out, "out.data is null"));
 }
 
 void check_views(vk::Context& ctx, const DeviceBufferView& frames, const DeviceBufferView& out) {
-  auto text = [](const DeviceBufferView& v) { return HostView{nullptr, v.type, v.shape}.describe(); };
-  check_views(frames.type, frames.shape, text(frames), frames.buffer != VK_NULL_HANDLE, out.type, out.shape, text(out),
-              out.buffer != VK_NULL_HANDLE, "the frames' buffer is VK_NULL_HANDLE", "the output buffer is VK_NULL_HANDLE");
+  check_views(embed::facts("frames", frames, "the frames' buffer is VK_NULL_HANDLE"),
+              embed::facts("out", out, "the output buffer is VK_NULL_HANDLE"));
   embed::check_view_fits(ctx, frames, frames.type, frames.shape, std::string(kWhere) + "'s frames");
   embed::check_view_fits(ctx, out, out.type, out.shape, std::string(kWhere) + "'s out");
 }

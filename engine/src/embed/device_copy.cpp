@@ -8,15 +8,6 @@ namespace {
 
 DType dtype_of(ElementType t) { return t == ElementType::f32 ? DType::f32 : DType::u8; }
 
-std::string describe(const DeviceBufferView& v) {
-  std::string s = v.type == ElementType::f32 ? "f32[" : "u8[";
-  for (size_t i = 0; i < v.shape.size(); ++i) {
-    if (i) s += 'x';
-    s += std::to_string(v.shape[i]);
-  }
-  return s + "]";
-}
-
 void pipeline_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src, VkPipelineStageFlags dst,
                       const VkBufferMemoryBarrier& barrier) {
   vkCmdPipelineBarrier(cmd, src, dst, 0, 0, nullptr, 1, &barrier, 0, nullptr);
@@ -45,12 +36,12 @@ VkBufferMemoryBarrier buffer_barrier(VkBuffer buffer, VkDeviceSize offset, VkDev
 
 void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, ElementType type, const std::vector<int64_t>& shape,
                      const std::string& what) {
-  const std::string head = "The device buffer given for " + what + " (" + describe(view) + ")";
+  const std::string head = "The device buffer given for " + what + " (" + view.describe() + ")";
   if (!view.buffer) throw Error(head + " has no VkBuffer (VK_NULL_HANDLE): pass a buffer of the context's device.");
   if (view.offset % 4 != 0)
     throw Error(head + " starts at offset " + std::to_string(view.offset) + ", which is not a multiple of 4.");
   if (view.type != type || view.shape != shape)
-    throw Error(head + " does not match what dvs has there, " + describe(DeviceBufferView{VK_NULL_HANDLE, 0, type, shape}) +
+    throw Error(head + " does not match what dvs has there, " + DeviceBufferView{VK_NULL_HANDLE, 0, type, shape}.describe() +
                 ": give a view of that element type and shape.");
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(ctx.device(), view.buffer, &req);  // at least the buffer's size
@@ -110,12 +101,17 @@ void record_copy_from_tensor(VkCommandBuffer cmd, const Tensor& from, const Devi
 
 uint64_t submit_recorded(vk::Context& ctx, const std::function<void(VkCommandBuffer)>& record) {
   VkCommandBuffer cmd = ctx.allocate_command_buffer();
-  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
-  record(cmd);
-  VK_CHECK(vkEndCommandBuffer(cmd));
-  return ctx.submit(cmd);
+  try {
+    VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+    record(cmd);
+    VK_CHECK(vkEndCommandBuffer(cmd));
+  } catch (...) {  // never submitted: the context would not free it
+    vkFreeCommandBuffers(ctx.device(), ctx.command_pool(), 1, &cmd);
+    throw;
+  }
+  return ctx.submit(cmd);  // the context frees cmd once it has run
 }
 
 uint64_t copy_to_tensor(vk::Context& ctx, const DeviceBufferView& from, const Tensor& to, const std::string& what) {

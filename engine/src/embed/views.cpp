@@ -12,18 +12,24 @@ int64_t product(const std::vector<int64_t>& shape) {
 
 uint64_t element_bytes(ElementType t) { return t == ElementType::f32 ? 4 : 1; }
 
+std::string describe(ElementType type, const std::vector<int64_t>& shape) {
+  std::string s = type == ElementType::f32 ? "f32[" : "u8[";
+  for (size_t i = 0; i < shape.size(); ++i) {
+    if (i) s += 'x';
+    s += std::to_string(shape[i]);
+  }
+  return s + "]";
+}
+
 }  // namespace
 
 int64_t HostView::elements() const { return product(shape); }
 uint64_t HostView::bytes() const { return uint64_t(elements()) * element_bytes(type); }
-std::string HostView::describe() const {
-  std::string s = type == ElementType::f32 ? "f32[" : "u8[";
-  for (size_t i = 0; i < shape.size(); ++i) s += (i ? "x" : "") + std::to_string(shape[i]);
-  return s + "]";
-}
+std::string HostView::describe() const { return dvs::describe(type, shape); }
 
 int64_t DeviceBufferView::elements() const { return product(shape); }
 uint64_t DeviceBufferView::bytes() const { return uint64_t(elements()) * element_bytes(type); }
+std::string DeviceBufferView::describe() const { return dvs::describe(type, shape); }
 
 std::string DeviceImageView::describe() const {
   const char* name = format == VK_FORMAT_R8G8B8A8_UNORM  ? "VK_FORMAT_R8G8B8A8_UNORM"
