@@ -144,12 +144,15 @@ def main():
     akl = importlib.import_module("diffusers.models.autoencoders.autoencoder_kl_cogvideox")
     vae_dir = os.path.join(args.pack, "model", "vae")
     cfg = json.load(open(os.path.join(vae_dir, "config.json")))
-    vae = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
+    init = {k: v for k, v in cfg.items() if not k.startswith("_")}
+    vae = akl.AutoencoderKLCogVideoX(**init)
     vae.load_state_dict(st_read(os.path.join(vae_dir, "diffusion_pytorch_model.safetensors")), strict=True)
     vae.eval()
-    vae64 = akl.AutoencoderKLCogVideoX(**{k: v for k, v in cfg.items() if not k.startswith("_")})
+    vae64 = akl.AutoencoderKLCogVideoX(**init)
     vae64.load_state_dict(vae.state_dict(), strict=True)
     vae64.double().eval()
+    cases_path = os.path.join(args.pack, "cases.json")
+    pack = json.load(open(cases_path))
     scaling = cfg["scaling_factor"]
     cl = cfg["latent_channels"]
 
@@ -165,8 +168,8 @@ def main():
             got = vae.decode(z / scaling if divide else z).sample.numpy()
             got64 = vae64.decode(z.double() / scaling if divide else z.double()).sample.numpy()
         want = np.load(os.path.join(args.pack, frames_file))
-        tol = next(c for c in json.load(open(os.path.join(args.pack, "cases.json")))["cases"] if c["name"] == case_name)
-        tol = tol["tolerance"].get("decode", tol["tolerance"])
+        tol = next(c for c in pack["cases"] if c["name"] == case_name)["tolerance"]
+        tol = tol.get("decode", tol)
         ok = got.shape == want.shape and bool(np.all(np.abs(got - want) <= tol["atol"] + tol["rtol"] * np.abs(want)))
         print(f"reproduces the pack's {case_name}: max |fp32 - golden| = {np.abs(got - want).max():.3g}, "
               f"max |fp64 - golden| = {np.abs(got64 - want).max():.3g} (tolerance {tol})")
@@ -213,8 +216,6 @@ def main():
         "shims": SHIMS,
         "reproduces_pack_cases": reproduced,
     }
-    cases_path = os.path.join(args.pack, "cases.json")
-    pack = json.load(open(cases_path))
     pack["cases"] = [c for c in pack["cases"] if c.get("name") != CASE] + [case]
     tmp = cases_path + ".tmp"
     with open(tmp, "w") as f:
