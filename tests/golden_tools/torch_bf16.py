@@ -78,12 +78,17 @@ class Writer:
         path = os.path.join(self.pack, "cases.json")
         pack = json.load(open(path))
         pack[FOLDER] = {**section, "files": dict(sorted(self.files.items()))}
-        tmp = path + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(pack, f, indent=1)
-            f.write("\n")
-        os.replace(tmp, path)
+        write_cases_json(path, pack)
         print(f"{path}: {FOLDER} section with {len(self.files)} files")
+
+
+def write_cases_json(path, pack):
+    """Replaces a pack's cases.json with `pack` (written whole, then renamed: never half a file)."""
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(pack, f, indent=1)
+        f.write("\n")
+    os.replace(tmp, path)
 
 
 def check_reproduces(name, got, golden, atol, rtol, record):
