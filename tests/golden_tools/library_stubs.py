@@ -1,11 +1,13 @@
 """Imports diffusers' and transformers' model modules straight from their source trees, without the packages'
-__init__ files (which import the whole library and its Hub dependencies, absent here), on Debian's torch 1.13.
+__init__ files (which import the whole library and its Hub dependencies, absent here), on Debian's torch 1.13; and
+Video-Depth-Anything's from its source tree (install_vda: the shims its pack's fp32 goldens used, and a bf16
+conv_transpose2d, which torch 1.13 lacks on the CPU).
 
 Only modules without model math are replaced (config registration, logging, the model base classes, output
 containers, Hub and accelerator helpers, imports a model never calls); every layer the golden tools run is the
-library's own code. Each replacement is listed in DIFFUSERS_SHIMS / TRANSFORMERS_SHIMS / TORCH_SHIMS, which the
-tools record beside what they write; each tool first reproduces the pack's own float32 goldens with these imports,
-which is the check that no stub changes a number.
+library's own code. Each replacement is listed in DIFFUSERS_SHIMS / TRANSFORMERS_SHIMS / TORCH_SHIMS / VDA_SHIMS,
+which the tools record beside what they write; each tool first reproduces the pack's own float32 goldens with these
+imports, which is the check that no stub changes a number.
 """
 import dataclasses
 import inspect
@@ -278,3 +280,85 @@ def install_transformers(src):
                                         "Seq2SeqSequenceClassifierOutput", "TokenClassifierOutput")}
     _module("transformers.modeling_outputs", BaseModelOutput=BaseModelOutput,
             BaseModelOutputWithPastAndCrossAttentions=BaseModelOutputWithPastAndCrossAttentions, **outputs)
+
+
+# ---------------------------------------------------------------------------------------------- Video-Depth-Anything
+# VDA's own imports that Debian has (cv2, tqdm, easydict, torchvision: python3-opencv, python3-tqdm,
+# python3-easydict, python3-torchvision) are the real packages; only these are replaced, as for pack vda-A's fp32
+# goldens (tests/golden/vda-A/README.md, "Shims and harness notes").
+VDA_SHIMS = [
+    "einops := stand-in implementing exactly the patterns VDA's motion_module.py uses (rearrange "
+    "'b c f h w -> (b f) c h w', '(b f) c h w -> b c f h w', '(b f) d c -> (b d) f c', '(b d) f c -> (b f) d c'; "
+    "repeat 'b n c -> (b d) n c', never executed) by reshape/permute; Debian 12 has no python3-einops; data "
+    "movement only",
+    "torch.baddbmm as seen by motion_module/attention.py: calls with beta=0 are evaluated as "
+    "baddbmm(zeros_like(input), b1, b2, beta=1, alpha) (torch 1.13's CPU kernel would otherwise multiply an "
+    "uninitialised torch.empty buffer by 0, and NaN garbage stays NaN); the scores are alpha*(q@k^T) either way",
+    "xformers: not installed, so VDA's own fallback attention (plain bmm + softmax) runs; nothing patched",
+    "torch.nn.functional.conv_transpose2d on bfloat16 tensors (torch 1.13 has no CPU kernel for it: "
+    "slow_conv_transpose2d is not implemented for BFloat16 and the mkldnn route fails) := the same call in float32 "
+    "on the bf16 input, weight and bias, its result rounded to bfloat16 once (what GPU kernels do: 16-bit operands, "
+    "float32 accumulation, a 16-bit result); float32 calls are untouched. VDA's head uses it for its two "
+    "non-overlapping upsamplings (resize_layers 0 and 1)",
+]
+
+_EINOPS_PATTERNS = {
+    # pattern: (the axis sizes it is given, the reshape/permute that moves the data)
+    "b c f h w -> (b f) c h w": ((), lambda x: x.permute(0, 2, 1, 3, 4).reshape(-1, *x.shape[1:2], *x.shape[3:])),
+    "(b f) c h w -> b c f h w": (("f",), lambda x, f: x.reshape(-1, f, *x.shape[1:]).permute(0, 2, 1, 3, 4)),
+    "(b f) d c -> (b d) f c": (("f",), lambda x, f: x.reshape(-1, f, *x.shape[1:]).permute(0, 2, 1, 3).reshape(
+        -1, f, x.shape[2])),
+    "(b d) f c -> (b f) d c": (("d",), lambda x, d: x.reshape(-1, d, *x.shape[1:]).permute(0, 2, 1, 3).reshape(
+        -1, d, x.shape[2])),
+}
+
+
+def _rearrange(x, pattern, **sizes):
+    if pattern not in _EINOPS_PATTERNS or tuple(sizes) != _EINOPS_PATTERNS[pattern][0]:
+        raise NotImplementedError(f"einops stand-in: pattern {pattern!r} with {sizes} is not one VDA uses")
+    return _EINOPS_PATTERNS[pattern][1](x, *sizes.values())
+
+
+def _repeat(x, pattern, **sizes):
+    if pattern != "b n c -> (b d) n c":
+        raise NotImplementedError(f"einops stand-in: repeat pattern {pattern!r} is not one VDA uses")
+    return x.repeat_interleave(sizes["d"], dim=0)
+
+
+class _TorchWithGuardedBaddbmm(types.ModuleType):
+    """torch, except that baddbmm(beta=0) never reads its `input` (see VDA_SHIMS)."""
+
+    def __init__(self):
+        super().__init__("torch")
+
+    def __getattr__(self, name):
+        return getattr(torch, name)
+
+    @staticmethod
+    def baddbmm(input, batch1, batch2, *, beta=1, alpha=1, **kwargs):
+        if beta == 0:
+            return torch.baddbmm(torch.zeros_like(input), batch1, batch2, beta=1, alpha=alpha, **kwargs)
+        return torch.baddbmm(input, batch1, batch2, beta=beta, alpha=alpha, **kwargs)
+
+
+_conv_transpose2d = F.conv_transpose2d
+
+
+def _conv_transpose2d_any_dtype(input, weight, bias=None, *args, **kwargs):
+    if input.dtype != torch.bfloat16:
+        return _conv_transpose2d(input, weight, bias, *args, **kwargs)
+    return _conv_transpose2d(input.float(), weight.float(), None if bias is None else bias.float(), *args,
+                             **kwargs).to(torch.bfloat16)
+
+
+def install_vda(src):
+    """Makes `import video_depth_anything...` and `utils.util` read the source tree `src` (a Video-Depth-Anything
+    checkout's root) with the shims of VDA_SHIMS, and returns the video_depth module."""
+    sys.path.insert(0, src)
+    F.conv_transpose2d = _conv_transpose2d_any_dtype
+    _module("einops", rearrange=_rearrange, repeat=_repeat)
+    import importlib
+
+    attention = importlib.import_module("video_depth_anything.motion_module.attention")
+    attention.torch = _TorchWithGuardedBaddbmm()
+    return importlib.import_module("video_depth_anything.video_depth")
