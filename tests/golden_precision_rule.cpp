@@ -1,9 +1,10 @@
 // The precision rule for 16-bit operands (support/precision_rule.hpp, docs/testing.md) tested by itself, through
-// the production comparison the golden tests call, on pack A's goldens and PyTorch's bf16 runs beside them
-// (tests/golden_tools/make_torch_bf16_cogvideox.py): a result perturbed to 2.5x the bf16 run's error fails, 1.5x
-// passes, both measures count, the fp32 families keep the element-wise tolerance, a pack without bf16 files says
-// so and falls back to it, the tuning decides which rule applies, and the errors the pack records are the ones
-// this code measures.
+// the production comparison the golden tests call, on pack A's and pack vda-A's goldens and PyTorch's bf16 runs
+// beside them (tests/golden_tools/make_torch_bf16_cogvideox.py, make_torch_bf16_vda.py; vda-A's stored as float16
+// where that is exact): a result perturbed to 2.5x the bf16 run's error fails, 1.5x passes, both measures count,
+// the fp32 families keep the element-wise tolerance, a pack without bf16 files says so and falls back to it, the
+// tuning decides which rule applies, and the errors each pack records are the ones this code measures on the
+// files as it reads them.
 #include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 
@@ -18,21 +19,27 @@
 #include "support/gpu.hpp"
 #include "support/pack.hpp"
 #include "support/precision_rule.hpp"
+#include "support/vda_pack.hpp"
 
 namespace dvs::test {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Goldens of each model family (T5, transformer, VAE decode, the end-to-end chain), with the case tolerance.
+// Goldens of each model family (T5, transformer, VAE decode, the end-to-end chain of pack A; Video-Depth-Anything's
+// window forward, whose bf16 run is stored as float16, and its whole clip, stored as float32), with the case
+// tolerance.
 struct Sample {
+  fs::path (*root)();
   const char* rel;
   double atol, rtol;
 };
-const Sample kSamples[] = {{"t5/nomask_last_hidden_state.npy", 1e-5, 1e-4},
-                           {"transformer/output_t999.npy", 1e-5, 1e-4},
-                           {"vae/decode_frames.npy", 5e-4, 1e-4},
-                           {"e2e/final_latent.npy", 1e-4, 1e-4}};
+const Sample kSamples[] = {{golden_path, "t5/nomask_last_hidden_state.npy", 1e-5, 1e-4},
+                           {golden_path, "transformer/output_t999.npy", 1e-5, 1e-4},
+                           {golden_path, "vae/decode_frames.npy", 5e-4, 1e-4},
+                           {golden_path, "e2e/final_latent.npy", 1e-4, 1e-4},
+                           {vda_golden_path, "window/depth.npy", 1e-4, 2e-5},
+                           {vda_golden_path, "e2e/depth.npy", 1e-4, 2e-5}};
 const std::string kForced = "linear=coopmat (forced by the test)";
 
 // golden + s · (bf16 run − golden): both of its error measures are exactly s times the bf16 run's.
@@ -43,16 +50,20 @@ std::vector<float> scaled_error(const PackGolden& p, double s) {
   return v;
 }
 
-PackGolden with_bf16(const std::string& rel) {
-  PackGolden p = read_pack_golden(golden_path(), rel);
-  if (!p.bf16) ADD_FAILURE() << golden_path() << " has no " << p.bf16_path << " (make_torch_bf16_cogvideox.py writes it)";
+PackGolden with_bf16(const Sample& s) {
+  PackGolden p = read_pack_golden(s.root(), s.rel);
+  if (!p.bf16) ADD_FAILURE() << "no " << p.bf16_path << " (tests/golden_tools/make_torch_bf16_*.py write them)";
   return p;
 }
 
-GoldenVerdict judge_file(const Sample& s, const std::vector<float>& ours, const std::string& mode,
-                         const fs::path& root = golden_path()) {
+GoldenVerdict judge_file_in(const fs::path& root, const Sample& s, const std::vector<float>& ours,
+                            const std::string& mode) {
   const PackGolden p = read_pack_golden(root, s.rel);
   return expect_golden_file(s.rel, p.golden.shape, ours, root, s.rel, s.atol, s.rtol, kAllKernelOps, mode);
+}
+
+GoldenVerdict judge_file(const Sample& s, const std::vector<float>& ours, const std::string& mode) {
+  return judge_file_in(s.root(), s, ours, mode);
 }
 
 TEST(PrecisionRule, ErrorMeasureByHand) {
@@ -71,7 +82,7 @@ TEST(PrecisionRule, ErrorMeasureByHand) {
 TEST(PrecisionRule, TwoAndAHalfTimesTheBf16ErrorFailsOneAndAHalfPasses) {
   for (const Sample& s : kSamples) {
     SCOPED_TRACE(s.rel);
-    const PackGolden p = with_bf16(s.rel);
+    const PackGolden p = with_bf16(s);
     if (!p.bf16) continue;
     const GoldenVerdict pass = judge_file(s, scaled_error(p, 1.5), kForced);
     EXPECT_TRUE(pass.pass) << pass.report;
@@ -87,7 +98,7 @@ TEST(PrecisionRule, TwoAndAHalfTimesTheBf16ErrorFailsOneAndAHalfPasses) {
 
 // Each measure counts on its own: within 2x on one and beyond on the other fails.
 TEST(PrecisionRule, BothMeasuresMustBeWithinTwice) {
-  const PackGolden p = with_bf16("transformer/output_t999.npy");
+  const PackGolden p = with_bf16(kSamples[1]);
   ASSERT_TRUE(p.bf16);
   const std::vector<float> g = p.golden.to_f32(), b = p.bf16->to_f32();
   const ErrorMeasure ref = error_measure(b, g);
@@ -111,7 +122,7 @@ TEST(PrecisionRule, BothMeasuresMustBeWithinTwice) {
 TEST(PrecisionRule, Fp32FamiliesKeepTheCaseTolerance) {
   for (const Sample& s : kSamples) {
     SCOPED_TRACE(s.rel);
-    const PackGolden p = with_bf16(s.rel);
+    const PackGolden p = with_bf16(s);
     if (!p.bf16) continue;
     GoldenVerdict v;
     EXPECT_NONFATAL_FAILURE(v = judge_file(s, scaled_error(p, 1.5), ""), "fp32 rule");
@@ -124,19 +135,19 @@ TEST(PrecisionRule, Fp32FamiliesKeepTheCaseTolerance) {
 // that passes with the bf16 file fails without it.
 TEST(PrecisionRule, PackWithoutBf16FilesSaysSoAndFallsBack) {
   const Sample s = kSamples[1];
-  const PackGolden p = with_bf16(s.rel);
+  const PackGolden p = with_bf16(s);
   ASSERT_TRUE(p.bf16);
   TempDir bare;
   fs::create_directories((bare.path / s.rel).parent_path());
-  fs::copy_file(golden_path() / s.rel, bare.path / s.rel);
+  fs::copy_file(s.root() / s.rel, bare.path / s.rel);
   GoldenVerdict v;
-  EXPECT_NONFATAL_FAILURE(v = judge_file(s, scaled_error(p, 1.5), kForced, bare.path), "WITHOUT a bf16 reference");
+  EXPECT_NONFATAL_FAILURE(v = judge_file_in(bare.path, s, scaled_error(p, 1.5), kForced), "WITHOUT a bf16 reference");
   EXPECT_FALSE(v.pass);
   EXPECT_NE(v.report.find("torch bf16: none in the pack (" + (bare.path / "torch_bf16" / s.rel).string() + ")"),
             std::string::npos)
       << v.report;
   EXPECT_NE(v.report.find("falling back to the fp32 rule"), std::string::npos) << v.report;
-  EXPECT_TRUE(judge_file(s, p.golden.to_f32(), kForced, bare.path).pass);
+  EXPECT_TRUE(judge_file_in(bare.path, s, p.golden.to_f32(), kForced).pass);
 }
 
 // Which rule applies comes from the tuning: the tensor-core entry of a device with cooperative matrices makes
@@ -168,7 +179,7 @@ TEST(PrecisionRule, TheTuningDecidesWhichOpsAreSixteenBit) {
 // End to end on this device: the production helper reads the device's tuning (here forced in-process).
 TEST(PrecisionRule, ExpectGoldenReadsTheDeviceTuning) {
   const Sample s = kSamples[1];
-  const PackGolden p = with_bf16(s.rel);
+  const PackGolden p = with_bf16(s);
   ASSERT_TRUE(p.bf16);
   const HostTensor ours = HostTensor::from_f32(p.golden.shape, scaled_error(p, 1.5));
   ops::ScopedTuningOverride twin("attention_coopmat_twin=on");
@@ -177,29 +188,47 @@ TEST(PrecisionRule, ExpectGoldenReadsTheDeviceTuning) {
   EXPECT_NONFATAL_FAILURE(expect_golden("convolutions only", ours, s.rel, s.atol, s.rtol, kConvOps), "fp32 rule");
 }
 
-// The errors cases.json records for each bf16 file are the ones this code measures (the same measure in the
-// generator and the tests), every listed file exists, and the model goldens the tests judge have one.
-TEST(PrecisionRule, PackRecordsTheMeasureTheTestsUse) {
-  const auto& index = pack_cases();
+// The errors a pack's cases.json records for each bf16 file are the ones this code measures on the file as it reads
+// it (the same measure in the generator and the tests; for vda-A's float16 files, the same values), every listed
+// file exists, and the goldens named in `required` have one.
+void expect_recorded_measures(const fs::path& root, const nlohmann::json& index, size_t min_files,
+                              std::initializer_list<const char*> required) {
   if (!index.contains("torch_bf16"))
-    GTEST_SKIP() << golden_path() << "/cases.json has no torch_bf16 section: 16-bit families fall back to the fp32 "
-                                     "tolerances (make_torch_bf16_cogvideox.py adds it)";
+    GTEST_SKIP() << root << "/cases.json has no torch_bf16 section: 16-bit families fall back to the fp32 "
+                            "tolerances (tests/golden_tools/make_torch_bf16_*.py add it)";
   const auto& files = index.at("torch_bf16").at("files");
-  EXPECT_GT(files.size(), 60u);
+  EXPECT_GT(files.size(), min_files);
   for (const auto& [rel, rec] : files.items()) {
     SCOPED_TRACE(rel);
-    const PackGolden p = read_pack_golden(golden_path(), rel);
+    const PackGolden p = read_pack_golden(root, rel);
     ASSERT_TRUE(p.bf16) << p.bf16_path;
     ASSERT_EQ(p.bf16->shape, p.golden.shape);
+    if (rec.contains("stored_as"))  // the storage the record claims is the one read
+      EXPECT_EQ(p.bf16->dtype, rec.at("stored_as") == "float32" ? DType::f32 : DType::f16) << rec.dump();
     const ErrorMeasure m = error_measure(p.bf16->to_f32(), p.golden.to_f32());
-    EXPECT_NEAR(m.max_abs, rec.at("max_abs").get<double>(), 1e-6 * m.max_abs);
-    EXPECT_NEAR(m.rel_l2, rec.at("rel_l2").get<double>(), 1e-6 * m.rel_l2);
+    const double max_abs = rec.at("max_abs"), rel_l2 = rec.at("rel_l2");  // finite: the scale of the check
+    EXPECT_NEAR(m.max_abs, max_abs, 1e-6 * max_abs);
+    EXPECT_NEAR(m.rel_l2, rel_l2, 1e-6 * rel_l2);
     EXPECT_GT(m.max_abs, 0.0) << "a bf16 run equal to the golden would demand an exact result";
   }
-  for (const char* rel : {"t5/masked_last_hidden_state.npy", "transformer/output_t500.npy", "vae/encode_moments.npy",
-                          "vae/tiled_decode_frames.npy", "vae/even2_decode_frames.npy", "e2e/final_frames.npy",
-                          "bf16_sharded/transformer_output_t999.npy"})
-    EXPECT_TRUE(files.contains(rel)) << rel;
+  for (const char* rel : required) EXPECT_TRUE(files.contains(rel)) << rel;
+}
+
+TEST(PrecisionRule, PackRecordsTheMeasureTheTestsUse) {
+  expect_recorded_measures(golden_path(), pack_cases(), 60,
+                           {"t5/masked_last_hidden_state.npy", "transformer/output_t500.npy", "vae/encode_moments.npy",
+                            "vae/tiled_decode_frames.npy", "vae/even2_decode_frames.npy", "e2e/final_frames.npy",
+                            "bf16_sharded/transformer_output_t999.npy"});
+}
+
+TEST(PrecisionRule, VdaPackRecordsTheMeasureTheTestsUse) {
+  expect_recorded_measures(vda_golden_path(), vda_cases(), 90,
+                           {"encoder/tap0.npy", "temporal/m0_attn0_context.npy", "temporal/m3_out.npy",
+                            "head/output_interp_frame0.npy", "window/depth.npy", "e2e/window_depth_upsampled.npy",
+                            "e2e/align_scale_shift.npy", "e2e/depth.npy", "e2e/depth_metric_mode.npy"});
+  if (HasFatalFailure() || IsSkipped()) return;
+  // The window forward's files are bf16 values stored exactly as float16: that path is read too.
+  EXPECT_EQ(read_pack_golden(vda_golden_path(), "window/depth.npy").bf16->dtype, DType::f16);
 }
 
 }  // namespace
