@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The C API under careless use (issue 34 §2), driven from Python's ctypes.
 
-usage: test_c_api_careless.py LIBDIR MODEL_DIR
+usage: test_c_api_careless.py LIBDIR MODEL_DIR [--one-run]
 
 LIBDIR holds libdvs.so.0 (and libdvs_video.so.0 when the video component is built): the build folder, or an installed
 prefix's library folder (tests/install/run_install_test.sh). The clip is test_c_api_clip.py's (9 frames of 64x64 and
@@ -9,8 +9,10 @@ the conformance pack's tiny model). Checks: libdvs_video loads alone in a fresh 
 itself); two Python threads running dvs_run_pipeline_clip on one context both give the run's output (ctypes lets go
 of the GIL during the calls, so they do run at once); a render on the context of a running job is refused naming
 the job, while a render on a second context beside it gives the render alone; a scene outlives its context;
-dvs_context_destroy under a running job cancels it; argument errors are DVS_ERROR_INVALID_ARGUMENT, and a string
-call with a small buffer says the size it needs. Standard library only.
+dvs_context_destroy under a running job cancels it; argument errors are DVS_ERROR_INVALID_ARGUMENT, a string call with a
+small buffer says the size it needs, and a lost device or device memory running out in a stage of the run (injected
+with DVS_FAULTS in a process of its own, --one-run: one run, its status printed) keeps its own status through the
+stage's message. Standard library only.
 """
 import ctypes as C
 import os
@@ -25,7 +27,7 @@ from test_c_api import (DVS_ERROR_INVALID_ARGUMENT, DVS_OK, DVS_U8, PROGRESS, In
                         bind, check, failures, ok)
 from test_c_api_clip import F, H, W, INVERSION_STEPS, PROMPT, STEPS, PipelineOptions, synthetic_clip  # noqa: E402
 
-DVS_ERROR_CANCELLED = 4
+DVS_ERROR_CANCELLED, DVS_ERROR_OUT_OF_MEMORY, DVS_ERROR_DEVICE_LOST = 4, 5, 7
 DVS_JOB_RUNNING, DVS_JOB_SUCCEEDED, DVS_JOB_CANCELLED = 0, 1, 3
 
 
@@ -111,8 +113,31 @@ def poll(lib, job):
     return state.value
 
 
+def one_run(libdir, model):
+    """--one-run: a run on a fresh context; prints its status and message."""
+    lib = load(os.path.join(libdir, "libdvs.so.0"))
+    tmp = tempfile.mkdtemp(prefix="dvs_c_api_one_run_")
+    try:
+        clip = Clip(lib, model, os.path.join(tmp, "cache"))
+        status = clip.run(context(lib), clip.output())
+        print(status, lib.dvs_last_error().decode())
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def status_under_fault(libdir, model, faults):
+    """(status, message) of --one-run in a process of its own with DVS_FAULTS=faults."""
+    env = dict(os.environ, DVS_FAULTS=faults)
+    r = subprocess.run([sys.executable, os.path.abspath(__file__), libdir, model, "--one-run"], env=env,
+                       capture_output=True, text=True)
+    status, _, message = r.stdout.strip().partition(" ")
+    return (int(status) if status.isdigit() else None), message or r.stderr.strip()
+
+
 def main():
     args = sys.argv[1:]
+    if len(args) == 3 and args[2] == "--one-run":
+        return one_run(args[0], args[1])
     if len(args) != 2:
         sys.exit(__doc__)
     libdir, model = args
@@ -195,6 +220,14 @@ def main():
         message = lib.dvs_last_error().decode()
         check(status == DVS_ERROR_INVALID_ARGUMENT and "fancy" in message, "a bad preset: %d %s" % (status, message))
         ok(lib, lib.dvs_context_destroy(ctx), "dvs_context_destroy")
+
+        # §2.10: the kind survives the stage's message (the 3rd submission and the 12th allocation fall in the encode
+        # stage of this run; a DVS_FAULTS_TRACE of it lists them).
+        for faults, want, word in (("submit=3", DVS_ERROR_DEVICE_LOST, "VK_ERROR_DEVICE_LOST"),
+                                   ("alloc=12", DVS_ERROR_OUT_OF_MEMORY, "Out of device memory")):
+            status, message = status_under_fault(libdir, model, faults)
+            check(status == want and "stage" in message and word in message,
+                  "DVS_FAULTS=%s: status %r (want %d), %s" % (faults, status, want, message[:200]))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     if failures:

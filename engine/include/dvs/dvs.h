@@ -107,7 +107,7 @@ DVS_API dvs_status dvs_context_device_name(const dvs_context* context, char* buf
 /* The timeline semaphore dvs signals after each submission (dvs::Context::timeline). */
 DVS_API dvs_status dvs_context_timeline(const dvs_context* context, VkSemaphore* out);
 /* Blocks until the timeline reaches ticket, at most timeout_ns; *reached (may be NULL) is 1 when it did, 0 when
- * the wait timed out. */
+ * the wait timed out. A ticket never submitted (it would never be reached) is DVS_ERROR_INVALID_ARGUMENT. */
 DVS_API dvs_status dvs_context_wait(const dvs_context* context, uint64_t ticket, uint64_t timeout_ns, int32_t* reached);
 /* What a device given to dvs_context_create_on_host must have been created with (optional = 0: "Vulkan 1.2",
  * "timelineSemaphore", ...; dvs::Context::required_features) or what dvs uses when it was (optional = 1: 16-bit

@@ -91,7 +91,8 @@ struct Job::State {
     if (exception) std::rethrow_exception(exception);
     if (kind != want)
       throw Error(std::string("dvs::Job::") + getter + ": this is a " + kind + " job; its result is " +
-                  (kind == "pipeline" ? "run_report()" : kind == "render" ? "render_summary()" : "depth_summary()"));
+                  (kind == "pipeline" ? "run_report()" : kind == "render" ? "render_summary()" : "depth_summary()"),
+                  ErrorKind::invalid_argument);
   }
 
   void stop() {
@@ -115,7 +116,9 @@ Job::~Job() {
 
 namespace {
 void check_handle(const std::shared_ptr<Job::State>& s, const char* call) {
-  if (!s) throw Error(std::string("dvs::Job::") + call + ": this Job was moved from; use the Job it was moved to");
+  if (!s)
+    throw Error(std::string("dvs::Job::") + call + ": this Job was moved from; use the Job it was moved to",
+                ErrorKind::invalid_argument);
 }
 }  // namespace
 
