@@ -166,7 +166,7 @@ static void device_memory_calls(VkPhysicalDevice gpu, VkDevice device, uint32_t 
   /* Refusals name what is wrong. */
   target.image = srgb;
   target.format = VK_FORMAT_R8G8B8A8_SRGB;
-  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_ERROR_FILE &&
+  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_ERROR_INVALID_ARGUMENT &&
             contains(dvs_last_error(), "sRGB"), "sRGB image: %s", dvs_last_error());
   CHECK(dvs_scene_render_to_buffers(scene, pose, image, 0, DVS_U8, VK_NULL_HANDLE, 0, NULL) ==
             DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "ticket is NULL"), "NULL ticket: %s",
@@ -307,22 +307,38 @@ int main(int argc, char** argv) {
   {
     /* What a host device needs, before any context: the device this test makes enables Vulkan 1.2 and
      * timelineSemaphore, so both must be listed as required; the optional list is another one. */
-    char required[4096], optional[4096];
-    CHECK(dvs_context_requirements(0, required, sizeof required) == DVS_OK, "requirements: %s", dvs_last_error());
-    CHECK(dvs_context_requirements(1, optional, sizeof optional) == DVS_OK, "options: %s", dvs_last_error());
+    char required[4096], optional[4096], five[5] = "xxxx";
+    size_t needed = 0, asked = 0;
+    CHECK(dvs_context_requirements(0, required, sizeof required, &needed) == DVS_OK, "requirements: %s", dvs_last_error());
+    CHECK(needed == strlen(required) + 1, "needed %zu for %zu characters", needed, strlen(required));
+    CHECK(dvs_context_requirements(1, optional, sizeof optional, NULL) == DVS_OK, "options: %s", dvs_last_error());
     CHECK(contains(required, "Vulkan 1.2") && contains(required, "timelineSemaphore\n"), "required: \"%s\"", required);
     CHECK(!contains(optional, "timelineSemaphore") && strcmp(required, optional) != 0, "optional: \"%s\"", optional);
-    CHECK(dvs_context_requirements(0, NULL, 8) == DVS_ERROR_INVALID_ARGUMENT, "NULL buffer accepted");
+    CHECK(dvs_context_requirements(0, NULL, 8, NULL) == DVS_ERROR_INVALID_ARGUMENT, "NULL buffer accepted");
+    /* The size query, and a buffer too small: refused with the size it needs, holding the text cut short. */
+    CHECK(dvs_context_requirements(0, NULL, 0, &asked) == DVS_OK && asked == needed, "size query: %zu", asked);
+    asked = 0;
+    CHECK(dvs_context_requirements(0, five, sizeof five, &asked) == DVS_ERROR_INVALID_ARGUMENT && asked == needed &&
+              strncmp(five, required, 4) == 0 && five[4] == '\0',
+          "5-byte buffer: needed %zu, \"%s\", %s", asked, five, dvs_last_error());
+    CHECK(contains(dvs_last_error(), "holds 5 bytes") && contains(dvs_last_error(), "needs"), "message \"%s\"",
+          dvs_last_error());
   }
 
   status = dvs_context_create(NULL, 0, &ctx);
   CHECK(status == DVS_OK && ctx != NULL, "dvs_context_create: %d %s", (int)status, dvs_last_error());
   if (!ctx) return 1;
-  CHECK(dvs_context_device_name(ctx, name, sizeof name) == DVS_OK && name[0] != '\0', "device name");
+  CHECK(dvs_context_device_name(ctx, name, sizeof name, NULL) == DVS_OK && name[0] != '\0', "device name");
   printf("device: %s\n", name);
-  /* A buffer too small for the name is filled and terminated, not overrun. */
-  name[3] = 'x';
-  CHECK(dvs_context_device_name(ctx, name, 3) == DVS_OK && strlen(name) == 2 && name[3] == 'x', "truncation");
+  /* A buffer too small for the name is filled and terminated, not overrun, and the call says what it needs. */
+  {
+    size_t needed = 0;
+    const size_t length = strlen(name);
+    name[3] = 'x';
+    CHECK(dvs_context_device_name(ctx, name, 3, &needed) == DVS_ERROR_INVALID_ARGUMENT && strlen(name) == 2 &&
+              name[3] == 'x' && needed == length + 1,
+          "truncation: needed %zu", needed);
+  }
 
   {
     /* The timeline semaphore exists from the start; value 0 is reached at once. */
@@ -356,7 +372,8 @@ int main(int argc, char** argv) {
   CHECK(status == DVS_ERROR_FILE, "failing job: status %d", (int)status);
   CHECK(contains(dvs_last_error(), "missing.mp4"), "failing job: message \"%s\"", dvs_last_error());
   CHECK(dvs_job_poll(job, &state) == DVS_OK && state == DVS_JOB_FAILED, "failing job: state %d", (int)state);
-  CHECK(dvs_job_error(job, error, sizeof error) == DVS_OK && contains(error, "missing.mp4"), "job error \"%s\"", error);
+  CHECK(dvs_job_error(job, error, sizeof error, NULL) == DVS_OK && contains(error, "missing.mp4"), "job error \"%s\"",
+        error);
   CHECK(dvs_job_destroy(job) == DVS_OK, "dvs_job_destroy");
   CHECK(dvs_job_destroy(NULL) == DVS_OK, "destroying NULL");
 

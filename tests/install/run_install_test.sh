@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The installed library as an application sees it (issue 22): installs BUILD_DIR into a fresh prefix, checks the
 # installed files, what libdvs.so exports and links, then builds tests/install/consumer/ against the prefix twice
-# (CMake's find_package, and plain c++ with pkg-config) and runs both.
+# (CMake's find_package, and plain c++ with pkg-config) and runs both; then the library under careless use (issue 34
+# §2: tests/install/careless/ in C++ and C, tests/python/test_c_api_careless.py through ctypes, with the conformance
+# pack's tiny model) and libdvs_video needed alone.
 # Usage: run_install_test.sh BUILD_DIR [PREFIX]
 #   PREFIX: where to install (must be empty or absent); default a temporary folder, removed at the end unless
 #   DVS_KEEP_PREFIX=1. The prefix is printed ("installed to ..."), so a later step (examples/preview) can reuse it.
@@ -29,8 +31,8 @@ sed 's/^/  /' "$work/files.txt"
 step "the installed file list"
 libdir="$(dirname "$(grep -E '(^|/)libdvs\.so$' "$work/files.txt" | head -n1)")"
 [ "$libdir" != "." ] && [ -n "$libdir" ] || fail "no libdvs.so under $prefix"
-expected=(bin/dvs include/dvs/api.hpp include/dvs/context.hpp include/dvs/error.hpp include/dvs/pipeline.hpp
-          include/dvs/scene.hpp include/dvs/views.hpp
+expected=(bin/dvs include/dvs/api.hpp include/dvs/api.h include/dvs/version.h include/dvs/context.hpp
+          include/dvs/error.hpp include/dvs/pipeline.hpp include/dvs/scene.hpp include/dvs/views.hpp
           "$libdir/libdvs.so" "$libdir/libdvs.so.0" "$libdir/cmake/dvs/dvsConfig.cmake"
           "$libdir/cmake/dvs/dvsConfigVersion.cmake" "$libdir/cmake/dvs/dvsTargets.cmake" "$libdir/pkgconfig/dvs.pc")
 for f in "${expected[@]}"; do grep -Fxq "$f" "$work/files.txt" || fail "$f is not installed"; done
@@ -100,6 +102,16 @@ if [ -f "$video_lib" ]; then
   c++ -std=c++20 -DCONSUMER_LINKS_VIDEO=1 -o "$work/read_video_pc" "$here/video_consumer/main.cpp" \
     $(pkg-config --cflags --libs dvs-video) -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" || fail "building with pkg-config dvs-video failed"
   "$work/read_video_pc" "$work/clip.mp4" "5 frames of 48x64" || fail "the pkg-config dvs-video consumer cannot read the video"
+
+  step "a program that calls only dvs::read_video_frames finds libdvs.so.0 through libdvs_video's RUNPATH"
+  readelf -d "$video_lib" | grep -q 'R.*PATH.*\$ORIGIN' || fail "libdvs_video.so has no \$ORIGIN RUNPATH: $(readelf -d "$video_lib" | grep PATH)"
+  # shellcheck disable=SC2046
+  c++ -std=c++20 -o "$work/read_frames_only" "$here/video_consumer/read_frames_only.cpp" -Wl,--as-needed \
+    $(pkg-config --cflags --libs dvs-video) -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" || fail "building read_frames_only failed"
+  if grep -q 'NEEDED.*libdvs\.so' <<<"$(readelf -d "$work/read_frames_only")"; then
+    fail "read_frames_only needs libdvs.so itself: it no longer tests that libdvs_video finds it"
+  fi
+  "$work/read_frames_only" "$work/clip.mp4" || fail "read_frames_only (libdvs_video alone) cannot run or read the video"
 else
   step "no libdvs_video.so (a DVS_VIDEO_IO=OFF build): find_package(dvs COMPONENTS video) fails, saying so"
   if cmake -S "$here/video_consumer" -B "$work/video_consumer" -DCMAKE_PREFIX_PATH="$prefix" >"$work/video_consumer.log" 2>&1; then
@@ -109,6 +121,22 @@ else
   grep -q "built without its video component" <<<"$(tr -s ' \n' '  ' <"$work/video_consumer.log")" ||
     { cat "$work/video_consumer.log" >&2; fail "the missing video component's message does not say so"; }
 fi
+
+step "careless use (issue 34 §2): the installed dvs/dvs.h includes only C headers"
+includes="$(grep -h '^#include' "$prefix/include/dvs/dvs.h" "$prefix/include/dvs/api.h" "$prefix/include/dvs/version.h" || true)"
+echo "$includes" | sed 's/^/  /'
+if grep -Ev '^#include [<"][A-Za-z0-9_/]+\.h[>"]' <<<"$includes" | grep -q .; then fail "dvs/dvs.h includes a header that is not C"; fi
+
+step "careless use: C++ and C programs against the installed package"
+model="$here/../golden/A/model"
+cmake -S "$here/careless" -B "$work/careless" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >"$work/careless.log" 2>&1 ||
+  { cat "$work/careless.log" >&2; fail "configuring the careless-use programs failed"; }
+cmake --build "$work/careless" >>"$work/careless.log" 2>&1 || { cat "$work/careless.log" >&2; fail "building the careless-use programs failed"; }
+"$work/careless/careless" "$model" "$work/careless-cache" || fail "careless use in C++ (see the FAIL lines above)"
+"$work/careless/careless_c" "$model" "$work/careless-cache" || fail "careless use in C (see the FAIL lines above)"
+
+step "careless use: Python ctypes against the installed libraries"
+python3 "$here/../python/test_c_api_careless.py" "$prefix/$libdir" "$model" || fail "careless use through ctypes"
 
 step "an unknown component is refused by name"
 mkdir -p "$work/badcomp"

@@ -76,7 +76,7 @@ def load(path):
         "dvs_last_error": (C.c_char_p, []),
         "dvs_context_create": (C.c_int, [C.c_char_p, C.c_int32, C.POINTER(P)]),
         "dvs_context_destroy": (C.c_int, [P]),
-        "dvs_context_device_name": (C.c_int, [P, C.c_char_p, C.c_size_t]),
+        "dvs_context_device_name": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t)]),
         "dvs_intrinsics_default": (C.c_int, [C.c_int32, C.c_int32, C.c_int32, C.POINTER(Intrinsics)]),
         "dvs_scene_create": (C.c_int, [P, P, C.c_int, C.c_int32, C.c_int32, P, C.POINTER(Intrinsics),
                                        C.POINTER(SceneOptions), C.POINTER(P)]),
@@ -89,8 +89,9 @@ def load(path):
         "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_job_start_render": (C.c_int, [C.POINTER(RenderOptions), C.POINTER(P)]),
         "dvs_job_poll": (C.c_int, [P, C.POINTER(C.c_int)]),
-        "dvs_job_progress": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_int32), C.POINTER(C.c_int32)]),
-        "dvs_job_error": (C.c_int, [P, C.c_char_p, C.c_size_t]),
+        "dvs_job_progress": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t), C.POINTER(C.c_int32),
+                                       C.POINTER(C.c_int32)]),
+        "dvs_job_error": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t)]),
         "dvs_job_result": (C.c_int, [P]),
         "dvs_job_destroy": (C.c_int, [P]),
     }
@@ -179,7 +180,7 @@ def main():
     ctx = C.c_void_p()
     ok(lib, lib.dvs_context_create(None, 0, C.byref(ctx)), "dvs_context_create")
     name = C.create_string_buffer(256)
-    ok(lib, lib.dvs_context_device_name(ctx, name, len(name)), "dvs_context_device_name")
+    ok(lib, lib.dvs_context_device_name(ctx, name, len(name), None), "dvs_context_device_name")
     print("device:", name.value.decode())
 
     K = Intrinsics()
@@ -330,11 +331,11 @@ def compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K,
     deadline = time.monotonic() + 300
     while state.value == DVS_JOB_RUNNING and time.monotonic() < deadline:
         ok(lib, lib.dvs_job_poll(job, C.byref(state)), "dvs_job_poll")
-        ok(lib, lib.dvs_job_progress(job, stage, len(stage), None, None), "dvs_job_progress")
+        ok(lib, lib.dvs_job_progress(job, stage, len(stage), None, None, None), "dvs_job_progress")
         polls += 1
         time.sleep(0.01)
     error = C.create_string_buffer(1024)
-    ok(lib, lib.dvs_job_error(job, error, len(error)), "dvs_job_error")
+    ok(lib, lib.dvs_job_error(job, error, len(error), None), "dvs_job_error")
     check(state.value == DVS_JOB_SUCCEEDED, "render job: state %d after %d polls: %s" %
           (state.value, polls, error.value.decode()))
     check(lib.dvs_job_result(job) == DVS_OK, "render job: result " + lib.dvs_last_error().decode())

@@ -8,7 +8,8 @@ made here is written as frame and depth arrays (.npy) and run through the progra
 its latent cache in a folder of its own); the same clip in memory through dvs_run_pipeline_clip must give the
 latent the program left in its cache, float for float. The same run as a job (dvs_job_start_pipeline_clip) gives
 the same latent; dvs_clip_latent_shape sizes the buffer; a wrong latent_floats is DVS_ERROR_INVALID_ARGUMENT naming
-it and a clip option that cannot be (render.video set) is DVS_ERROR_FILE naming it. Standard library only.
+it and a clip option that cannot be (render.video set) is DVS_ERROR_INVALID_ARGUMENT naming it. Standard library
+only.
 """
 import ctypes as C
 import os
@@ -17,7 +18,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_c_api import (DVS_ERROR_FILE, DVS_ERROR_INVALID_ARGUMENT, PROGRESS, RenderOptions, bind,  # noqa: E402
+from test_c_api import (DVS_ERROR_INVALID_ARGUMENT, PROGRESS, RenderOptions, bind,  # noqa: E402
                         check, failures, f32, ok, read_npy_f32, run_program, write_npy)
 
 F, H, W = 9, 64, 64
@@ -138,7 +139,8 @@ def main():
         status = lib.dvs_run_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, None, None, 0,
                                            PROGRESS(0), None)
         message = lib.dvs_last_error().decode()
-        check(status == DVS_ERROR_FILE and "render.video" in message, "render.video set: status %d, %s" % (status, message))
+        check(status == DVS_ERROR_INVALID_ARGUMENT and "render.video" in message,
+              "render.video set: status %d, %s" % (status, message))
         ok(lib, lib.dvs_context_destroy(ctx), "dvs_context_destroy")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -36,7 +36,7 @@ DVS_API DepthFrame load_depth_frame(const std::filesystem::path& path, int frame
 // with options.metric_depth) for frames of VideoFrames from read_video_frames_for_depth (pass its source_height/
 // width in options). Converted and mapped by the one implementation of the file form, so frame k equals what
 // `dvs render --depth-model` renders for frame k. Errors name the clip as "depth in memory".
-DVS_API DepthFrame load_depth_frame(const HostView& clip, int frame_index, int height, int width,
+DVS_API DepthFrame load_depth_frame(const ConstHostView& clip, int frame_index, int height, int width,
                                     const DepthFileOptions& options = {});
 
 }  // namespace dvs

@@ -7,11 +7,20 @@
  *   on the calling thread; no C++ exception ever leaves a call.
  * - Handles (dvs_context, dvs_scene, dvs_depth_estimator, dvs_job) are opaque; the *_create / *_start calls return
  *   them through an out pointer, and only the matching *_destroy call frees them (destroying NULL is DVS_OK).
- *   Destroy a context last: scenes and depth estimators made on it must be destroyed first.
+ *   Scenes and depth estimators keep their context's device objects alive: they still work after
+ *   dvs_context_destroy, and the device objects go with the last of them (on the application's device, destroy
+ *   every dvs handle made on it before its VkDevice). dvs_context_destroy cancels a job running on the context and
+ *   waits for its end (its dvs_job_result is then DVS_ERROR_CANCELLED).
  * - Memory: dvs never keeps, frees or reallocates a pointer it is given; it reads inputs and writes outputs during
- *   the call only. Strings dvs returns are copied into the caller's buffer (always NUL-terminated, truncated to fit).
- * - Threads: a context (and what is made on it) is used from one thread at a time; distinct contexts and jobs are
- *   independent. A job runs on a thread of its own; its calls may come from any thread.
+ *   the call only. Strings are copied into the caller's buffer (buffer, size, needed): *needed (when not NULL)
+ *   receives the bytes the text needs, NUL included; a buffer too small holds the text cut short (NUL-terminated)
+ *   and the call returns DVS_ERROR_INVALID_ARGUMENT; buffer NULL with size 0 asks for *needed alone (DVS_OK).
+ * - Threads: calls on one context (and on what is made on it) from several threads are serialised: each waits for
+ *   the one running. While a job runs on a context (dvs_job_start_pipeline_clip), a call on it from another thread
+ *   is refused with DVS_ERROR_INVALID_ARGUMENT naming the job: for work beside a job (a preview render loop), make a
+ *   second context on the same device (dvs_context_create again, or dvs_context_create_on_host with the same
+ *   objects; docs/embedding.md). Distinct contexts are independent, also on one device and queue. A job runs on a
+ *   thread of its own; its calls may come from any thread.
  * - Arrays are contiguous and row-major; "f32 [3,H,W]" is 3*H*W floats, channel-major.
  */
 #ifndef DVS_H
@@ -21,21 +30,26 @@
 #include <stdint.h>
 #include <vulkan/vulkan.h>
 
-#include "dvs/api.hpp" /* DVS_API: preprocessor only, valid C */
+#include "dvs/api.h"     /* DVS_API */
+#include "dvs/version.h" /* DVS_VERSION_MAJOR, DVS_VERSION_MINOR, DVS_VERSION_PATCH */
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
+/* Each status but DVS_OK is one dvs::ErrorKind of the C++ API (dvs/error.hpp). */
 typedef enum dvs_status {
   DVS_OK = 0,
-  DVS_ERROR_INVALID_ARGUMENT = 1, /* a NULL handle or pointer, a size or type out of range (nothing was done) */
+  DVS_ERROR_INVALID_ARGUMENT = 1, /* an argument or option refused before any work: a NULL handle or pointer, a size,
+                                     shape or type out of range, a bad pose or preset, a ticket never submitted, a
+                                     buffer too small for a string, a context in use by a job (nothing was done) */
   DVS_ERROR_FILE = 2,             /* the work failed on its inputs: a file missing, unreadable or malformed, a model
-                                     that does not fit, a trajectory or option refused (dvs::Error) */
-  DVS_ERROR_DEVICE = 3,           /* the Vulkan device: none usable, a missing feature, the device lost */
-  DVS_ERROR_CANCELLED = 4,        /* stopped on request (a progress callback or dvs_job_cancel) */
+                                     that does not fit the device, values refused (ErrorKind::input) */
+  DVS_ERROR_DEVICE = 3,           /* the Vulkan device: none usable, a missing feature */
+  DVS_ERROR_CANCELLED = 4,        /* stopped on request (a progress callback, dvs_job_cancel, dvs_context_destroy) */
   DVS_ERROR_OUT_OF_MEMORY = 5,    /* host or device memory ran out */
-  DVS_ERROR_INTERNAL = 6          /* a failure dvs does not expect (a bug: please report the message) */
+  DVS_ERROR_INTERNAL = 6,         /* a failure dvs does not expect (a bug: please report the message) */
+  DVS_ERROR_DEVICE_LOST = 7       /* the device was lost (VK_ERROR_DEVICE_LOST): nothing on it survives */
 } dvs_status;
 
 typedef enum dvs_element_type { DVS_F32 = 0, DVS_U8 = 1 } dvs_element_type;
@@ -45,7 +59,8 @@ typedef struct dvs_scene dvs_scene;
 typedef struct dvs_depth_estimator dvs_depth_estimator;
 typedef struct dvs_job dvs_job;
 
-/* The library's version, "MAJOR.MINOR.PATCH" (static storage). */
+/* The library's version, "MAJOR.MINOR.PATCH" (static storage): the library loaded at run time, which
+ * DVS_VERSION_MAJOR/MINOR/PATCH (dvs/version.h) give for the headers compiled against. */
 DVS_API const char* dvs_version(void);
 /* The message of the last failed call on this thread ("" when none failed yet). Valid until the next failing call
  * on this thread. */
@@ -87,18 +102,18 @@ typedef struct dvs_host_device {
 /* A context on the application's device. A missing feature or extension is DVS_ERROR_DEVICE naming each. */
 DVS_API dvs_status dvs_context_create_on_host(const dvs_host_device* host, dvs_context** out);
 DVS_API dvs_status dvs_context_destroy(dvs_context* context);
-/* The device's name, copied into buffer (size bytes, NUL included). */
-DVS_API dvs_status dvs_context_device_name(const dvs_context* context, char* buffer, size_t size);
+/* The device's name, copied into buffer (size bytes; *needed: the bytes it needs, NUL included). */
+DVS_API dvs_status dvs_context_device_name(const dvs_context* context, char* buffer, size_t size, size_t* needed);
 /* The timeline semaphore dvs signals after each submission (dvs::Context::timeline). */
 DVS_API dvs_status dvs_context_timeline(const dvs_context* context, VkSemaphore* out);
 /* Blocks until the timeline reaches ticket, at most timeout_ns; *reached (may be NULL) is 1 when it did, 0 when
- * the wait timed out. */
+ * the wait timed out. A ticket never submitted (it would never be reached) is DVS_ERROR_INVALID_ARGUMENT. */
 DVS_API dvs_status dvs_context_wait(const dvs_context* context, uint64_t ticket, uint64_t timeout_ns, int32_t* reached);
 /* What a device given to dvs_context_create_on_host must have been created with (optional = 0: "Vulkan 1.2",
  * "timelineSemaphore", ...; dvs::Context::required_features) or what dvs uses when it was (optional = 1: 16-bit
- * storage, ...; dvs::Context::optional_features): the names one per line, copied into buffer (size bytes; 4096
- * always suffice). Needs no context: ask before creating the device. */
-DVS_API dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size);
+ * storage, ...; dvs::Context::optional_features): the names one per line, copied into buffer (size bytes; *needed:
+ * the bytes they need, NUL included). Needs no context: ask before creating the device. */
+DVS_API dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size, size_t* needed);
 
 /* ---- scene: the splat render of one frame from any pose (dvs/scene.hpp) ------------------------------------ */
 
@@ -245,16 +260,16 @@ DVS_API dvs_status dvs_job_start_depth(const char* video, const char* model, con
                                        int32_t frames, dvs_job** out);
 /* The job's state; never blocks. */
 DVS_API dvs_status dvs_job_poll(const dvs_job* job, dvs_job_state* out);
-/* The last progress event; never blocks. stage is copied into stage_buffer (stage_size bytes; may be NULL with
- * stage_size 0); step and total may be NULL. */
-DVS_API dvs_status dvs_job_progress(const dvs_job* job, char* stage_buffer, size_t stage_size, int32_t* step,
-                                    int32_t* total);
+/* The last progress event; never blocks. stage is copied into stage_buffer (stage_size bytes, *stage_needed: the
+ * bytes it needs; stage_buffer may be NULL with stage_size 0); step and total may be NULL. */
+DVS_API dvs_status dvs_job_progress(const dvs_job* job, char* stage_buffer, size_t stage_size, size_t* stage_needed,
+                                    int32_t* step, int32_t* total);
 /* Waits at most timeout_ms (negative = until the end); *finished (may be NULL) is 1 when the job has ended. */
 DVS_API dvs_status dvs_job_wait(dvs_job* job, int64_t timeout_ms, int32_t* finished);
 /* Asks the job to stop at its next check; dvs_job_poll says when it has (DVS_JOB_CANCELLED). */
 DVS_API dvs_status dvs_job_cancel(dvs_job* job);
-/* The message of a failed job ("" otherwise), copied into buffer. */
-DVS_API dvs_status dvs_job_error(const dvs_job* job, char* buffer, size_t size);
+/* The message of a failed job ("" otherwise), copied into buffer (*needed: the bytes it needs, NUL included). */
+DVS_API dvs_status dvs_job_error(const dvs_job* job, char* buffer, size_t size, size_t* needed);
 /* Waits for the end and returns the work's own outcome: DVS_OK when it succeeded, else its error code with the
  * message in dvs_last_error() (DVS_ERROR_CANCELLED for a cancelled job). */
 DVS_API dvs_status dvs_job_result(dvs_job* job);
@@ -265,7 +280,8 @@ DVS_API dvs_status dvs_job_destroy(dvs_job* job);
  * its mask and the sampled latent out; nothing is written but the inversion and latent caches (options->use_cache,
  * cache_dir). options as dvs_job_start_pipeline's, except that render.video, render.depth, render.depth_model and
  * render.out_dir must be NULL, render.height/width must be the frames' size and render.frames 0 or count
- * (render.device is ignored: the context is the device); each mismatch is DVS_ERROR_FILE naming the option.
+ * (render.device is ignored: the context is the device); each mismatch is DVS_ERROR_INVALID_ARGUMENT naming the
+ * option, as is a count that is not 4k+1 or a size that is not a multiple of 8 (named before the latent's size).
  *   frames: u8 [count,height,width,3] RGB at the working size (height, width multiples of 8; count = 4k+1).
  *   depth:  f32 [count,height,width], disparity (dvs_depth_estimator_estimate's), or metric depth with
  *           options->render.metric_depth.
@@ -278,9 +294,10 @@ DVS_API dvs_status dvs_run_pipeline_clip(dvs_context* context, const dvs_pipelin
                                          const uint8_t* frames, int32_t count, int32_t height, int32_t width,
                                          const float* depth, const double* poses, uint8_t* output, float* mask,
                                          float* latent, size_t latent_floats, dvs_progress_fn progress, void* user);
-/* The same on a thread of its own; *out receives the job at once (dvs_job_poll, dvs_job_result, ...). The context,
- * frames, depth, output, mask and latent must stay valid, and the context unused by other calls, until the job has
- * finished; options and poses are copied. */
+/* The same on a thread of its own; *out receives the job at once (dvs_job_poll, dvs_job_result, ...). The frames,
+ * depth, output, mask and latent must stay valid until the job has finished; options and poses are copied. The job
+ * holds the context until then: another thread's call on it is refused (see Threads above; a second context on the
+ * same device works beside it), and dvs_context_destroy cancels the job and waits for its end. */
 DVS_API dvs_status dvs_job_start_pipeline_clip(dvs_context* context, const dvs_pipeline_options* options,
                                                const uint8_t* frames, int32_t count, int32_t height, int32_t width,
                                                const float* depth, const double* poses, uint8_t* output, float* mask,

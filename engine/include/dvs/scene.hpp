@@ -39,8 +39,8 @@ class DVS_API PointCloudScene {
  public:
   // frame: u8 [H,W,3] RGB (what a video decoder gives) or f32 [3,H,W] RGB in [−1,1]; depth: f32 [H,W] (disparity,
   // converted exactly as `dvs render` converts a one-frame depth file, or metric depth). Uploaded once.
-  PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth, const CameraIntrinsics& intrinsics,
-                  const SceneOptions& options = {});
+  PointCloudScene(Context& ctx, const ConstHostView& frame, const ConstHostView& depth,
+                  const CameraIntrinsics& intrinsics, const SceneOptions& options = {});
   // The same from the application's device buffers (dvs/views.hpp; TRANSFER_SRC usage), with the same shapes and
   // the same conversions, so the scene equals the one built from the same values in host memory. The values are
   // copied on the device and the call returns when the scene is built (it waits: order the application's writes

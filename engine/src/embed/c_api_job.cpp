@@ -130,13 +130,14 @@ dvs_status dvs_job_poll(const dvs_job* job, dvs_job_state* out) {
   });
 }
 
-dvs_status dvs_job_progress(const dvs_job* job, char* stage_buffer, size_t stage_size, int32_t* step, int32_t* total) {
+dvs_status dvs_job_progress(const dvs_job* job, char* stage_buffer, size_t stage_size, size_t* stage_needed,
+                            int32_t* step, int32_t* total) {
   return guarded(DVS_ERROR_INTERNAL, [&] {
     require(job, "dvs_job_progress", "job");
     const dvs::JobProgress p = job->job.progress();
-    copy_out(p.stage, stage_buffer, stage_size, "dvs_job_progress", "stage_buffer");
     if (step) *step = p.step;
     if (total) *total = p.total;
+    copy_out(p.stage, stage_buffer, stage_size, stage_needed, "dvs_job_progress", "stage_buffer");
   });
 }
 
@@ -157,10 +158,10 @@ dvs_status dvs_job_cancel(dvs_job* job) {
   });
 }
 
-dvs_status dvs_job_error(const dvs_job* job, char* buffer, size_t size) {
+dvs_status dvs_job_error(const dvs_job* job, char* buffer, size_t size, size_t* needed) {
   return guarded(DVS_ERROR_INTERNAL, [&] {
     require(job, "dvs_job_error", "job");
-    copy_out(job->job.error(), buffer, size, "dvs_job_error", "buffer");
+    copy_out(job->job.error(), buffer, size, needed, "dvs_job_error", "buffer");
   });
 }
 

@@ -170,9 +170,10 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
   } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
     throw Error("depth estimate: " + e.detail() + ". Try a smaller " + job.input_size_option + " (the network input; " +
                 "default 518) or a smaller --max-res / fewer --frames; dvs plan --depth-model " +
-                job.model.filename().string() + " shows what the estimate needs");
+                    job.model.filename().string() + " shows what the estimate needs",
+                ErrorKind::out_of_memory);
   } catch (const vk::DeviceLost& e) {
-    throw Error(std::string("depth estimate: ") + e.what());
+    throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);
   }
   faults::set_stage("depth-write");
   std::filesystem::create_directories(c.file.parent_path(), ec);
@@ -199,7 +200,8 @@ DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& ou
     remove_stale_temporaries(out);  // what a dvs depth killed while writing this file left
   } catch (const Error& e) {
     throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
-                "): the same command with a writable --out takes it from there");
+                    "): the same command with a writable --out takes it from there",
+                e.kind());
   }
   return c.summary;
 }

@@ -1,5 +1,6 @@
 #include "vk/pipeline.hpp"
 
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -134,7 +135,9 @@ void PipelineCache::save() {
   std::filesystem::path path(file_);
   std::error_code ec;
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  std::string tmp = file_ + ".tmp" + std::to_string(::getpid());
+  // A name of this save's own: two contexts of one process (a preview beside a job) may save the same file at once.
+  static std::atomic<uint64_t> saves{0};
+  std::string tmp = file_ + ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(++saves);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return;  // an unwritable cache directory only costs start-up time
