@@ -13,6 +13,7 @@ set -Eeuo pipefail
 trap 'rc=$?; echo "tests/fresh_machine.sh: line $LINENO failed (exit $rc): $BASH_COMMAND" >&2' ERR
 cd "$(dirname "$0")/.."
 repo="$(pwd)"
+commit="$(git rev-parse HEAD)"  # fixed now: the repository may move on while the rehearsal runs
 passes="default"
 keep=0
 for arg in "$@"; do
@@ -85,9 +86,9 @@ for m in proc sys dev dev/pts; do
 done
 mkdir -p "$R/dev/shm" "$R/run"; mount -t tmpfs tmpfs "$R/run"; mounted+=("$R/run")
 
-echo "== a clean clone of $(git -C "$repo" rev-parse --short HEAD) into /root/dvs"
+echo "== a clean clone of ${commit:0:7} into /root/dvs"
 git clone -q --no-local "$repo" "$R/root/dvs"
-git -C "$R/root/dvs" checkout -q "$(git -C "$repo" rev-parse HEAD)"
+git -C "$R/root/dvs" checkout -q "$commit"
 
 # The environment a person's shell would have here: proxies and the CA bundle node should trust.
 envs=(HOME=/root PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin LANG=C.UTF-8 TERM=dumb
@@ -116,7 +117,7 @@ if [ $status -eq 0 ]; then
   run_timed tests "$test_cmd" && t_test=$secs || { status=1; t_test=$secs; }
 fi
 echo
-echo "== tests/fresh_machine.sh: $(git -C "$repo" rev-parse --short HEAD), $(nproc) cores"
+echo "== tests/fresh_machine.sh: ${commit:0:7}, $(nproc) cores, load average at the end: $(cut -d' ' -f1-3 /proc/loadavg)"
 printf '  debootstrap          %4d min %02d s\n' $((t_boot / 60)) $((t_boot % 60))
 printf '  demo command         %4d min %02d s (bash .ci/deps, build, dvs demo)\n' $((t_demo / 60)) $((t_demo % 60))
 [ -n "${t_test:-}" ] && printf '  test command         %4d min %02d s (%s)\n' $((t_test / 60)) $((t_test % 60)) \
