@@ -4,6 +4,7 @@
 #include <cstring>
 #include <new>
 
+#include "embed/c_api_options.hpp"
 #include "vk/check.hpp"
 
 namespace dvs::capi {
@@ -13,7 +14,7 @@ thread_local std::string last_error;
 
 dvs_status fail(dvs_status status, const std::string& message) {
   try {
-    last_error = message;
+    last_error = c_option_names(message);  // the C structs' field names, not the C++ ones
   } catch (...) {
     // No memory even for the message: the status still says what happened.
   }
