@@ -316,6 +316,12 @@ static void negatives_are_refused(void) {
     CHECK(dvs_job_result(job) != DVS_OK && contains(dvs_last_error(), want), "job: \"%s\"", dvs_last_error());
     dvs_job_destroy(job);
   }
+  /* A preset that does not exist names its field too. */
+  CHECK(dvs_pipeline_options_default(&o) == DVS_OK, "defaults");
+  o.preset = "Paper";
+  CHECK(preflight_text(&o, &problems, report, sizeof report) == DVS_OK &&
+            contains(report, "dvs_pipeline_options.preset must be paper or official, got 'Paper'"),
+        "preset: \"%s\"", report);
   /* 0 asks for the preset's default: no problem names the field. */
   CHECK(dvs_pipeline_options_default(&o) == DVS_OK, "defaults");
   o.steps = 0, o.strength = 0, o.delta = 0, o.inversion_steps = 0;

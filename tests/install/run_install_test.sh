@@ -139,4 +139,7 @@ if cmake -S "$work/badcomp" -B "$work/badcomp/build" -DCMAKE_PREFIX_PATH="$prefi
 fi
 grep -q "no component 'teleport'" <<<"$(tr -s ' \n' '  ' <"$work/badcomp.log")" || { cat "$work/badcomp.log" >&2; fail "the unknown component's message does not name it"; }
 
+step "the C API's tests on the installed package (tests/install/run_c_api_tests.sh)"
+bash "$here/run_c_api_tests.sh" "$prefix" "$libdir" "$work"
+
 echo "install test: all checks passed (prefix $prefix)"

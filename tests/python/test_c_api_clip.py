@@ -9,7 +9,8 @@ its latent cache in a folder of its own); the same clip in memory through dvs_ru
 latent the program left in its cache, float for float. The same run as a job (dvs_job_start_pipeline_clip) gives
 the same latent; dvs_clip_latent_shape sizes the buffer; a wrong latent_floats is DVS_ERROR_INVALID_ARGUMENT naming
 it and a clip option that cannot be (render->video set) is DVS_ERROR_FILE naming it. The prompt is longer than the
-model reads: the cut is said once through the log callback, naming dvs_pipeline_options.prompt. Standard library only.
+model reads: the cut is said once through the log callback, naming dvs_pipeline_options.prompt; the job's cache
+folder cannot be written, which its thread logs naming dvs_pipeline_options.cache_dir. Standard library only.
 """
 import ctypes as C
 import os
@@ -114,7 +115,6 @@ def main():
         ok(lib, lib.dvs_set_log_callback(log, None), "dvs_set_log_callback")
         ok(lib, lib.dvs_run_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, mask, latent, n,
                                           PROGRESS(on_progress), None), "dvs_run_pipeline_clip")
-        ok(lib, lib.dvs_set_log_callback(LOG(), None), "dvs_set_log_callback(NULL)")
         cut = [w for w in warnings if w.startswith("dvs_pipeline_options.prompt is ")]
         check(len(cut) == 1 and "tokens but this model reads 8" in cut[0], "the prompt's cut, logged: %r" % warnings)
         differ = sum(1 for a, b in zip(latent, expected) if a != b)
@@ -123,14 +123,23 @@ def main():
         check(any(v > 0 for v in mask), "the mask shows nothing")
         print("blocking run: latent equals the file run's (%d values); stages %s" % (n, " ".join(stages)))
 
-        # The job form (no cache: it samples again).
-        o.use_cache = 0
+        # The job form, with a cache folder that cannot be written (under a file): it samples again, uncached, and
+        # says so through the callback, from the job's own thread, naming the fields that fix it.
+        not_a_folder = os.path.join(tmp, "a_file")
+        with open(not_a_folder, "w") as f:
+            f.write("x")
+        o.cache_dir = os.path.join(not_a_folder, "cache").encode()
+        del warnings[:]
         job = C.c_void_p()
         job_latent = (C.c_float * n)()
         ok(lib, lib.dvs_job_start_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, None,
                                                 job_latent, n, C.byref(job)), "dvs_job_start_pipeline_clip")
         ok(lib, lib.dvs_job_result(job), "dvs_job_result")
         ok(lib, lib.dvs_job_destroy(job), "dvs_job_destroy")
+        ok(lib, lib.dvs_set_log_callback(LOG(), None), "dvs_set_log_callback(NULL)")
+        unwritable = [w for w in warnings if w.startswith("the cache cannot be written, so this run is not cached")]
+        check(len(unwritable) == 1 and "dvs_pipeline_options.cache_dir" in unwritable[0] and
+              "dvs_pipeline_options.use_cache" in unwritable[0], "the unwritable cache, logged: %r" % warnings)
         check(list(job_latent) == list(expected), "the job's latent differs from the file run's")
 
         # Refusals: the buffer's size, and a file option the clip replaces.

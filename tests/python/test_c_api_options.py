@@ -221,7 +221,8 @@ def main():
             if compare_to:
                 d = largest_difference(c, results[compare_to])
                 check(d > 1e-5, "%s: the latent equals %s's (largest difference %g): not applied" % (name, compare_to, d))
-                print("%-20s C = dvs run (%d values); differs from %s by up to %.3g" % (name, len(c or []), compare_to, d))
+                how = "by up to %.3g" % d if d != float("inf") else "in shape"
+                print("%-20s C = dvs run (%d values); differs from %s %s" % (name, len(c or []), compare_to, how))
             results[name] = c
 
         applied("baseline", {}, {}, None)

@@ -74,9 +74,8 @@ dvs_status dvs_plan_run_memory(const dvs_plan_request* request, dvs_plan_result*
   return guarded(DVS_ERROR_FILE, [&] {
     const char* call = "dvs_plan_run_memory";
     require(request, call, "request");
-    dvs_plan_request defaults;
-    dvs_plan_request_default(&defaults);
-    const dvs_plan_request q = read_sized(*request, defaults, kFirstPlanRequestSize, "dvs_plan_request", call);
+    const dvs_plan_request q =
+        read_filled(*request, dvs_plan_request_default, kFirstPlanRequestSize, "dvs_plan_request", call);
     if (result && result->struct_size < sizeof(size_t))
       throw dvs::UsageError(std::string(call) + ": dvs_plan_result.struct_size is " + std::to_string(result->struct_size) +
                             ": set it to sizeof(dvs_plan_result)");

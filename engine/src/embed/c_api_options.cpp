@@ -22,13 +22,12 @@ std::string text(const char* s) { return s ? s : ""; }
 // The sizes of the first dvs.h whose structs had struct_size: anything smaller was never filled by *_default.
 constexpr size_t kFirstRenderOptionsSize = offsetof(dvs_render_options, depth_cache) + sizeof(int32_t);
 constexpr size_t kFirstPipelineOptionsSize = offsetof(dvs_pipeline_options, vae_tile_width) + sizeof(int32_t);
+
 }  // namespace
 
 RenderJob render_job(const dvs_render_options& given, const char* call) {
-  use_c_names_in_default_log();
-  dvs_render_options defaults;
-  dvs_render_options_default(&defaults);
-  const dvs_render_options o = read_sized(given, defaults, kFirstRenderOptionsSize, "dvs_render_options", call);
+  const dvs_render_options o =
+      read_filled(given, dvs_render_options_default, kFirstRenderOptionsSize, "dvs_render_options", call);
   RenderJob j;
   j.video = text(o.video);
   j.depth = text(o.depth);
@@ -53,10 +52,8 @@ RenderJob render_job(const dvs_render_options& given, const char* call) {
 }
 
 RunOptions run_options(const dvs_pipeline_options& given, const char* call) {
-  use_c_names_in_default_log();
-  dvs_pipeline_options defaults;
-  dvs_pipeline_options_default(&defaults);
-  const dvs_pipeline_options o = read_sized(given, defaults, kFirstPipelineOptionsSize, "dvs_pipeline_options", call);
+  const dvs_pipeline_options o =
+      read_filled(given, dvs_pipeline_options_default, kFirstPipelineOptionsSize, "dvs_pipeline_options", call);
   RunOptions r;
   if (o.render) r.render = render_job(*o.render, call);
   r.model = text(o.model);

@@ -40,6 +40,20 @@ T read_sized(const T& given, const T& defaults, size_t first_size, const char* t
   return out;
 }
 
+// Makes the default log line (no callback set) name the C structs' fields, unless the application installed a
+// handler of its own (embed/c_api_log.cpp). Every call that takes options or loads a trajectory calls it.
+void use_c_names_in_default_log();
+
+// read_sized with the defaults its _default call fills (dvs_render_options_default, ...), by a call that takes
+// options.
+template <class T>
+T read_filled(const T& given, dvs_status (*fill_defaults)(T*), size_t first_size, const char* type, const char* call) {
+  use_c_names_in_default_log();
+  T defaults;
+  fill_defaults(&defaults);
+  return read_sized(given, defaults, first_size, type, call);
+}
+
 // The caller's dvs_render_options / dvs_pipeline_options as the C++ options (NULL strings = unset), after their
 // struct_size is checked (UsageError naming `call`, the struct and struct_size). A NULL render = the defaults.
 RenderJob render_job(const dvs_render_options& options, const char* call);
@@ -49,10 +63,6 @@ RunOptions run_options(const dvs_pipeline_options& options, const char* call);
 // "dvs_pipeline_options.strength", "RenderJob::trajectory" -> "dvs_render_options.trajectory") and the C call for
 // the C++ one it names (dvs::enable_video_files()).
 std::string c_option_names(std::string message);
-
-// Makes the default log line (no callback set) name the C structs' fields, unless the application installed a
-// handler of its own (embed/c_api_log.cpp). Called by every call that takes options or loads a trajectory.
-void use_c_names_in_default_log();
 
 // *out = a job handle of `kind` ("render", "pipeline", "depth") around what `begin` starts; errors as guarded().
 dvs_status start_job(dvs_job** out, const char* call, const char* kind, const std::function<Job()>& begin);

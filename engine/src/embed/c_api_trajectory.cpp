@@ -41,7 +41,7 @@ dvs_status dvs_trajectory_load(const char* spec, int32_t frames, double radius, 
     if (!(radius > 0))
       throw dvs::UsageError(std::string(call) + ": radius must be > 0 (dvs_scene_orbit_radius gives the presets' unit), got " +
                             std::to_string(radius));
-    use_c_names_in_default_log();  // a trajectory file's warning names nothing of C++, but goes where the others go
+    use_c_names_in_default_log();  // a trajectory file's warning goes where the C program's other warnings go
     const std::vector<dvs::Pose> list = dvs::load_trajectory(spec, frames, radius);
     if (list.size() != size_t(frames))
       throw dvs::Error(std::string(call) + ": " + spec + " gave " + std::to_string(list.size()) + " poses for " +
