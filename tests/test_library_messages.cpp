@@ -14,7 +14,9 @@
 #include "dvs/option_names.hpp"
 #include "dvs/preflight.hpp"
 #include "dvs/trajectory.hpp"
+#include "io/host_tensor.hpp"
 #include "io/option_names.hpp"
+#include "pipeline/render_stage.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
@@ -53,6 +55,25 @@ TEST(LibraryMessages, WarningsReachTheLogHandlerAndOtherwiseStderr) {
   load_trajectory(file, 5, 1.0);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_EQ(err.rfind("dvs: warning: " + file + ": its lines hold different numbers of values", 0), 0u) << err;
+}
+
+// A path that shows nothing in some frames: a warning naming the path as the job names it and where the user sees
+// the mask (a clip run writes no mask.mp4).
+TEST(LibraryMessages, EmptyFramesNameThePathAndWhereTheMaskIs) {
+  const std::vector<float> visible{1, 1, 1, 1, 0, 0, 0, 0, 0, 1, 0, 0};  // frame 1 empty
+  const HostTensor mask = HostTensor::from_f32({3, 2, 2}, visible);
+  RenderJob job;
+  job.trajectory = "pan_left:90";
+  CapturedLog log;
+  const auto progress = [](const std::string&) {};
+  check_visibility(mask, job, 1.0, progress, "mask.mp4");
+  job.trajectory = "ClipView::poses";  // what a clip run with poses in memory names its path
+  check_visibility(mask, job, 1.0, progress, "the mask view");
+  ASSERT_EQ(log.messages.size(), 2u);
+  EXPECT_EQ(log.messages[0], "RenderJob::trajectory pan_left:90: frame 1 (1 of 3) show nothing of the scene (0% of the "
+                             "pixels visible); the model has to invent them. Look at mask.mp4, or use a smaller move");
+  EXPECT_EQ(log.messages[1].rfind("ClipView::poses: frame 1 (1 of 3) show nothing", 0), 0u) << log.messages[1];
+  EXPECT_NE(log.messages[1].find("Look at the mask view"), std::string::npos) << log.messages[1];
 }
 
 // steps, strength, delta, inversion_steps: 0 is the preset's default, a negative value a problem naming the field
