@@ -48,7 +48,10 @@ TEST(CApiDeviceCalls, AWholeRunOnTheApplicationsBuffersGivesTheHostFormsBytes) {
   o.cache_dir = cache.c_str();
   o.prompt = "a red fox";
   o.steps = 4, o.inversion_steps = 3, o.use_cache = 0;  // both forms sample (no cached latent in between)
-  o.render.frames = 0, o.render.height = H, o.render.width = W, o.render.metric_depth = 1;
+  dvs_render_options r;
+  ASSERT_EQ(dvs_render_options_default(&r), DVS_OK);
+  r.frames = 0, r.height = H, r.width = W, r.metric_depth = 1;
+  o.render = &r;
   int64_t shape[4];
   ASSERT_EQ(dvs_clip_latent_shape(&o, F, H, W, shape), DVS_OK) << dvs_last_error();
   const size_t latent_floats = size_t(shape[0] * shape[1] * shape[2] * shape[3]);

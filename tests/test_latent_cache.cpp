@@ -10,6 +10,7 @@
 #include <set>
 
 #include "dvs/error.hpp"
+#include "dvs/logs.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
@@ -134,13 +135,15 @@ TEST(LatentCache, ADamagedLatentIsSampledAgain) {
   latent.as<float>()[3] = std::numeric_limits<float>::infinity();
   write_cache_entry(file, latent);  // a whole entry (its marker matches) that holds an Inf
   o.render.out_dir = in.dir / "out2";
-  std::vector<std::string> notes;
-  RunReport report = run_pipeline(o, [&](const std::string&, int, int, const std::string& note) { notes.push_back(note); });
+  std::vector<std::string> warnings;  // a warning goes to the log handler (dvs/logs.hpp), not into the progress
+  set_log_handler([&](LogLevel, const std::string& message) { warnings.push_back(message); });
+  RunReport report = run_pipeline(o);
+  set_log_handler({});
   const json record = json::parse(std::ifstream(report.run_json));
   EXPECT_FALSE(record["latent"]["reused"].get<bool>());
   EXPECT_TRUE(record["seconds"].contains("sample"));
   bool said = false;
-  for (const auto& n : notes) said |= n.find("ignoring the cached latent") != std::string::npos;
+  for (const auto& w : warnings) said |= w.find("ignoring the cached latent") != std::string::npos;
   EXPECT_TRUE(said);
   const HostTensor again = read_npy(file);  // sampled and stored again: finite
   for (int64_t i = 0; i < again.numel(); ++i) ASSERT_TRUE(std::isfinite(again.as<float>()[i])) << i;

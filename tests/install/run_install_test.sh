@@ -59,9 +59,9 @@ if [ -f "$video_lib" ]; then
   step "libdvs_video.so: exports, and registers with libdvs.so's own video registry"
   bash "$here/check_exports.sh" "$video_lib" "dvs::enable_video_files()" \
     "dvs::read_video_frames(std::filesystem::__cxx11::path const&, int, int, int, int, bool)" \
-    "dvs::read_video_frames_for_depth(std::filesystem::__cxx11::path const&, int, int)"
-  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 3 ] ||
-    fail "libdvs_video.so exports more than dvs::enable_video_files(), dvs::read_video_frames and read_video_frames_for_depth"
+    "dvs::read_video_frames_for_depth(std::filesystem::__cxx11::path const&, int, int)" "dvs_enable_video_files"
+  [ "$(nm -D --defined-only "$video_lib" | grep -c ' [TDBRVW] ')" = 4 ] ||
+    fail "libdvs_video.so exports more than dvs::enable_video_files(), dvs::read_video_frames, read_video_frames_for_depth and dvs_enable_video_files"
   grep -q ' U dvs::detail::set_video_backend' <<<"$(nm -D -C "$video_lib")" ||
     fail "libdvs_video.so does not take dvs::detail::set_video_backend from libdvs.so (it would register with a copy)"
   for f in "$libdir/libdvs_video.so" "$libdir/libdvs_video.so.0" "$libdir/cmake/dvs/dvsVideoTargets.cmake" "$libdir/pkgconfig/dvs-video.pc"; do
@@ -112,6 +112,25 @@ if [ -f "$video_lib" ]; then
     fail "read_frames_only needs libdvs.so itself: it no longer tests that libdvs_video finds it"
   fi
   "$work/read_frames_only" "$work/clip.mp4" || fail "read_frames_only (libdvs_video alone) cannot run or read the video"
+  step "reading a video from C (issue 34): pkg-config dvs-video with --as-needed needs dvs_enable_video_files()"
+  for calls in 1 0; do
+    # shellcheck disable=SC2046
+    cc -std=c99 -Wall -Werror -DCALLS_ENABLE=$calls -o "$work/c_video_$calls" "$here/c_video_consumer.c" \
+      $(pkg-config --cflags --libs dvs-video) -Wl,--as-needed -Wl,-rpath,"$(pkg-config --variable=libdir dvs)" ||
+      fail "building the C video consumer (CALLS_ENABLE=$calls) failed"
+  done
+  grep -q 'NEEDED.*libdvs_video\.so\.0' <<<"$(readelf -d "$work/c_video_1")" || fail "the C consumer that calls dvs_enable_video_files does not link libdvs_video"
+  if grep -q 'NEEDED.*libdvs_video' <<<"$(readelf -d "$work/c_video_0")"; then
+    fail "--as-needed kept libdvs_video in a C program that calls nothing of it: the check below proves nothing"
+  fi
+  "$work/c_video_1" "$work/clip.mp4" "5 frames of 48x64" "$work/c_render" || fail "the C consumer with dvs_enable_video_files cannot read the video"
+  "$work/c_video_0" "$work/clip.mp4" "needs dvs's video component" "$work/c_render" >"$work/c_video_0.log" &&
+    grep -q "and call dvs_enable_video_files() (dvs/dvs_video.h)" "$work/c_video_0.log" ||
+    fail "the C consumer without dvs_enable_video_files does not get the video component's problem naming that call"
+
+  step "reading a video from Python's ctypes: libdvs.so, then libdvs_video.so and dvs_enable_video_files()"
+  python3 "$here/c_video_ctypes.py" "$prefix/$libdir" "$work/clip.mp4" "5 frames of 48x64" "$work/ctypes_render" ||
+    fail "ctypes on the installed libraries cannot read the video"
 else
   step "no libdvs_video.so (a DVS_VIDEO_IO=OFF build): find_package(dvs COMPONENTS video) fails, saying so"
   if cmake -S "$here/video_consumer" -B "$work/video_consumer" -DCMAKE_PREFIX_PATH="$prefix" >"$work/video_consumer.log" 2>&1; then
@@ -146,5 +165,8 @@ if cmake -S "$work/badcomp" -B "$work/badcomp/build" -DCMAKE_PREFIX_PATH="$prefi
   fail "find_package(dvs COMPONENTS teleport) succeeded"
 fi
 grep -q "no component 'teleport'" <<<"$(tr -s ' \n' '  ' <"$work/badcomp.log")" || { cat "$work/badcomp.log" >&2; fail "the unknown component's message does not name it"; }
+
+step "the C API's tests on the installed package (tests/install/run_c_api_tests.sh)"
+bash "$here/run_c_api_tests.sh" "$prefix" "$libdir" "$work"
 
 echo "install test: all checks passed (prefix $prefix)"

@@ -41,7 +41,7 @@ ClipCall clip_call(const char* call, const dvs_context* context, const dvs_pipel
   // The first real cause of a clip the model cannot take, before anything sized from it (the latent).
   dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
   ClipCall c;
-  c.options = run_options(*options);
+  c.options = run_options(*options, call);
   const int64_t F = count, H = height, W = width;
   c.clip.frames = {const_cast<uint8_t*>(frames), dvs::ElementType::u8, {F, H, W, 3}};
   c.clip.depth = {const_cast<float*>(depth), dvs::ElementType::f32, {F, H, W}};
@@ -74,7 +74,7 @@ dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t co
     require(options->model, call, "options->model");
     check_clip_size(count, height, width, call);
     dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
-    const std::vector<int64_t> s = dvs::clip_latent_shape(options->model, count, height, width);
+    const std::vector<int64_t> s = dvs::clip_latent_shape(run_options(*options, call).model, count, height, width);
     std::copy(s.begin(), s.end(), shape);
   });
 }
@@ -102,7 +102,7 @@ dvs_status dvs_run_pipeline_clip_device(dvs_context* context, const dvs_pipeline
     require(options, call, "options");
     check_clip_size(count, height, width, call);
     dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
-    const dvs::RunOptions o = run_options(*options);
+    const dvs::RunOptions o = run_options(*options, call);
     const int64_t F = count, H = height, W = width;
     dvs::ClipDeviceView clip;
     clip.frames = {frames.buffer, frames.offset, dvs::ElementType::u8, {F, H, W, 3}};

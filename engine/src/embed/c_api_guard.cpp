@@ -5,6 +5,8 @@
 #include <cstring>
 #include <new>
 
+#include "embed/c_api_options.hpp"
+
 namespace dvs::capi {
 namespace {
 thread_local std::string last_error;
@@ -26,7 +28,7 @@ dvs_status status_of(ErrorKind kind, dvs_status input_status) {
 
 dvs_status fail(dvs_status status, const std::string& message) {
   try {
-    last_error = message;
+    last_error = c_option_names(message);  // the C structs' field names, not the C++ ones
   } catch (...) {
     // No memory even for the message: the status still says what happened.
   }

@@ -11,6 +11,7 @@
 #include "geometry/trajectory.hpp"
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
+#include "io/library_log.hpp"
 
 namespace dvs {
 
@@ -150,6 +151,7 @@ void write_trajectory_glb(const std::string& path, const std::vector<Pose>& pose
 
 std::vector<Pose> load_trajectory(const std::string& spec, int frames, double radius) {
   const geometry::Trajectory t = geometry::load_trajectory(spec, frames, radius);
+  for (const std::string& w : t.warnings) log_warning(w);  // e.g. an official .txt whose lines differ in length
   std::vector<Pose> out;
   out.reserve(t.transforms.size());
   for (const auto& m : t.transforms) out.push_back(from_glm(m));

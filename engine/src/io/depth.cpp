@@ -10,6 +10,7 @@
 #include "io/video.hpp"
 #include "io/depth_images.hpp"
 #include "io/npy.hpp"
+#include "io/option_names.hpp"
 
 #include <zip.h>
 
@@ -214,8 +215,8 @@ HostTensor depth_from_array(const HostTensor& in, const std::string& name, const
                 " holds " + std::to_string(d[first]) + " at row " + std::to_string(first % plane / in.shape[2]) +
                 ", column " + std::to_string(first % in.shape[2]) + " (" + std::to_string(count) + " of " +
                 std::to_string(n) + " values are below 0, the least " + std::to_string(lo) +
-                "). Give a depth model's raw disparity; if the file holds metric depth, say so with --metric-depth; "
-                "a signed or log map must be converted first");
+                "). Give a depth model's raw disparity; if the file holds metric depth, say so with " +
+                option_name("RenderJob::metric_depth") + "; a signed or log map must be converted first");
   }
   if (!(hi > lo))
     throw Error(name + ": the disparity is constant over the whole clip (" + std::to_string(lo) +
@@ -273,7 +274,7 @@ HostTensor cut_frames(const HostTensor& depth, int frames, bool allow_trim, cons
   if (N > frames) {
     if (!allow_trim)
       throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames) +
-                  " (--trim-depth uses its first " + std::to_string(frames) + ")");
+                  " (" + option_name("RenderJob::trim_depth") + " uses its first " + std::to_string(frames) + ")");
     d.shape[0] = frames;
     d.data.resize(size_t(frames) * size_t(depth.shape[1] * depth.shape[2]) * 4);
   }
@@ -294,7 +295,7 @@ DepthFit parse_depth_fit(const std::string& v) {
   if (v == "error") return DepthFit::error;
   if (v == "stretch") return DepthFit::stretch;
   if (v == "crop") return DepthFit::crop;
-  throw Error("--depth-fit must be error, stretch or crop, got '" + v + "'");
+  throw Error(option_name("RenderJob::depth_fit") + " must be error, stretch or crop, got '" + v + "'");
 }
 
 const char* depth_fit_name(DepthFit fit) {
@@ -317,7 +318,7 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
       throw Error(name + ": the depth frames are " + shape(dh, dw) + " (HxW) but the video's are " + shape(vh, vw) +
                   ": another aspect ratio" + (((dw > dh) != (vw > vh)) ? " and orientation" : "") +
                   ", so depth and pixels would not line up. Give depth computed on this video, or say how to map "
-                  "it: --depth-fit stretch (scale each axis) or --depth-fit crop (cut the depth's centre)");
+                  "it: " + option_name("RenderJob::depth_fit") + " stretch (scale each axis) or crop (cut the depth's centre)");
     if (fit == DepthFit::crop) {
       if (depth_aspect > video_aspect) rw = dh * video_aspect;
       else rh = dw / video_aspect;

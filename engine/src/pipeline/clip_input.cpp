@@ -9,8 +9,10 @@
 #include "geometry/trajectory.hpp"
 #include "io/depth.hpp"
 #include "io/json_file.hpp"
+#include "io/library_log.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/inversion_cache.hpp"
+#include "io/option_names.hpp"
 #include "spec/cogvideox_config.hpp"
 
 namespace dvs {
@@ -40,7 +42,7 @@ ClipInput clip_input(const RenderJob& job, HostTensor rgb, const HostTensor& dep
     try {
       c.trajectory = geometry::load_trajectory(job.trajectory, F, geometry::official_radius(centre_depth(c.depth)));
     } catch (const Error& e) {
-      throw Error("RunOptions::render.trajectory: " + std::string(e.what()), e.kind());
+      throw Error(option_name("RunOptions::render.trajectory") + ": " + std::string(e.what()), e.kind());
     }
   }
   return c;
@@ -56,14 +58,15 @@ RenderedInput render_clip_input(vk::Context& ctx, const RenderJob& job, const Cl
   r.trajectory = clip.trajectory;
   r.K = job_intrinsics(job);
   say("trajectory " + r.trajectory.description);
-  for (const auto& w : r.trajectory.warnings) say("warning: " + w);
+  for (const auto& w : r.trajectory.warnings) log_warning(w);
   geometry::SplatOptions sopt;
   sopt.mode = job.hard_points ? geometry::SplatMode::hard_point : geometry::SplatMode::soft_bilinear;
   say("rendering on " + ctx.caps().name);
   geometry::RenderedClip rendered = geometry::render_clip(ctx, r.rgb, r.depth, r.trajectory, r.K, sopt);
   r.render = std::move(rendered.render);
   r.mask = std::move(rendered.mask);
-  check_visibility(r.mask, job, geometry::official_radius(centre_depth(r.depth)), say);
+  check_visibility(r.mask, job, geometry::official_radius(centre_depth(r.depth)), say,
+                   "the mask (ClipResultViews::mask, dvs_run_pipeline_clip's mask)");
   stages.end();
   return r;
 }

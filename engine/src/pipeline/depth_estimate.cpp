@@ -7,6 +7,7 @@
 #include "dvs/error.hpp"
 #include "io/crash_points.hpp"
 #include "io/injected_faults.hpp"
+#include "io/library_log.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
@@ -42,11 +43,6 @@ void check_job(const DepthJob& j) {
   if (j.frames < 0) throw Error("--frames must be ≥ 0 (0 = all frames)");
   if (j.max_res < 0) throw Error("--max-res must be ≥ 0 (0 = no limit)");
   VdaModel::inspect(j.model);  // the headers alone: another model's file is named now, not after the decode
-}
-
-void notify(const DepthJob& job, const ProgressFn& progress, const std::string& line) {
-  if (job.notice) job.notice(line);
-  else if (progress) progress("depth", 0, 0, line);
 }
 
 // A cache entry worth using: what an estimate writes (f32 [N, H, W]), finite and not constant.
@@ -154,7 +150,7 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
       return c;
     }
     if (problem) {
-      notify(job, progress, "warning: the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
+      log_warning("the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
       remove_cache_entry(c.file);
     }
   }

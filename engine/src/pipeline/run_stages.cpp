@@ -17,6 +17,7 @@
 #include "diffusion/schedule.hpp"
 #include "diffusion/slm.hpp"
 #include "dvs/error.hpp"
+#include "io/library_log.hpp"
 #include "io/video.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
@@ -26,7 +27,9 @@
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "io/option_names.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/prompt_cut.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_check.hpp"
@@ -45,19 +48,23 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   if (o.use_cache) {
     const InversionCache cache(o.cache_dir);
     if (auto p = file_write_problem(cache.dir() / "eps_inv-write-check.npy",
-                                    "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder, or --no-cache")) {
+                                    "point " + option_name("RunOptions::cache_dir") +
+                                        " (or DVS_CACHE_DIR) at a writable folder, or turn the cache off (" +
+                                        option_name("RunOptions::use_cache") + ")")) {
       cache_problem = *p;
       o.use_cache = false;
-      stages.say(0, 0, "warning: the cache cannot be written, so this run is not cached: " + cache_problem);
+      log_warning("the cache cannot be written, so this run is not cached: " + cache_problem);
     }
   }
   JobPlan jp = plan_job(o);
+  for (const std::string& w : prompt_cut_warnings(o, jp.tokenizer, jp.text_len)) log_warning(w);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
   const nlohmann::json depth_estimate = depth_stage(o, stages);
   const Settings& st = jp.settings;
   const bool dynamic_cfg = o.dynamic_cfg.value_or(st.official);  // the official code always uses it
   if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
-    throw Error("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
+    throw Error(option_name("RunOptions::preservation_scale") + " must be a finite number ≥ 0, got " +
+                std::to_string(o.preservation_scale));
   const diffusion::CogVideoXSchedule& schedule = jp.schedule;
   const diffusion::SamplingPlan& plan = jp.plan;
 
@@ -88,7 +95,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   if (o.use_cache) {
     std::string rejected;
     cached = latent_cache.load(ctx, lat, &rejected);
-    if (!rejected.empty()) stages.say(0, 0, "warning: ignoring the cached latent " + rejected);
+    if (!rejected.empty()) log_warning("ignoring the cached latent " + rejected);
   }
   const int t0 = plan.t0();
   Tensor latent;  // what the decode takes: the final x0 prediction
@@ -172,7 +179,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
     }
     if (o.use_cache)
       if (const std::string failed = latent_cache.store(ctx, latent, latent_meta); !failed.empty())
-        stages.say(0, 0, "warning: the sampled latent could not be cached (" + failed + "); a later run samples again");
+        log_warning("the sampled latent could not be cached (" + failed + "); a later run samples again");
     stages.end();
   }
 

@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <iostream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -107,9 +106,9 @@ std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& nam
   if (max_frames <= 0) {
     // Read to the end. Some containers only estimate their count (from the duration), hence the one frame of slack.
     if (vi.frames_in_file > vi.frames + 1)
-      std::cerr << "dvs: warning: " << name << ": its header announces " << vi.frames_in_file
-                << " frames but decoding stops after frame " << vi.frames
-                << " (the file is truncated or damaged); using those " << vi.frames << "\n";
+      vi.warnings.push_back(name + ": its header announces " + std::to_string(vi.frames_in_file) +
+                            " frames but decoding stops after frame " + std::to_string(vi.frames) +
+                            " (the file is truncated or damaged); using those " + std::to_string(vi.frames));
     vi.frames_in_file = vi.frames;  // exact
   }
   return frames;

@@ -6,10 +6,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <unistd.h>
 
 #include "io/injected_faults.hpp"
+#include "io/library_log.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/shader_registry.hpp"
@@ -111,7 +111,7 @@ PipelineCache::~PipelineCache() {
   try {
     if (created_) save();
   } catch (const std::exception& e) {
-    std::cerr << "dvs: warning: could not save the pipeline cache: " << e.what() << "\n";
+    log_warning(std::string("could not save the pipeline cache: ") + e.what());
   }
   VkDevice dev = ctx_.device();
   for (auto& [key, p] : pipelines_) {
