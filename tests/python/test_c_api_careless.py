@@ -23,8 +23,8 @@ import tempfile
 import threading
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_c_api import (DVS_ERROR_INVALID_ARGUMENT, DVS_OK, DVS_U8, PROGRESS, Intrinsics, SceneOptions,  # noqa: E402
-                        bind, check, failures, ok)
+from test_c_api import (DVS_ERROR_INVALID_ARGUMENT, DVS_OK, DVS_U8, PROGRESS, Intrinsics, RenderOptions,  # noqa: E402
+                        SceneOptions, bind, check, failures, ok)
 from test_c_api_clip import F, H, W, INVERSION_STEPS, PROMPT, STEPS, PipelineOptions, synthetic_clip  # noqa: E402
 
 DVS_ERROR_CANCELLED, DVS_ERROR_OUT_OF_MEMORY, DVS_ERROR_DEVICE_LOST = 4, 5, 7
@@ -46,6 +46,7 @@ def load(path):
         "dvs_scene_render": (C.c_int, [P, C.POINTER(C.c_double), P, C.c_int, P]),
         "dvs_scene_destroy": (C.c_int, [P]),
         "dvs_pipeline_options_default": (C.c_int, [C.POINTER(PipelineOptions)]),
+        "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_run_pipeline_clip": (C.c_int, [P, C.POINTER(PipelineOptions), P, C.c_int32, C.c_int32, C.c_int32, P, P,
                                             P, P, P, C.c_size_t, PROGRESS, P]),
         "dvs_job_start_pipeline_clip": (C.c_int, [P, C.POINTER(PipelineOptions), P, C.c_int32, C.c_int32, C.c_int32,
@@ -69,7 +70,11 @@ class Clip:
         o = self.options
         o.model, o.prompt, o.cache_dir = model.encode(), PROMPT.encode(), cache.encode()
         o.steps, o.inversion_steps, o.use_cache = STEPS, INVERSION_STEPS, 0
-        o.render.frames, o.render.height, o.render.width, o.render.metric_depth = 0, H, W, 1
+        self.render_options = RenderOptions()  # kept alive beside the options that point at it
+        r = self.render_options
+        ok(lib, lib.dvs_render_options_default(C.byref(r)), "dvs_render_options_default")
+        r.frames, r.height, r.width, r.metric_depth = 0, H, W, 1
+        o.render = C.pointer(r)
 
     def output(self):
         return (C.c_uint8 * (F * H * W * 3))()
