@@ -7,6 +7,7 @@
 // a later run, so the run goes on (exit 0) without it. Prints the fault matrix (label robustness).
 #include <gtest/gtest.h>
 
+#include "dvs/cache.hpp"
 #include "support/fault_walk.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/vda_pack.hpp"
@@ -48,7 +49,7 @@ class FaultsRun : public ::testing::Test {
 
 std::string cache_entries(const fs::path& cache) {
   std::string s;
-  for (const auto& name : test::files_in(cache)) {
+  for (const auto& name : test::files_in(cache_folder(cache))) {
     const std::string kind = name.substr(0, name.find('-'));
     if (s.find(kind) == std::string::npos) s += (s.empty() ? "" : "+") + kind;
   }

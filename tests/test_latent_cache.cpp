@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "dvs/cache.hpp"
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
@@ -115,7 +116,7 @@ TEST(LatentCache, FailedDecodeKeepsTheLatent) {
   EXPECT_THROW(run_pipeline(o, fail_at_decode), Error);
   EXPECT_FALSE(fs::exists(in.dir / "out" / "output.mp4"));
   int latents = 0;
-  for (const auto& e : fs::directory_iterator(in.dir / "cache"))
+  for (const auto& e : fs::directory_iterator(cache_folder(in.dir / "cache")))
     latents += e.path().filename().string().rfind("latent-", 0) == 0 && e.path().extension() == ".npy";
   EXPECT_EQ(latents, 1) << "the sampled latent was not kept";
   o.vae_tiling = true;

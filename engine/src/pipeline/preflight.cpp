@@ -24,6 +24,7 @@
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/tokenizer.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
@@ -141,6 +142,7 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
       c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
     // The estimate is kept in the depth cache and read from there by the render (even with --no-cache, which
     // only skips reading an earlier entry): a folder it cannot write fails the job, so it is said now.
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem("--depth-model: " + *old);
     const InversionCache depth_cache(o.cache_dir, "depth");
     if (auto p = folder_write_problem(depth_cache.dir(), "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
       c.problem("--depth-model: the estimate is kept in the depth cache, which cannot be written: " + *p);
@@ -389,6 +391,8 @@ PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScop
       c.problem("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
   }
   const std::optional<VideoFacts> video = check_inputs(o, c, scope);
+  if (o.use_cache && o.render.depth_model.empty())  // (with --depth-model check_inputs has said it)
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem(*old);
   const ModelFacts m = check_model(o, c);
   if (std::filesystem::is_directory(o.model) && st)
     c.attempt("", [&] {
