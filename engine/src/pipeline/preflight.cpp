@@ -41,21 +41,27 @@ namespace {
 
 std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_string(w); }
 
-// Frames in a depth source, as the render stage will read them: an array's first dimension (the file is read),
-// a folder's image count, a grayscale video's container count; nothing when unknown.
-std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
+// A depth source's shape as the render stage will read it: an array's [N,H,W] (the file is read), a folder's image
+// count (its frame size unknown here), a grayscale video's container count and frame size; 0 where unknown.
+struct DepthShape {
+  int64_t frames = 0, height = 0, width = 0;
+};
+DepthShape depth_shape(const std::filesystem::path& spec) {
   const auto path = split_npz_key(spec).first;
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return int64_t(depth_image_files(path).size());
+  if (std::filesystem::is_directory(path, ec)) return {int64_t(depth_image_files(path).size())};
   std::string ext = path.extension().string();
   for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-  if (ext == ".npy" || ext == ".npz") return read_depth_array(spec).shape.at(0);
+  if (ext == ".npy" || ext == ".npz") {
+    const Shape s = read_depth_array(spec).shape;
+    return {s.at(0), s.at(1), s.at(2)};
+  }
   VideoReadOptions vo;
   vo.max_frames = 1;
   vo.height = 8, vo.width = 8;
   VideoInfo vi;
   read_video(path, vo, &vi);
-  return vi.frames_in_file > 0 ? std::optional<int64_t>(vi.frames_in_file) : std::nullopt;
+  return {vi.frames_in_file, vi.height, vi.width};
 }
 
 class Checker {
@@ -152,17 +158,25 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
     // The render stage's frame rule (render_job.cpp): depth for every frame the job uses; more only when it is
     // the whole clip's (cut with --frames) or --trim-depth says so.
     c.attempt("--depth " + j.depth.string(), [&] {
-      const std::optional<int64_t> n = depth_frame_count(j.depth);
-      if (!n) return;
+      const DepthShape shape = depth_shape(j.depth);
+      // Depth of another aspect ratio, or far too small, for the video (the render stage's own rule, from the
+      // file's shape): said now, not after the decode.
+      if (shape.height > 0 && facts && facts->height > 0 && j.height > 0 && j.width > 0) {
+        const VideoFrameGeometry g{int(facts->height), int(facts->width), j.height, j.width,
+                                   j.squash ? ResizeMode::squash : ResizeMode::crop};
+        c.attempt("", [&] { depth_region_for_video(shape.height, shape.width, g, parse_depth_fit(j.depth_fit), j.depth.string()); });
+      }
+      if (shape.frames <= 0) return;
+      const int64_t n = shape.frames;
       const int64_t used = j.frames > 0 ? std::min<int64_t>(j.frames, *video_frames) : *video_frames;
       const std::string frames = j.frames > 0 ? "--frames " + std::to_string(j.frames) : "the video's " + std::to_string(used) + " frames";
-      if (*n < used) {
-        const int64_t fit = (*n - 1) / 4 * 4 + 1;
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames, fewer than " + frames +
+      if (n < used) {
+        const int64_t fit = (n - 1) / 4 * 4 + 1;
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames, fewer than " + frames +
                   "; give depth for every frame, or --frames " + std::to_string(std::max<int64_t>(fit, 1)) +
                   " (the largest 4k+1 it covers)");
-      } else if (*n > used && !j.trim_depth && *n != *video_frames) {
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames but the job uses " + frames +
+      } else if (n > used && !j.trim_depth && n != *video_frames) {
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames but the job uses " + frames +
                   " (and the video holds " + std::to_string(*video_frames) + "): --trim-depth uses its first " +
                   std::to_string(used));
       }
