@@ -3,7 +3,7 @@
 #include "dvs/context.hpp"
 
 #include "dvs/error.hpp"
-#include "embed/public_limits.hpp"
+#include "pipeline/public_limits.hpp"
 #include "vk/context.hpp"
 #include "vk/host_device.hpp"
 
