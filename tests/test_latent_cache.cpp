@@ -73,7 +73,7 @@ TEST(LatentCache, InterruptedDecodeIsReRunStraightToTheDecode) {
   ASSERT_TRUE(cancelled) << "the interrupt was not seen";
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "output.mp4"));
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "run.json"));
-  const fs::path latent2 = in.dir / "cache2" / latent1.filename();
+  const fs::path latent2 = cache_folder(in.dir / "cache2") / latent1.filename();
   ASSERT_TRUE(fs::exists(latent2)) << "the sampled latent was not cached before the decode";
   EXPECT_EQ(bytes_of(latent2), bytes_of(latent1)) << "the interrupted run sampled another latent";
 
