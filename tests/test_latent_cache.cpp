@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "dvs/cache.hpp"
 #include "dvs/error.hpp"
 #include "dvs/logs.hpp"
 #include "dvs/pipeline.hpp"
@@ -73,7 +74,7 @@ TEST(LatentCache, InterruptedDecodeIsReRunStraightToTheDecode) {
   ASSERT_TRUE(cancelled) << "the interrupt was not seen";
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "output.mp4"));
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "run.json"));
-  const fs::path latent2 = in.dir / "cache2" / latent1.filename();
+  const fs::path latent2 = cache_folder(in.dir / "cache2") / latent1.filename();
   ASSERT_TRUE(fs::exists(latent2)) << "the sampled latent was not cached before the decode";
   EXPECT_EQ(bytes_of(latent2), bytes_of(latent1)) << "the interrupted run sampled another latent";
 
@@ -116,7 +117,7 @@ TEST(LatentCache, FailedDecodeKeepsTheLatent) {
   EXPECT_THROW(run_pipeline(o, fail_at_decode), Error);
   EXPECT_FALSE(fs::exists(in.dir / "out" / "output.mp4"));
   int latents = 0;
-  for (const auto& e : fs::directory_iterator(in.dir / "cache"))
+  for (const auto& e : fs::directory_iterator(cache_folder(in.dir / "cache")))
     latents += e.path().filename().string().rfind("latent-", 0) == 0 && e.path().extension() == ".npy";
   EXPECT_EQ(latents, 1) << "the sampled latent was not kept";
   o.vae_tiling = true;

@@ -64,9 +64,10 @@ def file_run_latent(program, model, tmp):
                           "--metric-depth", "--model", model, "--frames", str(F), "--size", "%dx%d" % (H, W),
                           "--steps", str(STEPS), "--inversion-steps", str(INVERSION_STEPS), "--prompt", PROMPT,
                           "--cache-dir", cache, "--out", os.path.join(tmp, "file_out")])
-    latents = [n for n in os.listdir(cache) if n.startswith("latent-") and n.endswith(".npy")]
+    entries = os.path.join(cache, "inversions")  # the cache folder's entries (dvs/cache.hpp)
+    latents = [n for n in os.listdir(entries) if n.startswith("latent-") and n.endswith(".npy")]
     check(len(latents) == 1, "the file run left %d latents in its cache" % len(latents))
-    return read_npy_f32(os.path.join(cache, latents[0]))
+    return read_npy_f32(os.path.join(entries, latents[0]))
 
 
 def main():

@@ -14,7 +14,7 @@ namespace dvs {
 struct DepthFileOptions {
   bool metric_depth = false;  // the file holds metric depth (dvs render --metric-depth), not disparity
   // The video frame the depth was estimated on (VideoFrames::source_height/width, dvs/video.hpp) and how that video
-  // was brought to the working size (dvs render --squash); 0 × 0: the depth belongs to a frame of the working size.
+  // was brought to the working size (dvs render --resize squash); 0 × 0: the depth belongs to a frame of the working size.
   int source_height = 0, source_width = 0;
   bool squash = false;
   std::string depth_fit = "error";  // dvs render --depth-fit: error | stretch | crop (another aspect than the video)

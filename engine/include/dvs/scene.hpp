@@ -32,7 +32,7 @@ struct Pose {
 
 struct SceneOptions {
   bool depth_is_disparity = true;  // depth holds disparity (Video-Depth-Anything, dvs depth) as `dvs render` reads it
-  bool hard_points = false;        // z-buffer point splat instead of the soft bilinear splat (dvs render --hard-points)
+  bool hard_points = false;        // z-buffer point splat instead of the soft bilinear splat (dvs render --points)
 };
 
 class DVS_API PointCloudScene {

@@ -6,7 +6,8 @@
 #include "dvs/error.hpp"
 #include "embed/context_core.hpp"
 #include "embed/public_call.hpp"
-#include "embed/public_limits.hpp"
+#include "pipeline/public_limits.hpp"
+#include "vk/context.hpp"
 #include "vk/host_device.hpp"
 
 namespace dvs {

@@ -302,12 +302,11 @@ const char* depth_fit_name(DepthFit fit) {
   return fit == DepthFit::stretch ? "stretch" : fit == DepthFit::crop ? "crop" : "error";
 }
 
-HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& g, DepthFit fit,
-                              bool allow_trim, const std::string& name) {
-  const HostTensor d = cut_frames(depth, frames, allow_trim, name);
+DepthRegion depth_region_for_video(int64_t depth_height, int64_t depth_width, const VideoFrameGeometry& g, DepthFit fit,
+                                   const std::string& name) {
   if (g.source_height < 1 || g.source_width < 1 || g.height < 1 || g.width < 1)
     throw Error(name + ": internal: the video's frame size is unknown");
-  const double dh = double(d.shape[1]), dw = double(d.shape[2]);
+  const double dh = double(depth_height), dw = double(depth_width);
   const double vh = g.source_height, vw = g.source_width;
   // 1. The depth region that covers the source video frame.
   double rx = 0, ry = 0, rw = dw, rh = dh;
@@ -345,14 +344,21 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
   if (h * kDepthMaxUpscale < ch || w * kDepthMaxUpscale < cw) {
     char ratio[32];
     std::snprintf(ratio, sizeof ratio, "%.3g", std::max(ch / h, cw / w));
-    throw Error(name + ": the depth frames are " + std::to_string(d.shape[1]) + "x" + std::to_string(d.shape[2]) +
+    throw Error(name + ": the depth frames are " + std::to_string(depth_height) + "x" + std::to_string(depth_width) +
                 " (HxW), far too small for the video's " + std::to_string(g.source_height) + "x" +
                 std::to_string(g.source_width) + " frames: each depth pixel would cover " + ratio +
                 " video pixels a side (at most " + std::to_string(kDepthMaxUpscale) +
                 " are allowed). Give depth computed at (or near) the video's size, e.g. with dvs depth or --depth-model");
   }
-  if (x0 == 0 && y0 == 0 && w == dw && h == dh) return resize_depth(d, g.height, g.width);
-  return resample_region(d, x0, y0, w, h, g.height, g.width);
+  return {x0, y0, w, h};
+}
+
+HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& g, DepthFit fit,
+                              bool allow_trim, const std::string& name) {
+  const HostTensor d = cut_frames(depth, frames, allow_trim, name);
+  const DepthRegion r = depth_region_for_video(d.shape[1], d.shape[2], g, fit, name);
+  if (r.x0 == 0 && r.y0 == 0 && r.w == double(d.shape[2]) && r.h == double(d.shape[1])) return resize_depth(d, g.height, g.width);
+  return resample_region(d, r.x0, r.y0, r.w, r.h, g.height, g.width);
 }
 
 HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, int width, bool allow_trim,

@@ -20,6 +20,9 @@ struct VideoReadOptions {
   int max_frames = 0;  // the first N frames (0 = all); a video with fewer is an error (too_few_frames, video.cpp)
   int height = 0, width = 0;  // 0 = keep the file's size
   ResizeMode resize = ResizeMode::crop;
+  // A video of fewer than max_frames frames gives those it has (the caller names the shortfall); else it is the
+  // error that suggests the dvs program's --frames.
+  bool fewer_frames_ok = false;
 };
 
 struct VideoInfo {

@@ -16,6 +16,7 @@
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
 #include "pipeline/cache_entry.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/frames_depth.hpp"
 #include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
@@ -67,6 +68,7 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
 
   vk::ContextOptions copt;
   copt.device = job.device;
+  copt.cache_dir = job.cache_dir;  // the pipeline cache beside the depth cache, as DVS_CACHE_DIR puts it
   vk::Context ctx(copt);
   FramesDepthOptions fo;
   fo.input_size = job.input_size;
@@ -132,6 +134,7 @@ bool depth_cache_has(const DepthJob& job) {
 
 CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
   check_job(job);
+  refuse_old_cache_layout(job.cache_dir);  // an estimate can take a quarter of an hour: never silently again
   CachedDepth c;
   const InversionCache cache = depth_cache(job);
   c.key = depth_cache_key(job);

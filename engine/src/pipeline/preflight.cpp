@@ -24,6 +24,7 @@
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/tokenizer.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
@@ -42,21 +43,27 @@ namespace {
 
 std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_string(w); }
 
-// Frames in a depth source, as the render stage will read them: an array's first dimension (the file is read),
-// a folder's image count, a grayscale video's container count; nothing when unknown.
-std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
+// A depth source's shape as the render stage will read it: an array's [N,H,W] (the file is read), a folder's image
+// count (its frame size unknown here), a grayscale video's container count and frame size; 0 where unknown.
+struct DepthShape {
+  int64_t frames = 0, height = 0, width = 0;
+};
+DepthShape depth_shape(const std::filesystem::path& spec) {
   const auto path = split_npz_key(spec).first;
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return int64_t(depth_image_files(path).size());
+  if (std::filesystem::is_directory(path, ec)) return {int64_t(depth_image_files(path).size())};
   std::string ext = path.extension().string();
   for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-  if (ext == ".npy" || ext == ".npz") return read_depth_array(spec).shape.at(0);
+  if (ext == ".npy" || ext == ".npz") {
+    const Shape s = read_depth_array(spec).shape;
+    return {s.at(0), s.at(1), s.at(2)};
+  }
   VideoReadOptions vo;
   vo.max_frames = 1;
   vo.height = 8, vo.width = 8;
   VideoInfo vi;
   read_video(path, vo, &vi);
-  return vi.frames_in_file > 0 ? std::optional<int64_t>(vi.frames_in_file) : std::nullopt;
+  return {vi.frames_in_file, vi.height, vi.width};
 }
 
 class Checker {
@@ -147,6 +154,7 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
       c.problem(option_name("RenderJob::depth_input_size") + " must be in [14, 4096], got " + std::to_string(j.depth_input_size));
     // The estimate is kept in the depth cache and read from there by the render (even with --no-cache, which
     // only skips reading an earlier entry): a folder it cannot write fails the job, so it is said now.
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem(option_name("RenderJob::depth_model") + ": " + *old);
     const InversionCache depth_cache(o.cache_dir, "depth");
     if (auto p = folder_write_problem(depth_cache.dir(), "point " + option_name("RunOptions::cache_dir") +
                                                              " (or DVS_CACHE_DIR) at a writable folder"))
@@ -158,17 +166,25 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
     // The render stage's frame rule (render_job.cpp): depth for every frame the job uses; more only when it is
     // the whole clip's (cut with --frames) or --trim-depth says so.
     c.attempt(option_name("RenderJob::depth") + " " + j.depth.string(), [&] {
-      const std::optional<int64_t> n = depth_frame_count(j.depth);
-      if (!n) return;
+      const DepthShape shape = depth_shape(j.depth);
+      // Depth of another aspect ratio, or far too small, for the video (the render stage's own rule, from the
+      // file's shape): said now, not after the decode.
+      if (shape.height > 0 && facts && facts->height > 0 && j.height > 0 && j.width > 0) {
+        const VideoFrameGeometry g{int(facts->height), int(facts->width), j.height, j.width,
+                                   j.squash ? ResizeMode::squash : ResizeMode::crop};
+        c.attempt("", [&] { depth_region_for_video(shape.height, shape.width, g, parse_depth_fit(j.depth_fit), j.depth.string()); });
+      }
+      if (shape.frames <= 0) return;
+      const int64_t n = shape.frames;
       const int64_t used = j.frames > 0 ? std::min<int64_t>(j.frames, *video_frames) : *video_frames;
       const std::string frames = j.frames > 0 ? frames_option + " " + std::to_string(j.frames) : "the video's " + std::to_string(used) + " frames";
-      if (*n < used) {
-        const int64_t fit = (*n - 1) / 4 * 4 + 1;
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames, fewer than " + frames +
+      if (n < used) {
+        const int64_t fit = (n - 1) / 4 * 4 + 1;
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames, fewer than " + frames +
                   "; give depth for every frame, or " + frames_option + " " + std::to_string(std::max<int64_t>(fit, 1)) +
                   " (the largest 4k+1 it covers)");
-      } else if (*n > used && !j.trim_depth && *n != *video_frames) {
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames but the job uses " + frames +
+      } else if (n > used && !j.trim_depth && n != *video_frames) {
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames but the job uses " + frames +
                   " (and the video holds " + std::to_string(*video_frames) + "): " + option_name("RenderJob::trim_depth") + " uses its first " +
                   std::to_string(used));
       }
@@ -412,6 +428,8 @@ PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScop
                 std::to_string(o.preservation_scale));
   }
   const std::optional<VideoFacts> video = check_inputs(o, c, scope);
+  if (o.use_cache && o.render.depth_model.empty())  // (with --depth-model check_inputs has said it)
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem(*old);
   const ModelFacts m = check_model(o, c);
   if (kind == JobKind::run) note_prompt_cuts(o, c);
   if (std::filesystem::is_directory(o.model) && st)

@@ -223,6 +223,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
   const OutputLock out_lock(job.out_dir);  // before the folder is prepared: no other process writes into it
   vk::ContextOptions copt;
   copt.device = job.device;
+  copt.cache_dir = job.depth_cache_dir;  // the pipeline cache in the cache folder, as DVS_CACHE_DIR puts it
   vk::Context ctx(copt);
   RenderedInput in = render_stage(ctx, job, progress);
   RenderSummary sum;

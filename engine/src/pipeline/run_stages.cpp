@@ -18,11 +18,13 @@
 #include "diffusion/slm.hpp"
 #include "dvs/error.hpp"
 #include "io/library_log.hpp"
+#include "io/cache_root.hpp"
 #include "io/video.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
@@ -46,6 +48,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   // later run); run.json then records "cache": false and why, not the cache it could not use.
   std::string cache_problem;
   if (o.use_cache) {
+    refuse_old_cache_layout(o.cache_dir);  // named, not computed again (a clip run has no preflight)
     const InversionCache cache(o.cache_dir);
     if (auto p = file_write_problem(cache.dir() / "eps_inv-write-check.npy",
                                     "point " + option_name("RunOptions::cache_dir") +
@@ -72,6 +75,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   if (!device) {
     vk::ContextOptions copt;
     copt.device = o.render.device;
+    copt.cache_dir = o.cache_dir;  // the pipeline cache beside the run caches, as DVS_CACHE_DIR puts it
     device = &own_device.emplace(copt);
   }
   vk::Context& ctx = *device;
@@ -218,7 +222,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
     }
   }
   extras.poses_hash = InversionCache::key(pose_text);
-  extras.cache_dir = o.use_cache ? InversionCache(o.cache_dir).dir().string() : "";
+  extras.cache_dir = o.use_cache ? cache_root(o.cache_dir).string() : "";  // what --from gives back as --cache-dir
   extras.cache_problem = cache_problem;
   if (o.use_cache) {
     extras.latent = {{"path", latent_cache.file().string()}, {"key", latent_cache.key()}, {"reused", cached.has_value()},

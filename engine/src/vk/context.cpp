@@ -268,7 +268,7 @@ void Context::create_services(const ContextOptions& options) {
 
   allocator_ = std::make_unique<Allocator>(*this);
   transfer_ = std::make_unique<Transfer>(*this);
-  pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file);
+  pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file, options.cache_dir);
   profiler_ = std::make_unique<Profiler>(env_on("DVS_PROFILE"));
 }
 

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <memory>
@@ -33,7 +34,8 @@ class Transfer;
 struct ContextOptions {
   std::string device;              // index or name substring; empty: DVS_DEVICE, else the best GPU
   bool validation = false;         // also on when DVS_VALIDATION=1
-  std::string pipeline_cache_file; // empty: $DVS_CACHE_DIR or $XDG_CACHE_HOME/dvs or ~/.cache/dvs; "-": none
+  std::string pipeline_cache_file; // empty: PipelineCache::default_file in cache_dir; "-": none
+  std::filesystem::path cache_dir; // the cache folder (io/cache_root.hpp; empty: $DVS_CACHE_DIR, else ~/.cache/dvs)
 };
 
 // Where a recording split by Recorder::boundary stands after one of its submissions: `done` of `total`

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <unistd.h>
 
+#include "io/cache_root.hpp"
 #include "io/injected_faults.hpp"
 #include "io/library_log.hpp"
 #include "vk/check.hpp"
@@ -49,19 +50,14 @@ FileHeader expected_header(const DeviceCaps& c) {
 
 }  // namespace
 
-std::string PipelineCache::default_file(const Context& ctx) {
-  std::filesystem::path dir;
-  if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir = d;
-  else if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) dir = std::filesystem::path(x) / "dvs";
-  else if (const char* home = std::getenv("HOME"); home && *home) dir = std::filesystem::path(home) / ".cache" / "dvs";
-  else return "";
+std::string PipelineCache::default_file(const Context& ctx, const std::filesystem::path& cache_dir) {
   char name[64];
   std::snprintf(name, sizeof name, "pipelines-%04x-%04x.bin", ctx.caps().vendor_id, ctx.caps().device_id);
-  return (dir / name).string();
+  return (cache_root(cache_dir) / name).string();
 }
 
-PipelineCache::PipelineCache(Context& ctx, const std::string& file) : ctx_(ctx) {
-  file_ = file == "-" ? "" : (file.empty() ? default_file(ctx) : file);
+PipelineCache::PipelineCache(Context& ctx, const std::string& file, const std::filesystem::path& cache_dir) : ctx_(ctx) {
+  file_ = file == "-" ? "" : (file.empty() ? default_file(ctx, cache_dir) : file);
   load();
 }
 

@@ -6,6 +6,7 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <span>
@@ -30,8 +31,8 @@ enum class CacheLoad { disabled, absent, loaded, rejected };
 
 class PipelineCache {
  public:
-  // file: path of the cache file; "" = default location; "-" = no disk cache.
-  PipelineCache(Context& ctx, const std::string& file);
+  // file: path of the cache file; "" = default_file in the cache folder cache_dir; "-" = no disk cache.
+  PipelineCache(Context& ctx, const std::string& file, const std::filesystem::path& cache_dir = {});
   ~PipelineCache();
 
   // Specialization constant i (constant_id = i) takes spec[i] (floats passed bit-cast).
@@ -43,7 +44,9 @@ class PipelineCache {
   const std::string& file() const { return file_; }
   size_t pipelines_created() const { return created_; }
 
-  static std::string default_file(const Context& ctx);
+  // pipelines-<vendor>-<device>.bin in the cache folder cache_dir (io/cache_root.hpp: empty = $DVS_CACHE_DIR, else
+  // ~/.cache/dvs), the folder whose inversions/ holds the run caches.
+  static std::string default_file(const Context& ctx, const std::filesystem::path& cache_dir = {});
 
  private:
   void load();
