@@ -95,7 +95,7 @@ TEST(LinearTuning, TiledWithoutATensorCoreShape) {
 
 TEST(LinearTuning, LavapipeSizedLayouts) {
   // The coopmat entry forced on lavapipe 26.1: its listed 8x8x8, 8 lanes, the GPUs' arrangement of subgroups and
-  // fragments (64 x 64 x 32, 64 invocations, 22.5 KiB).
+  // fragments (64 x 64 x 32, 64 invocations, 22 KiB).
   ops::DeviceTuning t = ops::select_tuning(lavapipe_26(), "gpu-coopmat");
   EXPECT_EQ(t.linear, ops::KernelFamily::coopmat);
   EXPECT_EQ(t.conv, ops::KernelFamily::coopmat);
@@ -106,6 +106,7 @@ TEST(LinearTuning, LavapipeSizedLayouts) {
   EXPECT_TRUE(same(t.linear_coopmat, {2, 4, 4, 2, 32}));
   EXPECT_EQ(ops::linear_coopmat_layout(t).tile_m(), 64);
   EXPECT_EQ(ops::linear_coopmat_layout(t).invocations(), 64u);
+  EXPECT_EQ(ops::linear_coopmat_shared_bytes(ops::linear_coopmat_layout(t)), 22u * 1024);
   EXPECT_TRUE(same(t.conv_coopmat, {4, 2, 2, 4, 32}));
   EXPECT_EQ(t.attention_coopmat_subgroups, 4);
   // The GPUs' 16x16x16 forced: linear takes the 64 x 64 row (the first needs 48 KiB), attention 2 subgroups

@@ -82,6 +82,8 @@ void fill_cpu_simd(DeviceTuning& t, const vk::DeviceCaps&) {
 // GPUs with usable tensor cores (VK_KHR_cooperative_matrix with an fp16 x fp16 -> fp32 16x16 shape at
 // subgroup scope): GEMM-shaped work on shared-memory tiles feeding cooperative matrices.
 bool gpu_coopmat(const vk::DeviceCaps& c) { return c.type != VK_PHYSICAL_DEVICE_TYPE_CPU && pick_coopmat_shape(c).defined(); }
+// Any other device: a GPU. Shared-memory tiles over storage buffers, fp32 FMA; few accumulators per thread
+// keep occupancy; GPUs broadcast uniform loads. Norms: a workgroup per row.
 bool any_device(const vk::DeviceCaps&) { return true; }
 void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.linear = t.attention = t.conv = KernelFamily::tiled;
@@ -235,7 +237,7 @@ const std::vector<Field>& fields() {
        }},
       // Lanes other than the device's subgroup size: for the fp32 twins (which emulate them); the tensor-core
       // kernels then refuse to run (their pipelines require the subgroup size).
-      {"coopmat_lanes", "4..128, a power of two (default: the device's subgroup size)",
+      {"coopmat_lanes", "4..128, a power of two (default: 32 where the device runs compute at 32, else its subgroup size)",
        [](DeviceTuning& t, const std::string& v) {
          int64_t x;
          if (!parse_int(v, 4, 128, x) || (x & (x - 1))) return false;

@@ -381,7 +381,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
           ? coopmat_pipeline(ctx, fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat", conv_coopmat_spec(fam.layout, wdt),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
-  note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name, {device_tuning(caps).conv_unfit, true});
+  note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
+              {fam.kind == KernelFamily::coopmat ? std::string() : device_tuning(caps).conv_unfit, true});
   const vk::BufferView bias_view = bias ? word_view(*bias) : packed_w;
   const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 
