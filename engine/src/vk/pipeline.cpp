@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "io/cache_root.hpp"
+#include "dvs/error.hpp"
 #include "io/injected_faults.hpp"
 #include "io/library_log.hpp"
 #include "vk/check.hpp"
@@ -149,9 +150,25 @@ void PipelineCache::save() {
   if (ec) std::filesystem::remove(tmp, ec);
 }
 
-const Pipeline& PipelineCache::get(const std::string& shader, std::span<const uint32_t> spec) {
-  auto key = std::make_pair(shader, std::vector<uint32_t>(spec.begin(), spec.end()));
+const Pipeline& PipelineCache::get(const std::string& shader, std::span<const uint32_t> spec,
+                                   uint32_t required_subgroup_size) {
+  auto key = std::make_tuple(shader, std::vector<uint32_t>(spec.begin(), spec.end()), required_subgroup_size);
   if (auto it = pipelines_.find(key); it != pipelines_.end()) return *it->second;
+  // Through size control where the device offers it for compute (SPIR-V 1.6 shaders may otherwise see any
+  // size it supports); a device without it runs compute at its one subgroup size.
+  const DeviceCaps& caps = ctx_.caps();
+  const uint32_t lanes = required_subgroup_size;
+  const bool require = lanes && caps.subgroup_size_control && caps.compute_required_subgroup_size &&
+                       lanes >= caps.min_subgroup_size && lanes <= caps.max_subgroup_size;
+  if (lanes && !require && !(caps.subgroup_size == lanes && (!caps.subgroup_size_control ||
+                                                             caps.min_subgroup_size == caps.max_subgroup_size)))
+    throw Error("shader " + shader + " is laid out for subgroups of " + std::to_string(lanes) + " lanes; " +
+                caps.name + " runs compute with subgroups of " +
+                (caps.subgroup_size_control && caps.min_subgroup_size
+                     ? std::to_string(caps.min_subgroup_size) + " to " + std::to_string(caps.max_subgroup_size) +
+                           (caps.compute_required_subgroup_size ? "" : " (not selectable for compute)")
+                     : std::to_string(caps.subgroup_size)) +
+                " lanes (choose the layout for this device in DVS_TUNING: coopmat_lanes)");
 
   std::span<const uint32_t> code = find_shader(shader);
   auto p = std::make_unique<Pipeline>();
@@ -190,6 +207,13 @@ const Pipeline& PipelineCache::get(const std::string& shader, std::span<const ui
   ci.stage.module = module;
   ci.stage.pName = "main";
   ci.stage.pSpecializationInfo = spec.empty() ? nullptr : &si;
+  VkPipelineShaderStageRequiredSubgroupSizeCreateInfo sized{
+      VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_REQUIRED_SUBGROUP_SIZE_CREATE_INFO};
+  if (require) {
+    sized.requiredSubgroupSize = lanes;
+    ci.stage.pNext = &sized;
+    ci.stage.flags = VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT;
+  }
   ci.layout = p->layout;
   VkResult r = vkCreateComputePipelines(dev, cache_, 1, &ci, nullptr, &p->pipeline);
   vkDestroyShaderModule(dev, module, nullptr);

@@ -11,6 +11,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "vk/spirv_reflect.hpp"
@@ -36,7 +37,11 @@ class PipelineCache {
   ~PipelineCache();
 
   // Specialization constant i (constant_id = i) takes spec[i] (floats passed bit-cast).
-  const Pipeline& get(const std::string& shader, std::span<const uint32_t> spec = {});
+  // required_subgroup_size (0: any): the shader's subgroups must have exactly that many lanes (kernels laid
+  // out for one subgroup size, such as the tensor-core ones); required through subgroup size control with
+  // full subgroups, or accepted where the device's only size is that one; else a dvs::Error naming both.
+  const Pipeline& get(const std::string& shader, std::span<const uint32_t> spec = {},
+                      uint32_t required_subgroup_size = 0);
 
   void save();  // writes the file atomically (temp name + rename); a no-op without a file
   CacheLoad load_state() const { return load_state_; }
@@ -53,7 +58,7 @@ class PipelineCache {
   Context& ctx_;
   std::string file_;
   VkPipelineCache cache_ = VK_NULL_HANDLE;
-  std::map<std::pair<std::string, std::vector<uint32_t>>, std::unique_ptr<Pipeline>> pipelines_;
+  std::map<std::tuple<std::string, std::vector<uint32_t>, uint32_t>, std::unique_ptr<Pipeline>> pipelines_;
   CacheLoad load_state_ = CacheLoad::disabled;
   std::string load_note_;
   size_t created_ = 0;
