@@ -150,40 +150,36 @@ TEST(PrecisionRule, PackWithoutBf16FilesSaysSoAndFallsBack) {
   EXPECT_TRUE(judge_file_in(bare.path, s, p.golden.to_f32(), kForced).pass);
 }
 
-// Which rule applies comes from the tuning: the tensor-core entry of a device with cooperative matrices makes
-// linear 16-bit; coopmat=off, the gpu entry and the CPU entry do not; the ops a case exercises select the fields.
-TEST(PrecisionRule, TheTuningDecidesWhichOpsAreSixteenBit) {
-  vk::DeviceCaps c;
-  c.type = VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU;
-  c.subgroup_size = 32;
-  c.subgroup_shuffle = true;
-  c.max_compute_shared_memory = 48 * 1024;
-  c.cooperative_matrix = true;
-  vk::CooperativeMatrixShape shape;
-  shape.m = shape.n = shape.k = 16;
-  c.cooperative_matrix_shapes.push_back(shape);
-  const ops::DeviceTuning coop = ops::select_tuning(c, "");
-  ASSERT_EQ(coop.entry, "gpu-coopmat");
-  EXPECT_EQ(sixteen_bit_ops(coop, kLinearOps), "linear=coopmat");
-  EXPECT_EQ(sixteen_bit_ops(coop, kNoKernelOps), "");
-  EXPECT_EQ(sixteen_bit_ops(ops::select_tuning(c, "coopmat=off"), kAllKernelOps), "");
-  EXPECT_EQ(sixteen_bit_ops(ops::select_tuning(c, "gpu"), kAllKernelOps), "");
-  ops::DeviceTuning t;  // each op's field, alone
-  t.conv = ops::KernelFamily::coopmat;
-  EXPECT_EQ(sixteen_bit_ops(t, kTextOps), "");
-  EXPECT_EQ(sixteen_bit_ops(t, kConvOps), "conv=coopmat");
-  t.attention_coopmat_twin = true;  // the fp32 twin rounds operands to fp16 as the tensor cores do
-  EXPECT_EQ(sixteen_bit_ops(t, kAllKernelOps), "attention=coopmat twin, conv=coopmat");
+// Which rule applies comes from the kernels that ran: an op is 16-bit when it dispatched the coopmat family or a
+// coopmat kernel's fp32 twin (fp16-rounded operands); a call that fell back to an fp32 kernel is not; the ops a case
+// exercises select the fields.
+TEST(PrecisionRule, TheKernelsThatRanDecideWhichOpsAreSixteenBit) {
+  using Note = vk::Context::KernelNote;
+  const std::vector<Note> ran = {{"linear", "coopmat", "linear_coopmat", "", false},
+                                 {"linear", "tiled", "linear_tiled", "T5's fp32 operands", false},
+                                 {"attention", "texel", "attention", "head_dim 24", false},
+                                 {"conv", "tiled", "conv_coopmat_twin", "", false}};
+  EXPECT_EQ(sixteen_bit_ops_run(ran, kLinearOps), "linear=linear_coopmat");
+  EXPECT_EQ(sixteen_bit_ops_run(ran, kNoKernelOps), "");
+  EXPECT_EQ(sixteen_bit_ops_run(ran, kAttentionOps), "");
+  EXPECT_EQ(sixteen_bit_ops_run(ran, kAllKernelOps), "linear=linear_coopmat, conv=conv_coopmat_twin");
+  EXPECT_EQ(sixteen_bit_ops_run({ran[1], ran[2]}, kAllKernelOps), "");
 }
 
-// End to end on this device: the production helper reads the device's tuning (here forced in-process).
-TEST(PrecisionRule, ExpectGoldenReadsTheDeviceTuning) {
+// End to end on this device: the production helper judges by the kernels the running test dispatched (the census),
+// not by what the tuning asks for. Census notes stand for dispatches here: no kernel ran, so the fp32 rule judges;
+// the attention twin's note makes attention results 16-bit; a linear that fell back to an fp32 kernel does not.
+TEST(PrecisionRule, ExpectGoldenJudgesByTheKernelsThatRan) {
   const Sample s = kSamples[1];
   const PackGolden p = with_bf16(s);
   ASSERT_TRUE(p.bf16);
   const HostTensor ours = HostTensor::from_f32(p.golden.shape, scaled_error(p, 1.5));
-  ops::ScopedTuningOverride twin("attention_coopmat_twin=on");
-  ASSERT_TRUE(ops::device_tuning(gpu().caps()).attention_coopmat_twin);
+  EXPECT_NONFATAL_FAILURE(expect_golden("nothing ran", ours, s.rel, s.atol, s.rtol, kAttentionOps), "fp32 rule");
+  gpu().note_kernel({"linear", "tiled", "linear_tiled", "T5's fp32 operands", false});
+  EXPECT_NONFATAL_FAILURE(expect_golden("linear fell back to fp32", ours, s.rel, s.atol, s.rtol, kTextOps),
+                          "fp32 rule");
+  gpu().note_kernel({"attention", "tiled", "attention_flash_coopmat_twin", "", false});
+  EXPECT_EQ(sixteen_bit_ops_run(kernels_run_in_test(), kTextOps), "attention=attention_flash_coopmat_twin");
   EXPECT_TRUE(expect_golden("attention via the twin", ours, s.rel, s.atol, s.rtol, kAttentionOps).pass);
   EXPECT_NONFATAL_FAILURE(expect_golden("convolutions only", ours, s.rel, s.atol, s.rtol, kConvOps), "fp32 rule");
 }

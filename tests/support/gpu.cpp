@@ -8,12 +8,18 @@
 
 namespace dvs::test {
 
+namespace {
+bool g_gpu_made = false;  // gpu() has made the shared context (its census exists)
+}  // namespace
+
 vk::Context& gpu() {
   static std::unique_ptr<vk::Context> ctx = [] {
     vk::ContextOptions o;
     o.validation = true;
     o.pipeline_cache_file = "-";  // tests exercise the disk cache explicitly
-    return std::make_unique<vk::Context>(o);
+    auto made = std::make_unique<vk::Context>(o);
+    g_gpu_made = true;
+    return made;
   }();
   return *ctx;
 }
@@ -22,6 +28,15 @@ namespace {
 
 using Notes = std::map<vk::Context::KernelNote, uint64_t>;
 Notes g_notes_at_setup;  // the context's kernel census when the running test began
+
+// Every test, a GpuTest or not, starts its census afresh (kernels_run_in_test), without making the context.
+class CensusAtTestStart : public ::testing::EmptyTestEventListener {
+  void OnTestStart(const ::testing::TestInfo&) override { g_notes_at_setup = g_gpu_made ? gpu().kernel_notes() : Notes{}; }
+};
+const bool g_census_listener = [] {
+  ::testing::UnitTest::GetInstance()->listeners().Append(new CensusAtTestStart);
+  return true;
+}();
 
 // DVS_REQUIRE_COOPMAT (the tensor-core pass, tests/run_coopmat_pass.sh): the ops, comma-separated, that must have
 // run on tensor cores by the end of the program; while it is set, a test whose calls fell back from a coopmat
@@ -81,6 +96,16 @@ void GpuTest::TearDown() {
 }
 
 void forgive_kernel_fallbacks() { g_notes_at_setup = gpu().kernel_notes(); }
+
+std::vector<vk::Context::KernelNote> kernels_run_in_test() {
+  std::vector<vk::Context::KernelNote> ran;
+  if (!g_gpu_made) return ran;
+  for (const auto& [note, calls] : gpu().kernel_notes()) {
+    auto before = g_notes_at_setup.find(note);
+    if (calls > (before == g_notes_at_setup.end() ? 0 : before->second)) ran.push_back(note);
+  }
+  return ran;
+}
 
 std::string golden_dir() {
   const char* env = std::getenv("DVS_GOLDEN_DIR");

@@ -39,18 +39,17 @@ ErrorMeasure error_measure(const std::vector<float>& ours, const std::vector<flo
   return m;
 }
 
-std::string sixteen_bit_ops(const ops::DeviceTuning& t, unsigned which) {
-  using ops::KernelFamily;
+std::string sixteen_bit_ops_run(const std::vector<vk::Context::KernelNote>& ran, unsigned which) {
   std::string s;
-  auto add = [&](const char* name) { s += (s.empty() ? "" : ", ") + std::string(name); };
-  if ((which & kLinearOps) && t.linear == KernelFamily::coopmat) add("linear=coopmat");
-  if (which & kAttentionOps) {
-    if (t.attention == KernelFamily::coopmat)
-      add("attention=coopmat");
-    else if (t.attention_coopmat_twin)
-      add("attention=coopmat twin");
+  for (const auto& [bit, op] : {std::pair{kLinearOps, "linear"}, {kAttentionOps, "attention"}, {kConvOps, "conv"}}) {
+    if (!(which & bit)) continue;
+    std::string shaders;  // the 16-bit kernels this op ran: the coopmat family, or a coopmat kernel's twin
+    for (const auto& n : ran)
+      if (n.op == op && (n.family == "coopmat" || n.shader.find("coopmat") != std::string::npos) &&
+          shaders.find(n.shader) == std::string::npos)
+        shaders += (shaders.empty() ? "" : " ") + n.shader;
+    if (!shaders.empty()) s += (s.empty() ? "" : ", ") + std::string(op) + "=" + shaders;
   }
-  if ((which & kConvOps) && t.conv == KernelFamily::coopmat) add("conv=coopmat");
   return s;
 }
 
@@ -121,7 +120,7 @@ GoldenVerdict expect_golden_values(const std::string& what, const Shape& ours_sh
                   << golden.size() << ", its bf16 run " << (bf16 ? bf16->size() : 0) << ")";
     return {};
   }
-  const std::string mode = sixteen_bit ? *sixteen_bit : sixteen_bit_ops(ops::device_tuning(gpu().caps()), ops);
+  const std::string mode = sixteen_bit ? *sixteen_bit : sixteen_bit_ops_run(kernels_run_in_test(), ops);
   GoldenVerdict v = judge_golden(what, ours, golden, bf16, bf16_source, atol, rtol, mode);
   std::printf("%s\n", v.report.c_str());
   EXPECT_TRUE(v.pass) << v.report;

@@ -18,6 +18,7 @@
 
 #include "io/host_tensor.hpp"
 #include "tensor/kernel_tuning.hpp"
+#include "vk/context.hpp"
 
 namespace dvs::test {
 
@@ -38,10 +39,11 @@ struct ErrorMeasure {
 };
 ErrorMeasure error_measure(const std::vector<float>& ours, const std::vector<float>& golden);
 
-// The 16-bit-operand ops (of `ops`) under `tuning`: those whose family is coopmat, or that run the coopmat
-// kernel's fp32 twin (which rounds operands to fp16 as the tensor cores do). Returns a text naming them
-// ("" when none: the fp32 tolerance judges).
-std::string sixteen_bit_ops(const ops::DeviceTuning& tuning, unsigned ops);
+// The 16-bit-operand ops of `ops`, from what ran (tests/support/gpu.hpp's kernels_run_in_test): those that
+// dispatched a tensor-core kernel, or a coopmat kernel's fp32 twin (which rounds operands to fp16 as the tensor
+// cores do), in the running test. Returns a text naming them ("" when none: the fp32 tolerance judges). A call that fell back to an fp32 kernel (T5's fp32 operands,
+// a head_dim the tensor-core kernel does not take) is judged by the fp32 tolerance, as its kernel was fp32.
+std::string sixteen_bit_ops_run(const std::vector<vk::Context::KernelNote>& ran, unsigned ops);
 
 // One golden comparison's verdict and the line that reports it.
 struct GoldenVerdict {
@@ -51,7 +53,7 @@ struct GoldenVerdict {
 
 // The rule itself, on values (shapes checked by the caller). `bf16`: PyTorch's bf16 run of the same golden, or
 // nullopt when the pack has none (`bf16_source` then says where it was looked for). `sixteen_bit`: the text of
-// sixteen_bit_ops ("" for fp32 families).
+// sixteen_bit_ops_run ("" for fp32 families).
 GoldenVerdict judge_golden(const std::string& what, const std::vector<float>& ours, const std::vector<float>& golden,
                            const std::optional<std::vector<float>>& bf16, const std::string& bf16_source, double atol,
                            double rtol, const std::string& sixteen_bit);
@@ -65,7 +67,7 @@ struct PackGolden {
 PackGolden read_pack_golden(const std::filesystem::path& root, const std::string& rel);
 
 // The production comparison: `ours` against <root>/<rel> (a leading batch of one ignored on either side), judged
-// by the rule for the ops `ops` under the test device's tuning (or `sixteen_bit` when given: tests of the rule).
+// by the rule for the ops `ops` by the kernels that ran in this test (or `sixteen_bit` when given: tests of the rule).
 // Prints the verdict line, adds a non-fatal failure when it fails; returns the verdict.
 GoldenVerdict expect_golden_file(const std::string& what, const Shape& ours_shape, const std::vector<float>& ours,
                                  const std::filesystem::path& root, const std::string& rel, double atol, double rtol,
