@@ -86,7 +86,7 @@ TEST(PrecisionRule, TwoAndAHalfTimesTheBf16ErrorFailsOneAndAHalfPasses) {
     if (!p.bf16) continue;
     const GoldenVerdict pass = judge_file(s, scaled_error(p, 1.5), kForced);
     EXPECT_TRUE(pass.pass) << pass.report;
-    EXPECT_NE(pass.report.find("1.5 x and 1.5 x the bf16 run's"), std::string::npos) << pass.report;
+    EXPECT_NE(pass.report.find("1.5 x and 1.5 x torch bf16's"), std::string::npos) << pass.report;
     GoldenVerdict fail;
     EXPECT_NONFATAL_FAILURE(fail = judge_file(s, scaled_error(p, 2.5), kForced), "16-bit rule");
     EXPECT_FALSE(fail.pass) << fail.report;
@@ -199,8 +199,9 @@ void expect_recorded_measures(const fs::path& root, const nlohmann::json& index,
     const PackGolden p = read_pack_golden(root, rel);
     ASSERT_TRUE(p.bf16) << p.bf16_path;
     ASSERT_EQ(p.bf16->shape, p.golden.shape);
-    if (rec.contains("stored_as"))  // the storage the record claims is the one read
+    if (rec.contains("stored_as")) {  // the storage the record claims is the one read
       EXPECT_EQ(p.bf16->dtype, rec.at("stored_as") == "float32" ? DType::f32 : DType::f16) << rec.dump();
+    }
     const ErrorMeasure m = error_measure(p.bf16->to_f32(), p.golden.to_f32());
     const double max_abs = rec.at("max_abs"), rel_l2 = rec.at("rel_l2");  // finite: the scale of the check
     EXPECT_NEAR(m.max_abs, max_abs, 1e-6 * max_abs);

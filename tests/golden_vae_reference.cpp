@@ -12,6 +12,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <map>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "pipeline/job_stages.hpp"
 #include "support/gpu.hpp"
+#include "support/precision_rule.hpp"
 
 namespace fs = std::filesystem;
 using dvs::HostTensor;
@@ -60,16 +62,30 @@ V cat_time(const V& a, const V& x) {
   return y;
 }
 
+// fp32 -> fp16 -> fp32, round to nearest even: the operand rounding of dvs's 16-bit convolution kernels (the
+// tensor-core kernel and its fp32 twin stage both operands in fp16 and accumulate in fp32).
+double fp16_rounded(double v) { return double(dvs::f16_to_f32(dvs::f32_to_f16(float(v)))); }
+
+V fp16_rounded(const V& x) {
+  V y = x;
+  for (double& t : y.d) t = fp16_rounded(t);
+  return y;
+}
+
 struct RefVae {
   dvs::WeightSet ws;
   dvs::models::VaeConfig cfg;
+  // Every convolution's input and weights rounded to fp16 first (products and sums still in double): the 16-bit run
+  // a result of dvs's 16-bit conv kernels is judged against (the precision rule, support/precision_rule.hpp).
+  bool fp16_operands = false;
   std::map<std::string, std::vector<double>> cache_w;
 
-  explicit RefVae(const fs::path& dir)
+  explicit RefVae(const fs::path& dir, bool fp16 = false)
       : ws(dvs::WeightSet::open_dir(dir)), cfg(dvs::models::VaeConfig::from_json([&] {
           std::ifstream f(dir / "config.json");
           return nlohmann::json::parse(f);
-        }())) {}
+        }())),
+        fp16_operands(fp16) {}
 
   const std::vector<double>& w(const std::string& name) {
     auto it = cache_w.find(name);
@@ -78,10 +94,21 @@ struct RefVae {
     return cache_w.emplace(name, std::vector<double>(f.begin(), f.end())).first->second;
   }
 
+  // A convolution's weights as its kernel reads them (rounded to fp16 under fp16_operands).
+  const std::vector<double>& conv_w(const std::string& name) {
+    if (!fp16_operands) return w(name);
+    const std::string key = name + " (fp16)";
+    auto it = cache_w.find(key);
+    if (it != cache_w.end()) return it->second;
+    std::vector<double> r = w(name);
+    for (double& t : r) t = fp16_rounded(t);
+    return cache_w.emplace(key, std::move(r)).first->second;
+  }
+
   // CogVideoXCausalConv3d: time prefix = cache or kt-1 copies of frame 0; cache' = last kt-1 padded frames.
   V causal_conv(const V& x, const std::string& p, std::map<std::string, V>* caches) {
     const HostTensor wt = ws.load(p + ".conv.weight");
-    const auto& W = w(p + ".conv.weight");
+    const auto& W = conv_w(p + ".conv.weight");
     const auto& bias = w(p + ".conv.bias");
     const int64_t co = wt.shape[0], ci = wt.shape[1], kt = wt.shape[2], kh = wt.shape[3], kw = wt.shape[4];
     V xp = x;
@@ -97,6 +124,7 @@ struct RefVae {
       xp = cat_time(prefix, x);
       if (caches) (*caches)[p] = slice_time(xp, xp.F - (kt - 1), xp.F);
     }
+    if (fp16_operands) xp = fp16_rounded(xp);
     const int64_t ph = (kh - 1) / 2, pw = (kw - 1) / 2;
     V y(x.B, co, xp.F - kt + 1, x.H, x.W);
     for (int64_t b = 0; b < y.B; ++b)
@@ -118,9 +146,10 @@ struct RefVae {
     return y;
   }
 
-  V conv1x1(const V& x, const std::string& wname, const std::string& bname) {
+  V conv1x1(const V& input, const std::string& wname, const std::string& bname) {
+    const V x = fp16_operands ? fp16_rounded(input) : input;
     const HostTensor wt = ws.load(wname);
-    const auto& W = w(wname);
+    const auto& W = conv_w(wname);
     const auto& bias = w(bname);
     const int64_t co = wt.shape[0], ci = wt.shape[1];
     V y(x.B, co, x.F, x.H, x.W);
@@ -204,9 +233,10 @@ struct RefVae {
   }
 
   // Conv2d per frame, stride s, zero padding (top, bottom, left, right).
-  V conv2d(const V& x, const std::string& p, int64_t s, int64_t pt, int64_t pb, int64_t pl, int64_t pr) {
+  V conv2d(const V& input, const std::string& p, int64_t s, int64_t pt, int64_t pb, int64_t pl, int64_t pr) {
+    const V x = fp16_operands ? fp16_rounded(input) : input;
     const HostTensor wt = ws.load(p + ".weight");
-    const auto& W = w(p + ".weight");
+    const auto& W = conv_w(p + ".weight");
     const auto& bias = w(p + ".bias");
     const int64_t co = wt.shape[0], ci = wt.shape[1], kh = wt.shape[2], kw = wt.shape[3];
     const int64_t ho = (x.H + pt + pb - kh) / s + 1, wo = (x.W + pl + pr - kw) / s + 1;
@@ -326,19 +356,25 @@ HostTensor to_host(const V& x) {
   return HostTensor::from_f32({x.B, x.C, x.F, x.H, x.W}, f);
 }
 
-void expect_close(const std::string& what, const HostTensor& got, const V& want, double atol, double rtol) {
+// Whether this test's convolutions ran a 16-bit-operand kernel (support/precision_rule.hpp): its results are then
+// judged by the precision rule against this reference's fp16-operand run, computed only then.
+bool convs_ran_16bit() {
+  return !dvs::test::sixteen_bit_ops_run(dvs::test::kernels_run_in_test(), dvs::test::kConvOps).empty();
+}
+
+// dvs's result against the double reference `want`: within the case's tolerance, or (16-bit conv kernels) by the
+// precision rule with `want16`, the same reference with fp16 conv operands, as the 16-bit run.
+void expect_close(const std::string& what, const HostTensor& got, const V& want, const V* want16, double atol,
+                  double rtol) {
   ASSERT_EQ(got.shape, (dvs::Shape{want.B, want.C, want.F, want.H, want.W})) << what;
-  const auto g = got.to_f32();
-  double max_err = 0;
-  size_t bad = 0;
-  for (size_t i = 0; i < g.size(); ++i) {
-    const double e = std::fabs(double(g[i]) - want.d[i]);
-    max_err = std::max(max_err, e);
-    if (!(e <= atol + rtol * std::fabs(want.d[i]))) ++bad;
-  }
-  std::printf("[ golden ] %-34s max |err| = %.3g (atol %.1g, rtol %.1g, %zu elements)\n", what.c_str(), max_err, atol,
-              rtol, g.size());
-  EXPECT_EQ(bad, 0u) << what << ": " << bad << " of " << g.size() << " elements outside tolerance";
+  std::optional<std::vector<float>> run16;
+  if (want16) run16.emplace(want16->d.begin(), want16->d.end());
+  const auto v = dvs::test::judge_golden(
+      what, got.to_f32(), std::vector<float>(want.d.begin(), want.d.end()), run16,
+      "made only when a conv ran with 16-bit operands", atol, rtol,
+      dvs::test::sixteen_bit_ops_run(dvs::test::kernels_run_in_test(), dvs::test::kConvOps), "fp16-operand reference");
+  std::printf("%s\n", v.report.c_str());
+  EXPECT_TRUE(v.pass) << v.report;
 }
 
 class VaeReference : public dvs::test::GpuTest {
@@ -349,24 +385,29 @@ class VaeReference : public dvs::test::GpuTest {
 // Encode then decode one clip against the reference (decode of the reference mean, so the decoder is judged
 // on its own). Encode tolerance 5e-5 / 1e-4 and decode 5e-4 / 1e-4, as the pack's vae cases.
 void check_clip(dvs::vk::Context& ctx, const fs::path& dir, int64_t B, int64_t F, int64_t H, int64_t W, uint32_t seed) {
-  RefVae ref(dir);
+  RefVae ref(dir), ref16(dir, /*fp16=*/true);
   dvs::models::CogVideoXVae vae(ctx, dir);
   const std::string tag = std::to_string(B) + "x" + std::to_string(F) + "x" + std::to_string(H) + "x" + std::to_string(W);
   const V video = random_v(B, ref.cfg.in_channels, F, H, W, seed);
-  const V moments = ref.encode_moments(video);
   const auto post = vae.encode(Tensor::upload(ctx, to_host(video)));
-  expect_close("ref encode moments " + tag, post.moments.download(ctx), moments, 5e-5, 1e-4);
-  V mean(moments.B, moments.C / 2, moments.F, moments.H, moments.W);
-  for (int64_t b = 0; b < mean.B; ++b) {
-    const size_t n = mean.d.size() / size_t(mean.B);
-    std::copy_n(moments.d.begin() + ptrdiff_t(size_t(b) * 2 * n), n, mean.d.begin() + ptrdiff_t(size_t(b) * n));
-  }
-  expect_close("ref encode mean " + tag, post.mean.download(ctx), mean, 5e-5, 1e-4);
+  const bool sixteen = convs_ran_16bit();
+  const V moments = ref.encode_moments(video), moments16 = sixteen ? ref16.encode_moments(video) : V();
+  expect_close("ref encode moments " + tag, post.moments.download(ctx), moments, sixteen ? &moments16 : nullptr, 5e-5,
+               1e-4);
+  auto mean_of = [](const V& m) {  // each sample's first half of the moments
+    V mean(m.B, m.C / 2, m.F, m.H, m.W);
+    const size_t n = mean.d.size() / size_t(std::max<int64_t>(mean.B, 1));
+    for (int64_t b = 0; b < mean.B; ++b)
+      std::copy_n(m.d.begin() + ptrdiff_t(size_t(b) * 2 * n), n, mean.d.begin() + ptrdiff_t(size_t(b) * n));
+    return mean;
+  };
+  const V mean = mean_of(moments), mean16 = sixteen ? mean_of(moments16) : V();
+  expect_close("ref encode mean " + tag, post.mean.download(ctx), mean, sixteen ? &mean16 : nullptr, 5e-5, 1e-4);
   V mean_f32 = mean;
   for (double& t : mean_f32.d) t = double(float(t));
-  const V frames = ref.decode(mean_f32);
-  expect_close("ref decode " + tag, vae.decode(Tensor::upload(ctx, to_host(mean_f32))).download(ctx), frames, 5e-4,
-               1e-4);
+  const HostTensor decoded = vae.decode(Tensor::upload(ctx, to_host(mean_f32))).download(ctx);
+  const V frames = ref.decode(mean_f32), frames16 = convs_ran_16bit() ? ref16.decode(mean_f32) : V();
+  expect_close("ref decode " + tag, decoded, frames, convs_ran_16bit() ? &frames16 : nullptr, 5e-4, 1e-4);
 }
 
 }  // namespace
@@ -417,18 +458,24 @@ TEST_F(VaeReference, EvenLatentCountKeepsTheLastFourFlMinusThreeFrames) {
   dvs::RunOptions o;  // untiled decode
   const HostTensor got = dvs::decode_latent(ctx(), vae, o, Tensor::upload(ctx(), diffusion), scaling, int(frames));
   ASSERT_EQ(got.shape, (dvs::Shape{frames, 3, all.H, all.W}));
-  V want(1, 3, frames, all.H, all.W);
-  for (int64_t f = 0; f < frames; ++f)
-    for (int64_t c = 0; c < 3; ++c)
-      for (int64_t y = 0; y < want.H; ++y)
-        for (int64_t x = 0; x < want.W; ++x) want.at(0, c, f, y, x) = std::clamp(all.at(0, c, f + 3, y, x), -1.0, 1.0);
+  auto kept = [&](const V& decoded) {  // the reference's frames 3.., clamped
+    V k(1, 3, frames, decoded.H, decoded.W);
+    for (int64_t f = 0; f < frames; ++f)
+      for (int64_t c = 0; c < 3; ++c)
+        for (int64_t y = 0; y < k.H; ++y)
+          for (int64_t x = 0; x < k.W; ++x) k.at(0, c, f, y, x) = std::clamp(decoded.at(0, c, f + 3, y, x), -1.0, 1.0);
+    return k;
+  };
+  const V want = kept(all);
+  const bool sixteen = convs_ran_16bit();
+  const V want16 = sixteen ? kept(RefVae(vae_dir(), /*fp16=*/true).decode(vae_space)) : V();
   // decode_latent's [F, 3, H, W] as the reference's [1, 3, F, H, W].
   HostTensor got_cf({1, 3, frames, want.H, want.W}, dvs::DType::f32);
   const int64_t plane = want.H * want.W;
   for (int64_t f = 0; f < frames; ++f)
     for (int64_t c = 0; c < 3; ++c)
       std::copy_n(got.as<float>() + (f * 3 + c) * plane, plane, got_cf.as<float>() + (c * frames + f) * plane);
-  expect_close("even Fl decode, kept frames", got_cf, want, 5e-4, 1e-4);
+  expect_close("even Fl decode, kept frames", got_cf, want, sixteen ? &want16 : nullptr, 5e-4, 1e-4);
   // The test can tell the two choices apart: the reference's first 4·Fl − 3 frames are not its last.
   double shift = 0;
   for (int64_t c = 0; c < 3; ++c)

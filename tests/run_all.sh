@@ -16,7 +16,7 @@ FAST="-LE robustness|cluster|install"    # everything but the slow labels, which
 OPS='^(Ops|Split|Paths/|KernelTuning|Resize|[A-Za-z]+Ops[./]|AttentionTest|LinearTest|Family/|ConvFamilies)'
 
 # name | what it proves | command (words split on spaces; a quoted regex stays one word through PASS_ARGS)
-PASS_NAMES=(default slow install mesa25 limits gpu-golden gpu-ops sanitized)
+PASS_NAMES=(default slow install mesa25 limits gpu-golden gpu-ops coopmat sanitized)
 declare -A PASS_WHAT PASS_CMD
 PASS_WHAT[default]="Mesa 22.3 (Debian 12's lavapipe): unit, golden and device-script tests"
 PASS_CMD[default]="$CT -j2 $FAST"
@@ -32,6 +32,8 @@ PASS_WHAT[gpu-golden]="the golden tests with the GPU tuning entry forced (the ke
 PASS_CMD[gpu-golden]="tests/run_with_tuning.sh gpu $CT -j2 -L golden"
 PASS_WHAT[gpu-ops]="the op tests with the GPU tuning entry forced"
 PASS_CMD[gpu-ops]="tests/run_with_tuning.sh gpu $CT -j2 -R $OPS"
+PASS_WHAT[coopmat]="Mesa 26.1 (cooperative matrix): the tensor-core kernels a GPU runs, by value (op and golden tests)"
+PASS_CMD[coopmat]="tests/run_coopmat_pass.sh $B"
 PASS_WHAT[sanitized]="a clang ASan+UBSan build: every fuzz harness for a while, the readers' and glue tests"
 PASS_CMD[sanitized]="tests/run_sanitized.sh"
 

@@ -55,7 +55,7 @@ std::string sixteen_bit_ops_run(const std::vector<vk::Context::KernelNote>& ran,
 
 GoldenVerdict judge_golden(const std::string& what, const std::vector<float>& ours, const std::vector<float>& golden,
                            const std::optional<std::vector<float>>& bf16, const std::string& bf16_source, double atol,
-                           double rtol, const std::string& sixteen_bit) {
+                           double rtol, const std::string& sixteen_bit, const std::string& reference_label) {
   const ErrorMeasure mine = error_measure(ours, golden);
   size_t bad = 0, first_bad = 0;
   for (size_t i = 0; i < ours.size(); ++i) {
@@ -72,9 +72,9 @@ GoldenVerdict judge_golden(const std::string& what, const std::vector<float>& ou
   std::optional<ErrorMeasure> ref;
   if (bf16) {
     ref = error_measure(*bf16, golden);
-    o << " | torch bf16: max |diff| " << sci(ref->max_abs) << ", rel L2 " << sci(ref->rel_l2);
+    o << " | " << reference_label << ": max |diff| " << sci(ref->max_abs) << ", rel L2 " << sci(ref->rel_l2);
   } else {
-    o << " | torch bf16: none in the pack (" << bf16_source << ")";
+    o << " | " << reference_label << ": none in the pack (" << bf16_source << ")";
   }
   const std::string fp32_rule = "fp32 rule (atol " + sci(atol) + ", rtol " + sci(rtol) + ")";
   const std::string outside = in_tolerance ? "" : ", " + std::to_string(bad) + " of " + std::to_string(ours.size()) +
@@ -90,8 +90,8 @@ GoldenVerdict judge_golden(const std::string& what, const std::vector<float>& ou
     const bool within = mine.max_abs <= kRuleFactor * ref->max_abs && mine.rel_l2 <= kRuleFactor * ref->rel_l2;
     v.pass = in_tolerance || within;
     char ratios[96];
-    std::snprintf(ratios, sizeof ratios, "%.3g x and %.3g x the bf16 run's", mine.max_abs / ref->max_abs,
-                  mine.rel_l2 / ref->rel_l2);
+    std::snprintf(ratios, sizeof ratios, "%.3g x and %.3g x %s's", mine.max_abs / ref->max_abs,
+                  mine.rel_l2 / ref->rel_l2, reference_label.c_str());
     o << " | 16-bit rule [" << sixteen_bit << "]: " << ratios << " (at most 2 x each"
       << (in_tolerance ? "; within the fp32 tolerance" : "") << "): " << (v.pass ? "pass" : "FAIL");
   } else {

@@ -53,10 +53,12 @@ struct GoldenVerdict {
 
 // The rule itself, on values (shapes checked by the caller). `bf16`: PyTorch's bf16 run of the same golden, or
 // nullopt when the pack has none (`bf16_source` then says where it was looked for). `sixteen_bit`: the text of
-// sixteen_bit_ops_run ("" for fp32 families).
+// sixteen_bit_ops_run ("" for fp32 families). `reference_label` names the 16-bit run on the report's line (a test
+// against a plain-C++ reference passes that reference with the kernel's operand rounding instead of PyTorch's run).
 GoldenVerdict judge_golden(const std::string& what, const std::vector<float>& ours, const std::vector<float>& golden,
                            const std::optional<std::vector<float>>& bf16, const std::string& bf16_source, double atol,
-                           double rtol, const std::string& sixteen_bit);
+                           double rtol, const std::string& sixteen_bit,
+                           const std::string& reference_label = "torch bf16");
 
 // A golden file of a pack and PyTorch's bf16 run beside it (<root>/torch_bf16/<rel>, when the pack has it).
 struct PackGolden {
