@@ -176,7 +176,7 @@ TEST_F(DepthEstimate, ALongEstimateIsForecastWithWhatMakesItCheaper) {
   estimate_depth(j, in.dir / "d.npy", record());
   ASSERT_EQ(notices.size(), 1u);
   EXPECT_NE(notices[0].find("GFLOP/s measured"), std::string::npos) << notices[0];
-  EXPECT_NE(notices[0].find("--input-size 14"), std::string::npos) << "half of 28: " << notices[0];
+  EXPECT_NE(notices[0].find("DepthJob::input_size 14"), std::string::npos) << "half of 28: " << notices[0];
   // Not said when the estimate is expected to be short.
   notices.clear();
   j.forecast_after_s = 1e9;

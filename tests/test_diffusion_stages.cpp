@@ -343,14 +343,14 @@ TEST_F(GpuTest, InitNoiseMixedOptionsAndErrors) {
   EXPECT_LT(max_abs_diff(init_noise(ctx(), in, o).download(ctx()).to_f32(),
                          reference::adaptive_krnr_paper(nc.x0.to_f32(), nc.eps.to_f32(), ls, nc.abar, 7.5, 2)),
             2e-5);
-  // Errors name the option.
+  // Errors name the option (its field in the library).
   InitNoiseOptions off = InitNoiseOptions::official();
   off.k = 2.5;
   InitNoiseInputs oin{&x0, &eps, &nc.plan, &mu, &sigma, nc.abar};
-  EXPECT_NE(error_of([&] { init_noise(ctx(), oin, off); }).find("--k"), std::string::npos);
+  EXPECT_NE(error_of([&] { init_noise(ctx(), oin, off); }).find("RunOptions::k"), std::string::npos);
   off.k = 10;
   off.delta = 0;
-  EXPECT_NE(error_of([&] { init_noise(ctx(), oin, off); }).find("--delta"), std::string::npos);
+  EXPECT_NE(error_of([&] { init_noise(ctx(), oin, off); }).find("RunOptions::delta"), std::string::npos);
   off.delta = 2;
   oin.mu = nullptr;
   EXPECT_NE(error_of([&] { init_noise(ctx(), oin, off); }).find("mean"), std::string::npos);

@@ -24,7 +24,7 @@ TEST(DepthLimits, NegativeDisparityIsRefusedWithItsPlace) {
   d.as<float>()[20 + 3 * 5 + 4] = -0.25f;
   test::expect_error([&] { depth_from_array(d, "disp.npy"); },
                      {"disp.npy: disparity (inverse depth) cannot be negative, but frame 1 holds -0.500000 at row 2, "
-                      "column 3 (2 of 40 values are below 0", "--metric-depth"});
+                      "column 3 (2 of 40 values are below 0", "RenderJob::metric_depth"});
   // Zero is a valid disparity (infinitely far, clipped to the far plane), and metric depth has its own rule.
   d.as<float>()[20 + 2 * 5 + 3] = 0.0f;
   d.as<float>()[20 + 3 * 5 + 4] = 0.0f;

@@ -5,11 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <mutex>
 #include <string>
 #include <vector>
 
+#include "dvs/depth_estimate.hpp"
 #include "dvs/error.hpp"
+#include "dvs/job.hpp"
 #include "dvs/logs.hpp"
 #include "dvs/option_names.hpp"
 #include "dvs/preflight.hpp"
@@ -112,6 +115,68 @@ TEST(LibraryMessages, NegativeNumbersAreRefusedNamingTheField) {
   }
 }
 
+// A depth job's numbers are refused before any work as argument errors naming DepthJob's fields (dvs depth's flags
+// when the dvs program asked for them); in a run, the depth stage names the RenderJob fields (RunOptions above).
+TEST(LibraryMessages, DepthJobRefusalsNameItsFields) {
+  test::TempDir dir;
+  DepthJob base;
+  base.video = dir.path / "clip.mp4", base.model = dir.path / "vits.pth";
+  std::ofstream(base.video) << "checked after the numbers";
+  std::ofstream(base.model) << "checked after the numbers";
+  auto refusal = [&](const DepthJob& job) {
+    try {
+      estimate_depth(job, dir.path / "depth.npz");
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::invalid_argument) << e.what();
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "estimate_depth accepted the job";
+    return std::string();
+  };
+  struct Case {
+    void (*set)(DepthJob&);
+    std::string field, text;
+  };
+  const std::vector<Case> cases{{[](DepthJob& j) { j.frames = -2; }, "frames", " must be ≥ 0 (0 = all frames), got -2"},
+                                {[](DepthJob& j) { j.max_res = -1; }, "max_res", " must be ≥ 0 (0 = no limit), got -1"},
+                                {[](DepthJob& j) { j.input_size = 13; }, "input_size", " must be in [14, 4096]"}};
+  for (const Case& c : cases) {
+    DepthJob j = base;
+    c.set(j);
+    const std::string library = refusal(j);
+    EXPECT_EQ(library.rfind("DepthJob::" + c.field + c.text, 0), 0u) << library;
+    set_option_names(OptionNames::command_line);
+    const std::string program = refusal(j);
+    set_option_names(OptionNames::fields);
+    EXPECT_EQ(program.rfind(option_flag("DepthJob::" + c.field) + c.text, 0), 0u) << program;
+    EXPECT_EQ(program.find("DepthJob::"), std::string::npos) << program;
+  }
+  DepthJob j = base;  // a run's depth stage names what its user set
+  j.frames = -2, j.frames_option = option_name("RenderJob::frames");
+  EXPECT_EQ(refusal(j).rfind("RenderJob::frames must be", 0), 0u);
+  j = base;
+  j.video = dir.path / "missing.mp4";
+  try {
+    estimate_depth(j, dir.path / "depth.npz");
+    ADD_FAILURE() << "a missing video was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("(give DepthJob::video)"), std::string::npos) << e.what();
+  }
+}
+
+// A job on files refuses its options when it starts (an unknown preset was the job's result, an input failure).
+TEST(LibraryMessages, AJobOnFilesRefusesItsOptionsAtStart) {
+  RunOptions o;
+  o.preset = "fancy";
+  try {
+    start_pipeline(o);
+    ADD_FAILURE() << "start_pipeline accepted preset 'fancy'";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::invalid_argument);
+    EXPECT_EQ(std::string(e.what()), "RunOptions::preset must be paper or official, got 'fancy'");
+  }
+}
+
 // The prompt the model cuts (the pack's model reads 8 tokens) is a preflight note naming the field.
 TEST(LibraryMessages, ALongPromptIsAWarningNamingTheField) {
   test::PipelineInputs in;
@@ -125,10 +190,10 @@ TEST(LibraryMessages, ALongPromptIsAWarningNamingTheField) {
   EXPECT_EQ(notes.find("negative_prompt"), std::string::npos) << notes;
 }
 
-// Every flag the table names is one the dvs program declares (run, render or plan --help lists it).
+// Every flag the table names is one the dvs program declares (run, render, plan or depth --help lists it).
 TEST(LibraryMessages, EveryFieldsFlagIsAProgramOption) {
   std::string help;
-  for (const char* command : {"run", "render", "plan"})
+  for (const char* command : {"run", "render", "plan", "depth"})
     help += test::run_command(test::program("dvs") + std::string(" ") + command + " --help").output;
   for (const std::string& field : option_fields()) {
     const std::string flag = option_flag(field);

@@ -49,6 +49,7 @@ def load(path):
         "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_run_pipeline_clip": (C.c_int, [P, C.POINTER(PipelineOptions), P, C.c_int32, C.c_int32, C.c_int32, P, P,
                                             P, P, P, C.c_size_t, PROGRESS, P]),
+        "dvs_job_start_pipeline": (C.c_int, [C.POINTER(PipelineOptions), C.POINTER(P)]),
         "dvs_job_start_pipeline_clip": (C.c_int, [P, C.POINTER(PipelineOptions), P, C.c_int32, C.c_int32, C.c_int32,
                                                   P, P, P, P, P, C.c_size_t, C.POINTER(P)]),
         "dvs_job_poll": (C.c_int, [P, C.POINTER(C.c_int)]),
@@ -224,6 +225,13 @@ def main():
         status = clip.run(ctx, clip.output())
         message = lib.dvs_last_error().decode()
         check(status == DVS_ERROR_INVALID_ARGUMENT and "fancy" in message, "a bad preset: %d %s" % (status, message))
+        # The same preset in a job on files is refused when it starts (it was DVS_ERROR_FILE, as the job's result).
+        job = C.c_void_p()
+        status = lib.dvs_job_start_pipeline(C.byref(clip.options), C.byref(job))
+        message = lib.dvs_last_error().decode()
+        check(status == DVS_ERROR_INVALID_ARGUMENT and "fancy" in message and "preset" in message and not job.value,
+              "a bad preset, job on files: %d %s" % (status, message))
+        clip.options.preset = b"paper"
         ok(lib, lib.dvs_context_destroy(ctx), "dvs_context_destroy")
 
         # §2.10: the kind survives the stage's message (the 3rd submission and the 12th allocation fall in the encode

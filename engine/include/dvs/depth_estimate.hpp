@@ -30,7 +30,9 @@ struct DepthJob {
   // Unset: sent as progress notes of stage "depth".
   std::function<void(const std::string&)> notice;
   double forecast_after_s = 60;  // forecast the cost of estimates expected to take at least this long
-  std::string input_size_option = "--input-size";  // how messages name the option (run: --depth-input-size)
+  // How messages name input_size and frames; empty: this struct's fields ("DepthJob::input_size", or the dvs
+  // program's --input-size and --frames). A run's depth stage names the RenderJob fields it came from.
+  std::string input_size_option, frames_option;
 };
 
 struct DepthSummary {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include "io/option_names.hpp"
 #include "diffusion/krnr.hpp"
 #include "dvs/error.hpp"
 #include "tensor/dispatch.hpp"
@@ -26,14 +27,16 @@ void check(const InitNoiseInputs& in, const InitNoiseOptions& o) {
   if (in.x0->numel() != in.eps_inv->numel())
     throw Error("internal: init_noise: x0 " + in.x0->describe() + " and eps_inv " + in.eps_inv->describe() + " differ");
   if (o.rounds < 1) throw Error("init_noise: rounds must be ≥ 1, got " + std::to_string(o.rounds));
-  if (!(o.k > 0)) throw Error("--k must be > 0, got " + std::to_string(o.k));
-  if (!(o.delta > 0)) throw Error("--delta must be > 0, got " + std::to_string(o.delta));
+  const std::string k = option_name("RunOptions::k"), delta = option_name("RunOptions::delta");
+  if (!(o.k > 0)) throw Error(k + " must be > 0, got " + std::to_string(o.k), ErrorKind::invalid_argument);
+  if (!(o.delta > 0)) throw Error(delta + " must be > 0, got " + std::to_string(o.delta), ErrorKind::invalid_argument);
   if (o.slm && !in.slm) throw Error("internal: init_noise with SLM needs the SLM plan");
   if (o.adain == InitNoiseOptions::Adain::per_element) {
     if (!in.mu || !in.sigma) throw Error("internal: the per-element AdaIN needs the posterior mean and std");
     if (o.k != std::floor(o.k) || o.delta != std::floor(o.delta))
-      throw Error("--k and --delta must be integers with the official (per-element) K-RNR, got k = " + std::to_string(o.k) +
-                  ", delta = " + std::to_string(o.delta));
+      throw Error(k + " and " + delta + " must be integers with the official (per-element) K-RNR, got k = " +
+                      std::to_string(o.k) + ", delta = " + std::to_string(o.delta),
+                  ErrorKind::invalid_argument);
   }
 }
 

@@ -73,6 +73,7 @@ DepthEstimator::DepthEstimator(Context& ctx, const std::filesystem::path& model,
     impl->core = core;
     impl->options.input_size = options.input_size;
     impl->options.input_size_option = "DepthModelOptions::input_size";
+    impl->options.frames_option = "a clip of at most";  // the frames are the application's
     impl->options.model_file = model;
     VdaModel::inspect(model);  // another model's file is named before any upload
     embed::GateUse use(core->gate, kMake);

@@ -17,6 +17,7 @@
 #include "embed/clip_run_on_device.hpp"
 #include "embed/context_core.hpp"
 #include "embed/public_call.hpp"
+#include "pipeline/settings.hpp"
 
 namespace dvs {
 
@@ -176,6 +177,7 @@ DepthSummary Job::depth_summary() {
 
 // The work's inputs are copied into the thread's closure: the caller's objects may go away at once.
 Job start_pipeline(const RunOptions& options, const ProgressFn& progress) {
+  resolve(options);  // options refused here (ErrorKind::invalid_argument), not as the job's result
   auto s = std::make_shared<Job::State>();
   s->kind = "pipeline";
   s->thread = std::thread([st = s.get(), options, fn = s->progress_fn(progress)] {

@@ -5,11 +5,13 @@
 #include <cstdio>
 
 #include "dvs/error.hpp"
+#include "dvs/usage_error.hpp"
 #include "io/crash_points.hpp"
 #include "io/injected_faults.hpp"
 #include "io/library_log.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
+#include "io/option_names.hpp"
 #include "io/video.hpp"
 #include "models/vda/vda_memory.hpp"
 #include "models/vda/vda_model.hpp"
@@ -34,15 +36,24 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
+// How messages name the job's input size and frames (DepthJob::input_size_option, frames_option).
+std::string input_size_name(const DepthJob& j) {
+  return j.input_size_option.empty() ? option_name("DepthJob::input_size") : j.input_size_option;
+}
+std::string frames_name(const DepthJob& j) { return j.frames_option.empty() ? option_name("DepthJob::frames") : j.frames_option; }
+
 void check_job(const DepthJob& j) {
-  if (!std::filesystem::is_regular_file(j.video)) throw Error(j.video.string() + ": no such video file (give --video FILE)");
+  if (!std::filesystem::is_regular_file(j.video))
+    throw Error(j.video.string() + ": no such video file (give " + option_name("DepthJob::video") + ")");
   if (!std::filesystem::is_regular_file(j.model))
-    throw Error(j.model.string() + ": no such depth model (give --depth-model video_depth_anything_vits.pth; README.md "
-                "says where the checkpoints are)");
+    throw Error(j.model.string() + ": no such depth model (give " + option_name("DepthJob::model") +
+                " video_depth_anything_vits.pth; README.md says where the checkpoints are)");
   if (j.input_size < 14 || j.input_size > 4096)
-    throw Error(j.input_size_option + " must be in [14, 4096] (the model's default is 518), got " + std::to_string(j.input_size));
-  if (j.frames < 0) throw Error("--frames must be ≥ 0 (0 = all frames)");
-  if (j.max_res < 0) throw Error("--max-res must be ≥ 0 (0 = no limit)");
+    throw UsageError(input_size_name(j) + " must be in [14, 4096] (the model's default is 518), got " +
+                     std::to_string(j.input_size));
+  if (j.frames < 0) throw UsageError(frames_name(j) + " must be ≥ 0 (0 = all frames), got " + std::to_string(j.frames));
+  if (j.max_res < 0)
+    throw UsageError(option_name("DepthJob::max_res") + " must be ≥ 0 (0 = no limit), got " + std::to_string(j.max_res));
   VdaModel::inspect(j.model);  // the headers alone: another model's file is named now, not after the decode
 }
 
@@ -72,7 +83,8 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
   vk::Context ctx(copt);
   FramesDepthOptions fo;
   fo.input_size = job.input_size;
-  fo.input_size_option = job.input_size_option;
+  fo.input_size_option = input_size_name(job);
+  fo.frames_option = frames_name(job);
   fo.model_file = job.model;
   fo.forecast_after_s = job.forecast_after_s;
   fo.notice = job.notice;
@@ -158,7 +170,8 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
     }
   }
   // Where the estimate will be kept, checked before the work.
-  if (auto p = file_write_problem(c.file, "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
+  if (auto p = file_write_problem(c.file, "give " + option_name("DepthJob::cache_dir") +
+                                              " a writable folder or set DVS_CACHE_DIR to one"))
     throw Error("depth cache: " + *p);
   HostTensor depth;
   try {
@@ -167,9 +180,9 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
     depth = run_estimate(job, progress, cancelled, c.summary);
     crash_point("depth-estimate-end");
   } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
-    throw Error("depth estimate: " + e.detail() + ". Try a smaller " + job.input_size_option + " (the network input; " +
-                "default 518) or a smaller --max-res / fewer --frames; dvs plan --depth-model " +
-                    job.model.filename().string() + " shows what the estimate needs",
+    throw Error("depth estimate: " + e.detail() + ". Try a smaller " + input_size_name(job) + " (the network input; " +
+                    "default 518) or a smaller " + option_name("DepthJob::max_res") + " / fewer " + frames_name(job) +
+                    "; dvs plan --depth-model " + job.model.filename().string() + " shows what the estimate needs",
                 ErrorKind::out_of_memory);
   } catch (const vk::DeviceLost& e) {
     throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "io/option_names.hpp"
 #include "models/vda/vda_model.hpp"
 #include "models/vda/vda_preprocess.hpp"
 #include "dvs/duration_text.hpp"
@@ -59,7 +60,7 @@ std::optional<std::string> DepthForecast::on_step(const VdaStep& step, double se
          duration_text(seconds_for(in_.input_size, 1)) + ")";
     any = true;
   }
-  if (!any) m += " a faster device (--device)";
+  if (!any) m += " a faster device (" + option_name("DepthJob::device") + ")";
   return m + ". Ctrl-C stops it.";
 }
 

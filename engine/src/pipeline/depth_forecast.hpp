@@ -17,7 +17,7 @@ struct DepthForecastInput {
   int64_t frame_height = 0, frame_width = 0;  // the frames' size (after max_res)
   int input_size = 518;
   int windows = 1;
-  std::string input_size_option = "--input-size", frames_option = "--frames";
+  std::string input_size_option, frames_option;  // how the advice names them (FramesDepthOptions)
   double threshold_s = 60;  // say nothing for estimates expected to take less
 };
 

@@ -18,6 +18,7 @@ DepthJob depth_job_for(const RenderJob& job, const std::filesystem::path& cache_
   d.cache_dir = cache_dir;
   d.refresh_cache = refresh;
   d.input_size_option = option_name("RenderJob::depth_input_size");
+  d.frames_option = option_name("RenderJob::frames");
   return d;
 }
 

@@ -43,6 +43,7 @@ HostTensor estimate_frames_depth(VdaModel& model, const HostTensor& frames, cons
   fi.input_size = opt.input_size;
   fi.windows = s.windows;
   fi.input_size_option = opt.input_size_option;
+  fi.frames_option = opt.frames_option;
   fi.threshold_s = opt.forecast_after_s;
   DepthForecast forecast(fi);
   VdaVideoOptions o;

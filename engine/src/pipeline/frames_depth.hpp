@@ -14,7 +14,7 @@ namespace dvs {
 
 struct FramesDepthOptions {
   int input_size = 518;                            // the network input's short side
-  std::string input_size_option = "--input-size";  // how messages name it
+  std::string input_size_option, frames_option;    // how messages name them (DepthJob's)
   std::filesystem::path model_file;                // named by the error of a broken estimate
   double forecast_after_s = 60;                    // see DepthJob::forecast_after_s
   // Lines kept apart from the progress (the forecast); unset: progress notes of stage "depth".

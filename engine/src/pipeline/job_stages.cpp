@@ -137,7 +137,7 @@ std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx,
     try {
       transformer->set_lora(models::load_lora(ctx, o.lora, float(o.lora_scale)));
     } catch (const Error& e) {
-      throw Error("--lora " + o.lora.string() + ": " + e.what(), e.kind());
+      throw Error(option_name("RunOptions::lora") + " " + o.lora.string() + ": " + e.what(), e.kind());
     }
   }
   return transformer;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 
+#include "io/option_names.hpp"
 #include "dvs/error.hpp"
 #include "models/cogvideox/cogvideox_memory.hpp"
 #include "models/vda/vda_memory.hpp"
@@ -30,8 +31,9 @@ uint64_t schema_params(const Schema& s) {
 
 void require_4k1(int64_t frames) {
   if (frames < 1 || (frames - 1) % 4 != 0)
-    throw Error("--frames must be 4k+1 (1, 5, 9, ..., 49), got " + std::to_string(frames) +
-                ": the VAE compresses time by 4 after the first frame");
+    throw Error(option_name("MemoryPlanRequest::frames") + " must be 4k+1 (1, 5, 9, ..., 49), got " +
+                    std::to_string(frames) + ": the VAE compresses time by 4 after the first frame",
+                ErrorKind::invalid_argument);
 }
 
 std::optional<uint64_t> stored_bytes(const std::filesystem::path& dir) {
@@ -141,9 +143,11 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
 
   const int64_t r = vcfg.spatial_ratio(), cell = r * tcfg.patch_size;
   if (req.height < cell || req.width < cell || req.height % cell || req.width % cell)
-    throw Error("--height and --width must be positive multiples of " + std::to_string(cell) + " (VAE ratio " +
-                std::to_string(r) + " x patch " + std::to_string(tcfg.patch_size) + "), got " +
-                std::to_string(req.height) + "x" + std::to_string(req.width));
+    throw Error(option_name("MemoryPlanRequest::height") + " and " + option_name("MemoryPlanRequest::width") +
+                    " must be positive multiples of " + std::to_string(cell) + " (VAE ratio " + std::to_string(r) +
+                    " x patch " + std::to_string(tcfg.patch_size) + "), got " + std::to_string(req.height) + "x" +
+                    std::to_string(req.width),
+                ErrorKind::invalid_argument);
   if (vcfg.latent_channels * 2 != tcfg.in_channels || vcfg.latent_channels != tcfg.out_channels)
     plan.notes.push_back("the VAE's latent_channels (" + std::to_string(vcfg.latent_channels) +
                          ") do not match the transformer's in/out channels (" + std::to_string(tcfg.in_channels) + "/" +

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "dvs/error.hpp"
+#include "dvs/usage_error.hpp"
 #include "io/option_names.hpp"
 
 namespace dvs {
@@ -25,14 +25,14 @@ std::string number_text(double v) {
 // instead of being taken as "unset".
 void refuse_negative(double value, const char* field, const std::string& what) {
   if (value >= 0) return;
-  throw Error(option_name(field) + " is " + number_text(value) + ": give " + what + ", or 0 for the preset's default");
+  throw UsageError(option_name(field) + " is " + number_text(value) + ": give " + what + ", or 0 for the preset's default");
 }
 
 }  // namespace
 
 Settings resolve(const RunOptions& o) {
   if (o.preset != "paper" && o.preset != "official")
-    throw Error(option_name("RunOptions::preset") + " must be paper or official, got '" + o.preset + "'");
+    throw UsageError(option_name("RunOptions::preset") + " must be paper or official, got '" + o.preset + "'");
   refuse_negative(o.steps, "RunOptions::steps", "a number of sampling steps ≥ 1 (paper 50, official 30)");
   refuse_negative(o.strength, "RunOptions::strength", "a value in (0, 1] (paper 0.95, official 0.98)");
   refuse_negative(o.inversion_steps, "RunOptions::inversion_steps", "a number of inversion steps ≥ 1 (30)");
@@ -46,23 +46,23 @@ Settings resolve(const RunOptions& o) {
   s.negative = !o.negative_prompt.empty() ? o.negative_prompt : (s.official ? kOfficialNegativePrompt : "");
   const std::string k = option_name("RunOptions::k"), delta = option_name("RunOptions::delta");
   if (!(s.strength > 0 && s.strength <= 1))
-    throw Error(option_name("RunOptions::strength") + " must be in (0, 1], got " + number_text(s.strength));
-  if (!(o.k > 0)) throw Error(k + " must be > 0, got " + number_text(o.k));
+    throw UsageError(option_name("RunOptions::strength") + " must be in (0, 1], got " + number_text(s.strength));
+  if (!(o.k > 0)) throw UsageError(k + " must be > 0, got " + number_text(o.k));
   const std::string official = " with " + option_name("RunOptions::preset") + " official (the authors' recursion), got ";
   if (s.official && o.k != std::floor(o.k))  // the official K-RNR is the integer recursion (Σ a·b^i, i < k)
-    throw Error(k + " must be a whole number" + official + number_text(o.k));
+    throw UsageError(k + " must be a whole number" + official + number_text(o.k));
   if (s.official && s.delta != std::floor(s.delta))  // as init_noise's per-element K-RNR requires, found here first
-    throw Error(delta + " must be a whole number" + official + number_text(s.delta));
-  if (!(o.guidance >= 0)) throw Error(option_name("RunOptions::guidance") + " must be ≥ 0, got " + number_text(o.guidance));
+    throw UsageError(delta + " must be a whole number" + official + number_text(s.delta));
+  if (!(o.guidance >= 0)) throw UsageError(option_name("RunOptions::guidance") + " must be ≥ 0, got " + number_text(o.guidance));
   if (s.steps > 1000 || s.inversion_steps > 1000)
-    throw Error(option_name("RunOptions::steps") + " and " + option_name("RunOptions::inversion_steps") + " must be ≤ 1000");
+    throw UsageError(option_name("RunOptions::steps") + " and " + option_name("RunOptions::inversion_steps") + " must be ≤ 1000");
   if (o.render.frames != 0 && (o.render.frames - 1) % 4 != 0)
-    throw Error(option_name("RunOptions::render.frames") +
+    throw UsageError(option_name("RunOptions::render.frames") +
                 " must be 4k+1 (1, 5, 9, …, 49): the VAE compresses time by 4 after the first frame");
   if (!o.lora.empty() && !(o.lora_scale == o.lora_scale))
-    throw Error(option_name("RunOptions::lora_scale") + ": the scale must be a number");
+    throw UsageError(option_name("RunOptions::lora_scale") + ": the scale must be a number");
   if (o.vae_tile_height < 0 || o.vae_tile_width < 0 || o.vae_tile_height % 8 || o.vae_tile_width % 8)
-    throw Error(option_name("RunOptions::vae_tile_height/width") + " must be positive multiples of 8, got " +
+    throw UsageError(option_name("RunOptions::vae_tile_height/width") + " must be positive multiples of 8, got " +
                 std::to_string(o.vae_tile_height) + "x" + std::to_string(o.vae_tile_width));
   return s;
 }
