@@ -96,7 +96,11 @@ TEST(CliRender, WholeClipDepthFollowsTheFrameCut) {
   dvs::write_npy(s.dir / "depth7.npy", seven);
   r = dvs::test::run_command(base + "--depth " + (s.dir / "depth7.npy").string() + " --out " + (s.dir / "b").string());
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("depth7.npy: has 7 depth frames but the video has 5 (--trim-depth"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("depth7.npy: holds 7 depth frames but the job uses --frames 5 (and the video holds 9): "
+                          "--trim-depth uses its first 5"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("preflight found 1 problem"), std::string::npos) << r.output;
   r = dvs::test::run_command(base + "--trim-depth --depth " + (s.dir / "depth7.npy").string() + " --out " +
                              (s.dir / "c").string());
   EXPECT_EQ(r.exit_code, 0) << r.output;

@@ -82,6 +82,7 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
       {"--lora " + (in.dir / "no_lora.safetensors").string() + ":0.5", "no_lora.safetensors"},
       {"--vae-tile 30x30", "--vae-tile"},
       {"--vae-tile 40x40", "do not join"},
+      {"--vae-tile 16x24", "do not join"},  // too small to plan: once an internal error of the memory plan beside it
       {"--out " + (in.dir / "a_file" / "sub").string(), "a_file"},
   };
   for (const Case& c : cases) {
@@ -89,7 +90,7 @@ TEST(PipelineCli, BadInputsFailClearlyAndWriteNothing) {
     EXPECT_NE(r.exit_code, 0) << c.extra;
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.extra << "\n" << r.output;
     EXPECT_EQ(test::count_of(r.output, "dvs: error: "), 1u) << c.extra << "\n" << r.output;
-    EXPECT_EQ(r.output.find("internal error"), std::string::npos) << c.extra << "\n" << r.output;
+    EXPECT_EQ(r.output.find("internal"), std::string::npos) << c.extra << "\n" << r.output;
     for (const auto& name : test::files_in(out)) ADD_FAILURE() << c.extra << " left " << name;
   }
 }

@@ -179,7 +179,8 @@ TEST(RunPreflight, DepthFramesAgainstFramesAreChecked) {
 }
 
 // Depth of another aspect ratio than the video (its shape is in the file's header): found by run --check, render
-// --check and batch's whole-file check with the render stage's own message, not after the decode (issue 34 §3).
+// --check, render's own preflight and batch's whole-file check with the render stage's own message, not after the
+// decode (issue 34 §3).
 TEST(RunPreflight, DepthOfAnotherAspectRatioIsFoundBeforeAnyWork) {
   PipelineInputs in;  // a 64x64 video
   const auto wide = in.dir / "wide.npy";
@@ -199,6 +200,12 @@ TEST(RunPreflight, DepthOfAnotherAspectRatioIsFoundBeforeAnyWork) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("preflight found"), std::string::npos) << r.output;
+  // The render itself starts with the same preflight (it once found this in its render stage, after the decode).
+  r = test::run_command(render);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("preflight found 1 problem; nothing was run"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(in.dir / "r")) << r.output;
 
   const auto b = batch_of_one_job(in, wide);
   EXPECT_NE(b.exit_code, 0) << b.output;

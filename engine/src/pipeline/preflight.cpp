@@ -368,6 +368,13 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
   if (m.transformer->learned_pos && (o.render.height != m.transformer->sample_height * r ||
                                      o.render.width != m.transformer->sample_width * r))
     return;  // check_model_fit names the size this model takes; no size of its own runs
+  if (const auto t = vae_tiling(o)) {  // tiles that do not join have no plan (the tiling check names them)
+    try {
+      check_tiles_join(*m.vae, *t);
+    } catch (const Error&) {
+      return;
+    }
+  }
   const vk::DeviceCaps* chosen = device ? device : chosen_device(o.render.device, c);
   if (!chosen) return;
   const vk::DeviceCaps& dev = *chosen;

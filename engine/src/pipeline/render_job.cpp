@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "dvs/preflight.hpp"
 #include "dvs/render.hpp"
 #include "geometry/splat.hpp"
 #include "geometry/splat_memory.hpp"
@@ -187,13 +188,10 @@ HostTensor mask_as_video(const HostTensor& mask) {
 
 RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress,
                                 const std::function<bool()>& cancelled) {
+  // Every problem named before any work, the depth estimate included: the report of dvs render --check.
+  if (const PreflightReport r = preflight_render(job_in); !r.ok()) throw Error(r.message());
   RenderJob job = job_in;
   CreatedFolders out_folder(job.out_dir);  // removed again if the render fails before filling it
-  if (!job.depth_model.empty() && job.height > 0 && job.width > 0) {  // a size that cannot render: before the estimate
-    require_video_file(job);
-    const std::vector<vk::DeviceCaps> devices = vk::list_devices();
-    if (auto p = render_limits_problem(job, devices.at(vk::select_device(devices, job.device)))) throw Error(*p);
-  }
   if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
     const nlohmann::json d = resolve_depth_model(
         job, job.depth_cache_dir, !job.depth_cache,
