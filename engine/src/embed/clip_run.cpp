@@ -15,7 +15,7 @@
 #include "embed/clip_run_on_device.hpp"
 #include "embed/context_core.hpp"
 #include "embed/device_copy.hpp"
-#include "embed/public_call.hpp"
+#include "io/public_call.hpp"
 #include "embed/view_facts.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/clip_input.hpp"
@@ -299,7 +299,7 @@ template <class Clip, class Results>
 RunReport run_at_turn(Context& ctx, const RunOptions& options, const Clip& clip, const Results& out,
                       const ProgressFn& progress, const CancelFn& cancelled) {
   const std::shared_ptr<embed::ContextCore> core = ctx.core();
-  return embed::public_call("dvs::run_pipeline", [&] {
+  return public_call("dvs::run_pipeline", [&] {
     embed::GateUse use(core->gate, "dvs::run_pipeline");
     return embed::run_clip(*core->device, options, clip, out, progress, cancelled);
   });

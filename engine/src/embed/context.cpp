@@ -5,7 +5,7 @@
 
 #include "dvs/error.hpp"
 #include "embed/context_core.hpp"
-#include "embed/public_call.hpp"
+#include "io/public_call.hpp"
 #include "pipeline/public_limits.hpp"
 #include "vk/context.hpp"
 #include "vk/host_device.hpp"
@@ -29,7 +29,7 @@ vk::ContextOptions internal_options(const ContextOptions& o) {
 // argument was refused or memory ran out.
 template <class Make>
 std::shared_ptr<embed::ContextCore> make_core(const char* call, Make make) {
-  return embed::public_call(call, [&] {
+  return public_call(call, [&] {
     auto core = std::make_shared<embed::ContextCore>();
     try {
       core->device = make();
@@ -65,7 +65,7 @@ VkSemaphore Context::timeline() const { return impl_->core->device->timeline(); 
 
 uint64_t Context::submitted_value() const {
   embed::ContextCore& c = *impl_->core;
-  return embed::public_call("dvs::Context::submitted_value", [&] {
+  return public_call("dvs::Context::submitted_value", [&] {
     embed::GateUse use(c.gate, "dvs::Context::submitted_value");
     return c.device->submission_count();
   });
@@ -73,7 +73,7 @@ uint64_t Context::submitted_value() const {
 
 bool Context::wait(uint64_t ticket, uint64_t timeout_ns) const {
   embed::ContextCore& c = *impl_->core;
-  return embed::public_call("dvs::Context::wait", [&] {
+  return public_call("dvs::Context::wait", [&] {
     embed::GateUse use(c.gate, "dvs::Context::wait");
     return c.device->wait(ticket, timeout_ns);
   });
@@ -81,7 +81,7 @@ bool Context::wait(uint64_t ticket, uint64_t timeout_ns) const {
 
 void Context::wait_before_next(VkSemaphore semaphore, uint64_t value) {
   embed::ContextCore& c = *impl_->core;
-  embed::public_call("dvs::Context::wait_before_next", [&] {
+  public_call("dvs::Context::wait_before_next", [&] {
     embed::GateUse use(c.gate, "dvs::Context::wait_before_next");
     c.device->wait_before_next(semaphore, value);
   });

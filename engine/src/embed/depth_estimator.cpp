@@ -10,7 +10,7 @@
 #include "dvs/error.hpp"
 #include "embed/context_core.hpp"
 #include "embed/device_copy.hpp"
-#include "embed/public_call.hpp"
+#include "io/public_call.hpp"
 #include "embed/view_facts.hpp"
 #include "models/vda/vda_model.hpp"
 #include "pipeline/frames_depth.hpp"
@@ -61,7 +61,7 @@ void check_views(vk::Context& ctx, const DeviceBufferView& frames, const DeviceB
 
 DepthEstimator::DepthEstimator(Context& ctx, const std::filesystem::path& model, const DepthModelOptions& options) {
   const std::shared_ptr<embed::ContextCore> core = ctx.core();
-  impl_ = embed::public_call(kMake, [&] {
+  impl_ = public_call(kMake, [&] {
     if (!std::filesystem::is_regular_file(model))
       throw Error(model.string() + ": no such depth model (give a video_depth_anything_vit{s,b,l}.pth or a "
                   ".safetensors of it; README.md says where the checkpoints are)");
@@ -95,7 +95,7 @@ bool DepthEstimator::metric() const { return impl_->model->config().metric; }
 void DepthEstimator::estimate(const ConstHostView& frames, const HostView& out, const ProgressFn& progress,
                               const CancelFn& cancelled) {
   Impl& e = *impl_;
-  embed::public_call(kWhere, [&] {
+  public_call(kWhere, [&] {
     embed::GateUse use(e.core->gate, kWhere);
     e.estimate(frames, out, progress, cancelled);
   });
@@ -116,7 +116,7 @@ void DepthEstimator::Impl::estimate(const ConstHostView& frames, const HostView&
 void DepthEstimator::estimate(const DeviceBufferView& frames, const DeviceBufferView& out, const ProgressFn& progress,
                               const CancelFn& cancelled) {
   Impl& e = *impl_;
-  embed::public_call(kWhere, [&] {
+  public_call(kWhere, [&] {
     embed::GateUse use(e.core->gate, kWhere);
     vk::Context& device = *e.core->device;
     check_views(device, frames, out);

@@ -1,6 +1,6 @@
 // dvs/job.hpp: run_pipeline (on files or on a clip in memory), render_novel_view and estimate_depth on a thread of
 // their own. The thread owns nothing but the shared State; the Job handle cancels and joins it when destroyed, so a
-// job never outlives its handle. Whatever the work throws is kept (as a dvs::Error: embed/public_call.hpp) and
+// job never outlives its handle. Whatever the work throws is kept (as a dvs::Error: io/public_call.hpp) and
 // rethrown by the result getters on the caller's thread. A job on a clip holds its context (embed/context_gate.hpp)
 // from its start until its work has ended.
 #include "dvs/job.hpp"
@@ -16,7 +16,7 @@
 #include "dvs/error.hpp"
 #include "embed/clip_run_on_device.hpp"
 #include "embed/context_core.hpp"
-#include "embed/public_call.hpp"
+#include "io/public_call.hpp"
 #include "pipeline/settings.hpp"
 
 namespace dvs {
@@ -65,7 +65,7 @@ struct Job::State {
     std::string message;
     std::exception_ptr caught;
     try {
-      embed::public_call("dvs::Job", work);
+      public_call("dvs::Job", work);
     } catch (const Cancelled& e) {
       end = JobState::cancelled, message = e.what(), caught = std::current_exception();
     } catch (const std::exception& e) {

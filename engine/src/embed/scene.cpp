@@ -21,7 +21,7 @@
 #include "embed/context_core.hpp"
 #include "embed/device_copy.hpp"
 #include "embed/device_image_copy.hpp"
-#include "embed/public_call.hpp"
+#include "io/public_call.hpp"
 #include "embed/scene_camera.hpp"
 #include "embed/scene_views.hpp"
 #include "geometry/splat.hpp"
@@ -209,7 +209,7 @@ FetchedInput fetch(vk::Context& device, const DeviceBufferView& from, const char
 PointCloudScene::PointCloudScene(Context& ctx, const ConstHostView& frame, const ConstHostView& depth,
                                  const CameraIntrinsics& intrinsics, const SceneOptions& options) {
   const std::shared_ptr<embed::ContextCore> core = ctx.core();
-  impl_ = embed::public_call(kMake, [&] {
+  impl_ = public_call(kMake, [&] {
     SceneValues v = scene_values(frame, depth, intrinsics, options);
     embed::GateUse use(core->gate, kMake);
     return std::make_unique<Impl>(core, std::move(v.rgb), std::move(v.depth), v.K, options);
@@ -219,7 +219,7 @@ PointCloudScene::PointCloudScene(Context& ctx, const ConstHostView& frame, const
 PointCloudScene::PointCloudScene(Context& ctx, const DeviceBufferView& frame, const DeviceBufferView& depth,
                                  const CameraIntrinsics& intrinsics, const SceneOptions& options) {
   const std::shared_ptr<embed::ContextCore> core = ctx.core();
-  impl_ = embed::public_call(kMake, [&] {
+  impl_ = public_call(kMake, [&] {
     embed::GateUse use(core->gate, kMake);
     FetchedInput f = fetch(*core->device, frame, "frame"), d = fetch(*core->device, depth, "depth");
     SceneValues v = scene_values(f.view(), d.view(), intrinsics, options);
@@ -241,7 +241,7 @@ double PointCloudScene::centre_depth() const { return impl_->centre; }
 
 void PointCloudScene::render(const Pose& pose, const HostView& image, const HostView& mask) {
   Impl& s = *impl_;
-  embed::public_call(kRender, [&] {
+  public_call(kRender, [&] {
     embed::GateUse use(s.core->gate, kRender);
     s.render_host(pose, image, mask);
   });
@@ -249,7 +249,7 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
 
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
   Impl& s = *impl_;
-  return embed::public_call(kRender, [&] {
+  return public_call(kRender, [&] {
     embed::GateUse use(s.core->gate, kRender);
     return s.render_buffers(pose, image, mask);
   });
@@ -257,7 +257,7 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
 
 uint64_t PointCloudScene::render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask) {
   Impl& s = *impl_;
-  return embed::public_call(kRender, [&] {
+  return public_call(kRender, [&] {
     embed::GateUse use(s.core->gate, kRender);
     return s.render_images(pose, image, mask);
   });

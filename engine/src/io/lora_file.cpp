@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "io/option_names.hpp"
 #include "io/weight_set.hpp"
 
 namespace dvs {
@@ -58,7 +59,7 @@ LoraSpec parse_lora_spec(const std::string& spec) {
     if (used == tail.size() && std::isfinite(scale)) return {spec.substr(0, colon), scale};
   } catch (const std::logic_error&) {
   }
-  throw Error("--lora " + spec + ": the scale after ':' must be a number, got '" + tail + "'");
+  throw Error(option_name("RunOptions::lora") + " " + spec + ": the scale after ':' must be a number, got '" + tail + "'");
 }
 
 }  // namespace dvs

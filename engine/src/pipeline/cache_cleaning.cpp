@@ -14,6 +14,7 @@
 #include <regex>
 #include <string>
 
+#include "io/public_call.hpp"
 #include "io/cache_root.hpp"
 #include "pipeline/cache_layout.hpp"
 #include "pipeline/run_outputs.hpp"
@@ -46,78 +47,82 @@ const char* kind_of(const std::string& prefix) {
 fs::path cache_folder(const fs::path& cache_dir) { return cache_entries_folder(cache_root(cache_dir)); }
 
 std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
-  std::map<std::string, CacheEntry> entries;  // by "<prefix>-<key>"
-  std::map<std::string, fs::file_time_type> newest;
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
-    const std::string name = e.path().filename().string();
-    const std::optional<EntryName> n = entry_name(name);
-    if (!n || !e.is_regular_file(ec)) continue;
-    const std::string id = n->prefix + "-" + n->key;
-    CacheEntry& c = entries[id];
-    c.kind = kind_of(n->prefix);
-    c.key = n->key;
-    c.files.push_back(e.path());
-    if (n->ending == "npy") c.data_file = e.path();
-    const uintmax_t size = e.file_size(ec);
-    if (!ec) c.bytes += size;
-    const auto t = e.last_write_time(ec);
-    if (!newest.count(id) || t > newest[id]) newest[id] = t;
-  }
-  std::vector<CacheEntry> list;
-  for (auto& [id, c] : entries) {
-    // A latent is its .npy with its .json; a .json alone is the first half of a store still under way (or of
-    // one that failed): not an entry yet.
-    if (c.kind == "latent" && c.data_file.empty()) continue;
-    std::sort(c.files.begin(), c.files.end(), [](const fs::path& a, const fs::path& b) {
-      return a.extension() == ".sum" && b.extension() != ".sum";  // the marker first: removed first, the entry is gone
-    });
-    c.age_days = days_since(newest[id]);
-    list.push_back(std::move(c));
-  }
-  std::sort(list.begin(), list.end(), [](const CacheEntry& a, const CacheEntry& b) { return a.age_days < b.age_days; });
-  return list;
+  return public_call("dvs::list_cache", [&]() -> std::vector<CacheEntry> {
+    std::map<std::string, CacheEntry> entries;  // by "<prefix>-<key>"
+    std::map<std::string, fs::file_time_type> newest;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
+      const std::string name = e.path().filename().string();
+      const std::optional<EntryName> n = entry_name(name);
+      if (!n || !e.is_regular_file(ec)) continue;
+      const std::string id = n->prefix + "-" + n->key;
+      CacheEntry& c = entries[id];
+      c.kind = kind_of(n->prefix);
+      c.key = n->key;
+      c.files.push_back(e.path());
+      if (n->ending == "npy") c.data_file = e.path();
+      const uintmax_t size = e.file_size(ec);
+      if (!ec) c.bytes += size;
+      const auto t = e.last_write_time(ec);
+      if (!newest.count(id) || t > newest[id]) newest[id] = t;
+    }
+    std::vector<CacheEntry> list;
+    for (auto& [id, c] : entries) {
+      // A latent is its .npy with its .json; a .json alone is the first half of a store still under way (or of
+      // one that failed): not an entry yet.
+      if (c.kind == "latent" && c.data_file.empty()) continue;
+      std::sort(c.files.begin(), c.files.end(), [](const fs::path& a, const fs::path& b) {
+        return a.extension() == ".sum" && b.extension() != ".sum";  // the marker first: removed first, the entry is gone
+      });
+      c.age_days = days_since(newest[id]);
+      list.push_back(std::move(c));
+    }
+    std::sort(list.begin(), list.end(), [](const CacheEntry& a, const CacheEntry& b) { return a.age_days < b.age_days; });
+    return list;
+  });
 }
 
 CacheCleaned clean_cache(const fs::path& cache_dir, const CacheCleaning& what) {
-  CacheCleaned r;
-  const std::vector<CacheEntry> entries = list_cache(cache_dir);  // most recently used first
-  uint64_t total = 0;
-  for (const auto& c : entries) total += c.bytes;
-  // Decided from the oldest: past --older-than, or while the rest is over --max-size.
-  std::vector<bool> remove(entries.size(), false);
-  uint64_t left = total;
-  for (size_t i = entries.size(); i-- > 0;) {
-    const CacheEntry& c = entries[i];
-    const bool old = what.older_than_days && c.age_days > *what.older_than_days;
-    const bool over = what.max_bytes && left > *what.max_bytes;
-    if (what.all || old || over) {
-      remove[i] = true;
-      left -= c.bytes;
-    }
-  }
-  for (size_t i = 0; i < entries.size(); ++i) {
-    if (!remove[i]) {
-      r.kept++, r.kept_bytes += entries[i].bytes;
-      continue;
-    }
-    if (!what.dry_run)
-      for (const auto& f : entries[i].files) {
-        std::error_code ec;
-        fs::remove(f, ec);
+  return public_call("dvs::clean_cache", [&]() -> CacheCleaned {
+    CacheCleaned r;
+    const std::vector<CacheEntry> entries = list_cache(cache_dir);  // most recently used first
+    uint64_t total = 0;
+    for (const auto& c : entries) total += c.bytes;
+    // Decided from the oldest: past --older-than, or while the rest is over --max-size.
+    std::vector<bool> remove(entries.size(), false);
+    uint64_t left = total;
+    for (size_t i = entries.size(); i-- > 0;) {
+      const CacheEntry& c = entries[i];
+      const bool old = what.older_than_days && c.age_days > *what.older_than_days;
+      const bool over = what.max_bytes && left > *what.max_bytes;
+      if (what.all || old || over) {
+        remove[i] = true;
+        left -= c.bytes;
       }
-    r.removed.push_back(entries[i]);
-    r.removed_bytes += entries[i].bytes;
-  }
-  // Half-written files whose writer is gone (killed, power loss): never a live writer's.
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
-    const long pid = writer_pid(e.path().filename().string());
-    if (!process_is_gone(pid) || !e.is_regular_file(ec)) continue;
-    r.stale_temporaries++;
-    if (!what.dry_run) fs::remove(e.path(), ec);
-  }
-  return r;
+    }
+    for (size_t i = 0; i < entries.size(); ++i) {
+      if (!remove[i]) {
+        r.kept++, r.kept_bytes += entries[i].bytes;
+        continue;
+      }
+      if (!what.dry_run)
+        for (const auto& f : entries[i].files) {
+          std::error_code ec;
+          fs::remove(f, ec);
+        }
+      r.removed.push_back(entries[i]);
+      r.removed_bytes += entries[i].bytes;
+    }
+    // Half-written files whose writer is gone (killed, power loss): never a live writer's.
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
+      const long pid = writer_pid(e.path().filename().string());
+      if (!process_is_gone(pid) || !e.is_regular_file(ec)) continue;
+      r.stale_temporaries++;
+      if (!what.dry_run) fs::remove(e.path(), ec);
+    }
+    return r;
+  });
 }
 
 std::optional<uint64_t> parse_byte_size(const std::string& text) {

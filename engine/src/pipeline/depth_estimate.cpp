@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "io/public_call.hpp"
 #include "dvs/error.hpp"
 #include "dvs/usage_error.hpp"
 #include "io/crash_points.hpp"
@@ -140,82 +141,88 @@ std::string describe(const DepthSummary& s) {
 }
 
 bool depth_cache_has(const DepthJob& job) {
-  if (job.refresh_cache) return false;
-  return cache_entry_exists(depth_cache(job).file(depth_cache_key(job)));
+  return public_call("dvs::depth_cache_has", [&]() -> bool {
+    if (job.refresh_cache) return false;
+    return cache_entry_exists(depth_cache(job).file(depth_cache_key(job)));
+  });
 }
 
 CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
-  check_job(job);
-  refuse_old_cache_layout(job.cache_dir);  // an estimate can take a quarter of an hour: never silently again
-  CachedDepth c;
-  const InversionCache cache = depth_cache(job);
-  c.key = depth_cache_key(job);
-  c.file = cache.file(c.key);
-  std::error_code ec;
-  if (!job.refresh_cache && std::filesystem::exists(c.file, ec)) {
-    const CacheEntryRead entry = read_cache_entry(c.file);
-    std::optional<std::string> problem;
-    if (!entry.problem.empty()) problem = entry.problem;
-    else if (entry.tensor) problem = entry_problem(*entry.tensor);
-    if (entry.tensor && !problem) {
-      c.from_cache = true;
-      c.summary = summary_of_cached(job, *entry.tensor);
-      c.summary.cache_file = c.file;
-      std::filesystem::last_write_time(c.file, std::filesystem::file_time_type::clock::now(), ec);  // recently used
-      return c;
+  return public_call("dvs::cached_depth", [&]() -> CachedDepth {
+    check_job(job);
+    refuse_old_cache_layout(job.cache_dir);  // an estimate can take a quarter of an hour: never silently again
+    CachedDepth c;
+    const InversionCache cache = depth_cache(job);
+    c.key = depth_cache_key(job);
+    c.file = cache.file(c.key);
+    std::error_code ec;
+    if (!job.refresh_cache && std::filesystem::exists(c.file, ec)) {
+      const CacheEntryRead entry = read_cache_entry(c.file);
+      std::optional<std::string> problem;
+      if (!entry.problem.empty()) problem = entry.problem;
+      else if (entry.tensor) problem = entry_problem(*entry.tensor);
+      if (entry.tensor && !problem) {
+        c.from_cache = true;
+        c.summary = summary_of_cached(job, *entry.tensor);
+        c.summary.cache_file = c.file;
+        std::filesystem::last_write_time(c.file, std::filesystem::file_time_type::clock::now(), ec);  // recently used
+        return c;
+      }
+      if (problem) {
+        log_warning("the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
+        remove_cache_entry(c.file);
+      }
     }
-    if (problem) {
-      log_warning("the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
-      remove_cache_entry(c.file);
+    // Where the estimate will be kept, checked before the work.
+    if (auto p = file_write_problem(c.file, "give " + option_name("DepthJob::cache_dir") +
+                                                " a writable folder or set DVS_CACHE_DIR to one"))
+      throw Error("depth cache: " + *p);
+    HostTensor depth;
+    try {
+      faults::set_stage("depth");
+      crash_point("depth-estimate-begin");
+      depth = run_estimate(job, progress, cancelled, c.summary);
+      crash_point("depth-estimate-end");
+    } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
+      throw Error("depth estimate: " + e.detail() + ". Try a smaller " + input_size_name(job) + " (the network input; " +
+                      "default 518) or a smaller " + option_name("DepthJob::max_res") + " / fewer " + frames_name(job) +
+                      "; dvs plan --depth-model " + job.model.filename().string() + " shows what the estimate needs",
+                  ErrorKind::out_of_memory);
+    } catch (const vk::DeviceLost& e) {
+      throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);
     }
-  }
-  // Where the estimate will be kept, checked before the work.
-  if (auto p = file_write_problem(c.file, "give " + option_name("DepthJob::cache_dir") +
-                                              " a writable folder or set DVS_CACHE_DIR to one"))
-    throw Error("depth cache: " + *p);
-  HostTensor depth;
-  try {
-    faults::set_stage("depth");
-    crash_point("depth-estimate-begin");
-    depth = run_estimate(job, progress, cancelled, c.summary);
-    crash_point("depth-estimate-end");
-  } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
-    throw Error("depth estimate: " + e.detail() + ". Try a smaller " + input_size_name(job) + " (the network input; " +
-                    "default 518) or a smaller " + option_name("DepthJob::max_res") + " / fewer " + frames_name(job) +
-                    "; dvs plan --depth-model " + job.model.filename().string() + " shows what the estimate needs",
-                ErrorKind::out_of_memory);
-  } catch (const vk::DeviceLost& e) {
-    throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);
-  }
-  faults::set_stage("depth-write");
-  std::filesystem::create_directories(c.file.parent_path(), ec);
-  write_cache_entry(c.file, depth);
-  c.summary.cache_file = c.file;
-  return c;
+    faults::set_stage("depth-write");
+    std::filesystem::create_directories(c.file.parent_path(), ec);
+    write_cache_entry(c.file, depth);
+    c.summary.cache_file = c.file;
+    return c;
+  });
 }
 
 DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& out, const ProgressFn& progress,
                             const CancelFn& cancelled) {
-  check_job(job);
-  const std::string ext = out.extension().string();
-  if (ext != ".npz" && ext != ".npy") throw Error(out.string() + ": the depth file must end in .npz or .npy");
-  if (auto p = file_write_problem(out, "give another --out")) throw Error(*p);  // before the work, not after
-  const CachedDepth c = cached_depth(job, progress, cancelled);
-  try {
-    const HostTensor depth = read_npy(c.file);
-    std::error_code ec;
-    std::filesystem::create_directories(std::filesystem::absolute(out).parent_path(), ec);
-    crash_point("publish-before", out.filename().string());
-    if (ext == ".npz") write_npz(out, {{"depths", depth}});
-    else write_npy(out, depth);
-    crash_point("publish-after", out.filename().string());
-    remove_stale_temporaries(out);  // what a dvs depth killed while writing this file left
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
-                    "): the same command with a writable --out takes it from there",
-                e.kind());
-  }
-  return c.summary;
+  return public_call("dvs::estimate_depth", [&]() -> DepthSummary {
+    check_job(job);
+    const std::string ext = out.extension().string();
+    if (ext != ".npz" && ext != ".npy") throw Error(out.string() + ": the depth file must end in .npz or .npy");
+    if (auto p = file_write_problem(out, "give another --out")) throw Error(*p);  // before the work, not after
+    const CachedDepth c = cached_depth(job, progress, cancelled);
+    try {
+      const HostTensor depth = read_npy(c.file);
+      std::error_code ec;
+      std::filesystem::create_directories(std::filesystem::absolute(out).parent_path(), ec);
+      crash_point("publish-before", out.filename().string());
+      if (ext == ".npz") write_npz(out, {{"depths", depth}});
+      else write_npy(out, depth);
+      crash_point("publish-after", out.filename().string());
+      remove_stale_temporaries(out);  // what a dvs depth killed while writing this file left
+    } catch (const Error& e) {
+      throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
+                      "): the same command with a writable --out takes it from there",
+                  e.kind());
+    }
+    return c.summary;
+  });
 }
 
 }  // namespace dvs

@@ -1,5 +1,6 @@
 // `dvs invert`: stages 1–5 of the pipeline alone, writing ε_inv and filling the cache that `dvs run` reads.
 #include "dvs/error.hpp"
+#include "io/public_call.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
@@ -74,12 +75,14 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
 }  // namespace
 
 InversionReport run_inversion(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
-  StageTracker stages(progress, cancelled);
-  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
-  CreatedFolders out_folder(o.render.out_dir);  // removed again if the inversion fails before filling it
-  InversionReport report = stages.run([&] { return invert_stages(o, stages); });
-  out_folder.keep();
-  return report;
+  return public_call("dvs::run_inversion", [&]() -> InversionReport {
+    StageTracker stages(progress, cancelled);
+    stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
+    CreatedFolders out_folder(o.render.out_dir);  // removed again if the inversion fails before filling it
+    InversionReport report = stages.run([&] { return invert_stages(o, stages); });
+    out_folder.keep();
+    return report;
+  });
 }
 
 }  // namespace dvs

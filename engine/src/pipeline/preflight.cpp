@@ -8,6 +8,7 @@
 #include <optional>
 #include <set>
 
+#include "io/public_call.hpp"
 #include "diffusion/schedule.hpp"
 #include "dvs/depth_estimate.hpp"
 #include "dvs/error.hpp"
@@ -421,7 +422,9 @@ std::string PreflightReport::message() const {
   return m;
 }
 
-PreflightReport preflight(const RunOptions& o, JobKind kind) { return preflight(o, kind, PreflightScope{}); }
+PreflightReport preflight(const RunOptions& o, JobKind kind) {
+  return public_call("dvs::preflight", [&] { return preflight(o, kind, PreflightScope{}); });
+}
 
 PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScope& scope) {
   PreflightReport r;
@@ -455,16 +458,18 @@ PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScop
 }
 
 PreflightReport preflight_render(const RenderJob& job) {
-  PreflightReport r;
-  Checker c(r);
-  RunOptions o;
-  o.render = job;
-  o.cache_dir = job.depth_cache_dir;  // where render's --depth-model keeps its estimate
-  check_inputs(o, c, PreflightScope{});
-  // The render's buffers against the device's limits (the same figures the renderer chunks with).
-  if (const vk::DeviceCaps* dev = chosen_device(job.device, c))
-    if (auto p = render_limits_problem(job, *dev)) c.problem(*p);
-  return r;
+  return public_call("dvs::preflight_render", [&]() -> PreflightReport {
+    PreflightReport r;
+    Checker c(r);
+    RunOptions o;
+    o.render = job;
+    o.cache_dir = job.depth_cache_dir;  // where render's --depth-model keeps its estimate
+    check_inputs(o, c, PreflightScope{});
+    // The render's buffers against the device's limits (the same figures the renderer chunks with).
+    if (const vk::DeviceCaps* dev = chosen_device(job.device, c))
+      if (auto p = render_limits_problem(job, *dev)) c.problem(*p);
+    return r;
+  });
 }
 
 void require_preflight(const RunOptions& o, JobKind kind, const PreflightScope& scope) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 
+#include "io/public_call.hpp"
 #include "dvs/usage_error.hpp"
 #include "io/option_names.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
@@ -78,33 +79,35 @@ uint64_t parse_byte_size(const std::string& text, const std::string& option) {
 }
 
 MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
-  const pipeline::PlanModel pm = plan_model(request.model);
-  require_plannable(pm, request);
-  pipeline::PlanRequest req;
-  req.frames = request.frames, req.height = request.height, req.width = request.width;
-  req.budget = request.budget;
-  req.alignment = request.alignment;
-  if (request.limits) {
-    const DeviceLimits& l = *request.limits;
-    req.limits = pipeline::PlanLimits{l.source, l.binding, l.texels, l.alloc, l.groups};
-    req.alignment = std::max(req.alignment, l.alignment);
-    if (!req.budget && l.memory) req.budget = l.memory;
-  }
-  if (!request.depth_model.empty()) {
-    const std::string& m = request.depth_model;
-    req.depth_model = depth_model_config(m);
-    req.depth_input_size = request.depth_input_size;
-    req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
-  }
-  const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
-  MemoryPlanReport r;
-  r.checked = plan.checked();
-  r.runs = !plan.checked() || plan.chosen >= 0;
-  r.weights_bytes = plan.weights_total;
-  r.run_peak_bytes = plan.run_peak;
-  r.table = pipeline::format_plan_table(plan);
-  r.json = pipeline::plan_to_json(plan).dump(2);
-  return r;
+  return public_call("dvs::plan_run_memory", [&]() -> MemoryPlanReport {
+    const pipeline::PlanModel pm = plan_model(request.model);
+    require_plannable(pm, request);
+    pipeline::PlanRequest req;
+    req.frames = request.frames, req.height = request.height, req.width = request.width;
+    req.budget = request.budget;
+    req.alignment = request.alignment;
+    if (request.limits) {
+      const DeviceLimits& l = *request.limits;
+      req.limits = pipeline::PlanLimits{l.source, l.binding, l.texels, l.alloc, l.groups};
+      req.alignment = std::max(req.alignment, l.alignment);
+      if (!req.budget && l.memory) req.budget = l.memory;
+    }
+    if (!request.depth_model.empty()) {
+      const std::string& m = request.depth_model;
+      req.depth_model = depth_model_config(m);
+      req.depth_input_size = request.depth_input_size;
+      req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
+    }
+    const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
+    MemoryPlanReport r;
+    r.checked = plan.checked();
+    r.runs = !plan.checked() || plan.chosen >= 0;
+    r.weights_bytes = plan.weights_total;
+    r.run_peak_bytes = plan.run_peak;
+    r.table = pipeline::format_plan_table(plan);
+    r.json = pipeline::plan_to_json(plan).dump(2);
+    return r;
+  });
 }
 
 }  // namespace dvs

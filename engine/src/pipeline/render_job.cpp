@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "io/public_call.hpp"
 #include "dvs/error.hpp"
 #include "dvs/preflight.hpp"
 #include "dvs/render.hpp"
@@ -188,76 +189,78 @@ HostTensor mask_as_video(const HostTensor& mask) {
 
 RenderSummary render_novel_view(const RenderJob& job_in, const std::function<void(const std::string&)>& progress,
                                 const std::function<bool()>& cancelled) {
-  // Every problem named before any work, the depth estimate included: the report of dvs render --check.
-  if (const PreflightReport r = preflight_render(job_in); !r.ok()) throw Error(r.message());
-  RenderJob job = job_in;
-  CreatedFolders out_folder(job.out_dir);  // removed again if the render fails before filling it
-  if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
-    const nlohmann::json d = resolve_depth_model(
-        job, job.depth_cache_dir, !job.depth_cache,
-        [&, last = std::chrono::steady_clock::time_point()](const std::string&, int step, int total,
-                                                             const std::string& note) mutable {
-          // Steps come many per window: a line every few seconds says where the estimate is.
-          const auto now = std::chrono::steady_clock::now();
-          if (!progress || (total > 0 && step < total && now - last < std::chrono::seconds(2))) return;
-          last = now;
-          progress(total > 0 ? "depth: step " + std::to_string(step) + "/" + std::to_string(total) + " (" + note + ")"
-                             : "depth: " + note);
-        },
-        cancelled);
-    if (progress) {
-      if (d.at("from_cache").get<bool>()) {
-        progress("depth from the cache: " + d.at("file").get<std::string>());
-      } else {
-        const double sec = d.at("seconds").get<double>();
-        const int frames = d.at("estimate").at("frames").get<int>();
-        char rate[96];
-        std::snprintf(rate, sizeof rate, " in %s (%.3g frames/s)", duration_text(sec).c_str(), frames / std::max(sec, 1e-9));
-        progress("depth estimated" + std::string(rate) + ": " + d.at("file").get<std::string>());
+  return public_call("dvs::render_novel_view", [&]() -> RenderSummary {
+    // Every problem named before any work, the depth estimate included: the report of dvs render --check.
+    if (const PreflightReport r = preflight_render(job_in); !r.ok()) throw Error(r.message());
+    RenderJob job = job_in;
+    CreatedFolders out_folder(job.out_dir);  // removed again if the render fails before filling it
+    if (!job.depth_model.empty()) {  // estimated (or cached) first, in a context of its own
+      const nlohmann::json d = resolve_depth_model(
+          job, job.depth_cache_dir, !job.depth_cache,
+          [&, last = std::chrono::steady_clock::time_point()](const std::string&, int step, int total,
+                                                               const std::string& note) mutable {
+            // Steps come many per window: a line every few seconds says where the estimate is.
+            const auto now = std::chrono::steady_clock::now();
+            if (!progress || (total > 0 && step < total && now - last < std::chrono::seconds(2))) return;
+            last = now;
+            progress(total > 0 ? "depth: step " + std::to_string(step) + "/" + std::to_string(total) + " (" + note + ")"
+                               : "depth: " + note);
+          },
+          cancelled);
+      if (progress) {
+        if (d.at("from_cache").get<bool>()) {
+          progress("depth from the cache: " + d.at("file").get<std::string>());
+        } else {
+          const double sec = d.at("seconds").get<double>();
+          const int frames = d.at("estimate").at("frames").get<int>();
+          char rate[96];
+          std::snprintf(rate, sizeof rate, " in %s (%.3g frames/s)", duration_text(sec).c_str(), frames / std::max(sec, 1e-9));
+          progress("depth estimated" + std::string(rate) + ": " + d.at("file").get<std::string>());
+        }
       }
     }
-  }
-  if (cancelled && cancelled()) throw Cancelled();
-  const OutputLock out_lock(job.out_dir);  // before the folder is prepared: no other process writes into it
-  vk::ContextOptions copt;
-  copt.device = job.device;
-  copt.cache_dir = job.depth_cache_dir;  // the pipeline cache in the cache folder, as DVS_CACHE_DIR puts it
-  vk::Context ctx(copt);
-  RenderedInput in = render_stage(ctx, job, progress);
-  RenderSummary sum;
-  sum.seconds_decode = in.seconds_decode;
-  sum.seconds_render = in.seconds_render;
-  sum.frames = int(in.rgb.shape[0]);
-  sum.height = job.height;
-  sum.width = job.width;
-  sum.fps = in.fps;
+    if (cancelled && cancelled()) throw Cancelled();
+    const OutputLock out_lock(job.out_dir);  // before the folder is prepared: no other process writes into it
+    vk::ContextOptions copt;
+    copt.device = job.device;
+    copt.cache_dir = job.depth_cache_dir;  // the pipeline cache in the cache folder, as DVS_CACHE_DIR puts it
+    vk::Context ctx(copt);
+    RenderedInput in = render_stage(ctx, job, progress);
+    RenderSummary sum;
+    sum.seconds_decode = in.seconds_decode;
+    sum.seconds_render = in.seconds_render;
+    sum.frames = int(in.rgb.shape[0]);
+    sum.height = job.height;
+    sum.width = job.width;
+    sum.fps = in.fps;
 
-  auto t2 = std::chrono::steady_clock::now();
-  const auto& dir = job.out_dir;
-  sum.render_mp4 = dir / "render.mp4";
-  sum.mask_mp4 = dir / "mask.mp4";
-  sum.mask_npy = dir / "mask.npy";
-  sum.poses_json = dir / "poses.json";
-  write_video(sum.render_mp4, in.render, in.fps);
-  write_video(sum.mask_mp4, mask_as_video(in.mask), in.fps);
-  write_npy(sum.mask_npy, in.mask);
-  if (job.save_npy) {  // the exact values (render.mp4 is lossy), to compare with other renders
-    sum.render_npy = dir / "render.npy";
-    write_npy(sum.render_npy, in.render);
-  }
-  geometry::write_trajectory_json(sum.poses_json, in.trajectory);
-  if (job.export_glb) {
-    sum.scene_glb = dir / "scene.glb";
-    geometry::PointCloud pc =
-        geometry::point_cloud_from_rgbd(in.rgb.as<float>(), in.depth.as<float>(), job.height, job.width, in.K, 2);
-    geometry::GlbExportOptions gopt;
-    gopt.fps = in.fps;
-    gopt.intrinsics = &in.K;
-    geometry::write_trajectory_glb(sum.scene_glb, in.trajectory, &pc, gopt);
-  }
-  sum.seconds_write = seconds_since(t2);
-  out_folder.keep();
-  return sum;
+    auto t2 = std::chrono::steady_clock::now();
+    const auto& dir = job.out_dir;
+    sum.render_mp4 = dir / "render.mp4";
+    sum.mask_mp4 = dir / "mask.mp4";
+    sum.mask_npy = dir / "mask.npy";
+    sum.poses_json = dir / "poses.json";
+    write_video(sum.render_mp4, in.render, in.fps);
+    write_video(sum.mask_mp4, mask_as_video(in.mask), in.fps);
+    write_npy(sum.mask_npy, in.mask);
+    if (job.save_npy) {  // the exact values (render.mp4 is lossy), to compare with other renders
+      sum.render_npy = dir / "render.npy";
+      write_npy(sum.render_npy, in.render);
+    }
+    geometry::write_trajectory_json(sum.poses_json, in.trajectory);
+    if (job.export_glb) {
+      sum.scene_glb = dir / "scene.glb";
+      geometry::PointCloud pc =
+          geometry::point_cloud_from_rgbd(in.rgb.as<float>(), in.depth.as<float>(), job.height, job.width, in.K, 2);
+      geometry::GlbExportOptions gopt;
+      gopt.fps = in.fps;
+      gopt.intrinsics = &in.K;
+      geometry::write_trajectory_glb(sum.scene_glb, in.trajectory, &pc, gopt);
+    }
+    sum.seconds_write = seconds_since(t2);
+    out_folder.keep();
+    return sum;
+  });
 }
 
 }  // namespace dvs

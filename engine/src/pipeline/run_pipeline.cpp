@@ -3,6 +3,7 @@
 // failed run leaves the folder's earlier results as they were.
 #include <optional>
 
+#include "io/public_call.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/video.hpp"
 #include "pipeline/job_stages.hpp"
@@ -66,13 +67,15 @@ class FileEnds : public RunEnds {
 }  // namespace
 
 RunReport run_pipeline(const RunOptions& o, const ProgressFn& progress, const CancelFn& cancelled) {
-  StageTracker stages(progress, cancelled);
-  stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
-  CreatedFolders out_folder(o.render.out_dir);  // removed again if the run fails before filling it
-  FileEnds ends;
-  RunReport report = stages.run([&] { return run_stages(o, ends, nullptr, stages); });
-  out_folder.keep();
-  return report;
+  return public_call("dvs::run_pipeline", [&]() -> RunReport {
+    StageTracker stages(progress, cancelled);
+    stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
+    CreatedFolders out_folder(o.render.out_dir);  // removed again if the run fails before filling it
+    FileEnds ends;
+    RunReport report = stages.run([&] { return run_stages(o, ends, nullptr, stages); });
+    out_folder.keep();
+    return report;
+  });
 }
 
 }  // namespace dvs

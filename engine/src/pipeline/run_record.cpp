@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "io/public_call.hpp"
 #include "dvs/error.hpp"
 #include "io/json_file.hpp"
 #include "dvs/info.hpp"
@@ -105,82 +106,84 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
 }
 
 std::vector<std::string> run_record_arguments(const std::filesystem::path& run_json) {
-  nlohmann::json j;
-  try {
-    std::ifstream in(run_json);
-    if (!in) throw Error(run_json.string() + ": cannot read it (give --from RUN.json, a run.json dvs run wrote)");
-    const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    // dump() below recurses: a hostile file must not nest deep enough to exhaust the stack (run.json needs 3 levels)
-    if (json_nests_deeper_than(content, 64))
-      throw Error(run_json.string() + ": not a run.json (JSON nests deeper than 64 levels)");
-    j = nlohmann::json::parse(content);
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(run_json.string() + ": not a run.json (" + e.what() + ")");
-  }
-  const auto section = [&](const char* name) -> const nlohmann::json& {
-    if (!j.contains(name) || !j[name].is_object())
-      throw Error(run_json.string() + ": no \"" + std::string(name) + "\" object: not a run.json dvs run wrote");
-    return j[name];
-  };
-  const nlohmann::json &in = section("inputs"), &st = section("settings");
-  std::vector<std::string> args;
-  const auto text = [&](const nlohmann::json& obj, const char* key, const char* option) {
-    if (!obj.contains(key) || obj[key].is_null()) throw Error(run_json.string() + ": \"" + key + "\" is missing");
-    const auto& v = obj[key];
-    args.push_back(std::string("--") + option);
-    args.push_back(v.is_string() ? v.get<std::string>() : v.dump());
-  };
-  const auto flag = [&](const nlohmann::json& obj, const char* key, const char* option) {
-    if (obj.contains(key) && obj[key].is_boolean() && obj[key].get<bool>()) args.push_back(std::string("--") + option);
-  };
-  text(in, "video", "video");
-  if (in.contains("depth_model")) {  // the depth was estimated: estimate it again (or find it in the cache)
-    text(in, "depth_model", "depth-model");
-    if (in.contains("depth_input_size")) text(in, "depth_input_size", "depth-input-size");
-  } else {
-    text(in, "depth", "depth");
-  }
-  // With --depth-model the checkpoint decides depth or disparity (--metric-depth is refused there).
-  if (in.contains("depth_values") && in["depth_values"] == "depth" && !in.contains("depth_model")) args.push_back("--metric-depth");
-  text(in, "trajectory", "trajectory");
-  text(in, "model", "model");
-  text(in, "out", "out");
-  text(st, "preset", "preset");
-  text(st, "prompt", "prompt");
-  if (st.contains("negative_prompt") && st["negative_prompt"].is_string() && !st["negative_prompt"].get<std::string>().empty())
-    text(st, "negative_prompt", "negative-prompt");
-  text(st, "frames", "frames");
-  for (const char* key : {"height", "width"})
-    if (!st.contains(key) || !st[key].is_number_integer())
-      throw Error(run_json.string() + ": \"" + key + "\" is missing or not a whole number");
-  args.push_back("--size");
-  args.push_back(st["height"].dump() + "x" + st["width"].dump());
-  text(st, "resize", "resize");
-  if (st.contains("intrinsics") && st["intrinsics"].is_array() && st["intrinsics"].size() == 4) {
-    std::string k;
-    for (const auto& v : st["intrinsics"]) k += (k.empty() ? "" : ",") + v.dump();
-    args.insert(args.end(), {"--intrinsics", k});
-  }
-  flag(st, "points", "points");
-  flag(st, "trim_depth", "trim-depth");
-  text(st, "depth_fit", "depth-fit");
-  for (const auto& [key, option] : std::vector<std::pair<const char*, const char*>>{
-           {"steps", "steps"}, {"strength", "strength"}, {"inversion_steps", "inversion-steps"}, {"k", "k"},
-           {"delta", "delta"}, {"guidance", "guidance"}, {"preservation_scale", "preservation-scale"}, {"seed", "seed"}})
-    text(st, key, option);
-  if (st.contains("dynamic_cfg") && st["dynamic_cfg"].is_boolean())
-    args.insert(args.end(), {"--dynamic-cfg", st["dynamic_cfg"].get<bool>() ? "on" : "off"});
-  if (st.contains("cache") && st["cache"].is_boolean() && !st["cache"].get<bool>()) args.push_back("--no-cache");
-  if (st.contains("cache_dir") && st["cache_dir"].is_string()) text(st, "cache_dir", "cache-dir");
-  if (st.contains("vae_tile") && st["vae_tile"].is_array() && st["vae_tile"].size() == 2)
-    args.insert(args.end(), {"--vae-tile", st["vae_tile"][0].dump() + "x" + st["vae_tile"][1].dump()});
-  if (j.contains("lora") && j["lora"].is_object()) {
-    const nlohmann::json& lora = j["lora"];
-    if (!lora.contains("file") || !lora["file"].is_string() || !lora.contains("scale") || !lora["scale"].is_number())
-      throw Error(run_json.string() + ": \"lora\" must hold \"file\" (a path) and \"scale\" (a number)");
-    args.insert(args.end(), {"--lora", lora["file"].get<std::string>() + ":" + lora["scale"].dump()});
-  }
-  return args;
+  return public_call("dvs::run_record_arguments", [&]() -> std::vector<std::string> {
+    nlohmann::json j;
+    try {
+      std::ifstream in(run_json);
+      if (!in) throw Error(run_json.string() + ": cannot read it (give --from RUN.json, a run.json dvs run wrote)");
+      const std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      // dump() below recurses: a hostile file must not nest deep enough to exhaust the stack (run.json needs 3 levels)
+      if (json_nests_deeper_than(content, 64))
+        throw Error(run_json.string() + ": not a run.json (JSON nests deeper than 64 levels)");
+      j = nlohmann::json::parse(content);
+    } catch (const nlohmann::json::exception& e) {
+      throw Error(run_json.string() + ": not a run.json (" + e.what() + ")");
+    }
+    const auto section = [&](const char* name) -> const nlohmann::json& {
+      if (!j.contains(name) || !j[name].is_object())
+        throw Error(run_json.string() + ": no \"" + std::string(name) + "\" object: not a run.json dvs run wrote");
+      return j[name];
+    };
+    const nlohmann::json &in = section("inputs"), &st = section("settings");
+    std::vector<std::string> args;
+    const auto text = [&](const nlohmann::json& obj, const char* key, const char* option) {
+      if (!obj.contains(key) || obj[key].is_null()) throw Error(run_json.string() + ": \"" + key + "\" is missing");
+      const auto& v = obj[key];
+      args.push_back(std::string("--") + option);
+      args.push_back(v.is_string() ? v.get<std::string>() : v.dump());
+    };
+    const auto flag = [&](const nlohmann::json& obj, const char* key, const char* option) {
+      if (obj.contains(key) && obj[key].is_boolean() && obj[key].get<bool>()) args.push_back(std::string("--") + option);
+    };
+    text(in, "video", "video");
+    if (in.contains("depth_model")) {  // the depth was estimated: estimate it again (or find it in the cache)
+      text(in, "depth_model", "depth-model");
+      if (in.contains("depth_input_size")) text(in, "depth_input_size", "depth-input-size");
+    } else {
+      text(in, "depth", "depth");
+    }
+    // With --depth-model the checkpoint decides depth or disparity (--metric-depth is refused there).
+    if (in.contains("depth_values") && in["depth_values"] == "depth" && !in.contains("depth_model")) args.push_back("--metric-depth");
+    text(in, "trajectory", "trajectory");
+    text(in, "model", "model");
+    text(in, "out", "out");
+    text(st, "preset", "preset");
+    text(st, "prompt", "prompt");
+    if (st.contains("negative_prompt") && st["negative_prompt"].is_string() && !st["negative_prompt"].get<std::string>().empty())
+      text(st, "negative_prompt", "negative-prompt");
+    text(st, "frames", "frames");
+    for (const char* key : {"height", "width"})
+      if (!st.contains(key) || !st[key].is_number_integer())
+        throw Error(run_json.string() + ": \"" + key + "\" is missing or not a whole number");
+    args.push_back("--size");
+    args.push_back(st["height"].dump() + "x" + st["width"].dump());
+    text(st, "resize", "resize");
+    if (st.contains("intrinsics") && st["intrinsics"].is_array() && st["intrinsics"].size() == 4) {
+      std::string k;
+      for (const auto& v : st["intrinsics"]) k += (k.empty() ? "" : ",") + v.dump();
+      args.insert(args.end(), {"--intrinsics", k});
+    }
+    flag(st, "points", "points");
+    flag(st, "trim_depth", "trim-depth");
+    text(st, "depth_fit", "depth-fit");
+    for (const auto& [key, option] : std::vector<std::pair<const char*, const char*>>{
+             {"steps", "steps"}, {"strength", "strength"}, {"inversion_steps", "inversion-steps"}, {"k", "k"},
+             {"delta", "delta"}, {"guidance", "guidance"}, {"preservation_scale", "preservation-scale"}, {"seed", "seed"}})
+      text(st, key, option);
+    if (st.contains("dynamic_cfg") && st["dynamic_cfg"].is_boolean())
+      args.insert(args.end(), {"--dynamic-cfg", st["dynamic_cfg"].get<bool>() ? "on" : "off"});
+    if (st.contains("cache") && st["cache"].is_boolean() && !st["cache"].get<bool>()) args.push_back("--no-cache");
+    if (st.contains("cache_dir") && st["cache_dir"].is_string()) text(st, "cache_dir", "cache-dir");
+    if (st.contains("vae_tile") && st["vae_tile"].is_array() && st["vae_tile"].size() == 2)
+      args.insert(args.end(), {"--vae-tile", st["vae_tile"][0].dump() + "x" + st["vae_tile"][1].dump()});
+    if (j.contains("lora") && j["lora"].is_object()) {
+      const nlohmann::json& lora = j["lora"];
+      if (!lora.contains("file") || !lora["file"].is_string() || !lora.contains("scale") || !lora["scale"].is_number())
+        throw Error(run_json.string() + ": \"lora\" must hold \"file\" (a path) and \"scale\" (a number)");
+      args.insert(args.end(), {"--lora", lora["file"].get<std::string>() + ":" + lora["scale"].dump()});
+    }
+    return args;
+  });
 }
 
 }  // namespace dvs

@@ -3,6 +3,7 @@
 // hands back 8-bit RGB, the layout applications and the embedding API take.
 #include <string>
 
+#include "io/public_call.hpp"
 #include "dvs/error.hpp"
 #include "dvs/video.hpp"
 #include "io/pixel_levels.hpp"
@@ -37,47 +38,51 @@ VideoFrames frames_described(int first, int count, int height, int width, const 
 
 VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,
                               bool squash) {
-  const std::string name = path.string();
-  if (first < 0 || count < 1)
-    throw Error(name + ": read_video_frames takes first ≥ 0 and count ≥ 1, got first " + std::to_string(first) +
-                ", count " + std::to_string(count));
-  if (height < 0 || width < 0 || (height == 0) != (width == 0))
-    throw Error(name + ": read_video_frames takes a working size with both height and width > 0 (or both 0 for the "
-                "file's size), got " + std::to_string(height) + "x" + std::to_string(width));
-  VideoReadOptions o;
-  o.max_frames = first + count;  // decoding is sequential; a frame decodes the same whatever follows it
-  o.height = height;
-  o.width = width;
-  o.resize = squash ? ResizeMode::squash : ResizeMode::crop;
-  o.fewer_frames_ok = true;  // named below in this call's terms, not as the dvs program's --frames
-  VideoInfo info;
-  const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]
-  if (planes.shape[0] < first + count) throw_frames_past_end(name, first, count, int(planes.shape[0]));
+  return public_call("dvs::read_video_frames", [&]() -> VideoFrames {
+    const std::string name = path.string();
+    if (first < 0 || count < 1)
+      throw Error(name + ": read_video_frames takes first ≥ 0 and count ≥ 1, got first " + std::to_string(first) +
+                  ", count " + std::to_string(count));
+    if (height < 0 || width < 0 || (height == 0) != (width == 0))
+      throw Error(name + ": read_video_frames takes a working size with both height and width > 0 (or both 0 for the "
+                  "file's size), got " + std::to_string(height) + "x" + std::to_string(width));
+    VideoReadOptions o;
+    o.max_frames = first + count;  // decoding is sequential; a frame decodes the same whatever follows it
+    o.height = height;
+    o.width = width;
+    o.resize = squash ? ResizeMode::squash : ResizeMode::crop;
+    o.fewer_frames_ok = true;  // named below in this call's terms, not as the dvs program's --frames
+    VideoInfo info;
+    const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]
+    if (planes.shape[0] < first + count) throw_frames_past_end(name, first, count, int(planes.shape[0]));
 
-  VideoFrames out = frames_described(first, count, int(planes.shape[2]), int(planes.shape[3]), info);
-  const size_t plane = size_t(out.height) * size_t(out.width);
-  out.rgb.resize(size_t(count) * plane * 3);
-  const float* src = planes.as<float>();
-  for (size_t f = 0; f < size_t(count); ++f)
-    for (size_t i = 0; i < plane; ++i)
-      for (size_t c = 0; c < 3; ++c)  // the reader's levels back exactly: unit_to_level(level_to_unit(v)) = v
-        out.rgb[(f * plane + i) * 3 + c] = unit_to_level(src[((size_t(first) + f) * 3 + c) * plane + i]);
-  return out;
+    VideoFrames out = frames_described(first, count, int(planes.shape[2]), int(planes.shape[3]), info);
+    const size_t plane = size_t(out.height) * size_t(out.width);
+    out.rgb.resize(size_t(count) * plane * 3);
+    const float* src = planes.as<float>();
+    for (size_t f = 0; f < size_t(count); ++f)
+      for (size_t i = 0; i < plane; ++i)
+        for (size_t c = 0; c < 3; ++c)  // the reader's levels back exactly: unit_to_level(level_to_unit(v)) = v
+          out.rgb[(f * plane + i) * 3 + c] = unit_to_level(src[((size_t(first) + f) * 3 + c) * plane + i]);
+    return out;
+  });
 }
 
 VideoFrames read_video_frames_for_depth(const std::filesystem::path& path, int count, int max_long_side) {
-  const std::string name = path.string();
-  if (count < 1 || max_long_side < 0)
-    throw Error(name + ": read_video_frames_for_depth takes count ≥ 1 and max_long_side ≥ 0, got count " +
-                std::to_string(count) + ", max_long_side " + std::to_string(max_long_side));
-  VideoInfo info;
-  // The depth estimate's own reader (pipeline/depth_estimate.cpp decodes with it), so the frames are its frames.
-  const HostTensor rgb = opencv_read_video_rgb8(path, count, max_long_side, &info, true);
-  if (rgb.shape[0] < count) throw_frames_past_end(name, 0, count, int(rgb.shape[0]));
-  VideoFrames out = frames_described(0, count, int(rgb.shape[1]), int(rgb.shape[2]), info);
-  const uint8_t* src = rgb.as<uint8_t>();
-  out.rgb.assign(src, src + size_t(count) * size_t(out.height) * size_t(out.width) * 3);
-  return out;
+  return public_call("dvs::read_video_frames_for_depth", [&]() -> VideoFrames {
+    const std::string name = path.string();
+    if (count < 1 || max_long_side < 0)
+      throw Error(name + ": read_video_frames_for_depth takes count ≥ 1 and max_long_side ≥ 0, got count " +
+                  std::to_string(count) + ", max_long_side " + std::to_string(max_long_side));
+    VideoInfo info;
+    // The depth estimate's own reader (pipeline/depth_estimate.cpp decodes with it), so the frames are its frames.
+    const HostTensor rgb = opencv_read_video_rgb8(path, count, max_long_side, &info, true);
+    if (rgb.shape[0] < count) throw_frames_past_end(name, 0, count, int(rgb.shape[0]));
+    VideoFrames out = frames_described(0, count, int(rgb.shape[1]), int(rgb.shape[2]), info);
+    const uint8_t* src = rgb.as<uint8_t>();
+    out.rgb.assign(src, src + size_t(count) * size_t(out.height) * size_t(out.width) * 3);
+    return out;
+  });
 }
 
 }  // namespace dvs

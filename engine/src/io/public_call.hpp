@@ -8,7 +8,7 @@
 
 #include "dvs/error.hpp"
 
-namespace dvs::embed {
+namespace dvs {
 
 template <class Body>
 auto public_call(const char* call, Body&& body) -> decltype(body()) {
@@ -29,4 +29,4 @@ auto public_call(const char* call, Body&& body) -> decltype(body()) {
   }
 }
 
-}  // namespace dvs::embed
+}  // namespace dvs
