@@ -29,16 +29,20 @@ static void check(int ok, const char* what, const char* detail) {
 
 static int has(const char* text, const char* part) { return strstr(text, part) != NULL; }
 
+static dvs_render_options render_options; /* what options() points its render at (the options hold a pointer) */
+
 static void options(dvs_pipeline_options* o) {
   dvs_pipeline_options_default(o);
+  dvs_render_options_default(&render_options);
   o->model = model;
   o->prompt = "a red fox";
   o->steps = 4;
   o->inversion_steps = 3;
-  o->render.frames = 0;
-  o->render.height = H;
-  o->render.width = W;
-  o->render.metric_depth = 1;
+  render_options.frames = 0;
+  render_options.height = H;
+  render_options.width = W;
+  render_options.metric_depth = 1;
+  o->render = &render_options;
   o->cache_dir = cache;
   o->use_cache = 0;
 }
