@@ -69,7 +69,8 @@ void Recorder::begin() {
   reads_.clear();
   writes_.clear();
   query_labels_.clear();
-  dispatches_ = barriers_ = 0;
+  dispatches_ = barriers_ = barrier_calls_ = 0;
+  dropped_ = dropped_barrier_from_env();
   segments_ = 0;
   flushed_segments_ = 0;
   segment_labels_.clear();
@@ -89,7 +90,12 @@ void Recorder::open_segment() {
   // visible to this one. A pipeline barrier's first scope covers every command earlier in submission order,
   // other command buffers included, so this one barrier orders the whole previous segment before this one
   // (the tracker's ranges are cleared: nothing before it is pending).
-  full_barrier();
+  if (dropped_.drops_segment(segments_)) {
+    reads_.clear();  // DVS_DEBUG_DROP_BARRIER: left out, tracked as if recorded
+    writes_.clear();
+  } else {
+    full_barrier();
+  }
   segment_empty_ = true;
 }
 
@@ -171,6 +177,11 @@ void Recorder::track(const std::vector<Access>& accesses) {
 }
 
 void Recorder::barrier() {
+  if (dropped_.drops_hazard(++barrier_calls_)) {
+    reads_.clear();  // DVS_DEBUG_DROP_BARRIER: left out, tracked as if recorded
+    writes_.clear();
+    return;
+  }
   full_barrier();
   barriers_++;
 }
