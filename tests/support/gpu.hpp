@@ -21,4 +21,8 @@ class GpuTest : public ::testing::Test {
 
 std::string golden_dir();  // DVS_GOLDEN_DIR or tests/golden/A
 
+// Whether the validation layer checks synchronization in this process: VK_LAYER_ENABLES names it
+// (tests/run_with_sync_validation.sh sets it; the layer reads it when an instance is made).
+bool sync_validation_enabled();
+
 }  // namespace dvs::test
