@@ -1,0 +1,61 @@
+// The synchronization-validation pass is live: under tests/run_with_sync_validation.sh a test whose recording
+// lacks one barrier fails, although its values are right (lavapipe runs commands one after the other). Each
+// victim below is a test of this program that passes; it runs again in a child process three times: as it is
+// (passes), with one barrier left out by DVS_DEBUG_DROP_BARRIER (vk/dropped_barrier.hpp) and the pass's
+// environment (fails, naming the layer's hazard), and with the barrier left out but synchronization validation
+// off (passes: by value nothing shows). Outside the pass the test is skipped, as there is nothing to prove.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
+
+#include "support/gpu.hpp"
+#include "support/process.hpp"
+
+namespace dvs {
+namespace {
+
+struct Victim {
+  const char* test;  // a gtest filter of this program naming one test
+  const char* drop;  // DVS_DEBUG_DROP_BARRIER
+  const char* hazard;  // what the layer must report
+};
+
+// ModelsText.T5OtherSizesWithMaskAgainstReference: a T5 encoder forward against a host reference, every
+// recording's first hazard barrier left out (a layer's input read before the op writing it is done): a race
+// inside one command buffer.
+// RecorderSegmentReadsAnEarlierSegmentsResult: the barrier opening the second segment left out: a race between
+// two submissions, which only the layer's QueueSubmit check sees.
+const Victim kVictims[] = {
+    {"ModelsText.T5OtherSizesWithMaskAgainstReference", "1", "SYNC-HAZARD-READ-AFTER-WRITE"},
+    {"GpuTest.RecorderSegmentReadsAnEarlierSegmentsResult", "segment:2", "SYNC-HAZARD-READ-AFTER-WRITE"},
+};
+
+std::string self() { return "/proc/" + std::to_string(getpid()) + "/exe"; }
+
+TEST(SyncValidationPass, ADroppedBarrierFailsATestThatPassesWithIt) {
+  if (!test::sync_validation_enabled())
+    GTEST_SKIP() << "synchronization validation is off (VK_LAYER_ENABLES); this test proves the pass "
+                    "tests/run_with_sync_validation.sh is live and runs there";
+  for (const Victim& v : kVictims) {
+    SCOPED_TRACE(std::string(v.test) + " with DVS_DEBUG_DROP_BARRIER=" + v.drop);
+    const std::string run = self() + " --gtest_filter=" + v.test;
+    const test::CommandResult clean = test::run_command("env -u DVS_DEBUG_DROP_BARRIER " + run);
+    EXPECT_EQ(clean.exit_code, 0) << clean.output;
+    EXPECT_NE(clean.output.find("[  PASSED  ] 1 test"), std::string::npos) << clean.output;
+
+    const test::CommandResult dropped = test::run_command(std::string("DVS_DEBUG_DROP_BARRIER=") + v.drop + " " + run,
+                                                          test::ValidationMessages::expected);
+    EXPECT_NE(dropped.exit_code, 0) << dropped.output;
+    EXPECT_NE(dropped.output.find(v.hazard), std::string::npos) << dropped.output;
+    EXPECT_NE(dropped.output.find("[  FAILED  ] 1 test"), std::string::npos) << dropped.output;
+
+    const test::CommandResult unseen = test::run_command(std::string("env -u VK_LAYER_ENABLES DVS_DEBUG_DROP_BARRIER=") +
+                                                         v.drop + " " + run);
+    EXPECT_EQ(unseen.exit_code, 0) << unseen.output;
+    EXPECT_EQ(unseen.output.find("SYNC-HAZARD"), std::string::npos) << unseen.output;
+  }
+}
+
+}  // namespace
+}  // namespace dvs
