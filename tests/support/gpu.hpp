@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "vk/context.hpp"
 
@@ -24,5 +25,13 @@ std::string golden_dir();  // DVS_GOLDEN_DIR or tests/golden/A
 // Whether the validation layer checks synchronization in this process: VK_LAYER_ENABLES names it
 // (tests/run_with_sync_validation.sh sets it; the layer reads it when an instance is made).
 bool sync_validation_enabled();
+
+// The kernel census's fallbacks so far belong to the running test's purpose: GpuTest::TearDown does not count
+// them under DVS_REQUIRE_COOPMAT (the tensor-core pass, tests/run_coopmat_pass.sh).
+void forgive_kernel_fallbacks();
+
+// The kernels (census notes) the shared context's GEMM-shaped calls dispatched since the running test started (also
+// after forgive_kernel_fallbacks); the precision rule judges a result by them (support/precision_rule.hpp).
+std::vector<vk::Context::KernelNote> kernels_run_in_test();
 
 }  // namespace dvs::test
