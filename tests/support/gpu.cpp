@@ -7,6 +7,8 @@
 #include <sstream>
 #include <string>
 
+#include "vk/validation_log.hpp"
+
 namespace dvs::test {
 
 namespace {
@@ -48,8 +50,21 @@ Notes g_notes_at_setup;  // the context's kernel census when the running test be
 class CensusAtTestStart : public ::testing::EmptyTestEventListener {
   void OnTestStart(const ::testing::TestInfo&) override { g_notes_at_setup = shared_context() ? gpu().kernel_notes() : Notes{}; }
 };
+// A validation message that arrived during a test and that nothing in the test read and cleared fails it, whichever
+// context received it (vk/validation_log.hpp): a test of the public API makes contexts that no check of its own
+// reads. Listeners hear a test's end in reverse order, so this failure counts before the result is printed.
+class UnreadValidationMessagesFailTheTest : public ::testing::EmptyTestEventListener {
+  void OnTestStart(const ::testing::TestInfo&) override { vk::validation_log::mark(); }
+  void OnTestEnd(const ::testing::TestInfo&) override {
+    const std::vector<std::string> unread = vk::validation_log::unread();
+    if (!unread.empty())
+      ADD_FAILURE() << unread.size() << " validation message(s) during the test that no check in it read, first: "
+                    << unread[0];
+  }
+};
 const bool g_census_listener = [] {
   ::testing::UnitTest::GetInstance()->listeners().Append(new CensusAtTestStart);
+  ::testing::UnitTest::GetInstance()->listeners().Append(new UnreadValidationMessagesFailTheTest);
   return true;
 }();
 
@@ -101,6 +116,7 @@ void GpuTest::SetUp() {
 void GpuTest::TearDown() {
   auto msgs = gpu().validation_messages();
   EXPECT_TRUE(msgs.empty()) << msgs.size() << " validation message(s), first: " << (msgs.empty() ? "" : msgs[0]);
+  gpu().clear_validation_messages();  // read (once reported here, not again by the unread-message check)
   if (required_coopmat_ops().empty()) return;
   for (const auto& [note, calls] : gpu().kernel_notes()) {
     auto before = g_notes_at_setup.find(note);

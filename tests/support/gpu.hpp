@@ -1,6 +1,6 @@
 // Shared Vulkan context for tests: created once per test process with validation layers on, on the
 // device DVS_DEVICE names (CI: lavapipe). GpuTest fails any test during which a validation message
-// arrived.
+// arrived on it; so does a listener for any test and any context of the process (vk/validation_log.hpp).
 #pragma once
 #include <gtest/gtest.h>
 
