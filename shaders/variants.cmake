@@ -27,4 +27,6 @@ set(DVS_SHADER_VARIANTS
   "nn/patchify_inverse_p2         nn/patchify.comp          INVERSE P2"
   "nn/permute_vec4                nn/permute.comp           VEC4"
   "nn/permute_tex4                nn/permute.comp           VEC4 TEXEL"
+  "test/access_probe_utexel       test/access_probe.comp    UNIFORM_TEXEL"
+  "test/access_probe_stexel       test/access_probe.comp    STORAGE_TEXEL"
 )

@@ -14,9 +14,19 @@ B="${DVS_BUILD_DIR:-build}"
 CT="ctest --test-dir $B --output-on-failure"
 FAST="-LE robustness|cluster|install"    # everything but the slow labels, which run once
 OPS='^(Ops|Split|Paths/|KernelTuning|Resize|[A-Za-z]+Ops[./]|AttentionTest|LinearTest|Family/|ConvFamilies)'
+# The unit tests the syncval pass runs besides the goldens: the op tests and every other kind of recording (the
+# recorder, bounded submission, models, diffusion and geometry, the embedding API on an application's device, one
+# ClipRun, one dvs run). Left out for time (docs/testing.md says what each cost): two op sweeps (the same kernels at
+# more sizes; the splits they walk are the ones ForcedLimits.* walks among the goldens) and four ContextSharing tests
+# whose device work is a whole run that the ClipRun and PipelineE2e tests record too (what they add is threads and
+# lifetimes, not recordings; TwoContextsOnOneApplicationDeviceShareItsQueue stays: two contexts' submissions).
+SYNCVAL_UNITS="${OPS%)}|GpuTest\.|BoundedSubmission|ModelsText|TinyModel|PointCloudSceneTest|SceneDeviceMemory|HostDevice\.|OwnDeviceTimeline|ContextSharing|DepthEstimatorTest\.TheDeviceForm|SyncValidationPass|DroppedBarrierSwitch|ClipRun\.TakesAndGives|PipelineCli\.RunWritesEveryOutput)"
+SYNCVAL_SKIP='^(SplitConv\.BindingSplitsChannelGroupsRowsAndColumns|AttentionTest\.EveryHeadDimUpTo256|ContextSharing\.(CallsFromTwoThreads|ACallOnTheContextOfARunningJob|ScenesDestroyedUnderAJob|ASecondContextOnTheSameDevice)[A-Za-z]*)$'
+SV=tests/run_with_sync_validation.sh
 
-# name | what it proves | command (words split on spaces; a quoted regex stays one word through PASS_ARGS)
-PASS_NAMES=(default slow install mesa25 limits gpu-golden gpu-ops coopmat sanitized)
+# name | what it proves | command (words split on spaces; a quoted regex stays one word through PASS_ARGS; a word
+# && between two commands runs the second after the first passed)
+PASS_NAMES=(default slow install mesa25 limits gpu-golden gpu-ops coopmat syncval sanitized)
 declare -A PASS_WHAT PASS_CMD
 PASS_WHAT[default]="Mesa 22.3 (Debian 12's lavapipe): unit, golden and device-script tests"
 PASS_CMD[default]="$CT -j2 $FAST"
@@ -34,6 +44,8 @@ PASS_WHAT[gpu-ops]="the op tests with the GPU tuning entry forced"
 PASS_CMD[gpu-ops]="tests/run_with_tuning.sh gpu $CT -j2 -R $OPS"
 PASS_WHAT[coopmat]="Mesa 26.1 (cooperative matrix): the tensor-core kernels a GPU runs, by value (op and golden tests)"
 PASS_CMD[coopmat]="tests/run_coopmat_pass.sh $B"
+PASS_WHAT[syncval]="goldens, op tests and every kind of recording under synchronization validation, GPU entry forced"
+PASS_CMD[syncval]="$SV $CT -j2 -L golden && $SV $CT -j2 -L unit -R $SYNCVAL_UNITS -E $SYNCVAL_SKIP"
 PASS_WHAT[sanitized]="a clang ASan+UBSan build: every fuzz harness for a while, the readers' and glue tests"
 PASS_CMD[sanitized]="tests/run_sanitized.sh"
 
@@ -71,10 +83,18 @@ for p in "${selected[@]}"; do
   echo "== pass '$p': ${PASS_WHAT[$p]}"
   echo "== $ ${PASS_CMD[$p]}"
   start=$(date +%s)
-  # The command is one string of plain words; read -a splits it without glob or brace expansion.
-  read -r -a cmd <<< "${PASS_CMD[$p]}"
-  "${cmd[@]}"
-  rc=$?
+  # The command is one string of plain words; read -a splits it without glob or brace expansion. A word && ends
+  # one command: the next runs only when it passed.
+  read -r -a words <<< "${PASS_CMD[$p]} &&"
+  cmd=()
+  rc=0
+  for w in "${words[@]}"; do
+    if [ "$w" != "&&" ]; then cmd+=("$w"); continue; fi
+    "${cmd[@]}"
+    rc=$?
+    cmd=()
+    if [ $rc -ne 0 ]; then break; fi
+  done
   secs=$(( $(date +%s) - start ))
   line="$(printf '  %-11s %-6s %4d min %02d s' "$p" "$([ $rc -eq 0 ] && echo ok || echo FAILED)" $((secs / 60)) $((secs % 60)))"
   summary+=("$line")

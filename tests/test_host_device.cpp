@@ -248,6 +248,13 @@ TEST_F(OwnDeviceTimeline, TicketsCountSubmissionsAndReleaseAfterRuns) {
   VkCommandBuffer cmd = v.allocate_command_buffer();
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   vkBeginCommandBuffer(cmd, &bi);
+  // As every command buffer dvs submits, this one starts with a barrier ordering it after the work before it (the
+  // fill that zeroed u: without it, the copy's write raced that fill's, which the layer's QueueSubmit check reports).
+  VkMemoryBarrier after_earlier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  after_earlier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
+  after_earlier.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT | VK_PIPELINE_STAGE_HOST_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       0, 1, &after_earlier, 0, nullptr, 0, nullptr);
   VkBufferCopy region{t.buffer().offset, u.buffer().offset, t.bytes()};
   vkCmdCopyBuffer(cmd, t.buffer().buffer, u.buffer().buffer, 1, &region);
   VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};

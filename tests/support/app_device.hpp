@@ -49,7 +49,10 @@ class AppDevice {
   explicit AppDevice(AppFeatures features = {}) {
     // The layer reads its enables at vkCreateInstance; QueueSubmit synchronization validation has no
     // VkValidationFeatureEnableEXT of its own in this layer version (1.3.239), only this name. On Linux the list
-    // is ':'-separated (',' is silently ignored: tried 2026-11-27).
+    // is ':'-separated (',' is silently ignored: tried 2026-11-27). The value before is put back afterwards: under
+    // tests/run_with_sync_validation.sh the same process's own contexts need it too.
+    const char* enables_before = std::getenv("VK_LAYER_ENABLES");
+    const std::string saved_enables = enables_before ? enables_before : "";
     setenv("VK_LAYER_ENABLES",
            "VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT:"
            "VALIDATION_CHECK_ENABLE_SYNCHRONIZATION_VALIDATION_QUEUE_SUBMIT",
@@ -71,7 +74,10 @@ class AppDevice {
     ici.enabledExtensionCount = 1;
     ici.ppEnabledExtensionNames = &ext;
     app_check(vkCreateInstance(&ici, nullptr, &instance), "vkCreateInstance with the validation layer");
-    unsetenv("VK_LAYER_ENABLES");
+    if (enables_before)
+      setenv("VK_LAYER_ENABLES", saved_enables.c_str(), 1);
+    else
+      unsetenv("VK_LAYER_ENABLES");
     VkDebugUtilsMessengerCreateInfoEXT mci{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
     mci.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
     mci.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT;

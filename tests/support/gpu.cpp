@@ -5,22 +5,39 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <string>
+
+#include "vk/validation_log.hpp"
 
 namespace dvs::test {
 
 namespace {
-bool g_gpu_made = false;  // gpu() has made the shared context (its census exists)
+
+std::unique_ptr<vk::Context>& shared_context() {
+  static std::unique_ptr<vk::Context> ctx;
+  return ctx;
+}
+
+// The shared context goes when the tests are done, before main returns. Left to the exit handlers, it was destroyed
+// after static objects the validation layer makes at first use (so after this context was made, and destroyed
+// before it), and its vkDeviceWaitIdle ran into them: with the layer's QueueSubmit check on, that call never
+// returned and the program hung after printing its summary.
+class ReleaseSharedContext : public ::testing::Environment {
+ public:
+  void TearDown() override { shared_context().reset(); }
+};
+::testing::Environment* const kReleaseSharedContext = ::testing::AddGlobalTestEnvironment(new ReleaseSharedContext);
+
 }  // namespace
 
 vk::Context& gpu() {
-  static std::unique_ptr<vk::Context> ctx = [] {
+  std::unique_ptr<vk::Context>& ctx = shared_context();
+  if (!ctx) {
     vk::ContextOptions o;
     o.validation = true;
     o.pipeline_cache_file = "-";  // tests exercise the disk cache explicitly
-    auto made = std::make_unique<vk::Context>(o);
-    g_gpu_made = true;
-    return made;
-  }();
+    ctx = std::make_unique<vk::Context>(o);
+  }
   return *ctx;
 }
 
@@ -31,10 +48,23 @@ Notes g_notes_at_setup;  // the context's kernel census when the running test be
 
 // Every test, a GpuTest or not, starts its census afresh (kernels_run_in_test), without making the context.
 class CensusAtTestStart : public ::testing::EmptyTestEventListener {
-  void OnTestStart(const ::testing::TestInfo&) override { g_notes_at_setup = g_gpu_made ? gpu().kernel_notes() : Notes{}; }
+  void OnTestStart(const ::testing::TestInfo&) override { g_notes_at_setup = shared_context() ? gpu().kernel_notes() : Notes{}; }
+};
+// A validation message that arrived during a test and that nothing in the test read and cleared fails it, whichever
+// context received it (vk/validation_log.hpp): a test of the public API makes contexts that no check of its own
+// reads. Listeners hear a test's end in reverse order, so this failure counts before the result is printed.
+class UnreadValidationMessagesFailTheTest : public ::testing::EmptyTestEventListener {
+  void OnTestStart(const ::testing::TestInfo&) override { vk::validation_log::mark(); }
+  void OnTestEnd(const ::testing::TestInfo&) override {
+    const std::vector<std::string> unread = vk::validation_log::unread();
+    if (!unread.empty())
+      ADD_FAILURE() << unread.size() << " validation message(s) during the test that no check in it read, first: "
+                    << unread[0];
+  }
 };
 const bool g_census_listener = [] {
   ::testing::UnitTest::GetInstance()->listeners().Append(new CensusAtTestStart);
+  ::testing::UnitTest::GetInstance()->listeners().Append(new UnreadValidationMessagesFailTheTest);
   return true;
 }();
 
@@ -86,6 +116,7 @@ void GpuTest::SetUp() {
 void GpuTest::TearDown() {
   auto msgs = gpu().validation_messages();
   EXPECT_TRUE(msgs.empty()) << msgs.size() << " validation message(s), first: " << (msgs.empty() ? "" : msgs[0]);
+  gpu().clear_validation_messages();  // read (once reported here, not again by the unread-message check)
   if (required_coopmat_ops().empty()) return;
   for (const auto& [note, calls] : gpu().kernel_notes()) {
     auto before = g_notes_at_setup.find(note);
@@ -99,12 +130,17 @@ void forgive_kernel_fallbacks() { g_notes_at_setup = gpu().kernel_notes(); }
 
 std::vector<vk::Context::KernelNote> kernels_run_in_test() {
   std::vector<vk::Context::KernelNote> ran;
-  if (!g_gpu_made) return ran;
+  if (!shared_context()) return ran;
   for (const auto& [note, calls] : gpu().kernel_notes()) {
     auto before = g_notes_at_setup.find(note);
     if (calls > (before == g_notes_at_setup.end() ? 0 : before->second)) ran.push_back(note);
   }
   return ran;
+}
+
+bool sync_validation_enabled() {
+  const char* e = std::getenv("VK_LAYER_ENABLES");
+  return e && std::string(e).find("VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT") != std::string::npos;
 }
 
 std::string golden_dir() {

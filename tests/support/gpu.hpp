@@ -1,6 +1,6 @@
 // Shared Vulkan context for tests: created once per test process with validation layers on, on the
 // device DVS_DEVICE names (CI: lavapipe). GpuTest fails any test during which a validation message
-// arrived.
+// arrived on it; so does a listener for any test and any context of the process (vk/validation_log.hpp).
 #pragma once
 #include <gtest/gtest.h>
 
@@ -21,6 +21,10 @@ class GpuTest : public ::testing::Test {
 };
 
 std::string golden_dir();  // DVS_GOLDEN_DIR or tests/golden/A
+
+// Whether the validation layer checks synchronization in this process: VK_LAYER_ENABLES names it
+// (tests/run_with_sync_validation.sh sets it; the layer reads it when an instance is made).
+bool sync_validation_enabled();
 
 // The kernel census's fallbacks so far belong to the running test's purpose: GpuTest::TearDown does not count
 // them under DVS_REQUIRE_COOPMAT (the tensor-core pass, tests/run_coopmat_pass.sh).

@@ -4,13 +4,15 @@
 #include <unistd.h>
 #include <sys/wait.h>
 
+#include <gtest/gtest.h>
+
 #include <array>
 #include <cstdio>
 #include <cstdlib>
 
 namespace dvs::test {
 
-CommandResult run_command(const std::string& cmd) {
+CommandResult run_command(const std::string& cmd, ValidationMessages validation_messages) {
   CommandResult r;
   FILE* p = popen((cmd + " 2>&1").c_str(), "r");
   if (!p) return r;
@@ -19,6 +21,14 @@ CommandResult run_command(const std::string& cmd) {
   while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
   int status = pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  // A program runs with the validation layer when DVS_VALIDATION=1 is set (tests/run_with_sync_validation.sh sets
+  // it) and prints each message so (vk/context.cpp); a message fails the test, as one in the test's own process
+  // does (support/gpu.cpp).
+  if (validation_messages == ValidationMessages::fail)
+    for (const char* tag : {"[validation error] ", "[validation warning] "})
+      if (const size_t at = r.output.find(tag); at != std::string::npos)
+        ADD_FAILURE() << "the validation layer reported in `" << cmd
+                      << "`: " << r.output.substr(at, r.output.find('\n', at) - at);
   return r;
 }
 

@@ -9,7 +9,10 @@ struct CommandResult {
   std::string output;  // stdout and stderr together
 };
 
-CommandResult run_command(const std::string& cmd);
+// A validation-layer message in the output (a program runs with the layer under DVS_VALIDATION=1) fails the
+// calling test, unless `validation_messages` is `expected` (a test about those messages).
+enum class ValidationMessages { fail, expected };
+CommandResult run_command(const std::string& cmd, ValidationMessages validation_messages = ValidationMessages::fail);
 
 // Starts `cmd` in the background through /bin/sh (exec'd, so the pid is the program's own) and returns its
 // pid, for tests that signal a running program. The command redirects its own output.

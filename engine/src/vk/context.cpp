@@ -11,6 +11,7 @@
 #include "vk/pipeline.hpp"
 #include "vk/profiler.hpp"
 #include "vk/transfer.hpp"
+#include "vk/validation_log.hpp"
 
 namespace dvs::vk {
 namespace {
@@ -132,6 +133,8 @@ Context::Context(const ContextOptions& options) {
       mci.pfnUserCallback = on_debug_message;
       mci.pUserData = this;
       if (create) VK_CHECK(create(instance_, &mci, nullptr, &messenger_));
+      set_object_name_ = reinterpret_cast<PFN_vkSetDebugUtilsObjectNameEXT>(
+          vkGetInstanceProcAddr(instance_, "vkSetDebugUtilsObjectNameEXT"));
     }
 
     auto pds = physical_devices(instance_);
@@ -288,7 +291,10 @@ void Context::override_limits(const LimitOverrides& extra) {
   apply_limit_overrides(caps_, o);
 }
 
-Context::~Context() { release(); }
+Context::~Context() {
+  release();
+  validation_log::forget_source(this);
+}
 
 void Context::release() {
   // dvs's own work only: on the application's device, its other queues and work are none of dvs's business.
@@ -322,6 +328,15 @@ void Context::release() {
   instance_ = VK_NULL_HANDLE;
 }
 
+void Context::name_object(VkObjectType type, uint64_t handle, const std::string& name) const {
+  if (!set_object_name_ || !device_ || !handle) return;
+  VkDebugUtilsObjectNameInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_OBJECT_NAME_INFO_EXT};
+  info.objectType = type;
+  info.objectHandle = handle;
+  info.pObjectName = name.c_str();
+  set_object_name_(device_, &info);
+}
+
 std::vector<std::string> Context::validation_messages() const {
   std::lock_guard<std::mutex> lock(messages_mutex_);
   return messages_;
@@ -330,10 +345,12 @@ std::vector<std::string> Context::validation_messages() const {
 void Context::clear_validation_messages() {
   std::lock_guard<std::mutex> lock(messages_mutex_);
   messages_.clear();
+  validation_log::clear(this);
 }
 
 void Context::add_validation_message(std::string msg) {
   std::lock_guard<std::mutex> lock(messages_mutex_);
+  validation_log::add(this, msg);
   messages_.push_back(std::move(msg));
 }
 

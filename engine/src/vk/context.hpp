@@ -72,6 +72,9 @@ class Context {
   // blocks are kept; new ones follow the new alloc limit.
   void override_limits(const LimitOverrides& extra);
   bool validation_enabled() const { return validation_; }
+  // Names an object in the validation layer's messages (a pipeline by its shader, a command buffer by its
+  // segment), so that a message says which op it is about; does nothing without validation on dvs's own instance.
+  void name_object(VkObjectType type, uint64_t handle, const std::string& name) const;
   bool owns_device() const { return owns_device_; }  // false on the application's device
   // The largest buffer range any dispatch has bound since the last reset (storage or texel binding; Recorder
   // notes every one): benchmarks print it next to maxStorageBufferRange.
@@ -139,6 +142,7 @@ class Context {
 
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  PFN_vkSetDebugUtilsObjectNameEXT set_object_name_ = nullptr;  // with validation only
   VkPhysicalDevice physical_ = VK_NULL_HANDLE;
   VkDevice device_ = VK_NULL_HANDLE;
   VkQueue queue_ = VK_NULL_HANDLE;

@@ -218,6 +218,7 @@ const Pipeline& PipelineCache::get(const std::string& shader, std::span<const ui
   VkResult r = vkCreateComputePipelines(dev, cache_, 1, &ci, nullptr, &p->pipeline);
   vkDestroyShaderModule(dev, module, nullptr);
   VK_CHECK(r);
+  ctx_.name_object(VK_OBJECT_TYPE_PIPELINE, uint64_t(p->pipeline), p->name);
   created_++;
   const Pipeline& ref = *p;
   pipelines_.emplace(std::move(key), std::move(p));

@@ -69,7 +69,8 @@ void Recorder::begin() {
   reads_.clear();
   writes_.clear();
   query_labels_.clear();
-  dispatches_ = barriers_ = 0;
+  dispatches_ = barriers_ = barrier_calls_ = 0;
+  dropped_ = dropped_barrier_from_env();
   segments_ = 0;
   flushed_segments_ = 0;
   segment_labels_.clear();
@@ -85,11 +86,18 @@ void Recorder::open_segment() {
   VK_CHECK(vkResetCommandBuffer(cmd_, 0));
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   VK_CHECK(vkBeginCommandBuffer(cmd_, &bi));
+  // Named for the validation layer's messages while it is recorded; close_segment adds its label.
+  ctx_.name_object(VK_OBJECT_TYPE_COMMAND_BUFFER, uint64_t(cmd_), "segment " + std::to_string(segments_) + " (recording)");
   // Host writes to parameter buffers, earlier submissions and the earlier segments of this recording must be
   // visible to this one. A pipeline barrier's first scope covers every command earlier in submission order,
   // other command buffers included, so this one barrier orders the whole previous segment before this one
   // (the tracker's ranges are cleared: nothing before it is pending).
-  full_barrier();
+  if (dropped_.drops_segment(segments_)) {
+    reads_.clear();  // DVS_DEBUG_DROP_BARRIER: left out, tracked as if recorded
+    writes_.clear();
+  } else {
+    full_barrier();
+  }
   segment_empty_ = true;
 }
 
@@ -101,6 +109,7 @@ void Recorder::close_segment(const std::string& label) {
   vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
   VK_CHECK(vkEndCommandBuffer(cmd_));
+  ctx_.name_object(VK_OBJECT_TYPE_COMMAND_BUFFER, uint64_t(cmd_), "segment " + std::to_string(segments_) + " (" + label + ")");
   segment_labels_.push_back(label);
   segment_query_end_.push_back(uint32_t(query_labels_.size()));
 }
@@ -171,6 +180,11 @@ void Recorder::track(const std::vector<Access>& accesses) {
 }
 
 void Recorder::barrier() {
+  if (dropped_.drops_hazard(++barrier_calls_)) {
+    reads_.clear();  // DVS_DEBUG_DROP_BARRIER: left out, tracked as if recorded
+    writes_.clear();
+    return;
+  }
   full_barrier();
   barriers_++;
 }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "vk/context.hpp"
+#include "vk/dropped_barrier.hpp"
 #include "vk/memory.hpp"
 #include "vk/pipeline.hpp"
 
@@ -76,7 +77,9 @@ class Recorder {
   Context& context() { return ctx_; }
   bool recording() const { return recording_; }
   uint32_t dispatch_count() const { return dispatches_; }
-  uint32_t barrier_count() const { return barriers_; }  // hazard barriers (not the one opening each segment)
+  // Barriers recorded by barrier() (hazard barriers and explicit ones; not the one opening each segment, nor one
+  // DVS_DEBUG_DROP_BARRIER left out).
+  uint32_t barrier_count() const { return barriers_; }
   uint32_t segment_count() const { return segments_; }  // command buffers in the recording so far
   uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls by this recorder, ever
 
@@ -123,6 +126,8 @@ class Recorder {
   std::vector<size_t> scratch_slot_;   // slot -> index in scratch_ + 1 (0: none yet)
   std::vector<Range> reads_, writes_;  // since the last barrier
   uint32_t dispatches_ = 0, barriers_ = 0;
+  uint32_t barrier_calls_ = 0;  // barrier() calls in this recording, a dropped one included
+  DroppedBarrier dropped_;      // DVS_DEBUG_DROP_BARRIER, read at begin()
   VkDeviceSize texel_alignment_ = 1;
 
   std::vector<VkQueryPool> query_pools_;

@@ -8,7 +8,10 @@
 
 namespace dvs::vk {
 
-Transfer::Transfer(Context& ctx) : ctx_(ctx) { cmd_ = ctx.allocate_command_buffer(); }
+Transfer::Transfer(Context& ctx) : ctx_(ctx) {
+  cmd_ = ctx.allocate_command_buffer();
+  ctx.name_object(VK_OBJECT_TYPE_COMMAND_BUFFER, uint64_t(cmd_), "transfer");
+}
 
 Transfer::~Transfer() {
   if (cmd_) vkFreeCommandBuffers(ctx_.device(), ctx_.command_pool(), 1, &cmd_);
