@@ -36,7 +36,8 @@ def load(path):
 
 
 def rate(r):
-    return r.get("tflops") or r.get("gbps")
+    # A figure of 0.0 (a slow CPU run rounds its TFLOP/s to zero) is a rate, not a missing one.
+    return r["tflops"] if r.get("tflops") is not None else r.get("gbps")
 
 
 def torch_row(rows, case, shape, want):
