@@ -62,8 +62,17 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
 // The VAE tiling the options ask for (none without --vae-tiling).
 std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
 
-// Loads the transformer with the options' LoRA (if any) applied.
-std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o);
+// Where the transformer's and T5's block weights live for this run (RunOptions::weights): as the option says,
+// or with "auto" as the memory plan for this run on this device decides (pipeline/memory_plan.hpp).
+struct WeightResidencies {
+  models::WeightResidency transformer = models::WeightResidency::resident, text_encoder = models::WeightResidency::resident;
+  nlohmann::json record(const std::string& requested) const;  // run.json's "weights"
+};
+WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o);
+
+// Loads the transformer with the options' LoRA (if any) applied, its block weights resident or streamed.
+std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o,
+                                                               models::WeightResidency residency);
 
 struct InversionResult {
   Tensor eps;  // ε_inv at t0, diffusion layout

@@ -21,6 +21,7 @@ DeviceLimits limits_of(const vk::DeviceCaps& d) {
   l.groups = d.max_workgroup_count[0];
   l.alignment = d.min_storage_buffer_offset_alignment;
   l.memory = d.memory_budget.bytes;
+  l.transfer_queue = d.transfer_queue_family >= 0 ? 1 : 0;
   return l;
 }
 
@@ -49,7 +50,7 @@ DeviceLimits profile_limits(const std::string& profile) {
   }
   const vk::LimitProfile& p = *found;
   DeviceLimits l{"profile " + p.name + " (" + p.describes + ")", p.binding, p.texels, p.alloc, p.groups[0],
-                 p.alignment, p.heap};
+                 p.alignment, p.heap, p.upload_bytes_per_second, p.peak_flops, p.transfer_queue ? 1 : 0};
   // DVS_LIMITS lowers a profile as it lowers a device.
   const vk::LimitOverrides env = vk::limit_overrides_from_env();
   if (env.binding) l.binding = std::min(l.binding, *env.binding);

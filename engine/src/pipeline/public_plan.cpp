@@ -83,6 +83,9 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
   if (request.limits) {
     const DeviceLimits& l = *request.limits;
     req.limits = pipeline::PlanLimits{l.source, l.binding, l.texels, l.alloc, l.groups};
+    if (l.upload_bytes_per_second > 0) req.limits->upload_rate = l.upload_bytes_per_second;
+    if (l.peak_flops > 0) req.limits->peak_flops = l.peak_flops;
+    if (l.transfer_queue >= 0) req.limits->transfer_queue = l.transfer_queue == 1;
     req.alignment = std::max(req.alignment, l.alignment);
     if (!req.budget && l.memory) req.budget = l.memory;
   }
@@ -92,6 +95,8 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
     req.depth_input_size = request.depth_input_size;
     req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
   }
+  req.weights = pipeline::parse_weights_choice(request.weights, "--weights");
+  if (request.upload_bytes_per_second > 0) req.upload_rate = request.upload_bytes_per_second;
   const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
   MemoryPlanReport r;
   r.checked = plan.checked();

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "dvs/error.hpp"
+#include "pipeline/weight_stream_plan.hpp"
 
 namespace dvs {
 namespace {
@@ -36,6 +37,7 @@ Settings resolve(const RunOptions& o) {
   if (o.render.frames != 0 && (o.render.frames - 1) % 4 != 0)
     throw Error("--frames must be 4k+1 (1, 5, 9, …, 49): the VAE compresses time by 4 after the first frame");
   if (!o.lora.empty() && !(o.lora_scale == o.lora_scale)) throw Error("--lora: the scale must be a number");
+  pipeline::parse_weights_choice(o.weights, "--weights");  // resident, stream or auto
   if (o.vae_tile_height < 0 || o.vae_tile_width < 0 || o.vae_tile_height % 8 || o.vae_tile_width % 8)
     throw Error("--vae-tile must be positive multiples of 8, got " + std::to_string(o.vae_tile_height) + "x" +
                 std::to_string(o.vae_tile_width));

@@ -1,0 +1,98 @@
+// Weights of a model's repeated blocks (transformer blocks, T5 layers) streamed from host memory behind the
+// compute (`--weights stream`, docs/limits.md#weight-streaming), for devices whose memory does not hold them all.
+//
+// Host side: each block's tensors packed, in their stored dtype, into one buffer of pinned host memory the device
+// reads directly (vk::MemoryUse::pinned), copied once from the mapped safetensors (or from the device, for weights
+// made there); nothing is converted per step. Device side: `slots` buffers as large as the largest block; block j
+// computes from slot j % slots, its tensors at the same offsets as in its host buffer.
+//
+// Schedule of one model call (one recording, models place a Recorder::boundary after every block): before its
+// first segment is submitted, the first `slots` blocks go up; before the first segment of block j (j ≥ 1) is
+// submitted, block j + slots − 1 goes up into the slot block j − 1 used, its copy waiting on the GPU for the
+// compute that last read that slot (the context's timeline), and block j's segment waits on the GPU for block
+// j's upload (the upload queue's timeline). So block j + 1 uploads while block j computes, on a transfer queue
+// where the device has one (vk::UploadQueue), and the host never waits for an upload. events() keeps the
+// schedule of the last call: what each submission waited for, for tests and `dvs-bench`.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "models/weights.hpp"
+#include "tensor/tensor.hpp"
+#include "vk/memory.hpp"
+#include "vk/upload_queue.hpp"
+
+namespace dvs::vk {
+class Context;
+class Recorder;
+}  // namespace dvs::vk
+
+namespace dvs::models {
+
+// One submission of a streamed call, in submission order. Values are timeline values: the context's timeline
+// counts compute submissions (Context::submission_count), the upload queue's counts uploads.
+struct StreamEvent {
+  enum class Kind { upload, compute } kind = Kind::upload;
+  int64_t block = 0;
+  uint32_t slot = 0;
+  // upload: the compute value its copy waits for, the upload value it signals, and the last compute value
+  // submitted before it. compute: the upload value its first segment waits for, and its own compute value.
+  uint64_t waits_for = 0, value = 0, compute_submitted = 0;
+};
+
+class BlockStream {
+ public:
+  // The tensors `names(j)` of blocks j < blocks, taken out of `weights` into host memory (any device copy is
+  // given back). `what` names the stream in errors ("transformer blocks"). `slots` ≥ 1, at most `blocks` are made;
+  // 2 lets one block upload while the one before it computes.
+  BlockStream(vk::Context& ctx, ComponentWeights& weights, int64_t blocks,
+              const std::function<std::vector<std::string>(int64_t)>& names, int slots, std::string what);
+  ~BlockStream();  // waits for the uploads still running
+  BlockStream(const BlockStream&) = delete;
+  BlockStream& operator=(const BlockStream&) = delete;
+
+  int64_t blocks() const { return int64_t(layout_.size()); }
+  int slots() const { return int(slots_.size()); }
+  uint64_t slot_bytes() const { return slot_bytes_; }        // device bytes of one slot
+  uint64_t block_bytes(int64_t block) const;                  // stored bytes one block uploads
+  uint64_t host_bytes() const;                                // pinned host memory of every block
+  bool has(int64_t block, const std::string& name) const;
+  // Block `block`'s tensor `name`, a view into its slot (valid while this stream lives).
+  Tensor get(int64_t block, const std::string& name) const;
+
+  // Before recording a call into `rec`: installs the schedule above on it (Recorder::set_segment_start_hook).
+  void begin_call(vk::Recorder& rec);
+  // While recording: the commands recorded from here on belong to block `block` (before its first command).
+  void mark_block(vk::Recorder& rec, int64_t block);
+
+  const std::vector<StreamEvent>& events() const { return events_; }
+  uint64_t uploads() const { return uploads_.submitted(); }  // uploads submitted since the stream was made
+
+ private:
+  struct Entry {
+    uint64_t offset = 0;
+    Shape shape;
+    DType dtype = DType::f32;
+  };
+  void on_segment(uint32_t segment);
+  void upload(int64_t block, uint64_t after_compute);
+
+  vk::Context& ctx_;
+  std::string what_;
+  std::vector<std::map<std::string, Entry>> layout_;  // per block
+  std::vector<uint64_t> bytes_;                       // per block, packed
+  std::vector<vk::Buffer> host_;                      // per block, pinned
+  std::vector<vk::Buffer> slots_;
+  uint64_t slot_bytes_ = 0;
+  vk::UploadQueue uploads_;
+  // The call being submitted: the segment each block starts in, each block's upload value (0: not yet).
+  std::vector<uint32_t> first_segment_;
+  std::vector<uint64_t> upload_value_;
+  bool started_ = false;
+  std::vector<StreamEvent> events_;
+};
+
+}  // namespace dvs::models
