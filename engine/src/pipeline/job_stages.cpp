@@ -131,10 +131,9 @@ HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunO
   return out;
 }
 
-nlohmann::json WeightResidencies::record(const std::string& requested) const {
-  return {{"requested", requested},
-          {"transformer", models::residency_name(transformer)},
-          {"text_encoder", models::residency_name(text_encoder)}};
+nlohmann::json WeightsUsed::record(const std::string& requested) const {
+  auto name = [](const std::optional<models::WeightResidency>& r) { return r ? models::residency_name(*r) : "not loaded"; };
+  return {{"requested", requested}, {"transformer", name(transformer)}, {"text_encoder", name(text_encoder)}};
 }
 
 WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o) {

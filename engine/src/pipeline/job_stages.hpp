@@ -66,7 +66,12 @@ std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
 // or with "auto" as the memory plan for this run on this device decides (pipeline/memory_plan.hpp).
 struct WeightResidencies {
   models::WeightResidency transformer = models::WeightResidency::resident, text_encoder = models::WeightResidency::resident;
-  nlohmann::json record(const std::string& requested) const;  // run.json's "weights"
+};
+// run.json's "weights": the option, and where each component's blocks really lived (the loaded model's own
+// residency; "not loaded" when the run took its latent from the cache).
+struct WeightsUsed {
+  std::optional<models::WeightResidency> transformer, text_encoder;
+  nlohmann::json record(const std::string& requested) const;
 };
 WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o);
 

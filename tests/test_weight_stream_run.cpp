@@ -1,0 +1,89 @@
+// `dvs run --weights`: a whole run with the block weights streamed gives the same output files as with them
+// resident, and run.json records where they lived; --weights auto follows the memory plan for the run on the
+// device it runs on, budget included (DVS_LIMITS memory=), streaming exactly the component whose phase does not
+// fit. The conformance pack's model at 64x64, 9 frames: seconds per run on lavapipe.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "pipeline/job_stages.hpp"
+#include "pipeline/memory_advice.hpp"
+#include "pipeline/memory_plan.hpp"
+#include "support/files.hpp"
+#include "support/pipeline_inputs.hpp"
+#include "support/process.hpp"
+#include "vk/context.hpp"
+#include "vk/device_limits.hpp"
+
+namespace dvs {
+namespace {
+
+using test::PipelineInputs;
+
+nlohmann::json run_json(const std::filesystem::path& out) {
+  return nlohmann::json::parse(test::read_text(out / "run.json"));
+}
+
+TEST(WeightStreamRun, StreamedRunGivesTheResidentRunsFilesAndIsRecorded) {
+  PipelineInputs in;
+  auto run = [&](const std::string& weights, const std::string& out) {
+    return test::run_command(test::program("dvs") + " run --quiet --no-cache" + in.inputs() +
+                             " --trajectory pan_left:0.3 --prompt 'a red fox' --weights " + weights + " --out " +
+                             (in.dir / out).string());
+  };
+  const auto resident = run("resident", "resident");
+  ASSERT_EQ(resident.exit_code, 0) << resident.output;
+  const auto streamed = run("stream", "streamed");
+  ASSERT_EQ(streamed.exit_code, 0) << streamed.output;
+  EXPECT_EQ(run_json(in.dir / "resident")["weights"],
+            nlohmann::json({{"requested", "resident"}, {"transformer", "resident"}, {"text_encoder", "resident"}}));
+  EXPECT_EQ(run_json(in.dir / "streamed")["weights"],
+            nlohmann::json({{"requested", "stream"}, {"transformer", "stream"}, {"text_encoder", "stream"}}));
+  for (const char* video : {"output.mp4", "render.mp4", "mask.mp4", "comparison.mp4"}) {
+    const std::string a = test::read_text(in.dir / "resident" / video);
+    ASSERT_FALSE(a.empty()) << video;
+    EXPECT_TRUE(a == test::read_text(in.dir / "streamed" / video)) << video << " differs between resident and streamed";
+  }
+  const auto bad = run("sometimes", "bad");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--weights must be resident, stream or auto"), std::string::npos) << bad.output;
+}
+
+TEST(WeightStreamRun, AutoStreamsTheTransformerWhenItsPhaseIsOverTheDevicesBudget) {
+  PipelineInputs in;
+  const RunOptions o = in.run_options(in.dir / "out", in.cache);
+  ASSERT_EQ(o.weights, "auto");
+  // The transformer's phase with its weights resident, from the plan's own figures (as the run plans it).
+  vk::Context own;
+  const pipeline::MemoryPlan open = pipeline::plan_memory(pipeline::plan_model_from_folder(o.model),
+                                                          run_plan_request(o, own.caps()));
+  auto bytes_of = [&](const char* name) {
+    for (const auto& w : open.weights)
+      if (w.name == name) return w.bytes;
+    return uint64_t(0);
+  };
+  uint64_t call = 0;
+  for (const auto& s : open.stages)
+    if (s.name == "transformer_cfg" || s.name == "transformer_inversion") call = std::max(call, s.total());
+  const uint64_t phase = open.carried + bytes_of("vae") + bytes_of("transformer") + call;
+  ASSERT_GT(phase, 1u << 20) << "DVS_LIMITS memory= takes at least 1 MiB";
+  own.override_limits(vk::parse_limit_overrides("memory=" + std::to_string(phase), "test"));
+  const WeightResidencies fits = weight_residencies(own, o);
+  EXPECT_EQ(fits.transformer, models::WeightResidency::resident);
+  EXPECT_EQ(fits.text_encoder, models::WeightResidency::resident);
+  own.override_limits(vk::parse_limit_overrides("memory=" + std::to_string(phase - 1), "test"));
+  const WeightResidencies tight = weight_residencies(own, o);
+  EXPECT_EQ(tight.transformer, models::WeightResidency::stream);
+  EXPECT_EQ(tight.text_encoder, models::WeightResidency::resident) << "T5's phase still fits";
+  // An explicit choice is obeyed whatever the budget.
+  RunOptions forced = o;
+  forced.weights = "resident";
+  EXPECT_EQ(weight_residencies(own, forced).transformer, models::WeightResidency::resident);
+  forced.weights = "stream";
+  EXPECT_EQ(weight_residencies(own, forced).text_encoder, models::WeightResidency::stream);
+}
+
+}  // namespace
+}  // namespace dvs
