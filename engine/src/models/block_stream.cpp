@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "dvs/error.hpp"
-#include "models/call_memory.hpp"
 #include "vk/context.hpp"
 #include "vk/recorder.hpp"
 
@@ -16,45 +15,63 @@ BlockStream::BlockStream(vk::Context& ctx, ComponentWeights& weights, int64_t bl
   if (blocks < 1) throw Error("internal: BlockStream of no blocks (" + what_ + ")");
   slots = int(std::min<int64_t>(slots, blocks));  // no more slots than blocks
   vk::Allocator& alloc = ctx.allocator();
-  const uint64_t align = alloc.alignment();
+  // Each tensor is one allocation, as when resident (the allocator refuses a larger one, naming it); a block is
+  // packed into pieces of at most one allocation.
+  const VkDeviceSize piece_limit = vk::ArenaPacking::block_limit(alloc.max_allocation(), alloc.alignment());
   layout_.resize(size_t(blocks));
-  bytes_.assign(size_t(blocks), 0);
+  pieces_.resize(size_t(blocks));
+  std::vector<uint64_t> slot_pieces;  // the largest of each piece over the blocks
   for (int64_t j = 0; j < blocks; ++j) {
-    uint64_t& packed = bytes_[size_t(j)];
+    vk::ArenaPacking packing(alloc.alignment(), {}, piece_limit);
     for (const std::string& name : names(j)) {
       const ComponentWeights::Info info = weights.info(name);
-      layout_[size_t(j)][name] = Entry{packed, info.shape, info.dtype};
-      packed += align_up(std::max<uint64_t>(info.bytes, 1), align);
+      if (packing.aligned(info.bytes) > piece_limit)
+        throw Error("Streaming " + what_ + ": weight '" + name + "' (" + vk::format_bytes(info.bytes) +
+                    ") is larger than one allocation on this device (maxMemoryAllocationSize " +
+                    vk::format_bytes(alloc.max_allocation()) + ")");
+      const vk::ArenaPacking::Place p = packing.place(info.bytes);
+      layout_[size_t(j)][name] = Entry{p.block, p.offset, info.shape, info.dtype};
     }
-    if (packed > alloc.max_allocation())
-      throw Error("Streaming " + what_ + ": block " + std::to_string(j) + " holds " + vk::format_bytes(packed) +
-                  " of weights, more than one allocation on this device (maxMemoryAllocationSize " +
-                  vk::format_bytes(alloc.max_allocation()) + "); use --weights resident");
-    slot_bytes_ = std::max(slot_bytes_, packed);
+    pieces_[size_t(j)] = packing.filled().blocks;
+    if (slot_pieces.size() < pieces_[size_t(j)].size()) slot_pieces.resize(pieces_[size_t(j)].size(), 0);
+    for (size_t k = 0; k < pieces_[size_t(j)].size(); ++k) slot_pieces[k] = std::max(slot_pieces[k], pieces_[size_t(j)][k]);
   }
   // The host copy, block by block (each weight leaves the device, if it was there, once it is copied).
-  host_.reserve(size_t(blocks));
+  host_.resize(size_t(blocks));
   for (int64_t j = 0; j < blocks; ++j) {
-    host_.push_back(alloc.allocate(bytes_[size_t(j)], vk::MemoryUse::pinned,
-                                   what_ + " block " + std::to_string(j) + " (host copy)"));
-    uint8_t* base = host_.back().mapped();
-    if (!base) throw Error("internal: pinned host memory is not mapped (" + what_ + ")");
+    for (size_t k = 0; k < pieces_[size_t(j)].size(); ++k) {
+      host_[size_t(j)].push_back(alloc.allocate(pieces_[size_t(j)][k], vk::MemoryUse::pinned,
+                                                what_ + " block " + std::to_string(j) + " (host copy)"));
+      if (!host_[size_t(j)].back().mapped()) throw Error("internal: pinned host memory is not mapped (" + what_ + ")");
+    }
     for (const auto& [name, e] : layout_[size_t(j)]) {
-      weights.copy_to_host(name, base + e.offset);
+      weights.copy_to_host(name, host_[size_t(j)][e.piece].mapped() + e.offset);
       weights.release(name);
     }
   }
-  for (int k = 0; k < slots; ++k)  // after the host copies: their device copies are gone by now
-    slots_.push_back(alloc.allocate(slot_bytes_, vk::MemoryUse::device_shared, what_ + " slot " + std::to_string(k)));
+  slots_.resize(size_t(slots));
+  for (int s = 0; s < slots; ++s)  // after the host copies: their device copies are gone by now
+    for (const uint64_t bytes : slot_pieces)
+      slots_[size_t(s)].push_back(alloc.allocate(bytes, vk::MemoryUse::device_shared, what_ + " slot " + std::to_string(s)));
+}
+
+uint64_t BlockStream::slot_bytes() const {
+  uint64_t n = 0;
+  for (const vk::Buffer& b : slots_.front()) n += b.size();
+  return n;
 }
 
 BlockStream::~BlockStream() = default;  // uploads_ (declared after the buffers) waits for its uploads first
 
-uint64_t BlockStream::block_bytes(int64_t block) const { return bytes_.at(size_t(block)); }
+uint64_t BlockStream::block_bytes(int64_t block) const {
+  uint64_t n = 0;
+  for (const uint64_t b : pieces_.at(size_t(block))) n += b;
+  return n;
+}
 
 uint64_t BlockStream::host_bytes() const {
   uint64_t n = 0;
-  for (const uint64_t b : bytes_) n += b;
+  for (int64_t j = 0; j < blocks(); ++j) n += block_bytes(j);
   return n;
 }
 
@@ -66,7 +83,7 @@ Tensor BlockStream::get(int64_t block, const std::string& name) const {
   if (!has(block, name)) throw Error("internal: " + what_ + ": block " + std::to_string(block) + " streams no '" + name + "'");
   const Entry& e = layout_[size_t(block)].at(name);
   const uint64_t bytes = uint64_t(shape_numel(e.shape)) * dtype_size(e.dtype);
-  return Tensor::on(slots_[size_t(block) % slots_.size()].view().sub(e.offset, bytes), e.shape, e.dtype);
+  return Tensor::on(slots_[size_t(block) % slots_.size()][e.piece].view().sub(e.offset, bytes), e.shape, e.dtype);
 }
 
 void BlockStream::begin_call(vk::Recorder& rec) {
@@ -86,7 +103,10 @@ void BlockStream::mark_block(vk::Recorder& rec, int64_t block) {
 
 void BlockStream::upload(int64_t block, uint64_t after_compute) {
   const uint32_t slot = uint32_t(size_t(block) % slots_.size());
-  const uint64_t value = uploads_.upload(host_[size_t(block)].view(), slots_[slot].view(), bytes_[size_t(block)], after_compute);
+  std::vector<vk::UploadQueue::Copy> copies;
+  for (size_t k = 0; k < pieces_[size_t(block)].size(); ++k)
+    copies.push_back({host_[size_t(block)][k].view(), slots_[slot][k].view(), pieces_[size_t(block)][k]});
+  const uint64_t value = uploads_.upload(copies, after_compute);
   upload_value_[size_t(block)] = value;
   events_.push_back({StreamEvent::Kind::upload, block, slot, after_compute, value, ctx_.submission_count()});
 }

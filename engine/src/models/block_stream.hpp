@@ -3,8 +3,10 @@
 //
 // Host side: each block's tensors packed, in their stored dtype, into one buffer of pinned host memory the device
 // reads directly (vk::MemoryUse::pinned), copied once from the mapped safetensors (or from the device, for weights
-// made there); nothing is converted per step. Device side: `slots` buffers as large as the largest block; block j
-// computes from slot j % slots, its tensors at the same offsets as in its host buffer.
+// made there); nothing is converted per step. Device side: `slots` slots as large as the largest block; block j
+// computes from slot j % slots, its tensors at the same offsets as in its host buffer. A block larger than one
+// allocation is packed over several pieces as an arena packs tensors (vk::ArenaPacking): a slot is one buffer per
+// piece, and a block's upload copies every piece in one submission.
 //
 // Schedule of one model call (one recording, models place a Recorder::boundary after every block): before its
 // first segment is submitted, the first `slots` blocks go up; before the first segment of block j (j ≥ 1) is
@@ -56,7 +58,8 @@ class BlockStream {
 
   int64_t blocks() const { return int64_t(layout_.size()); }
   int slots() const { return int(slots_.size()); }
-  uint64_t slot_bytes() const { return slot_bytes_; }        // device bytes of one slot
+  uint64_t slot_bytes() const;                                // device bytes of one slot (all its pieces)
+  size_t slot_pieces() const { return slots_.front().size(); }  // allocations per slot (1 unless a block is larger)
   uint64_t block_bytes(int64_t block) const;                  // stored bytes one block uploads
   uint64_t host_bytes() const;                                // pinned host memory of every block
   bool has(int64_t block, const std::string& name) const;
@@ -73,6 +76,7 @@ class BlockStream {
 
  private:
   struct Entry {
+    size_t piece = 0;
     uint64_t offset = 0;
     Shape shape;
     DType dtype = DType::f32;
@@ -83,10 +87,9 @@ class BlockStream {
   vk::Context& ctx_;
   std::string what_;
   std::vector<std::map<std::string, Entry>> layout_;  // per block
-  std::vector<uint64_t> bytes_;                       // per block, packed
-  std::vector<vk::Buffer> host_;                      // per block, pinned
-  std::vector<vk::Buffer> slots_;
-  uint64_t slot_bytes_ = 0;
+  std::vector<std::vector<uint64_t>> pieces_;         // per block, the bytes of each piece
+  std::vector<std::vector<vk::Buffer>> host_;         // per block and piece, pinned
+  std::vector<std::vector<vk::Buffer>> slots_;        // per slot and piece (each piece as large as any block's)
   vk::UploadQueue uploads_;
   // The call being submitted: the segment each block starts in, each block's upload value (0: not yet).
   std::vector<uint32_t> first_segment_;

@@ -66,8 +66,9 @@ void UploadQueue::recycle() {
   }
 }
 
-uint64_t UploadQueue::upload(const BufferView& src, const BufferView& dst, VkDeviceSize bytes, uint64_t after) {
-  if (bytes > src.size || bytes > dst.size) throw Error("internal: UploadQueue::upload larger than its buffers");
+uint64_t UploadQueue::upload(const std::vector<Copy>& copies, uint64_t after) {
+  for (const Copy& c : copies)
+    if (c.bytes > c.src.size || c.bytes > c.dst.size) throw Error("internal: UploadQueue::upload larger than its buffers");
   if (after > ctx_.submission_count())
     throw Error("internal: UploadQueue::upload after compute value " + std::to_string(after) + ", not submitted yet");
   recycle();
@@ -83,8 +84,10 @@ uint64_t UploadQueue::upload(const BufferView& src, const BufferView& dst, VkDev
     VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
     // The host wrote the source before this submission (a submission orders earlier host writes); the
     // semaphores order the copy with the compute on either side of it.
-    const VkBufferCopy region{src.offset, dst.offset, bytes};
-    vkCmdCopyBuffer(cmd, src.buffer, dst.buffer, 1, &region);
+    for (const Copy& c : copies) {
+      const VkBufferCopy region{c.src.offset, c.dst.offset, c.bytes};
+      vkCmdCopyBuffer(cmd, c.src.buffer, c.dst.buffer, 1, &region);
+    }
     VK_CHECK(vkEndCommandBuffer(cmd));
     ctx_.submit_transfer(cmd, after, timeline_, submitted_ + 1);
   } catch (...) {

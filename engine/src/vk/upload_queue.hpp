@@ -23,9 +23,17 @@ class UploadQueue {
   UploadQueue(const UploadQueue&) = delete;
   UploadQueue& operator=(const UploadQueue&) = delete;
 
-  // Copies `bytes` from `src` to `dst` once the context's timeline has reached `after`; returns the value this
+  // One copy of an upload: `bytes` from `src` to `dst`.
+  struct Copy {
+    BufferView src, dst;
+    VkDeviceSize bytes = 0;
+  };
+  // Makes `copies` (one submission) once the context's timeline has reached `after`; returns the value this
   // upload signals on timeline() (1, 2, 3, ... in submission order).
-  uint64_t upload(const BufferView& src, const BufferView& dst, VkDeviceSize bytes, uint64_t after);
+  uint64_t upload(const std::vector<Copy>& copies, uint64_t after);
+  uint64_t upload(const BufferView& src, const BufferView& dst, VkDeviceSize bytes, uint64_t after) {
+    return upload({Copy{src, dst, bytes}}, after);
+  }
   VkSemaphore timeline() const { return timeline_; }
   uint64_t submitted() const { return submitted_; }  // the last value upload() returned
   uint64_t completed() const;                          // the timeline's value now
