@@ -85,5 +85,37 @@ TEST(WeightStreamRun, AutoStreamsTheTransformerWhenItsPhaseIsOverTheDevicesBudge
   EXPECT_EQ(weight_residencies(own, forced).text_encoder, models::WeightResidency::stream);
 }
 
+// dvs plan's streaming figures: the bytes a call uploads over the rate given, one block's compute (batch 1, the
+// inversion: 2·S·12·D² for the projections and the FFN, 4·S²·D for the attention, S = 226 + 17,550, D = 3,072)
+// against its upload at the profile's peak (nvidia: 165 TFLOP/s, a transfer queue): hidden at 20 GB/s, not at 1.
+TEST(WeightStreamRun, PlanTimesTheUploadsAtTheRateGiven) {
+  const double S = 226 + 17550, D = 3072, flops = 2 * S * 12 * D * D + 4 * S * S * D;
+  for (const double rate : {20e9, 1e9}) {
+    const auto r = test::run_command(test::program("dvs") + " plan --model cogvideox-5b-i2v --limits nvidia --budget 8GiB" +
+                                     " --upload-rate " + std::to_string(int64_t(rate)) + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json tr = nlohmann::json::parse(r.output)["streams"][0];
+    ASSERT_EQ(tr["component"], "transformer");
+    EXPECT_TRUE(tr["streamed"].get<bool>());
+    EXPECT_NEAR(tr["block_flops"].get<double>(), flops, flops * 1e-12);
+    EXPECT_DOUBLE_EQ(tr["call_upload_seconds"].get<double>(), tr["host_bytes"].get<double>() / rate);
+    EXPECT_DOUBLE_EQ(tr["block_upload_seconds"].get<double>(), tr["slot_bytes"].get<double>() / rate);
+    const bool hides = flops / 165e12 >= tr["slot_bytes"].get<double>() / rate;
+    EXPECT_EQ(hides, rate > 2e9);
+    EXPECT_EQ(tr["hides"].get<bool>(), hides) << tr.dump();
+  }
+}
+
+// dvs info --bench-upload measures the rate dvs plan --upload-rate takes.
+TEST(WeightStreamRun, InfoMeasuresTheUploadRate) {
+  const auto r = test::run_command(test::program("dvs") + " info --bench-upload");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const size_t at = r.output.find(" GB/s");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  const size_t start = r.output.rfind(' ', at - 1) + 1;
+  EXPECT_GT(std::stod(r.output.substr(start, at - start)), 0.0) << r.output;
+  EXPECT_NE(r.output.find("dvs plan --upload-rate "), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace dvs

@@ -83,8 +83,11 @@ void time_weight_stream(WeightStreamPlan& s, double block_flops, std::optional<d
   } else {
     std::snprintf(line, sizeof line,
                   "the upload hides while a block computes for at least %.3g ms, i.e. at %.4g TFLOP/s or slower "
-                  "(the device's peak is not known here)",
-                  *s.block_upload_seconds * 1e3, *s.break_even_flops / 1e12);
+                  "(the device's peak is not known here)%s",
+                  *s.block_upload_seconds * 1e3, *s.break_even_flops / 1e12,
+                  transfer_queue && !*transfer_queue
+                      ? ", and only where the driver overlaps copies and compute on its one queue (no transfer-only family)"
+                      : "");
   }
   s.verdict = line;
 }
