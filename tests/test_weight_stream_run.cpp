@@ -85,6 +85,19 @@ TEST(WeightStreamRun, AutoStreamsTheTransformerWhenItsPhaseIsOverTheDevicesBudge
   EXPECT_EQ(weight_residencies(own, forced).text_encoder, models::WeightResidency::stream);
 }
 
+// Out of device memory in the text, inversion or sampling stage with the weights resident: the advice names
+// --weights stream and what that component then holds; with them streamed already it does not.
+TEST(WeightStreamRun, OutOfMemoryAdviceOffersStreaming) {
+  PipelineInputs in;
+  RunOptions o = in.run_options(in.dir / "out", in.cache);
+  o.weights = "resident";
+  for (const char* stage : {"text", "invert", "sample"})
+    EXPECT_NE(out_of_memory_advice(o, stage).find("--weights stream ("), std::string::npos) << stage;
+  EXPECT_EQ(out_of_memory_advice(o, "decode").find("--weights stream"), std::string::npos);
+  o.weights = "stream";
+  EXPECT_EQ(out_of_memory_advice(o, "sample").find("--weights stream"), std::string::npos);
+}
+
 // dvs plan's streaming figures: the bytes a call uploads over the rate given, one block's compute (batch 1, the
 // inversion: 2·S·12·D² for the projections and the FFN, 4·S²·D for the attention, S = 226 + 17,550, D = 3,072)
 // against its upload at the profile's peak (nvidia: 165 TFLOP/s, a transfer queue): hidden at 20 GB/s, not at 1.

@@ -38,12 +38,20 @@ std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& pla
              pipeline::format_plan_bytes(best->run_peak) + "), or a smaller --height/--width or fewer --frames";
     return "a smaller --vae-tile, a smaller --height/--width or fewer --frames";
   }
+  // Streaming the model's blocks leaves two of them on the device (limits.md#weight-streaming).
+  auto streaming = [&](const char* component) -> std::string {
+    for (const auto& st : plan.streams)
+      if (st.component == component && !st.streamed)
+        return "--weights stream (its blocks then hold " + pipeline::format_plan_bytes(st.device_bytes()) +
+               " of device memory instead of all of them), or ";
+    return "";
+  };
   if (stage == "text")
-    return "freeing the device memory other programs hold, or a device with more memory (T5's needs do not depend "
-           "on the video's size)";
+    return streaming("text_encoder") + "freeing the device memory other programs hold, or a device with more memory "
+           "(T5's needs do not depend on the video's size)";
   if (stage == "invert" || stage == "sample")
-    return "fewer --frames or a smaller --height/--width (the transformer's attention grows with both; VAE tiling "
-           "does not change this stage)";
+    return streaming("transformer") + "fewer --frames or a smaller --height/--width (the transformer's attention grows "
+           "with both; VAE tiling does not change this stage)";
   if (stage == "depth") return "a smaller --depth-input-size (dvs depth: --input-size or --max-res)";
   return "fewer --frames or a smaller --height/--width";
 }
