@@ -115,8 +115,16 @@ TEST(WeightStreamRun, PlanTimesTheUploadsAtTheRateGiven) {
     EXPECT_DOUBLE_EQ(tr["block_upload_seconds"].get<double>(), tr["slot_bytes"].get<double>() / rate);
     const bool hides = flops / 165e12 >= tr["slot_bytes"].get<double>() / rate;
     EXPECT_EQ(hides, rate > 2e9);
-    EXPECT_EQ(tr["hides"].get<bool>(), hides) << tr.dump();
+    EXPECT_EQ(tr["compute_longer_than_upload"].get<bool>(), hides) << tr.dump();
+    EXPECT_EQ(tr["hides"].get<bool>(), hides) << tr.dump();  // the profile has a transfer queue
   }
+  // amd's profile has no transfer-only queue: compute longer than the upload, but not said to hide.
+  const auto amd = test::run_command(test::program("dvs") + " plan --model cogvideox-5b-i2v --limits amd --budget 8GiB --json");
+  ASSERT_EQ(amd.exit_code, 0) << amd.output;
+  const nlohmann::json a = nlohmann::json::parse(amd.output)["streams"][0];
+  EXPECT_TRUE(a["compute_longer_than_upload"].get<bool>()) << a.dump();
+  EXPECT_FALSE(a["hides"].get<bool>()) << a.dump();
+  EXPECT_NE(a["verdict"].get<std::string>().find("without a transfer-only queue"), std::string::npos) << a.dump();
 }
 
 // dvs info --bench-upload measures the rate dvs plan --upload-rate takes.

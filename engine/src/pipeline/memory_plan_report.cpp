@@ -79,6 +79,7 @@ json stream_json(const WeightStreamPlan& s) {
           {"call_upload_seconds", opt(s.call_upload_seconds)},
           {"block_upload_seconds", opt(s.block_upload_seconds)},
           {"break_even_flops", opt(s.break_even_flops)},
+          {"compute_longer_than_upload", s.compute_longer ? json(*s.compute_longer) : json(nullptr)},
           {"hides", s.hides ? json(*s.hides) : json(nullptr)},
           {"verdict", s.verdict}};
 }

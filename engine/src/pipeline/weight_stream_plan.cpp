@@ -73,6 +73,7 @@ void time_weight_stream(WeightStreamPlan& s, double block_flops, std::optional<d
     const double at_peak = block_flops / *peak;  // a block's compute at the device's peak: the least it takes
     const bool compute_longer = at_peak >= *s.block_upload_seconds;
     const bool beside = transfer_queue.value_or(false);
+    s.compute_longer = compute_longer;
     s.hides = compute_longer && beside;
     std::snprintf(line, sizeof line, "a block computes for at least %.3g ms at the peak %.4g TFLOP/s, its upload takes %.3g ms: %s",
                   at_peak * 1e3, *peak / 1e12, *s.block_upload_seconds * 1e3,

@@ -31,7 +31,10 @@ struct WeightStreamPlan {
   // At the request's upload rate (when known): one call's upload, one block's, and the compute rate below
   // which a block computes for at least as long as the next one uploads (the upload hides).
   std::optional<double> call_upload_seconds, block_upload_seconds, break_even_flops;
-  std::optional<bool> hides;    // at the device's peak rate (when known) and with a transfer queue
+  // Whether a block's compute at the device's peak rate (when known) lasts at least its upload, and whether the
+  // upload then hides: that and a transfer queue to run it beside the compute. Without one, a step pays up to
+  // call_upload_seconds more (the driver may still overlap copies and compute on one queue).
+  std::optional<bool> compute_longer, hides;
   std::string verdict;          // one line on the overlap, for the table
 };
 
