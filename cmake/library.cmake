@@ -17,7 +17,8 @@ set_target_properties(dvs_core PROPERTIES
   OUTPUT_NAME dvs EXPORT_NAME core VERSION ${PROJECT_VERSION} SOVERSION 0
   LINK_DEPENDS ${CMAKE_CURRENT_LIST_DIR}/dvs_exports.map)
 target_include_directories(dvs_core INTERFACE
-  $<BUILD_INTERFACE:${CMAKE_SOURCE_DIR}/engine/include> $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  $<BUILD_INTERFACE:${CMAKE_SOURCE_DIR}/engine/include> $<BUILD_INTERFACE:${DVS_GENERATED_INCLUDE_DIR}>
+  $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
 target_compile_features(dvs_core INTERFACE cxx_std_17)
 target_link_libraries(dvs_core PUBLIC Vulkan::Vulkan
   PRIVATE nlohmann_json::nlohmann_json PkgConfig::LIBZIP PkgConfig::SENTENCEPIECE TinyGLTF::TinyGLTF ${DVS_OPENCV_CORE_LIBS})
@@ -40,9 +41,11 @@ target_link_options(dvs_core PRIVATE "LINKER:--version-script=${CMAKE_CURRENT_LI
 if(TARGET dvs_video_objects)
   add_library(dvs_video SHARED $<TARGET_OBJECTS:dvs_video_objects>)
   add_library(dvs::video ALIAS dvs_video)
+  # RUNPATH $ORIGIN: installed, it finds libdvs.so.0 beside itself, also for a program that needs it alone (a linker
+  # with --as-needed drops libdvs from a program that calls only read_video_frames) or Python's ctypes loading it.
   set_target_properties(dvs_video PROPERTIES
     OUTPUT_NAME dvs_video EXPORT_NAME video VERSION ${PROJECT_VERSION} SOVERSION 0
-    LINK_DEPENDS ${CMAKE_CURRENT_LIST_DIR}/dvs_video_exports.map)
+    LINK_DEPENDS ${CMAKE_CURRENT_LIST_DIR}/dvs_video_exports.map INSTALL_RPATH "$ORIGIN")
   target_link_libraries(dvs_video PUBLIC dvs_core PRIVATE dvs_io ${DVS_OPENCV_VIDEO_LIBS})
   target_link_options(dvs_video PRIVATE "LINKER:--version-script=${CMAKE_CURRENT_LIST_DIR}/dvs_video_exports.map"
     ${DVS_LIBRARY_NO_UNDEFINED})

@@ -41,6 +41,13 @@ set(DVS_GLSLANG_DIR "$ENV{DVS_GLSLANG_DIR}")
 if(NOT DVS_GLSLANG_DIR)
   set(DVS_GLSLANG_DIR /opt/dvs-glslang15)
 endif()
+# A build tree configured before against another folder (CI unpacks the tools afresh into a temporary one on
+# each run) looks again instead of keeping a cached path that may be gone.
+if(NOT "${DVS_GLSLANG_DIR}" STREQUAL "${DVS_GLSLANG_DIR_FOUND_IN}")
+  unset(DVS_COOPMAT_GLSLANG CACHE)
+  unset(DVS_COOPMAT_SPIRV_VAL CACHE)
+  set(DVS_GLSLANG_DIR_FOUND_IN "${DVS_GLSLANG_DIR}" CACHE INTERNAL "the DVS_GLSLANG_DIR the tools were found in")
+endif()
 find_program(DVS_COOPMAT_GLSLANG glslangValidator PATHS ${DVS_GLSLANG_DIR}/bin NO_DEFAULT_PATH)
 find_program(DVS_COOPMAT_SPIRV_VAL spirv-val PATHS ${DVS_GLSLANG_DIR}/bin NO_DEFAULT_PATH)
 

@@ -9,7 +9,7 @@ if(NOT DVS_VIDEO_IO)
 endif()
 file(GLOB DVS_VIDEO_SOURCES CONFIGURE_DEPENDS engine/src/video/*.cpp)
 add_library(dvs_video_objects OBJECT ${DVS_VIDEO_SOURCES})
-target_include_directories(dvs_video_objects PRIVATE engine/src engine/include ${OpenCV_INCLUDE_DIRS})
+target_include_directories(dvs_video_objects PRIVATE engine/src engine/include ${DVS_GENERATED_INCLUDE_DIR} ${OpenCV_INCLUDE_DIRS})
 target_link_libraries(dvs_video_objects PRIVATE nlohmann_json::nlohmann_json)
 set_target_properties(dvs_video_objects PROPERTIES
   POSITION_INDEPENDENT_CODE ON CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)

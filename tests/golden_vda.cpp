@@ -13,6 +13,7 @@
   if (!DVS_VIDEO_IO) GTEST_SKIP() << "built without video I/O (DVS_VIDEO_IO=OFF): no OpenCV resize"
 
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -23,6 +24,7 @@
 #include "models/vda/vda_video.hpp"
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
+#include "support/precision_rule.hpp"
 #include "support/vda_pack.hpp"
 
 namespace dvs {
@@ -50,11 +52,13 @@ std::map<std::string, PackFile> pack_files(std::initializer_list<const char*> ca
   return out;
 }
 
-// A pack tensor laid out B,C,T,H,W as the engine's frames-in-the-batch [B*T, C, H, W].
+// A pack tensor laid out B,C,T,H,W (float32, or float16 as the bf16 runs are stored) as the engine's
+// frames-in-the-batch [B*T, C, H, W], float32.
 HostTensor frames_in_batch(const HostTensor& g) {
   const int64_t b = g.shape[0], c = g.shape[1], t = g.shape[2], hw = g.shape[3] * g.shape[4];
   HostTensor out({b * t, c, g.shape[3], g.shape[4]}, DType::f32);
-  const float* s = g.as<float>();
+  const std::vector<float> values = g.to_f32();
+  const float* s = values.data();
   float* d = out.as<float>();
   for (int64_t bi = 0; bi < b; ++bi)
     for (int64_t ci = 0; ci < c; ++ci)
@@ -100,9 +104,25 @@ TEST_F(VdaWindow, ForwardMatchesThePackStageByStage) {
     if (f.role == "input") continue;
     const auto it = got.find(stem);
     if (it == got.end()) continue;
-    HostTensor golden = read_npy(vda_golden_path() / f.file);
-    if (f.layout == "B,C,T,H,W") golden = frames_in_batch(golden);
-    test::expect_close(stem, it->second, golden, f.atol, f.rtol);
+    // The golden and PyTorch's bf16 run of it (when the pack has one), in the engine's layout.
+    test::PackGolden g = test::read_pack_golden(vda_golden_path(), f.file);
+    if (f.layout == "B,C,T,H,W") {
+      g.golden = frames_in_batch(g.golden);
+      if (g.bf16) g.bf16 = frames_in_batch(*g.bf16);
+    }
+    std::optional<std::vector<float>> bf16;
+    if (g.bf16) {
+      bf16 = g.bf16->to_f32();
+      // The bf16 run as compared still has the error the pack records for it: the layout change moved both
+      // tensors alike and read the bf16 file in its own storage (float16 or float32).
+      const auto& rec = test::vda_cases().at("torch_bf16").at("files").at(f.file);
+      const test::ErrorMeasure m = test::error_measure(*bf16, g.golden.to_f32());
+      const double max_abs = rec.at("max_abs"), rel_l2 = rec.at("rel_l2");
+      EXPECT_NEAR(m.max_abs, max_abs, 1e-6 * max_abs) << stem;
+      EXPECT_NEAR(m.rel_l2, rel_l2, 1e-6 * rel_l2) << stem;
+    }
+    test::expect_golden_values(stem, it->second.shape, it->second.to_f32(), g.golden.shape, g.golden.to_f32(), bf16,
+                               g.bf16_path.string(), f.atol, f.rtol, test::kAllKernelOps);
     compared.insert(stem);
   }
   // The stages that must have been checked whatever else the model exposes: every tap, every temporal module's
@@ -164,8 +184,8 @@ TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
   model.set_encoder_chunk_frames(7);       // nor the encoder's chunks of frames
   const HostTensor clip = pack_clip();
   const HostTensor indices = read_npy(vda_golden_path() / "e2e" / "window_frame_indices.npy");
-  const HostTensor windows = read_npy(vda_golden_path() / "e2e" / "window_depth.npy");
-  const HostTensor upsampled = read_npy(vda_golden_path() / "e2e" / "window_depth_upsampled.npy");
+  const test::PackGolden windows = test::read_pack_golden(vda_golden_path(), "e2e/window_depth.npy");
+  const test::PackGolden upsampled = test::read_pack_golden(vda_golden_path(), "e2e/window_depth_upsampled.npy");
   VdaVideoOptions o;
   o.input_size = c.at("input_size");
   int probed = 0;
@@ -175,14 +195,21 @@ TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
     const auto idx = indices.to_f32();
     for (size_t i = 0; i < frames.size(); ++i)
       EXPECT_EQ(frames[i], int64_t(idx[size_t(k) * frames.size() + i])) << "window " << k << " position " << i;
-    const int64_t per = windows.numel() / windows.shape[0], per_up = upsampled.numel() / upsampled.shape[0];
-    const auto wv = windows.to_f32(), uv = upsampled.to_f32();
     const std::string w = "window " + std::to_string(k);
-    test::expect_close_values(w + " depth", model_size.shape, model_size.to_f32(), Shape(windows.shape.begin() + 1, windows.shape.end()),
-                              {wv.begin() + k * per, wv.begin() + (k + 1) * per}, atol, rtol);
-    test::expect_close_values(w + " upsampled", frame_size.shape, frame_size.to_f32(),
-                              Shape(upsampled.shape.begin() + 1, upsampled.shape.end()), {uv.begin() + k * per_up, uv.begin() + (k + 1) * per_up},
-                              atol, rtol);
+    // Window k of a [windows, ...] pack file and of its bf16 run (when the pack has one).
+    auto expect_window = [&](const std::string& what, const HostTensor& ours, const test::PackGolden& all) {
+      const int64_t per = all.golden.numel() / all.golden.shape[0];
+      auto slice = [&](const HostTensor& t) {
+        const auto v = t.to_f32();
+        return std::vector<float>(v.begin() + k * per, v.begin() + (k + 1) * per);
+      };
+      std::optional<std::vector<float>> bf16;
+      if (all.bf16) bf16 = slice(*all.bf16);
+      test::expect_golden_values(what, ours.shape, ours.to_f32(), Shape(all.golden.shape.begin() + 1, all.golden.shape.end()),
+                                 slice(all.golden), bf16, all.bf16_path.string(), atol, rtol, test::kAllKernelOps);
+    };
+    expect_window(w + " depth", model_size, windows);
+    expect_window(w + " upsampled", frame_size, upsampled);
     ++probed;
   };
   int progress = 0;
@@ -192,12 +219,12 @@ TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
   };
   const VdaVideoResult r = vda_video_depth(model, clip, o);
   EXPECT_EQ(probed, indices.shape[0]);
-  const HostTensor st = read_npy(vda_golden_path() / "e2e" / "align_scale_shift.npy");
   std::vector<float> ours_st;
   for (const auto& p : r.scale_shift) ours_st.insert(ours_st.end(), p.begin(), p.end());
-  test::expect_close_values("e2e/align_scale_shift", {int64_t(r.scale_shift.size()), 2}, ours_st, st.shape, st.to_f32(),
-                            atol, rtol);
-  test::expect_close("e2e/depth", r.depth, read_npy(vda_golden_path() / "e2e" / "depth.npy"), atol, rtol);
+  test::expect_golden_file("e2e/align_scale_shift", {int64_t(r.scale_shift.size()), 2}, ours_st, vda_golden_path(),
+                           "e2e/align_scale_shift.npy", atol, rtol, test::kAllKernelOps);
+  test::expect_golden_file("e2e/depth", r.depth.shape, r.depth.to_f32(), vda_golden_path(), "e2e/depth.npy", atol, rtol,
+                           test::kAllKernelOps);
 
   const auto& m = test::vda_case("e2e_metric");
   model.set_metric(true);
@@ -206,8 +233,9 @@ TEST_F(VdaVideo, WholeClipMatchesThePackRelativeAndMetric) {
   const VdaVideoResult metric = vda_video_depth(model, clip, o);
   EXPECT_TRUE(metric.scale_shift.size() == r.scale_shift.size());
   for (const auto& p : metric.scale_shift) EXPECT_TRUE(p[0] == 1.0f && p[1] == 0.0f);
-  test::expect_close("e2e/depth_metric_mode", metric.depth, read_npy(vda_golden_path() / "e2e" / "depth_metric_mode.npy"),
-                     m.at("tolerance").at("atol"), m.at("tolerance").at("rtol"));
+  test::expect_golden_file("e2e/depth_metric_mode", metric.depth.shape, metric.depth.to_f32(), vda_golden_path(),
+                           "e2e/depth_metric_mode.npy", m.at("tolerance").at("atol"), m.at("tolerance").at("rtol"),
+                           test::kAllKernelOps);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 #include "tensor/ops_attention_flash.hpp"
@@ -42,7 +43,10 @@ vk::DeviceCaps gpu_caps(uint32_t subgroup, bool coopmat) {
 TEST(AttentionFlashPlan, TuningPicksTheFamily) {
   if (std::getenv("DVS_TUNING")) GTEST_SKIP() << "checks the table's own choices, which DVS_TUNING overrides";
   EXPECT_EQ(ops::select_tuning(gpu_caps(32, true), "").attention, KernelFamily::coopmat);
-  EXPECT_EQ(ops::select_tuning(gpu_caps(64, true), "").attention, KernelFamily::tiled);  // 4 x 32-lane layout only
+  // 64 lanes: the same layout at 4 lanes per row (the kernels take their lanes from the tuning).
+  const ops::DeviceTuning w = ops::select_tuning(gpu_caps(64, true), "");
+  EXPECT_EQ(w.attention, KernelFamily::coopmat);
+  EXPECT_EQ(w.coopmat_lanes, 64);
   EXPECT_EQ(ops::select_tuning(gpu_caps(32, false), "").attention, KernelFamily::tiled);
   EXPECT_EQ(ops::select_tuning(gpu_caps(32, true), "coopmat=off").attention, KernelFamily::tiled);
   EXPECT_FALSE(ops::select_tuning(gpu_caps(32, true), "").attention_kv_workspace);
@@ -56,7 +60,11 @@ TEST(AttentionFlashPlan, TuningPicksTheFamily) {
 TEST(AttentionFlashPlan, CogVideoXRealSizeOnTensorCores) {
   if (std::getenv("DVS_TUNING")) GTEST_SKIP() << "checks the table's own choices, which DVS_TUNING overrides";
   const vk::DeviceCaps caps = gpu_caps(32, true);
-  EXPECT_LE(ops::flash::coopmat_shared_bytes(64, 64), caps.max_compute_shared_memory);
+  // The H200's layout: 4 subgroups of 32 lanes, 16 query rows each, 64-key tiles: 40 KiB at head_dim 64.
+  const ops::CoopmatAttention a = ops::attention_coopmat_layout(ops::select_tuning(caps, ""));
+  EXPECT_EQ(a.rows(), 64);
+  EXPECT_EQ(a.invocations(), 128u);
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(a, 64), 40u * 1024);
   // 49x480x720: fused QKV [2, 17776, 9216] (1.31 GB) in one storage binding, one dispatch.
   const ops::AttentionSplit p = ops::attention_split_plan_fused(caps, {2, 48, 64, 17776, 17776});
   EXPECT_EQ(p.family, KernelFamily::coopmat);

@@ -1,11 +1,16 @@
 /* The C API compiled as C (C99): dvs/dvs.h must be a C header. Checks the calls that need no model: version, the
  * argument errors and their messages, a context and its timeline, option defaults, a job whose input is missing (its
- * status and message come back through dvs_job_result), and a context on a device the test creates itself (a scene
+ * status and message come back through dvs_job_result), the option structs' struct_size (older, newer and unfilled
+ * structs), negative numbers refused naming the field, the preflight's report and the size it needs, the log
+ * callback, trajectories (load, interpolate, write and read back) and the memory plan of the built-in model, and a
+ * context on a device the test creates itself (a scene
  * rendered there takes the application's queue lock; dvs destroys nothing of the application's; its renders into the
  * test's own buffers and image, ordered by semaphores both ways, equal the host render byte for byte). Exit status
  * 0 = every check passed. */
+#define _POSIX_C_SOURCE 200809L /* mkdir */
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "dvs/dvs.h"
 
@@ -166,7 +171,7 @@ static void device_memory_calls(VkPhysicalDevice gpu, VkDevice device, uint32_t 
   /* Refusals name what is wrong. */
   target.image = srgb;
   target.format = VK_FORMAT_R8G8B8A8_SRGB;
-  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_ERROR_FILE &&
+  CHECK(dvs_scene_render_to_images(scene, pose, &target, NULL, &second) == DVS_ERROR_INVALID_ARGUMENT &&
             contains(dvs_last_error(), "sRGB"), "sRGB image: %s", dvs_last_error());
   CHECK(dvs_scene_render_to_buffers(scene, pose, image, 0, DVS_U8, VK_NULL_HANDLE, 0, NULL) ==
             DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "ticket is NULL"), "NULL ticket: %s",
@@ -273,6 +278,211 @@ static void host_device_round_trip(void) {
   vkDestroyInstance(instance, NULL);
 }
 
+/* ---- option structs, negatives, preflight, log, trajectories, plan (issue 34) ---------------------------- */
+
+static int log_calls = 0;
+static char log_last[4096];
+static void capture_log(dvs_log_level level, const char* message, void* user) {
+  ++*(int*)user;
+  if (level == DVS_LOG_WARNING) snprintf(log_last, sizeof log_last, "%s", message);
+}
+
+/* The report of dvs_preflight_pipeline for options whose one number is out of range (the rest default; no model,
+ * which is a problem of its own); status and problem count through the out arguments. */
+static dvs_status preflight_text(const dvs_pipeline_options* o, int32_t* problems, char* report, size_t size) {
+  size_t needed = 0;
+  return dvs_preflight_pipeline(o, problems, report, size, &needed);
+}
+
+/* Item 7: steps, strength, delta, inversion_steps below 0 are refused naming the field (0 = the preset's). */
+static void negatives_are_refused(void) {
+  static const char* const fields[] = {"steps", "strength", "delta", "inversion_steps"};
+  char report[8192], want[128];
+  int32_t problems = 0;
+  int i;
+  dvs_pipeline_options o;
+  dvs_job* job = NULL;
+  for (i = 0; i < 4; ++i) {
+    CHECK(dvs_pipeline_options_default(&o) == DVS_OK, "defaults");
+    if (i == 0) o.steps = -3;
+    if (i == 1) o.strength = -1;
+    if (i == 2) o.delta = -1;
+    if (i == 3) o.inversion_steps = -1;
+    snprintf(want, sizeof want, "dvs_pipeline_options.%s is -%d", fields[i], i == 0 ? 3 : 1);
+    CHECK(preflight_text(&o, &problems, report, sizeof report) == DVS_OK, "preflight: %s", dvs_last_error());
+    CHECK(problems >= 1 && contains(report, want), "%s: %d problems, report \"%s\"", want, (int)problems, report);
+    /* A job with it stops on the same refusal, before any work. */
+    CHECK(dvs_job_start_pipeline(&o, &job) == DVS_OK, "start: %s", dvs_last_error());
+    CHECK(dvs_job_result(job) != DVS_OK && contains(dvs_last_error(), want), "job: \"%s\"", dvs_last_error());
+    dvs_job_destroy(job);
+  }
+  /* A preset that does not exist names its field too. */
+  CHECK(dvs_pipeline_options_default(&o) == DVS_OK, "defaults");
+  o.preset = "Paper";
+  CHECK(preflight_text(&o, &problems, report, sizeof report) == DVS_OK &&
+            contains(report, "dvs_pipeline_options.preset must be paper or official, got 'Paper'"),
+        "preset: \"%s\"", report);
+  /* 0 asks for the preset's default: no problem names the field. */
+  CHECK(dvs_pipeline_options_default(&o) == DVS_OK, "defaults");
+  o.steps = 0, o.strength = 0, o.delta = 0, o.inversion_steps = 0;
+  CHECK(preflight_text(&o, &problems, report, sizeof report) == DVS_OK, "preflight: %s", dvs_last_error());
+  CHECK(!contains(report, "dvs_pipeline_options.steps") && !contains(report, "dvs_pipeline_options.strength") &&
+            !contains(report, "dvs_pipeline_options.delta") && contains(report, "dvs_pipeline_options.model"),
+        "zeros: \"%s\"", report);
+}
+
+/* struct_size: set by the defaults; 0 (a struct never filled) refused; a newer header's longer struct accepted when
+ * its unknown fields are 0 and refused when one is set; a string report's needed size. */
+static void grown_structs(const char* dir) {
+  struct {
+    dvs_render_options known;
+    int64_t newer[2]; /* what a later dvs.h might add */
+  } grown;
+  dvs_render_options r;
+  dvs_pipeline_options p;
+  char video[1024], report[4096], small[8];
+  size_t needed = 0, again = 0;
+  int32_t problems = -1;
+  dvs_status status;
+
+  CHECK(dvs_render_options_default(&r) == DVS_OK && r.struct_size == sizeof r, "render struct_size %zu", r.struct_size);
+  CHECK(dvs_pipeline_options_default(&p) == DVS_OK && p.struct_size == sizeof p && p.render == NULL &&
+            p.dynamic_cfg == -1 && p.preservation_scale == 1.0 && p.vae_tiling == 0,
+        "pipeline defaults");
+  CHECK(strcmp(r.depth_fit, "error") == 0 && r.export_glb == 1 && r.depth_cache == 1 && r.squash == 0, "render defaults");
+  snprintf(video, sizeof video, "%s/no_such_video.mp4", dir);
+  r.video = video;
+  r.depth = video;
+  r.out_dir = dir;
+
+  /* The report: every problem as "problem: ...", the size it needs given even when it does not fit. */
+  CHECK(dvs_preflight_render(&r, &problems, NULL, 0, &needed) == DVS_OK, "ask the size: %s", dvs_last_error());
+  CHECK(problems >= 1 && needed > 1, "%d problems, %zu bytes needed", (int)problems, needed);
+  CHECK(needed <= sizeof report && dvs_preflight_render(&r, NULL, report, sizeof report, &again) == DVS_OK &&
+            again == needed && strlen(report) + 1 == needed,
+        "report of %zu bytes, needed %zu then %zu", strlen(report), needed, again);
+  CHECK(contains(report, "problem: ") && contains(report, "no_such_video.mp4: no such video file (give "
+                                                          "dvs_render_options.video)"),
+        "report \"%s\"", report);
+  /* A short buffer is refused (the string calls' rule, dvs.h), holding the text cut short and saying what it needs. */
+  CHECK(dvs_preflight_render(&r, NULL, small, sizeof small, &again) == DVS_ERROR_INVALID_ARGUMENT &&
+            strlen(small) == 7 && again == needed,
+        "a short buffer: \"%s\", needed %zu", small, again);
+
+  r.struct_size = 0;
+  status = dvs_preflight_render(&r, &problems, report, sizeof report, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_render_options.struct_size is 0") &&
+            contains(dvs_last_error(), "dvs_render_options_default"),
+        "struct_size 0: %d %s", (int)status, dvs_last_error());
+
+  memset(&grown, 0, sizeof grown);
+  CHECK(dvs_render_options_default(&grown.known) == DVS_OK, "defaults");
+  grown.known = r;
+  grown.known.struct_size = sizeof grown;
+  CHECK(dvs_preflight_render(&grown.known, &problems, report, sizeof report, NULL) == DVS_OK && problems >= 1 &&
+            contains(report, "no_such_video.mp4"),
+        "a newer struct with its new fields 0: %s", dvs_last_error());
+  grown.newer[1] = 5;
+  status = dvs_preflight_render(&grown.known, &problems, report, sizeof report, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "newer than this library"),
+        "a newer struct with a field set: %d %s", (int)status, dvs_last_error());
+
+  /* The pipeline's render part is read through its own struct_size. */
+  r.struct_size = 0;
+  p.render = &r;
+  status = dvs_preflight_pipeline(&p, &problems, report, sizeof report, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_render_options.struct_size is 0"),
+        "pipeline with an unfilled render: %d %s", (int)status, dvs_last_error());
+  p.render = NULL;
+  p.struct_size = 3;
+  status = dvs_preflight_pipeline(&p, &problems, report, sizeof report, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_pipeline_options.struct_size is 3"),
+        "pipeline struct_size 3: %d %s", (int)status, dvs_last_error());
+  p.struct_size = sizeof p;
+  p.dynamic_cfg = 2;
+  status = dvs_preflight_pipeline(&p, &problems, report, sizeof report, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_pipeline_options.dynamic_cfg must be"),
+        "dynamic_cfg 2: %d %s", (int)status, dvs_last_error());
+}
+
+/* Trajectories: a preset, a written JSON read back exactly, key poses interpolated; an official .txt whose lines
+ * differ in length is loaded with a warning that reaches the log callback. */
+static void trajectories(const char* dir) {
+  double poses[16 * 5], back[16 * 5], keys[16 * 2], path[16 * 5];
+  const int32_t key_frames[2] = {0, 4};
+  char file[1024];
+  FILE* f;
+  int i;
+  dvs_status status;
+
+  CHECK(dvs_trajectory_load("pan_left:30", 5, 1.0, poses, 16 * 5) == DVS_OK, "pan_left: %s", dvs_last_error());
+  for (i = 0; i < 16; ++i) CHECK(poses[i] == (i % 5 == 0 ? 1.0 : 0.0), "pose 0 is not the identity at %d", i);
+  CHECK(poses[16 * 4 + 15] == 1.0 && poses[16 * 4 + 0] < 0.99, "the last pose does not turn: %g", poses[16 * 4]);
+  snprintf(file, sizeof file, "%s/path.json", dir);
+  CHECK(dvs_trajectory_write_json(file, poses, 5, "a test path") == DVS_OK, "write json: %s", dvs_last_error());
+  CHECK(dvs_trajectory_load(file, 5, 1.0, back, 16 * 5) == DVS_OK && memcmp(back, poses, sizeof poses) == 0,
+        "the JSON does not read back exactly: %s", dvs_last_error());
+  snprintf(file, sizeof file, "%s/path.glb", dir);
+  CHECK(dvs_trajectory_write_glb(file, poses, 5, 24.0) == DVS_OK, "write glb: %s", dvs_last_error());
+  CHECK(dvs_trajectory_load(file, 5, 1.0, back, 16 * 5) == DVS_OK, "read glb: %s", dvs_last_error());
+  for (i = 0; i < 16 * 5; ++i) CHECK(back[i] > poses[i] - 1e-5 && back[i] < poses[i] + 1e-5, "glb value %d", i);
+
+  /* Keys at frames 0 (identity) and 4 (moved 0.4 along x): frame 2 is halfway, frame 4 exactly the key. */
+  memset(keys, 0, sizeof keys);
+  for (i = 0; i < 4; ++i) keys[5 * i] = keys[16 + 5 * i] = 1.0;
+  keys[16 + 3] = 0.4;
+  CHECK(dvs_trajectory_interpolate(key_frames, keys, 2, 5, path, 16 * 5) == DVS_OK, "interpolate: %s", dvs_last_error());
+  CHECK(path[16 * 2 + 3] > 0.2 - 1e-12 && path[16 * 2 + 3] < 0.2 + 1e-12 && memcmp(path + 16 * 4, keys + 16, 128) == 0,
+        "interpolated: frame 2 x %g", path[16 * 2 + 3]);
+  CHECK(dvs_trajectory_load("pan_left:30", 5, 1.0, poses, 16 * 4) == DVS_ERROR_INVALID_ARGUMENT &&
+            contains(dvs_last_error(), "pose_doubles is 64 but 5 poses are 80 doubles"),
+        "short buffer: %s", dvs_last_error());
+  status = dvs_trajectory_load("nowhere_preset", 5, 1.0, poses, 16 * 5);
+  CHECK(status != DVS_OK && contains(dvs_last_error(), "nowhere_preset"), "unknown: %s", dvs_last_error());
+
+  snprintf(file, sizeof file, "%s/uneven.txt", dir);
+  f = fopen(file, "w");
+  if (f) {
+    fputs("0 5 10\n0 -3\n0 0 0 0\n", f);
+    fclose(f);
+  }
+  log_calls = 0;
+  CHECK(dvs_set_log_callback(capture_log, &log_calls) == DVS_OK, "set log callback");
+  CHECK(dvs_trajectory_load(file, 5, 1.0, poses, 16 * 5) == DVS_OK, "uneven: %s", dvs_last_error());
+  CHECK(log_calls == 1 && contains(log_last, "uneven.txt: its lines hold different numbers of values"),
+        "log: %d calls, last \"%s\"", log_calls, log_last);
+  CHECK(dvs_set_log_callback(NULL, NULL) == DVS_OK, "the default log again");
+  CHECK(dvs_trajectory_load(file, 5, 1.0, poses, 16 * 5) == DVS_OK && log_calls == 1,
+        "the callback is still called after it was removed");
+}
+
+/* The memory plan of the built-in CogVideoX-5B-I2V: its weights and peak, the table and the JSON; a budget it does
+ * not fit in is checked and refused; a wrong frame count names the field. */
+static void memory_plan(void) {
+  dvs_plan_request q;
+  dvs_plan_result result;
+  char table[65536];
+  size_t needed = 0;
+  dvs_status status;
+  CHECK(dvs_plan_request_default(&q) == DVS_OK && q.frames == 49 && q.height == 480 && q.width == 720, "defaults");
+  q.model = "cogvideox-5b-i2v";
+  memset(&result, 0, sizeof result);
+  result.struct_size = sizeof result;
+  CHECK(dvs_plan_run_memory(&q, &result, 0, table, sizeof table, &needed) == DVS_OK, "plan: %s", dvs_last_error());
+  CHECK(result.checked == 0 && result.runs == 1 && result.weights_bytes > ((uint64_t)10 << 30) &&
+            result.run_peak_bytes > result.weights_bytes && needed == strlen(table) + 1,
+        "plan: checked %d runs %d weights %llu peak %llu", (int)result.checked, (int)result.runs,
+        (unsigned long long)result.weights_bytes, (unsigned long long)result.run_peak_bytes);
+  q.budget = (uint64_t)4 << 30;
+  CHECK(dvs_plan_run_memory(&q, &result, 1, table, sizeof table, NULL) == DVS_OK && result.checked == 1 &&
+            result.runs == 0 && table[0] == '{',
+        "a 4 GiB budget: checked %d runs %d", (int)result.checked, (int)result.runs);
+  q.frames = 8;
+  status = dvs_plan_run_memory(&q, &result, 0, table, sizeof table, NULL);
+  CHECK(status == DVS_ERROR_INVALID_ARGUMENT && contains(dvs_last_error(), "dvs_plan_request.frames must be 4k+1"),
+        "8 frames: %d %s", (int)status, dvs_last_error());
+}
+
 int main(int argc, char** argv) {
   const char* dir = argc > 1 ? argv[1] : "/tmp";
   char path[1024];
@@ -285,6 +495,7 @@ int main(int argc, char** argv) {
   char name[256], error[1024];
 
   CHECK(strlen(dvs_version()) >= 5, "version \"%s\"", dvs_version());
+  mkdir(dir, 0755); /* the files this test writes (trajectories) go there; it may exist */
 
   status = dvs_context_create(NULL, 0, NULL);
   CHECK(status == DVS_ERROR_INVALID_ARGUMENT, "NULL out: status %d", (int)status);
@@ -307,22 +518,38 @@ int main(int argc, char** argv) {
   {
     /* What a host device needs, before any context: the device this test makes enables Vulkan 1.2 and
      * timelineSemaphore, so both must be listed as required; the optional list is another one. */
-    char required[4096], optional[4096];
-    CHECK(dvs_context_requirements(0, required, sizeof required) == DVS_OK, "requirements: %s", dvs_last_error());
-    CHECK(dvs_context_requirements(1, optional, sizeof optional) == DVS_OK, "options: %s", dvs_last_error());
+    char required[4096], optional[4096], five[5] = "xxxx";
+    size_t needed = 0, asked = 0;
+    CHECK(dvs_context_requirements(0, required, sizeof required, &needed) == DVS_OK, "requirements: %s", dvs_last_error());
+    CHECK(needed == strlen(required) + 1, "needed %zu for %zu characters", needed, strlen(required));
+    CHECK(dvs_context_requirements(1, optional, sizeof optional, NULL) == DVS_OK, "options: %s", dvs_last_error());
     CHECK(contains(required, "Vulkan 1.2") && contains(required, "timelineSemaphore\n"), "required: \"%s\"", required);
     CHECK(!contains(optional, "timelineSemaphore") && strcmp(required, optional) != 0, "optional: \"%s\"", optional);
-    CHECK(dvs_context_requirements(0, NULL, 8) == DVS_ERROR_INVALID_ARGUMENT, "NULL buffer accepted");
+    CHECK(dvs_context_requirements(0, NULL, 8, NULL) == DVS_ERROR_INVALID_ARGUMENT, "NULL buffer accepted");
+    /* The size query, and a buffer too small: refused with the size it needs, holding the text cut short. */
+    CHECK(dvs_context_requirements(0, NULL, 0, &asked) == DVS_OK && asked == needed, "size query: %zu", asked);
+    asked = 0;
+    CHECK(dvs_context_requirements(0, five, sizeof five, &asked) == DVS_ERROR_INVALID_ARGUMENT && asked == needed &&
+              strncmp(five, required, 4) == 0 && five[4] == '\0',
+          "5-byte buffer: needed %zu, \"%s\", %s", asked, five, dvs_last_error());
+    CHECK(contains(dvs_last_error(), "holds 5 bytes") && contains(dvs_last_error(), "needs"), "message \"%s\"",
+          dvs_last_error());
   }
 
   status = dvs_context_create(NULL, 0, &ctx);
   CHECK(status == DVS_OK && ctx != NULL, "dvs_context_create: %d %s", (int)status, dvs_last_error());
   if (!ctx) return 1;
-  CHECK(dvs_context_device_name(ctx, name, sizeof name) == DVS_OK && name[0] != '\0', "device name");
+  CHECK(dvs_context_device_name(ctx, name, sizeof name, NULL) == DVS_OK && name[0] != '\0', "device name");
   printf("device: %s\n", name);
-  /* A buffer too small for the name is filled and terminated, not overrun. */
-  name[3] = 'x';
-  CHECK(dvs_context_device_name(ctx, name, 3) == DVS_OK && strlen(name) == 2 && name[3] == 'x', "truncation");
+  /* A buffer too small for the name is filled and terminated, not overrun, and the call says what it needs. */
+  {
+    size_t needed = 0;
+    const size_t length = strlen(name);
+    name[3] = 'x';
+    CHECK(dvs_context_device_name(ctx, name, 3, &needed) == DVS_ERROR_INVALID_ARGUMENT && strlen(name) == 2 &&
+              name[3] == 'x' && needed == length + 1,
+          "truncation: needed %zu", needed);
+  }
 
   {
     /* The timeline semaphore exists from the start; value 0 is reached at once. */
@@ -356,7 +583,8 @@ int main(int argc, char** argv) {
   CHECK(status == DVS_ERROR_FILE, "failing job: status %d", (int)status);
   CHECK(contains(dvs_last_error(), "missing.mp4"), "failing job: message \"%s\"", dvs_last_error());
   CHECK(dvs_job_poll(job, &state) == DVS_OK && state == DVS_JOB_FAILED, "failing job: state %d", (int)state);
-  CHECK(dvs_job_error(job, error, sizeof error) == DVS_OK && contains(error, "missing.mp4"), "job error \"%s\"", error);
+  CHECK(dvs_job_error(job, error, sizeof error, NULL) == DVS_OK && contains(error, "missing.mp4"), "job error \"%s\"",
+        error);
   CHECK(dvs_job_destroy(job) == DVS_OK, "dvs_job_destroy");
   CHECK(dvs_job_destroy(NULL) == DVS_OK, "destroying NULL");
 
@@ -365,6 +593,10 @@ int main(int argc, char** argv) {
         "NULL job: %d %s", (int)status, dvs_last_error());
 
   CHECK(dvs_context_destroy(ctx) == DVS_OK, "dvs_context_destroy");
+  negatives_are_refused();
+  grown_structs(dir);
+  trajectories(dir);
+  memory_plan();
   host_device_round_trip();
   printf("%s\n", failures ? "FAILED" : "all checks passed");
   return failures ? 1 : 0;

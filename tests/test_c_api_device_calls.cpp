@@ -48,7 +48,10 @@ TEST(CApiDeviceCalls, AWholeRunOnTheApplicationsBuffersGivesTheHostFormsBytes) {
   o.cache_dir = cache.c_str();
   o.prompt = "a red fox";
   o.steps = 4, o.inversion_steps = 3, o.use_cache = 0;  // both forms sample (no cached latent in between)
-  o.render.frames = 0, o.render.height = H, o.render.width = W, o.render.metric_depth = 1;
+  dvs_render_options r;
+  ASSERT_EQ(dvs_render_options_default(&r), DVS_OK);
+  r.frames = 0, r.height = H, r.width = W, r.metric_depth = 1;
+  o.render = &r;
   int64_t shape[4];
   ASSERT_EQ(dvs_clip_latent_shape(&o, F, H, W, shape), DVS_OK) << dvs_last_error();
   const size_t latent_floats = size_t(shape[0] * shape[1] * shape[2] * shape[3]);
@@ -71,7 +74,7 @@ TEST(CApiDeviceCalls, AWholeRunOnTheApplicationsBuffersGivesTheHostFormsBytes) {
   std::memcpy(depth_b.data, depth.data.data(), pixels * 4);
   EXPECT_EQ(dvs_run_pipeline_clip_device(ctx, &o, range(frames_b), F, H, W, range(depth_b), nullptr, dvs_buffer_range{},
                                          range(mask_b), range(latent_b), nullptr, nullptr),
-            DVS_ERROR_FILE);
+            DVS_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(dvs_last_error()).find("ClipResultDeviceViews::output"), std::string::npos) << dvs_last_error();
   ASSERT_EQ(dvs_run_pipeline_clip_device(ctx, &o, range(frames_b), F, H, W, range(depth_b), nullptr, range(output_b),
                                          range(mask_b), range(latent_b), nullptr, nullptr),
@@ -100,7 +103,7 @@ TEST(CApiDeviceCalls, ADepthEstimateOnTheApplicationsBuffersGivesTheHostFormsVal
   test::AppDevice::Buffer &frames_b = app.buffer(pixels * 3), &out_b = app.buffer(pixels * 4);
   std::memcpy(frames_b.data, frames.rgb.data(), pixels * 3);
   EXPECT_EQ(dvs_depth_estimator_estimate_device(estimator, dvs_buffer_range{}, F, H, W, range(out_b), nullptr, nullptr),
-            DVS_ERROR_FILE);
+            DVS_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(dvs_last_error()).find("VK_NULL_HANDLE"), std::string::npos) << dvs_last_error();
   ASSERT_EQ(dvs_depth_estimator_estimate_device(estimator, range(frames_b), F, H, W, range(out_b), nullptr, nullptr),
             DVS_OK)

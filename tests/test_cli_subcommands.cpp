@@ -8,6 +8,7 @@
 #include <regex>
 #include <thread>
 
+#include "dvs/cache.hpp"
 #include "io/npy.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -155,7 +156,7 @@ TEST(CliInterrupt, SigintStopsARunCleanly) {
   EXPECT_EQ(output.find("dvs: error"), std::string::npos) << output;  // an interruption, not a failure
   EXPECT_NE(output.find("{\"event\":\"error\",\"exit_code\":130,\"message\":\"interrupted\"}"), std::string::npos) << output;
   for (const auto& name : test::files_in(out)) ADD_FAILURE() << "left in the output folder: " << name;
-  for (const auto& name : test::files_in(in.cache)) EXPECT_EQ(name.find("partial"), std::string::npos) << name;
+  for (const auto& name : test::files_in(cache_folder(in.cache))) EXPECT_EQ(name.find("partial"), std::string::npos) << name;
 }
 
 }  // namespace

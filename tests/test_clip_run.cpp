@@ -18,6 +18,7 @@
 #include <memory>
 #include <thread>
 
+#include "dvs/cache.hpp"
 #include "dvs/clip_run.hpp"
 #include "dvs/error.hpp"
 #include "dvs/trajectory.hpp"
@@ -143,9 +144,9 @@ TEST_F(ClipRun, SamplesTheLatentTheFileRunSamplesAndRendersWhatDvsRenderRenders)
   // The reference: `dvs run` on the files (run_pipeline with file options), its latent from its own cache.
   run_pipeline(s.in.run_options(s.in.dir / "file", s.in.dir / "file_cache"));
   HostTensor file_latent;
-  for (const auto& name : test::files_in(s.in.dir / "file_cache"))
+  for (const auto& name : test::files_in(cache_folder(s.in.dir / "file_cache")))
     if (name.rfind("latent-", 0) == 0 && name.size() > 4 && name.substr(name.size() - 4) == ".npy")
-      file_latent = read_npy(s.in.dir / "file_cache" / name);
+      file_latent = read_npy(cache_folder(s.in.dir / "file_cache") / name);
   ASSERT_EQ(file_latent.shape, latent_shape()) << "the file run left no latent in its cache";
   EXPECT_TRUE(same_bytes(memory().latent, file_latent)) << "the in-memory run sampled another latent";
 

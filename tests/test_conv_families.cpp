@@ -270,7 +270,8 @@ std::vector<Case> all_cases() {
 
 class ConvFamilies : public GpuTest {
  protected:
-  void run_all(const std::string& overrides, bool twin, const std::vector<Case>& cases) {
+  // fp16_operands: the reference rounds x and w to fp16 as the tensor-core kernel and its twin do.
+  void run_all(const std::string& overrides, bool twin, const std::vector<Case>& cases, bool fp16_operands = false) {
     ops::ScopedTuningOverride scope(overrides);
     struct Reset {
       ~Reset() { ops::set_conv_register_block({}); }
@@ -278,8 +279,12 @@ class ConvFamilies : public GpuTest {
     ops::ConvRegisterBlock blk;
     blk.coopmat_twin = twin;
     ops::set_conv_register_block(blk);
+    if (!twin && overrides.rfind("conv=coopmat", 0) == 0) {
+      ASSERT_EQ(ops::device_tuning(ctx().caps()).conv, ops::KernelFamily::coopmat) << overrides;
+    }
     uint32_t seed = 500;
-    for (const Case& k : cases) check(ctx(), k, seed += 10, twin, twin ? "coopmat twin" : overrides);
+    for (const Case& k : cases)
+      check(ctx(), k, seed += 10, twin || fp16_operands, (twin ? "coopmat twin " : "") + overrides);
   }
 };
 
@@ -298,6 +303,27 @@ TEST_F(ConvFamilies, TiledOtherTiles) {
 // The coopmat kernel's tiles, loads, fp16 rounding and epilogue (its fp32 twin), against the reference
 // on fp16-rounded operands.
 TEST_F(ConvFamilies, CoopmatTwinEveryVariant) { run_all("", true, all_cases()); }
+
+// The twin at other layouts (the tuning's coopmat_lanes and conv_coopmat): 8 lanes (32 fragment elements a lane,
+// 64 invocations gathering 2 pixels each); 2 x 2 subgroups of 2 x 2 fragments (64 x 64, 2 invocations a pixel);
+// 8 lanes on 1 x 1 subgroups of 2 x 2 fragments, K 16 (8 invocations gathering 4 pixels and 4 channels each).
+TEST_F(ConvFamilies, CoopmatTwinOtherLayouts) {
+  std::vector<Case> cases = {all_cases()[1], all_cases()[8], all_cases()[13], all_cases()[14]};
+  for (const char* o : {"coopmat_lanes=8", "conv_coopmat=2x2x2x2x32", "coopmat_lanes=8,conv_coopmat=1x1x2x2x16"})
+    run_all(o, true, cases);
+}
+
+// The tensor-core kernel itself, where the device has tensor cores (lavapipe 26.1 in the tensor-core pass,
+// GPUs), against the reference on fp16-rounded operands (the twin's bound): the tuning's layout, then the
+// others above.
+TEST_F(ConvFamilies, CoopmatEveryVariant) {
+  if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
+  run_all("conv=coopmat", false, all_cases(), true);
+  EXPECT_EQ(ops::device_tuning(ctx().caps()).conv_unfit, "");
+  std::vector<Case> cases = {all_cases()[1], all_cases()[8], all_cases()[13], all_cases()[14]};
+  for (const char* o : {"conv=coopmat,conv_coopmat=2x2x2x2x32", "conv=coopmat,conv_coopmat=1x1x2x2x16"})
+    run_all(o, false, cases, true);
+}
 
 // Without usable cooperative matrices a forced coopmat family falls back to tiled (same results, bit for bit).
 TEST_F(ConvFamilies, CoopmatFallsBackWithoutTensorCores) {

@@ -1,7 +1,7 @@
 // VK_KHR_cooperative_matrix by value, through the engine's own pipeline machinery (vk::Context,
 // PipelineCache, Recorder): one subgroup computes D = A*B + C with test/coopmat_smoke and the result is
 // compared with a plain C++ reference. Skips on devices without usable cooperative matrices (the system's
-// lavapipe); runs on Debian sid's lavapipe (tests/run_on_mesa_coopmat.sh) and on GPUs with tensor cores.
+// lavapipe); runs on Mesa 26.1's lavapipe (tests/run_on_mesa_coopmat.sh) and on GPUs with tensor cores.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -97,7 +97,7 @@ TEST_F(CoopmatSmoke, ListedF16Shapes) {
 }
 
 // The shape the coopmat kernels are written for (16x16x16, what NVIDIA lists). Runs where the device lists
-// it, or where the tuning forces it (DVS_TUNING=coopmat=16x16x16: sid's lavapipe lists only 8x8x8 but
+// it, or where the tuning forces it (DVS_TUNING=coopmat=16x16x16: lavapipe 26.1 lists only 8x8x8 but
 // computes 16x16x16 correctly; tests/run_on_mesa_coopmat.sh then filters the validation layer's report
 // of the unlisted shape).
 TEST_F(CoopmatSmoke, MulAdd16x16x16) {

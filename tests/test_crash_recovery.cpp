@@ -12,6 +12,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
+#include "dvs/cache.hpp"
 #include "support/crash_runs.hpp"
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
@@ -120,7 +121,7 @@ void kill_and_rerun(const KillCase& c, const fs::path& work, const std::vector<s
     const auto rerun = test::run_command(c.command);
     EXPECT_EQ(rerun.exit_code, 0) << where << "\n" << rerun.output;
     expect_same_files(test::visible_files(c.out_dir), want, where);
-    const auto left = test::leftovers(c.out_dir), left_in_cache = test::leftovers(c.cache_dir);
+    const auto left = test::leftovers(c.out_dir), left_in_cache = test::leftovers(cache_folder(c.cache_dir));
     EXPECT_TRUE(left.empty()) << where << ": left " << left.front();
     EXPECT_TRUE(left_in_cache.empty()) << where << ": left in the cache " << left_in_cache.front();
     const bool warned = rerun.output.find("warning: ignoring the cached") != std::string::npos ||

@@ -9,6 +9,7 @@
 
 #include <functional>
 
+#include "dvs/cache.hpp"
 #include "support/fault_walk.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/vda_pack.hpp"
@@ -61,7 +62,7 @@ std::vector<FaultOutcome> walk(const Walk& w, const fs::path& root, const fs::pa
     const bool cache_write = e.kind == "write" && test::writes_a_cache(e, traced / "cache", pipelines);
     const auto torn = test::torn_files(dir / "cache");
     EXPECT_TRUE(torn.empty()) << torn.front();
-    const bool cached = !test::files_in(dir / "cache").empty();
+    const bool cached = !test::files_in(cache_folder(dir / "cache")).empty();
     row.kept = std::string("out: ") + (w.output_written(dir) ? "written" : "nothing") + "; cache: " +
                (cached ? "the entry" : "nothing");
     if (cache_write) {  // only time is lost on a later run

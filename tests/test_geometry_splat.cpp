@@ -40,32 +40,34 @@ HostTensor random_rgb(int F, int H, int W, uint32_t seed) {
   return t;
 }
 
-// Plain C++ port of the official splat (float32 geometry like the shader, double sums).
+// Plain C++ port of the official splat: its geometry (unprojection, transform, projection) computed in double,
+// the exact values any float order of operations approximates (the official code's float32 order misses by a few
+// ulps, which the depth weighting can amplify: splat_common.glsl), then the footprint, weights and normalisation
+// in float as the official code does them, summed in double.
 RenderedClip reference_splat(const HostTensor& rgb, const HostTensor& depth, const Trajectory& tr, const Intrinsics& K,
                              bool keep_behind) {
   const int F = int(depth.shape[0]), H = int(depth.shape[1]), W = int(depth.shape[2]);
   const size_t HW = size_t(H) * size_t(W);
   RenderedClip out{HostTensor({F, 3, H, W}, DType::f32), HostTensor({F, H, W}, DType::f32)};
-  const float fx = float(K.fx), fy = float(K.fy), cx = float(K.cx), cy = float(K.cy);
   for (int f = 0; f < F; ++f) {
-    HostTensor T = transforms_to_host(tr, f, 1);
-    const float* m = T.as<float>();
-    std::vector<float> X(HW), Y(HW), Z(HW);
+    const glm::dmat4& T = tr.transforms[size_t(f)];  // column-major: T[column][row]
+    std::vector<float> U(HW), V(HW), Z(HW);
     std::vector<char> used(HW);
     float max_l = 0;
     for (size_t i = 0; i < HW; ++i) {
-      float z = depth.as<float>()[f * HW + i];
-      float x1 = z * ((float(i % W) - cx) / fx), y1 = z * ((float(i / W) - cy) / fy), z1 = z;
-      X[i] = m[0] * x1 + m[1] * y1 + m[2] * z1 + m[3];
-      Y[i] = m[4] * x1 + m[5] * y1 + m[6] * z1 + m[7];
-      Z[i] = m[8] * x1 + m[9] * y1 + m[10] * z1 + m[11];
+      const double z = depth.as<float>()[f * HW + i];
+      const double x1 = z * ((double(i % W) - K.cx) / K.fx), y1 = z * ((double(i / W) - K.cy) / K.fy), z1 = z;
+      const double X = T[0][0] * x1 + T[1][0] * y1 + T[2][0] * z1 + T[3][0];
+      const double Y = T[0][1] * x1 + T[1][1] * y1 + T[2][1] * z1 + T[3][1];
+      const double Zd = T[0][2] * x1 + T[1][2] * y1 + T[2][2] * z1 + T[3][2];
+      U[i] = float(K.fx * X / Zd + K.cx), V[i] = float(K.fy * Y / Zd + K.cy), Z[i] = float(Zd);
       used[i] = keep_behind ? Z[i] != 0 : Z[i] > 0;
       if (used[i]) max_l = std::max(max_l, std::log(1.0f + std::clamp(Z[i], 0.0f, 1000.0f)));
     }
     std::vector<double> acc(HW * 4, 0.0);
     for (size_t i = 0; i < HW; ++i) {
       if (!used[i]) continue;
-      float u = (fx * X[i] + cx * Z[i]) / Z[i], v = (fy * Y[i] + cy * Z[i]) / Z[i];
+      const float u = U[i], v = V[i];
       float ox = u + 1, oy = v + 1;
       float fX = std::floor(ox), fY = std::floor(oy), cX = std::ceil(ox), cY = std::ceil(oy);
       auto cl = [](float a, float hi) { return std::clamp(a, 0.0f, hi); };
@@ -240,7 +242,9 @@ TEST_F(GpuTest, GeometrySplatMatchesOfficialReference) {
     RenderedClip r = render_clip(ctx(), rgb, depth, tr, K, o);
     Diff d = compare(r, ref);
     EXPECT_LE(d.mask_mismatch, 2) << "fixed=" << fixed;
-    EXPECT_LE(d.max_abs, fixed ? 5e-4 : 5e-5) << "fixed=" << fixed;  // measured 6.6e-5 / 4.3e-6 on lavapipe
+    // Measured on lavapipe: 3.6e-4 / 3.7e-4 (the official float32 order of the projection: 8.2e-3 against this
+    // exact geometry, which is why the shader computes the pixel plus its displacement).
+    EXPECT_LE(d.max_abs, 5e-4) << "fixed=" << fixed;
   }
 }
 
@@ -260,7 +264,7 @@ TEST_F(GpuTest, GeometrySplatPointsBehindCamera) {
     RenderedClip r = render_clip(ctx(), rgb, depth, tr, K, o);
     Diff d = compare(r, reference_splat(rgb, depth, tr, K, keep));
     EXPECT_LE(d.mask_mismatch, 2) << "keep=" << keep;
-    EXPECT_LE(d.max_abs, 2e-4) << "keep=" << keep;
+    EXPECT_LE(d.max_abs, 2e-4) << "keep=" << keep;  // measured 5.1e-5 (the official float32 order: 0.85, 6 masks)
   }
 }
 

@@ -143,7 +143,7 @@ TEST(IoDepthSanity, AspectMismatchNeedsDepthFitAndCropFollowsTheVideo) {
   const VideoFrameGeometry square{40, 40, 40, 40, ResizeMode::crop};  // a 40x40 video used as it is
   const std::string e = error_of([&] { map_depth_to_video(wide, 1, square, DepthFit::error, false, "d.npy"); });
   EXPECT_NE(e.find("d.npy: the depth frames are 40x80 (HxW) but the video's are 40x40"), std::string::npos) << e;
-  EXPECT_NE(e.find("--depth-fit stretch"), std::string::npos) << e;
+  EXPECT_NE(e.find("RenderJob::depth_fit stretch"), std::string::npos) << e;  // the field: a library call
   // crop: the depth's centre columns 20..59; stretch: column 2x + 0.5 (half-pixel centres).
   const HostTensor crop = map_depth_to_video(wide, 1, square, DepthFit::crop, false, "d.npy");
   const HostTensor stretch = map_depth_to_video(wide, 1, square, DepthFit::stretch, false, "d.npy");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dvs/error.hpp"
+#include "dvs/video.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
 #include "support/expect_error.hpp"
@@ -116,6 +117,21 @@ TEST(VideoProblems, FewerFramesThanAskedIsAnErrorWithTheCountThatWorks) {
   write_npy(d / "three.npy", grey_clip(3, 8, 8));
   o.max_frames = 5;
   test::expect_error([&] { read_video(d / "three.npy", o); }, {"three.npy: holds 3 frames, fewer than --frames 5"});
+}
+
+// The library's readers (dvs/video.hpp) name frames past the end in their call's terms, not the dvs program's
+// --frames, which their caller never gave (issue 34 §3: the preview's --frame-index 60 on a 49-frame clip).
+TEST(VideoProblems, LibraryReadersNameTheFramesAskedForNotTheProgramsOptions) {
+  test::TempDir d;
+  write_video(d / "three.mp4", grey_clip(3, 32, 32), 10);
+  const std::string one = test::error_of([&] { read_video_frames(d / "three.mp4", 7, 1, 32, 32); });
+  EXPECT_NE(one.find("three.mp4: frame 7 asked for, but the video holds 3 frames (frames 0..2)"), std::string::npos) << one;
+  const std::string some = test::error_of([&] { read_video_frames(d / "three.mp4", 2, 4, 32, 32); });
+  EXPECT_NE(some.find("three.mp4: frames 2..5 asked for, but the video holds 3 frames"), std::string::npos) << some;
+  const std::string depth = test::error_of([&] { read_video_frames_for_depth(d / "three.mp4", 9); });
+  EXPECT_NE(depth.find("three.mp4: frames 0..8 asked for, but the video holds 3 frames"), std::string::npos) << depth;
+  for (const std::string& m : {one, some, depth}) EXPECT_EQ(m.find("--frames"), std::string::npos) << m;
+  EXPECT_EQ(read_video_frames(d / "three.mp4", 2, 1, 32, 32).count, 1);  // the last frame is there
 }
 
 // `dvs render --frames 9` on a 3-frame clip: refused before anything is written.

@@ -34,6 +34,7 @@ vk::DeviceCaps discrete_gpu() {
   c.subgroup_size = 32;
   c.subgroup_shuffle = true;
   c.max_compute_shared_memory = 48 * 1024;
+  c.max_workgroup_invocations = 1024;
   return c;
 }
 
@@ -235,7 +236,9 @@ TEST(KernelTuning, OverrideStrings) {
 TEST(KernelTuning, BadOverridesThrowAndListTheFields) {
   for (const char* s : {"no-such-entry", "linear=fast", "frobnicate=1", "norm_row_per_invocation=maybe",
                         "coopmat=on", "reduce_min_chunk=1026", "reduce_min_chunk=512", "linear_tile_m=4",
-                        "conv_pack_columns=-1", "linear_tile_k="}) {
+                        "conv_pack_columns=-1", "linear_tile_k=", "coopmat=12x16x16", "coopmat=16x16",
+                        "coopmat=16x16x16x", "linear_coopmat=2x4x4x2", "linear_coopmat=2x4x4x2x32x1",
+                        "conv_coopmat=2x0x2x2x32", "coopmat_lanes=24", "attention_coopmat_subgroups=0"}) {
     SCOPED_TRACE(s);
     const std::string e = error_of([&] { ops::select_tuning(cpu_device(), s); });
     ASSERT_FALSE(e.empty()) << "no error";
@@ -252,6 +255,34 @@ TEST(KernelTuning, BadOverridesThrowAndListTheFields) {
   const std::string v = error_of([] { ops::select_tuning(cpu_device(), "attention=fast"); });
   EXPECT_NE(v.find("texel|tiled|coopmat"), std::string::npos) << v;
   EXPECT_EQ(ops::tuning_field_names().find("  an entry: cpu-simd gpu-coopmat gpu\n"), 0u) << ops::tuning_field_names();
+}
+
+// The tensor-core layout fields: taken as given (the layout is checked against the device: a misfit runs tiled
+// and says why; coopmat_pipeline refuses it with the same words), the rest chosen from the table.
+TEST(KernelTuning, CoopmatLayoutFields) {
+  const ops::DeviceTuning t = ops::select_tuning(
+      coopmat_gpu(), "linear_coopmat=1x2x4x2x16,conv_coopmat=2x2x2x2x32,attention_coopmat_subgroups=2,coopmat=16x16x8");
+  EXPECT_EQ(t.linear_coopmat.sg_m, 1);
+  EXPECT_EQ(t.linear_coopmat.sg_n, 2);
+  EXPECT_EQ(t.linear_coopmat.frags_m, 4);
+  EXPECT_EQ(t.linear_coopmat.frags_n, 2);
+  EXPECT_EQ(t.linear_coopmat.k, 16);
+  EXPECT_EQ(t.conv_coopmat.subgroups(), 4);
+  EXPECT_EQ(t.attention_coopmat_subgroups, 2);
+  EXPECT_EQ(t.coopmat.k, 8u);
+  expect_families(t, KernelFamily::coopmat);
+  const std::string d = ops::describe_tuning(t);
+  EXPECT_NE(d.find("64x64x16 (1x2 subgroups of 32 lanes, 4x2 fragments of 16x16x8 each)"), std::string::npos) << d;
+  EXPECT_NE(d.find("32 query rows x 64 keys (2 subgroups of 32 lanes"), std::string::npos) << d;
+  // Lanes other than the device's: the tensor-core kernels cannot run (tiled, and why).
+  const ops::DeviceTuning l = ops::select_tuning(coopmat_gpu(), "coopmat_lanes=16");
+  expect_families(l, KernelFamily::tiled);
+  EXPECT_NE(l.conv_unfit.find("subgroups of 16 lanes; faked discrete GPU has 32"), std::string::npos) << l.conv_unfit;
+  // A layout whose index maps do not divide (K 12 is no multiple of 8).
+  const ops::DeviceTuning k = ops::select_tuning(coopmat_gpu(), "linear_coopmat=2x4x4x2x12");
+  EXPECT_EQ(k.linear, KernelFamily::tiled);
+  EXPECT_EQ(k.attention, KernelFamily::coopmat);
+  EXPECT_NE(k.linear_unfit.find("does not divide"), std::string::npos) << k.linear_unfit;
 }
 
 // device_tuning() applies DVS_TUNING (whatever this process has; the CI pass sets DVS_TUNING=gpu), then the

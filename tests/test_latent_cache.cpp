@@ -9,7 +9,9 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "dvs/cache.hpp"
 #include "dvs/error.hpp"
+#include "dvs/logs.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
@@ -72,7 +74,7 @@ TEST(LatentCache, InterruptedDecodeIsReRunStraightToTheDecode) {
   ASSERT_TRUE(cancelled) << "the interrupt was not seen";
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "output.mp4"));
   EXPECT_FALSE(fs::exists(in.dir / "out2" / "run.json"));
-  const fs::path latent2 = in.dir / "cache2" / latent1.filename();
+  const fs::path latent2 = cache_folder(in.dir / "cache2") / latent1.filename();
   ASSERT_TRUE(fs::exists(latent2)) << "the sampled latent was not cached before the decode";
   EXPECT_EQ(bytes_of(latent2), bytes_of(latent1)) << "the interrupted run sampled another latent";
 
@@ -115,7 +117,7 @@ TEST(LatentCache, FailedDecodeKeepsTheLatent) {
   EXPECT_THROW(run_pipeline(o, fail_at_decode), Error);
   EXPECT_FALSE(fs::exists(in.dir / "out" / "output.mp4"));
   int latents = 0;
-  for (const auto& e : fs::directory_iterator(in.dir / "cache"))
+  for (const auto& e : fs::directory_iterator(cache_folder(in.dir / "cache")))
     latents += e.path().filename().string().rfind("latent-", 0) == 0 && e.path().extension() == ".npy";
   EXPECT_EQ(latents, 1) << "the sampled latent was not kept";
   o.vae_tiling = true;
@@ -134,13 +136,15 @@ TEST(LatentCache, ADamagedLatentIsSampledAgain) {
   latent.as<float>()[3] = std::numeric_limits<float>::infinity();
   write_cache_entry(file, latent);  // a whole entry (its marker matches) that holds an Inf
   o.render.out_dir = in.dir / "out2";
-  std::vector<std::string> notes;
-  RunReport report = run_pipeline(o, [&](const std::string&, int, int, const std::string& note) { notes.push_back(note); });
+  std::vector<std::string> warnings;  // a warning goes to the log handler (dvs/logs.hpp), not into the progress
+  set_log_handler([&](LogLevel, const std::string& message) { warnings.push_back(message); });
+  RunReport report = run_pipeline(o);
+  set_log_handler({});
   const json record = json::parse(std::ifstream(report.run_json));
   EXPECT_FALSE(record["latent"]["reused"].get<bool>());
   EXPECT_TRUE(record["seconds"].contains("sample"));
   bool said = false;
-  for (const auto& n : notes) said |= n.find("ignoring the cached latent") != std::string::npos;
+  for (const auto& w : warnings) said |= w.find("ignoring the cached latent") != std::string::npos;
   EXPECT_TRUE(said);
   const HostTensor again = read_npy(file);  // sampled and stored again: finite
   for (int64_t i = 0; i < again.numel(); ++i) ASSERT_TRUE(std::isfinite(again.as<float>()[i])) << i;

@@ -17,6 +17,7 @@
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 
@@ -103,7 +104,9 @@ class AttentionTest : public GpuTest {
     EXPECT_EQ(ref.size(), size_t(c.batch * c.q_len * W));
     double vmax = 0;
     for (float x : hv.data) vmax = std::max(vmax, double(std::fabs(x)));
-    const double tol = fp16_tolerance_ ? fp16_tolerance_ * (1 + vmax) : 2e-5 + 2e-5 * vmax;
+    // A call on tensor cores (every test, where a tensor-core tuning is forced) has fp16 operands.
+    const double fp16 = last_family_ == ops::KernelFamily::coopmat ? std::max(fp16_tolerance_, kFp16Tolerance) : fp16_tolerance_;
+    const double tol = fp16 ? fp16 * (1 + vmax) : 2e-5 + 2e-5 * vmax;
     double worst = 0;
     size_t bad = 0, touched = 0;
     for (int64_t row = 0; row < c.batch * c.q_len; ++row)
@@ -127,6 +130,9 @@ class AttentionTest : public GpuTest {
   }
   ops::KernelFamily last_family_ = ops::KernelFamily::texel;  // the kernel family of the last check()
   double fp16_tolerance_ = 0;  // > 0: tolerance fp16_tolerance_·(1 + max|v|) (tensor-core operands)
+  // fp16 operands (q pre-scaled, k, v, p; 11-bit significands) with fp32 accumulation: the scores' rounding moves
+  // the weights by ~1e-3 relative at these sizes.
+  static constexpr double kFp16Tolerance = 5e-3;
 };
 
 TEST_F(AttentionTest, HeadDimsFromFourTo128) {
@@ -297,34 +303,45 @@ TEST_F(AttentionTest, TiledFamilyFallbacks) {
 }
 
 // The coopmat family (shaders/nn/attention_flash_coopmat.comp) by value, where the device has tensor cores
-// (skipped on lavapipe). fp16 operands (q pre-scaled, k, v, p; 11-bit significands) with fp32 accumulation:
-// tolerance 5e-3·(1 + max|v|) (the scores' rounding moves the weights by ~1e-3 relative at these sizes).
-// head_dim 16..64 (multiples of 16) run on tensor cores; 40, 72 and 128 on the tiled kernel.
+// (lavapipe 26.1 in the tensor-core pass, GPUs). fp16 operands (q pre-scaled, k, v, p; 11-bit significands)
+// with fp32 accumulation: tolerance 5e-3·(1 + max|v|) (the scores' rounding moves the weights by ~1e-3
+// relative at these sizes). head_dim 16..64 in multiples of the fragment run on tensor cores (at 16x16x16:
+// 16, 48, 64; at lavapipe's 8x8x8 also 40); 72 and 128 (over the 64-key tile) on the tiled kernel. Then
+// other layouts of the same kernel: 1 and 2 subgroups, 32-key tiles.
 TEST_F(AttentionTest, CoopmatFamilyByValue) {
   if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
-  ops::ScopedTuningOverride coop("attention=coopmat");
   const bool forced = ctx().caps().forced_limits.any();
-  fp16_tolerance_ = 5e-3;
+  fp16_tolerance_ = kFp16Tolerance;
   uint32_t seed = 600;
   double worst = 0;
-  const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}, {64, 64}, {200, 1000}};
-  for (int64_t d : {16, 48, 64, 40, 72, 128})
-    for (int64_t heads : {1, 3})
-      for (auto [lq, lk] : lengths) {
-        Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
-        c.pad_columns = 4;
-        c.out_offset = 4;
-        c.out_extra = 8;
-        worst = std::max(worst, check(c, seed++));
-        const ops::KernelFamily want = d % 16 == 0 && d <= 64 ? ops::KernelFamily::coopmat : ops::KernelFamily::tiled;
-        if (!forced) {
-          EXPECT_EQ(last_family_, want) << "D" << d << " H" << heads << " Lq" << lq << " Lk" << lk;
+  auto run = [&](const std::string& layout, std::initializer_list<int64_t> dims,
+                 std::initializer_list<std::pair<int64_t, int64_t>> lengths) {
+    ops::ScopedTuningOverride coop("attention=coopmat" + layout);
+    const ops::CoopmatAttention a = ops::attention_coopmat_layout(ops::device_tuning(ctx().caps()));
+    for (int64_t d : dims)
+      for (int64_t heads : {1, 3})
+        for (auto [lq, lk] : lengths) {
+          SCOPED_TRACE(a.describe());
+          Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
+          c.pad_columns = 4;
+          c.out_offset = 4;
+          c.out_extra = 8;
+          worst = std::max(worst, check(c, seed++));
+          const bool takes = ops::attention_coopmat_head_dim_unfit(a, d).empty();
+          if (!forced) {
+            EXPECT_EQ(last_family_, takes ? ops::KernelFamily::coopmat : ops::KernelFamily::tiled)
+                << "D" << d << " H" << heads << " Lq" << lq << " Lk" << lk;
+          }
         }
-      }
+  };
+  run("", {16, 48, 64, 40, 72, 128}, {{1, 1}, {37, 45}, {130, 129}, {64, 64}, {200, 1000}});
   for (int64_t d : {64, 62}) {  // fused QKV; 62 padded to 64
+    ops::ScopedTuningOverride coop("attention=coopmat");
     Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
     worst = std::max(worst, check(c, seed++));
   }
+  for (const char* layout : {",attention_coopmat_subgroups=1", ",attention_coopmat_subgroups=2,attention_block_k=32"})
+    run(layout, {16, 32}, {{37, 45}, {130, 129}});
   fp16_tolerance_ = 0;
   std::cout << "coopmat family: max error " << worst << "\n";
 }
@@ -336,7 +353,7 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
 TEST_F(AttentionTest, CoopmatTwinByValue) {
   if (!ctx().caps().float16_arithmetic) GTEST_SKIP() << "no shaderFloat16";
   const bool forced = ctx().caps().forced_limits.any();
-  fp16_tolerance_ = 5e-3;
+  fp16_tolerance_ = kFp16Tolerance;
   uint32_t seed = 700;
   double worst = 0;
   const std::pair<int64_t, int64_t> lengths[] = {{1, 1}, {37, 45}, {130, 129}, {64, 200}};
@@ -355,6 +372,20 @@ TEST_F(AttentionTest, CoopmatTwinByValue) {
       }
     Case fused{2, 3, d == 32 ? 30 : d, 130, 130, 0.2f, false, false, true};
     worst = std::max(worst, check(fused, seed++));
+  }
+  // The twin at other lanes per subgroup (the coopmat kernel's softmax ownership): 8 lanes (2 rows a lane, as on
+  // lavapipe at 16x16x16), 16 (a row a lane), 64 (4 lanes a row).
+  for (const char* lanes : {"8", "16", "64"}) {
+    ops::ScopedTuningOverride twin(std::string("attention=tiled,attention_coopmat_twin=on,attention_block_k=32,coopmat_lanes=") + lanes);
+    for (auto [lq, lk] : {std::pair<int64_t, int64_t>{37, 45}, {130, 129}}) {
+      Case c{2, 3, 32, lq, lk, 1.0f / std::sqrt(32.0f)};
+      c.out_offset = 4;
+      c.out_extra = 8;
+      worst = std::max(worst, check(c, seed++));
+      if (!forced) {
+        EXPECT_EQ(last_family_, ops::KernelFamily::tiled) << lanes << " lanes";
+      }
+    }
   }
   fp16_tolerance_ = 0;
   std::cout << "coopmat twin: max error " << worst << "\n";

@@ -80,6 +80,9 @@ class LinearTest : public test::GpuTest, public testing::WithParamInterface<cons
   void SetUp() override {
     test::GpuTest::SetUp();
     tuning_.emplace(GetParam());
+    // The CoopmatLayout instances: other tensor-core layouts, where the device holds them.
+    if (std::string(GetParam()).rfind("linear=coopmat", 0) == 0 && family() != ops::KernelFamily::coopmat)
+      GTEST_SKIP() << GetParam() << ": " << ops::device_tuning(ctx().caps()).linear_unfit;
   }
   void TearDown() override {
     tuning_.reset();
@@ -326,7 +329,7 @@ TEST_P(LinearTest, KernelVariants) {
   // Variants the selector picks on other devices (cluster shuffles for wider subgroups, no subgroup
   // operations) and the 16-row tile, pinned here so lavapipe tests them all. Few rows (1, 2, 4) are
   // covered by the small-M shapes above.
-  if (forced_tiled()) GTEST_SKIP() << "texel variants only";
+  if (!std::string(GetParam()).empty()) GTEST_SKIP() << "texel variants only (run once, in the device instance)";
   const LinearKernel kernels[] = {{8, 2, 1, 2, true}, {8, 2, 2, 2, true}, {16, 2, 0, 2, true}};
   for (const LinearKernel& k : kernels) {
     Options o;
@@ -418,6 +421,17 @@ TEST_P(LinearTest, TiledModelEpilogues) {
 INSTANTIATE_TEST_SUITE_P(Family, LinearTest, testing::Values("", "linear=tiled"),
                          [](const testing::TestParamInfo<const char*>& i) {
                            return std::string(i.param).empty() ? std::string("device") : std::string("tiled");
+                         });
+
+// The tensor-core kernel at other layouts than the tuning's (run where the device has tensor cores and holds
+// them: lavapipe 26.1 in the tensor-core pass): one subgroup with K steps of one fragment; 4 x 2 subgroups of
+// 1 x 3 fragments (an N tile of three fragments, K 16: 4 rows staged per pass).
+INSTANTIATE_TEST_SUITE_P(CoopmatLayout, LinearTest,
+                         testing::Values("linear=coopmat,linear_coopmat=1x1x1x1x8",
+                                         "linear=coopmat,linear_coopmat=4x2x1x3x16"),
+                         [](const testing::TestParamInfo<const char*>& i) {
+                           std::string n = std::string(i.param).substr(std::string("linear=coopmat,linear_coopmat=").size());
+                           return "layout_" + n;
                          });
 
 // The tensor-core kernel cannot run on lavapipe (no VK_KHR_cooperative_matrix): it is embedded (compiled by

@@ -139,6 +139,15 @@ TEST(RunPreflight, ExplicitOutOfRangeValuesAreErrorsNotTheDefault) {
   }
 }
 
+// `dvs batch` of one job on the scene's video with `depth`, out to in.dir/a.
+static test::CommandResult batch_of_one_job(const PipelineInputs& in, const std::filesystem::path& depth) {
+  const auto jobs = in.dir / "jobs.jsonl";
+  test::write_text(jobs, "{\"video\": \"" + in.video.string() + "\", \"depth\": \"" + depth.string() +
+                             "\", \"metric-depth\": true, \"prompt\": \"a fox\", \"out\": \"" + (in.dir / "a").string() + "\"}\n");
+  return test::run_command(test::program("dvs") + " batch " + jobs.string() + " --model " + in.model.string() +
+                           " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + in.cache.string());
+}
+
 // The depth file's frame count (its header) against the frames the job uses: found by run --check and by
 // batch's up-front check, not in the render stage.
 TEST(RunPreflight, DepthFramesAgainstFramesAreChecked) {
@@ -162,15 +171,39 @@ TEST(RunPreflight, DepthFramesAgainstFramesAreChecked) {
   r = with_depth(in.depth, "");
   EXPECT_EQ(r.exit_code, 0) << "the matching depth was refused:\n" << r.output;
 
-  const auto jobs = in.dir / "jobs.jsonl";
-  test::write_text(jobs, "{\"video\": \"" + in.video.string() + "\", \"depth\": \"" + fewer.string() +
-                             "\", \"metric-depth\": true, \"prompt\": \"a fox\", \"out\": \"" + (in.dir / "a").string() + "\"}\n");
-  auto b = test::run_command(test::program("dvs") + " batch " + jobs.string() + " --model " + in.model.string() +
-                             " --frames 9 --size 64x64 --steps 4 --inversion-steps 3 --cache-dir " + in.cache.string());
+  const auto b = batch_of_one_job(in, fewer);
   EXPECT_NE(b.exit_code, 0) << b.output;
   EXPECT_NE(b.output.find("holds 5 depth frames"), std::string::npos) << b.output;
   EXPECT_EQ(b.output.find(": running ->"), std::string::npos) << b.output;
   EXPECT_FALSE(std::filesystem::exists(in.dir / "a"));
+}
+
+// Depth of another aspect ratio than the video (its shape is in the file's header): found by run --check, render
+// --check and batch's whole-file check with the render stage's own message, not after the decode (issue 34 §3).
+TEST(RunPreflight, DepthOfAnotherAspectRatioIsFoundBeforeAnyWork) {
+  PipelineInputs in;  // a 64x64 video
+  const auto wide = in.dir / "wide.npy";
+  write_npy(wide, HostTensor::from_f32({9, 64, 96}, std::vector<float>(size_t(9 * 64 * 96), 2.0f)));
+  const std::string why = "wide.npy: the depth frames are 64x96 (HxW) but the video's are 64x64: another aspect ratio";
+  std::string run = in.command(in.dir / "out", "--check");
+  run.replace(run.find(in.depth.string()), in.depth.string().size(), wide.string());
+  auto r = test::run_command(run);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+  const auto fitted = test::run_command(run + " --depth-fit stretch");
+  EXPECT_EQ(fitted.exit_code, 0) << "--depth-fit stretch maps it:\n" << fitted.output;
+
+  const std::string render = test::program("dvs") + " render --video " + in.video.string() + " --depth " + wide.string() +
+                             " --metric-depth --frames 9 --size 64x64 --out " + (in.dir / "r").string();
+  r = test::run_command(render + " --check");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(why), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("preflight found"), std::string::npos) << r.output;
+
+  const auto b = batch_of_one_job(in, wide);
+  EXPECT_NE(b.exit_code, 0) << b.output;
+  EXPECT_NE(b.output.find(why), std::string::npos) << b.output;
+  EXPECT_EQ(b.output.find(": running ->"), std::string::npos) << b.output;
 }
 
 TEST(BatchPreflight, TheWholeFileIsCheckedBeforeTheFirstJob) {

@@ -30,10 +30,11 @@ std::string days_text(double d) {
 const CommandHelp kCacheHelp{
     "dvs cache list [--cache-dir DIR]\n"
     "       dvs cache clean (--older-than DAYS | --max-size SIZE | --all) [--dry-run] [--cache-dir DIR]",
-    "The cache keeps depth estimates, inversions and sampled latents that later runs reuse. `list` shows its\n"
-    "entries, most recently used first; `clean` removes those unused for more than DAYS days, then the least\n"
-    "recently used until the rest fits in SIZE (e.g. 500M, 20G), or all of them. A file another dvs process is\n"
-    "still writing is never removed.\n",
+    "The cache keeps depth estimates, inversions and sampled latents that later runs reuse, in DIR/inversions of\n"
+    "the cache folder DIR (--cache-dir DIR as every command takes it, else $DVS_CACHE_DIR, else ~/.cache/dvs).\n"
+    "`list` shows its entries, most recently used first; `clean` removes those unused for more than DAYS days,\n"
+    "then the least recently used until the rest fits in SIZE (e.g. 500M, 20G), or all of them. A file another\n"
+    "dvs process is still writing is never removed.\n",
     ""};
 
 }  // namespace
@@ -59,9 +60,10 @@ int run_cache(const std::vector<std::string>& argv) {
     for (const auto& e : entries) {
       total += e.bytes;
       std::printf("%-9s %s  %10s  %8s  %s\n", e.kind.c_str(), e.key.c_str(), bytes_text(e.bytes).c_str(),
-                  days_text(e.age_days).c_str(), e.files.front().string().c_str());
+                  days_text(e.age_days).c_str(), (e.data_file.empty() ? e.files.front() : e.data_file).string().c_str());
     }
     std::printf("%zu entries, %s in %s\n", entries.size(), bytes_text(total).c_str(), cache_folder(dir).string().c_str());
+    if (auto old = old_cache_layout(dir)) std::printf("note: %s\n", old->c_str());
     return 0;
   }
   if (action != "clean") a.fail(action.empty() ? "say list or clean" : "unknown action '" + action + "': say list or clean");
@@ -87,6 +89,7 @@ int run_cache(const std::vector<std::string>& argv) {
               bytes_text(r.kept_bytes).c_str(), cache_folder(dir).string().c_str());
   if (r.stale_temporaries)
     std::printf("%s %d half-written files of dvs processes that no longer run\n", verb, r.stale_temporaries);
+  if (auto old = old_cache_layout(dir)) std::printf("note: %s\n", old->c_str());
   return 0;
 }
 

@@ -39,8 +39,8 @@ const OptionGroup kDepthEstimate{
 // The depth cache, shared with run/render --depth-model: the same estimate is never made twice.
 const OptionGroup kDepthEstimateCache{
     "cache",
-    {{"cache-dir", "DIR", "the depth cache, shared with run/render --depth-model (default $DVS_CACHE_DIR or\n"
-                          "~/.cache/dvs)"},
+    {{"cache-dir", "DIR", "the cache folder, as DVS_CACHE_DIR=DIR, shared with run/render --depth-model: the\n"
+                          "estimates in DIR/inversions (default $DVS_CACHE_DIR, else ~/.cache/dvs)"},
      {"no-cache", "", "estimate again even when the cache holds this estimate"}}};
 
 }  // namespace

@@ -19,7 +19,6 @@
 #include "depth_args.hpp"
 #include "options.hpp"
 #include "progress.hpp"
-#include "prompt_length.hpp"
 #include "run_command.hpp"
 
 namespace dvs::cli {
@@ -187,8 +186,6 @@ int run_run(const std::vector<std::string>& argv) {
   if (a.help()) return 0;
   if (!a.has("prompt")) a.fail("--prompt is required (\"\" is allowed: no text conditioning)");
   const RunOptions o = parse_run_options(a);
-  for (const auto& [text, option] : {std::pair{o.prompt, "--prompt"}, std::pair{o.negative_prompt, "--negative-prompt"}})
-    if (auto w = prompt_truncation_warning(o.model, text, option)) std::cerr << "dvs run: " << *w << "\n";
   if (a.has("check")) {
     const PreflightReport r = preflight(o, JobKind::run);
     if (!r.ok()) throw Error(r.message());

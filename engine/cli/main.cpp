@@ -4,6 +4,9 @@
 // Exit status, the same for every command: 0 done (and --help), 1 the work failed (bad input file, device
 // error, ...), 2 usage error (unknown option, malformed or missing value), 130 interrupted (Ctrl-C/SIGTERM),
 // 3 internal error (a bug: please report it).
+#include <unistd.h>
+
+#include <cstdio>
 #include <cstring>
 #include <new>
 #include <cstdio>
@@ -14,6 +17,7 @@
 #include "dvs/error.hpp"
 #include "dvs/info.hpp"
 #include "dvs/logs.hpp"
+#include "dvs/option_names.hpp"
 #include "dvs/usage_error.hpp"
 #include "args.hpp"
 #include "commands.hpp"
@@ -99,6 +103,13 @@ int main(int argc, char** argv) {
     else args.emplace_back(argv[i]);
   }
   dvs::set_third_party_logs(verbose);  // before any library starts logging
+  dvs::set_option_names(dvs::OptionNames::command_line);  // messages name --strength, not RunOptions::strength
+  // The library's warnings on stderr in every progress mode; on a terminal, over the progress bar's open line
+  // (the bar redraws itself on the next line).
+  dvs::set_log_handler([tty = isatty(fileno(stderr)) != 0](dvs::LogLevel, const std::string& message) {
+    std::fprintf(stderr, "%sdvs: warning: %s\n", tty ? "\r\033[K" : "", message.c_str());
+    std::fflush(stderr);
+  });
   // --progress json: stdout is for JSON Lines alone, so every plain line (std::cout) goes to stderr.
   const bool json = dvs::cli::wants_json_progress(args);
   if (json) std::cout.rdbuf(std::cerr.rdbuf());

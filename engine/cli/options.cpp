@@ -44,7 +44,8 @@ const OptionGroup kDepthSource{
 
 const OptionGroup kDepthCache{
     "cache",
-    {{"cache-dir", "DIR", "cache folder: depth estimates, inversions (default $DVS_CACHE_DIR or ~/.cache/dvs)"},
+    {{"cache-dir", "DIR", "the cache folder, as DVS_CACHE_DIR=DIR: depth estimates, inversions and latents in\n"
+                          "DIR/inversions (default $DVS_CACHE_DIR, else ~/.cache/dvs)"},
      {"no-cache", "", "neither read nor write the cache (compute everything again)"}}};
 
 const OptionGroup kOutFolder{"output", {{"out", "DIR", "output folder (created)"}}};

@@ -19,8 +19,6 @@ ProgressMode progress_mode(const Args& a) {
   return value == "json" ? ProgressMode::json : ProgressMode::bar;
 }
 
-bool is_warning(const std::string& note) { return note.rfind("warning: ", 0) == 0; }
-
 Progress::Progress(ProgressMode mode) : mode_(mode), tty_(isatty(fileno(stderr))) {}
 
 void Progress::operator()(const std::string& stage, int step, int total, const std::string& note) {
@@ -31,20 +29,14 @@ void Progress::operator()(const std::string& stage, int step, int total, const s
     stage_start_ = now;
   }
   double elapsed = std::chrono::duration<double>(now - stage_start_).count();
-  // A warning (a damaged cache entry recomputed, a cache that cannot be written) is not progress: it goes to
-  // stderr on a line of its own in every mode, --quiet and --progress none included.
-  if (is_warning(note)) {
-    finish();
-    std::fprintf(stderr, "%s\n", note.c_str());
-    std::fflush(stderr);
-  }
+  // Warnings (a damaged cache entry recomputed, a cache that cannot be written) are not progress: the library sends
+  // them to the log handler main() installs, which prints them in every mode.
   if (mode_ == ProgressMode::quiet) return;
   if (mode_ == ProgressMode::json) {
     emit_json_event({{"event", "progress"}, {"stage", stage}, {"step", step}, {"total", total}, {"elapsed_s", elapsed},
                      {"note", note}});
     return;
   }
-  if (is_warning(note)) return;  // printed above
   std::string line;
   char buf[256];
   if (total > 0) {

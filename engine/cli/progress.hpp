@@ -29,9 +29,6 @@ class Progress {
   bool open_line_ = false;
 };
 
-// A progress note that is a warning ("warning: ..."): always printed to stderr, whatever the mode.
-bool is_warning(const std::string& note);
-
 // --progress bar|json|none and --quiet (= none); the two together with another mode are a usage error.
 ProgressMode progress_mode(const Args& a);
 

@@ -7,7 +7,7 @@
 //   play              P: play the path from frame 0
 //   wait N            N frames without input
 //   screenshot FILE   F12: the render panel as .npy (u8 [H,W,4], exactly as rendered) or the window as .png
-//   export FILE.json  E: the path as FILE.json and FILE.glb
+//   export FILE.json  X: the path as FILE.json and FILE.glb
 //   quit
 // Blank lines and lines starting with '#' are skipped. Errors name the file and line.
 #pragma once

@@ -20,7 +20,7 @@ struct WindowOptions {
   int panel_width = 720, panel_height = 480, panels = 3;
   std::string device;     // substring of the GPU's name; "" = the first that can present
   bool validation = false;  // the Khronos validation layer on the example's instance
-  bool vsync = false;       // FIFO present; false = IMMEDIATE or MAILBOX where offered (frame times unthrottled)
+  bool vsync = true;        // FIFO present; false = IMMEDIATE or MAILBOX where offered (frame times unthrottled)
 };
 
 class PresentWindow {

@@ -15,6 +15,7 @@
 #include "dvs/scene.hpp"
 #include "dvs/trajectory.hpp"
 #include "fly_camera.hpp"
+#include "frame_pacing.hpp"
 #include "input_script.hpp"
 #include "model_depth.hpp"
 #include "npy_arrays.hpp"
@@ -27,7 +28,10 @@ namespace preview {
 namespace {
 
 constexpr double kLookRadiansPerPixel = 0.003;
-constexpr double kStepOfRadius = 0.01;  // a frame of W moves 1% of the orbit radius (× the scroll speed)
+// Per second of wall time (frame_pacing.hpp), whatever the frame rate: W held for a second moves 0.6 orbit radii
+// (× the scroll speed); P plays the path at CogVideoX's 8 frames a second.
+constexpr double kRadiiPerSecond = 0.6;
+constexpr double kPlayFramesPerSecond = 8;
 
 std::string pose_text(const dvs::Pose& p) {
   std::string out;
@@ -78,7 +82,7 @@ void run_preview(const PreviewOptions& o) {
   wo.panel_height = H;
   wo.device = o.gpu;
   wo.validation = o.validation;
-  wo.vsync = o.vsync;
+  wo.vsync = o.vsync;  // FIFO unless --no-vsync
   PresentWindow window(wo);
   glfwSetScrollCallback(window.window(), on_scroll);
   glfwSetKeyCallback(window.window(), on_key);
@@ -106,6 +110,7 @@ void run_preview(const PreviewOptions& o) {
   std::vector<dvs::Pose> path = dvs::interpolate_path({{0, keys[0]}}, o.frames);
   int path_frame = -1;  // the path frame shown while scrubbing or playing; −1 = flying freely
   bool playing = false;
+  double played_s = 0;  // seconds since P
   std::vector<float> mask(size_t(H) * size_t(W));
   // The render and mask panels as device images dvs renders into (not with --host-round-trip or a device of dvs's
   // own, whose images the window could not draw); the mask as dvs's RGBA8 display form (white where visible).
@@ -118,6 +123,7 @@ void run_preview(const PreviewOptions& o) {
   };
   FrameTimes times, recent, render_times;
   auto last_report = std::chrono::steady_clock::now();
+  FramePacer pacer(o.max_fps);
 
   auto rebuild_path = [&] {
     const std::vector<int> at = dvs::evenly_spaced_key_frames(int(keys.size()), o.frames);
@@ -166,7 +172,9 @@ void run_preview(const PreviewOptions& o) {
   int frame = 0;
   double last_x = 0, last_y = 0;
   glfwGetCursorPos(window.window(), &last_x, &last_y);
+  const auto first_frame = std::chrono::steady_clock::now();
   while (!quit && !glfwWindowShouldClose(window.window())) {
+    const double dt = pacer.begin_frame();  // waits for --max-fps; the seconds this frame's motion covers
     const auto t0 = std::chrono::steady_clock::now();
     glfwPollEvents();
     double forward = 0, right = 0, down = 0, look_x = 0, look_y = 0;
@@ -216,7 +224,7 @@ void run_preview(const PreviewOptions& o) {
       if (key == GLFW_KEY_K) add_key();
       else if (key == GLFW_KEY_LEFT_BRACKET) scrub_to(path_frame < 0 ? 0 : path_frame - 1);
       else if (key == GLFW_KEY_RIGHT_BRACKET) scrub_to(path_frame + 1);
-      else if (key == GLFW_KEY_P) playing = true, scrub_to(0);
+      else if (key == GLFW_KEY_P) playing = true, played_s = 0, scrub_to(0);
       else if (key == GLFW_KEY_X) export_path(o.export_name);
       else if (key == GLFW_KEY_R) camera.reset(), path_frame = -1;
       else if (key == GLFW_KEY_F12) pending_screenshot = "preview_" + std::to_string(frame) + ".png";
@@ -225,11 +233,13 @@ void run_preview(const PreviewOptions& o) {
     if (forward || right || down || look_x || look_y) {  // flying leaves the path
       playing = false;
       path_frame = -1;
-      camera.move(forward, right, down, kStepOfRadius * radius * speed);
+      camera.move(forward, right, down, kRadiiPerSecond * radius * speed * dt);
       camera.look(look_x, look_y, kLookRadiansPerPixel);
     } else if (playing) {
-      if (path_frame + 1 >= o.frames) playing = false;
-      else scrub_to(path_frame + 1);
+      played_s += dt;
+      const int due = int(played_s * kPlayFramesPerSecond);
+      if (due >= o.frames) playing = false;
+      else if (due != path_frame) scrub_to(due);
     }
 
     const dvs::Pose pose = camera.pose();
@@ -284,11 +294,13 @@ void run_preview(const PreviewOptions& o) {
     ++frame;
     if (o.frames_to_run && frame >= o.frames_to_run) quit = true;
   }
-  char summary[256];
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - first_frame).count();
+  char summary[320];
   std::snprintf(summary, sizeof summary,
                 "dvs-preview: frame times over %zu frames at %dx%d: mean %.2f ms, median %.2f ms (of which "
-                "PointCloudScene::render: mean %.2f ms, median %.2f ms)",
-                times.ms.size(), H, W, times.mean(), times.median(), render_times.mean(), render_times.median());
+                "PointCloudScene::render: mean %.2f ms, median %.2f ms); %.1f frames/s shown (--max-fps %d)",
+                times.ms.size(), H, W, times.mean(), times.median(), render_times.mean(), render_times.median(),
+                double(times.ms.size()) / std::max(seconds, 1e-9), o.max_fps);
   std::cout << summary << std::endl;
 }
 

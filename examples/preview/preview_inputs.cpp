@@ -7,6 +7,7 @@
 #include <string>
 
 #include "dvs/depth_file.hpp"
+#include "dvs/error.hpp"
 #ifdef DVS_PREVIEW_VIDEO
 #include "dvs/video.hpp"
 #endif
@@ -51,7 +52,12 @@ void read_frame_npy(const PreviewOptions& o, Inputs& in) {
 void read_frame_video(const PreviewOptions& o, Inputs& in) {
 #ifdef DVS_PREVIEW_VIDEO
   dvs::enable_video_files();
-  dvs::VideoFrames v = dvs::read_video_frames(o.video, o.frame_index, 1, o.height, o.width, o.squash);
+  dvs::VideoFrames v;
+  try {
+    v = dvs::read_video_frames(o.video, o.frame_index, 1, o.height, o.width, o.squash);
+  } catch (const dvs::Error& e) {  // the frame the user asked for, named as they asked for it
+    throw std::runtime_error("--video " + o.video + " --frame-index " + std::to_string(o.frame_index) + ": " + e.what());
+  }
   in.frame_rgb = std::move(v.rgb);
   in.source_height = v.source_height;
   in.source_width = v.source_width;

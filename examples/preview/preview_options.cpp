@@ -26,13 +26,13 @@ const char* const kPreviewUsage =
     "  --metric-depth       the depth holds metric depth instead of disparity\n"
     "  --frame-index N      frame N of the video / frame array and of the depth (default 0)\n"
     "  --size HxW           the working size (default 480x720)\n"
-    "  --squash             squash the video to --size instead of cropping its centre (dvs render --squash)\n"
+    "  --squash             squash the video to --size instead of cropping its centre (dvs render --resize squash)\n"
     "  --depth-fit MODE     depth of another aspect than the video: error (default), stretch, crop\n"
     "  --intrinsics fx,fy,cx,cy  pixels (default: dvs render's, f = 500 at 1024x576 scaled)\n"
-    "  --hard-points        z-buffer point splat instead of the soft splat (dvs render --hard-points)\n"
+    "  --hard-points        z-buffer point splat instead of the soft splat (dvs render --points)\n"
     "path:\n"
     "  --frames N           frames of the exported path (default 49)\n"
-    "  --export FILE.json   where E writes the path (and FILE.glb beside it; default preview_path.json)\n"
+    "  --export FILE.json   where X writes the path (and FILE.glb beside it; default preview_path.json)\n"
     "scripted runs and timing:\n"
     "  --script FILE        input events from FILE, one a frame (see the README)\n"
     "  --screenshot-panel   a .png screenshot holds only the render panel (an .npy always does)\n"
@@ -42,7 +42,10 @@ const char* const kPreviewUsage =
     "  --dvs-own-device     dvs on a device of its own (comparison only; default: the window's device)\n"
     "  --host-round-trip    the render and mask through host memory (comparison only; default: dvs renders into\n"
     "                       device images of the window's, drawn without a host wait)\n"
-    "  --validation         the Khronos validation layer   --vsync  FIFO present (default: unthrottled)\n"
+    "  --validation         the Khronos validation layer\n"
+    "frame rate (motion is per second, whatever the rate):\n"
+    "  --max-fps N          at most N frames a second (default 60; 0: as fast as it renders, for timing)\n"
+    "  --no-vsync           IMMEDIATE or MAILBOX present where offered (default: FIFO, the display's rate)\n"
     "\n"
     "keys: W/S forward/back, A/D left/right, Q/E up/down, left-drag look, scroll speed, K key pose,\n"
     "      [ and ] scrub, P play, X export (E moves down), F12 screenshot, R back to the input view, Esc quit\n";
@@ -79,7 +82,7 @@ PreviewOptions parse_options(int argc, char** argv) {
     else if (a == "--metric-depth") o.metric_depth = true;
     else if (a == "--hard-points") o.hard_points = true;
     else if (a == "--frame-index") o.frame_index = to_int(a, value(), 0);
-    else if (a == "--frames") o.frames = to_int(a, value(), 1);
+    else if (a == "--frames") o.frames = to_int(a, value(), 1), o.frames_given = true;
     else if (a == "--size") {
       const std::string v = value();
       const size_t x = v.find('x');
@@ -110,7 +113,8 @@ PreviewOptions parse_options(int argc, char** argv) {
     else if (a == "--dvs-own-device") o.own_device = true;
     else if (a == "--host-round-trip") o.host_round_trip = true;
     else if (a == "--validation") o.validation = true;
-    else if (a == "--vsync") o.vsync = true;
+    else if (a == "--no-vsync") o.vsync = false;
+    else if (a == "--max-fps") o.max_fps = to_int(a, value(), 0);
     else throw std::runtime_error("unknown option '" + a + "' (dvs-preview --help lists them)");
   }
   if (o.help) return o;
@@ -120,9 +124,12 @@ PreviewOptions parse_options(int argc, char** argv) {
     throw std::runtime_error("give its depth: --depth DEPTH.npz|.npy or --depth-model CKPT, one of them (dvs-preview --help)");
   if (!o.depth_model.empty() && o.video.empty())
     throw std::runtime_error("--depth-model estimates the depth of a video: give --video VIDEO (or --depth with --frame-npy)");
-  if (!o.depth_model.empty() && o.frame_index >= o.frames)
-    throw std::runtime_error("--frame-index " + std::to_string(o.frame_index) + " is not among the " +
-                             std::to_string(o.frames) + " frames --depth-model estimates (--frames N, N > --frame-index)");
+  if (!o.depth_model.empty() && o.frame_index >= o.frames)  // messages name only the options given
+    throw std::runtime_error("--frame-index " + std::to_string(o.frame_index) + " is past the " +
+                             std::to_string(o.frames) + " frames --depth-model estimates" +
+                             (o.frames_given ? " (--frames " + std::to_string(o.frames) + ")" : " by default") +
+                             ": estimate at least " + std::to_string(o.frame_index + 1) +
+                             " frames (--frames N) or give a frame among them");
   if (o.squash && o.video.empty()) throw std::runtime_error("--squash applies to --video only (a frame array is at --size)");
   return o;
 }

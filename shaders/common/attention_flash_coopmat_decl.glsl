@@ -1,12 +1,25 @@
 // Declarations shared by attention_flash_coopmat.comp (tensor cores) and attention_flash_coopmat_twin.comp (its
 // fp32 twin, tested on lavapipe): spec constants, bindings, push constants, shared tiles. See the former.
-layout(local_size_x = 128) in;
+// The layout comes from the tuning table (DeviceTuning::attention_coopmat_subgroups, attention_block_k,
+// coopmat, coopmat_lanes; tensor/coopmat_layout.cpp checks it against the device and the head_dim).
+layout(local_size_x_id = 7) in;  // SUBGROUPS * LANES
 
-layout(constant_id = 0) const int D = 64;   // head_dim: a multiple of 16, at most BK
-layout(constant_id = 1) const int BK = 64;  // keys per tile: a multiple of 16
-const int D4 = D / 4, D16 = D / 16, BK16 = BK / 16;
-const int ROWS = 16;  // query rows per subgroup
-const int SUBGROUPS = 4;
+layout(constant_id = 0) const int D = 64;          // head_dim: a multiple of FRAG_K, FRAG_N and 4·LPR, at most BK
+layout(constant_id = 1) const int BK = 64;         // keys per tile: a multiple of FRAG_N, FRAG_K and LPR
+layout(constant_id = 2) const int SUBGROUPS = 4;   // per workgroup, ROWS query rows each
+layout(constant_id = 3) const int ROWS = 16;       // the fragment shape: ROWS x FRAG_N x FRAG_K
+layout(constant_id = 4) const int FRAG_N = 16;
+layout(constant_id = 5) const int FRAG_K = 16;
+layout(constant_id = 6) const int LANES = 32;      // the subgroup size (required at pipeline creation; the twin emulates it)
+const int D4 = D / 4;
+// Softmax and O ownership: LPR lanes per row where a subgroup has more lanes than rows (the H200: 32 lanes,
+// 16 rows, 2 lanes a row), else RPL rows per lane (lavapipe at 16 rows: 8 lanes, 2 rows a lane); each lane of a
+// row takes BK / LPR of its keys and D / LPR of its O columns.
+const int LPR = (LANES + ROWS - 1) / ROWS;
+const int RPL = (ROWS + LANES - 1) / LANES;
+const int PASS = LANES / LPR;   // rows the subgroup's lanes own at once
+const int COLS = BK / LPR;      // keys of a row per lane
+const int OV = D / (4 * LPR);   // vec4 of O per row per lane
 
 const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max before any key
@@ -28,6 +41,5 @@ layout(push_constant) uniform Push {
 
 shared float16_t sK[BK * D];                  // [key][dim]
 shared float16_t sV[BK * D];                  // [key][dim]
-shared float sS[SUBGROUPS * ROWS * BK];       // per subgroup: scores [16][BK], then the O tile [16][D]
-shared float16_t sP[SUBGROUPS * ROWS * BK];   // per subgroup: Q staging [16][D], then P [16][BK]
-
+shared float sS[SUBGROUPS * ROWS * BK];       // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D]
+shared float16_t sP[SUBGROUPS * ROWS * BK];   // per subgroup: Q staging [ROWS][D], then P [ROWS][BK]

@@ -5,31 +5,31 @@
 // The fp32 twin of attention_flash_coopmat.comp, for CPU drivers without cooperative matrices (lavapipe):
 // the same staging, fp16 rounding, softmax, O accumulation and epilogue (one main(), shared through
 // attention_flash_coopmat_main.glsl), with the two products done by plain fp32 FMA on the same fp16
-// operands and the 4 x 32-lane "subgroups" emulated by the workgroup (workgroup barriers, a shared-memory
-// pair exchange). Only the cooperative-matrix calls themselves stay untested on lavapipe. Tests only
+// operands and the SUBGROUPS x LANES "subgroups" emulated by the workgroup (workgroup barriers, a
+// shared-memory lane exchange). Only the cooperative-matrix calls themselves stay untested on lavapipe. Tests only
 // (DeviceTuning::attention_coopmat_twin): Q lives in its own shared copy, which lavapipe's 32 KiB holds at
 // small D and BK (e.g. D = 32, BK = 32).
 #include "attention_flash_coopmat_decl.glsl"
 
 shared float16_t sQ[SUBGROUPS * ROWS * D];
-shared float xch[SUBGROUPS * 32];
+shared float xch[SUBGROUPS * LANES];
 
-#define SG_ID (gl_LocalInvocationID.x / 32)
-#define SG_LANE (gl_LocalInvocationID.x % 32)
+#define SG_ID (gl_LocalInvocationID.x / LANES)
+#define SG_LANE (gl_LocalInvocationID.x % LANES)
 // barrier() alone: glslang gives it workgroup-memory semantics (memoryBarrierShared() would use Device scope).
 #define SG_BARRIER() barrier()
-float pair_xor(float x) {
+float lane_xor(float x, int mask) {
   xch[gl_LocalInvocationID.x] = x;
   barrier();
-  const float y = xch[gl_LocalInvocationID.x ^ 1];
+  const float y = xch[gl_LocalInvocationID.x ^ uint(mask)];
   barrier();
   return y;
 }
-#define PAIR_XOR(x) pair_xor(x)
+#define LANE_XOR(x, mask) lane_xor(x, mask)
 #define LOAD_Q() \
-  for (uint i = lane; i < ROWS * D; i += 32) sQ[sg * ROWS * D + i] = sP[sgP + i]
+  for (uint i = lane; i < ROWS * D; i += LANES) sQ[sg * ROWS * D + i] = sP[sgP + i]
 #define SCORES()                                                               \
-  for (uint e = lane; e < ROWS * BK; e += 32) {                                \
+  for (uint e = lane; e < ROWS * BK; e += LANES) {                             \
     const uint i = e / BK, n = e % BK;                                         \
     float acc = 0;                                                             \
     for (int k = 0; k < D; ++k)                                                \
@@ -37,7 +37,7 @@ float pair_xor(float x) {
     sS[sgS + i * BK + n] = acc;                                                \
   }
 #define PV()                                                                   \
-  for (uint e = lane; e < ROWS * D; e += 32) {                                 \
+  for (uint e = lane; e < ROWS * D; e += LANES) {                              \
     const uint i = e / D, n = e % D;                                           \
     float acc = 0;                                                             \
     for (int k = 0; k < BK; ++k) acc = fma(float(sP[sgP + i * BK + k]), float(sV[k * D + n]), acc); \

@@ -5,17 +5,21 @@
 // The implicit GEMM of conv_gemm.comp / conv_tiled.comp over the same repacked operands and push constants:
 //   Y[m, n] = bias[n] + sum_k X[m, k] W[n, k],  m = output pixel of the chunk, n = output channel,
 //   k = tap * CP + input channel (the packed weights are [Cout][K], K = taps * CP, CP % 8 == 0).
-// A workgroup of 256 invocations computes BM = 128 pixels x BN = 128 channels; per BK = 32 reduction
-// elements it gathers the input tile (each invocation keeps one pixel for the whole loop, 4 vec4 loads) and
-// the weight tile, rounds both to fp16 into shared memory (As [m][k], Bs [n][k], rows padded to 40 halves),
-// then each of the 8 subgroups (32 lanes) multiplies its 32 x 64 part as 2 x 4 fragments of 16 x 16 x 16
-// with fp32 accumulators. Epilogue: fragment by fragment through a 16 x 16 fp32 staging area per subgroup
+// The layout comes from the tuning table (DeviceTuning::conv_coopmat, coopmat, coopmat_lanes; checked against the
+// device by tensor/coopmat_layout.cpp, which also requires the subgroup size at pipeline creation): SG_M x SG_N
+// subgroups of LANES lanes, each multiplying FM x FN fragments of FRAG_M x FRAG_N x FRAG_K with fp32
+// accumulators, so a workgroup computes BM pixels x BN channels. On the H200: 8 subgroups of 32 as 4 (pixels) x 2,
+// 2 x 4 fragments of 16 x 16 x 16 each, BM = BN = 128; on lavapipe (8 lanes) the same arrangement of 8 x 8 x 8
+// fragments, BM = BN = 64. Per BK reduction elements the workgroup gathers the input tile (4 channels of one
+// tap per load; an invocation keeps its pixels for the whole loop: one pixel and several channel groups when
+// there are at least BM invocations, else BM / WG pixels and every group) and the weight tile, rounds both to
+// fp16 into shared memory (As [m][k], Bs [n][k], rows padded to BK + 8 halves), then each subgroup multiplies
+// its part. Epilogue: fragment by fragment through a FRAG_M x FRAG_N fp32 staging area per subgroup
 // (column-major: neighbouring lanes write neighbouring pixels), bias and y's layout as conv_gemm.comp.
 // fp16 operands: |x| or |w| above 65504 becomes inf (the VAE's activations and weights stay far below), and
 // each operand carries a relative rounding error of up to 2^-11; sums are fp32.
 // The twin runs the same loads, the same fp16 rounding, the same staging and epilogue; only the product
-// (fp32 FMA per lane on the values a fragment would hold) differs. Needs 8 subgroups of 32 lanes
-// (kernel_tuning.cpp selects coopmat convolutions only on such devices).
+// (fp32 FMA per lane on the values a fragment would hold, with LANES lanes emulated by the workgroup) differs.
 #ifndef TWIN
 #extension GL_KHR_cooperative_matrix : require
 #extension GL_KHR_memory_scope_semantics : require
@@ -23,12 +27,28 @@
 #extension GL_KHR_shader_subgroup_basic : require
 #endif
 #extension GL_EXT_control_flow_attributes : require
-layout(local_size_x = 256) in;
+layout(local_size_x_id = 9) in;  // WG = SG_M * SG_N * LANES
 
-layout(constant_id = 0) const int WTYPE = 2;  // weight storage: 0 f32, 1 f16, 2 bf16
+layout(constant_id = 0) const int WTYPE = 2;     // weight storage: 0 f32, 1 f16, 2 bf16
+layout(constant_id = 1) const uint SG_M = 4;     // subgroups along the pixels
+layout(constant_id = 2) const uint SG_N = 2;     // subgroups along the output channels
+layout(constant_id = 3) const uint FM = 2;       // fragments per subgroup along the pixels
+layout(constant_id = 4) const uint FN = 4;       // along the channels
+layout(constant_id = 5) const uint BK = 32;      // reduction elements per step: a multiple of 8 and of FRAG_K
+layout(constant_id = 6) const uint FRAG_M = 16;  // the device's fragment shape
+layout(constant_id = 7) const uint FRAG_N = 16;
+layout(constant_id = 8) const uint FRAG_K = 16;
+layout(constant_id = 10) const uint LANES = 32;  // the subgroup size (required at pipeline creation; the twin emulates it)
 
-const int BM = 128, BN = 128, BK = 32, LD = BK + 8;  // LD: shared row stride in halves (80 bytes)
-const int WM = 32, WN = 64;                          // one subgroup's part: 2 x 4 fragments
+const uint WG = gl_WorkGroupSize.x;
+const uint WM = FM * FRAG_M, WN = FN * FRAG_N;   // one subgroup's part
+const uint BM = SG_M * WM, BN = SG_N * WN, LD = BK + 8;  // LD: shared row stride in halves
+const uint FRAG = FRAG_M * FRAG_N;
+// The gather of a BM (or BN) x BK tile in groups of 4 reduction elements: invocation t takes rows t % BM + WG·p
+// for p < PIX (PIX > 1 only when WG < BM) and groups t / BM + STEP·q for q < (BK / 4) / STEP (STEP > 1 only when
+// WG > BM). The host checks that WG and BM (BN) divide one another and STEP divides BK / 4.
+const uint PIX_A = (BM + WG - 1) / WG, STEP_A = (WG + BM - 1) / BM;
+const uint PIX_B = (BN + WG - 1) / WG, STEP_B = (WG + BN - 1) / BN;
 
 layout(std430, binding = 0) readonly buffer X { vec4 x[]; };  // packed input chunk + one zero pixel
 layout(std430, binding = 1) readonly buffer W { uint w[]; };  // packed weights, the stored dtype
@@ -76,9 +96,10 @@ void put4(bool b, uint o, vec4 v) {
   }
 }
 float a_at(uint i) { return unpackHalf2x16(As[i >> 1])[i & 1u]; }
+const uint EPL = FRAG / LANES;  // fragment elements per emulated lane (the host checks LANES divides FRAG)
 float b_at(uint i) { return unpackHalf2x16(Bs[i >> 1])[i & 1u]; }
 #endif
-shared float Stage[8 * 256];  // one 16 x 16 fp32 fragment per subgroup, column-major
+shared float Stage[SG_M * SG_N * FRAG];  // one fp32 fragment per subgroup, column-major
 
 float w_bias(uint n) {
   if (WTYPE == 0) return uintBitsToFloat(bias[n]);
@@ -108,98 +129,100 @@ void main() {
 #ifndef TWIN
   const uint sg = gl_SubgroupID, lane = gl_SubgroupInvocationID;
 #else
-  const uint sg = t / 32u, lane = t % 32u;
+  const uint sg = t / LANES, lane = t % LANES;
 #endif
-  const uint sm = sg % 4u, sn = sg / 4u;  // the subgroup's part: pixels sm*32.., channels sn*64..
+  const uint sm = sg % SG_M, sn = sg / SG_M;  // the subgroup's part: pixels sm*WM.., channels sn*WN..
   const uint m0 = gl_WorkGroupID.x * BM, n0 = gl_WorkGroupID.y * BN;
   const uint M = p.M, N = p.N, cp = p.cp, cp4 = cp >> 2;
   const uint taps_hw = p.kh * p.kw, K = p.kt * taps_hw * cp;
 
-  // The pixel and the output channel this invocation gathers (tails clamped: loaded, never stored).
-  const uint ld = t % 128u;
-  uint pf;
-  int ph, pw;
-  {
-    uint m = min(m0 + ld, M - 1u), ow = m % p.wo, r = m / p.wo;
-    pf = r / p.rows;
-    ph = int((p.oh0 + r % p.rows) * p.stride) - p.pad_top;
-    pw = int((p.ow0 + ow) * p.stride) - p.pad_left;
+  // The pixels and the output channels this invocation gathers (tails clamped: loaded, never stored).
+  uint pf[PIX_A];
+  int ph[PIX_A], pw[PIX_A];
+  [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
+    uint m = min(m0 + t % BM + WG * i, M - 1u), ow = m % p.wo, r = m / p.wo;
+    pf[i] = r / p.rows;
+    ph[i] = int((p.oh0 + r % p.rows) * p.stride) - p.pad_top;
+    pw[i] = int((p.ow0 + ow) * p.stride) - p.pad_left;
   }
-  const uint wrow = min(n0 + ld, N - 1u) * K;
+  uint wrow[PIX_B];
+  [[unroll]] for (uint i = 0u; i < PIX_B; ++i) wrow[i] = min(n0 + t % BN + WG * i, N - 1u) * K;
 
 #ifndef TWIN
-  coopmat<float, gl_ScopeSubgroup, 16, 16, gl_MatrixUseAccumulator> acc[2][4];
-  [[unroll]] for (int i = 0; i < 2; ++i)
-    [[unroll]] for (int j = 0; j < 4; ++j) acc[i][j] = coopmat<float, gl_ScopeSubgroup, 16, 16, gl_MatrixUseAccumulator>(0.0);
+  coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator> acc[FM][FN];
+  [[unroll]] for (uint i = 0u; i < FM; ++i)
+    [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j] = coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator>(0.0);
 #else
-  // What fragment (i, j) holds in this lane, as staged: element e = lane + 32r of the column-major
-  // fragment, i.e. row lane % 16, column lane / 16 + 2r.
-  float acc[2][4][8];
-  [[unroll]] for (int i = 0; i < 2; ++i)
-    [[unroll]] for (int j = 0; j < 4; ++j)
-      [[unroll]] for (int r = 0; r < 8; ++r) acc[i][j][r] = 0.0;
+  // What fragment (i, j) holds in this lane, as staged: element e = lane + LANES·r of the column-major
+  // fragment, i.e. row e % FRAG_M, column e / FRAG_M (EPL = FRAG / LANES elements per lane).
+  float acc[FM][FN][EPL];
+  [[unroll]] for (uint i = 0u; i < FM; ++i)
+    [[unroll]] for (uint j = 0u; j < FN; ++j)
+      [[unroll]] for (uint r = 0u; r < EPL; ++r) acc[i][j][r] = 0.0;
 #endif
 
-  for (uint k0 = 0u; k0 < K; k0 += uint(BK)) {
-    [[unroll]] for (uint s = 0u; s < 4u; ++s) {
-      const uint q = t / 128u + 2u * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)
-      vec4 a = vec4(0.0), b = vec4(0.0);
-      if (k < K) {
-        uint tap = k / cp, c = k - tap * cp;
-        uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
-        int ih = ph + int(u), iw = pw + int(v);
-        bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-        uint pix = ((pf + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
-        a = x[(inside ? pix * cp4 : p.zero_texel) + (c >> 2)];
-        b = w4(wrow + k);
+  for (uint k0 = 0u; k0 < K; k0 += BK) {
+    [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
+      [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_A; ++s) {
+        const uint q = t / BM + STEP_A * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)
+        vec4 a = vec4(0.0);
+        if (k < K) {
+          uint tap = k / cp, c = k - tap * cp;
+          uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
+          int ih = ph[i] + int(u), iw = pw[i] + int(v);
+          bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
+          uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
+          a = x[(inside ? pix * cp4 : p.zero_texel) + (c >> 2)];
+        }
+        put4(false, (t % BM + WG * i) * LD + 4u * q, a);
       }
-      const uint o = ld * uint(LD) + 4u * q;
-      put4(false, o, a);
-      put4(true, o, b);
-    }
+    [[unroll]] for (uint i = 0u; i < PIX_B; ++i)
+      [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_B; ++s) {
+        const uint q = t / BN + STEP_B * s, k = k0 + 4u * q;
+        put4(true, (t % BN + WG * i) * LD + 4u * q, k < K ? w4(wrow[i] + k) : vec4(0.0));
+      }
     barrier();
 #ifndef TWIN
-    [[unroll]] for (uint kk = 0u; kk < uint(BK); kk += 16u) {
-      coopmat<float16_t, gl_ScopeSubgroup, 16, 16, gl_MatrixUseA> fa[2];
-      coopmat<float16_t, gl_ScopeSubgroup, 16, 16, gl_MatrixUseB> fb[4];
-      [[unroll]] for (uint i = 0u; i < 2u; ++i)
-        coopMatLoad(fa[i], As, (sm * uint(WM) + 16u * i) * uint(LD) + kk, uint(LD), gl_CooperativeMatrixLayoutRowMajor);
+    [[unroll]] for (uint kk = 0u; kk < BK; kk += FRAG_K) {
+      coopmat<float16_t, gl_ScopeSubgroup, FRAG_M, FRAG_K, gl_MatrixUseA> fa[FM];
+      coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> fb[FN];
+      [[unroll]] for (uint i = 0u; i < FM; ++i)
+        coopMatLoad(fa[i], As, (sm * WM + FRAG_M * i) * LD + kk, LD, gl_CooperativeMatrixLayoutRowMajor);
       // B[k][n] = Bs[n * LD + k]: column-major K x N.
-      [[unroll]] for (uint j = 0u; j < 4u; ++j)
-        coopMatLoad(fb[j], Bs, (sn * uint(WN) + 16u * j) * uint(LD) + kk, uint(LD), gl_CooperativeMatrixLayoutColumnMajor);
-      [[unroll]] for (uint i = 0u; i < 2u; ++i)
-        [[unroll]] for (uint j = 0u; j < 4u; ++j) acc[i][j] = coopMatMulAdd(fa[i], fb[j], acc[i][j]);
+      [[unroll]] for (uint j = 0u; j < FN; ++j)
+        coopMatLoad(fb[j], Bs, (sn * WN + FRAG_N * j) * LD + kk, LD, gl_CooperativeMatrixLayoutColumnMajor);
+      [[unroll]] for (uint i = 0u; i < FM; ++i)
+        [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j] = coopMatMulAdd(fa[i], fb[j], acc[i][j]);
     }
 #else
-    const uint row = lane % 16u, col = lane / 16u;
-    for (uint kk = 0u; kk < uint(BK); ++kk) {
-      float a[2], b[4][8];
-      [[unroll]] for (uint i = 0u; i < 2u; ++i) a[i] = a_at((sm * uint(WM) + 16u * i + row) * uint(LD) + kk);
-      [[unroll]] for (uint j = 0u; j < 4u; ++j)
-        [[unroll]] for (uint r = 0u; r < 8u; ++r) b[j][r] = b_at((sn * uint(WN) + 16u * j + col + 2u * r) * uint(LD) + kk);
-      [[unroll]] for (uint i = 0u; i < 2u; ++i)
-        [[unroll]] for (uint j = 0u; j < 4u; ++j)
-          [[unroll]] for (uint r = 0u; r < 8u; ++r) acc[i][j][r] = fma(a[i], b[j][r], acc[i][j][r]);
-    }
+    for (uint kk = 0u; kk < BK; ++kk)
+      [[unroll]] for (uint r = 0u; r < EPL; ++r) {
+        const uint e = lane + LANES * r, row = e % FRAG_M, col = e / FRAG_M;
+        float a[FM], b[FN];
+        [[unroll]] for (uint i = 0u; i < FM; ++i) a[i] = a_at((sm * WM + FRAG_M * i + row) * LD + kk);
+        [[unroll]] for (uint j = 0u; j < FN; ++j) b[j] = b_at((sn * WN + FRAG_N * j + col) * LD + kk);
+        [[unroll]] for (uint i = 0u; i < FM; ++i)
+          [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j][r] = fma(a[i], b[j], acc[i][j][r]);
+      }
 #endif
     barrier();
   }
 
   // Epilogue, one fragment at a time through the subgroup's staging area.
-  [[unroll]] for (uint i = 0u; i < 2u; ++i)
-    [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+  [[unroll]] for (uint i = 0u; i < FM; ++i)
+    [[unroll]] for (uint j = 0u; j < FN; ++j) {
 #ifndef TWIN
-      coopMatStore(acc[i][j], Stage, sg * 256u, 16u, gl_CooperativeMatrixLayoutColumnMajor);
+      coopMatStore(acc[i][j], Stage, sg * FRAG, FRAG_M, gl_CooperativeMatrixLayoutColumnMajor);
       subgroupMemoryBarrierShared();
       subgroupBarrier();
-      for (uint e = lane; e < 256u; e += gl_SubgroupSize)
-        store(m0 + sm * uint(WM) + 16u * i + e % 16u, n0 + sn * uint(WN) + 16u * j + e / 16u, Stage[sg * 256u + e]);
+      for (uint e = lane; e < FRAG; e += LANES)
+        store(m0 + sm * WM + FRAG_M * i + e % FRAG_M, n0 + sn * WN + FRAG_N * j + e / FRAG_M, Stage[sg * FRAG + e]);
       subgroupBarrier();  // every lane has read the fragment before the next one overwrites it
 #else
-      [[unroll]] for (uint r = 0u; r < 8u; ++r) Stage[sg * 256u + lane + 32u * r] = acc[i][j][r];
+      [[unroll]] for (uint r = 0u; r < EPL; ++r) Stage[sg * FRAG + lane + LANES * r] = acc[i][j][r];
       barrier();  // (orders workgroup memory too)
-      for (uint e = lane; e < 256u; e += 32u)
-        store(m0 + sm * uint(WM) + 16u * i + e % 16u, n0 + sn * uint(WN) + 16u * j + e / 16u, Stage[sg * 256u + e]);
+      for (uint e = lane; e < FRAG; e += LANES)
+        store(m0 + sm * WM + FRAG_M * i + e % FRAG_M, n0 + sn * WN + FRAG_N * j + e / FRAG_M, Stage[sg * FRAG + e]);
       barrier();
 #endif
     }

@@ -16,7 +16,7 @@ void main() {
   const uint x0 = gl_GlobalInvocationID.x * RUN;
   float m = 0.0;
   for (uint x = x0; x < min(x0 + RUN, p.W); ++x) {
-    vec3 X2 = transform_point(x, y, depth[(p.frame * p.H + y) * p.W + x]);
+    vec3 X2 = move_point(x, y, depth[(p.frame * p.H + y) * p.W + x]).X2;
     if (point_used(X2)) m = max(m, clamp(X2.z, 0.0, 1000.0));
   }
   if (m > 0.0) atomicMax(framemax[p.frame], floatBitsToUint(log_depth(m)));

@@ -15,11 +15,12 @@ layout(std430, binding = 2) buffer Keys { uint keys[]; };
 void main() {
   uint x, y, i;
   if (!source_pixel(x, y, i)) return;
-  vec3 X2 = transform_point(x, y, depth[i]);
+  const MovedPoint m = move_point(x, y, depth[i]);
+  const vec3 X2 = m.X2;
   if (!point_used(X2)) return;
   ivec2 corner[4];
   float w[4];
-  if (!footprint(project_point(X2), corner, w)) return;
+  if (!footprint(project_point(x, y, m), corner, w)) return;
   const float max_l = uintBitsToFloat(framemax[p.frame]);
   float rho = max_l > 0.0 ? log_depth(X2.z) / max_l : 0.0;
   for (int k = 0; k < 4; ++k) {

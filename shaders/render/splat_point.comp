@@ -16,9 +16,10 @@ layout(std430, binding = 2) buffer IdKey { uint idkey[]; };
 void main() {
   uint x, y, i;
   if (!source_pixel(x, y, i)) return;
-  precise vec3 X2 = transform_point(x, y, depth[i]);
+  precise MovedPoint m = move_point(x, y, depth[i]);
+  const vec3 X2 = m.X2;
   if (isnan(X2.x) || isnan(X2.y) || isinf(X2.x) || isinf(X2.y) || !(X2.z > 0.0) || isinf(X2.z)) return;
-  vec2 uv = project_point(X2);
+  vec2 uv = project_point(x, y, m);
   if (isnan(uv.x) || isnan(uv.y)) return;
   vec2 r = floor(uv + 0.5);
   if (r.x < 0.0 || r.y < 0.0 || r.x >= float(p.W) || r.y >= float(p.H)) return;

@@ -18,109 +18,26 @@ math are stubbed (config registration, logging, the model base class, output con
 never calls); every layer the decode runs is diffusers' own code. The stubs are listed in the case's "shims".
 """
 import argparse
-import dataclasses
 import importlib
-import inspect
 import json
 import os
 import sys
-import types
 
 import numpy as np
 import torch
-import torch.nn as nn
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "bench", "gpu"))
 from torch_ref import st_read  # noqa: E402  (the project's safetensors reader: the package may be absent)
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import library_stubs  # noqa: E402  (diffusers' model modules from the source tree, non-math modules stubbed)
+import torch_bf16  # noqa: E402  (the pack's cases.json writer)
 
 CASE = "vae_decode_even_latent"
 # (name, latent frames, latent height, latent width, seed): two decode batches [0:2],[2:4]; one batch of 2.
 LATENTS = [("even4", 4, 3, 5, 4), ("even2", 2, 4, 3, 2)]
 
-SHIMS = [
-    "diffusers, diffusers.models, diffusers.models.autoencoders := bare packages over the source tree "
-    "(their __init__ files, which import the whole library, are not run)",
-    "diffusers.configuration_utils := ConfigMixin (empty) and register_to_config (records the bound __init__ "
-    "arguments as self.config before __init__ runs, as diffusers does)",
-    "diffusers.models.modeling_utils.ModelMixin := torch.nn.Module; diffusers.loaders.single_file_model."
-    "FromOriginalModelMixin := empty class (checkpoint conversion only)",
-    "diffusers.utils := logging.get_logger, deprecate (no-op), BaseOutput (plain base of the output dataclasses), "
-    "is_torch_version, is_torch_npu_available() = False; utils.accelerate_utils.apply_forward_hook := identity; "
-    "utils.torch_utils.randn_tensor (posterior sampling only, unused by decode)",
-    "diffusers.models.normalization, attention_processor, unets.unet_2d_blocks := placeholder classes "
-    "(imported by modules shared with other models; no CogVideoX VAE layer uses them)",
-    "weights := read from the pack's safetensors by bench/gpu/torch_ref.py's reader (the file format) and loaded "
-    "with load_state_dict(strict=True)",
-]
-
-
-def install_stubs(src):
-    def package(name, path):
-        m = types.ModuleType(name)
-        m.__path__ = [path]
-        sys.modules[name] = m
-        return m
-
-    def module(name, **attrs):
-        m = types.ModuleType(name)
-        m.__dict__.update(attrs)
-        sys.modules[name] = m
-        return m
-
-    root = os.path.join(src, "diffusers")
-    package("diffusers", root)
-    package("diffusers.models", os.path.join(root, "models"))
-    package("diffusers.models.autoencoders", os.path.join(root, "models", "autoencoders"))
-    package("diffusers.models.unets", os.path.join(root, "models", "unets"))
-    package("diffusers.loaders", os.path.join(root, "loaders"))
-
-    class BaseOutput:
-        pass
-
-    def is_torch_version(op, version):
-        have = tuple(int(p) for p in torch.__version__.split("+")[0].split("a")[0].split(".")[:2])
-        want = tuple(int(p) for p in version.split(".")[:2])
-        return {"<": have < want, "<=": have <= want, ">": have > want, ">=": have >= want, "==": have == want}[op]
-
-    import logging as pylogging
-
-    logging_mod = types.SimpleNamespace(get_logger=pylogging.getLogger)
-    utils = package("diffusers.utils", os.path.join(root, "utils"))
-    utils.__dict__.update(
-        logging=logging_mod,
-        deprecate=lambda *a, **k: None,
-        BaseOutput=BaseOutput,
-        is_torch_version=is_torch_version,
-        is_torch_npu_available=lambda: False,
-    )
-    module("diffusers.utils.import_utils", is_torch_version=is_torch_version, is_torch_npu_available=lambda: False)
-    module("diffusers.utils.accelerate_utils", apply_forward_hook=lambda f: f)
-    module("diffusers.utils.torch_utils", randn_tensor=lambda *a, **k: torch.randn(*a, **k))
-
-    def register_to_config(init):
-        def wrapper(self, *args, **kwargs):
-            bound = inspect.signature(init).bind(self, *args, **kwargs)
-            bound.apply_defaults()
-            values = dict(bound.arguments)
-            values.pop("self")
-            object.__setattr__(self, "config", types.SimpleNamespace(**values))
-            init(self, *args, **kwargs)
-
-        return wrapper
-
-    module("diffusers.configuration_utils", ConfigMixin=type("ConfigMixin", (), {}), register_to_config=register_to_config)
-    module("diffusers.loaders.single_file_model", FromOriginalModelMixin=type("FromOriginalModelMixin", (), {}))
-    module("diffusers.models.modeling_utils", ModelMixin=nn.Module)
-    placeholder = type("Placeholder", (nn.Module,), {})
-    module("diffusers.models.normalization", RMSNorm=placeholder)
-    module("diffusers.models.attention_processor", SpatialNorm=placeholder)
-    module(
-        "diffusers.models.unets.unet_2d_blocks",
-        AutoencoderTinyBlock=placeholder,
-        UNetMidBlock2D=placeholder,
-        get_down_block=None,
-        get_up_block=None,
-    )
+SHIMS = library_stubs.TORCH_SHIMS + library_stubs.DIFFUSERS_SHIMS
 
 
 def stats(a):
@@ -140,7 +57,7 @@ def main():
     ap.add_argument("--commit", default="58eb52c0803ea9af3abec60841c2a093bdf1f951", help="recorded as provenance")
     args = ap.parse_args()
 
-    install_stubs(args.diffusers)
+    library_stubs.install_diffusers(args.diffusers)
     akl = importlib.import_module("diffusers.models.autoencoders.autoencoder_kl_cogvideox")
     vae_dir = os.path.join(args.pack, "model", "vae")
     cfg = json.load(open(os.path.join(vae_dir, "config.json")))
@@ -217,11 +134,7 @@ def main():
         "reproduces_pack_cases": reproduced,
     }
     pack["cases"] = [c for c in pack["cases"] if c.get("name") != CASE] + [case]
-    tmp = cases_path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(pack, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, cases_path)
+    torch_bf16.write_cases_json(cases_path, pack)
     print(f"{cases_path}: case {CASE} written")
 
 

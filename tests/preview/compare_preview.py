@@ -7,7 +7,15 @@
       holes elsewhere (dvs/scene.hpp).
   compare_preview.py poses PREVIEW_LOG POSES.json TOLERANCE
       the poses the preview printed ("path frame I = key pose K: 16 numbers") against a trajectory JSON
-      (dvs render's poses.json or the exported file): equal (TOLERANCE 0) or within TOLERANCE."""
+      (dvs render's poses.json or the exported file): equal (TOLERANCE 0) or within TOLERANCE.
+  compare_preview.py travel PREVIEW_LOG FRAMES FPS
+      the preview held W for FRAMES frames under --max-fps FPS, then placed key pose 1 (printed "key pose 1: 16
+      numbers", a world-to-camera T): its distance |t| from the input view, in orbit radii (printed "orbit radius
+      R"), is 0.6 a second of the frames' wall time: at least 0.6·FRAMES/FPS (a frame lasts at least 1/FPS), and
+      within 40% of 0.6·FRAMES/rate, the rate the run printed (frames shown a second); per displayed frame it would
+      be 0.01·FRAMES whatever the rate.
+  compare_preview.py rate PREVIEW_LOG MAX
+      the frames shown a second (printed "... frames/s shown") are at most MAX."""
 import json
 import math
 import re
@@ -68,10 +76,47 @@ def poses(log_path, json_path, tolerance):
         raise SystemExit(f"{json_path}: poses differ from the preview's by {worst} > {tolerance}")
 
 
+def travel(log_path, frames, fps):
+    radius, pose, shown = None, None, None
+    with open(log_path) as f:
+        for line in f:
+            m = re.search(r"orbit radius ([0-9.eE+-]+)", line)
+            if m:
+                radius = float(m.group(1))
+            m = re.match(r"dvs-preview: key pose 1: (.*)$", line.strip())
+            if m:
+                pose = [float(x) for x in m.group(1).split()]
+            m = re.search(r"([0-9.]+) frames/s shown", line)
+            if m:
+                shown = float(m.group(1))
+    if radius is None or pose is None or len(pose) != 16 or shown is None:
+        raise SystemExit(f"{log_path}: no orbit radius, key pose 1 or frame rate printed")
+    radii = math.sqrt(pose[3] ** 2 + pose[7] ** 2 + pose[11] ** 2) / radius
+    least, expected = 0.6 * frames / fps, 0.6 * frames / shown
+    print(f"W held {frames} frames at --max-fps {fps} ({shown} frames/s shown): {radii:.4f} orbit radii "
+          f"(at least {least:.4f}, expected {expected:.4f}; per frame it would be {0.01 * frames:.4f})")
+    if radii < least * 0.98 or abs(radii - expected) > 0.4 * expected:
+        raise SystemExit(f"{log_path}: the camera did not move 0.6 orbit radii a second of wall time")
+
+
+def rate(log_path, most):
+    with open(log_path) as f:
+        m = re.search(r"([0-9.]+) frames/s shown", f.read())
+    if not m:
+        raise SystemExit(f"{log_path}: the preview printed no frame rate")
+    print(f"{float(m.group(1))} frames/s shown (at most {most})")
+    if float(m.group(1)) > most:
+        raise SystemExit(f"{log_path}: {m.group(1)} frames/s shown, more than {most}: presents are not throttled")
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 6 and sys.argv[1] == "panel":
         panel(sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5]))
     elif len(sys.argv) == 5 and sys.argv[1] == "poses":
         poses(sys.argv[2], sys.argv[3], float(sys.argv[4]))
+    elif len(sys.argv) == 5 and sys.argv[1] == "travel":
+        travel(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]))
+    elif len(sys.argv) == 4 and sys.argv[1] == "rate":
+        rate(sys.argv[2], float(sys.argv[3]))
     else:
         raise SystemExit(__doc__)

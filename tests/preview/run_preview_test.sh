@@ -10,7 +10,11 @@
 #       the clip (a box moving closer), at --frame-index 3: the panel at path frame 3 equals `dvs render`'s frame 3
 #       (the depth converted over the whole clip and mapped to the working size as dvs render maps it);
 #   (e) the same video with --depth-model (the conformance pack's tiny Video-Depth-Anything, network input 28): the
-#       preview estimates the clip itself; its panel at path frame 3 equals `dvs render --depth-model`'s frame 3.
+#       preview estimates the clip itself; its panel at path frame 3 equals `dvs render --depth-model`'s frame 3;
+#       and --frame-index past the clip's end is refused naming --frame-index, not options never given (--frames);
+#   (f) frames are capped (default 60 a second: FIFO alone does not throttle under Xvfb) and the camera moves per
+#       second of wall time: W held for 30 frames at --max-fps 20 (≥ 1.5 s) flies ≥ 0.9 orbit radii, and at either
+#       cap 0.6 radii a second of the run's own frame rate (per displayed frame it was 0.3 at any rate).
 # usage: run_preview_test.sh PREFIX BUILD_DIR
 #   PREFIX: an installed dvs (cmake --install); "-" installs BUILD_DIR into a temporary prefix first.
 #   BUILD_DIR: the dvs build (its bin/dvs is used when PREFIX has none).
@@ -75,9 +79,23 @@ python3 "$here/compare_preview.py" poses preview.log from_glb/poses.json 1e-5
 echo "== (c) frame times at ${H}x${W}, the camera moving and turning"
 printf 'key D 20\nmouse -40 5\nkey W 20\nmouse 40 -5\nkey A 20\nquit\n' >timing_script.txt
 "${xvfb[@]}" "$preview" --frame-npy scene/frames.npy --depth scene/depth.npy --size ${H}x${W} --frames-to-run 60 \
-  --script timing_script.txt \
+  --script timing_script.txt --max-fps 0 --no-vsync \
   ${PREVIEW_EXTRA_ARGS:-} >timing.log 2>&1 || { cat timing.log; echo "run_preview_test: the timing run failed"; exit 1; }
 grep "dvs-preview: window on\|frame times over" timing.log
+
+echo "== (f) the frame cap and motion per second, at 96x160"
+cd "$work"
+python3 "$here/make_scene.py" "$work/small" 96 160 1
+small=(--frame-npy small/frames.npy --depth small/depth.npy --size 96x160)
+"${xvfb[@]}" "$preview" "${small[@]}" --frames-to-run 90 ${PREVIEW_EXTRA_ARGS:-} >capped.log 2>&1 \
+  || { cat capped.log; echo "run_preview_test: the capped run failed"; exit 1; }
+python3 "$here/compare_preview.py" rate capped.log 63
+printf 'key W 30\nkeypose\nquit\n' >hold_w.txt
+for fps in 20 60; do
+  "${xvfb[@]}" "$preview" "${small[@]}" --script hold_w.txt --max-fps $fps ${PREVIEW_EXTRA_ARGS:-} >hold_$fps.log 2>&1 \
+    || { cat hold_$fps.log; echo "run_preview_test: the run at --max-fps $fps failed"; exit 1; }
+  python3 "$here/compare_preview.py" travel hold_$fps.log 30 $fps
+done
 
 echo "== (d) from a video and its .npz depth, frame 3 of 5"
 video_lib=$(find "$prefix" -name 'libdvs_video.so' -print -quit)
@@ -112,5 +130,21 @@ else
     --out from_json >render_json.log 2>&1 || { cat render_json.log; exit 1; }
   python3 "$here/compare_preview.py" panel shot_frame3.npy from_json/render.npy from_json/mask.npy 3
   echo "(e) took $(( $(date +%s) - t0 )) s"
+
+  echo "== (e) --frame-index past the clip's $FRAMES frames names what was given"
+  if "${xvfb[@]}" "$preview" --video ../clip/clip.mp4 --depth ../clip/depth.npz --frame-index 7 --size ${H}x${W} \
+      --frames-to-run 1 >past_end.log 2>&1; then
+    cat past_end.log; echo "run_preview_test: --frame-index 7 of a $FRAMES-frame clip was accepted"; exit 1
+  fi
+  cat past_end.log
+  grep -q -- "--frame-index 7: .*frame 7 asked for, but the video holds $FRAMES frames" past_end.log \
+    || { echo "run_preview_test: the message does not name --frame-index 7 and the clip's $FRAMES frames"; exit 1; }
+  if grep -q -- "--frames" past_end.log; then echo "run_preview_test: the message names --frames, never given"; exit 1; fi
+  if "$preview" --video ../clip/clip.mp4 --depth-model "$vda" --frame-index 60 >past_model.log 2>&1; then
+    cat past_model.log; echo "run_preview_test: --frame-index 60 past --depth-model's 49 frames was accepted"; exit 1
+  fi
+  cat past_model.log
+  grep -q -- "--frame-index 60 is past the 49 frames --depth-model estimates by default" past_model.log \
+    || { echo "run_preview_test: the message does not say the 49 frames are the default (--frames was not given)"; exit 1; }
 fi
 echo "run_preview_test: passed"

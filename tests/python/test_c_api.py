@@ -51,13 +51,57 @@ class SceneOptions(C.Structure):
 
 
 class RenderOptions(C.Structure):
-    _fields_ = [("video", C.c_char_p), ("depth", C.c_char_p), ("depth_model", C.c_char_p), ("out_dir", C.c_char_p),
-                ("trajectory", C.c_char_p), ("device", C.c_char_p), ("frames", C.c_int32), ("height", C.c_int32),
-                ("width", C.c_int32), ("metric_depth", C.c_int32), ("hard_points", C.c_int32),
-                ("depth_input_size", C.c_int32)]
+    """dvs_render_options (dvs/dvs.h), field for field."""
+    _fields_ = [("struct_size", C.c_size_t), ("video", C.c_char_p), ("depth", C.c_char_p),
+                ("depth_model", C.c_char_p), ("out_dir", C.c_char_p), ("trajectory", C.c_char_p),
+                ("device", C.c_char_p), ("frames", C.c_int32), ("height", C.c_int32), ("width", C.c_int32),
+                ("metric_depth", C.c_int32), ("hard_points", C.c_int32), ("depth_input_size", C.c_int32),
+                ("squash", C.c_int32), ("trim_depth", C.c_int32), ("depth_fit", C.c_char_p), ("fx", C.c_double),
+                ("fy", C.c_double), ("cx", C.c_double), ("cy", C.c_double), ("export_glb", C.c_int32),
+                ("save_npy", C.c_int32), ("depth_cache_dir", C.c_char_p), ("depth_cache", C.c_int32)]
+
+
+class PipelineOptions(C.Structure):
+    """dvs_pipeline_options (dvs/dvs.h), field for field; render points at a RenderOptions."""
+    _fields_ = [("struct_size", C.c_size_t), ("render", C.POINTER(RenderOptions)), ("model", C.c_char_p),
+                ("prompt", C.c_char_p), ("negative_prompt", C.c_char_p), ("preset", C.c_char_p),
+                ("cache_dir", C.c_char_p), ("lora", C.c_char_p), ("steps", C.c_int32), ("inversion_steps", C.c_int32),
+                ("strength", C.c_double), ("k", C.c_double), ("delta", C.c_double), ("guidance", C.c_double),
+                ("lora_scale", C.c_double), ("seed", C.c_uint64), ("use_cache", C.c_int32),
+                ("dynamic_cfg", C.c_int32), ("preservation_scale", C.c_double), ("vae_tiling", C.c_int32),
+                ("vae_tile_height", C.c_int32), ("vae_tile_width", C.c_int32)]
+
+
+class PlanRequest(C.Structure):
+    """dvs_plan_request (dvs/dvs.h)."""
+    _fields_ = [("struct_size", C.c_size_t), ("model", C.c_char_p), ("frames", C.c_int32), ("height", C.c_int32),
+                ("width", C.c_int32), ("budget", C.c_uint64), ("alignment", C.c_uint64), ("device", C.c_char_p),
+                ("limits", C.c_char_p), ("depth_model", C.c_char_p), ("depth_input_size", C.c_int32),
+                ("depth_frame_height", C.c_int32), ("depth_frame_width", C.c_int32)]
+
+
+class PlanResult(C.Structure):
+    """dvs_plan_result (dvs/dvs.h)."""
+    _fields_ = [("struct_size", C.c_size_t), ("checked", C.c_int32), ("runs", C.c_int32),
+                ("weights_bytes", C.c_uint64), ("run_peak_bytes", C.c_uint64)]
 
 
 PROGRESS = C.CFUNCTYPE(C.c_int, C.c_char_p, C.c_int32, C.c_int32, C.c_char_p, C.c_void_p)
+LOG = C.CFUNCTYPE(None, C.c_int, C.c_char_p, C.c_void_p)
+
+
+def text_call(lib, call, *args):
+    """(status, count, text) of a C call that reports into a buffer: asked for its size first, then filled."""
+    count, needed = C.c_int32(-1), C.c_size_t(0)
+    status = call(*args, C.byref(count), None, 0, C.byref(needed))
+    if status != DVS_OK:
+        return status, count.value, lib.dvs_last_error().decode()
+    buffer = C.create_string_buffer(needed.value)
+    again = C.c_size_t(0)
+    status = call(*args, C.byref(count), buffer, len(buffer), C.byref(again))
+    check(again.value == needed.value and len(buffer.value) + 1 == needed.value,
+          "the text needs %d bytes, then %d, and holds %d" % (needed.value, again.value, len(buffer.value)))
+    return status, count.value, buffer.value.decode()
 
 
 def bind(lib, sig):
@@ -76,7 +120,7 @@ def load(path):
         "dvs_last_error": (C.c_char_p, []),
         "dvs_context_create": (C.c_int, [C.c_char_p, C.c_int32, C.POINTER(P)]),
         "dvs_context_destroy": (C.c_int, [P]),
-        "dvs_context_device_name": (C.c_int, [P, C.c_char_p, C.c_size_t]),
+        "dvs_context_device_name": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t)]),
         "dvs_intrinsics_default": (C.c_int, [C.c_int32, C.c_int32, C.c_int32, C.POINTER(Intrinsics)]),
         "dvs_scene_create": (C.c_int, [P, P, C.c_int, C.c_int32, C.c_int32, P, C.POINTER(Intrinsics),
                                        C.POINTER(SceneOptions), C.POINTER(P)]),
@@ -89,10 +133,20 @@ def load(path):
         "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_job_start_render": (C.c_int, [C.POINTER(RenderOptions), C.POINTER(P)]),
         "dvs_job_poll": (C.c_int, [P, C.POINTER(C.c_int)]),
-        "dvs_job_progress": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_int32), C.POINTER(C.c_int32)]),
-        "dvs_job_error": (C.c_int, [P, C.c_char_p, C.c_size_t]),
+        "dvs_job_progress": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t), C.POINTER(C.c_int32),
+                                       C.POINTER(C.c_int32)]),
+        "dvs_job_error": (C.c_int, [P, C.c_char_p, C.c_size_t, C.POINTER(C.c_size_t)]),
         "dvs_job_result": (C.c_int, [P]),
         "dvs_job_destroy": (C.c_int, [P]),
+        "dvs_set_log_callback": (C.c_int, [LOG, P]),
+        "dvs_trajectory_load": (C.c_int, [C.c_char_p, C.c_int32, C.c_double, C.POINTER(C.c_double), C.c_size_t]),
+        "dvs_preflight_render": (C.c_int, [C.POINTER(RenderOptions), C.POINTER(C.c_int32), C.c_char_p, C.c_size_t,
+                                           C.POINTER(C.c_size_t)]),
+        "dvs_preflight_pipeline": (C.c_int, [C.POINTER(PipelineOptions), C.POINTER(C.c_int32), C.c_char_p,
+                                             C.c_size_t, C.POINTER(C.c_size_t)]),
+        "dvs_plan_request_default": (C.c_int, [C.POINTER(PlanRequest)]),
+        "dvs_plan_run_memory": (C.c_int, [C.POINTER(PlanRequest), C.POINTER(PlanResult), C.c_int32, C.c_char_p,
+                                          C.c_size_t, C.POINTER(C.c_size_t)]),
     }
     return bind(lib, sig)
 
@@ -170,7 +224,10 @@ def main():
     lib = load(args[0])
     program = args[1]
     if "--video-lib" in options:
-        C.CDLL(options["--video-lib"], mode=C.RTLD_GLOBAL)
+        # docs/c-api.md: the video component beside the core, enabled by its one C call.
+        video = C.CDLL(options["--video-lib"], mode=C.RTLD_GLOBAL)
+        video.dvs_enable_video_files.restype = C.c_int
+        check(video.dvs_enable_video_files() == DVS_OK, "dvs_enable_video_files")
     print("dvs", lib.dvs_version().decode())
     frame, disparity = synthetic_inputs()
     identity = [1.0 if i % 5 == 0 else 0.0 for i in range(16)]
@@ -179,7 +236,7 @@ def main():
     ctx = C.c_void_p()
     ok(lib, lib.dvs_context_create(None, 0, C.byref(ctx)), "dvs_context_create")
     name = C.create_string_buffer(256)
-    ok(lib, lib.dvs_context_device_name(ctx, name, len(name)), "dvs_context_device_name")
+    ok(lib, lib.dvs_context_device_name(ctx, name, len(name), None), "dvs_context_device_name")
     print("device:", name.value.decode())
 
     K = Intrinsics()
@@ -229,6 +286,8 @@ def main():
     try:
         compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K, tmp, frame, disparity, pose,
                                       moved_mask)
+        trajectory_preflight_and_log(lib, program, radius.value, tmp, frame, disparity)
+        memory_plan(lib, program)
         if "--vda" in options:
             depth_of_frames(lib, program, ctx, options["--vda"], tmp)
     finally:
@@ -330,11 +389,11 @@ def compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K,
     deadline = time.monotonic() + 300
     while state.value == DVS_JOB_RUNNING and time.monotonic() < deadline:
         ok(lib, lib.dvs_job_poll(job, C.byref(state)), "dvs_job_poll")
-        ok(lib, lib.dvs_job_progress(job, stage, len(stage), None, None), "dvs_job_progress")
+        ok(lib, lib.dvs_job_progress(job, stage, len(stage), None, None, None), "dvs_job_progress")
         polls += 1
         time.sleep(0.01)
     error = C.create_string_buffer(1024)
-    ok(lib, lib.dvs_job_error(job, error, len(error)), "dvs_job_error")
+    ok(lib, lib.dvs_job_error(job, error, len(error), None), "dvs_job_error")
     check(state.value == DVS_JOB_SUCCEEDED, "render job: state %d after %d polls: %s" %
           (state.value, polls, error.value.decode()))
     check(lib.dvs_job_result(job) == DVS_OK, "render job: result " + lib.dvs_last_error().decode())
@@ -352,6 +411,80 @@ def compare_with_program_and_jobs(lib, program, ctx, scene, frame_c, depth_c, K,
     check("missing.npy" in message, "failing job: the message does not name the file: " + message)
     ok(lib, lib.dvs_job_destroy(job), "dvs_job_destroy")
     print("render job: %d polls" % polls)
+
+
+def trajectory_preflight_and_log(lib, program, radius, tmp, frame, disparity):
+    """Issue 34's C calls against the program: a preset's poses equal the poses.json `dvs render` writes for the
+    same clip; the render's preflight finds no problem and notes the video; a path that leaves the scene in some
+    frames is a warning that reaches the log callback, naming the C field and the mask file."""
+    F = 9
+    video, depth = os.path.join(tmp, "clip9.npy"), os.path.join(tmp, "depth9.npy")
+    write_npy(video, "B", (F, H, W, 3), frame * F)
+    write_npy(depth, "f", (F, H, W), disparity * F)
+    out = os.path.join(tmp, "dolly")
+    run_program(program, ["render", "--video", video, "--depth", depth, "--trajectory", "dolly_in:0.3", "--frames",
+                          str(F), "--size", "%dx%d" % (H, W), "--no-glb", "--out", out])
+    with open(os.path.join(out, "poses.json")) as f:
+        expected = [v for pose in json.load(f)["poses"] for row in pose for v in row]
+    poses = (C.c_double * (16 * F))()
+    ok(lib, lib.dvs_trajectory_load(b"dolly_in:0.3", F, radius, poses, len(poses)), "dvs_trajectory_load")
+    check(list(poses) == expected, "dolly_in:0.3 at radius %g: the poses differ from dvs render's poses.json" % radius)
+
+    options = RenderOptions()
+    ok(lib, lib.dvs_render_options_default(C.byref(options)), "dvs_render_options_default")
+    options.video, options.depth, options.out_dir = video.encode(), depth.encode(), os.path.join(tmp, "pan").encode()
+    options.frames, options.height, options.width, options.export_glb = F, H, W, 0
+    options.trajectory = b"pan_left:180"
+    status, problems, report = text_call(lib, lib.dvs_preflight_render, C.byref(options))
+    check(status == DVS_OK and problems == 0, "preflight of the render: %d, %d problems: %s" % (status, problems, report))
+    check("note: video %s: %d frames of %dx%d" % (video, F, H, W) in report, "preflight notes: " + report)
+
+    messages = []
+    log = LOG(lambda level, message, user: messages.append((level, message.decode())))
+    ok(lib, lib.dvs_set_log_callback(log, None), "dvs_set_log_callback")
+    job = C.c_void_p()
+    ok(lib, lib.dvs_job_start_render(C.byref(options), C.byref(job)), "dvs_job_start_render")
+    ok(lib, lib.dvs_job_result(job), "dvs_job_result")
+    ok(lib, lib.dvs_job_destroy(job), "dvs_job_destroy")
+    ok(lib, lib.dvs_set_log_callback(LOG(), None), "dvs_set_log_callback(NULL)")
+    shown = [m for level, m in messages if level == 1 and "show nothing of the scene" in m]
+    check(len(shown) == 1 and shown[0].startswith("dvs_render_options.trajectory pan_left:180: frames ") and
+          "Look at mask.mp4" in shown[0], "the visibility warning through the log callback: %r" % messages)
+
+    # A program that sets no callback: the same warning on its stderr, in the C names too.
+    child = ("import ctypes as C, sys; sys.path.insert(0, %r); from test_c_api import RenderOptions, load\n"
+             "lib = load(%r); o = RenderOptions(); lib.dvs_render_options_default(C.byref(o))\n"
+             "o.video, o.depth, o.out_dir, o.frames, o.height, o.width, o.export_glb = %r, %r, %r, %d, %d, %d, 0\n"
+             "o.trajectory = b'pan_left:180'; job = C.c_void_p()\n"
+             "lib.dvs_job_start_render(C.byref(o), C.byref(job)); sys.exit(lib.dvs_job_result(job))\n") % (
+        os.path.dirname(os.path.abspath(__file__)), lib._name, video.encode(), depth.encode(),
+        os.path.join(tmp, "pan_child").encode(), F, H, W)
+    r = subprocess.run([sys.executable, "-c", child], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    check(r.returncode == 0 and "dvs: warning: dvs_render_options.trajectory pan_left:180: frames " in r.stderr,
+          "no callback: the default line on stderr (exit %d): %s" % (r.returncode, r.stderr))
+    print("trajectory, preflight and log: %d poses equal dvs render's; warning: %s" % (F, shown[0][:60] if shown else "-"))
+
+
+def memory_plan(lib, program):
+    """dvs_plan_run_memory of the built-in model equals `dvs plan --json` of the program, and the figures agree."""
+    q = PlanRequest()
+    ok(lib, lib.dvs_plan_request_default(C.byref(q)), "dvs_plan_request_default")
+    q.model, q.frames = b"cogvideox-5b-i2v", 13
+    result = PlanResult()
+    result.struct_size = C.sizeof(PlanResult)
+    needed = C.c_size_t(0)
+    ok(lib, lib.dvs_plan_run_memory(C.byref(q), C.byref(result), 1, None, 0, C.byref(needed)), "dvs_plan_run_memory")
+    buffer = C.create_string_buffer(needed.value)
+    ok(lib, lib.dvs_plan_run_memory(C.byref(q), None, 1, buffer, len(buffer), None), "dvs_plan_run_memory")
+    text = buffer.value.decode()
+    check(len(text) + 1 == needed.value, "the plan needs %d bytes and holds %d" % (needed.value, len(text)))
+    r = subprocess.run([program, "plan", "--model", "cogvideox-5b-i2v", "--frames", "13", "--json"],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    check(r.returncode == 0 and json.loads(text) == json.loads(r.stdout), "the plan differs from dvs plan --json")
+    figures = json.loads(text)
+    check(result.weights_bytes > 0 and result.run_peak_bytes > result.weights_bytes and result.runs == 1,
+          "plan figures: %d %d %d" % (result.weights_bytes, result.run_peak_bytes, result.runs))
+    print("memory plan: equals dvs plan --json (%d keys), weights %.2f GiB" % (len(figures), result.weights_bytes / 2**30))
 
 
 if __name__ == "__main__":

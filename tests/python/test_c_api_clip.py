@@ -8,7 +8,9 @@ made here is written as frame and depth arrays (.npy) and run through the progra
 its latent cache in a folder of its own); the same clip in memory through dvs_run_pipeline_clip must give the
 latent the program left in its cache, float for float. The same run as a job (dvs_job_start_pipeline_clip) gives
 the same latent; dvs_clip_latent_shape sizes the buffer; a wrong latent_floats is DVS_ERROR_INVALID_ARGUMENT naming
-it and a clip option that cannot be (render.video set) is DVS_ERROR_FILE naming it. Standard library only.
+it and a clip option that cannot be (render->video set) is DVS_ERROR_INVALID_ARGUMENT naming it. The prompt is longer
+than the model reads: the cut is said once through the log callback, naming dvs_pipeline_options.prompt; the job's
+cache folder cannot be written, which its thread logs naming dvs_pipeline_options.cache_dir. Standard library only.
 """
 import ctypes as C
 import os
@@ -17,19 +19,12 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_c_api import (DVS_ERROR_FILE, DVS_ERROR_INVALID_ARGUMENT, PROGRESS, RenderOptions, bind,  # noqa: E402
-                        check, failures, f32, ok, read_npy_f32, run_program, write_npy)
+from test_c_api import (DVS_ERROR_INVALID_ARGUMENT, LOG, PROGRESS, PipelineOptions,  # noqa: E402
+                        RenderOptions, bind, check, failures, f32, ok, read_npy_f32, run_program, write_npy)
 
 F, H, W = 9, 64, 64
-STEPS, INVERSION_STEPS, PROMPT = 4, 3, "a red fox"
-
-
-class PipelineOptions(C.Structure):
-    _fields_ = [("render", RenderOptions), ("model", C.c_char_p), ("prompt", C.c_char_p),
-                ("negative_prompt", C.c_char_p), ("preset", C.c_char_p), ("cache_dir", C.c_char_p),
-                ("lora", C.c_char_p), ("steps", C.c_int32), ("inversion_steps", C.c_int32), ("strength", C.c_double),
-                ("k", C.c_double), ("delta", C.c_double), ("guidance", C.c_double), ("lora_scale", C.c_double),
-                ("seed", C.c_uint64), ("use_cache", C.c_int32)]
+# Longer than the pack's model reads (8 tokens): the cut is a warning that must reach the library user's log callback.
+STEPS, INVERSION_STEPS, PROMPT = 4, 3, "a red fox jumps over the lazy brown dog in the snow at dawn"
 
 
 def load(path):
@@ -40,6 +35,7 @@ def load(path):
         "dvs_context_create": (C.c_int, [C.c_char_p, C.c_int32, C.POINTER(P)]),
         "dvs_context_destroy": (C.c_int, [P]),
         "dvs_pipeline_options_default": (C.c_int, [C.POINTER(PipelineOptions)]),
+        "dvs_render_options_default": (C.c_int, [C.POINTER(RenderOptions)]),
         "dvs_clip_latent_shape": (C.c_int, [C.POINTER(PipelineOptions), C.c_int32, C.c_int32, C.c_int32,
                                             C.POINTER(C.c_int64)]),
         "dvs_run_pipeline_clip": (C.c_int, [P, C.POINTER(PipelineOptions), P, C.c_int32, C.c_int32, C.c_int32, P, P,
@@ -48,6 +44,7 @@ def load(path):
                                                   P, P, P, P, P, C.c_size_t, C.POINTER(P)]),
         "dvs_job_result": (C.c_int, [P]),
         "dvs_job_destroy": (C.c_int, [P]),
+        "dvs_set_log_callback": (C.c_int, [LOG, P]),
     }
     return bind(lib, sig)
 
@@ -67,9 +64,10 @@ def file_run_latent(program, model, tmp):
                           "--metric-depth", "--model", model, "--frames", str(F), "--size", "%dx%d" % (H, W),
                           "--steps", str(STEPS), "--inversion-steps", str(INVERSION_STEPS), "--prompt", PROMPT,
                           "--cache-dir", cache, "--out", os.path.join(tmp, "file_out")])
-    latents = [n for n in os.listdir(cache) if n.startswith("latent-") and n.endswith(".npy")]
+    entries = os.path.join(cache, "inversions")  # the cache folder's entries (dvs/cache.hpp)
+    latents = [n for n in os.listdir(entries) if n.startswith("latent-") and n.endswith(".npy")]
     check(len(latents) == 1, "the file run left %d latents in its cache" % len(latents))
-    return read_npy_f32(os.path.join(cache, latents[0]))
+    return read_npy_f32(os.path.join(entries, latents[0]))
 
 
 def main():
@@ -92,7 +90,10 @@ def main():
         o.model, o.prompt = model.encode(), PROMPT.encode()
         o.cache_dir = os.path.join(tmp, "clip_cache").encode()
         o.steps, o.inversion_steps = STEPS, INVERSION_STEPS
-        o.render.frames, o.render.height, o.render.width, o.render.metric_depth = 0, H, W, 1
+        r = RenderOptions()
+        ok(lib, lib.dvs_render_options_default(C.byref(r)), "dvs_render_options_default")
+        r.frames, r.height, r.width, r.metric_depth = 0, H, W, 1
+        o.render = C.pointer(r)
         s = (C.c_int64 * 4)()
         ok(lib, lib.dvs_clip_latent_shape(C.byref(o), F, H, W, s), "dvs_clip_latent_shape")
         check(tuple(s) == shape, "dvs_clip_latent_shape gives %r, the file run's latent is %r" % (tuple(s), shape))
@@ -110,22 +111,36 @@ def main():
                 stages.append(stage.decode())
             return 0
 
+        warnings = []
+        log = LOG(lambda level, message, user: warnings.append(message.decode()))
+        ok(lib, lib.dvs_set_log_callback(log, None), "dvs_set_log_callback")
         ok(lib, lib.dvs_run_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, mask, latent, n,
                                           PROGRESS(on_progress), None), "dvs_run_pipeline_clip")
+        cut = [w for w in warnings if w.startswith("dvs_pipeline_options.prompt is ")]
+        check(len(cut) == 1 and "tokens but this model reads 8" in cut[0], "the prompt's cut, logged: %r" % warnings)
         differ = sum(1 for a, b in zip(latent, expected) if a != b)
         check(differ == 0, "dvs_run_pipeline_clip: %d of %d latent values differ from the file run's" % (differ, n))
         check("sample" in stages and "decode" in stages, "progress stages: %r" % stages)
         check(any(v > 0 for v in mask), "the mask shows nothing")
         print("blocking run: latent equals the file run's (%d values); stages %s" % (n, " ".join(stages)))
 
-        # The job form (no cache: it samples again).
-        o.use_cache = 0
+        # The job form, with a cache folder that cannot be written (under a file): it samples again, uncached, and
+        # says so through the callback, from the job's own thread, naming the fields that fix it.
+        not_a_folder = os.path.join(tmp, "a_file")
+        with open(not_a_folder, "w") as f:
+            f.write("x")
+        o.cache_dir = os.path.join(not_a_folder, "cache").encode()
+        del warnings[:]
         job = C.c_void_p()
         job_latent = (C.c_float * n)()
         ok(lib, lib.dvs_job_start_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, None,
                                                 job_latent, n, C.byref(job)), "dvs_job_start_pipeline_clip")
         ok(lib, lib.dvs_job_result(job), "dvs_job_result")
         ok(lib, lib.dvs_job_destroy(job), "dvs_job_destroy")
+        ok(lib, lib.dvs_set_log_callback(LOG(), None), "dvs_set_log_callback(NULL)")
+        unwritable = [w for w in warnings if w.startswith("the cache cannot be written, so this run is not cached")]
+        check(len(unwritable) == 1 and "dvs_pipeline_options.cache_dir" in unwritable[0] and
+              "dvs_pipeline_options.use_cache" in unwritable[0], "the unwritable cache, logged: %r" % warnings)
         check(list(job_latent) == list(expected), "the job's latent differs from the file run's")
 
         # Refusals: the buffer's size, and a file option the clip replaces.
@@ -134,11 +149,12 @@ def main():
         message = lib.dvs_last_error().decode()
         check(status == DVS_ERROR_INVALID_ARGUMENT and "latent_floats" in message,
               "wrong latent_floats: status %d, %s" % (status, message))
-        o.render.video = b"clip.mp4"
+        r.video = b"clip.mp4"
         status = lib.dvs_run_pipeline_clip(ctx, C.byref(o), frames_c, F, H, W, depth_c, None, output, None, None, 0,
                                            PROGRESS(0), None)
         message = lib.dvs_last_error().decode()
-        check(status == DVS_ERROR_FILE and "render.video" in message, "render.video set: status %d, %s" % (status, message))
+        check(status == DVS_ERROR_INVALID_ARGUMENT and "dvs_pipeline_options.render->video" in message,
+              "render.video set: status %d, %s" % (status, message))
         ok(lib, lib.dvs_context_destroy(ctx), "dvs_context_destroy")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

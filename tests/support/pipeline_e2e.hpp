@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,7 @@
 #include "support/golden_compare.hpp"
 #include "support/gpu.hpp"
 #include "support/pack.hpp"
+#include "support/precision_rule.hpp"
 #include "tensor/dispatch.hpp"
 
 namespace dvs::e2e {
@@ -33,9 +35,11 @@ using test::GpuTest;
 inline HostTensor load(const std::string& rel) { return test::pack_npy(rel); }
 inline const nlohmann::json& settings() { return test::pack_cases().at("e2e_settings"); }
 
-inline void expect_close(const std::string& what, const Tensor& ours, vk::Context& ctx, const HostTensor& golden,
-                  const test::PackTolerance& tol) {
-  test::expect_close(what, ours.download(ctx), golden, tol.atol, tol.rtol);
+// `ours` against the pack file `rel` by the precision rule (support/precision_rule.hpp) for the ops that made it:
+// by default the chain's (VAE convolutions and the transformer's linears and attention).
+inline void expect_close(const std::string& what, const Tensor& ours, vk::Context& ctx, const std::string& rel,
+                         const test::PackTolerance& tol, unsigned ops = test::kAllKernelOps) {
+  test::expect_golden(what, ours.download(ctx), rel, tol.atol, tol.rtol, ops);
 }
 
 // The options a user would give for the pack's e2e case: the official preset (zero-SNR inversion to 999, K-RNR
@@ -114,9 +118,10 @@ class PipelineE2e : public GpuTest {
         ADD_FAILURE() << "the inversion never reached the pack's level " << t;
         continue;
       }
-      test::expect_close("inversion latent at t=" + std::to_string(t), log.by_timestep.at(t), load(f), tol.atol, tol.rtol);
+      test::expect_golden("inversion latent at t=" + std::to_string(t), log.by_timestep.at(t), f, tol.atol, tol.rtol,
+                          test::kAllKernelOps);
     }
-    expect_close("eps_inv", eps, ctx(), load("e2e/eps_inv.npy"), tol);
+    expect_close("eps_inv", eps, ctx(), "e2e/eps_inv.npy", tol);
     return eps;
   }
 
@@ -140,8 +145,8 @@ class PipelineE2e : public GpuTest {
           ADD_FAILURE() << "the sampling never ran the pack's timestep " << t;
           continue;
         }
-        test::expect_close("sampling latent after t=" + std::to_string(t), log.by_timestep.at(t),
-                           load(step_file("sampling", i, t, "latent")), tol.atol, tol.rtol);
+        test::expect_golden("sampling latent after t=" + std::to_string(t), log.by_timestep.at(t),
+                            step_file("sampling", i, t, "latent"), tol.atol, tol.rtol, test::kAllKernelOps);
       }
     }
     return r;
@@ -150,11 +155,20 @@ class PipelineE2e : public GpuTest {
   // decode_latent (what `dvs run` writes, clamped to [−1, 1]) against the pack's unclamped frames, clamped.
   void check_frames(const Tensor& latent) {
     const double atol = test::pack_case("e2e_sampling").at("tolerance").at("frames_atol");
-    HostTensor golden = frames_first(load("e2e/final_frames.npy"));
-    for (int64_t i = 0; i < golden.numel(); ++i) golden.as<float>()[i] = std::clamp(golden.as<float>()[i], -1.0f, 1.0f);
+    // The golden's frames (and its bf16 run's, the same way) frame-first and clamped.
+    auto clamped = [](const HostTensor& pack_frames) {
+      HostTensor f = frames_first(pack_frames);
+      for (int64_t i = 0; i < f.numel(); ++i) f.as<float>()[i] = std::clamp(f.as<float>()[i], -1.0f, 1.0f);
+      return f;
+    };
+    const test::PackGolden pg = test::read_pack_golden(test::golden_path(), "e2e/final_frames.npy");
+    const HostTensor golden = clamped(pg.golden);
+    std::optional<std::vector<float>> bf16;
+    if (pg.bf16) bf16 = clamped(*pg.bf16).to_f32();
     const HostTensor frames = decode_latent(ctx(), vae(), pack_options(), latent, float(vae().config().scaling_factor),
                                               int(golden.shape[0]));
-    test::expect_close("final frames (clamped)", frames, golden, atol, 0);
+    test::expect_golden_values("final frames (clamped)", frames.shape, frames.to_f32(), golden.shape, golden.to_f32(),
+                               bf16, pg.bf16_path.string(), atol, 0, test::kAllKernelOps);
   }
 
   // The production image latent of the video's first frame: VAE posterior of frame 0 alone, mean + std · the
@@ -178,9 +192,9 @@ class PipelineE2e : public GpuTest {
     in.render = video;
     EncodedRender enc = encode_render(ctx(), vae(), o, jp.settings, in);  // x0_mean, posterior; its Philox draws unused
     const auto img_tol = test::pack_tolerance("e2e_image_latents");
-    expect_close("x0 (0.7 · posterior mean)", enc.x0_mean, ctx(), load("e2e/inversion_x0.npy"), img_tol);
+    expect_close("x0 (0.7 · posterior mean)", enc.x0_mean, ctx(), "e2e/inversion_x0.npy", img_tol);
     const Tensor image_latent = image_latent_of(video, enc.x0_mean.dim(0));
-    expect_close("image_latents", image_latent, ctx(), load("e2e/image_latents.npy"), img_tol);
+    expect_close("image_latents", image_latent, ctx(), "e2e/image_latents.npy", img_tol);
 
     const Tensor empty_text = upload(load("e2e/empty_embeds.npy"));
     const Tensor eps = invert_and_check(jp, enc.x0_mean, image_latent, empty_text);
@@ -190,19 +204,19 @@ class PipelineE2e : public GpuTest {
     StageTracker stages({}, {});
     const InversionResult inv = invert_render(ctx(), transformer(), o, jp, int(video.shape[0]), enc, empty_text, stages);
     EXPECT_FALSE(inv.from_cache);
-    expect_close("eps_inv (invert_render)", inv.eps, ctx(), load("e2e/eps_inv.npy"), test::pack_tolerance("e2e_inversion"));
+    expect_close("eps_inv (invert_render)", inv.eps, ctx(), "e2e/eps_inv.npy", test::pack_tolerance("e2e_inversion"));
 
     Tensor sample = Tensor::empty(ctx(), enc.posterior.mean.shape(), DType::f32);
     const Tensor noise = upload(load("e2e/video_sample_noise.npy"));
     ops::run_now(ctx(), [&](vk::Recorder& rec) { models::CogVideoXVae::sample(rec, enc.posterior, noise, sample); });
     enc.x0 = to_diffusion_layout(ctx(), sample, sf);  // the pack's draw in place of the Philox one
-    expect_close("x0 (0.7 · posterior sample)", enc.x0, ctx(), load("e2e/krnr_x0.npy"), img_tol);
+    expect_close("x0 (0.7 · posterior sample)", enc.x0, ctx(), "e2e/krnr_x0.npy", img_tol);
     const Tensor x_init =
         initial_latent(ctx(), jp.settings, o.k, o.seed, enc, eps, nullptr, jp.schedule.alpha_cumprod(jp.plan.t0()));
-    expect_close("x_init", x_init, ctx(), load("e2e/x_init.npy"), test::pack_tolerance("e2e_krnr"));
+    expect_close("x_init", x_init, ctx(), "e2e/x_init.npy", test::pack_tolerance("e2e_krnr"));
 
     const diffusion::SampleResult r = sample_and_check(jp, jp.plan, x_init, image_latent, "e2e_sampling", true);
-    expect_close("final latent", r.pred_x0, ctx(), load("e2e/final_latent.npy"), test::pack_tolerance("e2e_sampling"));
+    expect_close("final latent", r.pred_x0, ctx(), "e2e/final_latent.npy", test::pack_tolerance("e2e_sampling"));
     check_frames(r.pred_x0);
   }
 

@@ -1,5 +1,7 @@
-// The cache folder (--cache-dir, $DVS_CACHE_DIR or ~/.cache/dvs): depth estimates, inversions and sampled
-// latents, each an entry a later run reuses. `dvs cache list` and `dvs cache clean` read and trim it.
+// The cache folder: --cache-dir DIR, DVS_CACHE_DIR=DIR and the library's cache_dir (RunOptions, DepthJob,
+// RenderJob::depth_cache_dir, dvs_pipeline_options) all name it; empty: $DVS_CACHE_DIR, else ~/.cache/dvs. It holds
+// the Vulkan pipeline cache and, in DIR/inversions, the entries a later run reuses: depth estimates, inversions and
+// sampled latents. `dvs cache list` and `dvs cache clean` read and trim the entries.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -14,13 +16,20 @@ namespace dvs {
 struct CacheEntry {
   std::string kind;                         // "depth", "inversion" or "latent"
   std::string key;                          // the hash of its inputs
-  std::vector<std::filesystem::path> files; // the entry's files (a latent: its .npy and its .json)
+  std::filesystem::path data_file;          // its data: the .npy a run reads
+  std::vector<std::filesystem::path> files; // all its files, the commit marker (.npy.sum) first (a latent: and its .json)
   uint64_t bytes = 0;                       // all its files together
   double age_days = 0;                      // since it was last written or reused
 };
 
-// The folder the entries are in for `cache_dir` as given (empty: $DVS_CACHE_DIR or ~/.cache/dvs).
+// The folder the entries are in for the cache folder `cache_dir` as given: cache_dir/inversions (empty cache_dir:
+// $DVS_CACHE_DIR/inversions, else ~/.cache/dvs/inversions).
 DVS_API std::filesystem::path cache_folder(const std::filesystem::path& cache_dir);
+
+// When the cache folder holds entries directly in it, as a dvs whose --cache-dir named the entries' own folder left
+// them: what to do (the commands that move them, or the folder to give instead). A run on such a folder is refused
+// with this message rather than computing its entries again; nullopt when there are none.
+DVS_API std::optional<std::string> old_cache_layout(const std::filesystem::path& cache_dir);
 
 // Every complete entry, most recently used first. Files still being written (a temporary name until they are
 // renamed into place whole) are not entries.

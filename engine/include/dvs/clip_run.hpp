@@ -20,10 +20,10 @@ namespace dvs {
 struct ClipView {
   // u8 [F,H,W,3] RGB (what a video decoder gives) or f32 [F,3,H,W] RGB in [−1,1], already at the working size:
   // H and W multiples of 8, F = 4k+1 frames (what the model takes).
-  HostView frames;
+  ConstHostView frames;
   // f32 [F,H,W] at the frames' size: disparity (what DepthEstimator and `dvs depth` give), or metric depth with
   // RunOptions::render.metric_depth.
-  HostView depth;
+  ConstHostView depth;
   // One world-to-camera transform per frame (dvs/scene.hpp's convention: frame 0's camera is the world). Empty: the
   // path RunOptions::render.trajectory names (a preset such as "pan_left:30", or a .txt/.json/.gltf/.glb file).
   std::vector<Pose> poses;
@@ -46,8 +46,11 @@ DVS_API RunReport run_pipeline(Context& ctx, const RunOptions& options, const Cl
                                const ClipResultViews& out, const ProgressFn& progress = {},
                                const CancelFn& cancelled = {});
 
-// The same on a thread of its own. The context, the clip's memory and the result views must stay valid, and the
-// context unused by the application's other dvs calls, until the job has finished (Job::poll says when).
+// The same on a thread of its own. The clip's memory and the result views must stay valid until the job has finished
+// (Job::poll says when). The job holds the context until then: a call on it from another thread is refused
+// (dvs::Error naming the job; work beside the job goes on a second Context of the same device), a second job on it
+// too, and destroying the Context cancels the job and waits for its end. Errors of the options and views make the job
+// fail (ErrorKind::invalid_argument).
 DVS_API Job start_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
                            const ProgressFn& progress = {});
 

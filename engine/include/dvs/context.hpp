@@ -7,8 +7,15 @@
 // host (Context::wait) or on its own queue (a VkTimelineSemaphoreSubmitInfo wait on timeline()). The other way,
 // wait_before_next() makes dvs's next submission wait for a semaphore value the application signals.
 //
-// A context is used from one thread at a time (calls on one context are not concurrent); distinct contexts are
-// independent.
+// Threads: calls on one context from several threads are serialised (each waits for the one running); while a job
+// runs on the context (dvs::start_pipeline on a clip) a call from another thread is refused with a dvs::Error
+// (ErrorKind::invalid_argument) naming the job: for work beside a job (a preview render loop), make a second
+// Context on the same device (docs/embedding.md, "A preview beside a job"). Distinct contexts are independent,
+// also on one HostDevice (dvs serialises its own submissions to a shared VkQueue).
+//
+// Lifetime: what is made on a context (a PointCloudScene, a DepthEstimator) keeps its device objects alive, so the
+// Context may be destroyed first; the device objects go with the last of them (on a HostDevice, destroy them all
+// before the application's VkDevice). Destroying a Context cancels a job running on it and waits for its end.
 #pragma once
 #include <vulkan/vulkan.h>
 
@@ -25,6 +32,9 @@ namespace dvs {
 
 namespace vk {
 class Context;
+}
+namespace embed {
+struct ContextCore;
 }
 
 // The application's Vulkan objects. The device must have been created with the features and extensions
@@ -82,7 +92,10 @@ class DVS_API Context {
   // dvs's next submission waits until `semaphore` (a timeline semaphore of the same device) reaches `value`.
   void wait_before_next(VkSemaphore semaphore, uint64_t value);
 
-  vk::Context& internal();  // dvs's own code only (not part of the stable API)
+  // dvs's own code only (not part of the stable API): the device objects, and what the context shares with what is
+  // made on it.
+  vk::Context& internal();
+  std::shared_ptr<embed::ContextCore> core() const;
 
  private:
   struct Impl;

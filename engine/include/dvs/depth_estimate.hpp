@@ -21,10 +21,12 @@ struct DepthJob {
   std::optional<bool> metric;   // unset: the checkpoint's mode (metric_* files are metric)
   std::string device;
   // The depth cache every estimate goes through (shared by dvs depth and --depth-model, same key), so a failed
-  // write or a retry never repeats the work. Empty: $DVS_CACHE_DIR or ~/.cache/dvs.
+  // write or a retry never repeats the work: the cache folder, as `--cache-dir` (dvs/cache.hpp; the entries in
+  // cache_dir/inversions). Empty: $DVS_CACHE_DIR, else ~/.cache/dvs.
   std::filesystem::path cache_dir;
   bool refresh_cache = false;  // estimate again even when the cache holds this estimate (--no-cache)
-  // Lines to keep apart from the progress (the forecast of a long estimate, a damaged cache entry replaced).
+  // Lines to keep apart from the progress (the forecast of a long estimate; a damaged cache entry replaced is a
+  // warning to the log handler, dvs/logs.hpp).
   // Unset: sent as progress notes of stage "depth".
   std::function<void(const std::string&)> notice;
   double forecast_after_s = 60;  // forecast the cost of estimates expected to take at least this long

@@ -14,7 +14,7 @@ namespace dvs {
 struct DepthFileOptions {
   bool metric_depth = false;  // the file holds metric depth (dvs render --metric-depth), not disparity
   // The video frame the depth was estimated on (VideoFrames::source_height/width, dvs/video.hpp) and how that video
-  // was brought to the working size (dvs render --squash); 0 × 0: the depth belongs to a frame of the working size.
+  // was brought to the working size (dvs render --resize squash); 0 × 0: the depth belongs to a frame of the working size.
   int source_height = 0, source_width = 0;
   bool squash = false;
   std::string depth_fit = "error";  // dvs render --depth-fit: error | stretch | crop (another aspect than the video)
@@ -36,7 +36,7 @@ DVS_API DepthFrame load_depth_frame(const std::filesystem::path& path, int frame
 // with options.metric_depth) for frames of VideoFrames from read_video_frames_for_depth (pass its source_height/
 // width in options). Converted and mapped by the one implementation of the file form, so frame k equals what
 // `dvs render --depth-model` renders for frame k. Errors name the clip as "depth in memory".
-DVS_API DepthFrame load_depth_frame(const HostView& clip, int frame_index, int height, int width,
+DVS_API DepthFrame load_depth_frame(const ConstHostView& clip, int frame_index, int height, int width,
                                     const DepthFileOptions& options = {});
 
 }  // namespace dvs

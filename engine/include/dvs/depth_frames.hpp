@@ -29,7 +29,7 @@ class DVS_API DepthEstimator {
   bool metric() const;
   // frames: u8 [F,H,W,3] RGB; out: f32 [F,H,W], disparity (metric depth for a metric model) at the frames' size.
   // Progress and cancellation as estimate_depth (stage "depth").
-  void estimate(const HostView& frames, const HostView& out, const ProgressFn& progress = {},
+  void estimate(const ConstHostView& frames, const HostView& out, const ProgressFn& progress = {},
                 const CancelFn& cancelled = {});
   // The same with the frames in, and the disparity out to, the application's device buffers (dvs/views.hpp; a
   // HostDevice context). The frames are copied in at the start (the network's input resize runs on the host); the

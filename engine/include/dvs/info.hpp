@@ -4,6 +4,7 @@
 #include <string>
 
 #include "dvs/api.hpp"
+#include "dvs/version.h"  // DVS_VERSION_MAJOR/MINOR/PATCH: the headers' version
 
 namespace dvs {
 
@@ -11,6 +12,7 @@ namespace dvs {
 // the one that `device_spec` (index, name substring, or "" for the default/DVS_DEVICE) selects.
 DVS_API std::string device_report(const std::string& device_spec = "");
 
+// The library's version, "MAJOR.MINOR.PATCH" (the one loaded at run time; DVS_VERSION_* are the headers').
 DVS_API const char* version();
 
 // `dvs info --bench-upload`: how fast the device reads host memory, as streamed weights are uploaded (pinned host

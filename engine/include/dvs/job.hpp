@@ -1,5 +1,7 @@
 // Long work without blocking the caller: a job runs on a thread of its own and the application polls or waits on
-// its handle (a render loop checks poll() once per frame). Progress and cancellation as the blocking calls.
+// its handle (a render loop checks poll() once per frame: poll() never blocks). A job on a clip holds its Context
+// until it ends, so the render loop draws on a second Context of the same device (dvs/context.hpp; docs/embedding.md,
+// "A preview beside a job"). Progress and cancellation as the blocking calls. Only dvs::Error comes out of a job.
 #pragma once
 #include <chrono>
 #include <memory>

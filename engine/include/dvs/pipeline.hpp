@@ -32,7 +32,7 @@ struct RunOptions {
   std::optional<bool> dynamic_cfg;
   double preservation_scale = 1.0;  // dynamic CFG only; the official config's 1.0 = the cond prediction
   uint64_t seed = 42;
-  std::filesystem::path cache_dir;  // inversion cache; empty = $DVS_CACHE_DIR or ~/.cache/dvs
+  std::filesystem::path cache_dir;  // the cache folder, as --cache-dir (dvs/cache.hpp); empty = $DVS_CACHE_DIR, else ~/.cache/dvs
   bool use_cache = true;
   std::filesystem::path lora;       // LoRA adapter (.safetensors, diffusers/PEFT layout) on the transformer; empty: none
   double lora_scale = 1.0;

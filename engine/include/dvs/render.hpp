@@ -15,7 +15,7 @@ struct RenderJob {
   // instead of read from `depth`, which is then set to the estimate.
   std::filesystem::path depth_model;
   int depth_input_size = 518;        // its network input's short side
-  std::filesystem::path depth_cache_dir;  // dvs render only: empty = $DVS_CACHE_DIR or ~/.cache/dvs
+  std::filesystem::path depth_cache_dir;  // dvs render only: the cache folder (dvs/cache.hpp); empty = $DVS_CACHE_DIR, else ~/.cache/dvs
   bool depth_cache = true;                // dvs render only: false = estimate again even when cached
   std::string trajectory = "loop1";  // preset name ("pan_left:30" sets a magnitude), or a .txt/.json/.gltf/.glb file
   int frames = 49;                   // first N frames (0 = all)

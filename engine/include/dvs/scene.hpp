@@ -32,15 +32,15 @@ struct Pose {
 
 struct SceneOptions {
   bool depth_is_disparity = true;  // depth holds disparity (Video-Depth-Anything, dvs depth) as `dvs render` reads it
-  bool hard_points = false;        // z-buffer point splat instead of the soft bilinear splat (dvs render --hard-points)
+  bool hard_points = false;        // z-buffer point splat instead of the soft bilinear splat (dvs render --points)
 };
 
 class DVS_API PointCloudScene {
  public:
   // frame: u8 [H,W,3] RGB (what a video decoder gives) or f32 [3,H,W] RGB in [−1,1]; depth: f32 [H,W] (disparity,
   // converted exactly as `dvs render` converts a one-frame depth file, or metric depth). Uploaded once.
-  PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth, const CameraIntrinsics& intrinsics,
-                  const SceneOptions& options = {});
+  PointCloudScene(Context& ctx, const ConstHostView& frame, const ConstHostView& depth,
+                  const CameraIntrinsics& intrinsics, const SceneOptions& options = {});
   // The same from the application's device buffers (dvs/views.hpp; TRANSFER_SRC usage), with the same shapes and
   // the same conversions, so the scene equals the one built from the same values in host memory. The values are
   // copied on the device and the call returns when the scene is built (it waits: order the application's writes

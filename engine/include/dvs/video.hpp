@@ -30,7 +30,7 @@ struct VideoFrames {
 };
 
 // Decodes frames first .. first+count−1 of `path` brought to height × width exactly as `dvs render --size HxW`
-// brings them (the same decoder; squash = `--squash`, else the centre is cropped to the working aspect and scaled).
+// brings them (the same decoder; squash = `--resize squash`, else the centre is cropped to the working aspect and scaled).
 // height = width = 0 keeps the file's size. Throws dvs::Error naming the file (cannot be opened, fewer frames than
 // first + count, count < 1). Defined in libdvs_video.
 DVS_API VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,

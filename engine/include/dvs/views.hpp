@@ -15,7 +15,7 @@ namespace dvs {
 
 enum class ElementType { f32, u8 };
 
-// Contiguous row-major host memory. `data` may be const for inputs (the view never writes through an input).
+// Contiguous row-major host memory dvs writes: a call's outputs.
 struct DVS_API HostView {
   void* data = nullptr;
   ElementType type = ElementType::f32;
@@ -24,6 +24,22 @@ struct DVS_API HostView {
   int64_t elements() const;
   uint64_t bytes() const;
   std::string describe() const;  // "f32[3x480x720]"
+};
+
+// The same, read only: a call's inputs, which take const memory (a const std::vector's data()); any HostView
+// converts to one.
+struct DVS_API ConstHostView {
+  const void* data = nullptr;
+  ElementType type = ElementType::f32;
+  std::vector<int64_t> shape;
+
+  ConstHostView() = default;
+  ConstHostView(const void* data, ElementType type, std::vector<int64_t> shape);
+  ConstHostView(const HostView& view);  // implicit: memory dvs may write, it may also read
+
+  int64_t elements() const;
+  uint64_t bytes() const;
+  std::string describe() const;  // as HostView's
 };
 
 // Contiguous row-major elements in an application VkBuffer, from `offset` (a multiple of 4). The buffer must

@@ -46,7 +46,7 @@ struct LoopCallbacks {
 
 class Cancelled : public Error {
  public:
-  Cancelled() : Error("cancelled") {}
+  Cancelled() : Error("cancelled", ErrorKind::cancelled) {}
 };
 
 // Paper preset: levels t_j = round(j·(t0+1)/S_inv) − 1, from clean to t0, on the float64 schedule; the

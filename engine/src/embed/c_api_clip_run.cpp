@@ -1,6 +1,6 @@
 // dvs/dvs.h: a whole run on a clip in memory (dvs/clip_run.hpp) from C, blocking or as a job, and the latent's shape
-// for sizing its buffer. Pointers and sizes are checked here (DVS_ERROR_INVALID_ARGUMENT); the options and the
-// clip's contents by the run (DVS_ERROR_FILE naming the option or view).
+// for sizing its buffer. Pointers and sizes are checked here, the options and views by the run (each
+// DVS_ERROR_INVALID_ARGUMENT naming the argument, option or view); the clip's values by the run (DVS_ERROR_FILE).
 #include <cstring>
 
 #include "dvs/clip_run.hpp"
@@ -38,8 +38,10 @@ ClipCall clip_call(const char* call, const dvs_context* context, const dvs_pipel
   require(depth, call, "depth");
   require(output, call, "output");
   check_clip_size(count, height, width, call);
+  // The first real cause of a clip the model cannot take, before anything sized from it (the latent).
+  dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
   ClipCall c;
-  c.options = run_options(*options);
+  c.options = run_options(*options, call);
   const int64_t F = count, H = height, W = width;
   c.clip.frames = {const_cast<uint8_t*>(frames), dvs::ElementType::u8, {F, H, W, 3}};
   c.clip.depth = {const_cast<float*>(depth), dvs::ElementType::f32, {F, H, W}};
@@ -71,7 +73,8 @@ dvs_status dvs_clip_latent_shape(const dvs_pipeline_options* options, int32_t co
     require(shape, call, "shape");
     require(options->model, call, "options->model");
     check_clip_size(count, height, width, call);
-    const std::vector<int64_t> s = dvs::clip_latent_shape(options->model, count, height, width);
+    dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
+    const std::vector<int64_t> s = dvs::clip_latent_shape(run_options(*options, call).model, count, height, width);
     std::copy(s.begin(), s.end(), shape);
   });
 }
@@ -98,7 +101,8 @@ dvs_status dvs_run_pipeline_clip_device(dvs_context* context, const dvs_pipeline
     require(context, call, "context");
     require(options, call, "options");
     check_clip_size(count, height, width, call);
-    const dvs::RunOptions o = run_options(*options);
+    dvs::check_clip_size(count, height, width, std::string(call) + ": count", std::string(call) + ": height/width");
+    const dvs::RunOptions o = run_options(*options, call);
     const int64_t F = count, H = height, W = width;
     dvs::ClipDeviceView clip;
     clip.frames = {frames.buffer, frames.offset, dvs::ElementType::u8, {F, H, W, 3}};

@@ -58,10 +58,10 @@ dvs_status dvs_context_destroy(dvs_context* context) {
   return guarded(DVS_ERROR_DEVICE, [&] { delete context; });
 }
 
-dvs_status dvs_context_device_name(const dvs_context* context, char* buffer, size_t size) {
+dvs_status dvs_context_device_name(const dvs_context* context, char* buffer, size_t size, size_t* needed) {
   return guarded(DVS_ERROR_DEVICE, [&] {
     require(context, "dvs_context_device_name", "context");
-    copy_out(context->context->device_name(), buffer, size, "dvs_context_device_name", "buffer");
+    copy_out(context->context->device_name(), buffer, size, needed, "dvs_context_device_name", "buffer");
   });
 }
 
@@ -73,12 +73,12 @@ dvs_status dvs_context_timeline(const dvs_context* context, VkSemaphore* out) {
   });
 }
 
-dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size) {
+dvs_status dvs_context_requirements(int32_t optional, char* buffer, size_t size, size_t* needed) {
   return guarded(DVS_ERROR_DEVICE, [&] {
     std::string lines;
     for (const std::string& name : optional ? dvs::Context::optional_features() : dvs::Context::required_features())
       lines += name + "\n";
-    copy_out(lines, buffer, size, "dvs_context_requirements", "buffer");
+    copy_out(lines, buffer, size, needed, "dvs_context_requirements", "buffer");
   });
 }
 

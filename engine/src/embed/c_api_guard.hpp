@@ -15,9 +15,9 @@ namespace dvs::capi {
 // Records `message` as this thread's last error and returns `status`.
 dvs_status fail(dvs_status status, const std::string& message);
 
-// The status of an exception in flight (call inside a catch): UsageError = invalid argument, Cancelled,
-// out of host or device memory, a lost device, other dvs::Error = `error_status` (what a failure of this call
-// most likely is: the device for a context, the inputs elsewhere), anything else internal.
+// The status of an exception in flight (call inside a catch): a dvs::Error's kind (dvs/error.hpp) as its status code,
+// except that ErrorKind::input is `error_status` (what a failure of this call's work most likely is: DVS_ERROR_FILE
+// for the inputs almost everywhere); host memory running out = DVS_ERROR_OUT_OF_MEMORY; anything else internal.
 dvs_status status_of_current_exception(dvs_status error_status);
 
 template <class Body>
@@ -64,7 +64,9 @@ Pose pose_of(const double pose[16]);
 // The shape of a scene's rendered image in `type`: u8 [H,W,4] RGBA or f32 [3,H,W].
 std::vector<int64_t> scene_image_shape(ElementType type, int64_t height, int64_t width);
 
-// Copies `text` into buffer (size bytes, NUL-terminated, truncated to fit). buffer may be NULL only with size 0.
-void copy_out(const std::string& text, char* buffer, size_t size, const char* call, const char* name);
+// The string calls' rule (dvs/dvs.h): *needed (when not NULL) = the bytes `text` needs, NUL included; `text` copied
+// into buffer when it fits; a buffer too small gets the text truncated (NUL-terminated) and a UsageError naming both
+// sizes. buffer may be NULL only with size 0 (a size query).
+void copy_out(const std::string& text, char* buffer, size_t size, size_t* needed, const char* call, const char* name);
 
 }  // namespace dvs::capi

@@ -1,7 +1,8 @@
 // dvs/clip_run.hpp: a whole run on a clip in memory, on the application's context. The views and options are checked
 // here, before any work (each error names the view or option and what to do); the stages are run_pipeline's own
 // (pipeline/run_stages.hpp) with ends that take the clip from memory (pipeline/clip_input.hpp) and put the results
-// into the application's views.
+// into the application's views. The public calls take the context's turn at its gate (embed/context_gate.hpp); a job
+// runs embed::run_clip on its own thread while it holds the context.
 #include "dvs/clip_run.hpp"
 
 #include <algorithm>
@@ -11,18 +12,26 @@
 #include <optional>
 
 #include "dvs/error.hpp"
+#include "embed/clip_run_on_device.hpp"
+#include "embed/context_core.hpp"
 #include "embed/device_copy.hpp"
+#include "embed/public_call.hpp"
 #include "embed/view_facts.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/clip_input.hpp"
 #include "pipeline/memory_advice.hpp"
 #include "pipeline/preflight.hpp"
 #include "pipeline/run_stages.hpp"
+#include "pipeline/settings.hpp"
 
 namespace dvs {
 namespace {
 
-[[noreturn]] void refuse(const std::string& what) { throw Error("dvs::run_pipeline on a clip: " + what); }
+constexpr const char* kCall = "dvs::run_pipeline on a clip";
+
+[[noreturn]] void refuse(const std::string& what) {
+  throw Error(std::string(kCall) + ": " + what, ErrorKind::invalid_argument);
+}
 
 std::string dims(const std::vector<int64_t>& s) {
   std::string t;
@@ -68,12 +77,7 @@ ClipSize check_clip(const ViewFacts& frames, const ViewFacts& depth, size_t pose
   else if (frames.type == ElementType::f32 && s.size() == 4 && s[1] == 3) z = {s[0], s[2], s[3]};
   else refuse(frames.name + ": expected u8 [F,H,W,3] RGB or f32 [F,3,H,W] in [-1,1], got " + frames.text);
   if (!frames.given) refuse(frames.name + ": " + frames.missing + " (give the frames' memory)");
-  if (z.F < 1 || (z.F - 1) % 4 != 0)
-    refuse(frames.name + ": " + std::to_string(z.F) + " frames; the model takes 4k+1 (e.g. " +
-           std::to_string(std::max<int64_t>(1, (z.F - 1) / 4 * 4 + 1)) + "): give that many");
-  if (z.H < 8 || z.W < 8 || z.H % 8 || z.W % 8)
-    refuse(frames.name + ": " + std::to_string(z.H) + "x" + std::to_string(z.W) +
-           " (HxW); height and width must be positive multiples of 8 (the VAE works on 8x8 pixel cells): resize the frames");
+  check_clip_size(z.F, z.H, z.W, std::string(kCall) + ": " + frames.name, std::string(kCall) + ": " + frames.name);
   if (depth.type != ElementType::f32 || depth.shape != std::vector<int64_t>{z.F, z.H, z.W})
     refuse(depth.name + ": expected f32 " + dims({z.F, z.H, z.W}) + " (the frames' F,H,W), got " + depth.text);
   if (!depth.given) refuse(depth.name + ": " + depth.missing + " (give the depth's memory)");
@@ -91,7 +95,8 @@ void check_results(const RunOptions& o, const ClipSize& z, const ViewFacts& outp
   check_f32_view(mask, {z.F, z.H, z.W}, "the clip's F,H,W");
   if (latent.given) {
     if (!std::filesystem::is_directory(o.model))
-      refuse("RunOptions::model " + o.model.string() + ": no such model folder (give the CogVideoX-5b-I2V folder)");
+      throw Error(std::string(kCall) + ": RunOptions::model " + o.model.string() +
+                  ": no such model folder (give the CogVideoX-5b-I2V folder)");
     check_f32_view(latent, clip_latent_shape(o.model, z.F, z.H, z.W), "[Fl,C,h,w] from the model's VAE config");
   }
 }
@@ -115,6 +120,11 @@ RunOptions clip_options(const RunOptions& options, const ClipSize& z, bool poses
            " frames: set it to 0 or " + std::to_string(z.F));
   o.render.frames = int(z.F);
   if (poses) o.render.trajectory = "ClipView::poses";  // what messages about the path name
+  try {
+    resolve(o);  // the settings (preset, steps, strength, ...) are the caller's to fix, refused before any work
+  } catch (const Error& e) {
+    refuse(e.what());
+  }
   return o;
 }
 
@@ -218,9 +228,9 @@ class ClipEnds : public RunEnds {
 
 // The run on a checked clip whose frames and depth are in host memory (the application's, or fetched from its
 // buffers).
-RunReport run_clip(Context& ctx, const RunOptions& o, const ClipSize& z, const HostView& frames, const HostView& depth,
-                   const std::string& depth_name, const std::vector<Pose>& poses, PutResults put,
-                   const ProgressFn& progress, const CancelFn& cancelled) {
+RunReport run_checked_clip(vk::Context& device, const RunOptions& o, const ClipSize& z, const ConstHostView& frames,
+                           const ConstHostView& depth, const std::string& depth_name, const std::vector<Pose>& poses,
+                           PutResults put, const ProgressFn& progress, const CancelFn& cancelled) {
   // The clip converted (and its depth checked as a depth file's) before any device work.
   HostTensor depth_values({z.F, z.H, z.W}, DType::f32);
   std::memcpy(depth_values.data.data(), depth.data, depth_values.bytes());
@@ -236,29 +246,31 @@ RunReport run_clip(Context& ctx, const RunOptions& o, const ClipSize& z, const H
   std::vector<std::string> key = clip_input_key(frames.data, size_t(frames.bytes()),
                                                 frames.type == ElementType::u8 ? "u8" : "f32", depth_values, matrices,
                                                 o.render.trajectory);
-  ClipEnds ends(ctx.internal(), clip_input(o.render, std::move(rgb), depth_values, depth_name, matrices),
-                std::move(key), !poses.empty(), std::move(put));
+  ClipEnds ends(device, clip_input(o.render, std::move(rgb), depth_values, depth_name, matrices), std::move(key),
+                !poses.empty(), std::move(put));
   StageTracker stages(progress, cancelled);
   stages.set_memory_advice([&o](const std::string& stage) { return out_of_memory_advice(o, stage); });
-  return stages.run([&] { return run_stages(o, ends, &ctx.internal(), stages); });
+  return stages.run([&] { return run_stages(o, ends, &device, stages); });
 }
 
 }  // namespace
 
-RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
-                       const ProgressFn& progress, const CancelFn& cancelled) {
+namespace embed {
+
+RunReport run_clip(vk::Context& device, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
+                   const ProgressFn& progress, const CancelFn& cancelled) {
   const ClipSize z =
       check_clip(facts("ClipView::frames", clip.frames), facts("ClipView::depth", clip.depth), clip.poses.size(),
                  "ClipView::poses");
   const RunOptions o = clip_options(options, z, !clip.poses.empty());
   check_results(o, z, facts("ClipResultViews::output", out.output), facts("ClipResultViews::render", out.render),
                 facts("ClipResultViews::mask", out.mask), facts("ClipResultViews::latent", out.latent));
-  return run_clip(ctx, o, z, clip.frames, clip.depth, "ClipView::depth", clip.poses, into_host(out), progress,
-                  cancelled);
+  return run_checked_clip(device, o, z, clip.frames, clip.depth, "ClipView::depth", clip.poses, into_host(out),
+                          progress, cancelled);
 }
 
-RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
-                       const ClipResultDeviceViews& out, const ProgressFn& progress, const CancelFn& cancelled) {
+RunReport run_clip(vk::Context& device, const RunOptions& options, const ClipDeviceView& clip,
+                   const ClipResultDeviceViews& out, const ProgressFn& progress, const CancelFn& cancelled) {
   const ViewFacts frames = facts("ClipDeviceView::frames", clip.frames), depth = facts("ClipDeviceView::depth", clip.depth);
   const ClipSize z = check_clip(frames, depth, clip.poses.size(), "ClipDeviceView::poses");
   const RunOptions o = clip_options(options, z, !clip.poses.empty());
@@ -268,15 +280,41 @@ RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDevice
                                 facts("ClipResultDeviceViews::latent", out.latent)};
   check_results(o, z, results[0], results[1], results[2], results[3]);
   // Every buffer's range (and offset) before any work.
-  vk::Context& device = ctx.internal();
   for (const auto& [view, a] : {std::pair{&clip.frames, &frames}, {&clip.depth, &depth}, {&out.output, &results[0]},
                                 {&out.render, &results[1]}, {&out.mask, &results[2]}, {&out.latent, &results[3]}})
     if (a->given) embed::check_view_fits(device, *view, view->type, view->shape, a->name);
   HostTensor frames_host = embed::fetch_view(device, clip.frames, frames.name);
   HostTensor depth_host = embed::fetch_view(device, clip.depth, depth.name);
-  return run_clip(ctx, o, z, HostView{frames_host.data.data(), clip.frames.type, clip.frames.shape},
-                  HostView{depth_host.data.data(), ElementType::f32, clip.depth.shape}, depth.name, clip.poses,
-                  into_device(out), progress, cancelled);
+  return run_checked_clip(device, o, z, ConstHostView{frames_host.data.data(), clip.frames.type, clip.frames.shape},
+                          ConstHostView{depth_host.data.data(), ElementType::f32, clip.depth.shape}, depth.name,
+                          clip.poses, into_device(out), progress, cancelled);
+}
+
+}  // namespace embed
+
+namespace {
+
+// The public calls: at the context's turn (they wait for another thread's call, and are refused under a job).
+template <class Clip, class Results>
+RunReport run_at_turn(Context& ctx, const RunOptions& options, const Clip& clip, const Results& out,
+                      const ProgressFn& progress, const CancelFn& cancelled) {
+  const std::shared_ptr<embed::ContextCore> core = ctx.core();
+  return embed::public_call("dvs::run_pipeline", [&] {
+    embed::GateUse use(core->gate, "dvs::run_pipeline");
+    return embed::run_clip(*core->device, options, clip, out, progress, cancelled);
+  });
+}
+
+}  // namespace
+
+RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipView& clip, const ClipResultViews& out,
+                       const ProgressFn& progress, const CancelFn& cancelled) {
+  return run_at_turn(ctx, options, clip, out, progress, cancelled);
+}
+
+RunReport run_pipeline(Context& ctx, const RunOptions& options, const ClipDeviceView& clip,
+                       const ClipResultDeviceViews& out, const ProgressFn& progress, const CancelFn& cancelled) {
+  return run_at_turn(ctx, options, clip, out, progress, cancelled);
 }
 
 }  // namespace dvs

@@ -37,23 +37,26 @@ VkBufferMemoryBarrier buffer_barrier(VkBuffer buffer, VkDeviceSize offset, VkDev
 void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, ElementType type, const std::vector<int64_t>& shape,
                      const std::string& what) {
   const std::string head = "The device buffer given for " + what + " (" + view.describe() + ")";
-  if (!view.buffer) throw Error(head + " has no VkBuffer (VK_NULL_HANDLE): pass a buffer of the context's device.");
+  if (!view.buffer)
+    throw Error(head + " has no VkBuffer (VK_NULL_HANDLE): pass a buffer of the context's device.",
+                ErrorKind::invalid_argument);
   if (view.offset % 4 != 0)
-    throw Error(head + " starts at offset " + std::to_string(view.offset) + ", which is not a multiple of 4.");
+    throw Error(head + " starts at offset " + std::to_string(view.offset) + ", which is not a multiple of 4.",
+                ErrorKind::invalid_argument);
   if (view.type != type || view.shape != shape)
     throw Error(head + " does not match what dvs has there, " + DeviceBufferView{VK_NULL_HANDLE, 0, type, shape}.describe() +
-                ": give a view of that element type and shape.");
+                ": give a view of that element type and shape.", ErrorKind::invalid_argument);
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(ctx.device(), view.buffer, &req);  // at least the buffer's size
   if (view.offset + view.bytes() > req.size)
     throw Error(head + " needs bytes " + std::to_string(view.offset) + ".." + std::to_string(view.offset + view.bytes()) +
-                " but the buffer holds at most " + std::to_string(req.size) + ".");
+                " but the buffer holds at most " + std::to_string(req.size) + ".", ErrorKind::invalid_argument);
 }
 
 void check_view_fits(vk::Context& ctx, const DeviceBufferView& view, const Tensor& tensor, const std::string& what) {
   check_view_fits(ctx, view, tensor.dtype() == DType::u8 ? ElementType::u8 : ElementType::f32, tensor.shape(), what);
   if (dtype_of(view.type) != tensor.dtype())  // a tensor of another element type than f32/u8
-    throw Error("internal: " + what + ": dvs holds " + tensor.describe() + " there");
+    throw Error("internal: " + what + ": dvs holds " + tensor.describe() + " there", ErrorKind::internal);
 }
 
 HostTensor fetch_view(vk::Context& ctx, const DeviceBufferView& from, const std::string& what) {

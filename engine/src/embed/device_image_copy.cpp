@@ -47,28 +47,31 @@ bool usable_final(VkImageLayout l) {
 
 void check_image_fits(const DeviceImageView& view, ImageTexels texels, int height, int width, const std::string& what) {
   const std::string head = "The device image given for " + what + " (" + view.describe() + ")";
-  if (!view.image) throw Error(head + " has no VkImage (VK_NULL_HANDLE): pass an image of the context's device.");
+  if (!view.image)
+    throw Error(head + " has no VkImage (VK_NULL_HANDLE): pass an image of the context's device.",
+                ErrorKind::invalid_argument);
   const VkFormat want = texels == ImageTexels::rgba8 ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_R32_SFLOAT;
   const char* want_name = texels == ImageTexels::rgba8 ? "VK_FORMAT_R8G8B8A8_UNORM" : "VK_FORMAT_R32_SFLOAT";
   if (view.format == VK_FORMAT_R8G8B8A8_SRGB || view.format == VK_FORMAT_B8G8R8A8_SRGB)
     throw Error(head + " has an sRGB format: dvs writes the render's own 8-bit levels, which an sRGB image would "
                 "decode as sRGB when sampled; create it (or a view of it) as " + std::string(want_name) +
-                " and convert where the application wants sRGB.");
+                " and convert where the application wants sRGB.", ErrorKind::invalid_argument);
   if (view.format != want)
     throw Error(head + " has the wrong format: it must be " + want_name +
                 (texels == ImageTexels::r32f ? " (a mask may also be VK_FORMAT_R8G8B8A8_UNORM: white where visible)" : "") +
-                ".");
+                ".", ErrorKind::invalid_argument);
   if (int64_t(view.width) != width || int64_t(view.height) != height)
     throw Error(head + " has the wrong size: it must be " + std::to_string(width) + "x" + std::to_string(height) +
-                " (width x height), the scene's.");
+                " (width x height), the scene's.", ErrorKind::invalid_argument);
   if (!usable_start(view.layout))
     throw Error(head + " starts in layout " + std::to_string(int(view.layout)) +
                 ", which dvs cannot copy from: give UNDEFINED, GENERAL, a transfer layout, SHADER_READ_ONLY_OPTIMAL, "
-                "COLOR_ATTACHMENT_OPTIMAL or PRESENT_SRC_KHR.");
+                "COLOR_ATTACHMENT_OPTIMAL or PRESENT_SRC_KHR.", ErrorKind::invalid_argument);
   if (!usable_final(view.final_layout))
     throw Error(head + " has final_layout " + std::to_string(int(view.final_layout)) +
                 ", which an image cannot be left in (UNDEFINED and PREINITIALIZED are start layouts only): give the "
-                "layout the application uses next, e.g. SHADER_READ_ONLY_OPTIMAL or TRANSFER_SRC_OPTIMAL.");
+                "layout the application uses next, e.g. SHADER_READ_ONLY_OPTIMAL or TRANSFER_SRC_OPTIMAL.",
+                ErrorKind::invalid_argument);
 }
 
 void record_copy_to_image(VkCommandBuffer cmd, const Tensor& from, const DeviceImageView& to) {

@@ -1,7 +1,8 @@
 // dvs/job.hpp: run_pipeline (on files or on a clip in memory), render_novel_view and estimate_depth on a thread of
 // their own. The thread owns nothing but the shared State; the Job handle cancels and joins it when destroyed, so a
-// job never outlives its handle. Whatever the work throws is kept (std::exception_ptr) and rethrown by the result
-// getters on the caller's thread.
+// job never outlives its handle. Whatever the work throws is kept (as a dvs::Error: embed/public_call.hpp) and
+// rethrown by the result getters on the caller's thread. A job on a clip holds its context (embed/context_gate.hpp)
+// from its start until its work has ended.
 #include "dvs/job.hpp"
 
 #include <atomic>
@@ -13,6 +14,9 @@
 
 #include "dvs/clip_run.hpp"
 #include "dvs/error.hpp"
+#include "embed/clip_run_on_device.hpp"
+#include "embed/context_core.hpp"
+#include "embed/public_call.hpp"
 
 namespace dvs {
 
@@ -60,7 +64,7 @@ struct Job::State {
     std::string message;
     std::exception_ptr caught;
     try {
-      work();
+      embed::public_call("dvs::Job", work);
     } catch (const Cancelled& e) {
       end = JobState::cancelled, message = e.what(), caught = std::current_exception();
     } catch (const std::exception& e) {
@@ -87,7 +91,8 @@ struct Job::State {
     if (exception) std::rethrow_exception(exception);
     if (kind != want)
       throw Error(std::string("dvs::Job::") + getter + ": this is a " + kind + " job; its result is " +
-                  (kind == "pipeline" ? "run_report()" : kind == "render" ? "render_summary()" : "depth_summary()"));
+                  (kind == "pipeline" ? "run_report()" : kind == "render" ? "render_summary()" : "depth_summary()"),
+                  ErrorKind::invalid_argument);
   }
 
   void stop() {
@@ -111,7 +116,9 @@ Job::~Job() {
 
 namespace {
 void check_handle(const std::shared_ptr<Job::State>& s, const char* call) {
-  if (!s) throw Error(std::string("dvs::Job::") + call + ": this Job was moved from; use the Job it was moved to");
+  if (!s)
+    throw Error(std::string("dvs::Job::") + call + ": this Job was moved from; use the Job it was moved to",
+                ErrorKind::invalid_argument);
 }
 }  // namespace
 
@@ -179,16 +186,57 @@ Job start_pipeline(const RunOptions& options, const ProgressFn& progress) {
 
 namespace {
 
-// The clip's memory (or buffers), the views and the context are the caller's (dvs/clip_run.hpp: valid until the job
-// has finished); the options, the view descriptions and the poses are copied.
+// "the pipeline job on the clip u8[9x64x64x3], in stage sample (3 of 50)": what a refused call names.
+std::string describe_clip_job(const Job::State& st, const std::string& frames) {
+  const JobProgress p = [&] {
+    std::lock_guard<std::mutex> lock(st.mutex);
+    return st.progress;
+  }();
+  std::string text = "the pipeline job on the clip " + frames;
+  if (p.stage.empty()) return text + ", starting";
+  text += ", in stage " + p.stage;
+  if (p.total > 0) text += " (" + std::to_string(p.step) + " of " + std::to_string(p.total) + ")";
+  return text;
+}
+
+// The clip's memory (or buffers) and the views are the caller's (dvs/clip_run.hpp: valid until the job has finished);
+// the options, the view descriptions and the poses are copied. The context's core is held by the thread, so the job
+// never touches the dvs::Context object (which may be destroyed: its destructor cancels the job and waits).
 template <class Clip, class Results>
 std::shared_ptr<Job::State> start_clip_job(Context& ctx, const RunOptions& options, const Clip& clip, const Results& out,
                                            const ProgressFn& progress) {
   auto s = std::make_shared<Job::State>();
   s->kind = "pipeline";
-  s->thread = std::thread([st = s.get(), &ctx, options, clip, out, fn = s->progress_fn(progress)] {
-    st->run([&] { st->run_report = run_pipeline(ctx, options, clip, out, fn, st->cancel_fn()); });
-  });
+  std::shared_ptr<embed::ContextCore> core = ctx.core();
+  Job::State* st = s.get();
+  // The gate calls these until the job gives it back; wait_for_end may run after that, when the Job may be gone.
+  const std::weak_ptr<Job::State> weak_state = s;
+  embed::ContextGate::JobHooks hooks;
+  hooks.describe = [st, frames = clip.frames.describe()] { return describe_clip_job(*st, frames); };
+  hooks.cancel = [st] { st->cancel_asked = true; };
+  hooks.wait_for_end = [weak_state] {
+    if (const auto held = weak_state.lock()) {
+      std::unique_lock<std::mutex> lock(held->mutex);
+      held->finished.wait(lock, [&] { return held->state != JobState::running; });
+    }
+  };
+  core->gate.claim_for_job("dvs::start_pipeline", std::move(hooks));
+  try {
+    s->thread = std::thread([st, core, options, clip, out, fn = s->progress_fn(progress)] {
+      core->gate.job_started();
+      st->run([&] {
+        // The context is given back when the work ends, before the job's state says so.
+        struct Release {
+          embed::ContextGate& gate;
+          ~Release() { gate.job_ended(); }
+        } release{core->gate};
+        st->run_report = embed::run_clip(*core->device, options, clip, out, fn, st->cancel_fn());
+      });
+    });
+  } catch (...) {  // no thread: the claim is given back at once
+    core->gate.job_ended();
+    throw;
+  }
   return s;
 }
 

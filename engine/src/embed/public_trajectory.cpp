@@ -11,6 +11,7 @@
 #include "geometry/trajectory.hpp"
 #include "geometry/trajectory_gltf.hpp"
 #include "geometry/trajectory_json.hpp"
+#include "io/library_log.hpp"
 
 namespace dvs {
 
@@ -44,7 +45,7 @@ void check_rigid(const Pose& p, const std::string& what) {
   const bool last_row = m[0][3] == 0 && m[1][3] == 0 && m[2][3] == 0 && m[3][3] == 1;
   if (!(worst <= kRigidTolerance) || !(glm::determinant(r) > 0) || !last_row)
     throw Error(what + " is not a rigid transform (a rotation and a translation with last row 0 0 0 1): "
-                "build it from a rotation matrix and a translation");
+                "build it from a rotation matrix and a translation", ErrorKind::invalid_argument);
 }
 
 // The camera of T: orientation (camera-to-world rotation Rᵀ) and centre −Rᵀt.
@@ -82,15 +83,19 @@ std::string lower_extension(const std::string& path) {
 }  // namespace
 
 std::vector<Pose> interpolate_path(const std::vector<KeyPose>& keys, int frames) {
-  if (frames < 1) throw Error("interpolate_path: the frame count must be at least 1 (got " + std::to_string(frames) + ")");
-  if (keys.empty()) throw Error("interpolate_path: no key poses (place at least one)");
+  if (frames < 1)
+    throw Error("interpolate_path: the frame count must be at least 1 (got " + std::to_string(frames) + ")",
+                ErrorKind::invalid_argument);
+  if (keys.empty()) throw Error("interpolate_path: no key poses (place at least one)", ErrorKind::invalid_argument);
   for (size_t k = 0; k < keys.size(); ++k) {
     const std::string name = "key pose " + std::to_string(k) + " (frame " + std::to_string(keys[k].frame) + ")";
     if (keys[k].frame < 0 || keys[k].frame >= frames)
-      throw Error("interpolate_path: " + name + " is outside the path's frames 0.." + std::to_string(frames - 1));
+      throw Error("interpolate_path: " + name + " is outside the path's frames 0.." + std::to_string(frames - 1),
+                  ErrorKind::invalid_argument);
     if (k > 0 && keys[k].frame <= keys[k - 1].frame)
       throw Error("interpolate_path: " + name + " does not come after key pose " + std::to_string(k - 1) +
-                  " (frame " + std::to_string(keys[k - 1].frame) + "): keys must be sorted by distinct frames");
+                  " (frame " + std::to_string(keys[k - 1].frame) + "): keys must be sorted by distinct frames",
+                  ErrorKind::invalid_argument);
     check_rigid(keys[k].pose, "interpolate_path: " + name);
   }
   std::vector<Pose> path(static_cast<size_t>(frames));
@@ -121,22 +126,23 @@ std::vector<Pose> interpolate_path(const std::vector<KeyPose>& keys, int frames)
 std::vector<int> evenly_spaced_key_frames(int count, int frames) {
   if (count < 1 || frames < count)
     throw Error("evenly_spaced_key_frames: " + std::to_string(count) + " keys do not fit in " +
-                std::to_string(frames) + " frames (need 1 ≤ keys ≤ frames)");
+                std::to_string(frames) + " frames (need 1 ≤ keys ≤ frames)", ErrorKind::invalid_argument);
   std::vector<int> out(size_t(count), 0);
   for (int j = 1; j < count; ++j) out[size_t(j)] = int(std::lround(double(j) * (frames - 1) / (count - 1)));
   return out;
 }
 
 void write_trajectory_json(const std::string& path, const std::vector<Pose>& poses, const std::string& description) {
-  if (poses.empty()) throw Error(path + ": cannot write an empty trajectory (no poses)");
+  if (poses.empty()) throw Error(path + ": cannot write an empty trajectory (no poses)", ErrorKind::invalid_argument);
   for (size_t i = 0; i < poses.size(); ++i) check_rigid(poses[i], path + ": pose " + std::to_string(i));
   geometry::write_trajectory_json(path, to_trajectory(poses, description));
 }
 
 void write_trajectory_glb(const std::string& path, const std::vector<Pose>& poses, double fps) {
   if (lower_extension(path) != ".glb")
-    throw Error(path + ": a glTF trajectory is written as binary glTF: name the file *.glb");
-  if (poses.empty()) throw Error(path + ": cannot write an empty trajectory (no poses)");
+    throw Error(path + ": a glTF trajectory is written as binary glTF: name the file *.glb",
+                ErrorKind::invalid_argument);
+  if (poses.empty()) throw Error(path + ": cannot write an empty trajectory (no poses)", ErrorKind::invalid_argument);
   for (size_t i = 0; i < poses.size(); ++i) check_rigid(poses[i], path + ": pose " + std::to_string(i));
   geometry::GlbExportOptions options;
   options.fps = fps;
@@ -145,6 +151,7 @@ void write_trajectory_glb(const std::string& path, const std::vector<Pose>& pose
 
 std::vector<Pose> load_trajectory(const std::string& spec, int frames, double radius) {
   const geometry::Trajectory t = geometry::load_trajectory(spec, frames, radius);
+  for (const std::string& w : t.warnings) log_warning(w);  // e.g. an official .txt whose lines differ in length
   std::vector<Pose> out;
   out.reserve(t.transforms.size());
   for (const auto& m : t.transforms) out.push_back(from_glm(m));

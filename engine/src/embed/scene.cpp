@@ -9,14 +9,19 @@
 // the other on the context's queue (each later one's barriers order it after the earlier ones) and the last
 // ticket is returned. The next render of the scene waits on the host for that ticket before it resubmits the
 // recordings or overwrites the scene's buffers (usually long reached: a frame later), as does the destructor.
+//
+// The scene holds its context's core (embed/context_core.hpp): it outlives the dvs::Context, and each call takes its
+// turn at the context's gate (a destructor under a job is deferred to the job's end).
 #include "dvs/scene.hpp"
 
 #include <array>
 #include <span>
 
 #include "dvs/error.hpp"
+#include "embed/context_core.hpp"
 #include "embed/device_copy.hpp"
 #include "embed/device_image_copy.hpp"
+#include "embed/public_call.hpp"
 #include "embed/scene_camera.hpp"
 #include "embed/scene_views.hpp"
 #include "geometry/splat.hpp"
@@ -56,8 +61,10 @@ struct Packing {
 }  // namespace
 
 struct PointCloudScene::Impl {
-  Impl(Context& c, HostTensor rgb_host, HostTensor depth_host, const geometry::Intrinsics& K_, const SceneOptions& o)
-      : device(c.internal()),
+  Impl(std::shared_ptr<embed::ContextCore> core_, HostTensor rgb_host, HostTensor depth_host,
+       const geometry::Intrinsics& K_, const SceneOptions& o)
+      : core(std::move(core_)),
+        device(*core->device),
         H(int(depth_host.shape[1])),
         W(int(depth_host.shape[2])),
         K(K_),
@@ -138,6 +145,12 @@ struct PointCloudScene::Impl {
     return pending;
   }
 
+  // The three renders (PointCloudScene::render), at the context's turn.
+  void render_host(const Pose& pose, const HostView& image, const HostView& mask);
+  uint64_t render_buffers(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask);
+  uint64_t render_images(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask);
+
+  std::shared_ptr<embed::ContextCore> core;  // first: the device objects outlive everything below
   vk::Context& device;
   int H, W;
   geometry::Intrinsics K;
@@ -151,42 +164,75 @@ struct PointCloudScene::Impl {
   uint64_t pending = 0;  // the last ticket of a render not waited for (0: none)
 };
 
-PointCloudScene::PointCloudScene(Context& ctx, const HostView& frame, const HostView& depth,
-                                 const CameraIntrinsics& intrinsics, const SceneOptions& options) {
-  HostTensor rgb = embed::scene_frame(frame);
-  const int H = int(rgb.shape[2]), W = int(rgb.shape[3]);
-  const geometry::Intrinsics K = embed::scene_intrinsics(intrinsics, H, W);
-  HostTensor z = embed::scene_depth(depth, H, W, options.depth_is_disparity ? DepthValues::disparity : DepthValues::depth);
-  impl_ = std::make_unique<Impl>(ctx, std::move(rgb), std::move(z), K, options);
-}
-
 namespace {
+
+constexpr const char* kMake = "dvs::PointCloudScene";
+constexpr const char* kRender = "dvs::PointCloudScene::render";
+
+// A scene's values, converted and checked on the host (before the context's turn).
+struct SceneValues {
+  HostTensor rgb, depth;
+  geometry::Intrinsics K;
+};
+
+SceneValues scene_values(const ConstHostView& frame, const ConstHostView& depth, const CameraIntrinsics& intrinsics,
+                         const SceneOptions& options) {
+  SceneValues v;
+  v.rgb = embed::scene_frame(frame);
+  const int H = int(v.rgb.shape[2]), W = int(v.rgb.shape[3]);
+  v.K = embed::scene_intrinsics(intrinsics, H, W);
+  v.depth = embed::scene_depth(depth, H, W, options.depth_is_disparity ? DepthValues::disparity : DepthValues::depth);
+  return v;
+}
 
 // An input in the application's device buffer brought to the host (copied into a dvs tensor on the device, waited
 // for, downloaded), so the device-built scene converts it with the host constructor's own code: bit-identical.
 struct FetchedInput {
   HostTensor values;
-  HostView view() { return HostView{values.data.data(), values.dtype == DType::u8 ? ElementType::u8 : ElementType::f32,
-                                    values.shape}; }
+  ConstHostView view() const {
+    return {values.data.data(), values.dtype == DType::u8 ? ElementType::u8 : ElementType::f32, values.shape};
+  }
 };
 
-FetchedInput fetch(Context& ctx, const DeviceBufferView& from, const char* arg) {
+FetchedInput fetch(vk::Context& device, const DeviceBufferView& from, const char* arg) {
   bool sized = from.shape.size() == 2 || from.shape.size() == 3;
   for (int64_t d : from.shape) sized = sized && d > 0;
   if (!sized)
     throw Error(std::string("PointCloudScene: ") + arg + ": the device view's shape must have 2 or 3 dimensions, " +
-                "each >= 1 (frame u8 [H,W,3] or f32 [3,H,W], depth f32 [H,W])");
-  return FetchedInput{embed::fetch_view(ctx.internal(), from, std::string("PointCloudScene's ") + arg)};
+                    "each >= 1 (frame u8 [H,W,3] or f32 [3,H,W], depth f32 [H,W])",
+                ErrorKind::invalid_argument);
+  return FetchedInput{embed::fetch_view(device, from, std::string("PointCloudScene's ") + arg)};
 }
 
 }  // namespace
 
-PointCloudScene::PointCloudScene(Context& ctx, const DeviceBufferView& frame, const DeviceBufferView& depth,
-                                 const CameraIntrinsics& intrinsics, const SceneOptions& options)
-    : PointCloudScene(ctx, fetch(ctx, frame, "frame").view(), fetch(ctx, depth, "depth").view(), intrinsics,
-                      options) {}
+PointCloudScene::PointCloudScene(Context& ctx, const ConstHostView& frame, const ConstHostView& depth,
+                                 const CameraIntrinsics& intrinsics, const SceneOptions& options) {
+  const std::shared_ptr<embed::ContextCore> core = ctx.core();
+  impl_ = embed::public_call(kMake, [&] {
+    SceneValues v = scene_values(frame, depth, intrinsics, options);
+    embed::GateUse use(core->gate, kMake);
+    return std::make_unique<Impl>(core, std::move(v.rgb), std::move(v.depth), v.K, options);
+  });
+}
 
-PointCloudScene::~PointCloudScene() = default;
+PointCloudScene::PointCloudScene(Context& ctx, const DeviceBufferView& frame, const DeviceBufferView& depth,
+                                 const CameraIntrinsics& intrinsics, const SceneOptions& options) {
+  const std::shared_ptr<embed::ContextCore> core = ctx.core();
+  impl_ = embed::public_call(kMake, [&] {
+    embed::GateUse use(core->gate, kMake);
+    FetchedInput f = fetch(*core->device, frame, "frame"), d = fetch(*core->device, depth, "depth");
+    SceneValues v = scene_values(f.view(), d.view(), intrinsics, options);
+    return std::make_unique<Impl>(core, std::move(v.rgb), std::move(v.depth), v.K, options);
+  });
+}
+
+// Under a job on the context, the scene's device objects are freed at the job's end (on its thread).
+PointCloudScene::~PointCloudScene() {
+  if (!impl_) return;
+  const std::shared_ptr<embed::ContextCore> core = impl_->core;
+  core->gate.destroy_when_free([scene = std::shared_ptr<Impl>(std::move(impl_))]() mutable { scene.reset(); });
+}
 
 int PointCloudScene::width() const { return impl_->W; }
 int PointCloudScene::height() const { return impl_->H; }
@@ -195,6 +241,30 @@ double PointCloudScene::centre_depth() const { return impl_->centre; }
 
 void PointCloudScene::render(const Pose& pose, const HostView& image, const HostView& mask) {
   Impl& s = *impl_;
+  embed::public_call(kRender, [&] {
+    embed::GateUse use(s.core->gate, kRender);
+    s.render_host(pose, image, mask);
+  });
+}
+
+uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
+  Impl& s = *impl_;
+  return embed::public_call(kRender, [&] {
+    embed::GateUse use(s.core->gate, kRender);
+    return s.render_buffers(pose, image, mask);
+  });
+}
+
+uint64_t PointCloudScene::render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask) {
+  Impl& s = *impl_;
+  return embed::public_call(kRender, [&] {
+    embed::GateUse use(s.core->gate, kRender);
+    return s.render_images(pose, image, mask);
+  });
+}
+
+void PointCloudScene::Impl::render_host(const Pose& pose, const HostView& image, const HostView& mask) {
+  Impl& s = *this;
   const embed::SceneImage kind = embed::host_image_kind(image, s.H, s.W);
   const bool want_mask = embed::host_mask_wanted(mask, s.H, s.W);
   s.settle();
@@ -207,8 +277,9 @@ void PointCloudScene::render(const Pose& pose, const HostView& image, const Host
 
 // Nothing is waited for but the previous render (settle): the copies carry the barriers towards the application's
 // use (embed/device_copy), and the ticket is theirs.
-uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image, const DeviceBufferView& mask) {
-  Impl& s = *impl_;
+uint64_t PointCloudScene::Impl::render_buffers(const Pose& pose, const DeviceBufferView& image,
+                                               const DeviceBufferView& mask) {
+  Impl& s = *this;
   const embed::SceneImage kind = embed::device_image_kind(image, s.H, s.W);
   const bool want_mask = embed::device_mask_wanted(mask, s.H, s.W);
   const Tensor result = kind == embed::SceneImage::rgba8 ? s.packed_image() : s.render.reshape({3, s.H, s.W});
@@ -226,8 +297,9 @@ uint64_t PointCloudScene::render(const Pose& pose, const DeviceBufferView& image
 
 // The same into images: RGBA8 only (a planar f32 render has no image format); the mask as R32_SFLOAT values or as
 // an RGBA8 display image (white where visible, black elsewhere).
-uint64_t PointCloudScene::render(const Pose& pose, const DeviceImageView& image, const DeviceImageView& mask) {
-  Impl& s = *impl_;
+uint64_t PointCloudScene::Impl::render_images(const Pose& pose, const DeviceImageView& image,
+                                              const DeviceImageView& mask) {
+  Impl& s = *this;
   embed::check_image_fits(image, embed::ImageTexels::rgba8, s.H, s.W, "PointCloudScene's image");
   const bool want_mask = mask.image != VK_NULL_HANDLE;
   const bool mask_rgba8 = want_mask && mask.format == VK_FORMAT_R8G8B8A8_UNORM;

@@ -15,7 +15,7 @@ namespace {
 void check_size(const std::string& name, int height, int width) {
   if (height <= 0 || width <= 0)
     throw Error(name + ": load_depth_frame takes a working size > 0, got " + std::to_string(height) + "x" +
-                std::to_string(width));
+                std::to_string(width), ErrorKind::invalid_argument);
 }
 
 DepthOptions conversion(const DepthFileOptions& options) {
@@ -30,7 +30,8 @@ DepthFrame frame_of_clip(const HostTensor& clip, const std::string& name, int fr
   const int frames = int(clip.shape[0]), h = int(clip.shape[1]), w = int(clip.shape[2]);
   if (frame_index < 0 || frame_index >= frames)
     throw Error(name + ": frame " + std::to_string(frame_index) + " asked for, but it holds " +
-                std::to_string(frames) + " frame(s) of depth (0.." + std::to_string(frames - 1) + ")");
+                std::to_string(frames) + " frame(s) of depth (0.." + std::to_string(frames - 1) + ")",
+                ErrorKind::invalid_argument);
   HostTensor one({1, h, w}, DType::f32);
   std::memcpy(one.as<float>(), clip.as<float>() + size_t(frame_index) * size_t(h) * size_t(w), one.bytes());
 
@@ -61,13 +62,13 @@ DepthFrame load_depth_frame(const std::filesystem::path& path, int frame_index, 
   return frame_of_clip(load_depth(path, conversion(options)), name, frame_index, height, width, options);
 }
 
-DepthFrame load_depth_frame(const HostView& clip, int frame_index, int height, int width,
+DepthFrame load_depth_frame(const ConstHostView& clip, int frame_index, int height, int width,
                             const DepthFileOptions& options) {
   const std::string name = "depth in memory";
   check_size(name, height, width);
   if (clip.data == nullptr || clip.type != ElementType::f32 || clip.shape.size() != 3 || clip.elements() <= 0)
     throw Error(name + ": load_depth_frame takes the clip's depth as f32 [F,H,W] (what DepthEstimator writes), got " +
-                clip.describe());
+                clip.describe(), ErrorKind::invalid_argument);
   parse_depth_fit(options.depth_fit);
   HostTensor values({clip.shape[0], clip.shape[1], clip.shape[2]}, DType::f32);
   std::memcpy(values.as<float>(), clip.data, values.bytes());

@@ -22,7 +22,8 @@ bool is(ElementType type, const std::vector<int64_t>& shape, ElementType want_ty
 }
 
 [[noreturn]] void wrong(const char* arg, const std::string& expected, ElementType type, const std::vector<int64_t>& shape) {
-  throw Error(std::string("PointCloudScene: ") + arg + ": expected " + expected + ", got " + shape_text(type, shape));
+  throw Error(std::string("PointCloudScene: ") + arg + ": expected " + expected + ", got " + shape_text(type, shape),
+              ErrorKind::invalid_argument);
 }
 
 std::string hw(const char* prefix, int height, int width, const char* suffix) {
@@ -40,13 +41,14 @@ void check_mask(const char* arg, ElementType type, const std::vector<int64_t>& s
   if (!is(type, shape, ElementType::f32, {height, width})) wrong(arg, hw("f32 [", height, width, "]"), type, shape);
 }
 
-void need_data(const char* arg, const HostView& v) {
-  if (!v.data) throw Error(std::string("PointCloudScene: ") + arg + ": the view's data pointer is null");
+void need_data(const char* arg, const ConstHostView& v) {
+  if (!v.data)
+    throw Error(std::string("PointCloudScene: ") + arg + ": the view's data pointer is null", ErrorKind::invalid_argument);
 }
 
 }  // namespace
 
-HostTensor scene_frame(const HostView& frame) {
+HostTensor scene_frame(const ConstHostView& frame) {
   const auto& s = frame.shape;
   const bool rgb8 = frame.type == ElementType::u8 && s.size() == 3 && s[2] == 3 && s[0] > 0 && s[1] > 0;
   const bool planar = frame.type == ElementType::f32 && s.size() == 3 && s[0] == 3 && s[1] > 0 && s[2] > 0;
@@ -65,7 +67,7 @@ HostTensor scene_frame(const HostView& frame) {
   return out;
 }
 
-HostTensor scene_depth(const HostView& depth, int height, int width, DepthValues values) {
+HostTensor scene_depth(const ConstHostView& depth, int height, int width, DepthValues values) {
   if (!is(depth.type, depth.shape, ElementType::f32, {height, width}))
     wrong("depth", hw("f32 [", height, width, "] (the frame's size)"), depth.type, depth.shape);
   need_data("depth", depth);
@@ -89,14 +91,17 @@ bool host_mask_wanted(const HostView& mask, int height, int width) {
 }
 
 SceneImage device_image_kind(const DeviceBufferView& image, int height, int width) {
-  if (image.buffer == VK_NULL_HANDLE) throw Error("PointCloudScene: image: the device view's buffer is VK_NULL_HANDLE");
-  if (image.offset % 4) throw Error("PointCloudScene: image: the device view's offset must be a multiple of 4");
+  if (image.buffer == VK_NULL_HANDLE)
+    throw Error("PointCloudScene: image: the device view's buffer is VK_NULL_HANDLE", ErrorKind::invalid_argument);
+  if (image.offset % 4)
+    throw Error("PointCloudScene: image: the device view's offset must be a multiple of 4", ErrorKind::invalid_argument);
   return image_kind("image", image.type, image.shape, height, width);
 }
 
 bool device_mask_wanted(const DeviceBufferView& mask, int height, int width) {
   if (mask.buffer == VK_NULL_HANDLE) return false;
-  if (mask.offset % 4) throw Error("PointCloudScene: mask: the device view's offset must be a multiple of 4");
+  if (mask.offset % 4)
+    throw Error("PointCloudScene: mask: the device view's offset must be a multiple of 4", ErrorKind::invalid_argument);
   check_mask("mask", mask.type, mask.shape, height, width);
   return true;
 }

@@ -10,11 +10,11 @@ namespace dvs::embed {
 
 // The frame as f32 [1,3,H,W] in [−1,1]: f32 [3,H,W] as it is, u8 [H,W,3] RGB by the video reader's level rule
 // (io/pixel_levels.hpp), so a frame in memory equals the same frame decoded from a file.
-HostTensor scene_frame(const HostView& frame);
+HostTensor scene_frame(const ConstHostView& frame);
 
 // Depth f32 [H,W] (of the frame's height × width) as metric depth [1,H,W]: disparity converted as `dvs render`
 // converts a one-frame depth file (depth_from_array), metric depth checked (> 0, finite).
-HostTensor scene_depth(const HostView& depth, int height, int width, DepthValues values);
+HostTensor scene_depth(const ConstHostView& depth, int height, int width, DepthValues values);
 
 // What a render writes into: f32 [3,H,W] (the render in [−1,1]) or u8 [H,W,4] (RGBA8).
 enum class SceneImage { planar_f32, rgba8 };

@@ -18,7 +18,8 @@ struct ViewFacts {
   std::string missing;  // why it is not given: "the view's data pointer is null", "... buffer is VK_NULL_HANDLE"
 };
 
-inline ViewFacts facts(std::string name, const HostView& v, std::string missing = "the view's data pointer is null") {
+inline ViewFacts facts(std::string name, const ConstHostView& v,
+                       std::string missing = "the view's data pointer is null") {
   return {std::move(name), v.type, v.shape, v.data != nullptr, v.describe(), std::move(missing)};
 }
 inline ViewFacts facts(std::string name, const DeviceBufferView& v,

@@ -1,6 +1,8 @@
 // dvs/views.hpp: sizes and descriptions of the application's memory views.
 #include "dvs/views.hpp"
 
+#include <utility>
+
 namespace dvs {
 namespace {
 
@@ -26,6 +28,13 @@ std::string describe(ElementType type, const std::vector<int64_t>& shape) {
 int64_t HostView::elements() const { return product(shape); }
 uint64_t HostView::bytes() const { return uint64_t(elements()) * element_bytes(type); }
 std::string HostView::describe() const { return dvs::describe(type, shape); }
+
+ConstHostView::ConstHostView(const void* data_, ElementType type_, std::vector<int64_t> shape_)
+    : data(data_), type(type_), shape(std::move(shape_)) {}
+ConstHostView::ConstHostView(const HostView& view) : data(view.data), type(view.type), shape(view.shape) {}
+int64_t ConstHostView::elements() const { return product(shape); }
+uint64_t ConstHostView::bytes() const { return uint64_t(elements()) * element_bytes(type); }
+std::string ConstHostView::describe() const { return dvs::describe(type, shape); }
 
 int64_t DeviceBufferView::elements() const { return product(shape); }
 uint64_t DeviceBufferView::bytes() const { return uint64_t(elements()) * element_bytes(type); }

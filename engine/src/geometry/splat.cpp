@@ -19,8 +19,8 @@ namespace {
 struct Push {  // splat_common.glsl
   uint32_t H, W, frame, flags;
   float src_k[4];
-  float dst_k[4];
-  float t[12];  // rows 0..2 of T
+  float k_map[4];  // the target camera against the source's: fx_d/fx_s − 1, fy_d/fy_s − 1, cx_d − cx_s, cy_d − cy_s
+  float t[12];     // rows 0..2 of T − I: the identity moves no point, exactly (splat_common.glsl says why)
 };
 static_assert(sizeof(Push) == 96);
 
@@ -91,14 +91,16 @@ void SplatRenderer::record(vk::Recorder& rec, const Tensor& rgb, const Tensor& d
   std::vector<Push> push(static_cast<size_t>(F));
   for (int64_t f = 0; f < F; ++f) {
     Push& p = push[size_t(f)];
+    // In double on the host, so that equal cameras give exact zeros.
     p = Push{uint32_t(H_), uint32_t(W_), uint32_t(f), 0,
              {float(K_src.fx), float(K_src.fy), float(K_src.cx), float(K_src.cy)},
-             {float(K_dst.fx), float(K_dst.fy), float(K_dst.cx), float(K_dst.cy)},
+             {float(K_dst.fx / K_src.fx - 1.0), float(K_dst.fy / K_src.fy - 1.0), float(K_dst.cx - K_src.cx),
+              float(K_dst.cy - K_src.cy)},
              {}};
     if (options_.keep_points_behind_camera) p.flags |= kKeepBehind;
     const glm::dmat4& T = transforms[size_t(f)];
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) p.t[r * 4 + c] = float(T[c][r]);
+      for (int c = 0; c < 4; ++c) p.t[r * 4 + c] = float(T[c][r] - (r == c ? 1.0 : 0.0));
   }
   const ResolvePush rpush{uint32_t(H_), uint32_t(W_), uint32_t(F)};
 

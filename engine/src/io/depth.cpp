@@ -10,6 +10,7 @@
 #include "io/video.hpp"
 #include "io/depth_images.hpp"
 #include "io/npy.hpp"
+#include "io/option_names.hpp"
 
 #include <zip.h>
 
@@ -214,8 +215,8 @@ HostTensor depth_from_array(const HostTensor& in, const std::string& name, const
                 " holds " + std::to_string(d[first]) + " at row " + std::to_string(first % plane / in.shape[2]) +
                 ", column " + std::to_string(first % in.shape[2]) + " (" + std::to_string(count) + " of " +
                 std::to_string(n) + " values are below 0, the least " + std::to_string(lo) +
-                "). Give a depth model's raw disparity; if the file holds metric depth, say so with --metric-depth; "
-                "a signed or log map must be converted first");
+                "). Give a depth model's raw disparity; if the file holds metric depth, say so with " +
+                option_name("RenderJob::metric_depth") + "; a signed or log map must be converted first");
   }
   if (!(hi > lo))
     throw Error(name + ": the disparity is constant over the whole clip (" + std::to_string(lo) +
@@ -273,7 +274,7 @@ HostTensor cut_frames(const HostTensor& depth, int frames, bool allow_trim, cons
   if (N > frames) {
     if (!allow_trim)
       throw Error(name + ": has " + std::to_string(N) + " depth frames but the video has " + std::to_string(frames) +
-                  " (--trim-depth uses its first " + std::to_string(frames) + ")");
+                  " (" + option_name("RenderJob::trim_depth") + " uses its first " + std::to_string(frames) + ")");
     d.shape[0] = frames;
     d.data.resize(size_t(frames) * size_t(depth.shape[1] * depth.shape[2]) * 4);
   }
@@ -294,19 +295,18 @@ DepthFit parse_depth_fit(const std::string& v) {
   if (v == "error") return DepthFit::error;
   if (v == "stretch") return DepthFit::stretch;
   if (v == "crop") return DepthFit::crop;
-  throw Error("--depth-fit must be error, stretch or crop, got '" + v + "'");
+  throw Error(option_name("RenderJob::depth_fit") + " must be error, stretch or crop, got '" + v + "'");
 }
 
 const char* depth_fit_name(DepthFit fit) {
   return fit == DepthFit::stretch ? "stretch" : fit == DepthFit::crop ? "crop" : "error";
 }
 
-HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& g, DepthFit fit,
-                              bool allow_trim, const std::string& name) {
-  const HostTensor d = cut_frames(depth, frames, allow_trim, name);
+DepthRegion depth_region_for_video(int64_t depth_height, int64_t depth_width, const VideoFrameGeometry& g, DepthFit fit,
+                                   const std::string& name) {
   if (g.source_height < 1 || g.source_width < 1 || g.height < 1 || g.width < 1)
     throw Error(name + ": internal: the video's frame size is unknown");
-  const double dh = double(d.shape[1]), dw = double(d.shape[2]);
+  const double dh = double(depth_height), dw = double(depth_width);
   const double vh = g.source_height, vw = g.source_width;
   // 1. The depth region that covers the source video frame.
   double rx = 0, ry = 0, rw = dw, rh = dh;
@@ -317,7 +317,7 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
       throw Error(name + ": the depth frames are " + shape(dh, dw) + " (HxW) but the video's are " + shape(vh, vw) +
                   ": another aspect ratio" + (((dw > dh) != (vw > vh)) ? " and orientation" : "") +
                   ", so depth and pixels would not line up. Give depth computed on this video, or say how to map "
-                  "it: --depth-fit stretch (scale each axis) or --depth-fit crop (cut the depth's centre)");
+                  "it: " + option_name("RenderJob::depth_fit") + " stretch (scale each axis) or crop (cut the depth's centre)");
     if (fit == DepthFit::crop) {
       if (depth_aspect > video_aspect) rw = dh * video_aspect;
       else rh = dw / video_aspect;
@@ -344,14 +344,21 @@ HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFr
   if (h * kDepthMaxUpscale < ch || w * kDepthMaxUpscale < cw) {
     char ratio[32];
     std::snprintf(ratio, sizeof ratio, "%.3g", std::max(ch / h, cw / w));
-    throw Error(name + ": the depth frames are " + std::to_string(d.shape[1]) + "x" + std::to_string(d.shape[2]) +
+    throw Error(name + ": the depth frames are " + std::to_string(depth_height) + "x" + std::to_string(depth_width) +
                 " (HxW), far too small for the video's " + std::to_string(g.source_height) + "x" +
                 std::to_string(g.source_width) + " frames: each depth pixel would cover " + ratio +
                 " video pixels a side (at most " + std::to_string(kDepthMaxUpscale) +
                 " are allowed). Give depth computed at (or near) the video's size, e.g. with dvs depth or --depth-model");
   }
-  if (x0 == 0 && y0 == 0 && w == dw && h == dh) return resize_depth(d, g.height, g.width);
-  return resample_region(d, x0, y0, w, h, g.height, g.width);
+  return {x0, y0, w, h};
+}
+
+HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& g, DepthFit fit,
+                              bool allow_trim, const std::string& name) {
+  const HostTensor d = cut_frames(depth, frames, allow_trim, name);
+  const DepthRegion r = depth_region_for_video(d.shape[1], d.shape[2], g, fit, name);
+  if (r.x0 == 0 && r.y0 == 0 && r.w == double(d.shape[2]) && r.h == double(d.shape[1])) return resize_depth(d, g.height, g.width);
+  return resample_region(d, r.x0, r.y0, r.w, r.h, g.height, g.width);
 }
 
 HostTensor fit_depth_to_video(const HostTensor& depth, int frames, int height, int width, bool allow_trim,

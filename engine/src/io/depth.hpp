@@ -83,6 +83,14 @@ struct VideoFrameGeometry {
 // its rows or columns is refused (e.g. 4x7 for 384x672: one depth pixel per 96x96 pixels is no geometry). Frame counts as
 // fit_depth_to_video. Errors name `name`.
 constexpr int kDepthMaxUpscale = 8;
+// The region of a depth frame of depth_height × depth_width (its pixels, x0 y0 w h) that map_depth_to_video
+// resamples onto the working frame; dvs::Error (naming `name`) for depth it refuses: another aspect ratio under
+// DepthFit::error, far too small. Preflight calls it with the depth file's header shape, before any work.
+struct DepthRegion {
+  double x0 = 0, y0 = 0, w = 0, h = 0;
+};
+DepthRegion depth_region_for_video(int64_t depth_height, int64_t depth_width, const VideoFrameGeometry& video, DepthFit fit,
+                                   const std::string& name);
 HostTensor map_depth_to_video(const HostTensor& depth, int frames, const VideoFrameGeometry& video, DepthFit fit,
                               bool allow_trim, const std::string& name);
 

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <iostream>
 
 #include "dvs/error.hpp"
+#include "io/library_log.hpp"
 #include "io/npy.hpp"
 #include "io/pixel_levels.hpp"
 #include "io/video_backend.hpp"
@@ -100,18 +100,30 @@ HostTensor read_video_rgb8_npy(const std::filesystem::path& path, int max_frames
   return out;
 }
 
+// The video component's read with what it noticed logged (info may be null).
+template <class Read>
+HostTensor read_logged(VideoInfo* info, const Read& read) {
+  VideoInfo local;
+  VideoInfo& vi = info ? *info : local;
+  HostTensor frames = read(&vi);
+  for (const std::string& w : vi.warnings) log_warning(w);
+  vi.warnings.clear();
+  return frames;
+}
+
 }  // namespace
 
 HostTensor read_video(const std::filesystem::path& path, const VideoReadOptions& o, VideoInfo* info) {
   if (std::filesystem::is_regular_file(path) && is_npy(path)) return read_video_npy(path, o, info);
-  if (const VideoBackend* backend = video_backend()) return backend->read_video(path, o, info);
+  if (const VideoBackend* backend = video_backend()) return read_logged(info, [&](VideoInfo* vi) { return backend->read_video(path, o, vi); });
   if (std::filesystem::is_regular_file(path)) no_video_io(path, "decoding the video");
   return read_video_npy(path, o, info);  // names the missing file
 }
 
 HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames, int max_long_side, VideoInfo* info) {
   if (std::filesystem::is_regular_file(path) && is_npy(path)) return read_video_rgb8_npy(path, max_frames, max_long_side, info);
-  if (const VideoBackend* backend = video_backend()) return backend->read_video_rgb8(path, max_frames, max_long_side, info);
+  if (const VideoBackend* backend = video_backend())
+    return read_logged(info, [&](VideoInfo* vi) { return backend->read_video_rgb8(path, max_frames, max_long_side, vi); });
   if (std::filesystem::is_regular_file(path)) no_video_io(path, "decoding the video");
   return read_video_rgb8_npy(path, max_frames, max_long_side, info);  // names the missing file
 }
@@ -119,8 +131,8 @@ HostTensor read_video_rgb8(const std::filesystem::path& path, int max_frames, in
 void write_video(const std::filesystem::path& path, const HostTensor& frames, double fps) {
   if (const VideoBackend* backend = video_backend()) return backend->write_video(path, frames, fps);
   // Not silent: an application that links only dvs::core and asks for a job's .mp4 files gets frame arrays.
-  std::cerr << "dvs: warning: " << path.string() << ": written as an .npy frame array (f32 [F,3,H,W] in [-1,1]) "
-            << "under this name: this program has no video component (link dvs::video for .mp4 files)\n";
+  log_warning(path.string() + ": written as an .npy frame array (f32 [F,3,H,W] in [-1,1]) under this name: this "
+              "program has no video component (link dvs::video for .mp4 files)");
   const Shape& s = frames.shape;
   int64_t F = 0, C = 0, H = 0, W = 0;
   if (s.size() == 4 && (s[1] == 3 || s[1] == 1)) F = s[0], C = s[1], H = s[2], W = s[3];

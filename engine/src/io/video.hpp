@@ -4,6 +4,8 @@
 #pragma once
 #include <filesystem>
 #include <string>
+#include <vector>
+#include <string>
 
 #include "io/host_tensor.hpp"
 
@@ -18,6 +20,9 @@ struct VideoReadOptions {
   int max_frames = 0;  // the first N frames (0 = all); a video with fewer is an error (too_few_frames, video.cpp)
   int height = 0, width = 0;  // 0 = keep the file's size
   ResizeMode resize = ResizeMode::crop;
+  // A video of fewer than max_frames frames gives those it has (the caller names the shortfall); else it is the
+  // error that suggests the dvs program's --frames.
+  bool fewer_frames_ok = false;
 };
 
 struct VideoInfo {
@@ -25,6 +30,9 @@ struct VideoInfo {
   int frames = 0;             // decoded (after max_frames)
   int frames_in_file = 0;     // the container's frame count (0 when it does not say)
   double fps = 0;
+  // What the reader noticed without failing (a header that announces more frames than decode): the core's
+  // read_video logs them (io/library_log.hpp), since the video component has no handle on the application's log.
+  std::vector<std::string> warnings;
 };
 
 // [F,3,H,W] f32 RGB in [−1,1]. Throws dvs::Error naming the file and the cause when it cannot be opened

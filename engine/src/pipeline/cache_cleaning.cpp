@@ -14,7 +14,8 @@
 #include <regex>
 #include <string>
 
-#include "pipeline/inversion_cache.hpp"
+#include "io/cache_root.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/run_outputs.hpp"
 
 namespace dvs {
@@ -42,23 +43,22 @@ const char* kind_of(const std::string& prefix) {
 
 }  // namespace
 
-fs::path cache_folder(const fs::path& cache_dir) { return InversionCache(cache_dir).dir(); }
+fs::path cache_folder(const fs::path& cache_dir) { return cache_entries_folder(cache_root(cache_dir)); }
 
 std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
-  // An entry's files: its .npy, the .npy's commit marker (.npy.sum, pipeline/cache_entry.hpp), a latent's .json.
-  static const std::regex entry_name("(eps_inv|latent|depth)-([0-9a-f]{16})\\.(npy|npy\\.sum|json)");
   std::map<std::string, CacheEntry> entries;  // by "<prefix>-<key>"
   std::map<std::string, fs::file_time_type> newest;
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(cache_folder(cache_dir), ec)) {
     const std::string name = e.path().filename().string();
-    std::smatch m;
-    if (!e.is_regular_file(ec) || !std::regex_match(name, m, entry_name)) continue;
-    const std::string id = m[1].str() + "-" + m[2].str();
+    const std::optional<EntryName> n = entry_name(name);
+    if (!n || !e.is_regular_file(ec)) continue;
+    const std::string id = n->prefix + "-" + n->key;
     CacheEntry& c = entries[id];
-    c.kind = kind_of(m[1].str());
-    c.key = m[2].str();
+    c.kind = kind_of(n->prefix);
+    c.key = n->key;
     c.files.push_back(e.path());
+    if (n->ending == "npy") c.data_file = e.path();
     const uintmax_t size = e.file_size(ec);
     if (!ec) c.bytes += size;
     const auto t = e.last_write_time(ec);
@@ -68,8 +68,7 @@ std::vector<CacheEntry> list_cache(const fs::path& cache_dir) {
   for (auto& [id, c] : entries) {
     // A latent is its .npy with its .json; a .json alone is the first half of a store still under way (or of
     // one that failed): not an entry yet.
-    if (c.kind == "latent" && std::none_of(c.files.begin(), c.files.end(), [](const fs::path& f) { return f.extension() == ".npy"; }))
-      continue;
+    if (c.kind == "latent" && c.data_file.empty()) continue;
     std::sort(c.files.begin(), c.files.end(), [](const fs::path& a, const fs::path& b) {
       return a.extension() == ".sum" && b.extension() != ".sum";  // the marker first: removed first, the entry is gone
     });

@@ -1,5 +1,6 @@
 #include "pipeline/clip_input.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 
@@ -8,8 +9,10 @@
 #include "geometry/trajectory.hpp"
 #include "io/depth.hpp"
 #include "io/json_file.hpp"
+#include "io/library_log.hpp"
 #include "io/pixel_levels.hpp"
 #include "pipeline/inversion_cache.hpp"
+#include "io/option_names.hpp"
 #include "spec/cogvideox_config.hpp"
 
 namespace dvs {
@@ -39,7 +42,7 @@ ClipInput clip_input(const RenderJob& job, HostTensor rgb, const HostTensor& dep
     try {
       c.trajectory = geometry::load_trajectory(job.trajectory, F, geometry::official_radius(centre_depth(c.depth)));
     } catch (const Error& e) {
-      throw Error("RunOptions::render.trajectory: " + std::string(e.what()));
+      throw Error(option_name("RunOptions::render.trajectory") + ": " + std::string(e.what()), e.kind());
     }
   }
   return c;
@@ -55,14 +58,15 @@ RenderedInput render_clip_input(vk::Context& ctx, const RenderJob& job, const Cl
   r.trajectory = clip.trajectory;
   r.K = job_intrinsics(job);
   say("trajectory " + r.trajectory.description);
-  for (const auto& w : r.trajectory.warnings) say("warning: " + w);
+  for (const auto& w : r.trajectory.warnings) log_warning(w);
   geometry::SplatOptions sopt;
   sopt.mode = job.hard_points ? geometry::SplatMode::hard_point : geometry::SplatMode::soft_bilinear;
   say("rendering on " + ctx.caps().name);
   geometry::RenderedClip rendered = geometry::render_clip(ctx, r.rgb, r.depth, r.trajectory, r.K, sopt);
   r.render = std::move(rendered.render);
   r.mask = std::move(rendered.mask);
-  check_visibility(r.mask, job, geometry::official_radius(centre_depth(r.depth)), say);
+  check_visibility(r.mask, job, geometry::official_radius(centre_depth(r.depth)), say,
+                   "the mask (ClipResultViews::mask, dvs_run_pipeline_clip's mask)");
   stages.end();
   return r;
 }
@@ -88,7 +92,26 @@ std::vector<std::string> clip_input_key(const void* frames, size_t frame_bytes, 
   return parts;
 }
 
+void check_clip_size(int64_t frames, int64_t height, int64_t width, const std::string& frames_name,
+                     const std::string& size_name) {
+  if (frames < 1 || (frames - 1) % 4 != 0) {
+    const int64_t below = std::max<int64_t>(1, (frames - 1) / 4 * 4 + 1);
+    throw Error(frames_name + ": " + std::to_string(frames) + " frames; " + std::to_string(frames) +
+                    " is not 4k+1, the counts the model takes (the VAE compresses time by 4 after the first frame): "
+                    "give " + (frames > 1 ? std::to_string(below) + " or " : std::string()) + std::to_string(below + 4),
+                ErrorKind::invalid_argument);
+  }
+  if (height < 8 || width < 8 || height % 8 || width % 8) {
+    auto down = [](int64_t v) { return std::to_string(std::max<int64_t>(8, v / 8 * 8)); };
+    throw Error(size_name + ": " + std::to_string(height) + "x" + std::to_string(width) +
+                    " (HxW); height and width must be positive multiples of 8 (the VAE works on 8x8 pixel cells): "
+                    "resize the frames, e.g. to " + down(height) + "x" + down(width),
+                ErrorKind::invalid_argument);
+  }
+}
+
 std::vector<int64_t> clip_latent_shape(const std::filesystem::path& model, int64_t frames, int64_t height, int64_t width) {
+  check_clip_size(frames, height, width, "the clip's frame count", "the clip's size");
   const VaeConfig v = VaeConfig::from_json(
       read_json_file(model / "vae" / "config.json", "give the CogVideoX-5b-I2V folder (RunOptions::model)"));
   const int64_t r = v.spatial_ratio();

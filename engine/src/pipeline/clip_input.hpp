@@ -47,8 +47,14 @@ std::vector<std::string> clip_input_key(const void* frames, size_t frame_bytes, 
                                         const HostTensor& depth_values, const std::optional<std::vector<glm::dmat4>>& poses,
                                         const std::string& trajectory);
 
+// Refuses (ErrorKind::invalid_argument) a clip the model cannot take: F = 4k+1 frames ("8 is not 4k+1", named
+// `frames_name`), H and W positive multiples of 8 (named `size_name`); each message says what to give instead.
+void check_clip_size(int64_t frames, int64_t height, int64_t width, const std::string& frames_name,
+                     const std::string& size_name);
+
 // The sampled latent's shape [Fl,C,h,w] for a clip of frames × height × width, from the model's VAE config
-// (Fl = (F−1)/temporal_compression + 1, C = latent_channels, h×w = H×W / spatial ratio).
+// (Fl = (F−1)/temporal_compression + 1, C = latent_channels, h×w = H×W / spatial ratio); a size check_clip_size
+// refuses is refused first.
 std::vector<int64_t> clip_latent_shape(const std::filesystem::path& model, int64_t frames, int64_t height, int64_t width);
 
 }  // namespace dvs

@@ -7,6 +7,7 @@
 #include "dvs/error.hpp"
 #include "io/crash_points.hpp"
 #include "io/injected_faults.hpp"
+#include "io/library_log.hpp"
 #include "io/npy.hpp"
 #include "io/npz_writer.hpp"
 #include "io/video.hpp"
@@ -15,6 +16,7 @@
 #include "models/vda/vda_stitch.hpp"
 #include "models/vda/vda_video.hpp"
 #include "pipeline/cache_entry.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/frames_depth.hpp"
 #include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
@@ -44,11 +46,6 @@ void check_job(const DepthJob& j) {
   VdaModel::inspect(j.model);  // the headers alone: another model's file is named now, not after the decode
 }
 
-void notify(const DepthJob& job, const ProgressFn& progress, const std::string& line) {
-  if (job.notice) job.notice(line);
-  else if (progress) progress("depth", 0, 0, line);
-}
-
 // A cache entry worth using: what an estimate writes (f32 [N, H, W]), finite and not constant.
 std::optional<std::string> entry_problem(const HostTensor& h) {
   if (h.dtype != DType::f32 || h.shape.size() != 3 || h.numel() == 0) return "not an f32 [N, H, W] array";
@@ -71,6 +68,7 @@ HostTensor run_estimate(const DepthJob& job, const ProgressFn& progress, const C
 
   vk::ContextOptions copt;
   copt.device = job.device;
+  copt.cache_dir = job.cache_dir;  // the pipeline cache beside the depth cache, as DVS_CACHE_DIR puts it
   vk::Context ctx(copt);
   FramesDepthOptions fo;
   fo.input_size = job.input_size;
@@ -136,6 +134,7 @@ bool depth_cache_has(const DepthJob& job) {
 
 CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const CancelFn& cancelled) {
   check_job(job);
+  refuse_old_cache_layout(job.cache_dir);  // an estimate can take a quarter of an hour: never silently again
   CachedDepth c;
   const InversionCache cache = depth_cache(job);
   c.key = depth_cache_key(job);
@@ -154,7 +153,7 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
       return c;
     }
     if (problem) {
-      notify(job, progress, "warning: the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
+      log_warning("the cached depth " + c.file.string() + " " + *problem + "; estimating it again");
       remove_cache_entry(c.file);
     }
   }
@@ -170,9 +169,10 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
   } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
     throw Error("depth estimate: " + e.detail() + ". Try a smaller " + job.input_size_option + " (the network input; " +
                 "default 518) or a smaller --max-res / fewer --frames; dvs plan --depth-model " +
-                job.model.filename().string() + " shows what the estimate needs");
+                    job.model.filename().string() + " shows what the estimate needs",
+                ErrorKind::out_of_memory);
   } catch (const vk::DeviceLost& e) {
-    throw Error(std::string("depth estimate: ") + e.what());
+    throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);
   }
   faults::set_stage("depth-write");
   std::filesystem::create_directories(c.file.parent_path(), ec);
@@ -199,7 +199,8 @@ DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& ou
     remove_stale_temporaries(out);  // what a dvs depth killed while writing this file left
   } catch (const Error& e) {
     throw Error(std::string(e.what()) + "; the estimate is kept in the depth cache (" + c.file.string() +
-                "): the same command with a writable --out takes it from there");
+                    "): the same command with a writable --out takes it from there",
+                e.kind());
   }
   return c.summary;
 }

@@ -4,6 +4,7 @@
 
 #include "dvs/depth_estimate.hpp"
 #include "models/vda/vda_model.hpp"
+#include "io/option_names.hpp"
 
 namespace dvs {
 
@@ -16,7 +17,7 @@ DepthJob depth_job_for(const RenderJob& job, const std::filesystem::path& cache_
   d.device = job.device;
   d.cache_dir = cache_dir;
   d.refresh_cache = refresh;
-  d.input_size_option = "--depth-input-size";
+  d.input_size_option = option_name("RenderJob::depth_input_size");
   return d;
 }
 

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "dvs/error.hpp"
+#include "io/cache_root.hpp"
 #include "io/npy.hpp"
 #include "pipeline/cache_entry.hpp"
 
@@ -35,14 +36,8 @@ struct Fnv {
 
 }  // namespace
 
-InversionCache::InversionCache(std::filesystem::path dir, std::string prefix) : dir_(std::move(dir)), prefix_(std::move(prefix)) {
-  if (dir_.empty()) {
-    if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir_ = d;
-    else if (const char* home = std::getenv("HOME"); home && *home) dir_ = std::filesystem::path(home) / ".cache" / "dvs";
-    else dir_ = std::filesystem::temp_directory_path() / "dvs-cache";
-    dir_ /= "inversions";
-  }
-}
+InversionCache::InversionCache(const std::filesystem::path& cache_dir, std::string prefix)
+    : dir_(cache_entries_folder(cache_root(cache_dir))), prefix_(std::move(prefix)) {}
 
 std::string InversionCache::key(const std::vector<std::string>& parts) {
   Fnv f;

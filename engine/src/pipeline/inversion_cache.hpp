@@ -14,8 +14,9 @@ namespace dvs {
 
 class InversionCache {
  public:
-  // dir empty: $DVS_CACHE_DIR or ~/.cache/dvs, + /inversions. Entries are <prefix>-<key>.npy.
-  explicit InversionCache(std::filesystem::path dir = {}, std::string prefix = "eps_inv");
+  // cache_dir: the cache folder (io/cache_root.hpp; empty: $DVS_CACHE_DIR or ~/.cache/dvs); the entries are
+  // <prefix>-<key>.npy in its inversions/ folder.
+  explicit InversionCache(const std::filesystem::path& cache_dir = {}, std::string prefix = "eps_inv");
   static std::string key(const std::vector<std::string>& parts);
   // The same hash of `bytes` bytes in memory (a clip handed over in memory is named by its contents).
   static std::string bytes_key(const void* data, size_t bytes);

@@ -25,6 +25,7 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   depth_stage(o, stages);
   vk::ContextOptions copt;
   copt.device = o.render.device;
+  copt.cache_dir = o.cache_dir;  // the pipeline cache beside the run caches, as DVS_CACHE_DIR puts it
   vk::Context ctx(copt);
   // Ctrl-C and progress between the bounded submissions inside a forward or a VAE call, not only between steps.
   const vk::ScopedSegmentHook between_submissions(ctx, stages.segment_hook());

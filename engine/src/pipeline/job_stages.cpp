@@ -10,6 +10,8 @@
 #include "diffusion/sampler.hpp"
 #include "dvs/error.hpp"
 #include "io/injected_faults.hpp"
+#include "io/library_log.hpp"
+#include "io/option_names.hpp"
 #include "models/cogvideox/lora.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/denoise_stages.hpp"
@@ -54,7 +56,7 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
   const auto enc = models::TilePlan::for_encode(cfg, tiling), dec = models::TilePlan::for_decode(cfg, tiling);
   if (enc.stride_h != enc.limit_h * r || enc.stride_w != enc.limit_w * r || dec.stride_h * r != dec.limit_h ||
       dec.stride_w * r != dec.limit_w)
-    throw Error("--vae-tile " + std::to_string(enc.tile_in_h) + "x" + std::to_string(enc.tile_in_w) +
+    throw Error(option_name("RunOptions::vae_tile_height/width") + " " + std::to_string(enc.tile_in_h) + "x" + std::to_string(enc.tile_in_w) +
                 ": tiles of this size do not join exactly (the tile stride, 5/6 of the height and 4/5 of the width, "
                 "must be a whole number of " + std::to_string(r) + "-pixel cells); use e.g. 240x360 (the default), 96x160 or 48x40");
 }
@@ -155,7 +157,7 @@ std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx,
     try {
       transformer->set_lora(models::load_lora(ctx, o.lora, float(o.lora_scale)));
     } catch (const Error& e) {
-      throw Error("--lora " + o.lora.string() + ": " + e.what());
+      throw Error("--lora " + o.lora.string() + ": " + e.what(), e.kind());
     }
   }
   return transformer;
@@ -307,7 +309,7 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
     r.cache_file = cache.file(key);
     std::string rejected;
     r.eps = cache.load(ctx, key, enc.x0_mean.shape(), &rejected);
-    if (!rejected.empty()) stages.say(0, 0, "warning: ignoring the cached inversion " + rejected);
+    if (!rejected.empty()) log_warning("ignoring the cached inversion " + rejected);
   }
   r.from_cache = r.eps.defined();
   if (r.from_cache) {
@@ -320,7 +322,7 @@ InversionResult invert_render(vk::Context& ctx, models::CogVideoXTransformer& tr
   ops::require_finite(ctx, {{&r.eps, "ε_inv"}}, kNonFiniteHint);  // before it is cached
   if (o.use_cache) {
     if (const std::string failed = cache.store(ctx, key, r.eps); !failed.empty()) {
-      stages.say(0, 0, "warning: the inversion could not be cached (" + failed + "); a later run computes it again");
+      log_warning("the inversion could not be cached (" + failed + "); a later run computes it again");
       r.cache_file.clear();
     }
   }

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "pipeline/job_stages.hpp"
+#include "io/option_names.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 
@@ -23,6 +24,9 @@ std::string plan_stage_of(const std::string& stage) {
 
 // Which option lowers the memory of `stage`, from the plan's own tiling offers for the VAE stages.
 std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& plan, bool tiled) {
+  const std::string tile = option_name("RunOptions::vae_tile_height/width"), size = option_name("RenderJob::height/width"),
+                    frames = option_name("RenderJob::frames");
+  const std::string smaller = "a smaller " + size + " or fewer " + frames;
   if (stage == "encode" || stage == "decode") {
     const bool enc = stage == "encode";
     const pipeline::TilingOption* best = nullptr;  // the tiling whose call needs least
@@ -32,17 +36,17 @@ std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& pla
         best = &t;
     }
     if (best && !tiled)
-      return "--vae-tile " + hw(best->tiling.tile_sample_min_height, best->tiling.tile_sample_min_width) +
+      return tile + " " + hw(best->tiling.tile_sample_min_height, best->tiling.tile_sample_min_width) +
              " (the VAE " + (enc ? "encode" : "decode") + " then needs " +
              pipeline::format_plan_bytes(enc ? best->vae_encode.total() : best->vae_decode.total()) + ", the run " +
-             pipeline::format_plan_bytes(best->run_peak) + "), or a smaller --height/--width or fewer --frames";
-    return "a smaller --vae-tile, a smaller --height/--width or fewer --frames";
+             pipeline::format_plan_bytes(best->run_peak) + "), or " + smaller;
+    return "a smaller " + tile + ", " + smaller;
   }
   // Streaming the model's blocks leaves two of them on the device (limits.md#weight-streaming).
   auto streaming = [&](const char* component) -> std::string {
     for (const auto& st : plan.streams)
       if (st.component == component && !st.streamed)
-        return "--weights stream (its blocks then hold " + pipeline::format_plan_bytes(st.device_bytes()) +
+        return option_name("RunOptions::weights") + " stream (its blocks then hold " + pipeline::format_plan_bytes(st.device_bytes()) +
                " of device memory instead of all of them), or ";
     return "";
   };
@@ -50,10 +54,10 @@ std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& pla
     return streaming("text_encoder") + "freeing the device memory other programs hold, or a device with more memory "
            "(T5's needs do not depend on the video's size)";
   if (stage == "invert" || stage == "sample")
-    return streaming("transformer") + "fewer --frames or a smaller --height/--width (the transformer's attention grows "
-           "with both; VAE tiling does not change this stage)";
-  if (stage == "depth") return "a smaller --depth-input-size (dvs depth: --input-size or --max-res)";
-  return "fewer --frames or a smaller --height/--width";
+    return streaming("transformer") + smaller + " (the transformer's attention grows with both; VAE tiling does not change this stage)";
+  if (stage == "depth")
+    return "a smaller " + option_name("RenderJob::depth_input_size") + " (dvs depth: --input-size or --max-res)";
+  return smaller;
 }
 
 }  // namespace
@@ -91,7 +95,7 @@ std::string out_of_memory_advice(const RunOptions& o, const std::string& stage) 
       if (!st && s.name == call) st = &s;
     if (st) text += "the " + stage + " stage's " + st->name + " call needs " + pipeline::format_plan_bytes(st->total()) + ", ";
     text += "the run's peak is " + pipeline::format_plan_bytes(mine.run_peak) +
-            (req.tiling ? " with --vae-tile " + hw(mine.tiling.tile_sample_min_height, mine.tiling.tile_sample_min_width)
+            (req.tiling ? " with " + option_name("RunOptions::vae_tile_height/width") + " " + hw(mine.tiling.tile_sample_min_height, mine.tiling.tile_sample_min_width)
                         : std::string(" untiled")) +
             (mine.blocker.empty() ? " (the plan expected it to fit: other programs may be using the device's memory)"
                                   : " (" + mine.blocker + ")") +

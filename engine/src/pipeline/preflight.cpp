@@ -24,12 +24,15 @@
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/tokenizer.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/memory_advice.hpp"
 #include "pipeline/memory_plan.hpp"
+#include "io/option_names.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/prompt_cut.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/settings.hpp"
 #include "vk/context.hpp"
@@ -40,21 +43,27 @@ namespace {
 
 std::string hw(int64_t h, int64_t w) { return std::to_string(h) + "x" + std::to_string(w); }
 
-// Frames in a depth source, as the render stage will read them: an array's first dimension (the file is read),
-// a folder's image count, a grayscale video's container count; nothing when unknown.
-std::optional<int64_t> depth_frame_count(const std::filesystem::path& spec) {
+// A depth source's shape as the render stage will read it: an array's [N,H,W] (the file is read), a folder's image
+// count (its frame size unknown here), a grayscale video's container count and frame size; 0 where unknown.
+struct DepthShape {
+  int64_t frames = 0, height = 0, width = 0;
+};
+DepthShape depth_shape(const std::filesystem::path& spec) {
   const auto path = split_npz_key(spec).first;
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return int64_t(depth_image_files(path).size());
+  if (std::filesystem::is_directory(path, ec)) return {int64_t(depth_image_files(path).size())};
   std::string ext = path.extension().string();
   for (auto& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-  if (ext == ".npy" || ext == ".npz") return read_depth_array(spec).shape.at(0);
+  if (ext == ".npy" || ext == ".npz") {
+    const Shape s = read_depth_array(spec).shape;
+    return {s.at(0), s.at(1), s.at(2)};
+  }
   VideoReadOptions vo;
   vo.max_frames = 1;
   vo.height = 8, vo.width = 8;
   VideoInfo vi;
   read_video(path, vo, &vi);
-  return vi.frames_in_file > 0 ? std::optional<int64_t>(vi.frames_in_file) : std::nullopt;
+  return {vi.frames_in_file, vi.height, vi.width};
 }
 
 class Checker {
@@ -83,7 +92,7 @@ class Checker {
 // The camera path: presets and files are resolved now (the radius only scales dolly/truck moves).
 void check_trajectory(const RunOptions& o, Checker& c) {
   const RenderJob& j = o.render;
-  c.attempt("--trajectory " + j.trajectory, [&] {
+  c.attempt(option_name("RenderJob::trajectory") + " " + j.trajectory, [&] {
     for (const auto& w : geometry::load_trajectory(j.trajectory, std::max(1, j.frames), 1.0).warnings) c.note("warning: " + w);
   });
 }
@@ -95,13 +104,15 @@ struct VideoFacts {
 
 std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const PreflightScope& scope) {
   const RenderJob& j = o.render;
+  const std::string size = option_name("RenderJob::height/width"), frames_option = option_name("RenderJob::frames");
   if (j.height <= 0 || j.width <= 0 || j.height % 8 || j.width % 8)
-    c.problem("--size " + hw(j.height, j.width) + ": height and width must be positive multiples of 8 (the VAE works on " +
-              "8x8 pixel cells), e.g. --size " + hw(std::max(8, j.height / 8 * 8), std::max(8, j.width / 8 * 8)));
+    c.problem(size + " " + hw(j.height, j.width) + ": height and width must be positive multiples of 8 (the VAE works on " +
+              "8x8 pixel cells), e.g. " + hw(std::max(8, j.height / 8 * 8), std::max(8, j.width / 8 * 8)));
   if (!std::isfinite(j.fx) || !std::isfinite(j.fy) || !std::isfinite(j.cx) || !std::isfinite(j.cy) ||
       ((j.fx != 0 || j.fy != 0 || j.cx != 0 || j.cy != 0) && !(j.fx > 0 && j.fy > 0 && j.cx > 0 && j.cy > 0)))
-    c.problem("--intrinsics: fx, fy, cx, cy must all be > 0 (pixels of the working size), or leave the option out for " +
-              std::string("the default"));
+    c.problem(option_name("RenderJob::fx/fy/cx/cy") + ": fx, fy, cx, cy must all be > 0 (pixels of the working size), "
+              "or all 0 for the default");
+  c.attempt("", [&] { parse_depth_fit(j.depth_fit); });
   if (!scope.input_files) {  // a clip in memory: its views are checked by the run itself
     if (scope.trajectory) check_trajectory(o, c);
     return std::nullopt;
@@ -111,7 +122,7 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
   std::optional<int64_t> video_frames;
   std::optional<VideoFacts> facts;
   if (!std::filesystem::is_regular_file(j.video)) {
-    c.problem(j.video.string() + ": no such video file (give --video FILE)");
+    c.problem(j.video.string() + ": no such video file (give " + option_name("RenderJob::video") + ")");
   } else {
     c.attempt("", [&] {
       VideoReadOptions vo;
@@ -123,52 +134,65 @@ std::optional<VideoFacts> check_inputs(const RunOptions& o, Checker& c, const Pr
       facts = VideoFacts{vi.frames_in_file, vi.height, vi.width};
       if (vi.frames_in_file > 0 && j.frames > vi.frames_in_file) {
         const int fit = (vi.frames_in_file - 1) / 4 * 4 + 1;
-        c.problem(j.video.string() + ": holds " + std::to_string(vi.frames_in_file) + " frames, fewer than --frames " +
-                  std::to_string(j.frames) + "; use --frames " + std::to_string(fit) + " (the largest 4k+1 it has)");
+        c.problem(j.video.string() + ": holds " + std::to_string(vi.frames_in_file) + " frames, fewer than " + frames_option +
+                  " " + std::to_string(j.frames) + "; use " + frames_option + " " + std::to_string(fit) +
+                  " (the largest 4k+1 it has)");
       }
       c.note("video " + j.video.string() + ": " + std::to_string(vi.frames_in_file) + " frames of " + hw(vi.height, vi.width));
     });
   }
   if (!j.depth_model.empty()) {
     if (!std::filesystem::is_regular_file(j.depth_model))
-      c.problem(j.depth_model.string() + ": no such depth model (give --depth-model video_depth_anything_vits.pth)");
+      c.problem(j.depth_model.string() + ": no such depth model (give " + option_name("RenderJob::depth_model") +
+                " video_depth_anything_vits.pth)");
     else
-      c.attempt("--depth-model " + j.depth_model.string(), [&] {
+      c.attempt(option_name("RenderJob::depth_model") + " " + j.depth_model.string(), [&] {
         const VdaConfig v = VdaModel::inspect(j.depth_model);
         c.note("depth model " + j.depth_model.string() + ": Video-Depth-Anything " + v.name + (v.metric ? " (metric)" : ""));
       });
     if (j.depth_input_size < 14 || j.depth_input_size > 4096)
-      c.problem("--depth-input-size must be in [14, 4096], got " + std::to_string(j.depth_input_size));
+      c.problem(option_name("RenderJob::depth_input_size") + " must be in [14, 4096], got " + std::to_string(j.depth_input_size));
     // The estimate is kept in the depth cache and read from there by the render (even with --no-cache, which
     // only skips reading an earlier entry): a folder it cannot write fails the job, so it is said now.
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem(option_name("RenderJob::depth_model") + ": " + *old);
     const InversionCache depth_cache(o.cache_dir, "depth");
-    if (auto p = folder_write_problem(depth_cache.dir(), "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder"))
-      c.problem("--depth-model: the estimate is kept in the depth cache, which cannot be written: " + *p);
+    if (auto p = folder_write_problem(depth_cache.dir(), "point " + option_name("RunOptions::cache_dir") +
+                                                             " (or DVS_CACHE_DIR) at a writable folder"))
+      c.problem(option_name("RenderJob::depth_model") + ": the estimate is kept in the depth cache, which cannot be written: " + *p);
   } else if (!depth_source_exists(j.depth)) {
-    c.problem(j.depth.string() + ": no such depth file or folder (give --depth FILE, or --depth-model FILE.pth to estimate it)");
+    c.problem(j.depth.string() + ": no such depth file or folder (give " + option_name("RenderJob::depth") + ", or " +
+              option_name("RenderJob::depth_model") + " to estimate it)");
   } else if (video_frames) {
     // The render stage's frame rule (render_job.cpp): depth for every frame the job uses; more only when it is
     // the whole clip's (cut with --frames) or --trim-depth says so.
-    c.attempt("--depth " + j.depth.string(), [&] {
-      const std::optional<int64_t> n = depth_frame_count(j.depth);
-      if (!n) return;
+    c.attempt(option_name("RenderJob::depth") + " " + j.depth.string(), [&] {
+      const DepthShape shape = depth_shape(j.depth);
+      // Depth of another aspect ratio, or far too small, for the video (the render stage's own rule, from the
+      // file's shape): said now, not after the decode.
+      if (shape.height > 0 && facts && facts->height > 0 && j.height > 0 && j.width > 0) {
+        const VideoFrameGeometry g{int(facts->height), int(facts->width), j.height, j.width,
+                                   j.squash ? ResizeMode::squash : ResizeMode::crop};
+        c.attempt("", [&] { depth_region_for_video(shape.height, shape.width, g, parse_depth_fit(j.depth_fit), j.depth.string()); });
+      }
+      if (shape.frames <= 0) return;
+      const int64_t n = shape.frames;
       const int64_t used = j.frames > 0 ? std::min<int64_t>(j.frames, *video_frames) : *video_frames;
-      const std::string frames = j.frames > 0 ? "--frames " + std::to_string(j.frames) : "the video's " + std::to_string(used) + " frames";
-      if (*n < used) {
-        const int64_t fit = (*n - 1) / 4 * 4 + 1;
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames, fewer than " + frames +
-                  "; give depth for every frame, or --frames " + std::to_string(std::max<int64_t>(fit, 1)) +
+      const std::string frames = j.frames > 0 ? frames_option + " " + std::to_string(j.frames) : "the video's " + std::to_string(used) + " frames";
+      if (n < used) {
+        const int64_t fit = (n - 1) / 4 * 4 + 1;
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames, fewer than " + frames +
+                  "; give depth for every frame, or " + frames_option + " " + std::to_string(std::max<int64_t>(fit, 1)) +
                   " (the largest 4k+1 it covers)");
-      } else if (*n > used && !j.trim_depth && *n != *video_frames) {
-        c.problem(j.depth.string() + ": holds " + std::to_string(*n) + " depth frames but the job uses " + frames +
-                  " (and the video holds " + std::to_string(*video_frames) + "): --trim-depth uses its first " +
+      } else if (n > used && !j.trim_depth && n != *video_frames) {
+        c.problem(j.depth.string() + ": holds " + std::to_string(n) + " depth frames but the job uses " + frames +
+                  " (and the video holds " + std::to_string(*video_frames) + "): " + option_name("RenderJob::trim_depth") + " uses its first " +
                   std::to_string(used));
       }
     });
   }
   if (scope.trajectory) check_trajectory(o, c);
   // The output folder: an existing folder we may write into, or creatable below one.
-  if (auto p = folder_write_problem(j.out_dir, "give another --out DIR")) c.problem(*p);
+  if (auto p = folder_write_problem(j.out_dir, "give another " + option_name("RenderJob::out_dir"))) c.problem(*p);
   return facts;
 }
 
@@ -213,7 +237,8 @@ void check_component(const std::filesystem::path& model, const std::string& name
 ModelFacts check_model(const RunOptions& o, Checker& c) {
   ModelFacts m;
   if (!std::filesystem::is_directory(o.model)) {
-    c.problem(o.model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+    c.problem(o.model.string() + ": no such model folder (give " + option_name("RunOptions::model") +
+              " a folder laid out like THUDM/CogVideoX-5b-I2V)");
     return m;
   }
   c.attempt("", [&] { ModelFolder::open(o.model); });
@@ -231,6 +256,15 @@ ModelFacts check_model(const RunOptions& o, Checker& c) {
   return m;
 }
 
+// The prompts the model cuts, as warnings among the notes (a tokenizer that cannot be read is check_model's problem).
+void note_prompt_cuts(const RunOptions& o, Checker& c) {
+  try {
+    for (const std::string& w : prompt_cut_warnings(o, T5Tokenizer::load(o.model), max_text_seq_length(o.model)))
+      c.note("warning: " + w);
+  } catch (const std::exception&) {
+  }
+}
+
 // The size, frames and channels against what the configs fix.
 void check_model_fit(const RunOptions& o, const ModelFacts& m, Checker& c) {
   if (!m.transformer || !m.vae) return;
@@ -238,13 +272,15 @@ void check_model_fit(const RunOptions& o, const ModelFacts& m, Checker& c) {
   const auto& v = *m.vae;
   const int64_t r = v.spatial_ratio(), cell = r * t.patch_size;
   const int H = o.render.height, W = o.render.width;
+  const std::string size = option_name("RenderJob::height/width");
   if (t.learned_pos && (H != t.sample_height * r || W != t.sample_width * r)) {
-    c.problem("--size " + hw(H, W) + ": this model's learned positional table needs --size " +
-              hw(t.sample_height * r, t.sample_width * r) + " (any 4k+1 --frames; diffusers rejects other sizes for it)");
+    c.problem(size + " " + hw(H, W) + ": this model's learned positional table needs " + size + " " +
+              hw(t.sample_height * r, t.sample_width * r) + " (any 4k+1 " + option_name("RenderJob::frames") +
+              "; diffusers rejects other sizes for it)");
   } else if (H > 0 && W > 0 && (H % cell || W % cell)) {
-    c.problem("--size " + hw(H, W) + ": the latent (" + hw(H / r, W / r) + ") must be a multiple of the transformer's patch " +
+    c.problem(size + " " + hw(H, W) + ": the latent (" + hw(H / r, W / r) + ") must be a multiple of the transformer's patch " +
               std::to_string(t.patch_size) + ", so height and width must be multiples of " + std::to_string(cell) +
-              ", e.g. --size " + hw(std::max(cell, H / cell * cell), std::max(cell, W / cell * cell)));
+              ", e.g. " + size + " " + hw(std::max(cell, H / cell * cell), std::max(cell, W / cell * cell)));
   }
   if (v.latent_channels * 2 != t.in_channels || v.latent_channels != t.out_channels)
     c.problem(o.model.string() + ": the VAE's latent_channels (" + std::to_string(v.latent_channels) +
@@ -263,11 +299,11 @@ void check_model_fit(const RunOptions& o, const ModelFacts& m, Checker& c) {
 void check_lora(const RunOptions& o, const ModelFacts& m, Checker& c) {
   if (o.lora.empty()) return;
   if (!std::filesystem::is_regular_file(o.lora)) {
-    c.problem(o.lora.string() + ": no such LoRA file (give --lora FILE.safetensors[:SCALE])");
+    c.problem(o.lora.string() + ": no such LoRA file (give " + option_name("RunOptions::lora") + " a .safetensors adapter)");
     return;
   }
-  if (!std::isfinite(o.lora_scale)) c.problem("--lora " + o.lora.string() + ": the scale must be a finite number");
-  c.attempt("--lora " + o.lora.string(), [&] {
+  if (!std::isfinite(o.lora_scale)) c.problem(option_name("RunOptions::lora_scale") + ": the scale must be a finite number");
+  c.attempt(option_name("RunOptions::lora") + " " + o.lora.string(), [&] {
     const auto adapters = read_lora_file(o.lora, o.lora_scale);
     if (!m.transformer) return;
     const int64_t D = m.transformer->dim();
@@ -293,7 +329,7 @@ const vk::DeviceCaps* chosen_device(const std::string& device, Checker& c) {
   static std::optional<std::vector<vk::DeviceCaps>> listed;
   if (!listed && !c.attempt("", [&] { listed = vk::list_devices(); })) return nullptr;
   uint32_t index = 0;
-  if (!c.attempt("--device", [&] { index = vk::select_device(*listed, device); })) return nullptr;
+  if (!c.attempt(option_name("RenderJob::device"), [&] { index = vk::select_device(*listed, device); })) return nullptr;
   return &listed->at(index);
 }
 
@@ -335,6 +371,7 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
   const vk::DeviceCaps* chosen = device ? device : chosen_device(o.render.device, c);
   if (!chosen) return;
   const vk::DeviceCaps& dev = *chosen;
+  const std::string tile = option_name("RunOptions::vae_tile_height/width");
   c.attempt("memory plan", [&] {
     const pipeline::PlanModel pm = pipeline::plan_model_from_folder(o.model);
     pipeline::PlanRequest req = run_plan_request(o, dev);  // the request an out-of-memory error's advice plans too
@@ -342,7 +379,7 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
     const std::optional<models::VaeTiling> given = req.tiling;
     const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
     c.note("memory plan: " + pipeline::format_plan_bytes(plan.tilings[given ? 1 : 0].run_peak) + " at the peak" +
-           (given ? " with --vae-tile " : " untiled") +
+           (given ? " with " + tile + " " : std::string(" untiled")) +
            (given ? hw(given->tile_sample_min_height, given->tile_sample_min_width) : std::string()) +
            "; device memory for dvs: " + dev.memory_budget.describe());
     std::string weights = "block weights (--weights " + o.weights + "):";
@@ -356,7 +393,7 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
     c.note(weights);
     const pipeline::TilingOption& mine = plan.tilings[given ? 1 : 0];  // given: [untiled, the given tiling]
     if (mine.blocker.empty()) return;
-    const std::string what = given ? "--vae-tile " + hw(given->tile_sample_min_height, given->tile_sample_min_width) : "untiled";
+    const std::string what = given ? tile + " " + hw(given->tile_sample_min_height, given->tile_sample_min_width) : "untiled";
     // What would run: the plan's own offers (a second plan when the run named its tiling).
     std::optional<pipeline::MemoryPlan> offers_storage;
     if (given) {
@@ -367,10 +404,11 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
     if (mine.fixed || offers.chosen < 0) {
       c.problem("device memory on " + dev.name + ": " + (offers.notes.empty() ? "nothing runs: " + mine.blocker : offers.notes.back()));
     } else if (offers.chosen == 0) {
-      c.problem("device memory: " + what + ", " + mine.blocker + "; run without --vae-tile (untiled fits)");
+      c.problem("device memory: " + what + ", " + mine.blocker + "; run without " + option_name("RunOptions::vae_tiling") +
+                " (untiled fits)");
     } else {
       const auto& t = offers.tilings[size_t(offers.chosen)].tiling;
-      c.problem("device memory: " + what + ", " + mine.blocker + "; " + (given ? "use" : "add") + " --vae-tile " +
+      c.problem("device memory: " + what + ", " + mine.blocker + "; " + (given ? "use" : "add") + " " + tile + " " +
                 hw(t.tile_sample_min_height, t.tile_sample_min_width) + " (fits; dvs plan --device shows the plan)");
     }
   });
@@ -395,16 +433,21 @@ PreflightReport preflight(const RunOptions& o, JobKind kind, const PreflightScop
   if (kind == JobKind::run && st) {
     const bool dynamic_cfg = o.dynamic_cfg.value_or(st->official);
     if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
-      c.problem("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
+      c.problem(option_name("RunOptions::preservation_scale") + " must be a finite number ≥ 0, got " +
+                std::to_string(o.preservation_scale));
   }
   const std::optional<VideoFacts> video = check_inputs(o, c, scope);
+  if (o.use_cache && o.render.depth_model.empty())  // (with --depth-model check_inputs has said it)
+    if (auto old = old_cache_layout(o.cache_dir)) c.problem(*old);
   const ModelFacts m = check_model(o, c);
+  if (kind == JobKind::run) note_prompt_cuts(o, c);
   if (std::filesystem::is_directory(o.model) && st)
     c.attempt("", [&] {
       diffusion::CogVideoXSchedule schedule(diffusion::load_scheduler_config(o.model));
       const diffusion::SamplingPlan plan = schedule.plan(st->steps, st->strength);
       if (kind == JobKind::run && plan.num_steps() < 1)
-        throw Error("--steps " + std::to_string(st->steps) + " at --strength " + std::to_string(st->strength) +
+        throw Error(option_name("RunOptions::steps") + " " + std::to_string(st->steps) + " at " +
+                    option_name("RunOptions::strength") + " " + std::to_string(st->strength) +
                     " leaves no sampling step; raise either");
     });
   check_model_fit(o, m, c);

@@ -4,11 +4,11 @@
 
 #include "dvs/devices.hpp"
 #include "dvs/usage_error.hpp"
+#include "pipeline/public_limits.hpp"
 #include "vk/context.hpp"
 #include "vk/device_info.hpp"
 #include "vk/device_limits.hpp"
 #include "vk/limit_profiles.hpp"
-#include "embed/public_limits.hpp"
 
 namespace dvs {
 

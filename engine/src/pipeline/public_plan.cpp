@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "dvs/usage_error.hpp"
+#include "io/option_names.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/vda/vda_model.hpp"
 #include "pipeline/memory_plan.hpp"
@@ -17,24 +18,26 @@ namespace {
 // frame, and a frame must be whole latent patches.
 void require_plannable(const pipeline::PlanModel& pm, const MemoryPlanRequest& req) {
   if (req.frames < 1 || (req.frames - 1) % 4 != 0)
-    throw UsageError("--frames must be 4k+1 (1, 5, 9, ..., 49), got " + std::to_string(req.frames) +
+    throw UsageError(option_name("MemoryPlanRequest::frames") + " must be 4k+1 (1, 5, 9, ..., 49), got " + std::to_string(req.frames) +
                      ": the VAE compresses time by 4 after the first frame");
   if (req.alignment == 0 || (req.alignment & (req.alignment - 1)) != 0)
-    throw UsageError("--alignment must be a power of two, got " + std::to_string(req.alignment));
+    throw UsageError(option_name("MemoryPlanRequest::alignment") + " must be a power of two, got " + std::to_string(req.alignment));
+  const std::string height = option_name("MemoryPlanRequest::height"), width = option_name("MemoryPlanRequest::width");
   const auto tcfg = models::CogVideoXTransformerConfig::from_json(pm.transformer, "transformer config");
   const int64_t r = models::VaeConfig::from_json(pm.vae).spatial_ratio(), cell = r * tcfg.patch_size;
   if (req.height < cell || req.width < cell || req.height % cell || req.width % cell)
-    throw UsageError("--height and --width must be positive multiples of " + std::to_string(cell) + " for " + pm.source +
+    throw UsageError(height + " and " + width + " must be positive multiples of " + std::to_string(cell) + " for " + pm.source +
                      " (VAE ratio " + std::to_string(r) + " x patch " + std::to_string(tcfg.patch_size) + "), got " +
                      std::to_string(req.height) + "x" + std::to_string(req.width) + "; e.g. " +
                      std::to_string(std::max(cell, req.height / cell * cell)) + "x" +
                      std::to_string(std::max(cell, req.width / cell * cell)));
   const int64_t fixed_h = tcfg.sample_height * r, fixed_w = tcfg.sample_width * r;
   if (tcfg.learned_pos && (req.height != fixed_h || req.width != fixed_w))
-    throw UsageError("--height " + std::to_string(req.height) + " --width " + std::to_string(req.width) + ": " + pm.source +
-                     " has a learned positional table, which fixes the size to " + std::to_string(fixed_h) + "x" +
-                     std::to_string(fixed_w) + " (its transformer rejects any other); plan --height " +
-                     std::to_string(fixed_h) + " --width " + std::to_string(fixed_w) + " with any 4k+1 --frames");
+    throw UsageError(height + " " + std::to_string(req.height) + " " + width + " " + std::to_string(req.width) + ": " +
+                     pm.source + " has a learned positional table, which fixes the size to " + std::to_string(fixed_h) +
+                     "x" + std::to_string(fixed_w) + " (its transformer rejects any other); plan " + height + " " +
+                     std::to_string(fixed_h) + " " + width + " " + std::to_string(fixed_w) + " with any 4k+1 " +
+                     option_name("MemoryPlanRequest::frames"));
 }
 
 // The model a request names: a built-in configuration or a folder. A name that is both (a folder called
@@ -44,8 +47,9 @@ pipeline::PlanModel plan_model(const std::string& model) {
   const bool folder = std::filesystem::is_directory(model, ec);
   if (!pipeline::is_builtin_model(model)) return pipeline::plan_model_from_folder(model);
   if (folder)
-    throw UsageError("--model " + model + " names both the built-in configuration and the folder " + model +
-                     ": give --model ./" + model + " for the folder, or run dvs plan from another folder for the " +
+    throw UsageError(option_name("MemoryPlanRequest::model") + " " + model +
+                     " names both the built-in configuration and the folder " + model + ": give ./" + model +
+                     " for the folder, or run dvs plan from another folder for the " +
                      "built-in configuration");
   return pipeline::builtin_plan_model(model);
 }
@@ -55,7 +59,7 @@ VdaConfig depth_model_config(const std::string& m) {
   if (m == "vits" || m == "vitb" || m == "vitl") return released_vda_config(m);
   std::error_code ec;
   if (!std::filesystem::is_regular_file(m, ec))
-    throw UsageError("--depth-model " + m + ": no such checkpoint file, and not a released size (vits, vitb or vitl)");
+    throw UsageError(option_name("MemoryPlanRequest::depth_model") + " " + m + ": no such checkpoint file, and not a released size (vits, vitb or vitl)");
   return VdaModel::inspect(m);
 }
 

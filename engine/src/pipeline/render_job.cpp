@@ -3,7 +3,6 @@
 #include <cstdio>
 #include <fstream>
 #include <filesystem>
-#include <iostream>
 #include <vector>
 
 #include "dvs/error.hpp"
@@ -15,10 +14,12 @@
 #include "io/depth.hpp"
 #include "pipeline/depth_source.hpp"
 #include "dvs/duration_text.hpp"
+#include "io/library_log.hpp"
 #include "io/npy.hpp"
 #include "io/video.hpp"
 #include "vk/context.hpp"
 #include "pipeline/render_stage.hpp"
+#include "io/option_names.hpp"
 #include "pipeline/output_lock.hpp"
 #include "pipeline/run_outputs.hpp"
 
@@ -44,14 +45,14 @@ std::string frame_list(const std::vector<int>& frames) {
 }
 
 void require_video_file(const RenderJob& job) {
-  if (!std::filesystem::is_regular_file(job.video)) throw Error(job.video.string() + ": no such video file (give --video FILE)");
+  if (!std::filesystem::is_regular_file(job.video)) throw Error(job.video.string() + ": no such video file (give " + option_name("RenderJob::video") + ")");
 }
 
 }  // namespace
 
 // The frames that show nothing of the scene: see render_stage.hpp.
 void check_visibility(const HostTensor& mask, const RenderJob& job, double radius,
-                      const std::function<void(const std::string&)>& say) {
+                      const std::function<void(const std::string&)>& say, const std::string& where_the_mask_is) {
   const int64_t F = mask.shape[0], plane = mask.shape[1] * mask.shape[2];
   std::vector<int> empty;
   double least = 1, sum = 0;
@@ -69,7 +70,10 @@ void check_visibility(const HostTensor& mask, const RenderJob& job, double radiu
                 100 * least, least_frame);
   say(summary);
   if (empty.empty()) return;
-  const std::string which = "--trajectory " + job.trajectory + ": frame" + (empty.size() > 1 ? "s " : " ") +
+  // A clip run's poses in memory are named as such (clip_run.cpp sets that name), a path the job names by its field.
+  const std::string path =
+      job.trajectory == "ClipView::poses" ? job.trajectory : option_name("RenderJob::trajectory") + " " + job.trajectory;
+  const std::string which = path + ": frame" + (empty.size() > 1 ? "s " : " ") +
                             frame_list(empty) + " (" + std::to_string(empty.size()) + " of " + std::to_string(F) +
                             ") show nothing of the scene (0% of the pixels visible)";
   char r[32];
@@ -79,8 +83,8 @@ void check_visibility(const HostTensor& mask, const RenderJob& job, double radiu
     throw Error(which + ": the camera leaves the scene at once. Check the move's size (pan/tilt/arc in degrees, "
                 "dolly/truck in multiples of the orbit radius, " + std::string(r) + " here), a .json file's "
                 "\"convention\" (world_to_camera or camera_to_world) and \"axes\" (opencv or opengl), and that the "
-                "depth is what it claims (--metric-depth for metric depth)");
-  std::cerr << "dvs: warning: " << which << "; the model has to invent them. Look at mask.mp4, or use a smaller move\n";
+                "depth is what it claims (" + option_name("RenderJob::metric_depth") + " for metric depth)");
+  log_warning(which + "; the model has to invent them. Look at " + where_the_mask_is + ", or use a smaller move");
 }
 
 // The default camera when none is given (Intrinsics::dvs_default: the official one under --resize squash, the
@@ -90,7 +94,8 @@ geometry::Intrinsics job_intrinsics(const RenderJob& job) {
   geometry::Intrinsics K = geometry::Intrinsics::dvs_default(W, H, job.squash);
   if (job.fx != 0 || job.fy != 0 || job.cx != 0 || job.cy != 0) {
     if (!(job.fx > 0 && job.fy > 0 && job.cx > 0 && job.cy > 0))
-      throw Error("--intrinsics needs all four of fx,fy,cx,cy (in pixels of the working size), all > 0");
+      throw Error(option_name("RenderJob::fx/fy/cx/cy") +
+                  " needs all four of fx,fy,cx,cy (in pixels of the working size), all > 0");
     K.fx = job.fx, K.fy = job.fy, K.cx = job.cx, K.cy = job.cy, K.width = W, K.height = H;
   }
   K.validate();
@@ -122,9 +127,9 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
     if (say_fn) say_fn(s);
   };
   if (job.height <= 0 || job.width <= 0 || job.height % 8 || job.width % 8)
-    throw Error("--size must be positive multiples of 8 (the VAE works on 8×8 pixel cells), got " +
+    throw Error(option_name("RenderJob::height/width") + " must be positive multiples of 8 (the VAE works on 8×8 pixel cells), got " +
                 std::to_string(job.height) + "x" + std::to_string(job.width));
-  if (job.frames < 0) throw Error("--frames must be ≥ 0 (0 = all frames)");
+  if (job.frames < 0) throw Error(option_name("RenderJob::frames") + " must be ≥ 0 (0 = all frames)");
   // Check everything the user gave before any long work.
   if (!depth_source_exists(job.depth)) throw Error(job.depth.string() + ": no such depth file or folder");
   const DepthFit depth_fit = parse_depth_fit(job.depth_fit);
@@ -160,7 +165,7 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   const double radius = geometry::official_radius(centre_depth(r.depth));
   r.trajectory = geometry::load_trajectory(job.trajectory, F, radius);
   say("trajectory " + r.trajectory.description);
-  for (const auto& w : r.trajectory.warnings) std::cerr << "dvs: warning: " << w << "\n";  // whatever --progress says
+  for (const auto& w : r.trajectory.warnings) log_warning(w);  // a warning, not progress
 
   auto t1 = std::chrono::steady_clock::now();
   geometry::SplatOptions sopt;
@@ -170,7 +175,7 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
   r.render = std::move(clip.render);
   r.mask = std::move(clip.mask);
   r.seconds_render = seconds_since(t1);
-  check_visibility(r.mask, job, radius, say);
+  check_visibility(r.mask, job, radius, say, "mask.mp4");
   return r;
 }
 
@@ -218,6 +223,7 @@ RenderSummary render_novel_view(const RenderJob& job_in, const std::function<voi
   const OutputLock out_lock(job.out_dir);  // before the folder is prepared: no other process writes into it
   vk::ContextOptions copt;
   copt.device = job.device;
+  copt.cache_dir = job.depth_cache_dir;  // the pipeline cache in the cache folder, as DVS_CACHE_DIR puts it
   vk::Context ctx(copt);
   RenderedInput in = render_stage(ctx, job, progress);
   RenderSummary sum;

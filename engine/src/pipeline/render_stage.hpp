@@ -30,11 +30,12 @@ RenderedInput render_stage(vk::Context& ctx, const RenderJob& job, const std::fu
 
 // Frames of the render that show nothing of the scene (no visible pixel in the mask). When every frame after the
 // first is empty the camera left the scene at once (wrong units, magnitude, convention or depth) and a run would
-// invent the whole clip: an error, before any long work. When only some are, a warning on stderr naming them
-// (a path may pass a gap on purpose; the model then fills those frames from the others). `radius` is the orbit
-// radius the path was built with (named in the error).
+// invent the whole clip: an error, before any long work. When only some are, a warning to the log naming them
+// (a path may pass a gap on purpose; the model then fills those frames from the others) and where the user sees
+// the mask ("mask.mp4", or a clip run's result view). `radius` is the orbit radius the path was built with (named
+// in the error).
 void check_visibility(const HostTensor& mask, const RenderJob& job, double radius,
-                      const std::function<void(const std::string&)>& say);
+                      const std::function<void(const std::string&)>& say, const std::string& where_the_mask_is);
 
 // The camera a job renders with: its --intrinsics, else the default (square pixels under crop, the official
 // per-axis scaling under squash). Throws dvs::Error for incomplete or non-positive values.

@@ -63,7 +63,7 @@ class RunOutputs {
       writes();
     } catch (const Error& e) {
       if (typeid(e) != typeid(Error)) throw;  // device errors and cancellation keep their type
-      throw Error(with_final_paths(e.what()));
+      throw Error(with_final_paths(e.what()), e.kind());
     }
   }
   std::string with_final_paths(std::string text) const;  // every staging/NAME in text as DIR/NAME

@@ -31,7 +31,7 @@ struct RunRecordExtras {
   int vae_tile_height = 0, vae_tile_width = 0;  // pixels, resolved (0 without tiling)
   std::vector<std::array<double, 16>> poses;    // the trajectory's per-frame 4×4 transforms, row-major
   std::string poses_hash;                       // hash of `poses`: compare two runs' camera paths at a glance
-  std::string cache_dir;                        // the inversion cache folder used
+  std::string cache_dir;                        // the cache folder used (io/cache_root.hpp; --from's --cache-dir)
   std::string cache_problem;                    // why the cache asked for was not used (unwritable); empty if it was
   // The sampled latent in the cache: {"path", "key", "reused", "encoded_with"} (null without the cache).
   nlohmann::json latent;

@@ -17,16 +17,21 @@
 #include "diffusion/schedule.hpp"
 #include "diffusion/slm.hpp"
 #include "dvs/error.hpp"
+#include "io/library_log.hpp"
+#include "io/cache_root.hpp"
 #include "io/video.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/cache_layout.hpp"
 #include "pipeline/denoise_stages.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "io/option_names.hpp"
 #include "pipeline/output_path.hpp"
+#include "pipeline/prompt_cut.hpp"
 #include "pipeline/stage_tracker.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_check.hpp"
@@ -43,21 +48,26 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   // later run); run.json then records "cache": false and why, not the cache it could not use.
   std::string cache_problem;
   if (o.use_cache) {
+    refuse_old_cache_layout(o.cache_dir);  // named, not computed again (a clip run has no preflight)
     const InversionCache cache(o.cache_dir);
     if (auto p = file_write_problem(cache.dir() / "eps_inv-write-check.npy",
-                                    "give --cache-dir DIR or set DVS_CACHE_DIR to a writable folder, or --no-cache")) {
+                                    "point " + option_name("RunOptions::cache_dir") +
+                                        " (or DVS_CACHE_DIR) at a writable folder, or turn the cache off (" +
+                                        option_name("RunOptions::use_cache") + ")")) {
       cache_problem = *p;
       o.use_cache = false;
-      stages.say(0, 0, "warning: the cache cannot be written, so this run is not cached: " + cache_problem);
+      log_warning("the cache cannot be written, so this run is not cached: " + cache_problem);
     }
   }
   JobPlan jp = plan_job(o);
+  for (const std::string& w : prompt_cut_warnings(o, jp.tokenizer, jp.text_len)) log_warning(w);
   // --depth-model: the depth estimated (or cached) in a context of its own, released before the models load.
   const nlohmann::json depth_estimate = depth_stage(o, stages);
   const Settings& st = jp.settings;
   const bool dynamic_cfg = o.dynamic_cfg.value_or(st.official);  // the official code always uses it
   if (dynamic_cfg && !(o.preservation_scale >= 0 && std::isfinite(o.preservation_scale)))
-    throw Error("--preservation-scale must be a finite number ≥ 0, got " + std::to_string(o.preservation_scale));
+    throw Error(option_name("RunOptions::preservation_scale") + " must be a finite number ≥ 0, got " +
+                std::to_string(o.preservation_scale));
   const diffusion::CogVideoXSchedule& schedule = jp.schedule;
   const diffusion::SamplingPlan& plan = jp.plan;
 
@@ -65,6 +75,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   if (!device) {
     vk::ContextOptions copt;
     copt.device = o.render.device;
+    copt.cache_dir = o.cache_dir;  // the pipeline cache beside the run caches, as DVS_CACHE_DIR puts it
     device = &own_device.emplace(copt);
   }
   vk::Context& ctx = *device;
@@ -90,7 +101,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   if (o.use_cache) {
     std::string rejected;
     cached = latent_cache.load(ctx, lat, &rejected);
-    if (!rejected.empty()) stages.say(0, 0, "warning: ignoring the cached latent " + rejected);
+    if (!rejected.empty()) log_warning("ignoring the cached latent " + rejected);
   }
   const int t0 = plan.t0();
   Tensor latent;  // what the decode takes: the final x0 prediction
@@ -176,7 +187,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
     }
     if (o.use_cache)
       if (const std::string failed = latent_cache.store(ctx, latent, latent_meta); !failed.empty())
-        stages.say(0, 0, "warning: the sampled latent could not be cached (" + failed + "); a later run samples again");
+        log_warning("the sampled latent could not be cached (" + failed + "); a later run samples again");
     stages.end();
   }
 
@@ -216,7 +227,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
     }
   }
   extras.poses_hash = InversionCache::key(pose_text);
-  extras.cache_dir = o.use_cache ? InversionCache(o.cache_dir).dir().string() : "";
+  extras.cache_dir = o.use_cache ? cache_root(o.cache_dir).string() : "";  // what --from gives back as --cache-dir
   extras.cache_problem = cache_problem;
   if (o.use_cache) {
     extras.latent = {{"path", latent_cache.file().string()}, {"key", latent_cache.key()}, {"reused", cached.has_value()},

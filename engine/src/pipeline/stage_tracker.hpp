@@ -60,12 +60,13 @@ class StageTracker {
     } catch (const vk::DeviceOutOfMemory& e) {
       const std::string advice_stage = ended_ ? "" : stage_;  // between stages: a model's weights, the run's advice
       throw Error(where() + ": " + e.detail() +
-                  (memory_advice_ ? memory_advice_(advice_stage) : std::string(vk::kOutOfMemoryHint)));
+                      (memory_advice_ ? memory_advice_(advice_stage) : std::string(vk::kOutOfMemoryHint)),
+                  ErrorKind::out_of_memory);
     } catch (const vk::DeviceLost& e) {
-      throw Error(where() + ": " + e.what());
+      throw Error(where() + ": " + e.what(), ErrorKind::device_lost);
     } catch (const Error& e) {
       if (stage_.empty()) throw;
-      throw Error(stage_ + " stage: " + e.what());
+      throw Error(stage_ + " stage: " + e.what(), e.kind());
     }
   }
 

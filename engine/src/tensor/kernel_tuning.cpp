@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "dvs/error.hpp"
+#include "tensor/coopmat_layout.hpp"
 
 namespace dvs::ops {
 namespace {
@@ -21,17 +22,37 @@ struct TuningEntry {
   void (*fill)(DeviceTuning&, const vk::DeviceCaps&);
 };
 
-// The tensor-core shape the coopmat kernels use: fp16 A/B, fp32 C/result, subgroup scope, M and N 16
-// (the kernels' fragment), K 16 or 8; the first the device lists. Undefined when none qualifies.
+bool f16_f32_subgroup(const vk::CooperativeMatrixShape& s) {
+  return s.scope == VK_SCOPE_SUBGROUP_KHR && s.a == VK_COMPONENT_TYPE_FLOAT16_KHR &&
+         s.b == VK_COMPONENT_TYPE_FLOAT16_KHR && s.c == VK_COMPONENT_TYPE_FLOAT32_KHR &&
+         s.result == VK_COMPONENT_TYPE_FLOAT32_KHR;
+}
+bool fragment_side(uint32_t v) { return v == 8 || v == 16 || v == 32; }
+
+// The tensor-core shape the coopmat kernels use: fp16 A/B, fp32 C/result, subgroup scope; the first listed
+// with M = N = 16 and K 16 or 8 (the shapes the kernels were measured with on GPUs: the H200's 16x16x16). On a
+// CPU driver, which runs the coopmat entry only when a test forces it, else the first with sides of 8, 16 or
+// 32 (lavapipe lists 8x8x8 only). Undefined when none qualifies.
 CoopmatShape pick_coopmat_shape(const vk::DeviceCaps& c) {
   if (!c.cooperative_matrix) return {};
   for (const vk::CooperativeMatrixShape& s : c.cooperative_matrix_shapes)
-    if (s.scope == VK_SCOPE_SUBGROUP_KHR && s.a == VK_COMPONENT_TYPE_FLOAT16_KHR &&
-        s.b == VK_COMPONENT_TYPE_FLOAT16_KHR && s.c == VK_COMPONENT_TYPE_FLOAT32_KHR &&
-        s.result == VK_COMPONENT_TYPE_FLOAT32_KHR && s.m == 16 && s.n == 16 && (s.k == 16 || s.k == 8))
-      return {s.m, s.n, s.k};
+    if (f16_f32_subgroup(s) && s.m == 16 && s.n == 16 && (s.k == 16 || s.k == 8)) return {s.m, s.n, s.k};
+  if (c.type != VK_PHYSICAL_DEVICE_TYPE_CPU) return {};
+  for (const vk::CooperativeMatrixShape& s : c.cooperative_matrix_shapes)
+    if (f16_f32_subgroup(s) && fragment_side(s.m) && fragment_side(s.n) && fragment_side(s.k)) return {s.m, s.n, s.k};
   return {};
 }
+
+// The tensor-core kernels' layouts, best first: per kernel select_tuning takes the first that the device holds
+// at its subgroup size and fragment (tensor/coopmat_layout.hpp checks shared memory, invocations, subgroups).
+// The first rows are the layouts the H200 and H100 ran (bench/results/, 2026-11-27): 8 subgroups of 32 lanes
+// over 128 x 128 x 32 at 16x16x16 (linear: 2 x 4 subgroups of 4 x 2 fragments, 48 KiB; conv: 4 x 2 of 2 x 4,
+// 28 KiB) and 4 subgroups of 16 query rows with 64-key tiles (40 KiB at head_dim 64). The same rows hold
+// lavapipe's 8 lanes and 32 KiB at its 8x8x8 fragment (tiles of 64 x 64, 32 query rows); at a forced 16x16x16
+// lavapipe takes the smaller rows (linear 64 x 64, attention 2 subgroups).
+constexpr CoopmatTile kLinearCoopmatLayouts[] = {{2, 4, 4, 2, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
+constexpr CoopmatTile kConvCoopmatLayouts[] = {{4, 2, 2, 4, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
+constexpr int kAttentionCoopmatSubgroups[] = {4, 2, 1};
 
 // CPU drivers (lavapipe, SwiftShader): an 8- or 16-lane subgroup is one SIMD register and every per-lane
 // load is a scalar loop, so register blocks that reuse each fetched texel many times win, as long as the
@@ -82,22 +103,43 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.attention_block_q = t.attention_block_k = 64;
   t.conv_tile_m = 128, t.conv_tile_n = 64;  // 8 x 4 fp32 accumulators per invocation
 }
-// Where a coopmat kernel's fixed layout fits the device. All three split their workgroup into subgroups of
-// 32 lanes (attention_flash_coopmat: 4 x 16 query rows, 2 lanes a row; conv_coopmat and linear_coopmat: 8
-// subgroups); linear_coopmat also double-buffers its 128x128x32 tile in 48 KiB of shared memory. Elsewhere the
-// op runs its tiled kernel (checked after the overrides too, so forcing a family cannot pick a misfit).
-bool coopmat_fits(KernelFamily DeviceTuning::*op, const vk::DeviceCaps& c) {
-  if (c.subgroup_size != 32) return false;
-  return op != &DeviceTuning::linear || c.max_compute_shared_memory >= 48 * 1024;
-}
-
+// The tensor-core kernels wherever they fit (their layouts: select_tuning, after the overrides).
 void fill_gpu_coopmat(DeviceTuning& t, const vk::DeviceCaps& c) {
   fill_gpu(t, c);
   t.linear = t.attention = t.conv = KernelFamily::coopmat;
-  // linalg/linear_coopmat's tile; where it does not fit, the tiled kernel keeps the gpu entry's tile.
-  if (coopmat_fits(&DeviceTuning::linear, c)) {
-    t.linear_tile_m = t.linear_tile_n = 128;
-    t.linear_tile_k = 32;
+}
+
+// Every layout field the entry and the overrides left unset: the first row of its table the device holds (or
+// the first row, where none does; the family then runs tiled for that reason). Lanes: 32 where the device runs
+// compute at 32 (the size the GPU rows were measured at), else its subgroup size (lavapipe: 8); where it has no
+// tensor cores only the fp32 twins run, emulating the GPUs' 32.
+void choose_coopmat_layouts(DeviceTuning& t, const vk::DeviceCaps& c) {
+  const bool can_32 = c.subgroup_size == 32 || (c.subgroup_size_control && c.compute_required_subgroup_size &&
+                                                 c.min_subgroup_size <= 32 && c.max_subgroup_size >= 32);
+  if (!t.coopmat_lanes) t.coopmat_lanes = t.coopmat.defined() && !can_32 && c.subgroup_size ? int(c.subgroup_size) : 32;
+  if (!t.linear_coopmat.defined()) {
+    t.linear_coopmat = kLinearCoopmatLayouts[0];
+    for (const CoopmatTile& l : kLinearCoopmatLayouts)
+      if (linear_coopmat_unfit(c, {t.coopmat, t.coopmat_lanes, l}).empty()) {
+        t.linear_coopmat = l;
+        break;
+      }
+  }
+  if (!t.conv_coopmat.defined()) {
+    t.conv_coopmat = kConvCoopmatLayouts[0];
+    for (const CoopmatTile& l : kConvCoopmatLayouts)
+      if (conv_coopmat_unfit(c, {t.coopmat, t.coopmat_lanes, l}, false).empty()) {
+        t.conv_coopmat = l;
+        break;
+      }
+  }
+  if (!t.attention_coopmat_subgroups) {
+    t.attention_coopmat_subgroups = kAttentionCoopmatSubgroups[0];
+    for (int sg : kAttentionCoopmatSubgroups)
+      if (attention_coopmat_unfit(c, {t.coopmat, t.coopmat_lanes, sg, t.attention_block_k}, 0, false).empty()) {
+        t.attention_coopmat_subgroups = sg;
+        break;
+      }
   }
 }
 
@@ -135,6 +177,28 @@ bool parse_family(const std::string& v, KernelFamily& out) {
   return false;
 }
 
+// "AxBx..." with `count` positive integers up to `hi`.
+bool parse_dims(const std::string& v, size_t count, int64_t hi, std::vector<int64_t>& out) {
+  out.clear();
+  std::stringstream ss(v);
+  for (std::string part; std::getline(ss, part, 'x');) {
+    int64_t x;
+    if (!parse_int(part, 1, hi, x)) return false;
+    out.push_back(x);
+  }
+  return out.size() == count && v.back() != 'x';
+}
+
+Field coopmat_tile_field(const char* name, CoopmatTile DeviceTuning::*m) {
+  return {name, "SGMxSGNxFMxFNxK (subgroups along M and N, fragments per subgroup along M and N, K per step)",
+          [m](DeviceTuning& t, const std::string& v) {
+            std::vector<int64_t> d;
+            if (!parse_dims(v, 5, 256, d)) return false;
+            t.*m = {int(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4])};
+            return true;
+          }};
+}
+
 Field family_field(const char* name, KernelFamily DeviceTuning::*m) {
   return {name, "texel|tiled|coopmat", [m](DeviceTuning& t, const std::string& v) { return parse_family(v, t.*m); }};
 }
@@ -155,16 +219,34 @@ const std::vector<Field>& fields() {
       family_field("linear", &DeviceTuning::linear),
       family_field("attention", &DeviceTuning::attention),
       family_field("conv", &DeviceTuning::conv),
-      // A forced shape is for testing: sid's lavapipe lists only 8x8x8 but computes 16x16 correctly (the
+      // A forced shape is for testing: lavapipe lists only 8x8x8 but computes 16x16x16 correctly (the
       // validation layer then reports the unlisted shape; tests/run_on_mesa_coopmat.sh filters that one).
-      {"coopmat", "off (every coopmat family becomes tiled) | 16x16x16 | 16x16x8 (forced, even if unlisted)",
+      {"coopmat", "off (every coopmat family becomes tiled) | MxNxK of 8, 16 or 32 (forced, even if unlisted)",
        [](DeviceTuning& t, const std::string& v) {
-         if (v == "16x16x16" || v == "16x16x8") return t.coopmat = {16, 16, v == "16x16x16" ? 16u : 8u}, true;
+         std::vector<int64_t> d;
+         if (parse_dims(v, 3, 32, d)) {
+           for (int64_t x : d)
+             if (!fragment_side(uint32_t(x))) return false;
+           t.coopmat = {uint32_t(d[0]), uint32_t(d[1]), uint32_t(d[2])};
+           return true;
+         }
          bool on;
          if (!parse_bool(v, on) || on) return false;
          t.coopmat = {};
          return true;
        }},
+      // Lanes other than the device's subgroup size: for the fp32 twins (which emulate them); the tensor-core
+      // kernels then refuse to run (their pipelines require the subgroup size).
+      {"coopmat_lanes", "4..128, a power of two (default: 32 where the device runs compute at 32, else its subgroup size)",
+       [](DeviceTuning& t, const std::string& v) {
+         int64_t x;
+         if (!parse_int(v, 4, 128, x) || (x & (x - 1))) return false;
+         t.coopmat_lanes = int(x);
+         return true;
+       }},
+      coopmat_tile_field("linear_coopmat", &DeviceTuning::linear_coopmat),
+      coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
+      int_field("attention_coopmat_subgroups", &DeviceTuning::attention_coopmat_subgroups, 1, 32, "1..32"),
       int_field("linear_tile_m", &DeviceTuning::linear_tile_m, 16, 256, "16..256"),
       int_field("linear_tile_n", &DeviceTuning::linear_tile_n, 16, 256, "16..256"),
       int_field("linear_tile_k", &DeviceTuning::linear_tile_k, 8, 64, "8..64"),
@@ -266,6 +348,7 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
                      ? 1
                      : 2;
   t.coopmat = pick_coopmat_shape(caps);
+  const bool device_shape = t.coopmat.defined();
   entry->fill(t, caps);
   for (const std::string& item : items) {
     const size_t eq = item.find('=');
@@ -278,13 +361,23 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
     if (!f->set(t, value))
       throw Error("DVS_TUNING: " + name + "=" + value + " is not one of " + f->values);
   }
-  // Tensor cores only where the device has a usable shape: a coopmat family becomes tiled without one.
+  // Tensor cores only where the device has a usable shape and holds the kernel's layout: elsewhere a coopmat
+  // family runs tiled, and why is kept (ops note it with every call they run: kernel_census.hpp). coopmat=off
+  // asks for tiled, which is no fallback.
+  const bool turned_off = device_shape && !t.coopmat.defined();
   if (!caps.cooperative_matrix) t.coopmat = {};  // a forced shape needs the extension all the same
-  if (!t.coopmat.defined())
-    for (KernelFamily* k : {&t.linear, &t.attention, &t.conv})
-      if (*k == KernelFamily::coopmat) *k = KernelFamily::tiled;
-  for (KernelFamily DeviceTuning::*op : {&DeviceTuning::linear, &DeviceTuning::attention, &DeviceTuning::conv})
-    if (t.*op == KernelFamily::coopmat && !coopmat_fits(op, caps)) t.*op = KernelFamily::tiled;
+  choose_coopmat_layouts(t, caps);
+  const std::string no_shape =
+      "no fp16 x fp16 + fp32 cooperative-matrix shape at subgroup scope on " + caps.name +
+      " (VK_KHR_cooperative_matrix with vulkanMemoryModel on Vulkan 1.3)";
+  auto settle = [&](KernelFamily& k, std::string& unfit, const std::string& why) {
+    if (k != KernelFamily::coopmat) return;
+    if (!turned_off) unfit = t.coopmat.defined() ? why : no_shape;
+    if (turned_off || !unfit.empty()) k = KernelFamily::tiled;
+  };
+  settle(t.linear, t.linear_unfit, linear_coopmat_unfit(caps, linear_coopmat_layout(t)));
+  settle(t.conv, t.conv_unfit, conv_coopmat_unfit(caps, conv_coopmat_layout(t), false));
+  settle(t.attention, t.attention_unfit, attention_coopmat_unfit(caps, attention_coopmat_layout(t), 0, false));
   return t;
 }
 
@@ -294,9 +387,15 @@ const DeviceTuning& device_tuning(const vk::DeviceCaps& caps) {
   const std::string overrides = joined(env_override(), g_scoped_override);
   std::string key(reinterpret_cast<const char*>(caps.pipeline_cache_uuid), VK_UUID_SIZE);
   // Every property an entry or field reads (faked caps in tests differ in only one of them).
-  key += caps.name + '\n' + std::to_string(caps.type) + '\n' + std::to_string(caps.subgroup_size) +
-         (caps.subgroup_shuffle ? "s\n" : "\n") + (caps.cooperative_matrix ? "c" : "") +
-         std::to_string(pick_coopmat_shape(caps).k) + '\n' + overrides;
+  const CoopmatShape shape = pick_coopmat_shape(caps);
+  for (uint64_t v : {uint64_t(caps.type), uint64_t(caps.subgroup_size), uint64_t(caps.subgroup_shuffle),
+                     uint64_t(caps.cooperative_matrix), uint64_t(shape.m), uint64_t(shape.n), uint64_t(shape.k),
+                     uint64_t(caps.max_compute_shared_memory), uint64_t(caps.max_workgroup_invocations),
+                     uint64_t(caps.subgroup_size_control), uint64_t(caps.compute_required_subgroup_size),
+                     uint64_t(caps.min_subgroup_size), uint64_t(caps.max_subgroup_size),
+                     uint64_t(caps.max_compute_workgroup_subgroups)})
+    key.append(reinterpret_cast<const char*>(&v), sizeof v);  // raw bytes: called per op, kept cheap
+  key += caps.name + '\n' + overrides;
   std::lock_guard<std::mutex> lock(mutex);
   auto it = cache.find(key);
   if (it == cache.end()) it = cache.emplace(key, select_tuning(caps, overrides)).first;
@@ -308,16 +407,20 @@ std::string describe_tuning(const DeviceTuning& t) {
   auto tile = [](const GemmTile& g) {
     return std::to_string(g.rows) + "x" + std::to_string(g.cols) + " sg_m " + std::to_string(g.sg_m);
   };
+  auto unfit = [](const std::string& why) { return why.empty() ? std::string() : " (coopmat does not fit: " + why + ")"; };
   o << "Kernel tuning: entry \"" << t.entry << "\"" << (t.overrides.empty() ? "" : " with overrides \"" + t.overrides + "\"")
     << " (DVS_TUNING overrides)\n"
-    << "  linear:     " << kernel_family_name(t.linear);
-  if (t.linear != KernelFamily::texel)
+    << "  linear:     " << kernel_family_name(t.linear) << unfit(t.linear_unfit);
+  if (t.linear == KernelFamily::tiled)
     o << ", tile " << t.linear_tile_m << "x" << t.linear_tile_n << "x" << t.linear_tile_k;
-  o << "\n  attention:  " << kernel_family_name(t.attention);
-  if (t.attention != KernelFamily::texel) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
+  if (t.linear == KernelFamily::coopmat) o << ", tile " << linear_coopmat_layout(t).describe();
+  o << "\n  attention:  " << kernel_family_name(t.attention) << unfit(t.attention_unfit);
+  if (t.attention == KernelFamily::tiled) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
+  if (t.attention == KernelFamily::coopmat) o << ", blocks " << attention_coopmat_layout(t).describe();
   o << (t.attention_kv_workspace ? ", K/V repacked head-major when offered a workspace" : "") << "\n"
-    << "  conv:       " << kernel_family_name(t.conv) << ", texel tiles " << tile(t.conv_16bit_weights) << " (small "
+    << "  conv:       " << kernel_family_name(t.conv) << unfit(t.conv_unfit) << ", texel tiles " << tile(t.conv_16bit_weights) << " (small "
     << tile(t.conv_small) << ")" << (t.conv == KernelFamily::tiled ? ", tiled " + std::to_string(t.conv_tile_m) + "x" + std::to_string(t.conv_tile_n) : std::string())
+    << (t.conv == KernelFamily::coopmat ? ", tile " + conv_coopmat_layout(t).describe() : std::string())
     << ", repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
     << " per invocation\n"
     << "  norms:      " << (t.norm_row_per_invocation ? "one invocation per row" : "one workgroup per row") << "\n"

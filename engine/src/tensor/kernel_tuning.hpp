@@ -8,7 +8,7 @@
 //   DVS_TUNING=gpu                                  the "gpu" entry on any device (e.g. forced on lavapipe)
 //   DVS_TUNING=linear=tiled,attention=flash         fields of the entry the device would get
 //   DVS_TUNING=gpu,coopmat=off                      an entry, then fields
-//   DVS_TUNING=gpu-coopmat,coopmat=16x16x16         tensor cores with a forced shape (testing on sid's
+//   DVS_TUNING=gpu-coopmat,coopmat=16x16x16         tensor cores with a forced shape (a GPU's fragment on
 //                                                   lavapipe, which lists only 8x8x8: tests/run_on_mesa_coopmat.sh)
 // (tuning_field_names() lists the fields; a bad name or value is an error that lists them). Tests and
 // benchmarks use ScopedTuningOverride, the same string in-process. `dvs info` prints the entry chosen.
@@ -38,10 +38,22 @@ struct GemmTile {
 enum class KernelFamily : uint8_t { texel = 0, tiled = 1, coopmat = 2 };
 const char* kernel_family_name(KernelFamily k);
 
-// A cooperative-matrix shape the device offers at subgroup scope for fp16 A/B and fp32 C/result.
+// A cooperative-matrix shape the device offers at subgroup scope for fp16 A/B and fp32 C/result: the
+// fragment of every tensor-core kernel (C is m x n, A m x k, B k x n).
 struct CoopmatShape {
   uint32_t m = 0, n = 0, k = 0;
   bool defined() const { return m && n && k; }
+};
+
+// The workgroup layout of a GEMM-shaped tensor-core kernel (linalg/linear_coopmat, nn/conv_coopmat):
+// sg_m x sg_n subgroups, each owning frags_m x frags_n fragments of the device's shape, over k reduction
+// elements per shared-memory step. Workgroup tile: (sg_m·frags_m·shape.m) x (sg_n·frags_n·shape.n);
+// sg_m·sg_n·lanes invocations (tensor/coopmat_layout.hpp checks it against the device). All 0: not chosen yet
+// (select_tuning picks the first layout of the table the device holds).
+struct CoopmatTile {
+  int sg_m = 0, sg_n = 0, frags_m = 0, frags_n = 0, k = 0;
+  bool defined() const { return sg_m && sg_n && frags_m && frags_n && k; }
+  int subgroups() const { return sg_m * sg_n; }
 };
 
 struct DeviceTuning {
@@ -71,8 +83,7 @@ struct DeviceTuning {
   GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
   int conv_pack_columns = 0;  // pixels of a row per invocation of the input repack (0: the whole row)
   // tiled family (shaders/nn/conv_tiled.comp): workgroup tile of pixels x output channels, each 32, 64 or
-  // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's tile is fixed
-  // by its shader (128 x 128 x 32, shaders/nn/conv_coopmat.comp).
+  // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's: conv_coopmat.
   int conv_tile_m = 64, conv_tile_n = 64;
 
   // norms, reductions, elementwise
@@ -83,6 +94,16 @@ struct DeviceTuning {
   // tensor cores: the shape the coopmat kernels use (undefined: the device has none usable; then no
   // family above may be coopmat)
   CoopmatShape coopmat;
+  // The tensor-core kernels' layouts (the same shader code on every device, specialised with these):
+  // coopmat_lanes, the subgroup size they are laid out for (the device's; required at pipeline creation);
+  // per kernel the workgroup layout (M = output rows / pixels, N = output columns / channels) and, for
+  // attention, the subgroups of coopmat.m query rows each per workgroup (keys per tile: attention_block_k).
+  int coopmat_lanes = 0;
+  CoopmatTile linear_coopmat, conv_coopmat;
+  int attention_coopmat_subgroups = 0;
+  // Where a coopmat family was asked for (by the entry or an override) but runs tiled on this device: why,
+  // per op ("" where it was not asked or runs). Ops note it with every call they run (kernel_census.hpp).
+  std::string linear_unfit, attention_unfit, conv_unfit;
 };
 
 // The tuning for a device: its table entry, then the DVS_TUNING environment variable, then the in-process

@@ -4,6 +4,7 @@
 
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_census.hpp"
 #include "tensor/ops_attention_flash.hpp"
 #include "tensor/ops_attention_plan.hpp"
 #include "vk/context.hpp"
@@ -180,6 +181,7 @@ void attention_aligned(vk::Recorder& rec, const AttentionShape& s, const Attenti
     const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
     return flash::record(rec, s, all, strides, opt, pr.flash);
   }
+  note_kernel(ctx, "attention", KernelFamily::texel, "nn/attention", {pr.flash.fallback, pr.flash.device_fallback});
   if (!pr.split.whole) return attention_split(rec, s, q, k, v, out, opt, pr.blk, pr.geo, pr.split);
   const Blocking blk = pr.blk;
   const int64_t width = s.heads * s.head_dim, rows_per_group = int64_t(kWorkgroupSize) * blk.rows;

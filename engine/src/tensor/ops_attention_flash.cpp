@@ -5,14 +5,13 @@
 #include <string>
 
 #include "tensor/binding_split.hpp"
+#include "tensor/coopmat_layout.hpp"
+#include "tensor/kernel_census.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops::flash {
 namespace {
-
-// attention_flash_coopmat.comp: 4 subgroups of 32 lanes, 16 query rows each, 16x16x16 fragments.
-constexpr uint32_t kCoopmatRows = 64, kCoopmatFrag = 16;
 
 // Elements an operand's binding covers from its tensor's start.
 int64_t span_elements(const AttentionShape& s, const AttentionOperand& a, int64_t len, int64_t stride) {
@@ -39,47 +38,57 @@ bool fits_grid(const vk::DeviceCaps& caps, const AttentionShape& s, uint32_t blo
 
 }  // namespace
 
-uint64_t coopmat_shared_bytes(int64_t D, int64_t bk) {
-  // K and V tiles (fp16), per subgroup: scores / P·V tile (fp32, 16 x max(BK, D)), probabilities (fp16, 16 x BK).
-  return uint64_t(2 * bk * D * 2 + 4 * 16 * std::max(bk, D) * 4 + 4 * 16 * bk * 2);
-}
-
-uint64_t coopmat_twin_shared_bytes(int64_t D, int64_t bk) { return coopmat_shared_bytes(D, bk) + 4 * 16 * D * 2 + 128 * 4; }
-
 Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand* const ops[4],
           const int64_t strides[4], const AttentionOptions& opt) {
   const DeviceTuning& t = device_tuning(caps);
+  const bool asked_coopmat = t.attention == KernelFamily::coopmat;
+  // Why this call does not run on tensor cores where they were asked for (device: the device's reason; the
+  // tuning's own, attention_unfit, when the device holds no layout at all).
+  auto fallback = [&](Plan p, std::string why, bool device) {
+    if (!asked_coopmat && t.attention_unfit.empty()) return p;
+    p.fallback = why.empty() ? t.attention_unfit : why;
+    p.device_fallback = why.empty() || device;
+    return p;
+  };
   if (t.attention == KernelFamily::texel) return {};
   // T5's relative bias and key mask run on the texel kernel (short sequences; not worth a third variant).
-  if (opt.bias || opt.key_mask) return {};
-  if (!fits_bindings(caps, s, ops, strides)) return {};  // the texel kernel's split paths take it
+  if (opt.bias || opt.key_mask) return fallback({}, "a relative bias or key mask (the texel kernel takes those)", false);
+  if (!fits_bindings(caps, s, ops, strides))  // the texel kernel's split paths take it
+    return fallback({}, "an operand over one binding (the texel kernel's split paths take it)",
+                    !caps.forced_limits.any());
   const int64_t D = s.head_dim;
 
-  // Tensor cores: head_dim a multiple of 16 up to the key tile (the P·V tile reuses the scores' shared
-  // memory), the 16x16x16 shape, everything within the device's shared memory. Else the tiled kernel.
-  if (t.attention == KernelFamily::coopmat && t.coopmat.m == kCoopmatFrag && t.coopmat.n == kCoopmatFrag &&
-      t.coopmat.k == kCoopmatFrag && caps.float16_arithmetic && caps.subgroup_shuffle && caps.vulkan_memory_model &&
-      D % 16 == 0) {
-    const uint32_t bk = uint32_t(std::max(16, t.attention_block_k / 16 * 16));
-    if (D <= int64_t(bk) && coopmat_shared_bytes(D, bk) <= caps.max_compute_shared_memory &&
-        caps.max_workgroup_invocations >= 128 && fits_grid(caps, s, kCoopmatRows))
-      return {KernelFamily::coopmat, kCoopmatRows, bk};
+  // Tensor cores: the tuning's layout, where it takes this head_dim within the device's limits. Else the tiled kernel.
+  std::string why_not;
+  bool device_reason = false;
+  if (asked_coopmat) {
+    const CoopmatAttention a = attention_coopmat_layout(t);
+    why_not = attention_coopmat_head_dim_unfit(a, D);
+    if (why_not.empty()) {
+      why_not = attention_coopmat_unfit(caps, a, D, false);
+      device_reason = true;
+    }
+    if (why_not.empty() && !fits_grid(caps, s, uint32_t(a.rows()))) {
+      why_not = "more query blocks than maxComputeWorkGroupCount";
+      device_reason = !caps.forced_limits.any();
+    }
+    if (why_not.empty()) return {KernelFamily::coopmat, uint32_t(a.rows()), uint32_t(a.block_k)};
   }
 
   // Tests on devices without tensor cores: the coopmat kernel's twin, where it fits.
-  if (t.attention_coopmat_twin && caps.float16_arithmetic && D % 16 == 0) {
-    const uint32_t bk = uint32_t(std::max(16, t.attention_block_k / 16 * 16));
-    if (D <= int64_t(bk) && coopmat_twin_shared_bytes(D, bk) <= caps.max_compute_shared_memory &&
-        caps.max_workgroup_invocations >= 128 && fits_grid(caps, s, kCoopmatRows))
-      return {KernelFamily::tiled, kCoopmatRows, bk, true};
+  if (t.attention_coopmat_twin && caps.float16_arithmetic) {
+    const CoopmatAttention a = attention_coopmat_layout(t);
+    if (attention_coopmat_unfit(caps, a, D, true).empty() && fits_grid(caps, s, uint32_t(a.rows())))
+      return {KernelFamily::tiled, uint32_t(a.rows()), uint32_t(a.block_k), true};
   }
 
   // Tiled: one query row per invocation; the K and V tiles (fp32) within shared memory, in steps of 4 keys.
   const uint32_t bq = std::min<uint32_t>(uint32_t(t.attention_block_q), caps.max_workgroup_invocations);
   const int64_t fit = int64_t(caps.max_compute_shared_memory) / (2 * D * 4);
   const uint32_t bk = uint32_t(std::min<int64_t>(t.attention_block_k, fit) / 4 * 4);
-  if (bk < 4 || bq < 1 || !fits_grid(caps, s, bq)) return {};
-  return {KernelFamily::tiled, bq, bk};
+  if (bk < 4 || bq < 1 || !fits_grid(caps, s, bq))
+    return fallback({}, why_not.empty() ? "" : why_not + "; neither does the tiled kernel", device_reason);
+  return fallback({KernelFamily::tiled, bq, bk}, why_not, device_reason);
 }
 
 void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* const ops[4], const int64_t strides[4],
@@ -104,12 +113,20 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
             off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
             d4,                opt.scale, 0,                 0,  0,       0};
   const bool coop = plan.family == KernelFamily::coopmat;
-  const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k};
-  const uint32_t spec_coop[] = {uint32_t(s.head_dim), plan.block_k};
   const char* name = coop ? "attention_flash_coopmat" : plan.twin ? "attention_flash_coopmat_twin" : "attention_flash";
-  const vk::Pipeline& pipe = ctx.pipelines().get(std::string("nn/") + name, coop || plan.twin
-                                                                              ? std::span<const uint32_t>(spec_coop)
-                                                                              : std::span<const uint32_t>(spec_tiled));
+  const vk::Pipeline* pipe_ptr = nullptr;
+  if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
+    const DeviceTuning& t = device_tuning(caps);
+    const CoopmatAttention a = attention_coopmat_layout(t);
+    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim);
+    pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
+                                 attention_coopmat_unfit(caps, a, s.head_dim, plan.twin));
+  } else {
+    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k};
+    pipe_ptr = &ctx.pipelines().get(std::string("nn/") + name, spec_tiled);
+  }
+  const vk::Pipeline& pipe = *pipe_ptr;
+  note_kernel(ctx, "attention", plan.family, pipe.name, {plan.fallback, plan.device_fallback});
   rec.dispatch(pipe, {views[0], views[1], views[2], views[3]}, &push, sizeof push, div_up(s.q_len, plan.block_q),
                uint32_t(s.heads), uint32_t(s.batch), name);
 }

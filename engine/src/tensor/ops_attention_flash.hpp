@@ -8,6 +8,7 @@
 // (shaders/nn/attention.comp) with its split paths, so every split keeps working on every device.
 #pragma once
 #include <cstdint>
+#include <string>
 
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
@@ -33,6 +34,10 @@ struct Plan {
   KernelFamily family = KernelFamily::texel;  // texel: the flash kernels do not take this call
   uint32_t block_q = 0, block_k = 0;          // query rows per workgroup, keys per shared tile
   bool twin = false;  // family tiled, kernel attention_flash_coopmat_twin.comp (DeviceTuning::attention_coopmat_twin)
+  // Where the tuning asks for tensor cores and this call runs another kernel: why, and whether the reason is
+  // the device's (kernel_census.hpp).
+  std::string fallback;
+  bool device_fallback = false;
 };
 
 // ops: q, k, v, out (already checked against the shape); strides: their row strides in elements.
@@ -41,10 +46,5 @@ Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOp
 
 void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* const ops[4], const int64_t strides[4],
             const AttentionOptions& opt, const Plan& plan);
-
-// Shared memory of the coopmat kernel at head_dim D and block_k keys (bytes), for the plan and the tests.
-uint64_t coopmat_shared_bytes(int64_t head_dim, int64_t block_k);
-// The same for its fp32 twin (plus its own copy of Q and the lane-pair exchange).
-uint64_t coopmat_twin_shared_bytes(int64_t head_dim, int64_t block_k);
 
 }  // namespace dvs::ops::flash

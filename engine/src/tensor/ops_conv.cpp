@@ -8,7 +8,9 @@
 
 #include "dvs/error.hpp"
 #include "tensor/binding_split.hpp"
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_census.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 
@@ -52,6 +54,7 @@ struct ConvFamily {
   KernelFamily kind = KernelFamily::texel;
   int64_t tile_m = 0, tile_n = 0;
   bool twin = false;  // coopmat tiling run by the fp32 twin shader (ConvRegisterBlock::coopmat_twin)
+  CoopmatGemm layout;  // coopmat: the tuning's layout (tile_m x tile_n its tile)
 };
 ConvFamily conv_family(const vk::DeviceCaps& caps) {
   const DeviceTuning& t = device_tuning(caps);
@@ -59,7 +62,10 @@ ConvFamily conv_family(const vk::DeviceCaps& caps) {
   f.kind = g_block_override.coopmat_twin ? KernelFamily::coopmat : t.conv;
   f.twin = g_block_override.coopmat_twin;
   if (f.kind == KernelFamily::tiled) f.tile_m = t.conv_tile_m, f.tile_n = t.conv_tile_n;
-  if (f.kind == KernelFamily::coopmat) f.tile_m = 128, f.tile_n = 128;  // shaders/nn/conv_coopmat.comp BM, BN
+  if (f.kind == KernelFamily::coopmat) {
+    f.layout = conv_coopmat_layout(t);
+    f.tile_m = f.layout.tile_m(), f.tile_n = f.layout.tile_n();
+  }
   return f;
 }
 
@@ -371,8 +377,12 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   std::array<uint32_t, 3> tiled_spec = {uint32_t(tile_m / 16), uint32_t(tile_n / 16), wdt};
   const vk::Pipeline& gemm =
       fam.kind == KernelFamily::tiled     ? ctx.pipelines().get("nn/conv_tiled", tiled_spec)
-      : fam.kind == KernelFamily::coopmat ? ctx.pipelines().get(fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat", std::array<uint32_t, 1>{wdt})
-      : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
+      : fam.kind == KernelFamily::coopmat
+          ? coopmat_pipeline(ctx, fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat", conv_coopmat_spec(fam.layout, wdt),
+                             fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
+          : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
+  note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
+              {fam.kind == KernelFamily::coopmat ? std::string() : device_tuning(caps).conv_unfit, true});
   const vk::BufferView bias_view = bias ? word_view(*bias) : packed_w;
   const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 

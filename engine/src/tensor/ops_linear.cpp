@@ -5,7 +5,9 @@
 
 #include "dvs/error.hpp"
 #include "tensor/binding_split.hpp"
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/dispatch.hpp"
+#include "tensor/kernel_census.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
 #include "vk/pipeline.hpp"
@@ -143,6 +145,12 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   k.tile_m = tune.linear_tile_m;
   k.tile_n = tune.linear_tile_n;
   k.tile_k = tune.linear_tile_k;
+  if (k.family == KernelFamily::coopmat) {
+    const CoopmatGemm g = linear_coopmat_layout(tune);
+    k.tile_m = int(g.tile_m());
+    k.tile_n = int(g.tile_n());
+    k.tile_k = g.tile.k;
+  }
   return k.family == KernelFamily::tiled ? as_tiled(k) : k;
 }
 
@@ -154,28 +162,25 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   const vk::DeviceCaps& caps = ctx.caps();
   const uint32_t bm = uint32_t(kern.tile_m), bn = uint32_t(kern.tile_n), bk = uint32_t(kern.tile_k);
   const std::string tile = std::to_string(bm) + "x" + std::to_string(bn) + "x" + std::to_string(bk);
-  uint64_t shared = 0;
   if (kern.family == KernelFamily::tiled) {
     // 16 x 16 invocations, each a (bm/16) x (bn/16) register block.
     if (bm % 16 || bn % 16 || bm < 16 || bn < 16 || bm > 64 || bn > 64 || bk < 1 || bk > 64)
       fail("tiled kernel: tile " + tile + " unsupported (m, n multiples of 16 up to 64; k 1..64)");
-    shared = uint64_t(bk) * (bm + 1 + bn + 1) * 4;
+    const uint64_t shared = uint64_t(bk) * (bm + 1 + bn + 1) * 4;
     if (shared > caps.max_compute_shared_memory)
       fail("tiled kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");
     const uint32_t spec[] = {bm, bn, wcode, bk, bm / 16, bn / 16, 256};
     return ctx.pipelines().get("linalg/linear_tiled", spec);
   }
-  // coopmat: 8 subgroups of 32 as 2 x 4, each 4 x 2 fragments of 16 x 16 (the shader's fixed layout).
-  const CoopmatShape shape = device_tuning(caps).coopmat;
-  if (!shape.defined() || shape.m != 16 || shape.n != 16 || (shape.k != 16 && shape.k != 8))
-    fail("coopmat kernel on a device without a 16x16x16 / 16x16x8 fp16 cooperative-matrix shape");
-  if (bm != 128 || bn != 128 || bk != 32) fail("coopmat kernel: tile " + tile + " unsupported (only 128x128x32)");
-  // Double-buffered fp16 X and W tiles (rows padded by 8 halves) + a 16x16 f32 staging block per subgroup.
-  shared = 2ull * (bm + bn) * (bk + 8) * 2 + 8ull * 256 * 4;
-  if (shared > caps.max_compute_shared_memory)
-    fail("coopmat kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");
-  const uint32_t spec[] = {bm, bn, wcode, bk, shape.k};
-  return ctx.pipelines().get("linalg/linear_coopmat", spec);
+  // coopmat: the tuning's layout, whose tile the kernel configuration must be (choose_linear_kernel's).
+  const DeviceTuning& tune = device_tuning(caps);
+  const CoopmatGemm g = linear_coopmat_layout(tune);
+  if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
+    fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
+  const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode);
+  return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
+                          tune.coopmat.defined() ? linear_coopmat_unfit(caps, g)
+                                                 : "no cooperative-matrix shape on " + caps.name);
 }
 
 // One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc), the
@@ -256,8 +261,11 @@ struct Plan {
 
 }  // namespace
 
-void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape_in,
-                         const LinearEpilogue& ep, LinearKernel kernel) {
+namespace {
+
+// linear_batched_with, noting `fallback` (why the kernel is not the tuning's family) in the kernel census.
+void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape_in,
+                   const LinearEpilogue& ep, LinearKernel kernel, const KernelFallback& fallback) {
   const LinearShape s = normalized(shape_in);
   if (s.batch < 0 || s.m < 0 || s.n < 0 || s.k < 0) fail("negative size");
   if (s.batch == 0 || s.m == 0 || s.n == 0) return;
@@ -340,6 +348,7 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
     tile_n = kernel.tile_n;
   }
   const vk::Pipeline& pipe = *pipe_ptr;
+  note_kernel(ctx, kOp, kernel.family, pipe.name, fallback);
 
   const Plan plan{s,
                   ep,
@@ -419,12 +428,26 @@ void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, co
   });
 }
 
+}  // namespace
+
+void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
+                         const LinearEpilogue& ep, LinearKernel kernel) {
+  // A kernel chosen by choose_linear_kernel where the tuning's tensor cores do not fit is that fallback.
+  const std::string& unfit = device_tuning(rec.context().caps()).linear_unfit;
+  record_linear(rec, x, w, y, shape, ep, kernel,
+                {kernel.family == KernelFamily::coopmat ? std::string() : unfit, true});
+}
+
 void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearShape& shape,
                     const LinearEpilogue& ep) {
   LinearKernel k = choose_linear_kernel(rec.context(), shape, w.dtype());
+  KernelFallback why{device_tuning(rec.context().caps()).linear_unfit, true};
   // fp16 operands could overflow for this caller: the fp32 tiled kernel.
-  if (k.family == KernelFamily::coopmat && !ep.fp16_operands_ok) k = as_tiled(k);
-  linear_batched_with(rec, x, w, y, shape, ep, k);
+  if (k.family == KernelFamily::coopmat && !ep.fp16_operands_ok) {
+    k = as_tiled(k);
+    why = {"the caller needs fp32 operands (LinearEpilogue::fp16_operands_ok)", false};
+  }
+  record_linear(rec, x, w, y, shape, ep, k, why);
 }
 
 void linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y, const LinearEpilogue& ep) {

@@ -71,8 +71,8 @@ void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const T
 // family: texel (the fields above), tiled (linalg/linear_tiled: storage buffers, shared-memory tiles of
 // tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 64) or coopmat
 // (linalg/linear_coopmat: the same staging in fp16 feeding VK_KHR_cooperative_matrix, fp32 accumulation;
-// tile 128x128x32 only, 8 subgroups of 32). choose_linear_kernel takes the family and tiles from
-// device_tuning(caps).
+// its layout is the tuning's, DeviceTuning::linear_coopmat, and tile_m/n/k are that layout's tile).
+// choose_linear_kernel takes the family and tiles from device_tuning(caps).
 struct LinearKernel {
   int rows = 8, cols = 3, lanes = 0, sg_m = 2;
   bool vectorized = true;

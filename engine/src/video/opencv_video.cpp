@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <iostream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -83,8 +82,8 @@ cv::VideoCapture open_video(const std::filesystem::path& path, VideoInfo& vi) {
 }
 
 // Decodes up to max_frames (0 = all) BGR frames, each passed through `fit`; records the count in vi.
-std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& name, int max_frames, VideoInfo& vi,
-                                   const std::function<cv::Mat(const cv::Mat&)>& fit) {
+std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& name, int max_frames, bool fewer_frames_ok,
+                                   VideoInfo& vi, const std::function<cv::Mat(const cv::Mat&)>& fit) {
   std::vector<cv::Mat> frames;
   cv::Mat bgr;
   while ((max_frames <= 0 || int(frames.size()) < max_frames) && cap.read(bgr)) {
@@ -101,16 +100,18 @@ std::vector<cv::Mat> decode_frames(cv::VideoCapture& cap, const std::string& nam
                                          : std::string()) +
                 (problem.empty() ? "; export or copy it again, or re-encode it (ffmpeg -i IN -c:v libx264 OUT.mp4)" : ""));
   }
-  if (max_frames > 0 && int(frames.size()) < max_frames)
+  if (max_frames > 0 && int(frames.size()) < max_frames && !fewer_frames_ok)
     throw_too_few_frames(name, int(frames.size()), max_frames, vi.frames_in_file);
   vi.frames = int(frames.size());
   if (max_frames <= 0) {
     // Read to the end. Some containers only estimate their count (from the duration), hence the one frame of slack.
     if (vi.frames_in_file > vi.frames + 1)
-      std::cerr << "dvs: warning: " << name << ": its header announces " << vi.frames_in_file
-                << " frames but decoding stops after frame " << vi.frames
-                << " (the file is truncated or damaged); using those " << vi.frames << "\n";
+      vi.warnings.push_back(name + ": its header announces " + std::to_string(vi.frames_in_file) +
+                            " frames but decoding stops after frame " + std::to_string(vi.frames) +
+                            " (the file is truncated or damaged); using those " + std::to_string(vi.frames));
     vi.frames_in_file = vi.frames;  // exact
+  } else if (vi.frames < max_frames) {
+    vi.frames_in_file = vi.frames;  // decoding stopped before max_frames (fewer_frames_ok): exact
   }
   return frames;
 }
@@ -123,7 +124,7 @@ HostTensor opencv_read_video(const std::filesystem::path& path, const VideoReadO
   cv::VideoCapture cap = open_video(path, vi);
   const int w = o.width > 0 ? o.width : vi.width, h = o.height > 0 ? o.height : vi.height;
   const std::vector<cv::Mat> frames =
-      decode_frames(cap, name, o.max_frames, vi, [&](const cv::Mat& m) { return fit_frame(m, w, h, o.resize); });
+      decode_frames(cap, name, o.max_frames, o.fewer_frames_ok, vi, [&](const cv::Mat& m) { return fit_frame(m, w, h, o.resize); });
   if (info) *info = vi;
 
   HostTensor out({int64_t(frames.size()), 3, h, w}, DType::f32);
@@ -142,6 +143,11 @@ HostTensor opencv_read_video(const std::filesystem::path& path, const VideoReadO
 }
 
 HostTensor opencv_read_video_rgb8(const std::filesystem::path& path, int max_frames, int max_long_side, VideoInfo* info) {
+  return opencv_read_video_rgb8(path, max_frames, max_long_side, info, false);
+}
+
+HostTensor opencv_read_video_rgb8(const std::filesystem::path& path, int max_frames, int max_long_side, VideoInfo* info,
+                                  bool fewer_frames_ok) {
   VideoInfo vi;
   cv::VideoCapture cap = open_video(path, vi);
   int w = vi.width, h = vi.height;
@@ -151,7 +157,7 @@ HostTensor opencv_read_video_rgb8(const std::filesystem::path& path, int max_fra
     w = int(std::nearbyint(vi.width * s));
     h = int(std::nearbyint(vi.height * s));
   }
-  const std::vector<cv::Mat> frames = decode_frames(cap, path.string(), max_frames, vi, [&](const cv::Mat& m) {
+  const std::vector<cv::Mat> frames = decode_frames(cap, path.string(), max_frames, fewer_frames_ok, vi, [&](const cv::Mat& m) {
     if (m.cols == w && m.rows == h) return m;
     cv::Mat out;
     cv::resize(m, out, cv::Size(w, h));  // cv2.resize's default (bilinear), as run.py calls it

@@ -25,6 +25,14 @@ VideoFrames frames_described(int first, int count, int height, int width, const 
   return out;
 }
 
+// A call that asks for frames past the video's end: what was asked (the call's own arguments) and what there is.
+[[noreturn]] void throw_frames_past_end(const std::string& name, int first, int count, int have) {
+  const std::string asked = count == 1 ? "frame " + std::to_string(first)
+                                       : "frames " + std::to_string(first) + ".." + std::to_string(first + count - 1);
+  throw Error(name + ": " + asked + " asked for, but the video holds " + std::to_string(have) + " frame" +
+              (have == 1 ? "" : "s") + " (" + (have == 1 ? "frame 0" : "frames 0.." + std::to_string(have - 1)) + ")");
+}
+
 }  // namespace
 
 VideoFrames read_video_frames(const std::filesystem::path& path, int first, int count, int height, int width,
@@ -41,8 +49,10 @@ VideoFrames read_video_frames(const std::filesystem::path& path, int first, int 
   o.height = height;
   o.width = width;
   o.resize = squash ? ResizeMode::squash : ResizeMode::crop;
+  o.fewer_frames_ok = true;  // named below in this call's terms, not as the dvs program's --frames
   VideoInfo info;
-  const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]; too few: dvs::Error
+  const HostTensor planes = opencv_read_video(path, o, &info);  // [first+count,3,H,W] in [−1,1]
+  if (planes.shape[0] < first + count) throw_frames_past_end(name, first, count, int(planes.shape[0]));
 
   VideoFrames out = frames_described(first, count, int(planes.shape[2]), int(planes.shape[3]), info);
   const size_t plane = size_t(out.height) * size_t(out.width);
@@ -62,10 +72,8 @@ VideoFrames read_video_frames_for_depth(const std::filesystem::path& path, int c
                 std::to_string(count) + ", max_long_side " + std::to_string(max_long_side));
   VideoInfo info;
   // The depth estimate's own reader (pipeline/depth_estimate.cpp decodes with it), so the frames are its frames.
-  const HostTensor rgb = opencv_read_video_rgb8(path, count, max_long_side, &info);
-  if (rgb.shape[0] < count)
-    throw Error(name + ": " + std::to_string(count) + " frame(s) asked for, but the video holds only " +
-                std::to_string(rgb.shape[0]) + " (give fewer frames)");
+  const HostTensor rgb = opencv_read_video_rgb8(path, count, max_long_side, &info, true);
+  if (rgb.shape[0] < count) throw_frames_past_end(name, 0, count, int(rgb.shape[0]));
   VideoFrames out = frames_described(0, count, int(rgb.shape[1]), int(rgb.shape[2]), info);
   const uint8_t* src = rgb.as<uint8_t>();
   out.rgb.assign(src, src + size_t(count) * size_t(out.height) * size_t(out.width) * 3);

@@ -14,7 +14,8 @@ namespace dvs::vk {
 // `hint` is the generic advice, replaced by the stage's own where the stage is known.
 class DeviceOutOfMemory : public Error {
  public:
-  DeviceOutOfMemory(const std::string& detail, const std::string& hint) : Error(detail + hint), detail_(detail) {}
+  DeviceOutOfMemory(const std::string& detail, const std::string& hint)
+      : Error(detail + hint, ErrorKind::out_of_memory), detail_(detail) {}
   const std::string& detail() const { return detail_; }
 
  private:
@@ -24,7 +25,7 @@ class DeviceOutOfMemory : public Error {
 // VK_ERROR_DEVICE_LOST: the driver reset the device; nothing on it survives.
 class DeviceLost : public Error {
  public:
-  using Error::Error;
+  explicit DeviceLost(const std::string& what) : Error(what, ErrorKind::device_lost) {}
 };
 
 // The advice an out-of-memory error gives where no stage knows better.

@@ -242,7 +242,8 @@ Context::Context(const ContextOptions& options) {
 Context::Context(const HostDevice& host, const ContextOptions& options) {
   if (bool(host.lock_queue) != bool(host.unlock_queue))
     throw Error("HostDevice: lock_queue and unlock_queue must both be set or both be empty (dvs calls them in pairs "
-                "around every vkQueueSubmit on the application's queue).");
+                "around every vkQueueSubmit on the application's queue).",
+                ErrorKind::invalid_argument);
   caps_ = host_device_caps(host);
   owns_device_ = false;
   instance_ = host.instance;
@@ -276,7 +277,7 @@ void Context::create_services(const ContextOptions& options) {
 
   allocator_ = std::make_unique<Allocator>(*this);
   transfer_ = std::make_unique<Transfer>(*this);
-  pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file);
+  pipelines_ = std::make_unique<PipelineCache>(*this, options.pipeline_cache_file, options.cache_dir);
   profiler_ = std::make_unique<Profiler>(env_on("DVS_PROFILE"));
 }
 

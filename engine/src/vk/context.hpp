@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <memory>
@@ -33,7 +34,8 @@ class Transfer;
 struct ContextOptions {
   std::string device;              // index or name substring; empty: DVS_DEVICE, else the best GPU
   bool validation = false;         // also on when DVS_VALIDATION=1
-  std::string pipeline_cache_file; // empty: $DVS_CACHE_DIR or $XDG_CACHE_HOME/dvs or ~/.cache/dvs; "-": none
+  std::string pipeline_cache_file; // empty: PipelineCache::default_file in cache_dir; "-": none
+  std::filesystem::path cache_dir; // the cache folder (io/cache_root.hpp; empty: $DVS_CACHE_DIR, else ~/.cache/dvs)
 };
 
 // Where a recording split by Recorder::boundary stands after one of its submissions: `done` of `total`
@@ -86,6 +88,17 @@ class Context {
   void note_split(const std::string& op) { ++splits_[op]; }
   const std::map<std::string, uint64_t>& splits() const { return splits_; }
   void reset_splits() { splits_.clear(); }
+  // Which kernel each call of a GEMM-shaped op (linear, attention, convolution) dispatched, and for a call that
+  // ran another family than the tuning asked for, why; `device`: the reason is this device's (a limit, no
+  // tensor-core shape), not the call's (its options or sizes, the same on every device). Counted per call since
+  // the context began: the tensor-core pass (tests/run_coopmat_pass.sh) fails a test with a device reason.
+  struct KernelNote {
+    std::string op, family, shader, fallback;
+    bool device = false;
+    auto operator<=>(const KernelNote&) const = default;
+  };
+  void note_kernel(const KernelNote& note) { ++kernel_notes_[note]; }
+  const std::map<KernelNote, uint64_t>& kernel_notes() const { return kernel_notes_; }
 
   Allocator& allocator() { return *allocator_; }
   PipelineCache& pipelines() { return *pipelines_; }
@@ -153,6 +166,7 @@ class Context {
   bool validation_ = false;
   VkDeviceSize largest_binding_ = 0;
   std::map<std::string, uint64_t> splits_;
+  std::map<KernelNote, uint64_t> kernel_notes_;
 
   mutable std::mutex messages_mutex_;
   std::vector<std::string> messages_;

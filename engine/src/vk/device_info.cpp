@@ -96,6 +96,8 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   if (has_sgctl) {
     c.min_subgroup_size = sgctl.minSubgroupSize;
     c.max_subgroup_size = sgctl.maxSubgroupSize;
+    c.max_compute_workgroup_subgroups = sgctl.maxComputeWorkgroupSubgroups;
+    c.compute_required_subgroup_size = sgctl.requiredSubgroupSizeStages & VK_SHADER_STAGE_COMPUTE_BIT;
   }
   const VkPhysicalDeviceLimits& L = base.limits;
   c.max_storage_buffer_range = L.maxStorageBufferRange;

@@ -48,6 +48,10 @@ struct DeviceCaps {
 
   uint32_t subgroup_size = 0;
   uint32_t min_subgroup_size = 0, max_subgroup_size = 0;  // 0 when size control is absent
+  // Size control's limits for compute: subgroups per workgroup at most (0 when absent), and whether a compute
+  // pipeline may require a subgroup size (requiredSubgroupSizeStages has compute; the tensor-core kernels do).
+  uint32_t max_compute_workgroup_subgroups = 0;
+  bool compute_required_subgroup_size = false;
   bool subgroup_arithmetic = false, subgroup_shuffle = false, subgroup_size_control = false;
   bool storage_16bit = false, storage_8bit = false;
   bool float16_arithmetic = false, int8_arithmetic = false;

@@ -1,14 +1,17 @@
 #include "vk/pipeline.hpp"
 
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <unistd.h>
 
+#include "io/cache_root.hpp"
+#include "dvs/error.hpp"
 #include "io/injected_faults.hpp"
+#include "io/library_log.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
 #include "vk/shader_registry.hpp"
@@ -48,19 +51,14 @@ FileHeader expected_header(const DeviceCaps& c) {
 
 }  // namespace
 
-std::string PipelineCache::default_file(const Context& ctx) {
-  std::filesystem::path dir;
-  if (const char* d = std::getenv("DVS_CACHE_DIR"); d && *d) dir = d;
-  else if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) dir = std::filesystem::path(x) / "dvs";
-  else if (const char* home = std::getenv("HOME"); home && *home) dir = std::filesystem::path(home) / ".cache" / "dvs";
-  else return "";
+std::string PipelineCache::default_file(const Context& ctx, const std::filesystem::path& cache_dir) {
   char name[64];
   std::snprintf(name, sizeof name, "pipelines-%04x-%04x.bin", ctx.caps().vendor_id, ctx.caps().device_id);
-  return (dir / name).string();
+  return (cache_root(cache_dir) / name).string();
 }
 
-PipelineCache::PipelineCache(Context& ctx, const std::string& file) : ctx_(ctx) {
-  file_ = file == "-" ? "" : (file.empty() ? default_file(ctx) : file);
+PipelineCache::PipelineCache(Context& ctx, const std::string& file, const std::filesystem::path& cache_dir) : ctx_(ctx) {
+  file_ = file == "-" ? "" : (file.empty() ? default_file(ctx, cache_dir) : file);
   load();
 }
 
@@ -110,7 +108,7 @@ PipelineCache::~PipelineCache() {
   try {
     if (created_) save();
   } catch (const std::exception& e) {
-    std::cerr << "dvs: warning: could not save the pipeline cache: " << e.what() << "\n";
+    log_warning(std::string("could not save the pipeline cache: ") + e.what());
   }
   VkDevice dev = ctx_.device();
   for (auto& [key, p] : pipelines_) {
@@ -134,7 +132,9 @@ void PipelineCache::save() {
   std::filesystem::path path(file_);
   std::error_code ec;
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  std::string tmp = file_ + ".tmp" + std::to_string(::getpid());
+  // A name of this save's own: two contexts of one process (a preview beside a job) may save the same file at once.
+  static std::atomic<uint64_t> saves{0};
+  std::string tmp = file_ + ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(++saves);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return;  // an unwritable cache directory only costs start-up time
@@ -150,9 +150,25 @@ void PipelineCache::save() {
   if (ec) std::filesystem::remove(tmp, ec);
 }
 
-const Pipeline& PipelineCache::get(const std::string& shader, std::span<const uint32_t> spec) {
-  auto key = std::make_pair(shader, std::vector<uint32_t>(spec.begin(), spec.end()));
+const Pipeline& PipelineCache::get(const std::string& shader, std::span<const uint32_t> spec,
+                                   uint32_t required_subgroup_size) {
+  auto key = std::make_tuple(shader, std::vector<uint32_t>(spec.begin(), spec.end()), required_subgroup_size);
   if (auto it = pipelines_.find(key); it != pipelines_.end()) return *it->second;
+  // Through size control where the device offers it for compute (SPIR-V 1.6 shaders may otherwise see any
+  // size it supports); a device without it runs compute at its one subgroup size.
+  const DeviceCaps& caps = ctx_.caps();
+  const uint32_t lanes = required_subgroup_size;
+  const bool require = lanes && caps.subgroup_size_control && caps.compute_required_subgroup_size &&
+                       lanes >= caps.min_subgroup_size && lanes <= caps.max_subgroup_size;
+  if (lanes && !require && !(caps.subgroup_size == lanes && (!caps.subgroup_size_control ||
+                                                             caps.min_subgroup_size == caps.max_subgroup_size)))
+    throw Error("shader " + shader + " is laid out for subgroups of " + std::to_string(lanes) + " lanes; " +
+                caps.name + " runs compute with subgroups of " +
+                (caps.subgroup_size_control && caps.min_subgroup_size
+                     ? std::to_string(caps.min_subgroup_size) + " to " + std::to_string(caps.max_subgroup_size) +
+                           (caps.compute_required_subgroup_size ? "" : " (not selectable for compute)")
+                     : std::to_string(caps.subgroup_size)) +
+                " lanes (choose the layout for this device in DVS_TUNING: coopmat_lanes)");
 
   std::span<const uint32_t> code = find_shader(shader);
   auto p = std::make_unique<Pipeline>();
@@ -191,6 +207,13 @@ const Pipeline& PipelineCache::get(const std::string& shader, std::span<const ui
   ci.stage.module = module;
   ci.stage.pName = "main";
   ci.stage.pSpecializationInfo = spec.empty() ? nullptr : &si;
+  VkPipelineShaderStageRequiredSubgroupSizeCreateInfo sized{
+      VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_REQUIRED_SUBGROUP_SIZE_CREATE_INFO};
+  if (require) {
+    sized.requiredSubgroupSize = lanes;
+    ci.stage.pNext = &sized;
+    ci.stage.flags = VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT;
+  }
   ci.layout = p->layout;
   VkResult r = vkCreateComputePipelines(dev, cache_, 1, &ci, nullptr, &p->pipeline);
   vkDestroyShaderModule(dev, module, nullptr);

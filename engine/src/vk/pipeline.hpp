@@ -6,10 +6,12 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "vk/spirv_reflect.hpp"
@@ -30,12 +32,16 @@ enum class CacheLoad { disabled, absent, loaded, rejected };
 
 class PipelineCache {
  public:
-  // file: path of the cache file; "" = default location; "-" = no disk cache.
-  PipelineCache(Context& ctx, const std::string& file);
+  // file: path of the cache file; "" = default_file in the cache folder cache_dir; "-" = no disk cache.
+  PipelineCache(Context& ctx, const std::string& file, const std::filesystem::path& cache_dir = {});
   ~PipelineCache();
 
   // Specialization constant i (constant_id = i) takes spec[i] (floats passed bit-cast).
-  const Pipeline& get(const std::string& shader, std::span<const uint32_t> spec = {});
+  // required_subgroup_size (0: any): the shader's subgroups must have exactly that many lanes (kernels laid
+  // out for one subgroup size, such as the tensor-core ones); required through subgroup size control with
+  // full subgroups, or accepted where the device's only size is that one; else a dvs::Error naming both.
+  const Pipeline& get(const std::string& shader, std::span<const uint32_t> spec = {},
+                      uint32_t required_subgroup_size = 0);
 
   void save();  // writes the file atomically (temp name + rename); a no-op without a file
   CacheLoad load_state() const { return load_state_; }
@@ -43,14 +49,16 @@ class PipelineCache {
   const std::string& file() const { return file_; }
   size_t pipelines_created() const { return created_; }
 
-  static std::string default_file(const Context& ctx);
+  // pipelines-<vendor>-<device>.bin in the cache folder cache_dir (io/cache_root.hpp: empty = $DVS_CACHE_DIR, else
+  // ~/.cache/dvs), the folder whose inversions/ holds the run caches.
+  static std::string default_file(const Context& ctx, const std::filesystem::path& cache_dir = {});
 
  private:
   void load();
   Context& ctx_;
   std::string file_;
   VkPipelineCache cache_ = VK_NULL_HANDLE;
-  std::map<std::pair<std::string, std::vector<uint32_t>>, std::unique_ptr<Pipeline>> pipelines_;
+  std::map<std::tuple<std::string, std::vector<uint32_t>, uint32_t>, std::unique_ptr<Pipeline>> pipelines_;
   CacheLoad load_state_ = CacheLoad::disabled;
   std::string load_note_;
   size_t created_ = 0;

@@ -1,6 +1,9 @@
 // vk::Context's submissions: one vkQueueSubmit per call, each signalling the context's timeline semaphore with
 // the next value (its ticket), taking the application's queue lock around it, and waiting first for what
 // wait_before_next asked. Blocking callers wait for their ticket on the timeline; asynchronous ones get it back.
+#include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 
 #include "dvs/error.hpp"
@@ -10,6 +13,18 @@
 
 namespace dvs::vk {
 namespace {
+
+// dvs's own lock of a VkQueue, one per queue in the process: contexts made on one HostDevice share its queue, and
+// Vulkan requires vkQueueSubmit on one queue to be externally synchronised, whether or not the application gave a
+// lock of its own (taken inside this one).
+std::mutex& queue_mutex(VkQueue queue) {
+  static std::mutex registry_mutex;
+  static std::map<VkQueue, std::unique_ptr<std::mutex>> registry;  // a few entries; never removed
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  std::unique_ptr<std::mutex>& m = registry[queue];
+  if (!m) m = std::make_unique<std::mutex>();
+  return *m;
+}
 
 // The application's queue lock held for one scope (no-op without one).
 class QueueLock {
@@ -57,6 +72,7 @@ uint64_t Context::queue_submit(VkCommandBuffer cmd) {
   si.signalSemaphoreCount = 1;
   si.pSignalSemaphores = &timeline_;
   {
+    std::lock_guard<std::mutex> own(queue_mutex(queue_));
     QueueLock lock(lock_queue_, unlock_queue_);
     VK_CHECK(vkQueueSubmit(queue_, 1, &si, VK_NULL_HANDLE));
   }
@@ -113,8 +129,9 @@ uint64_t Context::completed_value() const {
 bool Context::wait(uint64_t ticket, uint64_t timeout_ns) {
   if (ticket > submissions_)
     throw Error("Waiting for timeline value " + std::to_string(ticket) + " of dvs's context, but only " +
-                std::to_string(submissions_) + " submissions were made: it would never be reached (wait for a "
-                "ticket a dvs call returned).");
+                    std::to_string(submissions_) + " submissions were made: it would never be reached (wait for a "
+                "ticket a dvs call returned).",
+                ErrorKind::invalid_argument);
   VkSemaphoreWaitInfo wi{VK_STRUCTURE_TYPE_SEMAPHORE_WAIT_INFO};
   wi.semaphoreCount = 1;
   wi.pSemaphores = &timeline_;
@@ -147,8 +164,10 @@ void Context::release_reached() {
 }
 
 void Context::wait_before_next(VkSemaphore semaphore, uint64_t value) {
-  if (!semaphore) throw Error("wait_before_next: the semaphore is VK_NULL_HANDLE (pass a timeline semaphore of the "
-                              "application's device)");
+  if (!semaphore)
+    throw Error("wait_before_next: the semaphore is VK_NULL_HANDLE (pass a timeline semaphore of the application's "
+                "device)",
+                ErrorKind::invalid_argument);
   waits_before_next_.emplace_back(semaphore, value);
 }
 

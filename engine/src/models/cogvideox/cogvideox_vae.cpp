@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "dvs/error.hpp"
+#include "io/option_names.hpp"
 #include "spec/model_schema.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "tensor/dispatch.hpp"
@@ -410,7 +411,8 @@ void CogVideoXVae::check_allocations(const char* what, const VaeFootprint& f) co
   if (limit && f.largest_allocation > limit)
     throw Error(std::string("CogVideoX VAE ") + what + ": its largest buffer, " + f.largest_what + ", needs " +
                 vk::format_bytes(f.largest_allocation) + ", more than the device allocates at once " +
-                "(maxMemoryAllocationSize " + vk::format_bytes(limit) + "); use VAE tiling (--vae-tile HxW) with " +
+                "(maxMemoryAllocationSize " + vk::format_bytes(limit) + "); use VAE tiling (" +
+                option_name("RunOptions::vae_tile_height/width") + ") with " +
                 "smaller tiles (dvs plan --device shows the tile that fits)");
 }
 

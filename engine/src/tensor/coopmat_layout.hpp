@@ -1,0 +1,77 @@
+// What the tensor-core kernels (linalg/linear_coopmat, nn/conv_coopmat, nn/attention_flash_coopmat) and their
+// fp32 twins need of a device for one layout: the specialization constants that lay them out, shared memory,
+// invocations, subgroups, and the index maps' divisibility rules. The tuning table (kernel_tuning.cpp) picks
+// layouts for which *_unfit() is ""; the ops create pipelines through coopmat_pipeline(), which refuses a
+// layout the device cannot hold with a dvs::Error naming the limit and the DVS_TUNING field to change, and
+// requires the subgroup size the layout is written for. The kernels' own comments say what each constant does.
+#pragma once
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "tensor/kernel_tuning.hpp"
+
+namespace dvs::vk {
+class Context;
+struct Pipeline;
+}  // namespace dvs::vk
+
+namespace dvs::ops {
+
+// A GEMM-shaped kernel's layout: fragment, lanes per subgroup, workgroup tile.
+struct CoopmatGemm {
+  CoopmatShape frag;
+  int lanes = 0;
+  CoopmatTile tile;
+  int64_t tile_m() const { return int64_t(tile.sg_m) * tile.frags_m * frag.m; }  // rows (linear) / pixels (conv)
+  int64_t tile_n() const { return int64_t(tile.sg_n) * tile.frags_n * frag.n; }  // columns / output channels
+  uint32_t invocations() const { return uint32_t(tile.subgroups() * lanes); }
+  std::string describe() const;  // "128x128x32 (2x4 subgroups of 32 lanes, 4x2 fragments of 16x16x16 each)"
+};
+
+// The flash-attention kernel's layout: `subgroups` of frag.m query rows each, `block_k` keys per tile.
+struct CoopmatAttention {
+  CoopmatShape frag;
+  int lanes = 0, subgroups = 0, block_k = 0;
+  int64_t rows() const { return int64_t(subgroups) * frag.m; }  // query rows per workgroup
+  uint32_t invocations() const { return uint32_t(subgroups * lanes); }
+  std::string describe() const;
+};
+
+// The layouts the tuning holds for this device (coopmat_lanes and the per-kernel fields of DeviceTuning). The
+// fragment is the device's shape; on a device without one (where only the twins run) the GPUs' 16x16x16.
+CoopmatGemm linear_coopmat_layout(const DeviceTuning& t);
+CoopmatGemm conv_coopmat_layout(const DeviceTuning& t);
+CoopmatAttention attention_coopmat_layout(const DeviceTuning& t);
+
+// Shared memory in bytes. Linear: two stages of fp16 X and W tiles (rows padded by 8 halves) and one fp32
+// fragment of staging per subgroup. Conv: one stage of the same and the staging. Attention at head_dim D
+// (D <= block_k): K and V tiles (fp16), per subgroup the scores / P·V tile (fp32) and P (fp16); the twin adds
+// its own copy of Q and the lanes' exchange slots.
+uint64_t linear_coopmat_shared_bytes(const CoopmatGemm& g);
+uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g);
+uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t head_dim);
+uint64_t attention_twin_shared_bytes(const CoopmatAttention& a, int64_t head_dim);
+
+// Why the device cannot run the layout ("" when it can). `twin`: the fp32 twin (no tensor cores, lanes emulated
+// by the workgroup), which needs the index maps and the memory but neither the subgroup size nor the shape.
+std::string linear_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatGemm& g);
+std::string conv_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatGemm& g, bool twin);
+// head_dim 0: the largest the kernel takes (block_k), what the tuning checks.
+std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAttention& a, int64_t head_dim,
+                                    bool twin);
+// Why the kernel does not take head_dim at all, on any device ("" when it does).
+std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t head_dim);
+
+// Specialization constants (the kernels' constant_id order).
+std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
+std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim);
+
+// The pipeline of a tensor-core kernel: throws dvs::Error("<shader>: <unfit>") when `unfit` is not empty, else
+// creates it with subgroups of `lanes` required (twins: lanes 0, nothing required).
+const vk::Pipeline& coopmat_pipeline(vk::Context& ctx, const std::string& shader, std::span<const uint32_t> spec,
+                                     uint32_t lanes, const std::string& unfit);
+
+}  // namespace dvs::ops

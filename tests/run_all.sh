@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# The whole test suite, pass by pass, on a built tree (the README's test command ends with it; CI runs exactly that):
+#   tests/run_all.sh                 every pass, in order, stopping at the first that fails
+#   tests/run_all.sh mesa25 limits   only the named passes
+#   tests/run_all.sh --list          the passes and what each runs
+# DVS_PASSES="default install" selects passes as arguments do, when none are given (tests/fresh_machine.sh runs the
+# README's command verbatim through fewer passes with it). DVS_BUILD_DIR (default build) is the build tree. Each pass
+# prints its name and command before it starts and its time after; at the end (also after a failure) a table says
+# which passes ran, how long each took and which failed.
+# docs/testing.md says why each pass exists.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+B="${DVS_BUILD_DIR:-build}"
+CT="ctest --test-dir $B --output-on-failure"
+FAST="-LE robustness|cluster|install"    # everything but the slow labels, which run once
+OPS='^(Ops|Split|Paths/|KernelTuning|Resize|[A-Za-z]+Ops[./]|AttentionTest|LinearTest|Family/|ConvFamilies)'
+
+# name | what it proves | command (words split on spaces; a quoted regex stays one word through PASS_ARGS)
+PASS_NAMES=(default slow install mesa25 limits gpu-golden gpu-ops sanitized)
+declare -A PASS_WHAT PASS_CMD
+PASS_WHAT[default]="Mesa 22.3 (Debian 12's lavapipe): unit, golden and device-script tests"
+PASS_CMD[default]="$CT -j2 $FAST"
+PASS_WHAT[slow]="once: kills and reruns, injected faults, many processes, flat memory, the Slurm array job"
+PASS_CMD[slow]="$CT -j2 -L robustness|cluster"
+PASS_WHAT[install]="once: cmake --install to a temporary prefix, consumers built against it (C, C++, ctypes, preview)"
+PASS_CMD[install]="$CT -L install"
+PASS_WHAT[mesa25]="the same tests on Mesa 25.0 (Vulkan 1.4, bookworm-backports)"
+PASS_CMD[mesa25]="tests/run_on_mesa25.sh $CT -j2 $FAST"
+PASS_WHAT[limits]="the same tests with the device limits forced down, so every op takes its split paths"
+PASS_CMD[limits]="tests/run_with_forced_limits.sh $CT -j2 $FAST"
+PASS_WHAT[gpu-golden]="the golden tests with the GPU tuning entry forced (the kernels a GPU runs, by value)"
+PASS_CMD[gpu-golden]="tests/run_with_tuning.sh gpu $CT -j2 -L golden"
+PASS_WHAT[gpu-ops]="the op tests with the GPU tuning entry forced"
+PASS_CMD[gpu-ops]="tests/run_with_tuning.sh gpu $CT -j2 -R $OPS"
+PASS_WHAT[sanitized]="a clang ASan+UBSan build: every fuzz harness for a while, the readers' and glue tests"
+PASS_CMD[sanitized]="tests/run_sanitized.sh"
+
+if [ "${1:-}" = "--list" ]; then
+  for p in "${PASS_NAMES[@]}"; do printf '%-11s %s\n            %s\n' "$p" "${PASS_WHAT[$p]}" "${PASS_CMD[$p]}"; done
+  exit 0
+fi
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'
+  exit 0
+fi
+selected=("$@")
+if [ ${#selected[@]} -eq 0 ] && [ -n "${DVS_PASSES:-}" ]; then read -r -a selected <<< "${DVS_PASSES//,/ }"; fi
+if [ ${#selected[@]} -eq 0 ]; then selected=("${PASS_NAMES[@]}"); fi
+for p in "${selected[@]}"; do
+  if [ -z "${PASS_CMD[$p]+x}" ]; then
+    echo "tests/run_all.sh: no pass named '$p' (tests/run_all.sh --list shows them: ${PASS_NAMES[*]})" >&2
+    exit 2
+  fi
+done
+if [ ! -f "$B/CTestTestfile.cmake" ]; then
+  echo "tests/run_all.sh: no build tree in '$B' (build first: cmake -S . -B build && cmake --build build, or set DVS_BUILD_DIR)" >&2
+  exit 2
+fi
+
+summary=()
+status=0
+print_summary() {
+  echo
+  echo "== tests/run_all.sh: summary"
+  printf '%s\n' "${summary[@]}"
+}
+for p in "${selected[@]}"; do
+  echo
+  echo "== pass '$p': ${PASS_WHAT[$p]}"
+  echo "== $ ${PASS_CMD[$p]}"
+  start=$(date +%s)
+  # The command is one string of plain words; read -a splits it without glob or brace expansion.
+  read -r -a cmd <<< "${PASS_CMD[$p]}"
+  "${cmd[@]}"
+  rc=$?
+  secs=$(( $(date +%s) - start ))
+  line="$(printf '  %-11s %-6s %4d min %02d s' "$p" "$([ $rc -eq 0 ] && echo ok || echo FAILED)" $((secs / 60)) $((secs % 60)))"
+  summary+=("$line")
+  echo "== pass '$p': $([ $rc -eq 0 ] && echo passed || echo "FAILED (exit $rc)") in $((secs / 60)) min $((secs % 60)) s"
+  if [ $rc -ne 0 ]; then status=$rc; break; fi
+done
+print_summary
+exit $status

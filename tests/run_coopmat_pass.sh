@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The tensor-core pass: the op, golden and whole-pipeline tests by value on Mesa 26.1's lavapipe, which has
+# VK_KHR_cooperative_matrix (.ci/deps unpacks it; tests/run_on_mesa_coopmat.sh runs a program there), with the
+# tuning entry of tensor-core GPUs forced (DVS_TUNING=gpu-coopmat): the very shader code a GPU runs, laid out by
+# the tuning table for lavapipe's 8 lanes, 32 KiB and its listed 8x8x8 fragment (docs/devices.md).
+#   tests/run_coopmat_pass.sh [BUILD_DIR]        (default: build)
+# DVS_REQUIRE_COOPMAT=linear,attention,conv makes the test programs fail a test in which a call fell back from
+# the tensor-core kernels for a reason of the device, and fail at the end when any of the three never ran on
+# them (tests/support/gpu.cpp; the census is printed). First a planted misfit (a linear layout this lavapipe
+# cannot hold) must fail that check, so the check is known to be live.
+# Not run here: tests that start `dvs` as a process (the private dynamic loader does not reach child processes).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build="${1:-build}"
+run=tests/run_on_mesa_coopmat.sh
+for p in "$build/tests/dvs_tests" "$build/tests/dvs_golden_tests"; do
+  [ -x "$p" ] || { echo "run_coopmat_pass.sh: no $p (build the tests first)" >&2; exit 2; }
+done
+export DVS_TUNING=gpu-coopmat
+export DVS_REQUIRE_COOPMAT=linear,attention,conv
+start=$(date +%s)
+
+# 1. The check is live: a 128 x 128 linear tile of 4 x 4 subgroups needs 44 KiB at 8x8 fragments (lavapipe has 32).
+echo "run_coopmat_pass.sh: a planted misfit must fail the tensor-core check"
+if DVS_TUNING="gpu-coopmat,linear_coopmat=4x4x4x4x32" \
+   "$run" "$build/tests/dvs_tests" --gtest_filter='Family/LinearTest.ZeroK/device' > "$build/coopmat_pass_planted.log" 2>&1; then
+  echo "run_coopmat_pass.sh: the planted misfit passed: the tensor-core check is not live" >&2
+  exit 1
+fi
+grep -q "fell back from tensor cores for a reason of the device" "$build/coopmat_pass_planted.log" ||
+  { echo "run_coopmat_pass.sh: the planted misfit failed for another reason:" >&2; tail -20 "$build/coopmat_pass_planted.log" >&2; exit 1; }
+
+# 2. The op tests (the suites of .ci/run's GPU-entry pass), the layouts, the tuning and the smoke test.
+ops='Ops*:*Ops.*:*Ops/*:Split*:Paths/*:AttentionTest.*:Family/*:ConvFamilies.*:LinearCoopmatTest.*:Resize*'
+ops+=':KernelTuning*:LinearTuning.*:AttentionFlashPlan.*:CoopmatLayout*:CoopmatSmoke.*'
+"$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
+# 3. The golden tests, the whole-pipeline (PipelineE2e) tests among them.
+"$run" "$build/tests/dvs_golden_tests"
+echo "run_coopmat_pass.sh: passed in $(( $(date +%s) - start )) s"
