@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "dvs/option_names.hpp"
 #include "pipeline/job_stages.hpp"
 #include "pipeline/memory_advice.hpp"
 #include "pipeline/memory_plan.hpp"
@@ -86,16 +87,21 @@ TEST(WeightStreamRun, AutoStreamsTheTransformerWhenItsPhaseIsOverTheDevicesBudge
 }
 
 // Out of device memory in the text, inversion or sampling stage with the weights resident: the advice names
-// --weights stream and what that component then holds; with them streamed already it does not.
+// streaming (RunOptions::weights in the library, --weights in the dvs program) and what that component then
+// holds; with them streamed already it does not.
 TEST(WeightStreamRun, OutOfMemoryAdviceOffersStreaming) {
   PipelineInputs in;
   RunOptions o = in.run_options(in.dir / "out", in.cache);
   o.weights = "resident";
-  for (const char* stage : {"text", "invert", "sample"})
+  for (const char* stage : {"text", "invert", "sample"}) {
+    EXPECT_NE(out_of_memory_advice(o, stage).find("RunOptions::weights stream ("), std::string::npos) << stage;
+    set_option_names(OptionNames::command_line);
     EXPECT_NE(out_of_memory_advice(o, stage).find("--weights stream ("), std::string::npos) << stage;
-  EXPECT_EQ(out_of_memory_advice(o, "decode").find("--weights stream"), std::string::npos);
+    set_option_names(OptionNames::fields);
+  }
+  EXPECT_EQ(out_of_memory_advice(o, "decode").find("weights stream"), std::string::npos);
   o.weights = "stream";
-  EXPECT_EQ(out_of_memory_advice(o, "sample").find("--weights stream"), std::string::npos);
+  EXPECT_EQ(out_of_memory_advice(o, "sample").find("weights stream"), std::string::npos);
 }
 
 // dvs plan's streaming figures: the bytes a call uploads over the rate given, one block's compute (batch 1, the

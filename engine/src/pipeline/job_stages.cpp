@@ -140,7 +140,7 @@ nlohmann::json WeightsUsed::record(const std::string& requested) const {
 
 WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o) {
   using models::WeightResidency;
-  const pipeline::WeightsChoice choice = pipeline::parse_weights_choice(o.weights, "--weights");
+  const pipeline::WeightsChoice choice = pipeline::parse_weights_choice(o.weights, option_name("RunOptions::weights"));
   if (choice != pipeline::WeightsChoice::automatic) {
     const WeightResidency r = choice == pipeline::WeightsChoice::stream ? WeightResidency::stream : WeightResidency::resident;
     return {r, r};

@@ -73,7 +73,7 @@ pipeline::PlanRequest run_plan_request(const RunOptions& o, const vk::DeviceCaps
                                     dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
   req.hard_points = o.render.hard_points;
   req.tiling = vae_tiling(o);
-  req.weights = pipeline::parse_weights_choice(o.weights, "--weights");
+  req.weights = pipeline::parse_weights_choice(o.weights, option_name("RunOptions::weights"));
   req.limits->transfer_queue = dev.transfer_queue_family >= 0;
   return req;
 }
