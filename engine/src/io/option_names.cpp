@@ -60,6 +60,8 @@ const std::map<std::string, std::string>& flags() {
       {"MemoryPlanRequest::width", "--width"},
       {"MemoryPlanRequest::alignment", "--alignment"},
       {"MemoryPlanRequest::depth_model", "--depth-model"},
+      {"MemoryPlanRequest::weights", "--weights"},
+      {"MemoryPlanRequest::upload_bytes_per_second", "--upload-rate"},
   };
   return table;
 }

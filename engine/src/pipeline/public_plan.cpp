@@ -99,7 +99,11 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
     req.depth_input_size = request.depth_input_size;
     req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
   }
-  req.weights = pipeline::parse_weights_choice(request.weights, "--weights");
+  req.weights = pipeline::parse_weights_choice(request.weights, option_name("MemoryPlanRequest::weights"));
+  if (!(request.upload_bytes_per_second >= 0))  // negative or NaN
+    throw UsageError(option_name("MemoryPlanRequest::upload_bytes_per_second") + " is " +
+                     std::to_string(request.upload_bytes_per_second) +
+                     ": give the host -> device rate in bytes per second, or 0 for the limits' figure");
   if (request.upload_bytes_per_second > 0) req.upload_rate = request.upload_bytes_per_second;
   const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
   MemoryPlanReport r;
