@@ -84,12 +84,16 @@ class WeightStream : public test::GpuTest {
                                          std::vector<StreamEvent>* events = nullptr) {
     models::CogVideoXTransformer tr(ctx(), dir / "transformer", residency);
     EXPECT_EQ(tr.residency(), residency);
+    const std::vector<uint8_t> bytes = forward_bytes(tr, batch, frames);
+    if (events && tr.stream()) *events = tr.stream()->events();
+    return bytes;
+  }
+  std::vector<uint8_t> forward_bytes(models::CogVideoXTransformer& tr, int64_t batch, int64_t frames) {
     const auto& c = tr.config();
     const Tensor lat = normals({batch, frames, c.in_channels, c.sample_height, c.sample_width}, 1);
     const Tensor txt = normals({batch, c.max_text_seq_length, c.text_embed_dim}, 2);
     const std::vector<float> t{999.0f, 321.0f};
     const Tensor y = tr.forward(lat, txt, std::span<const float>(t.data(), size_t(batch)));
-    if (events && tr.stream()) *events = tr.stream()->events();
     const HostTensor h = y.download(ctx());
     return std::vector<uint8_t>(h.data.begin(), h.data.end());
   }
@@ -236,6 +240,35 @@ TEST_F(WeightStream, UploadsAreScheduledBesideTheCompute) {
       EXPECT_GT(reuse.waits_for, c.value - 1) << "block " << j + slots << " does not wait for block " << j << "'s compute";
     }
   }
+}
+
+// The same schedule on the device's clock (GPU timestamps written by the uploads' and the compute's own commands,
+// not the host's wall clock): block j computes only after its upload has finished; block j + 1's upload starts
+// before block j's compute has ended (it does not wait for it: on a GPU's copy engine it runs beside it, on one
+// queue, as here, ahead of it); an upload into a slot starts only after the compute that last read the slot has
+// ended. Timestamps of two queues do not compare, so a device with a transfer queue skips this (the schedule test
+// above still runs there). Fails when the next block's upload is made at that block's start instead of one ahead.
+TEST_F(WeightStream, UploadsRunAheadOfTheComputeOnTheDevicesClock) {
+  if (ctx().has_transfer_queue()) GTEST_SKIP() << "uploads on a transfer queue: its timestamps do not compare";
+  const fs::path dir = model("mid", mid_spec());
+  models::CogVideoXTransformer tr(ctx(), dir / "transformer", WeightResidency::stream);
+  tr.stream()->record_timestamps();
+  const std::vector<uint8_t> streamed = forward_bytes(tr, 1, 2);
+  const std::vector<models::BlockTimes> t = tr.stream()->block_times();
+  const size_t blocks = size_t(mid_spec().layers), slots = 2;
+  ASSERT_EQ(t.size(), blocks);
+  for (size_t j = 0; j < blocks; ++j) {
+    EXPECT_LE(t[j].upload_start, t[j].upload_end) << "block " << j;
+    EXPECT_LE(t[j].upload_end, t[j].compute_start) << "block " << j << " computes before its upload has finished";
+    if (j + 1 == blocks) continue;
+    EXPECT_LT(t[j].compute_start, t[j].compute_end) << "block " << j;
+    EXPECT_LT(t[j + 1].upload_start, t[j].compute_end) << "block " << j + 1 << "'s upload waited for block " << j;
+    if (j + slots < blocks)
+      EXPECT_GE(t[j + slots].upload_start, t[j].compute_end) << "block " << j + slots << " overwrote block " << j
+                                                             << "'s slot while it computed";
+  }
+  // The marks change no byte.
+  expect_same_bytes(transformer_bytes(dir, WeightResidency::resident, 1, 2), streamed, "streamed with timestamps");
 }
 
 TEST_F(WeightStream, DeviceMemoryBelowTheWeightsNeedsStreaming) {

@@ -5,6 +5,7 @@
 #include "dvs/error.hpp"
 #include "vk/context.hpp"
 #include "vk/recorder.hpp"
+#include "vk/timestamp_queries.hpp"
 
 namespace dvs::models {
 
@@ -61,7 +62,7 @@ uint64_t BlockStream::slot_bytes() const {
   return n;
 }
 
-BlockStream::~BlockStream() = default;  // uploads_ (declared after the buffers) waits for its uploads first
+BlockStream::~BlockStream() = default;  // stamps_ and uploads_ (after the buffers) wait for their work first
 
 uint64_t BlockStream::block_bytes(int64_t block) const {
   uint64_t n = 0;
@@ -106,7 +107,7 @@ void BlockStream::upload(int64_t block, uint64_t after_compute) {
   std::vector<vk::UploadQueue::Copy> copies;
   for (size_t k = 0; k < pieces_[size_t(block)].size(); ++k)
     copies.push_back({host_[size_t(block)][k].view(), slots_[slot][k].view(), pieces_[size_t(block)][k]});
-  const uint64_t value = uploads_.upload(copies, after_compute);
+  const uint64_t value = uploads_.upload(copies, after_compute, stamps_.get(), uint32_t(4 * block));
   upload_value_[size_t(block)] = value;
   events_.push_back({StreamEvent::Kind::upload, block, slot, after_compute, value, ctx_.submission_count()});
 }
@@ -120,15 +121,38 @@ void BlockStream::on_segment(uint32_t segment) {
   }
   for (int64_t j = 0; j < n; ++j) {
     if (first_segment_[size_t(j)] != segment) continue;
+    if (stamps_ && j >= 1) stamps_->mark(uint32_t(4 * (j - 1) + 3));  // block j − 1's segments have run
     // Block j − 1 was the last to read slot (j + k − 1) % k: its segments are the compute submitted so far.
     const int64_t next = j + k - 1;
     if (j >= 1 && next < n && upload_value_[size_t(next)] == 0) upload(next, ctx_.submission_count());
     if (upload_value_[size_t(j)] == 0)
       throw Error("internal: " + what_ + ": block " + std::to_string(j) + " starts before its upload was scheduled");
+    if (stamps_) {  // block j's compute starts: its upload done
+      ctx_.wait_before_next(uploads_.timeline(), upload_value_[size_t(j)]);
+      stamps_->mark(uint32_t(4 * j + 2));
+    }
     ctx_.wait_before_next(uploads_.timeline(), upload_value_[size_t(j)]);
     events_.push_back({StreamEvent::Kind::compute, j, uint32_t(size_t(j) % slots_.size()), upload_value_[size_t(j)],
                        ctx_.submission_count() + 1, ctx_.submission_count()});
   }
+}
+
+void BlockStream::record_timestamps() {
+  if (ctx_.has_transfer_queue())
+    throw Error(what_ + ": GPU timestamps of the uploads (a transfer queue) and of the compute do not compare");
+  if (!stamps_) stamps_ = std::make_unique<vk::TimestampQueries>(ctx_, uint32_t(4 * blocks()));
+}
+
+std::vector<BlockTimes> BlockStream::block_times() const {
+  std::vector<BlockTimes> out;
+  if (!stamps_) return out;
+  for (int64_t j = 0; j < blocks(); ++j) {
+    if (upload_value_.size() != size_t(blocks()) || upload_value_[size_t(j)] == 0)
+      throw Error("internal: " + what_ + ": block_times before a whole call ran");
+    const std::vector<double> t = stamps_->read_ns(uint32_t(4 * j), j + 1 < blocks() ? 4 : 3);
+    out.push_back({t[0], t[1], t[2], j + 1 < blocks() ? t[3] : 0.0});
+  }
+  return out;
 }
 
 }  // namespace dvs::models

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,7 @@
 namespace dvs::vk {
 class Context;
 class Recorder;
+class TimestampQueries;
 }  // namespace dvs::vk
 
 namespace dvs::models {
@@ -43,6 +45,13 @@ struct StreamEvent {
   // upload: the compute value its copy waits for, the upload value it signals, and the last compute value
   // submitted before it. compute: the upload value its first segment waits for, and its own compute value.
   uint64_t waits_for = 0, value = 0, compute_submitted = 0;
+};
+
+// Where one block's upload and compute ran on the device's clock (ns), from record_timestamps. compute_end is
+// taken when the next block's compute starts (the host has waited for this block's segments by then); the last
+// block has none (0).
+struct BlockTimes {
+  double upload_start = 0, upload_end = 0, compute_start = 0, compute_end = 0;
 };
 
 class BlockStream {
@@ -72,6 +81,12 @@ class BlockStream {
   void mark_block(vk::Recorder& rec, int64_t block);
 
   const std::vector<StreamEvent>& events() const { return events_; }
+  // Tests and dvs-bench: from the next call on, GPU timestamps of every upload (in its own command buffer) and of
+  // every block's compute (marks submitted to the compute queue before its first segment, after its upload's
+  // wait: they add to the context's timeline). Timestamps compare only on one queue, so this throws dvs::Error
+  // on a device whose uploads go to a transfer queue of their own.
+  void record_timestamps();
+  std::vector<BlockTimes> block_times() const;  // of the last call, once it has run; empty without timestamps
   uint64_t uploads() const { return uploads_.submitted(); }  // uploads submitted since the stream was made
 
  private:
@@ -96,6 +111,7 @@ class BlockStream {
   std::vector<uint64_t> upload_value_;
   bool started_ = false;
   std::vector<StreamEvent> events_;
+  std::unique_ptr<vk::TimestampQueries> stamps_;  // 4 per block: upload start, end; compute start, end
 };
 
 }  // namespace dvs::models

@@ -5,6 +5,7 @@
 #include "dvs/error.hpp"
 #include "vk/check.hpp"
 #include "vk/context.hpp"
+#include "vk/timestamp_queries.hpp"
 
 namespace dvs::vk {
 
@@ -66,7 +67,8 @@ void UploadQueue::recycle() {
   }
 }
 
-uint64_t UploadQueue::upload(const std::vector<Copy>& copies, uint64_t after) {
+uint64_t UploadQueue::upload(const std::vector<Copy>& copies, uint64_t after, const TimestampQueries* stamps,
+                             uint32_t first_query) {
   for (const Copy& c : copies)
     if (c.bytes > c.src.size || c.bytes > c.dst.size) throw Error("internal: UploadQueue::upload larger than its buffers");
   if (after > ctx_.submission_count())
@@ -82,12 +84,14 @@ uint64_t UploadQueue::upload(const std::vector<Copy>& copies, uint64_t after) {
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+    if (stamps) stamps->record(cmd, first_query, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     // The host wrote the source before this submission (a submission orders earlier host writes); the
     // semaphores order the copy with the compute on either side of it.
     for (const Copy& c : copies) {
       const VkBufferCopy region{c.src.offset, c.dst.offset, c.bytes};
       vkCmdCopyBuffer(cmd, c.src.buffer, c.dst.buffer, 1, &region);
     }
+    if (stamps) stamps->record(cmd, first_query + 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
     VK_CHECK(vkEndCommandBuffer(cmd));
     ctx_.submit_transfer(cmd, after, timeline_, submitted_ + 1);
   } catch (...) {

@@ -15,6 +15,7 @@
 namespace dvs::vk {
 
 class Context;
+class TimestampQueries;
 
 class UploadQueue {
  public:
@@ -29,8 +30,10 @@ class UploadQueue {
     VkDeviceSize bytes = 0;
   };
   // Makes `copies` (one submission) once the context's timeline has reached `after`; returns the value this
-  // upload signals on timeline() (1, 2, 3, ... in submission order).
-  uint64_t upload(const std::vector<Copy>& copies, uint64_t after);
+  // upload signals on timeline() (1, 2, 3, ... in submission order). With `stamps`, the device's clock when the
+  // upload starts and when its copies are done go to queries `first_query` and `first_query` + 1.
+  uint64_t upload(const std::vector<Copy>& copies, uint64_t after, const TimestampQueries* stamps = nullptr,
+                  uint32_t first_query = 0);
   uint64_t upload(const BufferView& src, const BufferView& dst, VkDeviceSize bytes, uint64_t after) {
     return upload({Copy{src, dst, bytes}}, after);
   }

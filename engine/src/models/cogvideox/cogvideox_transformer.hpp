@@ -75,6 +75,7 @@ class CogVideoXTransformer {
   ComponentWeights& weights() { return weights_; }
   WeightResidency residency() const { return stream_ ? WeightResidency::stream : WeightResidency::resident; }
   const BlockStream* stream() const { return stream_.get(); }  // null when resident
+  BlockStream* stream() { return stream_.get(); }  // record_timestamps (tests, dvs-bench)
   // Block `block`'s tensor `suffix` ("attn1.to_q.weight"), wherever it lives (its stream slot when streamed).
   Tensor block_weight(int64_t block, const std::string& suffix);
 
