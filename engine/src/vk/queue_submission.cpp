@@ -101,9 +101,11 @@ void Context::submit_transfer(VkCommandBuffer cmd, uint64_t after, VkSemaphore s
   si.pCommandBuffers = &cmd;
   si.signalSemaphoreCount = 1;
   si.pSignalSemaphores = &semaphore;
-  // The compute queue itself where the device has no transfer family: the application's lock applies then.
+  // The compute queue itself where the device has no transfer family: the application's lock applies then; dvs's
+  // own lock of the queue always (contexts on one HostDevice share it).
   const bool shared = transfer_queue_ == queue_;
   static const std::function<void()> none;
+  std::lock_guard<std::mutex> own(queue_mutex(transfer_queue_));
   QueueLock lock(shared ? lock_queue_ : none, shared ? unlock_queue_ : none);
   VK_CHECK(vkQueueSubmit(transfer_queue_, 1, &si, VK_NULL_HANDLE));
 }
