@@ -307,6 +307,12 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   ActivationPlan plan_(arena);
   Activations a = plan(cfg_, plan_, B, F, H, W, L, lora_rank_, chunk);
   if (stream_) stream_->begin_call(rec);  // the uploads' schedule for this recording's submission
+  // A GEMM over the B batch rows: x [m, k] · Wᵀ -> y [m, n] in each, batch rows x_stride / y_stride elements apart.
+  auto batched = [&](int64_t m_rows, int64_t n, int64_t k, int64_t x_stride, int64_t y_stride) {
+    ops::LinearShape s;
+    s.batch = B, s.m = m_rows, s.n = n, s.k = k, s.x_batch_stride = x_stride, s.y_batch_stride = y_stride;
+    return s;
+  };
   size_t tap_i = 0;
   auto tap = [&](const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[tap_i].buffer(), t.bytes());
@@ -340,24 +346,12 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   // Patch embedding: [text_proj(text) ; conv(latent)] written into the rows of one [B, S, D] sequence.
   ops::patchify(rec, latent, a.patches, int(ps));
   {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = N;
-    s.n = D;
-    s.k = Cpp;
-    s.x_batch_stride = N * Cpp;
-    s.y_batch_stride = S * D;
+    const ops::LinearShape s = batched(N, D, Cpp, N * Cpp, S * D);
     ops::LinearEpilogue e;
     e.bias = bias_of("patch_embed.proj.bias");
     ops::linear_batched(rec, a.patches, w("patch_embed.proj.weight").reshape({D, Cpp}),
                         element_range(a.h, L * D, B * S * D - L * D), s, e);
-    ops::LinearShape t;
-    t.batch = B;
-    t.m = L;
-    t.n = D;
-    t.k = cfg_.text_embed_dim;
-    t.x_batch_stride = L * cfg_.text_embed_dim;
-    t.y_batch_stride = S * D;
+    const ops::LinearShape t = batched(L, D, cfg_.text_embed_dim, L * cfg_.text_embed_dim, S * D);
     ops::LinearEpilogue et;
     et.bias = w("patch_embed.text_proj.bias");
     if (L > 0) ops::linear_batched(rec, text, w("patch_embed.text_proj.weight"), a.h, t, et);
@@ -375,13 +369,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   // from 2D (gate).
   auto gated_residual = [&](const Tensor& x, int64_t k, const Tensor& weight, const Tensor& bias, const Tensor& table,
                             int64_t s0, int64_t n) {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = n;
-    s.n = D;
-    s.k = k;
-    s.x_batch_stride = n * k;
-    s.y_batch_stride = S * D;
+    ops::LinearShape s = batched(n, D, k, n * k, S * D);
     s.vec_batch_stride = 6 * D;
     const int64_t gate_col = s0 < L ? 5 * D : 2 * D;
     const Tensor y = rows_of(a.h, D, s0);
@@ -394,13 +382,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   // y (+)= x·Wᵀ (+ b) for rows [s0, s0 + n) of xn into a chunk y [B, n, cols] (n = S: the whole sequence).
   auto project = [&](const Tensor& weight, const Tensor& bias, const Tensor& y, int64_t cols, int64_t s0, int64_t n,
                      const Tensor& residual, ops::Activation act) {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = n;
-    s.n = cols;
-    s.k = D;
-    s.x_batch_stride = S * D;
-    s.y_batch_stride = n * cols;
+    const ops::LinearShape s = batched(n, cols, D, S * D, n * cols);
     ops::LinearEpilogue e;
     e.bias = bias;
     e.activation = act;
@@ -495,13 +477,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     ops::layernorm(rec, a.xn, a.xn, ln_w("norm_out.norm"), ln_b("norm_out.norm"), cfg_.norm_eps, &m);
   }
   {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = N;
-    s.n = P;
-    s.k = D;
-    s.x_batch_stride = S * D;
-    s.y_batch_stride = N * P;
+    const ops::LinearShape s = batched(N, P, D, S * D, N * P);
     ops::LinearEpilogue e;
     e.bias = w("proj_out.bias");
     ops::linear_batched(rec, element_range(a.xn, L * D, B * S * D - L * D), w("proj_out.weight"), a.proj, s, e);
