@@ -2,6 +2,7 @@
 // the recommendation, exit codes, and that every tile size it offers is one `dvs run` accepts.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
@@ -110,6 +111,38 @@ TEST(PlanLimits, AllocationLimitForcesTiling) {
   // 128 MiB bindings: the CFG call's sequence [2, 17776, 3072] f32 takes 4 of them.
   for (const auto& s : j["stages"])
     if (s["name"] == "transformer_cfg") EXPECT_EQ(s["limits"]["bindings"], (2ull * 17776 * 3072 * 4 + (128 << 20) - 1) / (128 << 20));
+}
+
+// Issue 33's goal: every profile runs the real model (49 x 480 x 720) at 8 GiB, and at 6 GiB with both components
+// streamed; no tensor of the chosen setting, no stream slot, is over the profile's allocation limit (1 GiB on the
+// minimum profile). The figures come from dvs plan --json, checked against the limits it prints.
+TEST(PlanLimits, EveryProfileRunsTheRealModelAtEightAndSixGiB) {
+  for (const char* profile : {"lavapipe", "nvidia", "amd", "intel", "apple", "min"})
+    for (const char* budget : {"8GiB", "6GiB"}) {
+      const auto r = plan(std::string("--limits ") + profile + " --budget " + budget + " --json");
+      ASSERT_EQ(r.exit_code, 0) << profile << " " << budget << "\n" << r.output;
+      const json j = json::parse(r.output);
+      const std::string at = std::string(profile) + " at " + budget;
+      ASSERT_TRUE(j["choice"]["fits"].get<bool>()) << at;
+      const uint64_t alloc = j["limits"]["alloc_bytes"].get<uint64_t>(), peak = j["choice"]["run_peak_bytes"];
+      EXPECT_LE(peak, pipeline::parse_byte_size(budget, "test")) << at;
+      if (std::string(budget) == "6GiB")
+        EXPECT_EQ(j["weights_residency"], json({{"text_encoder", "stream"}, {"transformer", "stream"}})) << at;
+      uint64_t largest = 0;
+      for (const auto& s : j["stages"])
+        if (s.contains("limits") && s["name"] != "vae_encode" && s["name"] != "vae_decode")
+          largest = std::max(largest, s["limits"]["largest_tensor_bytes"].get<uint64_t>());
+      for (const auto& t : j["tilings"])
+        if (t["tile_sample_min_height"] == j["choice"]["tile_sample_min_height"] &&
+            t["tile_sample_min_width"] == j["choice"]["tile_sample_min_width"] && t["tiled"] == j["choice"]["tiled"])
+          for (const char* call : {"vae_encode", "vae_decode"})
+            largest = std::max(largest, t[call]["limits"]["largest_tensor_bytes"].get<uint64_t>());
+      for (const auto& st : j["streams"])
+        if (st["streamed"].get<bool>()) largest = std::max(largest, st["slot_bytes"].get<uint64_t>());
+      EXPECT_GT(largest, 100u << 20) << at << ": the VAE's tile activations are hundreds of MiB";
+      EXPECT_LE(largest, alloc) << at;
+      if (std::string(profile) == "min") EXPECT_LE(largest, 1ull << 30) << at;
+    }
 }
 
 TEST(PlanLimits, MinimumLimitsRunAtEightAndSixGiBStreamedButTinyBudgetsRefuse) {
