@@ -52,6 +52,26 @@ TEST(WeightStreamRun, StreamedRunGivesTheResidentRunsFilesAndIsRecorded) {
   EXPECT_NE(bad.output.find("--weights must be resident, stream or auto"), std::string::npos) << bad.output;
 }
 
+// Where the weights live changes no result, so it is not in the cache keys: a streamed run finds the sampled latent
+// a resident run cached (so it loads no transformer) and gives its files.
+TEST(WeightStreamRun, StreamedRunReusesTheResidentRunsCache) {
+  PipelineInputs in;
+  auto run = [&](const std::string& weights, const std::string& out) {
+    const auto r = test::run_command(test::program("dvs") + " run --quiet" + in.inputs() +
+                                     " --prompt 'a red fox' --weights " + weights + " --out " + (in.dir / out).string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return run_json(in.dir / out);
+  };
+  const nlohmann::json first = run("resident", "first");
+  EXPECT_FALSE(first["latent"]["reused"].get<bool>()) << first.dump();
+  const nlohmann::json second = run("stream", "second");
+  EXPECT_TRUE(second["latent"]["reused"].get<bool>()) << second.dump();
+  EXPECT_EQ(second["latent"]["key"], first["latent"]["key"]);
+  EXPECT_EQ(second["weights"], nlohmann::json({{"requested", "stream"}, {"transformer", "not loaded"},
+                                               {"text_encoder", "not loaded"}}));
+  EXPECT_TRUE(test::read_text(in.dir / "first" / "output.mp4") == test::read_text(in.dir / "second" / "output.mp4"));
+}
+
 TEST(WeightStreamRun, AutoStreamsTheTransformerWhenItsPhaseIsOverTheDevicesBudget) {
   PipelineInputs in;
   const RunOptions o = in.run_options(in.dir / "out", in.cache);
