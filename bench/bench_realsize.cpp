@@ -119,12 +119,18 @@ void compare(CallResult& r, const std::vector<float>& dev, const std::vector<flo
   r.tolerance = kTolerance * mx;
 }
 
+// The measured peak against the plan to the byte (the JSON lines come only at the end of the run).
+std::string against_plan(uint64_t peak, uint64_t plan) {
+  if (peak == plan) return "= plan, " + std::to_string(peak) + " B";
+  return "plan " + std::string(peak < plan ? "+" : "-") + std::to_string(peak < plan ? plan - peak : peak - plan) + " B";
+}
+
 void print_call(const CallResult& r) {
-  std::printf("  %-28s %9.2f s  max|err| %.3g (tol %.3g, %s)  peak %s%s (plan %s)  largest binding %s (limit %s)\n",
+  std::printf("  %-28s %9.2f s  max|err| %.3g (tol %.3g, %s)  peak %s%s (plan %s; %s)  largest binding %s (limit %s)\n",
               r.op.c_str(), r.seconds, r.max_abs_err, r.tolerance, r.max_abs_err <= r.tolerance ? "ok" : "FAIL",
               vk::format_bytes(r.peak_bytes).c_str(), r.peak_exact ? "" : " (reserved growth)",
-              vk::format_bytes(r.plan_bytes).c_str(), vk::format_bytes(r.max_binding_bytes).c_str(),
-              vk::format_bytes(r.limit_binding_bytes).c_str());
+              vk::format_bytes(r.plan_bytes).c_str(), against_plan(r.peak_bytes, r.plan_bytes).c_str(),
+              vk::format_bytes(r.max_binding_bytes).c_str(), vk::format_bytes(r.limit_binding_bytes).c_str());
   std::fflush(stdout);
 }
 
@@ -147,8 +153,8 @@ CallResult weights_result(const std::string& op, const models::ComponentWeights&
   r.plan_bytes = stream ? plan.device_bytes() : plan.resident_bytes + plan.host_bytes;
   r.extra = {{"weights", stream ? "stream" : "resident"}, {"host_bytes", stream ? stream->host_bytes() : 0},
              {"plan_host_bytes", stream ? plan.host_bytes : 0}, {"uploads", stream ? stream->uploads() : 0}};
-  std::printf("  %-28s %s on the device (plan %s)%s\n", op.c_str(), vk::format_bytes(r.peak_bytes).c_str(),
-              vk::format_bytes(r.plan_bytes).c_str(),
+  std::printf("  %-28s %s on the device (plan %s; %s)%s\n", op.c_str(), vk::format_bytes(r.peak_bytes).c_str(),
+              vk::format_bytes(r.plan_bytes).c_str(), against_plan(r.peak_bytes, r.plan_bytes).c_str(),
               stream ? (", streamed: " + std::to_string(stream->slots()) + (stream->slots() == 1 ? " slot of " : " slots of ") +
                         vk::format_bytes(stream->slot_bytes()) +
                         ", host copy " + vk::format_bytes(stream->host_bytes()) + ", " + std::to_string(stream->uploads()) +
