@@ -29,6 +29,7 @@
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
 #include "pipeline/memory_plan.hpp"
+#include "spec/model_schema.hpp"
 #include "realsize_model.hpp"
 #include "realsize_reference.hpp"
 #include "tensor/dispatch.hpp"
@@ -39,6 +40,7 @@ namespace {
 
 using namespace realsize;
 using Clock = std::chrono::steady_clock;
+using pipeline::StageMemory;
 
 constexpr double kTolerance = 1e-3;  // relative to max|reference|
 
@@ -47,6 +49,8 @@ struct CallResult {
   double seconds = 0, max_abs_err = 0, tolerance = 0;
   uint64_t peak_bytes = 0, plan_bytes = 0, max_binding_bytes = 0, limit_binding_bytes = 0;
   bool peak_exact = true;
+  std::string skipped;  // why the call was not run (the plan refuses it under the limits in force)
+  nlohmann::json extra;  // weights lines: where they live, host bytes, uploads
 };
 
 // Progress lines: the full proof runs for tens of minutes.
@@ -115,12 +119,18 @@ void compare(CallResult& r, const std::vector<float>& dev, const std::vector<flo
   r.tolerance = kTolerance * mx;
 }
 
+// The measured peak against the plan to the byte (the JSON lines come only at the end of the run).
+std::string against_plan(uint64_t peak, uint64_t plan) {
+  if (peak == plan) return "= plan, " + std::to_string(peak) + " B";
+  return "plan " + std::string(peak < plan ? "+" : "-") + std::to_string(peak < plan ? plan - peak : peak - plan) + " B";
+}
+
 void print_call(const CallResult& r) {
-  std::printf("  %-28s %9.2f s  max|err| %.3g (tol %.3g, %s)  peak %s%s (plan %s)  largest binding %s (limit %s)\n",
+  std::printf("  %-28s %9.2f s  max|err| %.3g (tol %.3g, %s)  peak %s%s (plan %s; %s)  largest binding %s (limit %s)\n",
               r.op.c_str(), r.seconds, r.max_abs_err, r.tolerance, r.max_abs_err <= r.tolerance ? "ok" : "FAIL",
               vk::format_bytes(r.peak_bytes).c_str(), r.peak_exact ? "" : " (reserved growth)",
-              vk::format_bytes(r.plan_bytes).c_str(), vk::format_bytes(r.max_binding_bytes).c_str(),
-              vk::format_bytes(r.limit_binding_bytes).c_str());
+              vk::format_bytes(r.plan_bytes).c_str(), against_plan(r.peak_bytes, r.plan_bytes).c_str(),
+              vk::format_bytes(r.max_binding_bytes).c_str(), vk::format_bytes(r.limit_binding_bytes).c_str());
   std::fflush(stdout);
 }
 
@@ -128,7 +138,44 @@ std::string json_line(const CallResult& r) {
   nlohmann::json j = {{"op", r.op}, {"seconds", r.seconds}, {"max_abs_err", r.max_abs_err},
                       {"tolerance", r.tolerance}, {"peak_bytes", r.peak_bytes}, {"plan_bytes", r.plan_bytes},
                       {"max_binding_bytes", r.max_binding_bytes}, {"limit_binding_bytes", r.limit_binding_bytes}};
+  if (!r.skipped.empty()) j["skipped"] = r.skipped;
+  if (!r.extra.is_null()) j.update(r.extra);
   return j.dump();
+}
+
+// A component's weights on the device against the plan (pipeline/weight_stream_plan.hpp): resident, every tensor;
+// streamed, the slots and the tensors outside the blocks (the blocks are in pinned host memory).
+CallResult weights_result(const std::string& op, const models::ComponentWeights& w, const models::BlockStream* stream,
+                          const pipeline::WeightStreamPlan& plan) {
+  CallResult r;
+  r.op = op;
+  r.peak_bytes = w.bytes_on_device() + (stream ? uint64_t(stream->slots()) * stream->slot_bytes() : 0);
+  r.plan_bytes = stream ? plan.device_bytes() : plan.resident_bytes + plan.host_bytes;
+  r.extra = {{"weights", stream ? "stream" : "resident"}, {"host_bytes", stream ? stream->host_bytes() : 0},
+             {"plan_host_bytes", stream ? plan.host_bytes : 0}, {"uploads", stream ? stream->uploads() : 0}};
+  std::printf("  %-28s %s on the device (plan %s; %s)%s\n", op.c_str(), vk::format_bytes(r.peak_bytes).c_str(),
+              vk::format_bytes(r.plan_bytes).c_str(), against_plan(r.peak_bytes, r.plan_bytes).c_str(),
+              stream ? (", streamed: " + std::to_string(stream->slots()) + (stream->slots() == 1 ? " slot of " : " slots of ") +
+                        vk::format_bytes(stream->slot_bytes()) +
+                        ", host copy " + vk::format_bytes(stream->host_bytes()) + ", " + std::to_string(stream->uploads()) +
+                        " block uploads")
+                           .c_str()
+                     : ", resident");
+  std::fflush(stdout);
+  return r;
+}
+
+// The plan's verdict on a VAE call under the limits in force: its largest tensor must fit one allocation. A call
+// the plan refuses is recorded as skipped, with the reason (true), instead of run.
+bool refused_by_plan(const vk::Context& ctx, const StageMemory& m, CallResult& r, const Progress& progress,
+                     std::vector<CallResult>& out) {
+  r.plan_bytes = m.total();
+  if (m.largest_bytes <= ctx.caps().max_memory_allocation_size) return false;
+  r.skipped = m.largest_what + " (" + vk::format_bytes(m.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
+              vk::format_bytes(ctx.caps().max_memory_allocation_size);
+  progress(r.op + " skipped: the plan refuses it here (" + r.skipped + ")");
+  out.push_back(r);
+  return true;
 }
 
 Tensor random_tensor(vk::Context& ctx, const Shape& shape, uint32_t stream, bool uniform) {
@@ -169,14 +216,18 @@ void guarded(std::vector<CallResult>& calls, const Progress& progress, const std
 HostTensor run_t5(vk::Context& ctx, const Scale& sc, const Progress& progress, std::vector<CallResult>& out) {
   const nlohmann::json cfg = t5_config(sc);
   progress("T5: random weights (" + std::to_string(sc.t5_layers) + " layers, vocab " + std::to_string(sc.t5_vocab) + ")");
-  models::T5Encoder t5(ctx, random_weights(ctx, cfg, "random T5", 1));
+  models::ComponentWeights weights = random_weights(ctx, cfg, "random T5", 1);
+  HostWeights hw(ctx, weights);
+  hw.load_all();  // the reference's copies, before a streamed model takes its layers to host memory
+  models::T5Encoder t5(ctx, std::move(weights), sc.weights);
   std::mt19937 rng(11);
   std::vector<std::vector<int32_t>> ids(size_t(sc.prompts), std::vector<int32_t>(size_t(sc.text_len)));
   for (auto& row : ids)
     for (auto& id : row) id = int32_t(rng() % uint32_t(sc.t5_vocab));
   CallResult r;
   r.op = "realsize_t5";
-  r.plan_bytes = pipeline::plan_t5_stage(cfg, true, ctx.allocator().alignment(), sc.prompts, sc.text_len).total();
+  r.plan_bytes =
+      pipeline::plan_t5_stage(cfg, true, ctx.allocator().alignment(), sc.prompts, sc.text_len, &ctx.caps()).total();
   progress("T5: encode " + std::to_string(sc.prompts) + " x " + std::to_string(sc.text_len) + " tokens");
   HostTensor dev;
   {
@@ -186,10 +237,14 @@ HostTensor run_t5(vk::Context& ctx, const Scale& sc, const Progress& progress, s
     dev = y.download(ctx);
   }
   progress("T5: CPU reference");
-  HostWeights hw(ctx, t5.weights());
   compare(r, dev.to_f32(), t5_reference(hw, cfg, ids));
   print_call(r);
   out.push_back(r);
+  out.push_back(weights_result(
+      "realsize_t5_weights", t5.weights(), t5.stream(),
+      pipeline::plan_weight_stream("text_encoder", t5_encoder_schema(cfg), "encoder.block.", {}, 2,
+                                   "encoder.block.0.layer.0.SelfAttention.relative_attention_bias.weight",
+                                   ctx.allocator().alignment(), 2)));
   return dev;
 }
 
@@ -198,7 +253,10 @@ void run_transformer(vk::Context& ctx, const Scale& sc, const Progress& progress
                      std::vector<CallResult>& out) {
   const nlohmann::json cfg = transformer_config(sc);
   progress("transformer: random weights (" + std::to_string(sc.transformer_layers) + " block)");
-  models::CogVideoXTransformer tr(ctx, random_weights(ctx, cfg, "random transformer", 2));
+  models::ComponentWeights weights = random_weights(ctx, cfg, "random transformer", 2);
+  HostWeights hw(ctx, weights);
+  hw.load_all();  // the reference's copies, before a streamed model takes its blocks to host memory
+  models::CogVideoXTransformer tr(ctx, std::move(weights), sc.weights);
   const int64_t B = 2, F = sc.latent_frames, H = sc.latent_height, W = sc.latent_width, L = sc.text_len;
   const int64_t C = cfg["in_channels"], p = cfg["patch_size"], Cout = cfg["out_channels"];
   const int64_t Hp = H / p, Wp = W / p, N = F * Hp * Wp;
@@ -254,7 +312,6 @@ void run_transformer(vk::Context& ctx, const Scale& sc, const Progress& progress
   progress("transformer: batch 1");
   call(1, r1, dev1);
   progress("transformer: CPU reference (" + std::to_string(samples.size()) + " sampled tokens)");
-  HostWeights hw(ctx, tr.weights());
   const auto& rope = tr.rope_tables(F, H, W);
   const auto ref = transformer_reference(hw, cfg, latent.download(ctx).to_f32(), ls, text_host.to_f32(), L, timesteps,
                                          rope.first.download(ctx).to_f32(), rope.second.download(ctx).to_f32(), samples);
@@ -269,6 +326,9 @@ void run_transformer(vk::Context& ctx, const Scale& sc, const Progress& progress
   print_call(r1);
   out.push_back(r2);
   out.push_back(r1);
+  out.push_back(weights_result("realsize_transformer_weights", tr.weights(), tr.stream(),
+                               pipeline::plan_weight_stream("transformer", cogvideox_transformer_schema(cfg),
+                                                            "transformer_blocks.", {}, 2, "", align, 2)));
 }
 
 // ---- VAE ------------------------------------------------------------------------------------------------------
@@ -316,7 +376,8 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
     guarded(out, progress, tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode", [&] {
       CallResult e;
       e.op = tiled ? "realsize_vae_encode_tiled" : "realsize_vae_encode";
-      e.plan_bytes = pipeline::plan_vae_encode_stage(cfg, align, tiled ? enc_tile : vshape).total();
+      if (refused_by_plan(ctx, pipeline::plan_vae_encode_stage(cfg, align, tiled ? enc_tile : vshape), e, progress, out))
+        return;
       progress("VAE: encode of one " + std::to_string(H) + "x" + std::to_string(W) + " frame" +
                (tiled ? " in " + std::to_string(sc.tile_height) + "x" + std::to_string(sc.tile_width) + " tiles" : ""));
       HostTensor dev;
@@ -338,7 +399,8 @@ void run_vae(vk::Context& ctx, const Scale& sc, const Progress& progress, std::v
     guarded(out, progress, tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode", [&] {
       CallResult d;
       d.op = tiled ? "realsize_vae_decode_tiled" : "realsize_vae_decode";
-      d.plan_bytes = pipeline::plan_vae_decode_stage(cfg, align, tiled ? dec_tile : zshape).total();
+      if (refused_by_plan(ctx, pipeline::plan_vae_decode_stage(cfg, align, tiled ? dec_tile : zshape), d, progress, out))
+        return;
       progress("VAE: decode of " + std::to_string(Fl) + " latent frame(s) " + std::to_string(zshape[3]) + "x" +
                std::to_string(zshape[4]) + (tiled ? " in tiles" : ""));
       HostTensor dev;
@@ -361,9 +423,10 @@ void realsize(Bench& b) {
   vk::Context& ctx = b.ctx();
   const Scale sc = scale_from_env();
   const Progress progress;
+  const std::string limits = apply_profile(ctx, sc);
   std::printf("\n== realsize (%s scale): CogVideoX-5B-I2V widths, random bf16 weights made on the device; "
-              "tolerance max|err| <= %.0e * max|ref|\n",
-              sc.name.c_str(), kTolerance);
+              "tolerance max|err| <= %.0e * max|ref|\n   limits: %s; T5 and transformer weights %s\n",
+              sc.name.c_str(), kTolerance, limits.c_str(), models::residency_name(sc.weights));
   std::vector<CallResult> calls;
   HostTensor text;
   if (wanted("t5")) guarded(calls, progress, "realsize_t5", [&] { text = run_t5(ctx, sc, progress, calls); });
@@ -381,6 +444,7 @@ void realsize(Bench& b) {
   std::printf("\n");
   for (const CallResult& r : calls) std::printf("%s\n", json_line(r).c_str());
   std::fflush(stdout);
+  ctx.override_limits({});  // the profile's limits end with this group
 }
 
 Registration reg("realsize", 90, realsize);

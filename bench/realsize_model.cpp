@@ -12,6 +12,9 @@
 #include "tensor/dispatch.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_random.hpp"
+#include "vk/device_limits.hpp"
+#include "vk/limit_profiles.hpp"
+#include "vk/memory.hpp"
 
 namespace dvs::bench::realsize {
 
@@ -20,6 +23,13 @@ Scale scale_from_env() {
   const std::string v = env ? env : "full";
   Scale s;
   s.name = v;
+  const char* profile = std::getenv("DVS_REALSIZE_PROFILE");
+  s.profile = profile ? profile : "";
+  if (!s.profile.empty()) vk::limit_profile(s.profile);  // an unknown name is an error naming the profiles
+  const char* weights = std::getenv("DVS_REALSIZE_WEIGHTS");
+  const std::string w = weights ? weights : s.profile.empty() ? "resident" : "stream";
+  if (w != "resident" && w != "stream") throw Error("DVS_REALSIZE_WEIGHTS must be resident or stream, got '" + w + "'");
+  s.weights = w == "stream" ? models::WeightResidency::stream : models::WeightResidency::resident;
   if (v == "full") return s;
   if (v != "small") throw Error("DVS_REALSIZE_SCALE must be 'full' or 'small', got '" + v + "'");
   // Same widths, heads, text length; few tokens / pixels. Odd-ish sizes on purpose.
@@ -110,7 +120,25 @@ models::ComponentWeights random_weights(vk::Context& ctx, const nlohmann::json& 
 
 const std::vector<float>& HostWeights::operator[](const std::string& name) {
   if (auto it = cache_.find(name); it != cache_.end()) return it->second;
+  if (all_) throw Error("realsize: no host copy of weight '" + name + "'");
   return cache_.emplace(name, w_.get(name).download(ctx_).to_f32()).first->second;
+}
+
+void HostWeights::load_all() {
+  for (const std::string& name : w_.names()) (*this)[name];
+  all_ = true;
+}
+
+std::string apply_profile(vk::Context& ctx, const Scale& s) {
+  if (s.profile.empty()) return "the device's own limits";
+  const vk::LimitProfile& p = vk::limit_profile(s.profile);
+  vk::LimitOverrides o;
+  o.binding = p.binding, o.texels = p.texels, o.alloc = p.alloc, o.groups = p.groups[0], o.memory = p.heap;
+  ctx.override_limits(o);
+  const vk::DeviceCaps& c = ctx.caps();
+  return "profile " + p.name + ": bindings " + vk::format_bytes(c.max_storage_buffer_range) + ", texel views " +
+         std::to_string(c.max_texel_buffer_elements) + ", allocations " + vk::format_bytes(c.max_memory_allocation_size) +
+         ", device memory " + vk::format_bytes(c.memory_budget.bytes) + (c.forced_limits.memory ? "" : " (the device has less)");
 }
 
 }  // namespace dvs::bench::realsize

@@ -26,9 +26,17 @@ struct Scale {
   int64_t tile_height = 240, tile_width = 360;                        // tiled VAE calls (pixels)
   int64_t decode_latent_frames = 1;                                   // latent frames decoded
   int64_t sampled_tokens = 6;                                         // transformer tokens checked per batch row
+  // DVS_REALSIZE_PROFILE=min: the calls run under the Vulkan minimum limits (vk/limit_profiles.hpp "min": 128 MiB
+  // bindings, 65536-texel views, 1 GiB allocations) and its 8 GiB of device memory; unset: the device's own.
+  std::string profile;
+  // DVS_REALSIZE_WEIGHTS=resident|stream: T5's layers and the transformer's blocks (default: stream under a
+  // profile, else resident).
+  models::WeightResidency weights = models::WeightResidency::resident;
 };
-// DVS_REALSIZE_SCALE: unset or "full", or "small".
+// DVS_REALSIZE_SCALE: unset or "full", or "small"; DVS_REALSIZE_PROFILE and DVS_REALSIZE_WEIGHTS as above.
 Scale scale_from_env();
+// Lowers `ctx`'s limits to the scale's profile (none: unchanged); returns a line saying what is in force.
+std::string apply_profile(vk::Context& ctx, const Scale& s);
 
 // The components' config.json contents for `scale` (the built-in real configs, with the scale's layer counts;
 // the transformer's sample size follows the latent so its learned positional table is used).
@@ -47,12 +55,16 @@ class HostWeights {
  public:
   HostWeights(vk::Context& ctx, models::ComponentWeights& w) : ctx_(ctx), w_(w) {}
   const std::vector<float>& operator[](const std::string& name);
-  bool has(const std::string& name) const { return w_.has(name); }
+  bool has(const std::string& name) const { return all_ ? cache_.count(name) != 0 : w_.has(name); }
+  // Downloads every tensor now: the weights may then move (a streamed model takes its blocks to host memory)
+  // and only these copies are read.
+  void load_all();
 
  private:
   vk::Context& ctx_;
   models::ComponentWeights& w_;
   std::map<std::string, std::vector<float>> cache_;
+  bool all_ = false;
 };
 
 }  // namespace dvs::bench::realsize

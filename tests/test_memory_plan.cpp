@@ -270,11 +270,54 @@ TEST(MemoryPlan, ChoosesUntiledThenTheLargestTileThatFitsThenNothing) {
   ASSERT_GE(tight.chosen, 1);
   EXPECT_LE(tight.tilings[size_t(tight.chosen)].run_peak, *req.budget);
   for (int i = 0; i < tight.chosen; ++i) EXPECT_GT(tight.tilings[size_t(i)].run_peak, *req.budget) << i;
-  req.budget = 4ull << 30;  // less than the bf16 weights alone
+  req.budget = 2ull << 30;  // less than the streamed transformer's phase (its slots, the VAE and one call)
   const auto none = pipeline::plan_memory(model, req);
   EXPECT_EQ(none.chosen, -1);
   ASSERT_FALSE(none.notes.empty());
   EXPECT_NE(none.notes.back().find("nothing fits"), std::string::npos) << none.notes.back();
+  EXPECT_NE(none.notes.back().find("transformer weights streamed"), std::string::npos) << none.notes.back();
+}
+
+// --weights auto streams a component only where its phase does not fit with its weights resident; resident and
+// stream are obeyed; the streamed phase counts the slots and the component's other weights, not its blocks.
+TEST(MemoryPlan, WeightsAutoStreamsOnlyWhatDoesNotFit) {
+  const auto model = pipeline::builtin_plan_model("cogvideox-5b-i2v");
+  auto residency = [&](const pipeline::MemoryPlan& p, const char* c) {
+    return pipeline::planned_residency(p, c) == models::WeightResidency::stream ? "stream" : "resident";
+  };
+  pipeline::PlanRequest req;
+  req.budget = 80ull << 30;
+  const auto roomy = pipeline::plan_memory(model, req);
+  EXPECT_STREQ(residency(roomy, "transformer"), "resident");
+  EXPECT_STREQ(residency(roomy, "text_encoder"), "resident");
+  // 12 GiB: T5's phase (VAE 0.4 + T5 8.9 GiB + its call) fits, the transformer's (0.4 + 10.5 + 2.1 GiB) does not.
+  req.budget = 12ull << 30;
+  const auto mid = pipeline::plan_memory(model, req);
+  EXPECT_STREQ(residency(mid, "transformer"), "stream");
+  EXPECT_STREQ(residency(mid, "text_encoder"), "resident");
+  ASSERT_GE(mid.chosen, 0);
+  // The streamed transformer: 42 blocks of the same size, 2 slots of one block each, the rest resident; the host
+  // copy and the bytes one call uploads are every block. Each block: 4 projections of D x D + biases, the FFN
+  // (D x 4D twice + biases), two adaLN tables T x 6D + biases and four norm vectors pairs, bf16, each tensor
+  // 256-byte aligned.
+  const pipeline::WeightStreamPlan& tr = mid.streams.at(0);
+  ASSERT_EQ(tr.component, "transformer");
+  EXPECT_EQ(tr.blocks, 42);
+  const uint64_t D = 3072, T = 512, Dh = 64;
+  auto al = [](uint64_t b) { return (b + 255) / 256 * 256; };
+  const uint64_t block = 4 * (al(D * D * 2) + al(D * 2)) + al(4 * D * D * 2) + al(4 * D * 2) + al(4 * D * D * 2) +
+                         al(D * 2) + 2 * (al(6 * D * T * 2) + al(6 * D * 2)) + 4 * al(D * 2) /* norm1/2 w, b */ +
+                         4 * al(Dh * 2) /* norm_q/k w, b */;
+  EXPECT_EQ(tr.slot_bytes, block);
+  EXPECT_EQ(tr.host_bytes, 42 * block);
+  EXPECT_EQ(tr.device_bytes(), tr.resident_bytes + 2 * block);
+  EXPECT_LT(tr.resident_bytes, 200ull << 20);  // embeddings, positional table, output projection
+  req.weights = pipeline::WeightsChoice::resident;
+  EXPECT_EQ(pipeline::plan_memory(model, req).chosen, -1) << "12 GiB does not hold the resident transformer's phase";
+  req.weights = pipeline::WeightsChoice::stream;
+  const auto forced = pipeline::plan_memory(model, req);
+  EXPECT_STREQ(residency(forced, "text_encoder"), "stream");
+  EXPECT_LT(forced.tilings[size_t(forced.chosen)].run_peak, 12ull << 30);
 }
 
 TEST(MemoryPlan, ParsesSizesAndRejectsBadOnes) {
@@ -333,7 +376,13 @@ TEST(MemoryPlanCli, RealConfigWithoutAFolder) {
   EXPECT_TRUE(t["choice"]["fits"].get<bool>());
   EXPECT_TRUE(t["choice"]["tiled"].get<bool>()) << "the untiled VAE decode does not fit beside 20 GB of weights";
 
-  const auto table = dvs_plan("--model cogvideox-5b-i2v --budget 8GiB");
+  // 8 GiB: both components stream (their resident phases are 13 and 9.4 GiB), the VAE runs in tiles.
+  const auto eight = dvs_plan("--model cogvideox-5b-i2v --budget 8GiB --json");
+  ASSERT_EQ(eight.exit_code, 0) << eight.output;
+  const json e = json::parse(eight.output);
+  EXPECT_TRUE(e["choice"]["fits"].get<bool>());
+  EXPECT_EQ(e["weights_residency"], json({{"text_encoder", "stream"}, {"transformer", "stream"}}));
+  const auto table = dvs_plan("--model cogvideox-5b-i2v --budget 2GiB");
   EXPECT_EQ(table.exit_code, 1) << "nothing fits: exit 1 (README)\n" << table.output;
   EXPECT_NE(table.output.find("NOTHING FITS"), std::string::npos) << table.output;
   EXPECT_NE(table.output.find("transformer_cfg"), std::string::npos) << table.output;

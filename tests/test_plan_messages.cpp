@@ -26,7 +26,7 @@ TEST(PlanMessages, SizeTheLearnedTableRejectsIsAUsageError) {
 }
 
 TEST(PlanMessages, NothingFitsAdviceKeepsTheFixedSize) {
-  const auto r = plan("--model cogvideox-5b-i2v --budget 10GiB");
+  const auto r = plan("--model cogvideox-5b-i2v --budget 2GiB");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("fewer frames"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("smaller size"), std::string::npos) << "the real model's size is fixed\n" << r.output;

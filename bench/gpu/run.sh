@@ -9,7 +9,8 @@
 #   a  device facts: nvidia-smi, `dvs info` (extensions, coopmat shapes, limits, tuning entry), dvs-bench limits
 #   b  op and golden tests by value: default tuning (gpu-coopmat on a GPU with tensor cores), then DVS_TUNING=gpu
 #   c  bench/gpu/stage_bench.sh when it exists (PyTorch references and dvs-bench's gpu group)
-#   d  dvs-bench --filter realsize (T5 2 layers, 1 transformer block at batch 2, VAE of one frame; CPU references)
+#   d  dvs-bench --filter realsize (T5 2 layers, 1 transformer block at batch 2, VAE of one frame; CPU references),
+#      then its transformer calls again with the block weights streamed (DVS_GPU_T_D2, default T_D)
 #   e  the whole pipeline end to end at the real size (bench/gpu/e2e.sh when present)
 # --smoke (or DVS_GPU_SMOKE=1): the same script on this machine's Vulkan device (lavapipe) with tiny shapes and
 # few tests, no PyTorch, no nvidia-smi, no dpkg; OUT defaults to a new temporary folder; the programs come from
@@ -228,6 +229,12 @@ if want d && [ "$SMOKE" = 1 ] && [ "${DVS_GPU_SMOKE_REALSIZE:-0}" != 1 ]; then
 elif want d; then
   [ "$SMOKE" = 1 ] && export DVS_REALSIZE_SCALE=small
   timed d realsize "$T_D" "$BENCH" --filter realsize > "$OUT/realsize.tmp" 2>&1
+  cat "$OUT/realsize.tmp"; bench_json d < "$OUT/realsize.tmp"
+  rm -f "$OUT/realsize.tmp"
+  # The same transformer calls with the block weights streamed (issue 33): their seconds beside the resident
+  # ones above give the step time streamed / resident (byte-identical outputs; the CPU reference checks both).
+  DVS_REALSIZE_CALLS=transformer DVS_REALSIZE_WEIGHTS=stream \
+    timed d realsize-stream "${DVS_GPU_T_D2:-$T_D}" "$BENCH" --filter realsize > "$OUT/realsize.tmp" 2>&1
   cat "$OUT/realsize.tmp"; bench_json d < "$OUT/realsize.tmp"
   rm -f "$OUT/realsize.tmp"
   unset DVS_REALSIZE_SCALE

@@ -17,6 +17,7 @@ namespace {
 const CommandHelp kPlanHelp{
     "dvs plan --model DIR|cogvideox-5b-i2v [--frames 49] [--height 480] [--width 720] [--budget SIZE]\n"
     "                [--device N|NAME | --limits PROFILE] [--alignment 256] [--json]\n"
+    "                [--weights auto|resident|stream] [--upload-rate RATE]\n"
     "                [--depth-model FILE|vits|vitb|vitl [--depth-input-size 518] [--video-size HxW]]",
     "Plans device memory from the config.json files (safetensors headers are read for the stored weight bytes\n"
     "when present; no tensor data is read, no device is opened). Prints the weight bytes per component, the\n"
@@ -24,7 +25,11 @@ const CommandHelp kPlanHelp{
     "batch 1 for inversion, VAE encode of the clip, VAE decode of the latent), the peak of the whole run with\n"
     "every weight resident, and with --budget the VAE spatial tiling that fits. With --device or --limits it\n"
     "also checks each stage's largest tensor against the device's limits (bindings and texel views are split\n"
-    "by the ops; each tensor must fit one allocation) and recommends only a setting that runs there.\n",
+    "by the ops; each tensor must fit one allocation) and recommends only a setting that runs there.\n"
+    "For the transformer's and T5's block weights it prints what streaming them costs (device slots, the\n"
+    "pinned host copy, the bytes each call uploads and their time at the upload rate, whether the upload\n"
+    "hides behind the compute) and whether the run streams them (--weights auto: only where resident does\n"
+    "not fit the budget).\n",
     "Exit status 1 when a budget, --device or --limits is given and no setting runs within them.\n"};
 
 // dvs plan's own options: the clip's size in pixels of the plan (no video), and what it plans for.
@@ -42,6 +47,12 @@ const OptionGroup kPlanned{
       "Vulkan specification's minimums; DVS_LIMITS lowers them); without --budget,\n"
       "the profile's memory"},
      {"alignment", "N", "the allocator's alignment in bytes (default 256; dvs info shows the device's limits)"},
+     {"weights", "MODE",
+      "the block weights of the transformer and T5: auto (default: streamed only\n"
+      "where resident does not fit the budget), resident or stream (as dvs run --weights)"},
+     {"upload-rate", "RATE",
+      "host -> device copy rate for the upload times, e.g. 12.5GB (per second;\n"
+      "dvs info --bench-upload measures it); default: the profile's typical figure"},
      {"json", "", "one JSON object instead of the table"}}};
 
 const OptionGroup kPlannedDepth{
@@ -82,6 +93,8 @@ int run_plan(const std::vector<std::string>& argv) {
   // cannot take) are this command line's to fix.
   try {
     if (a.has("budget")) req.budget = parse_byte_size(a.str("budget"), "--budget");
+    if (a.has("weights")) req.weights = a.str("weights");
+    if (a.has("upload-rate")) req.upload_bytes_per_second = double(parse_byte_size(a.str("upload-rate"), "--upload-rate"));
     if (a.has("limits")) req.limits = profile_limits(a.str("limits"));
     if (a.has("device")) req.limits = device_limits(a.str("device"));
     const MemoryPlanReport plan = plan_run_memory(req);

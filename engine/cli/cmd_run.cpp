@@ -131,6 +131,9 @@ RunOptions parse_run_options(const Args& a) {
       a.fail(e.what());
     }
   }
+  o.weights = a.str("weights", "auto");
+  if (o.weights != "auto" && o.weights != "resident" && o.weights != "stream")
+    a.fail("--weights must be resident, stream or auto, got '" + o.weights + "'");
   o.vae_tiling = a.has("vae-tiling") || a.has("vae-tile");
   if (a.has("vae-tile")) {
     std::tie(o.vae_tile_height, o.vae_tile_width) = a.size("vae-tile", {0, 0});

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <new>
+#include <cstdio>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -68,10 +69,26 @@ int finish(bool json, int code, const std::string& message = "") {
 namespace dvs::cli {
 
 int run_info(const std::vector<std::string>& argv) {
-  Args a("info", {"dvs info [--device I|NAME]", "Lists the Vulkan devices, their features, memory and limits.\n", ""},
-         {kDevice});
+  static const OptionGroup kBench{
+      "measure",
+      {{"bench-upload", "",
+        "measure the host -> device rate of weight streaming on the device (pinned host\n"
+        "memory to device memory, 256 MiB per upload) for dvs plan --upload-rate"}}};
+  Args a("info", {"dvs info [--device I|NAME] [--bench-upload]",
+                  "Lists the Vulkan devices, their features, memory and limits.\n", ""},
+         {kDevice, kBench});
   a.parse(argv);
   if (a.help()) return 0;
+  if (a.has("bench-upload")) {
+    const dvs::UploadBench b = dvs::bench_upload(a.str("device"));
+    char line[256];
+    std::snprintf(line, sizeof line, "%.2f GB/s (median of %d uploads of %.0f MiB; %.2f to %.2f GB/s)",
+                  b.bytes_per_second / 1e9, b.uploads, double(b.bytes) / 1048576.0, b.min_bytes_per_second / 1e9,
+                  b.max_bytes_per_second / 1e9);
+    std::cout << "upload rate of " << b.device << " on its " << b.queue << ": " << line << "\n"
+              << "use it with: dvs plan --upload-rate " << std::to_string(int64_t(b.bytes_per_second)) << "\n";
+    return 0;
+  }
   std::cout << dvs::device_report(a.str("device"));
   return 0;
 }

@@ -87,7 +87,11 @@ const OptionGroup kMemory{
     {{"vae-tiling", "",
       "encode and decode in overlapping spatial tiles (diffusers' enable_tiling): far\n"
       "less device memory at 480x720; use it when a run stops out of device memory"},
-     {"vae-tile", "HxW", "tile size in pixels, multiples of 8 (implies --vae-tiling; default 240x360)"}}};
+     {"vae-tile", "HxW", "tile size in pixels, multiples of 8 (implies --vae-tiling; default 240x360)"},
+     {"weights", "MODE",
+      "the transformer's and T5's block weights: resident, stream (from host memory\n"
+      "through a few device slots, uploads behind the compute) or auto (default: the\n"
+      "memory plan's choice, streamed only where resident does not fit); same results"}}};
 
 const OptionGroup kDevice{"device", {{"device", "I|NAME", "Vulkan device: index or name substring (also: DVS_DEVICE)"}}};
 

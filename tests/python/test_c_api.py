@@ -69,7 +69,7 @@ class PipelineOptions(C.Structure):
                 ("strength", C.c_double), ("k", C.c_double), ("delta", C.c_double), ("guidance", C.c_double),
                 ("lora_scale", C.c_double), ("seed", C.c_uint64), ("use_cache", C.c_int32),
                 ("dynamic_cfg", C.c_int32), ("preservation_scale", C.c_double), ("vae_tiling", C.c_int32),
-                ("vae_tile_height", C.c_int32), ("vae_tile_width", C.c_int32)]
+                ("vae_tile_height", C.c_int32), ("vae_tile_width", C.c_int32), ("weights", C.c_char_p)]
 
 
 class PlanRequest(C.Structure):
@@ -77,7 +77,8 @@ class PlanRequest(C.Structure):
     _fields_ = [("struct_size", C.c_size_t), ("model", C.c_char_p), ("frames", C.c_int32), ("height", C.c_int32),
                 ("width", C.c_int32), ("budget", C.c_uint64), ("alignment", C.c_uint64), ("device", C.c_char_p),
                 ("limits", C.c_char_p), ("depth_model", C.c_char_p), ("depth_input_size", C.c_int32),
-                ("depth_frame_height", C.c_int32), ("depth_frame_width", C.c_int32)]
+                ("depth_frame_height", C.c_int32), ("depth_frame_width", C.c_int32), ("weights", C.c_char_p),
+                ("upload_bytes_per_second", C.c_double)]
 
 
 class PlanResult(C.Structure):
@@ -484,7 +485,29 @@ def memory_plan(lib, program):
     figures = json.loads(text)
     check(result.weights_bytes > 0 and result.run_peak_bytes > result.weights_bytes and result.runs == 1,
           "plan figures: %d %d %d" % (result.weights_bytes, result.run_peak_bytes, result.runs))
-    print("memory plan: equals dvs plan --json (%d keys), weights %.2f GiB" % (len(figures), result.weights_bytes / 2**30))
+    # weights and upload_bytes_per_second: the plan of `dvs plan --weights stream --upload-rate`, whose streams are
+    # streamed and timed at that rate (the default plan's are resident).
+    q.weights, q.upload_bytes_per_second = b"stream", 3e9
+    buffer = C.create_string_buffer(1 << 16)
+    ok(lib, lib.dvs_plan_run_memory(C.byref(q), None, 1, buffer, len(buffer), None), "dvs_plan_run_memory, streamed")
+    r = subprocess.run([program, "plan", "--model", "cogvideox-5b-i2v", "--frames", "13", "--weights", "stream",
+                        "--upload-rate", "3GB", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    streamed = json.loads(buffer.value.decode())
+    check(r.returncode == 0 and streamed == json.loads(r.stdout), "the streamed plan differs from dvs plan --json")
+    tr = streamed["streams"][0]
+    check(tr["streamed"] and not figures["streams"][0]["streamed"] and
+          tr["call_upload_seconds"] == tr["host_bytes"] / 3e9, "streamed plan: %s" % tr)
+    for field, value, text_ in (("weights", b"sometimes", "dvs_plan_request.weights must be resident, stream or auto"),
+                                ("upload_bytes_per_second", -1.0, "dvs_plan_request.upload_bytes_per_second is -1")):
+        bad = PlanRequest()
+        ok(lib, lib.dvs_plan_request_default(C.byref(bad)), "dvs_plan_request_default")
+        bad.model = b"cogvideox-5b-i2v"
+        setattr(bad, field, value)
+        status = lib.dvs_plan_run_memory(C.byref(bad), None, 0, None, 0, None)
+        error = lib.dvs_last_error().decode()
+        check(status == DVS_ERROR_INVALID_ARGUMENT and text_ in error, "%s %r: %d %s" % (field, value, status, error))
+    print("memory plan: equals dvs plan --json (%d keys), weights %.2f GiB; streamed at 3 GB/s: %.2f s a call" %
+          (len(figures), result.weights_bytes / 2**30, tr["call_upload_seconds"]))
 
 
 if __name__ == "__main__":

@@ -15,7 +15,9 @@ depth_input_size with a depth model, lora_scale with a LoRA), so an option mappe
 fails. Options whose effect is not a different latent are checked by what they do: trim_depth and depth_fit "error"
 refuse the clip (the C message names the C field, the program's its flag), a tile size without vae_tiling changes
 nothing (and vae_tiling with the default tile, larger than the frame, equals `dvs run --vae-tiling`), use_cache = 0
-leaves no cache, a device that does not exist is refused by name. Standard library only.
+leaves no cache, a device that does not exist is refused by name, weights "stream" and "resident" give the baseline's
+latent (where the weights live changes no byte) and run.json records them alike on both sides, and a weights value
+that is none of auto, resident, stream is refused naming the field. Standard library only.
 """
 import ctypes as C
 import glob
@@ -133,6 +135,7 @@ class Runs:
                 setattr(struct_, k, v.encode() if isinstance(v, str) else v)
         po.cache_dir, ro.out_dir = cache.encode(), out.encode()
         po.render = C.pointer(ro)
+        self.last_out = out
         job = C.c_void_p()
         status = self.lib.dvs_job_start_pipeline(C.byref(po), C.byref(job))
         if status == DVS_OK:
@@ -144,6 +147,7 @@ class Runs:
     def cli_run(self, p, r):
         pipeline, render = self.merged(p, r)
         cache, out = self.folders()
+        self.last_out = out
         args = ["run", "--out", out, "--cache-dir", cache, "--progress", "none"] + flags(pipeline, render)
         res = subprocess.run([self.program] + args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         error = res.stdout if res.returncode != 0 else None
@@ -156,7 +160,7 @@ def flags(p, r):
     simple = {"model": "--model", "prompt": "--prompt", "negative_prompt": "--negative-prompt", "preset": "--preset",
               "steps": "--steps", "inversion_steps": "--inversion-steps", "strength": "--strength", "k": "--k",
               "delta": "--delta", "guidance": "--guidance", "seed": "--seed",
-              "preservation_scale": "--preservation-scale"}
+              "preservation_scale": "--preservation-scale", "weights": "--weights"}
     for k, flag in simple.items():
         if k in p:
             a += [flag, str(p[k])]
@@ -262,6 +266,28 @@ def main():
         c, error, _ = runs.c_run({"vae_tile_height": 48, "vae_tile_width": 40}, {})
         check(error is None and c == results["baseline"], "a tile size alone changed the run: %s" % error)
         print("vae tile, no tiling  equals the baseline")
+
+        # weights: where the block weights live changes no byte of the result; run.json records it on both sides.
+        for residency in ("stream", "resident"):
+            records = []
+            for run in (runs.c_run, runs.cli_run):
+                latent, error, _ = run({"weights": residency}, {})
+                record = error
+                if error is None:
+                    with open(os.path.join(runs.last_out, "run.json")) as f:
+                        record = json.load(f).get("weights")
+                records.append(record)
+                check(error is None and latent == results["baseline"],
+                      "weights %s: the latent differs from the baseline's or failed: %s" % (residency, error))
+            want = {"requested": residency, "transformer": residency, "text_encoder": residency}
+            check(records == [want, want], "weights %s: run.json records %s" % (residency, records))
+        _, c_error, _ = runs.c_run({"weights": "sometimes"}, {})
+        _, cli_error, _ = runs.cli_run({"weights": "sometimes"}, {})
+        check(c_error is not None and "dvs_pipeline_options.weights must be resident, stream or auto" in c_error,
+              "weights sometimes: the C run's error: %s" % c_error)
+        check(cli_error is not None and "--weights must be resident, stream or auto" in cli_error,
+              "weights sometimes: dvs run's error: %s" % cli_error)
+        print("weights             stream and resident: the baseline's latent, recorded in run.json; others refused")
 
         # Options that refuse the clip when they are not given: the message names the option as each side spells it.
         for name, r, c_name, flag in [("trim_depth", {"trim_depth": 0}, "dvs_render_options.trim_depth", "--trim-depth"),

@@ -19,6 +19,10 @@ struct DeviceLimits {
   uint32_t groups = 0;      // maxComputeWorkGroupCount (x)
   uint64_t alignment = 0;   // minStorageBufferOffsetAlignment, bytes
   uint64_t memory = 0;      // device memory dvs may hold (the device's budget, or the profile's typical heap)
+  // For weight streaming (0 / -1: not known; a profile's are typical figures, a device's are not measured here):
+  double upload_bytes_per_second = 0;  // host -> device copy rate (dvs info --bench-upload measures a device's)
+  double peak_flops = 0;               // the device's peak 16-bit matrix rate with fp32 accumulation
+  int transfer_queue = -1;             // 1: a transfer-only queue family (copies beside the compute), 0: none
 };
 
 struct DeviceSummary {

@@ -264,9 +264,12 @@ typedef struct dvs_pipeline_options {
   double preservation_scale;         /* its scale for fully visible latents (default 1) */
   int32_t vae_tiling;                /* nonzero: VAE encode/decode in spatial tiles (`--vae-tiling`): less memory */
   int32_t vae_tile_height, vae_tile_width; /* the tile in pixels, multiples of 8; 0 = half the VAE's sample size */
+  const char* weights;               /* the transformer's and T5's block weights (`--weights`): "auto" (streamed from
+                                      * host memory only where resident ones do not fit), "resident" or "stream";
+                                      * the results are the same bytes either way */
 } dvs_pipeline_options;
 /* The defaults of `dvs run` (preset "paper", k 10, guidance 6, seed 42, cache on, dynamic_cfg -1, preservation
- * scale 1, untiled); render = NULL (dvs_render_options_default's values); struct_size = sizeof. */
+ * scale 1, untiled, weights "auto"); render = NULL (dvs_render_options_default's values); struct_size = sizeof. */
 DVS_API dvs_status dvs_pipeline_options_default(dvs_pipeline_options* out);
 
 typedef enum dvs_job_state {
@@ -400,6 +403,8 @@ typedef struct dvs_plan_request {
   const char* depth_model;  /* include `--depth-model`'s estimate: a checkpoint or "vits"/"vitb"/"vitl"; or NULL */
   int32_t depth_input_size; /* its network input (default 518) */
   int32_t depth_frame_height, depth_frame_width; /* the video's frames; 0 = the clip size */
+  const char* weights;      /* the block weights as `dvs plan --weights`: "auto" (default), "resident" or "stream" */
+  double upload_bytes_per_second; /* host -> device rate for the upload times (`--upload-rate`); 0 = the limits' */
 } dvs_plan_request;
 DVS_API dvs_status dvs_plan_request_default(dvs_plan_request* out);
 

@@ -38,6 +38,10 @@ struct RunOptions {
   double lora_scale = 1.0;
   bool vae_tiling = false;          // tiled VAE encode/decode (diffusers' enable_tiling): less device memory
   int vae_tile_height = 0, vae_tile_width = 0;  // tile in pixels; 0 = half the VAE's sample size (diffusers)
+  // The transformer's and T5's block weights: "resident" on the device, "stream" from host memory through a
+  // few device slots behind the compute, or "auto" (the memory plan's choice for this run on this device:
+  // streamed only where resident does not fit). Results are byte-identical either way.
+  std::string weights = "auto";
 };
 
 struct StageTime {

@@ -22,6 +22,10 @@ struct MemoryPlanRequest {
   std::string depth_model;
   int depth_input_size = 518;
   int64_t depth_frame_height = 0, depth_frame_width = 0;  // the video's frames; 0 = the clip size
+  // The transformer's and T5's block weights (dvs run --weights): "auto" (streamed only where resident does not
+  // fit the budget), "resident" or "stream". The plan prints what streaming costs either way.
+  std::string weights = "auto";
+  double upload_bytes_per_second = 0;  // host -> device rate for the upload times (0: the limits' figure, if any)
 };
 
 struct MemoryPlanReport {

@@ -55,11 +55,14 @@ dvs_status dvs_plan_request_default(dvs_plan_request* out) {
   return guarded(DVS_ERROR_INVALID_ARGUMENT, [&] {
     require(out, "dvs_plan_request_default", "out");
     static const dvs::MemoryPlanRequest d;
+    static const std::string weights = d.weights;
     *out = {};
     out->struct_size = sizeof(dvs_plan_request);
     out->frames = int32_t(d.frames), out->height = int32_t(d.height), out->width = int32_t(d.width);
     out->alignment = d.alignment;
     out->depth_input_size = d.depth_input_size;
+    out->weights = weights.c_str();
+    out->upload_bytes_per_second = d.upload_bytes_per_second;
   });
 }
 
@@ -88,6 +91,8 @@ dvs_status dvs_plan_run_memory(const dvs_plan_request* request, dvs_plan_result*
     r.depth_model = text(q.depth_model);
     r.depth_input_size = q.depth_input_size;
     r.depth_frame_height = q.depth_frame_height, r.depth_frame_width = q.depth_frame_width;
+    if (q.weights) r.weights = q.weights;
+    r.upload_bytes_per_second = q.upload_bytes_per_second;
     const dvs::MemoryPlanReport plan = dvs::plan_run_memory(r);
     if (result) {
       dvs_plan_result out{};

@@ -74,6 +74,7 @@ RunOptions run_options(const dvs_pipeline_options& given, const char* call) {
   r.preservation_scale = o.preservation_scale;
   r.vae_tiling = o.vae_tiling != 0;
   r.vae_tile_height = o.vae_tile_height, r.vae_tile_width = o.vae_tile_width;
+  if (o.weights) r.weights = o.weights;  // checked by the run (settings.cpp), naming dvs_pipeline_options.weights
   return r;
 }
 
@@ -130,7 +131,7 @@ dvs_status dvs_pipeline_options_default(dvs_pipeline_options* out) {
   return guarded(DVS_ERROR_INVALID_ARGUMENT, [&] {
     require(out, "dvs_pipeline_options_default", "out");
     static const dvs::RunOptions d;
-    static const std::string preset = d.preset;
+    static const std::string preset = d.preset, weights = d.weights;
     *out = {};
     out->struct_size = sizeof(dvs_pipeline_options);
     out->render = nullptr;  // the render defaults
@@ -144,6 +145,7 @@ dvs_status dvs_pipeline_options_default(dvs_pipeline_options* out) {
     out->preservation_scale = d.preservation_scale;
     out->vae_tiling = d.vae_tiling;
     out->vae_tile_height = d.vae_tile_height, out->vae_tile_width = d.vae_tile_width;
+    out->weights = weights.c_str();
   });
 }
 

@@ -34,6 +34,7 @@ const std::map<std::string, std::string>& flags() {
       {"RunOptions::lora_scale", "--lora FILE:SCALE"},
       {"RunOptions::vae_tiling", "--vae-tiling"},
       {"RunOptions::vae_tile_height/width", "--vae-tile"},
+      {"RunOptions::weights", "--weights"},
       {"RenderJob::video", "--video"},
       {"RenderJob::depth", "--depth"},
       {"RenderJob::out_dir", "--out"},
@@ -66,6 +67,8 @@ const std::map<std::string, std::string>& flags() {
       {"MemoryPlanRequest::width", "--width"},
       {"MemoryPlanRequest::alignment", "--alignment"},
       {"MemoryPlanRequest::depth_model", "--depth-model"},
+      {"MemoryPlanRequest::weights", "--weights"},
+      {"MemoryPlanRequest::upload_bytes_per_second", "--upload-rate"},
   };
   return table;
 }

@@ -1,10 +1,16 @@
 #include "models/weights.hpp"
 
+#include <cstring>
+#include <set>
+
 #include "dvs/error.hpp"
 #include "spec/model_schema.hpp"
 #include "vk/context.hpp"
+#include "vk/transfer.hpp"
 
 namespace dvs::models {
+
+const char* residency_name(WeightResidency r) { return r == WeightResidency::stream ? "stream" : "resident"; }
 
 ComponentWeights::ComponentWeights(vk::Context& ctx, const std::filesystem::path& component_dir)
     : ctx_(ctx),
@@ -29,6 +35,13 @@ ComponentWeights::ComponentWeights(vk::Context& ctx, nlohmann::json config, std:
   for (const auto& [name, t] : uploaded_) bytes_ += t.bytes();
 }
 
+std::vector<std::string> ComponentWeights::names() const {
+  std::set<std::string> all;
+  for (const auto& [name, t] : uploaded_) all.insert(name);
+  for (const auto& [name, ref] : weights_.entries()) all.insert(name);
+  return {all.begin(), all.end()};
+}
+
 bool ComponentWeights::has(const std::string& name) const {
   return uploaded_.count(name) != 0 || weights_.find(name) != nullptr;
 }
@@ -41,6 +54,41 @@ const Tensor& ComponentWeights::get(const std::string& name) {
   Tensor t = Tensor::upload(ctx_, h, name);
   bytes_ += t.bytes();
   return uploaded_.emplace(name, std::move(t)).first->second;
+}
+
+ComponentWeights::Info ComponentWeights::info(const std::string& name) const {
+  if (auto it = uploaded_.find(name); it != uploaded_.end())
+    return {it->second.shape(), it->second.dtype(), it->second.bytes()};
+  const WeightRef* ref = weights_.find(name);
+  if (!ref) throw Error(dir_.string() + ": the weights have no tensor '" + name + "' (is this the right model folder?)");
+  if (!ref->info->dtype)
+    throw Error(dir_.string() + ": tensor '" + name + "' has dtype " + ref->info->dtype_name + ", which dvs cannot use");
+  return {ref->info->shape, *ref->info->dtype, ref->info->nbytes()};
+}
+
+void ComponentWeights::check(const std::string& name, const Shape& expected) const {
+  const Shape shape = info(name).shape;
+  if (shape != expected)
+    throw Error(dir_.string() + ": tensor '" + name + "' has shape [" + shape_str(shape) + "], the config implies [" +
+                shape_str(expected) + "]");
+}
+
+void ComponentWeights::copy_to_host(const std::string& name, void* dst) const {
+  if (auto it = uploaded_.find(name); it != uploaded_.end()) {
+    ctx_.transfer().download(it->second.buffer(), dst, size_t(it->second.bytes()));
+    return;
+  }
+  const Info i = info(name);
+  const TensorBytes bytes = weights_.bytes(name);
+  if (bytes.size() != i.bytes) throw Error("internal: tensor '" + name + "': stored bytes differ from its header");
+  std::memcpy(dst, bytes.data(), bytes.size());
+}
+
+void ComponentWeights::release(const std::string& name) {
+  auto it = uploaded_.find(name);
+  if (it == uploaded_.end()) return;
+  bytes_ -= it->second.bytes();
+  uploaded_.erase(it);
 }
 
 const Tensor& ComponentWeights::get(const std::string& name, const Shape& expected) {

@@ -17,6 +17,12 @@ class Context;
 
 namespace dvs::models {
 
+// Where a model's repeated blocks keep their weights: on the device for the model's life (resident), or in
+// host memory, streamed to a few device slots block by block behind the compute (models/block_stream.hpp).
+// Results are byte-identical either way.
+enum class WeightResidency { resident, stream };
+const char* residency_name(WeightResidency r);  // "resident", "stream"
+
 class ComponentWeights {
  public:
   // `component_dir` is e.g. <model>/transformer; its config.json picks the schema.
@@ -30,11 +36,26 @@ class ComponentWeights {
   const nlohmann::json& config() const { return config_; }
   const std::filesystem::path& dir() const { return dir_; }
   bool has(const std::string& name) const;
+  std::vector<std::string> names() const;  // every tensor, on the device or in the files, sorted
   // The device tensor for `name` (uploaded on first use, in its stored dtype).
   const Tensor& get(const std::string& name);
   // Same, with the shape checked (an error names the tensor, the expected and the stored shape).
   const Tensor& get(const std::string& name, const Shape& expected);
   uint64_t bytes_on_device() const { return bytes_; }
+
+  // Streamed weights (models/block_stream.hpp) stay in host memory: what a tensor is without uploading it,
+  // its shape checked the same way, its stored bytes copied to host memory, and a device copy given back.
+  struct Info {
+    Shape shape;
+    DType dtype = DType::f32;
+    uint64_t bytes = 0;
+  };
+  Info info(const std::string& name) const;
+  void check(const std::string& name, const Shape& expected) const;
+  // Writes info(name).bytes stored bytes to `dst`: from the mapped file, or from the device (in-memory weights).
+  void copy_to_host(const std::string& name, void* dst) const;
+  // Drops the device copy of `name` (in-memory weights: the tensor itself, so copy it out first).
+  void release(const std::string& name);
 
  private:
   vk::Context& ctx_;

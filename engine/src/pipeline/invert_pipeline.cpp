@@ -34,6 +34,7 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   RenderedInput in = render_for_model(ctx, o, stages);
   const int F = int(in.rgb.shape[0]);
 
+  const WeightResidencies residency = weight_residencies(ctx, o);
   stages.begin("encode", "VAE-encoding the render");
   EncodedRender enc;
   {
@@ -45,13 +46,13 @@ InversionReport invert_stages(const RunOptions& options, StageTracker& stages) {
   stages.begin("text", "encoding the empty prompt");
   Tensor text_empty;
   {
-    models::T5Encoder t5(ctx, o.model / "text_encoder");
+    models::T5Encoder t5(ctx, o.model / "text_encoder", residency.text_encoder);
     text_empty = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);
   }
   stages.end();
 
   stages.begin("invert", "DDIM inversion");
-  auto transformer = load_transformer(ctx, o);
+  auto transformer = load_transformer(ctx, o, residency.transformer);
   InversionResult inv = invert_render(ctx, *transformer, o, jp, F, enc, text_empty, stages);
   stages.end();
 

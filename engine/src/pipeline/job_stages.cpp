@@ -18,6 +18,8 @@
 #include "pipeline/depth_source.hpp"
 #include "pipeline/inversion_cache.hpp"
 #include "pipeline/latent_layout.hpp"
+#include "pipeline/memory_advice.hpp"
+#include "pipeline/memory_plan.hpp"
 #include "pipeline/run_outputs.hpp"
 #include "tensor/ops_check.hpp"
 #include "tensor/dispatch.hpp"
@@ -131,8 +133,26 @@ HostTensor decode_latent(vk::Context& ctx, models::CogVideoXVae& vae, const RunO
   return out;
 }
 
-std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o) {
-  auto transformer = std::make_unique<models::CogVideoXTransformer>(ctx, o.model / "transformer");
+nlohmann::json WeightsUsed::record(const std::string& requested) const {
+  auto name = [](const std::optional<models::WeightResidency>& r) { return r ? models::residency_name(*r) : "not loaded"; };
+  return {{"requested", requested}, {"transformer", name(transformer)}, {"text_encoder", name(text_encoder)}};
+}
+
+WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o) {
+  using models::WeightResidency;
+  const pipeline::WeightsChoice choice = pipeline::parse_weights_choice(o.weights, option_name("RunOptions::weights"));
+  if (choice != pipeline::WeightsChoice::automatic) {
+    const WeightResidency r = choice == pipeline::WeightsChoice::stream ? WeightResidency::stream : WeightResidency::resident;
+    return {r, r};
+  }
+  // The preflight's plan (memory_advice.hpp): the device's memory and limits, the run's size and tiling.
+  const pipeline::MemoryPlan plan = pipeline::plan_memory(pipeline::plan_model_from_folder(o.model), run_plan_request(o, ctx.caps()));
+  return {pipeline::planned_residency(plan, "transformer"), pipeline::planned_residency(plan, "text_encoder")};
+}
+
+std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o,
+                                                               models::WeightResidency residency) {
+  auto transformer = std::make_unique<models::CogVideoXTransformer>(ctx, o.model / "transformer", residency);
   if (!o.lora.empty()) {
     try {
       transformer->set_lora(models::load_lora(ctx, o.lora, float(o.lora_scale)));

@@ -62,8 +62,22 @@ void check_tiles_join(const models::VaeConfig& cfg, const models::VaeTiling& til
 // The VAE tiling the options ask for (none without --vae-tiling).
 std::optional<models::VaeTiling> vae_tiling(const RunOptions& o);
 
-// Loads the transformer with the options' LoRA (if any) applied.
-std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o);
+// Where the transformer's and T5's block weights live for this run (RunOptions::weights): as the option says,
+// or with "auto" as the memory plan for this run on this device decides (pipeline/memory_plan.hpp).
+struct WeightResidencies {
+  models::WeightResidency transformer = models::WeightResidency::resident, text_encoder = models::WeightResidency::resident;
+};
+// run.json's "weights": the option, and where each component's blocks really lived (the loaded model's own
+// residency; "not loaded" when the run took its latent from the cache).
+struct WeightsUsed {
+  std::optional<models::WeightResidency> transformer, text_encoder;
+  nlohmann::json record(const std::string& requested) const;
+};
+WeightResidencies weight_residencies(const vk::Context& ctx, const RunOptions& o);
+
+// Loads the transformer with the options' LoRA (if any) applied, its block weights resident or streamed.
+std::unique_ptr<models::CogVideoXTransformer> load_transformer(vk::Context& ctx, const RunOptions& o,
+                                                               models::WeightResidency residency);
 
 struct InversionResult {
   Tensor eps;  // ε_inv at t0, diffusion layout

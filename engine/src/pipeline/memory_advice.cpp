@@ -42,11 +42,19 @@ std::string what_helps(const std::string& stage, const pipeline::MemoryPlan& pla
              pipeline::format_plan_bytes(best->run_peak) + "), or " + smaller;
     return "a smaller " + tile + ", " + smaller;
   }
+  // Streaming the model's blocks leaves two of them on the device (limits.md#weight-streaming).
+  auto streaming = [&](const char* component) -> std::string {
+    for (const auto& st : plan.streams)
+      if (st.component == component && !st.streamed)
+        return option_name("RunOptions::weights") + " stream (its blocks then hold " + pipeline::format_plan_bytes(st.device_bytes()) +
+               " of device memory instead of all of them), or ";
+    return "";
+  };
   if (stage == "text")
-    return "freeing the device memory other programs hold, or a device with more memory (T5's needs do not depend "
-           "on the video's size)";
+    return streaming("text_encoder") + "freeing the device memory other programs hold, or a device with more memory "
+           "(T5's needs do not depend on the video's size)";
   if (stage == "invert" || stage == "sample")
-    return smaller + " (the transformer's attention grows with both; VAE tiling does not change this stage)";
+    return streaming("transformer") + smaller + " (the transformer's attention grows with both; VAE tiling does not change this stage)";
   if (stage == "depth")
     return "a smaller " + option_name("RenderJob::depth_input_size") + " (dvs depth: --input-size or --max-res)";
   return smaller;
@@ -65,6 +73,8 @@ pipeline::PlanRequest run_plan_request(const RunOptions& o, const vk::DeviceCaps
                                     dev.max_memory_allocation_size, dev.max_workgroup_count[0]};
   req.hard_points = o.render.hard_points;
   req.tiling = vae_tiling(o);
+  req.weights = pipeline::parse_weights_choice(o.weights, option_name("RunOptions::weights"));
+  req.limits->transfer_queue = dev.transfer_queue_family >= 0;
   return req;
 }
 

@@ -45,6 +45,28 @@ std::string weight_text(const std::string& name, const Shape& shape, const std::
   return "weight '" + name + "' [" + shape_str(shape) + "] " + dtype;
 }
 
+// Bytes per tensor from the headers (weight streaming packs them block by block); empty without weights.
+std::map<std::string, uint64_t> stored_tensors(const std::filesystem::path& dir) {
+  std::map<std::string, uint64_t> out;
+  if (!WeightSet::dir_has_weights(dir)) return out;
+  const WeightSet weights = WeightSet::open_dir(dir);  // kept: entries() points into it
+  for (const auto& [name, ref] : weights.entries()) out[name] = ref.info->nbytes();
+  return out;
+}
+
+// Multiply-adds x 2 of one CogVideoX block at `batch` x `seq` tokens: q, k, v, out (4·D²) and the FFN (8·D²) per
+// token, and the attention's two products (2·S·D per token).
+double transformer_block_flops(const CogVideoXTransformerConfig& c, int64_t batch, int64_t seq) {
+  const double D = double(c.dim()), S = double(seq), B = double(batch);
+  return 2.0 * B * S * (12.0 * D * D) + 4.0 * B * S * S * D;
+}
+
+// The same for a T5 layer: q, k, v, o (4·D·I), the FFN (2 or 3 · D·F) and the attention (2·L·I).
+double t5_layer_flops(const T5EncoderConfig& c, int64_t batch, int64_t len) {
+  const double D = double(c.d_model), I = double(c.inner()), F = double(c.d_ff), L = double(len), B = double(batch);
+  return 2.0 * B * L * (4.0 * D * I + (c.gated ? 3.0 : 2.0) * D * F) + 4.0 * B * L * L * I;
+}
+
 std::optional<LargestWeight> stored_largest(const std::filesystem::path& dir) {
   if (!WeightSet::dir_has_weights(dir)) return std::nullopt;
   LargestWeight l;
@@ -96,6 +118,8 @@ PlanModel plan_model_from_folder(const std::filesystem::path& dir) {
   m.transformer_largest = stored_largest(dir / "transformer");
   m.vae_largest = stored_largest(dir / "vae");
   m.text_encoder_largest = stored_largest(dir / "text_encoder");
+  m.transformer_tensors = stored_tensors(dir / "transformer");
+  m.text_encoder_tensors = stored_tensors(dir / "text_encoder");
   // T5's activations depend on whether the embedding table is 16-bit; with weights, the header says.
   if (WeightSet::dir_has_weights(dir / "text_encoder")) {
     const WeightSet w = WeightSet::open_dir(dir / "text_encoder");
@@ -139,7 +163,7 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   const Schema t5_schema = t5_encoder_schema(model.text_encoder, "text_encoder config");
   const auto tcfg = CogVideoXTransformerConfig::from_json(model.transformer, "transformer config");
   const VaeConfig vcfg = VaeConfig::from_json(model.vae);
-  T5EncoderConfig::from_json(model.text_encoder, "text_encoder config");  // its errors name the config here
+  const auto t5cfg = T5EncoderConfig::from_json(model.text_encoder, "text_encoder config");  // errors name the config
 
   const int64_t r = vcfg.spatial_ratio(), cell = r * tcfg.patch_size;
   if (req.height < cell || req.width < cell || req.height % cell || req.width % cell)
@@ -280,9 +304,33 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     return uint64_t(0);
   };
   const uint64_t vae_w = weights_of("vae");
-  const uint64_t text_phase = vae_w + weights_of("text_encoder") + stage_of("t5_encode");
-  const uint64_t transformer_phase =
-      vae_w + weights_of("transformer") + std::max(stage_of("transformer_cfg"), stage_of("transformer_inversion"));
+  // Weight streaming: each component's block weights resident, or in slots (auto: where resident does not fit).
+  WeightStreamPlan trs = plan_weight_stream("transformer", tr_schema, "transformer_blocks.", model.transformer_tensors,
+                                            model.assumed_dtype_bytes, "", req.alignment, req.stream_slots);
+  WeightStreamPlan t5s = plan_weight_stream("text_encoder", t5_schema, "encoder.block.", model.text_encoder_tensors,
+                                            model.assumed_dtype_bytes,
+                                            "encoder.block.0.layer.0.SelfAttention.relative_attention_bias.weight",
+                                            req.alignment, req.stream_slots);
+  trs.calls = "per sampling or inversion step";
+  t5s.calls = "once per run";
+  const std::optional<double> rate = req.upload_rate ? req.upload_rate : req.limits ? req.limits->upload_rate : std::nullopt;
+  const std::optional<double> peak = req.limits ? req.limits->peak_flops : std::nullopt;
+  const std::optional<bool> beside = req.limits ? req.limits->transfer_queue : std::nullopt;
+  // The less favourable transformer call (the inversion's batch of 1 computes half as long per upload).
+  time_weight_stream(trs, transformer_block_flops(tcfg, 1, L + plan.latent_frames * (Hl / tcfg.patch_size) * (Wl / tcfg.patch_size)),
+                     rate, peak, beside);
+  time_weight_stream(t5s, t5_layer_flops(t5cfg, req.prompts, L), rate, peak, beside);
+  const uint64_t t5_call = stage_of("t5_encode");
+  const uint64_t tr_call = std::max(stage_of("transformer_cfg"), stage_of("transformer_inversion"));
+  auto choose = [&](WeightStreamPlan& st, uint64_t resident_weights, uint64_t call) {
+    st.streamed = req.weights == WeightsChoice::stream ||
+                  (req.weights == WeightsChoice::automatic && req.budget && st.blocks > 0 &&
+                   plan.carried + vae_w + resident_weights + call > *req.budget);
+    return vae_w + (st.streamed ? st.device_bytes() : resident_weights) + call;
+  };
+  const uint64_t text_phase = choose(t5s, weights_of("text_encoder"), t5_call);
+  const uint64_t transformer_phase = choose(trs, weights_of("transformer"), tr_call);
+  plan.streams = {trs, t5s};
   auto run_peak = [&](const StageMemory& e, const StageMemory& d) {
     // The depth estimate runs alone, before anything else is loaded.
     return std::max({plan.depth_weights + stage_of("depth_estimate"), stage_of("render"),
@@ -365,8 +413,11 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
       const uint64_t floor_bytes = plan.carried + std::max(text_phase, transformer_phase);
       if (floor_bytes > *req.budget)
         plan.notes.push_back("nothing fits in " + format_plan_bytes(*req.budget) + ": the " +
-                             (transformer_phase >= text_phase ? "transformer phase (VAE + transformer weights and its call)"
-                                                              : "text phase (VAE + T5 weights and its call)") +
+                             (transformer_phase >= text_phase
+                                  ? std::string("transformer phase (VAE + transformer weights") +
+                                        (trs.streamed ? " streamed" : "") + " and its call)"
+                                  : std::string("text phase (VAE + T5 weights") + (t5s.streamed ? " streamed" : "") +
+                                        " and its call)") +
                              " already needs " + format_plan_bytes(floor_bytes) + " with any VAE tiling; use a device " +
                              "with more memory or fewer frames" +
                              (tcfg.learned_pos ? std::string(" (this model's size is fixed by its learned positional table)")
@@ -378,6 +429,13 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     }
   }
   return plan;
+}
+
+models::WeightResidency planned_residency(const MemoryPlan& plan, const std::string& component) {
+  for (const auto& st : plan.streams)
+    if (st.component == component)
+      return st.streamed ? models::WeightResidency::stream : models::WeightResidency::resident;
+  throw Error("internal: the memory plan has no component '" + component + "'");
 }
 
 std::vector<std::pair<int64_t, int64_t>> plan_tile_sizes(const models::VaeConfig& vcfg) {

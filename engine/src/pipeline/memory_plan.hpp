@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -19,6 +20,7 @@
 #include "models/call_memory.hpp"
 #include "models/cogvideox/cogvideox_vae.hpp"
 #include "models/cogvideox/vae_tiling.hpp"
+#include "pipeline/weight_stream_plan.hpp"
 #include "vk/device_info.hpp"
 
 namespace dvs::pipeline {
@@ -37,6 +39,7 @@ struct PlanModel {
   // then counts the config's tensors at `assumed_dtype_bytes` each).
   std::optional<uint64_t> transformer_stored, vae_stored, text_encoder_stored;
   std::optional<LargestWeight> transformer_largest, vae_largest, text_encoder_largest;  // from the headers too
+  std::map<std::string, uint64_t> transformer_tensors, text_encoder_tensors;  // bytes per tensor, from the headers
   int assumed_dtype_bytes = 2;  // bf16, the real model's storage
 };
 
@@ -54,6 +57,10 @@ struct PlanLimits {
   uint64_t texels = 0;                  // maxTexelBufferElements
   uint64_t alloc = 0;                   // maxMemoryAllocationSize, bytes
   uint32_t groups = 0;                  // maxComputeWorkGroupCount (x)
+  // Weight streaming's figures where known (a profile's typical values; vk/limit_profiles.hpp): host -> device
+  // bytes/s, the device's peak flop/s, whether it has a transfer-only queue family.
+  std::optional<double> upload_rate, peak_flops;
+  std::optional<bool> transfer_queue;
 };
 
 struct PlanRequest {
@@ -71,6 +78,11 @@ struct PlanRequest {
   // The VAE tiling a run was given (dvs run --vae-tile): the plan weighs it alone against untiled
   // (tilings = [untiled, this]) instead of offering its own tile sizes.
   std::optional<models::VaeTiling> tiling;
+  // Where the transformer's and T5's block weights live (dvs run --weights): auto streams a component only where
+  // its phase does not fit the budget with its weights resident.
+  WeightsChoice weights = WeightsChoice::automatic;
+  int stream_slots = 2;
+  std::optional<double> upload_rate;  // host -> device bytes/s (dvs info --bench-upload); else the limits'
 };
 
 struct ComponentWeightBytes {
@@ -106,6 +118,7 @@ struct MemoryPlan {
   uint64_t depth_weights = 0;        // the depth model's, resident during its stage only
   uint64_t carried = 0;              // tensors kept across stages (text embeddings, latents)
   uint64_t run_peak = 0;             // untiled
+  std::vector<WeightStreamPlan> streams;  // "transformer", "text_encoder": streamed or not, and what it costs
   std::vector<TilingOption> tilings; // [0] untiled, then smaller and smaller tiles
   int chosen = -1;                   // index into tilings when a budget is given and something fits
   bool checked() const { return request.budget || request.limits; }
@@ -114,6 +127,8 @@ struct MemoryPlan {
 
 // Throws dvs::Error for bad sizes (frames not 4k+1, height/width not multiples of the latent patch).
 MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& request);
+// The plan's residency for `component` ("transformer", "text_encoder"): what dvs run --weights auto loads.
+models::WeightResidency planned_residency(const MemoryPlan& plan, const std::string& component);
 
 // The stage figures on their own (tests compare them with live allocations).
 // `caps` as for the transformer below; a d_kv that is not a multiple of 4 adds the attention's padded copies

@@ -41,6 +41,49 @@ json limits_json(const StageMemory& s, const PlanLimits& l) {
           {"texel_views", pieces(uint64_t(s.largest_elements), l.texels)}, {"allocation_fits", s.largest_bytes <= l.alloc}};
 }
 
+// One component's block weights: where they live in this plan, and what streaming them costs.
+std::string stream_lines(const WeightStreamPlan& s, WeightsChoice choice) {
+  std::ostringstream o;
+  char line[320];
+  const char* how = s.streamed ? (choice == WeightsChoice::stream ? "streamed (--weights stream)" : "streamed (auto: resident does not fit)")
+                               : (choice == WeightsChoice::resident ? "resident (--weights resident)" : "resident");
+  std::snprintf(line, sizeof line, "  %-14s %d blocks, %s\n", s.component.c_str(), int(s.blocks), how);
+  o << line;
+  std::snprintf(line, sizeof line,
+                "    streamed: %d slots x %s + %s resident = %s on the device; host copy %s (pinned); uploads %s %s",
+                s.slots, format_plan_bytes(s.slot_bytes).c_str(), format_plan_bytes(s.resident_bytes).c_str(),
+                format_plan_bytes(s.device_bytes()).c_str(), format_plan_bytes(s.host_bytes).c_str(),
+                format_plan_bytes(s.host_bytes).c_str(), s.calls.c_str());
+  o << line;
+  if (s.call_upload_seconds) {
+    std::snprintf(line, sizeof line, " (%.3g s)", *s.call_upload_seconds);
+    o << line;
+  }
+  o << "\n    " << s.verdict << "\n";
+  return o.str();
+}
+
+json stream_json(const WeightStreamPlan& s) {
+  auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+  return {{"component", s.component},
+          {"streamed", s.streamed},
+          {"blocks", s.blocks},
+          {"slots", s.slots},
+          {"slot_bytes", s.slot_bytes},
+          {"resident_bytes", s.resident_bytes},
+          {"device_bytes", s.device_bytes()},
+          {"host_bytes", s.host_bytes},
+          {"uploaded_bytes_per_call", s.host_bytes},
+          {"calls", s.calls},
+          {"block_flops", s.block_flops},
+          {"call_upload_seconds", opt(s.call_upload_seconds)},
+          {"block_upload_seconds", opt(s.block_upload_seconds)},
+          {"break_even_flops", opt(s.break_even_flops)},
+          {"compute_longer_than_upload", s.compute_longer ? json(*s.compute_longer) : json(nullptr)},
+          {"hides", s.hides ? json(*s.hides) : json(nullptr)},
+          {"verdict", s.verdict}};
+}
+
 }  // namespace
 
 std::string format_plan_bytes(uint64_t bytes) {
@@ -77,6 +120,9 @@ std::string format_plan_table(const MemoryPlan& p) {
     o << line;
   }
   o << "  kept across stages: " << format_plan_bytes(p.carried) << " (prompt embeddings, latents)\n\n";
+  o << "block weights (--weights " << weights_choice_name(p.request.weights) << ")\n";
+  for (const auto& st : p.streams) o << stream_lines(st, p.request.weights);
+  o << "\n";
   if (p.request.limits) {
     const PlanLimits& l = *p.request.limits;
     o << "limits of " << l.source << ": binding (maxStorageBufferRange) " << format_plan_bytes(l.binding)
@@ -94,7 +140,8 @@ std::string format_plan_table(const MemoryPlan& p) {
     }
     o << "\n";
   }
-  o << "whole run (the largest phase: VAE weights + T5 or transformer weights when loaded + kept tensors + that call)\n";
+  o << "whole run (the largest phase: VAE weights + T5 or transformer weights when loaded, resident or their stream\n"
+       "slots, + kept tensors + that call)\n";
   for (size_t i = 0; i < p.tilings.size(); ++i) {
     const auto& t = p.tilings[i];
     std::string name = t.tiled ? "VAE tiles " + std::to_string(t.tiling.tile_sample_min_height) + "x" +
@@ -129,6 +176,13 @@ json plan_to_json(const MemoryPlan& p) {
   j["request"] = {{"frames", p.request.frames}, {"height", p.request.height}, {"width", p.request.width},
                   {"prompts", p.request.prompts}, {"alignment", p.request.alignment}};
   j["request"]["budget_bytes"] = p.request.budget ? json(*p.request.budget) : json(nullptr);
+  j["request"]["weights"] = weights_choice_name(p.request.weights);
+  j["weights_residency"] = json::object();
+  j["streams"] = json::array();
+  for (const auto& st : p.streams) {
+    j["weights_residency"][st.component] = st.streamed ? "stream" : "resident";
+    j["streams"].push_back(stream_json(st));
+  }
   j["latent"] = {p.latent_frames, p.latent_height, p.latent_width};
   j["text_len"] = p.text_len;
   j["weights"] = json::array();

@@ -390,6 +390,15 @@ void check_memory(const RunOptions& o, const ModelFacts& m, const std::optional<
            (given ? " with " + tile + " " : std::string(" untiled")) +
            (given ? hw(given->tile_sample_min_height, given->tile_sample_min_width) : std::string()) +
            "; device memory for dvs: " + dev.memory_budget.describe());
+    std::string weights = "block weights (--weights " + o.weights + "):";
+    for (const auto& st : plan.streams)
+      weights += std::string(" ") + (st.component == "transformer" ? "transformer" : "T5") + " " +
+                 (st.streamed ? "streamed (" + std::to_string(st.slots) + " slots of " +
+                                    pipeline::format_plan_bytes(st.slot_bytes) + ", " +
+                                    pipeline::format_plan_bytes(st.host_bytes) + " uploaded " + st.calls + ")"
+                              : std::string("resident")) +
+                 (&st == &plan.streams.back() ? "" : ",");
+    c.note(weights);
     const pipeline::TilingOption& mine = plan.tilings[given ? 1 : 0];  // given: [untiled, the given tiling]
     if (mine.blocker.empty()) return;
     const std::string what = given ? tile + " " + hw(given->tile_sample_min_height, given->tile_sample_min_width) : "untiled";

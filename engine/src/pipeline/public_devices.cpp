@@ -22,25 +22,22 @@ DeviceLimits limits_of(const vk::DeviceCaps& d) {
   l.groups = d.max_workgroup_count[0];
   l.alignment = d.min_storage_buffer_offset_alignment;
   l.memory = d.memory_budget.bytes;
+  l.transfer_queue = d.transfer_queue_family >= 0 ? 1 : 0;
   return l;
 }
 
 std::vector<DeviceSummary> list_devices(const std::string& device_spec) {
-  return public_call("dvs::list_devices", [&]() -> std::vector<DeviceSummary> {
-    const std::vector<vk::DeviceCaps> devices = vk::list_devices();  // DVS_LIMITS lowers them, as for a run
-    const uint32_t chosen = vk::select_device(devices, device_spec);
-    std::vector<DeviceSummary> out;
-    for (const vk::DeviceCaps& d : devices)
-      out.push_back({d.index, d.name, vk::device_type_name(d.type), d.index == chosen, limits_of(d)});
-    return out;
-  });
+  const std::vector<vk::DeviceCaps> devices = vk::list_devices();  // DVS_LIMITS lowers them, as for a run
+  const uint32_t chosen = vk::select_device(devices, device_spec);
+  std::vector<DeviceSummary> out;
+  for (const vk::DeviceCaps& d : devices)
+    out.push_back({d.index, d.name, vk::device_type_name(d.type), d.index == chosen, limits_of(d)});
+  return out;
 }
 
 DeviceLimits device_limits(const std::string& device_spec) {
-  return public_call("dvs::device_limits", [&]() -> DeviceLimits {
-    const std::vector<vk::DeviceCaps> devices = vk::list_devices();
-    return limits_of(devices.at(vk::select_device(devices, device_spec)));
-  });
+  const std::vector<vk::DeviceCaps> devices = vk::list_devices();
+  return limits_of(devices.at(vk::select_device(devices, device_spec)));
 }
 
 DeviceLimits profile_limits(const std::string& profile) {
@@ -55,7 +52,7 @@ DeviceLimits profile_limits(const std::string& profile) {
     }
     const vk::LimitProfile& p = *found;
     DeviceLimits l{"profile " + p.name + " (" + p.describes + ")", p.binding, p.texels, p.alloc, p.groups[0],
-                   p.alignment, p.heap};
+                   p.alignment, p.heap, p.upload_bytes_per_second, p.peak_flops, p.transfer_queue ? 1 : 0};
     // DVS_LIMITS lowers a profile as it lowers a device.
     const vk::LimitOverrides env = vk::limit_overrides_from_env();
     if (env.binding) l.binding = std::min(l.binding, *env.binding);

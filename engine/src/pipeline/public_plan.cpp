@@ -89,6 +89,9 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
     if (request.limits) {
       const DeviceLimits& l = *request.limits;
       req.limits = pipeline::PlanLimits{l.source, l.binding, l.texels, l.alloc, l.groups};
+      if (l.upload_bytes_per_second > 0) req.limits->upload_rate = l.upload_bytes_per_second;
+      if (l.peak_flops > 0) req.limits->peak_flops = l.peak_flops;
+      if (l.transfer_queue >= 0) req.limits->transfer_queue = l.transfer_queue == 1;
       req.alignment = std::max(req.alignment, l.alignment);
       if (!req.budget && l.memory) req.budget = l.memory;
     }
@@ -98,6 +101,12 @@ MemoryPlanReport plan_run_memory(const MemoryPlanRequest& request) {
       req.depth_input_size = request.depth_input_size;
       req.depth_frame_height = request.depth_frame_height, req.depth_frame_width = request.depth_frame_width;
     }
+    req.weights = pipeline::parse_weights_choice(request.weights, option_name("MemoryPlanRequest::weights"));
+    if (!(request.upload_bytes_per_second >= 0))  // negative or NaN
+      throw UsageError(option_name("MemoryPlanRequest::upload_bytes_per_second") + " is " +
+                       std::to_string(request.upload_bytes_per_second) +
+                       ": give the host -> device rate in bytes per second, or 0 for the limits' figure");
+    if (request.upload_bytes_per_second > 0) req.upload_rate = request.upload_bytes_per_second;
     const pipeline::MemoryPlan plan = pipeline::plan_memory(pm, req);
     MemoryPlanReport r;
     r.checked = plan.checked();

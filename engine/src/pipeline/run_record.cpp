@@ -62,6 +62,7 @@ void write_run_record(const std::filesystem::path& path, const RunOptions& o, co
                    {"vae_tiling", o.vae_tiling}};
   if (!x.cache_problem.empty()) j["cache_problem"] = x.cache_problem;
   if (o.vae_tiling) j["settings"]["vae_tile"] = {x.vae_tile_height, x.vae_tile_width};
+  j["weights"] = x.weights.is_null() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json::parse(x.weights.dump());
   j["lora"] = o.lora.empty() ? nlohmann::ordered_json(nullptr)
                              : nlohmann::ordered_json{{"file", abs(o.lora)}, {"scale", o.lora_scale}};
   j["trajectory_poses"] = x.poses;
@@ -176,6 +177,10 @@ std::vector<std::string> run_record_arguments(const std::filesystem::path& run_j
     if (st.contains("cache_dir") && st["cache_dir"].is_string()) text(st, "cache_dir", "cache-dir");
     if (st.contains("vae_tile") && st["vae_tile"].is_array() && st["vae_tile"].size() == 2)
       args.insert(args.end(), {"--vae-tile", st["vae_tile"][0].dump() + "x" + st["vae_tile"][1].dump()});
+    // The weights' residency only where the run asked for one (auto decides again on the device of the re-run).
+    if (j.contains("weights") && j["weights"].is_object() && j["weights"].contains("requested") &&
+        j["weights"]["requested"].is_string() && j["weights"]["requested"] != "auto")
+      args.insert(args.end(), {"--weights", j["weights"]["requested"].get<std::string>()});
     if (j.contains("lora") && j["lora"].is_object()) {
       const nlohmann::json& lora = j["lora"];
       if (!lora.contains("file") || !lora["file"].is_string() || !lora.contains("scale") || !lora["scale"].is_number())

@@ -37,6 +37,9 @@ struct RunRecordExtras {
   nlohmann::json latent;
   // --depth-model: where the depth came from (depth_source.hpp); null with --depth.
   nlohmann::json depth_estimate;
+  // {"requested": "auto|resident|stream", "transformer": "resident|stream", "text_encoder": ...}: where the block
+  // weights lived (job_stages.hpp, WeightResidencies::record).
+  nlohmann::json weights;
 };
 
 // run_record_arguments (run.json back into `dvs run` arguments) is public, dvs/run_record.hpp; it is defined in

@@ -86,6 +86,8 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   RenderedInput in = ends.input(ctx, o, stages);
   const int F = int(in.rgb.shape[0]);
   const std::vector<std::string> input_key = ends.input_key(o);
+  const WeightResidencies residency = weight_residencies(ctx, o);  // --weights, or the plan's choice (auto)
+  WeightsUsed weights_used;  // as the loaded models report it, for run.json
 
   // The sampled latent of an earlier run with these settings (one whose decode failed or was interrupted, or
   // one re-run with other VAE options) skips stages 3–8.
@@ -126,7 +128,8 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
     stages.begin("text", "encoding the prompts");
     Tensor text, text_inv;
     {  // T5's weights (8.9 GiB for the real model) are freed before the transformer is loaded
-      models::T5Encoder t5(ctx, o.model / "text_encoder");
+      models::T5Encoder t5(ctx, o.model / "text_encoder", residency.text_encoder);
+      weights_used.text_encoder = t5.residency();
       text = guidance_text(ctx, t5, jp.tokenizer, st.negative, o.prompt, jp.text_len);  // [uncond; cond]
       text_inv = t5.encode_prompts(jp.tokenizer, {""}, jp.text_len);  // inversion: "", no guidance (the official CFG
                                                                       // over two identical "" rows is a no-op)
@@ -136,7 +139,8 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
 
     // 5. Inversion (cached on disk).
     stages.begin("invert", "DDIM inversion");
-    std::unique_ptr<models::CogVideoXTransformer> transformer_ptr = load_transformer(ctx, o);
+    std::unique_ptr<models::CogVideoXTransformer> transformer_ptr = load_transformer(ctx, o, residency.transformer);
+    weights_used.transformer = transformer_ptr->residency();
     models::CogVideoXTransformer& transformer = *transformer_ptr;
     InversionResult inversion = invert_render(ctx, transformer, o, jp, F, input_key, enc, text_inv, stages);
     Tensor eps_inv = inversion.eps;
@@ -204,6 +208,7 @@ RunReport run_stages(const RunOptions& options, RunEnds& ends, vk::Context* devi
   extras.opencv = video_library_version();
   extras.depth_estimate = depth_estimate;
   extras.dynamic_cfg = dynamic_cfg;
+  extras.weights = weights_used.record(o.weights);
   extras.intrinsics = {in.K.fx, in.K.fy, in.K.cx, in.K.cy};
   if (const auto tiling = vae_tiling(o)) {
     const auto tp = models::TilePlan::for_encode(vae.config(), *tiling);

@@ -5,6 +5,7 @@
 
 #include "dvs/usage_error.hpp"
 #include "io/option_names.hpp"
+#include "pipeline/weight_stream_plan.hpp"
 
 namespace dvs {
 namespace {
@@ -61,6 +62,7 @@ Settings resolve(const RunOptions& o) {
                 " must be 4k+1 (1, 5, 9, …, 49): the VAE compresses time by 4 after the first frame");
   if (!o.lora.empty() && !(o.lora_scale == o.lora_scale))
     throw UsageError(option_name("RunOptions::lora_scale") + ": the scale must be a number");
+  pipeline::parse_weights_choice(o.weights, option_name("RunOptions::weights"));  // resident, stream or auto
   if (o.vae_tile_height < 0 || o.vae_tile_width < 0 || o.vae_tile_height % 8 || o.vae_tile_width % 8)
     throw UsageError(option_name("RunOptions::vae_tile_height/width") + " must be positive multiples of 8, got " +
                 std::to_string(o.vae_tile_height) + "x" + std::to_string(o.vae_tile_width));

@@ -95,6 +95,9 @@ struct AttentionSplit {
   bool whole = true, repack = false;
   int64_t head_group = 0, q_rows = 0, keys = 0, pack_rows = 0;
   uint64_t scratch_bytes = 0;
+  // The two Recorder::scratch requests behind scratch_bytes, as the call makes them (bytes before the allocator's
+  // rounding; 0 when not made): head-major K/V of one head group, and the running state of split keys.
+  uint64_t kv_scratch_request = 0, state_scratch_request = 0;
   int64_t padded_head_dim = 0;  // 0: head_dim is a multiple of 4, no padding
   int64_t pad_batch = 0, pad_heads = 0, pad_q_rows = 0, pad_copies = 0;
 };
@@ -107,6 +110,10 @@ AttentionSplit attention_split_plan(const vk::DeviceCaps& caps, const AttentionS
 // scratch_bytes to a call's figure.
 AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const AttentionShape& shape, bool bias = false,
                                           bool key_mask = false);
+
+// The same for separate contiguous operands (q and out [B, Lq, H·D], k and v [B, Lk, H·D]: the CogVideoX
+// transformer's query chunks against the whole sequence's keys).
+AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& shape);
 
 // Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,

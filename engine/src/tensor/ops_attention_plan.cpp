@@ -80,9 +80,15 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
     lc = std::min<int64_t>(lc, int64_t(max_groups_1d(caps) * kWorkgroupSize) / (p.head_group * D4));
     if (lc < 1) fail("the K/V repack of " + std::to_string(p.head_group) + " heads does not fit the limits in force");
     p.pack_rows = lc;
-    if (!opt.workspace) p.scratch_bytes += uint64_t(2 * align_up(p.head_group * Lk * D * 4));
+    if (!opt.workspace) {
+      p.kv_scratch_request = uint64_t(2 * align_up(p.head_group * Lk * D * 4));
+      p.scratch_bytes += p.kv_scratch_request;
+    }
   }
-  if (key_split) p.scratch_bytes += uint64_t(align_up(p.q_rows * p.head_group * (D + 4) * 4));
+  if (key_split) {
+    p.state_scratch_request = uint64_t(p.q_rows * p.head_group * (D + 4) * 4);
+    p.scratch_bytes += uint64_t(align_up(p.q_rows * p.head_group * (D + 4) * 4));
+  }
   return p;
 }
 
@@ -356,6 +362,14 @@ AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const Atte
   return attention_split_plan(caps, s, fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
                               fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
                               fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out}, opt);
+}
+
+AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& s) {
+  const int64_t width = s.heads * s.head_dim;
+  using attention_plan::placeholder;
+  const Tensor q = placeholder({s.batch, s.q_len, width}), kv = placeholder({s.batch, s.kv_len, width});
+  return attention_split_plan(caps, s, AttentionOperand{q}, AttentionOperand{kv}, AttentionOperand{kv},
+                              AttentionOperand{q});
 }
 
 int64_t attention_workspace_elements(const AttentionShape& s) {

@@ -216,18 +216,25 @@ Context::Context(const ContextOptions& options) {
     feats.features.shaderFloat64 = supported.features.shaderFloat64;
 
     float priority = 1.0f;
-    VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    qci.queueFamilyIndex = queue_family_;
-    qci.queueCount = 1;
-    qci.pQueuePriorities = &priority;
+    VkDeviceQueueCreateInfo qci[2]{{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO}, {VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO}};
+    qci[0].queueFamilyIndex = queue_family_;
+    qci[0].queueCount = 1;
+    qci[0].pQueuePriorities = &priority;
+    // A transfer-only family (a copy engine) for streamed weights, where the device has one.
+    transfer_family_ = caps_.transfer_queue_family >= 0 ? uint32_t(caps_.transfer_queue_family) : queue_family_;
+    qci[1].queueFamilyIndex = transfer_family_;
+    qci[1].queueCount = 1;
+    qci[1].pQueuePriorities = &priority;
     VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     dci.pNext = &feats;
-    dci.queueCreateInfoCount = 1;
-    dci.pQueueCreateInfos = &qci;
+    dci.queueCreateInfoCount = transfer_family_ != queue_family_ ? 2 : 1;
+    dci.pQueueCreateInfos = qci;
     dci.enabledExtensionCount = uint32_t(exts.size());
     dci.ppEnabledExtensionNames = exts.data();
     VK_CHECK(vkCreateDevice(physical_, &dci, nullptr, &device_));
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+    transfer_queue_ = queue_;
+    if (transfer_family_ != queue_family_) vkGetDeviceQueue(device_, transfer_family_, 0, &transfer_queue_);
     create_services(options);
   } catch (...) {
     release();
@@ -247,6 +254,8 @@ Context::Context(const HostDevice& host, const ContextOptions& options) {
   device_ = host.device;
   queue_ = host.queue;
   queue_family_ = host.queue_family;
+  transfer_queue_ = host.queue;  // the application's one queue: uploads go there too
+  transfer_family_ = host.queue_family;
   lock_queue_ = host.lock_queue;
   unlock_queue_ = host.unlock_queue;
   try {
@@ -280,6 +289,7 @@ void Context::override_limits(const LimitOverrides& extra) {
   caps_.max_texel_buffer_elements = caps_.device_limits.texels;
   caps_.max_memory_allocation_size = caps_.device_limits.alloc;
   for (int i = 0; i < 3; ++i) caps_.max_workgroup_count[i] = caps_.device_limits.groups[i];
+  caps_.memory_budget.bytes = caps_.device_limits.memory;
   LimitOverrides o = limit_overrides_from_env();
   auto lower = [](std::optional<uint64_t>& a, const std::optional<uint64_t>& b) {
     if (b) a = a ? std::min(*a, *b) : *b;
@@ -288,6 +298,7 @@ void Context::override_limits(const LimitOverrides& extra) {
   lower(o.texels, extra.texels);
   lower(o.alloc, extra.alloc);
   lower(o.groups, extra.groups);
+  lower(o.memory, extra.memory);
   apply_limit_overrides(caps_, o);
 }
 

@@ -66,6 +66,11 @@ class Context {
   VkDevice device() const { return device_; }
   VkQueue queue() const { return queue_; }
   uint32_t queue_family() const { return queue_family_; }
+  // The queue streamed weights are uploaded on (models/block_stream.hpp): a transfer-only family's queue where the
+  // device has one (a GPU's copy engine, which runs beside the compute), else the compute queue itself.
+  VkQueue transfer_queue() const { return transfer_queue_; }
+  uint32_t transfer_queue_family() const { return transfer_family_; }
+  bool has_transfer_queue() const { return transfer_family_ != queue_family_; }
   const DeviceCaps& caps() const { return caps_; }
   // Lowers the limits in force further than DVS_LIMITS does (min of both), or back to DVS_LIMITS alone with
   // {} (tests that force one op's split paths: tests/support/scoped_limits.hpp). The allocator's existing
@@ -116,6 +121,10 @@ class Context {
   // Submits without waiting and returns the ticket; the caller keeps `cmd` and must not reset or resubmit it
   // before the ticket is reached (Recorder::submit_without_wait).
   uint64_t submit_kept(VkCommandBuffer cmd) { return queue_submit(cmd); }
+  // One vkQueueSubmit of `cmd` (from a pool of transfer_queue_family()) to transfer_queue(): it waits until this
+  // context's timeline reaches `after` (work on the compute queue it must follow), then signals `semaphore` (a
+  // timeline semaphore of this device) with `value`. Not counted as a submission of the context's timeline.
+  void submit_transfer(VkCommandBuffer cmd, uint64_t after, VkSemaphore semaphore, uint64_t value);
   uint64_t submission_count() const { return submissions_; }  // vkQueueSubmit calls so far = the last ticket
   VkSemaphore timeline() const { return timeline_; }
   uint64_t completed_value() const;  // the timeline's current value
@@ -147,6 +156,8 @@ class Context {
   VkDevice device_ = VK_NULL_HANDLE;
   VkQueue queue_ = VK_NULL_HANDLE;
   uint32_t queue_family_ = 0;
+  VkQueue transfer_queue_ = VK_NULL_HANDLE;  // queue_ where the device has no transfer-only family
+  uint32_t transfer_family_ = 0;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
   VkSemaphore timeline_ = VK_NULL_HANDLE;
   uint64_t submissions_ = 0;

@@ -109,7 +109,6 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   c.max_workgroup_invocations = L.maxComputeWorkGroupInvocations;
   for (int i = 0; i < 3; ++i) c.max_workgroup_count[i] = L.maxComputeWorkGroupCount[i];
   c.max_push_constants = L.maxPushConstantsSize;
-  apply_limit_overrides(c, limit_overrides_from_env());
   c.timestamp_period_ns = L.timestampPeriod;
   c.timestamps = L.timestampComputeAndGraphics;
   {
@@ -124,6 +123,7 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
       c.queue_compute_only = !(qf[size_t(q)].queueFlags & VK_QUEUE_GRAPHICS_BIT);
       if (qf[size_t(q)].timestampValidBits == 0) c.timestamps = false;
     }
+    c.transfer_queue_family = pick_transfer_queue_family(qf);
   }
 
   // Features chain.
@@ -184,6 +184,7 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
       c.heaps[mem.memoryTypes[t].heapIndex].host_visible = true;
   c.memory_budget_ext = c.has_extension(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);
   c.memory_budget = query_memory_budget(pd, c.type, c.memory_budget_ext);
+  apply_limit_overrides(c, limit_overrides_from_env());  // after the budget: memory= lowers it
   return c;
 }
 
@@ -232,6 +233,15 @@ int pick_compute_queue_family(const std::vector<VkQueueFamilyProperties>& famili
   return first;
 }
 
+int pick_transfer_queue_family(const std::vector<VkQueueFamilyProperties>& families) {
+  for (size_t i = 0; i < families.size(); ++i) {
+    const VkQueueFlags f = families[i].queueFlags;
+    if ((f & VK_QUEUE_TRANSFER_BIT) && !(f & (VK_QUEUE_GRAPHICS_BIT | VK_QUEUE_COMPUTE_BIT)) && families[i].queueCount > 0)
+      return int(i);
+  }
+  return -1;
+}
+
 std::string describe_device(const DeviceCaps& c) {
   std::ostringstream o;
   auto forced = [](bool is, const std::string& device_value) { return is ? " * [" + device_value + "]" : std::string(); };
@@ -264,6 +274,11 @@ std::string describe_device(const DeviceCaps& c) {
                              : "family " + std::to_string(c.queue_family) +
                                    (c.queue_compute_only ? " (compute-only)" : " (graphics + compute; no compute-only family)"))
     << "\n"
+    << "  transfer queue:       "
+    << (c.transfer_queue_family >= 0 ? "family " + std::to_string(c.transfer_queue_family) +
+                                           " (transfer-only: streamed weights upload beside the compute)"
+                                     : std::string("none (streamed weights upload on the compute queue)"))
+    << "\n"
     << "  limits in force" << (c.forced_limits.any() ? " (* lowered by DVS_LIMITS; the device's value in brackets)" : "")
     << ":\n"
     << "  maxStorageBufferRange:      " << format_bytes(c.max_storage_buffer_range)
@@ -284,7 +299,9 @@ std::string describe_device(const DeviceCaps& c) {
   for (size_t h = 0; h < c.heaps.size(); ++h)
     o << "    heap " << h << ": " << format_bytes(c.heaps[h].size) << (c.heaps[h].device_local ? ", device-local" : "")
       << (c.heaps[h].host_visible ? ", host-visible" : "") << "\n";
-  o << "  device memory for dvs: " << c.memory_budget.describe() << "\n";
+  o << "  device memory for dvs: " << c.memory_budget.describe()
+    << (c.forced_limits.memory ? " * lowered by DVS_LIMITS memory= [" + format_bytes(c.device_limits.memory) + "]" : "")
+    << "\n";
   return o.str();
 }
 

@@ -20,12 +20,12 @@ struct MemoryHeapInfo {
 
 // The device's own values of the limits DVS_LIMITS can lower (device_limits.hpp).
 struct DeviceLimitValues {
-  uint64_t binding = 0, texels = 0, alloc = 0;
+  uint64_t binding = 0, texels = 0, alloc = 0, memory = 0;
   uint32_t groups[3] = {};
 };
 struct ForcedLimits {
-  bool binding = false, texels = false, alloc = false, groups = false;
-  bool any() const { return binding || texels || alloc || groups; }
+  bool binding = false, texels = false, alloc = false, groups = false, memory = false;
+  bool any() const { return binding || texels || alloc || groups || memory; }
 };
 
 // One entry of vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR: C/Result = A·B + C with A MxK, B KxN.
@@ -82,6 +82,7 @@ struct DeviceCaps {
   uint32_t queue_family = 0;
   bool queue_compute_only = false;
   bool has_compute_queue = false;
+  int transfer_queue_family = -1;  // pick_transfer_queue_family (-1: none; uploads then go on the compute queue)
 
   std::vector<MemoryHeapInfo> heaps;
   DeviceMemoryBudget memory_budget;  // what dvs may hold (memory_budget.hpp: host RAM on CPU devices)
@@ -100,6 +101,9 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
 // A family with COMPUTE but not GRAPHICS where the device has one (NVIDIA/AMD: an async compute queue that a
 // desktop's graphics work does not share), else the first with COMPUTE; -1 when none has COMPUTE.
 int pick_compute_queue_family(const std::vector<VkQueueFamilyProperties>& families);
+// A family with TRANSFER but neither GRAPHICS nor COMPUTE (a GPU's copy engine: NVIDIA's and AMD's DMA queues);
+// -1 when there is none (lavapipe, most integrated GPUs).
+int pick_transfer_queue_family(const std::vector<VkQueueFamilyProperties>& families);
 
 // Picks a device: `spec` is an index ("0") or a case-insensitive name substring ("llvmpipe"); empty means
 // the DVS_DEVICE environment variable, else the first discrete GPU, else integrated, else anything.

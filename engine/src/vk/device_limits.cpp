@@ -20,7 +20,7 @@ std::string trim(const std::string& s) {
 uint64_t parse_value(const std::string& item, const std::string& text, const std::string& source) {
   auto bad = [&](const std::string& why) {
     return UsageError(source + ": '" + item + "': " + why +
-                      ". Expected KEY=VALUE items separated by commas, KEY one of binding, texels, alloc, groups, "
+                      ". Expected KEY=VALUE items separated by commas, KEY one of binding, texels, alloc, groups, memory, "
                       "VALUE a positive integer with an optional unit KiB, MiB or GiB (e.g. binding=64KiB).");
   };
   size_t digits = 0;
@@ -54,15 +54,17 @@ LimitOverrides parse_limit_overrides(const std::string& spec, const std::string&
     }
     const size_t eq = item.find('=');
     if (eq == std::string::npos)
-      throw UsageError(source + ": '" + item + "' is not KEY=VALUE (keys: binding, texels, alloc, groups)");
+      throw UsageError(source + ": '" + item + "' is not KEY=VALUE (keys: binding, texels, alloc, groups, memory)");
     const std::string key = trim(item.substr(0, eq));
     const uint64_t v = parse_value(item, trim(item.substr(eq + 1)), source);
     std::optional<uint64_t>* slot = key == "binding" ? &o.binding
                                     : key == "texels" ? &o.texels
                                     : key == "alloc"  ? &o.alloc
                                     : key == "groups" ? &o.groups
+                                    : key == "memory" ? &o.memory
                                                       : nullptr;
-    if (!slot) throw UsageError(source + ": unknown key '" + key + "' in '" + item + "' (keys: binding, texels, alloc, groups)");
+    if (!slot)
+      throw UsageError(source + ": unknown key '" + key + "' in '" + item + "' (keys: binding, texels, alloc, groups, memory)");
     if (*slot) throw UsageError(source + ": '" + key + "' is given twice");
     *slot = v;
   }
@@ -73,6 +75,7 @@ LimitOverrides parse_limit_overrides(const std::string& spec, const std::string&
   if (o.alloc && *o.alloc < 64 * 1024) throw UsageError(source + ": alloc must be at least 64KiB");
   if (o.groups && *o.groups < 64) throw UsageError(source + ": groups must be at least 64");
   if (o.groups && *o.groups > std::numeric_limits<uint32_t>::max()) throw UsageError(source + ": groups is too large");
+  if (o.memory && *o.memory < 1024 * 1024) throw UsageError(source + ": memory must be at least 1MiB");
   return o;
 }
 
@@ -87,6 +90,7 @@ void apply_limit_overrides(DeviceCaps& c, const LimitOverrides& o) {
   d.texels = c.max_texel_buffer_elements;
   d.alloc = c.max_memory_allocation_size;
   for (int i = 0; i < 3; ++i) d.groups[i] = c.max_workgroup_count[i];
+  d.memory = c.memory_budget.bytes;
   c.forced_limits = {};
   if (o.binding && *o.binding < c.max_storage_buffer_range) {
     c.max_storage_buffer_range = *o.binding;
@@ -99,6 +103,10 @@ void apply_limit_overrides(DeviceCaps& c, const LimitOverrides& o) {
   if (o.alloc && *o.alloc < c.max_memory_allocation_size) {
     c.max_memory_allocation_size = *o.alloc;
     c.forced_limits.alloc = true;
+  }
+  if (o.memory && *o.memory < c.memory_budget.bytes) {
+    c.memory_budget.bytes = *o.memory;
+    c.forced_limits.memory = true;
   }
   if (o.groups)
     for (int i = 0; i < 3; ++i)

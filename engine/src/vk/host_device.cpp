@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "dvs/error.hpp"
+#include "vk/device_limits.hpp"
 
 namespace dvs::vk {
 namespace {
@@ -183,6 +184,7 @@ DeviceCaps host_device_caps(const HostDevice& host) {
   if (c.memory_budget_ext && !enabled(exts, VK_EXT_MEMORY_BUDGET_EXTENSION_NAME)) {
     c.memory_budget_ext = false;
     c.memory_budget = query_memory_budget(host.physical_device, c.type, false);
+    apply_limit_overrides(c, limit_overrides_from_env());  // DVS_LIMITS memory= lowers the budget read again
   }
   return c;
 }

@@ -19,6 +19,12 @@ struct LimitProfile {
   uint64_t alignment = 0;   // minStorageBufferOffsetAlignment, bytes
   uint64_t heap = 0;        // default --budget: the device-local memory such a device has
   std::string source;       // where the numbers come from
+  // For weight streaming (dvs plan): the host -> device copy rate of pinned memory, the device's peak 16-bit
+  // matrix rate with fp32 accumulation (what a block's compute cannot beat), and whether such a device has a
+  // transfer-only queue family (copies beside the compute) -- typical figures, with sources in the table.
+  double upload_bytes_per_second = 0;
+  double peak_flops = 0;
+  bool transfer_queue = false;
 };
 
 const std::vector<LimitProfile>& limit_profiles();

@@ -77,6 +77,7 @@ void Allocator::limit_device_memory(uint64_t bytes) { limit_ = limit_ ? std::min
 uint64_t Allocator::device_memory_capacity() const {
   uint64_t cap = budget_.bytes;
   if (limit_) cap = std::min(cap, *limit_);
+  if (ctx_.caps().forced_limits.memory) cap = std::min(cap, ctx_.caps().memory_budget.bytes);  // DVS_LIMITS memory=
   return cap;
 }
 
@@ -89,13 +90,15 @@ void Allocator::check_budget(VkDeviceSize size, uint32_t heap, const std::string
     // The budget moves with other processes: read it now. Usage counts this process' whole use of the heap.
     if (auto hb = query_heap_budget(ctx_.physical_device(), true, budget_.heap)) {
       after = std::max(after, hb->usage + size);
-      if (!limit_ || hb->budget < cap) {
+      if ((!limit_ && !ctx_.caps().forced_limits.memory) || hb->budget < cap) {
         cap = hb->budget;
         source = format_bytes(hb->budget) + " (VK_EXT_memory_budget heapBudget of heap " + std::to_string(heap) + ", now)";
       }
     }
   }
   if (limit_ && cap == *limit_) source = format_bytes(cap) + " (limit set by Allocator::limit_device_memory)";
+  if (ctx_.caps().forced_limits.memory && cap == ctx_.caps().memory_budget.bytes)
+    source = format_bytes(cap) + " (DVS_LIMITS memory=)";
   if (after > cap)
     throw DeviceOutOfMemory("Out of device memory: " + what + " needs a new block of " + format_bytes(size) +
                                 ", which would bring dvs's device memory to " + format_bytes(after) + ", over the " +
@@ -143,7 +146,7 @@ uint32_t Allocator::memory_type_for(MemoryUse use, uint32_t type_bits) const {
     return -1;
   };
   int t = -1;
-  if (use == MemoryUse::device) {
+  if (use == MemoryUse::device || use == MemoryUse::device_shared) {
     // Unified memory: the largest device-local heap is also host-visible; map it and skip staging.
     uint32_t big_heap = device_heap_index(mp);
     for (uint32_t i = 0; i < mp.memoryTypeCount && t < 0; ++i) {
@@ -154,7 +157,7 @@ uint32_t Allocator::memory_type_for(MemoryUse use, uint32_t type_bits) const {
     }
     if (t < 0) t = find(VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0);
     if (t < 0) t = find(0, 0);
-  } else if (use == MemoryUse::upload) {
+  } else if (use == MemoryUse::upload || use == MemoryUse::pinned) {
     t = find(host, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
     if (t < 0) t = find(host, 0);
   } else {
@@ -176,6 +179,12 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
               VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT |
               VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   bci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  const uint32_t families[2] = {ctx_.queue_family(), ctx_.transfer_queue_family()};
+  if ((use == MemoryUse::device_shared || use == MemoryUse::pinned) && ctx_.has_transfer_queue()) {
+    bci.sharingMode = VK_SHARING_MODE_CONCURRENT;  // written by the transfer queue, read by the compute queue
+    bci.queueFamilyIndexCount = 2;
+    bci.pQueueFamilyIndices = families;
+  }
   VK_CHECK(vkCreateBuffer(dev, &bci, nullptr, &block->buffer));
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(dev, block->buffer, &req);
@@ -185,8 +194,9 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
   VkPhysicalDeviceMemoryProperties mp{};
   vkGetPhysicalDeviceMemoryProperties(ctx_.physical_device(), &mp);
   const uint32_t heap = mp.memoryTypes[mai.memoryTypeIndex].heapIndex;
+  const bool host_memory = use == MemoryUse::pinned;  // not device memory, even where it shares the heap
   try {
-    check_budget(req.size, heap, what);
+    if (!host_memory) check_budget(req.size, heap, what);
   } catch (...) {
     vkDestroyBuffer(dev, block->buffer, nullptr);
     throw;
@@ -204,15 +214,19 @@ MemoryBlock* Allocator::new_block(VkDeviceSize size, MemoryUse use, const std::s
   VK_CHECK(vkBindBufferMemory(dev, block->buffer, block->memory, 0));
   block->heap = heap;
   block->bytes = req.size;
-  if (heap == budget_.heap) heap_reserved_ += req.size;
+  if (heap == budget_.heap && !host_memory) heap_reserved_ += req.size;
   if (mp.memoryTypes[mai.memoryTypeIndex].propertyFlags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
     void* p = nullptr;
     VK_CHECK(vkMapMemory(dev, block->memory, 0, VK_WHOLE_SIZE, 0, &p));
     block->mapped = static_cast<uint8_t*>(p);
   }
   block->free_ranges[0] = size;
-  stats_.bytes_reserved += size;
-  stats_.peak_bytes_reserved = std::max(stats_.peak_bytes_reserved, stats_.bytes_reserved);
+  if (host_memory) {
+    stats_.host_bytes_reserved += size;
+  } else {
+    stats_.bytes_reserved += size;
+    stats_.peak_bytes_reserved = std::max(stats_.peak_bytes_reserved, stats_.bytes_reserved);
+  }
   stats_.blocks++;
   blocks_.push_back(std::move(block));
   return blocks_.back().get();
@@ -259,8 +273,12 @@ Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string&
   buf.view_.offset = offset;
   buf.view_.size = bytes;
   buf.view_.mapped = block->mapped ? block->mapped + offset : nullptr;
-  stats_.bytes_in_use += need;
-  stats_.peak_bytes_in_use = std::max(stats_.peak_bytes_in_use, stats_.bytes_in_use);
+  if (use == MemoryUse::pinned) {
+    stats_.host_bytes_in_use += need;
+  } else {
+    stats_.bytes_in_use += need;
+    stats_.peak_bytes_in_use = std::max(stats_.peak_bytes_in_use, stats_.bytes_in_use);
+  }
   return buf;
 }
 
@@ -281,7 +299,7 @@ void Allocator::release(Buffer& b) {
     }
   }
   if (size) fr[off] = size;
-  stats_.bytes_in_use -= b.reserved_;
+  (block->use == MemoryUse::pinned ? stats_.host_bytes_in_use : stats_.bytes_in_use) -= b.reserved_;
   b.owner_ = nullptr;
   b.block_ = nullptr;
   b.view_ = {};
@@ -313,8 +331,12 @@ void Allocator::free_block(size_t index) {
   MemoryBlock& b = *blocks_[index];
   vkDestroyBuffer(dev, b.buffer, nullptr);
   vkFreeMemory(dev, b.memory, nullptr);  // unmaps too
-  if (b.heap == budget_.heap) heap_reserved_ -= b.bytes;
-  stats_.bytes_reserved -= b.size;
+  if (b.use == MemoryUse::pinned) {
+    stats_.host_bytes_reserved -= b.size;
+  } else {
+    if (b.heap == budget_.heap) heap_reserved_ -= b.bytes;
+    stats_.bytes_reserved -= b.size;
+  }
   stats_.blocks--;
   blocks_.erase(blocks_.begin() + std::ptrdiff_t(index));
 }

@@ -25,6 +25,11 @@ enum class MemoryUse {
   device,    // device-local; host-mapped too where the device is unified (lavapipe, integrated GPUs)
   upload,    // host-visible, coherent: staging towards the device
   readback,  // host-visible, coherent, cached where possible: staging back to the host
+  // Streamed weights (models/block_stream.hpp): both are shared by the compute queue and the transfer queue
+  // (VK_SHARING_MODE_CONCURRENT where they are different families, so no ownership transfers are needed).
+  device_shared,  // device-local, as `device`: the block slots the uploads fill
+  pinned,         // host-visible host memory the transfer queue reads directly: the weights' host copy. Host
+                  // memory, not device memory: outside the device budget and outside bytes_in_use (host_* stats)
 };
 
 // A non-owning range of a VkBuffer. `mapped` points at `offset` when the memory is host-visible.
@@ -72,12 +77,14 @@ class Buffer {
   BufferView view_;
 };
 
+// Every use but MemoryUse::pinned, which the host_* figures count.
 struct MemoryStats {
   uint64_t bytes_in_use = 0;
   uint64_t peak_bytes_in_use = 0;
   uint64_t bytes_reserved = 0;  // in VkDeviceMemory blocks
   uint64_t peak_bytes_reserved = 0;  // high-water mark of bytes_reserved (since reset_peak)
   uint32_t blocks = 0;
+  uint64_t host_bytes_in_use = 0, host_bytes_reserved = 0;  // MemoryUse::pinned
 };
 
 class Allocator {

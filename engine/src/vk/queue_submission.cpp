@@ -83,6 +83,33 @@ uint64_t Context::queue_submit(VkCommandBuffer cmd) {
 
 void Context::submit_and_wait(VkCommandBuffer cmd) { wait(queue_submit(cmd)); }
 
+void Context::submit_transfer(VkCommandBuffer cmd, uint64_t after, VkSemaphore semaphore, uint64_t value) {
+  if (faults::fail_now(faults::Kind::submit, "vkQueueSubmit"))
+    throw_vk_error(VK_ERROR_DEVICE_LOST, "vkQueueSubmit", __FILE__, __LINE__);
+  const VkPipelineStageFlags stage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+  VkTimelineSemaphoreSubmitInfo timeline_info{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  timeline_info.waitSemaphoreValueCount = 1;
+  timeline_info.pWaitSemaphoreValues = &after;
+  timeline_info.signalSemaphoreValueCount = 1;
+  timeline_info.pSignalSemaphoreValues = &value;
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.pNext = &timeline_info;
+  si.waitSemaphoreCount = 1;
+  si.pWaitSemaphores = &timeline_;
+  si.pWaitDstStageMask = &stage;
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  si.signalSemaphoreCount = 1;
+  si.pSignalSemaphores = &semaphore;
+  // The compute queue itself where the device has no transfer family: the application's lock applies then; dvs's
+  // own lock of the queue always (contexts on one HostDevice share it).
+  const bool shared = transfer_queue_ == queue_;
+  static const std::function<void()> none;
+  std::lock_guard<std::mutex> own(queue_mutex(transfer_queue_));
+  QueueLock lock(shared ? lock_queue_ : none, shared ? unlock_queue_ : none);
+  VK_CHECK(vkQueueSubmit(transfer_queue_, 1, &si, VK_NULL_HANDLE));
+}
+
 uint64_t Context::submit(VkCommandBuffer cmd) {
   uint64_t ticket = 0;
   try {

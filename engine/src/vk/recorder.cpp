@@ -66,6 +66,7 @@ BufferView Recorder::scratch(uint32_t slot, VkDeviceSize bytes, const std::strin
 void Recorder::begin() {
   if (recording_) throw Error("internal: Recorder::begin while recording");
   release_resources();
+  start_hook_ = {};
   reads_.clear();
   writes_.clear();
   query_labels_.clear();
@@ -121,6 +122,7 @@ void Recorder::flush_early() {
   close_segment(kFlushLabel);
   const SegmentHook hook = hook_ ? hook_ : ctx_.segment_hook();
   for (uint32_t i = flushed_segments_; i < segments_; ++i) {
+    if (start_hook_) start_hook_(i);
     ctx_.submit_and_wait(cmds_[i]);
     ++submissions_;
     // The recording's own boundaries are reported as submit() reports them; the flush's cut is not one.
@@ -356,6 +358,7 @@ void Recorder::submit() {
   if (!recorded_) throw Error("internal: Recorder::submit with nothing recorded");
   const SegmentHook hook = hook_ ? hook_ : ctx_.segment_hook();
   for (uint32_t i = flushed_segments_; i < segments_; ++i) {
+    if (start_hook_) start_hook_(i);
     ctx_.submit_and_wait(cmds_[i]);
     ++submissions_;
     if (i + 1 == segments_ || !hook || segment_labels_[i] == kFlushLabel) continue;

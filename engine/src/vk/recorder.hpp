@@ -69,6 +69,10 @@ class Recorder {
   // begin drops it).
   void submit();
   void set_segment_hook(SegmentHook hook) { hook_ = std::move(hook); }  // empty: use the context's
+  // Called just before segment `index` (0-based) is submitted, by submit() and by the early flush of a long
+  // recording: streamed weights (models/block_stream.hpp) submit uploads there and make the segment wait for
+  // one (Context::wait_before_next). Empty: none. It belongs to one recording: begin() clears it.
+  void set_segment_start_hook(std::function<void(uint32_t index)> hook) { start_hook_ = std::move(hook); }
   // Submits a recording of one segment without waiting and returns its ticket (a render loop that must not block:
   // the embedded scene). The caller waits for the ticket before it submits, begins or drops the recording again.
   // GPU times (profiling) are not collected for such a submission.
@@ -116,6 +120,7 @@ class Recorder {
   bool segment_empty_ = true;                  // no command since the segment's opening barrier
   uint64_t submissions_ = 0;
   SegmentHook hook_;
+  std::function<void(uint32_t)> start_hook_;
   bool recording_ = false, recorded_ = false;
   std::vector<VkDescriptorPool> pools_;
   size_t pool_in_use_ = 0;

@@ -62,33 +62,53 @@ StageMemory t5_call_memory(const nlohmann::json& t5_config, bool embedding_16bit
 StageMemory transformer_call_memory(const nlohmann::json& config, uint64_t alignment, int64_t batch, int64_t F,
                                     int64_t H, int64_t W, int64_t L, int weight_bytes, const vk::DeviceCaps* caps) {
   const auto cfg = CogVideoXTransformerConfig::from_json(config);
-  const int64_t p = cfg.patch_size, N = F * (H / p) * (W / p);
+  const int64_t p = cfg.patch_size, N = F * (H / p) * (W / p), S = L + N, D = cfg.dim();
+  const uint64_t chunk_limit =
+      caps ? std::min<uint64_t>(caps->max_storage_buffer_range, caps->max_memory_allocation_size) : UINT64_MAX;
+  const int64_t chunk = CogVideoXTransformer::token_chunk(cfg, batch, S, chunk_limit);
   StageMemory m;
   m.name = "transformer";
   m.what = "transformer call, batch " + std::to_string(batch) + " x (" + std::to_string(L) + " + " + std::to_string(N) +
-           ") tokens";
-  const vk::ArenaLayout arena = CogVideoXTransformer::arena_layout(cfg, alignment, batch, F, H, W, L, 0, UINT64_MAX);
+           ") tokens, per-token work in chunks of " + std::to_string(std::min(chunk, S)) + " tokens";
+  const vk::ArenaLayout arena =
+      CogVideoXTransformer::arena_layout(cfg, alignment, batch, F, H, W, L, 0, UINT64_MAX, chunk_limit);
   m.working = arena.bytes();
   m.io = allocation_bytes({batch, F, cfg.in_channels, H, W}, alignment) +
          allocation_bytes({batch, L, cfg.text_embed_dim}, alignment) + allocation_bytes({batch}, alignment) /* timesteps */ +
          allocation_bytes({batch, F, cfg.out_channels, H, W}, alignment);
   if (cfg.rotary) m.io += 2 * allocation_bytes({N, cfg.head_dim}, alignment);                 // RoPE cos, sin
   if (cfg.learned_pos || !cfg.rotary) m.io += allocation_bytes({L + N, cfg.dim()}, alignment);  // positional table
-  // Attention split over bindings: head-major K/V and running-state scratch of the recording.
-  if (caps)
-    m.io += ops::attention_split_plan_fused(*caps, {batch, cfg.heads, cfg.head_dim, L + N, L + N}).scratch_bytes;
+  // Attention split over bindings: the recording's scratch (Recorder::scratch) over the calls of one block, in
+  // the order the chunks run. A slot keeps its buffer while requests fit and adds a larger one otherwise.
+  if (caps) {
+    uint64_t held[2] = {0, 0};
+    auto request = [&](int slot, uint64_t bytes) {
+      if (bytes <= held[slot]) return;
+      held[slot] = bytes;
+      m.io += align_up(std::max<uint64_t>(bytes, 16), alignment);
+    };
+    for (const int64_t rows : {L, N})  // the text rows' chunks, then the video rows'
+      for (int64_t s0 = 0; s0 < rows; s0 += chunk) {
+        const ops::AttentionSplit split = ops::attention_split_plan_contiguous(
+            *caps, {batch, cfg.heads, cfg.head_dim, std::min(chunk, rows - s0), S});
+        if (split.padded_head_dim > 0) {
+          request(0, split.scratch_bytes);  // CogVideoX's head_dim is a multiple of 4; other configs: an upper figure
+        } else {
+          request(0, split.kv_scratch_request);
+          request(1, split.state_scratch_request);
+        }
+      }
+  }
   // diffusers' FeedForward: inner width 4 x dim (12288 for the 5B model).
   m.consider({cfg.dim(), 4 * cfg.dim()}, uint64_t(weight_bytes), "FFN weight");
-  m.consider({batch, L + N, 3 * cfg.dim()}, 4, "q, k, v");
-  m.consider({batch, L + N, 4 * cfg.dim()}, 4, "FFN activation");
+  m.consider({batch, S, D}, 4, "residual stream / k / v");
+  m.consider({batch, std::min(chunk, S), 4 * D}, 4, "FFN hidden state of one token chunk");
   m.consider({batch, F, cfg.in_channels, H, W}, 4, "latent input");
   m.consider({batch, L, cfg.text_embed_dim}, 4, "text embeddings");
   if (cfg.learned_pos || !cfg.rotary) m.consider({L + N, cfg.dim()}, 4, "positional table");
-  // The arena's largest tensor (the FFN activation, sharing its region with q|k|v and the attention output)
-  // as the arena places it, aligned: the figure its blocks are cut for.
+  // The arena's largest tensor as the arena places it, aligned: the figure its blocks are cut for.
   if (arena.largest > m.largest_bytes)
-    m.consider_buffer(arena.largest, "activation arena's largest tensor (FFN activation / q, k, v region) [" +
-                                         std::to_string(arena.largest / 4) + "] f32");
+    m.consider_buffer(arena.largest, "activation arena's largest tensor [" + std::to_string(arena.largest / 4) + "] f32");
   return m;
 }
 

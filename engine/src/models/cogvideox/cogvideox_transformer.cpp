@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <numeric>
 #include <string>
 
 #include "dvs/error.hpp"
@@ -23,32 +24,48 @@ std::string blk(int64_t i) { return "transformer_blocks." + std::to_string(i) + 
 
 }  // namespace
 
+// The per-block tables (mod1, mod2) are made at each block's start from its own norm1/norm2 weights; q, attn and
+// ff are views of `region` for the chunk at hand (q and the attention output side by side, the FFN's hidden state
+// over both once they are dead).
 struct CogVideoXTransformer::Activations {
-  Tensor tproj, t1, emb, semb, out_mod, patches, h, xn, work, qkv, attn, ff, proj, lora_tmp;
-  std::vector<Tensor> mod1, mod2;
+  Tensor tproj, t1, emb, semb, mod1, mod2, out_mod, patches, h, xn, k, v, region, proj, lora_tmp;
+  VkDeviceSize attn_offset = 0;  // bytes into `region` where a chunk's attention output starts
 };
 
-CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& dir)
-    : CogVideoXTransformer(ctx, ComponentWeights(ctx, dir)) {}
+CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& dir, WeightResidency residency,
+                                           int stream_slots)
+    : CogVideoXTransformer(ctx, ComponentWeights(ctx, dir), residency, stream_slots) {}
 
-CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights)
+CogVideoXTransformer::CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights, WeightResidency residency,
+                                           int stream_slots)
     : ctx_(ctx),
       weights_(std::move(weights)),
       cfg_(CogVideoXTransformerConfig::from_json(weights_.config(), (weights_.dir() / "config.json").string())) {
-  check_weights();
+  check_weights(residency, stream_slots);
 }
 
-void CogVideoXTransformer::check_weights() {
-  // Upload (and shape-check) everything at load so a bad checkpoint fails here, not mid-recording.
+void CogVideoXTransformer::check_weights(WeightResidency residency, int stream_slots) {
+  // Upload (and shape-check) everything at load so a bad checkpoint fails here, not mid-recording. Streamed
+  // block weights are shape-checked from their headers and go to host memory instead.
   const int64_t D = cfg_.dim(), T = cfg_.time_embed_dim, p = cfg_.patch_size, Dh = cfg_.head_dim;
+  std::vector<std::vector<std::string>> streamed(size_t(cfg_.num_layers));
+  int64_t block = -1;  // the block being checked (-1: outside the blocks)
+  auto need = [&](const std::string& name, const Shape& shape) {
+    if (block < 0 || residency == WeightResidency::resident) {
+      weights_.get(name, shape);
+    } else {
+      weights_.check(name, shape);
+      streamed[size_t(block)].push_back(name);
+    }
+  };
   auto lin = [&](const std::string& name, int64_t in, int64_t out, bool bias) {
-    weights_.get(name + ".weight", {out, in});
-    if (bias) weights_.get(name + ".bias", {out});
+    need(name + ".weight", {out, in});
+    if (bias) need(name + ".bias", {out});
   };
   auto ln = [&](const std::string& name, int64_t n, bool affine) {
     if (!affine) return;
-    weights_.get(name + ".weight", {n});
-    weights_.get(name + ".bias", {n});
+    need(name + ".weight", {n});
+    need(name + ".bias", {n});
   };
   weights_.get("patch_embed.proj.weight", {D, cfg_.in_channels, p, p});
   if (weights_.has("patch_embed.proj.bias")) weights_.get("patch_embed.proj.bias", {D});
@@ -56,6 +73,7 @@ void CogVideoXTransformer::check_weights() {
   lin("time_embedding.linear_1", D, T, true);
   lin("time_embedding.linear_2", T, T, true);
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
+    block = i;
     const std::string b = blk(i);
     lin(b + "norm1.linear", T, 6 * D, true);
     ln(b + "norm1.norm", D, cfg_.norm_affine);
@@ -68,10 +86,35 @@ void CogVideoXTransformer::check_weights() {
     lin(b + "ff.net.0.proj", D, 4 * D, true);
     lin(b + "ff.net.2", 4 * D, D, true);
   }
+  block = -1;
   ln("norm_final", D, cfg_.norm_affine);
   lin("norm_out.linear", T, 2 * D, true);
   ln("norm_out.norm", D, cfg_.norm_affine);
   lin("proj_out", D, p * p * cfg_.out_channels, true);
+  if (residency == WeightResidency::stream && cfg_.num_layers > 0)
+    stream_ = std::make_unique<BlockStream>(
+        ctx_, weights_, cfg_.num_layers, [&](int64_t i) { return streamed[size_t(i)]; }, stream_slots,
+        "transformer blocks");
+}
+
+Tensor CogVideoXTransformer::block_weight(int64_t block, const std::string& suffix) {
+  const std::string name = blk(block) + suffix;
+  return stream_ ? stream_->get(block, name) : weights_.get(name);
+}
+
+int64_t CogVideoXTransformer::token_chunk(const CogVideoXTransformerConfig& cfg, int64_t B, int64_t S, uint64_t limit) {
+  const int64_t D = cfg.dim();
+  // Rows between 256-byte boundaries of the RoPE tables [N, head_dim] f32 (256: any device's binding alignment).
+  const int64_t step = 256 / std::gcd<int64_t>(256, cfg.head_dim * 4);
+  const uint64_t row = uint64_t(std::max<int64_t>(B, 1)) * uint64_t(4 * D) * 4;  // one token's FFN state, every batch row
+  const uint64_t half = std::max(uint64_t(std::max<int64_t>(B, 1)) * uint64_t(S) * uint64_t(D) * 2,
+                                 uint64_t(kMinChunkTokens) * row);
+  const int64_t tokens = int64_t(std::min(limit, half) / row) / step * step;
+  return std::max<int64_t>(1, std::min(std::max(tokens, step), S));
+}
+
+uint64_t CogVideoXTransformer::chunk_limit() const {
+  return std::min<uint64_t>(ctx_.allocator().max_binding(), ctx_.allocator().max_allocation());
 }
 
 const std::pair<Tensor, Tensor>& CogVideoXTransformer::rope_tables(int64_t F, int64_t H, int64_t W) {
@@ -148,7 +191,7 @@ const Tensor& CogVideoXTransformer::positional_embedding(int64_t F, int64_t H, i
 
 CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p,
                                                              int64_t B, int64_t F, int64_t H, int64_t W, int64_t L,
-                                                             int64_t lora_rank) {
+                                                             int64_t lora_rank, int64_t chunk) {
   const int64_t D = cfg.dim(), T = cfg.time_embed_dim, ps = cfg.patch_size;
   const int64_t N = F * (H / ps) * (W / ps), S = L + N;
   Activations a;
@@ -156,25 +199,18 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTran
   a.t1 = p.make({B, T});
   a.emb = p.make({B, T});
   a.semb = p.make({B, T});
-  for (int64_t i = 0; i < cfg.num_layers; ++i) {
-    a.mod1.push_back(p.make({B, 6 * D}));
-    a.mod2.push_back(p.make({B, 6 * D}));
-  }
+  a.mod1 = p.make({B, 6 * D});
+  a.mod2 = p.make({B, 6 * D});
   a.out_mod = p.make({B, 2 * D});
   a.patches = p.make({B, N, cfg.in_channels * ps * ps});
   a.h = p.make({B, S, D});
   a.xn = p.make({B, S, D});
-  // q|k|v and the attention output are dead while the FFN runs: they share one region with its hidden
-  // activations ([B, S, 4D]), the attention output starting on an aligned byte offset.
-  const VkDeviceSize qkv_bytes = VkDeviceSize(B * S * 3 * D) * 4, attn_bytes = VkDeviceSize(B * S * D) * 4;
-  const VkDeviceSize attn_off = (qkv_bytes + 255) / 256 * 256;
-  const int64_t work_elems = std::max<int64_t>(B * S * 4 * D, int64_t((attn_off + attn_bytes) / 4));
-  a.work = p.make({work_elems});
-  if (!p.counting()) {
-    a.qkv = Tensor::on(a.work.buffer().sub(0, qkv_bytes), {B * S, 3 * D}, DType::f32);
-    a.attn = Tensor::on(a.work.buffer().sub(attn_off, attn_bytes), {B, S, D}, DType::f32);
-    a.ff = Tensor::on(a.work.buffer(), {B, S, 4 * D}, DType::f32);
-  }
+  a.k = p.make({B, S, D});
+  a.v = p.make({B, S, D});
+  // One chunk's q and attention output (the latter on an aligned byte offset), and its FFN hidden state over
+  // both once they are dead.
+  a.attn_offset = (VkDeviceSize(B * chunk * D) * 4 + 255) / 256 * 256;
+  a.region = p.make({std::max<int64_t>(B * chunk * 4 * D, int64_t(a.attn_offset / 4) + B * chunk * D)});
   a.proj = p.make({B, N, ps * ps * cfg.out_channels});
   if (lora_rank > 0) a.lora_tmp = p.make({B * S, lora_rank});
   return a;
@@ -182,20 +218,22 @@ CogVideoXTransformer::Activations CogVideoXTransformer::plan(const CogVideoXTran
 
 vk::ArenaLayout CogVideoXTransformer::arena_layout(const CogVideoXTransformerConfig& config, uint64_t alignment,
                                                   int64_t B, int64_t F, int64_t H, int64_t W, int64_t L,
-                                                  int64_t lora_rank, uint64_t alloc_limit) {
+                                                  int64_t lora_rank, uint64_t alloc_limit, uint64_t chunk_limit) {
   ActivationPlan p(alignment, alloc_limit, "transformer activation arena");
-  plan(config, p, B, F, H, W, L, lora_rank);
+  const int64_t S = L + F * (H / config.patch_size) * (W / config.patch_size);
+  plan(config, p, B, F, H, W, L, lora_rank, token_chunk(config, B, S, std::min(alloc_limit, chunk_limit)));
   return p.layout();
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t B,
                                            int64_t F, int64_t H, int64_t W, int64_t L, int64_t lora_rank,
-                                           uint64_t alloc_limit) {
-  return arena_layout(config, alignment, B, F, H, W, L, lora_rank, alloc_limit).bytes();
+                                           uint64_t alloc_limit, uint64_t chunk_limit) {
+  return arena_layout(config, alignment, B, F, H, W, L, lora_rank, alloc_limit, chunk_limit).bytes();
 }
 
 vk::ArenaLayout CogVideoXTransformer::arena_layout(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
-  return arena_layout(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_, ctx_.allocator().max_allocation());
+  return arena_layout(cfg_, ctx_.allocator().alignment(), B, F, H, W, L, lora_rank_, ctx_.allocator().max_allocation(),
+                      chunk_limit());
 }
 
 uint64_t CogVideoXTransformer::arena_bytes(int64_t B, int64_t F, int64_t H, int64_t W, int64_t L) const {
@@ -265,8 +303,16 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   const Tensor& sin = rope_it->second.second;
   const Tensor& pos = pos_it->second;
 
+  const int64_t chunk = token_chunk(cfg_, B, S, chunk_limit());
   ActivationPlan plan_(arena);
-  Activations a = plan(cfg_, plan_, B, F, H, W, L, lora_rank_);
+  Activations a = plan(cfg_, plan_, B, F, H, W, L, lora_rank_, chunk);
+  if (stream_) stream_->begin_call(rec);  // the uploads' schedule for this recording's submission
+  // A GEMM over the B batch rows: x [m, k] · Wᵀ -> y [m, n] in each, batch rows x_stride / y_stride elements apart.
+  auto batched = [&](int64_t m_rows, int64_t n, int64_t k, int64_t x_stride, int64_t y_stride) {
+    ops::LinearShape s;
+    s.batch = B, s.m = m_rows, s.n = n, s.k = k, s.x_batch_stride = x_stride, s.y_batch_stride = y_stride;
+    return s;
+  };
   size_t tap_i = 0;
   auto tap = [&](const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[tap_i].buffer(), t.bytes());
@@ -290,38 +336,22 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   }
   tap(a.emb);
   ops::silu(rec, a.emb, a.semb);
-  auto modulation_table = [&](const std::string& name, const Tensor& table) {
+  auto modulation_table = [&](const Tensor& weight, const Tensor& bias, const Tensor& table) {
     ops::LinearEpilogue e;
-    e.bias = w(name + ".bias");
-    ops::linear(rec, a.semb, w(name + ".weight"), table, e);
+    e.bias = bias;
+    ops::linear(rec, a.semb, weight, table, e);
   };
-  for (int64_t i = 0; i < cfg_.num_layers; ++i) {
-    modulation_table(blk(i) + "norm1.linear", a.mod1[size_t(i)]);
-    modulation_table(blk(i) + "norm2.linear", a.mod2[size_t(i)]);
-  }
-  modulation_table("norm_out.linear", a.out_mod);
+  modulation_table(w("norm_out.linear.weight"), w("norm_out.linear.bias"), a.out_mod);
 
   // Patch embedding: [text_proj(text) ; conv(latent)] written into the rows of one [B, S, D] sequence.
   ops::patchify(rec, latent, a.patches, int(ps));
   {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = N;
-    s.n = D;
-    s.k = Cpp;
-    s.x_batch_stride = N * Cpp;
-    s.y_batch_stride = S * D;
+    const ops::LinearShape s = batched(N, D, Cpp, N * Cpp, S * D);
     ops::LinearEpilogue e;
     e.bias = bias_of("patch_embed.proj.bias");
     ops::linear_batched(rec, a.patches, w("patch_embed.proj.weight").reshape({D, Cpp}),
                         element_range(a.h, L * D, B * S * D - L * D), s, e);
-    ops::LinearShape t;
-    t.batch = B;
-    t.m = L;
-    t.n = D;
-    t.k = cfg_.text_embed_dim;
-    t.x_batch_stride = L * cfg_.text_embed_dim;
-    t.y_batch_stride = S * D;
+    const ops::LinearShape t = batched(L, D, cfg_.text_embed_dim, L * cfg_.text_embed_dim, S * D);
     ops::LinearEpilogue et;
     et.bias = w("patch_embed.text_proj.bias");
     if (L > 0) ops::linear_batched(rec, text, w("patch_embed.text_proj.weight"), a.h, t, et);
@@ -329,41 +359,45 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   if (pos.defined()) ops::add(rec, a.h, pos, a.h);
   tap(a.h);
 
-  const Tensor h_video = element_range(a.h, L * D, B * S * D - L * D);
-  // y += gate ⊙ (x·Wᵀ + b) per row set: text rows gate from column 5D (enc_gate), video rows from 2D (gate).
-  auto gated_residual_with = [&](const Tensor& x, int64_t k, const Tensor& weight, const Tensor& bias, const Tensor& table) {
-    const int64_t xn = B * S * k;
-    for (int set = 0; set < 2; ++set) {
-      const int64_t first = set == 0 ? 0 : L, rows = set == 0 ? L : N;
-      if (rows == 0) continue;
-      ops::LinearShape s;
-      s.batch = B;
-      s.m = rows;
-      s.n = D;
-      s.k = k;
-      s.x_batch_stride = S * k;
-      s.y_batch_stride = S * D;
-      s.vec_batch_stride = 6 * D;
-      const int64_t gate_col = set == 0 ? 5 * D : 2 * D;
-      const Tensor y = set == 0 ? a.h : h_video;
-      ops::LinearEpilogue e;
-      e.bias = bias;
-      e.gate = element_range(table, gate_col, B * 6 * D - gate_col);
-      e.residual = y;
-      ops::linear_batched(rec, element_range(x, first * k, xn - first * k), weight, y, s, e);
-    }
+  // The token chunks: the text rows, then the video rows, `chunk` at a time (a chunk never holds both).
+  std::vector<std::pair<int64_t, int64_t>> chunks;  // first row, rows
+  for (int64_t s0 = 0; s0 < L; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, L - s0));
+  for (int64_t s0 = L; s0 < S; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, S - s0));
+  // Rows [s0, s0 + n) of every batch row of a [B, S, cols] tensor, as the flat range a strided GEMM walks.
+  auto rows_of = [&](const Tensor& t, int64_t cols, int64_t s0) { return element_range(t, s0 * cols, B * S * cols - s0 * cols); };
+  // h[rows s0..s0+n) += gate ⊙ (x·Wᵀ + b), x a chunk [B, n, k]; text rows gate from column 5D (enc_gate), video rows
+  // from 2D (gate).
+  auto gated_residual = [&](const Tensor& x, int64_t k, const Tensor& weight, const Tensor& bias, const Tensor& table,
+                            int64_t s0, int64_t n) {
+    ops::LinearShape s = batched(n, D, k, n * k, S * D);
+    s.vec_batch_stride = 6 * D;
+    const int64_t gate_col = s0 < L ? 5 * D : 2 * D;
+    const Tensor y = rows_of(a.h, D, s0);
+    ops::LinearEpilogue e;
+    e.bias = bias;
+    e.gate = element_range(table, gate_col, B * 6 * D - gate_col);
+    e.residual = y;
+    ops::linear_batched(rec, x, weight, y, s, e);
   };
-  auto gated_residual = [&](const Tensor& x, int64_t k, const std::string& lin, const Tensor& table) {
-    gated_residual_with(x, k, w(lin + ".weight"), w(lin + ".bias"), table);
+  // y (+)= x·Wᵀ (+ b) for rows [s0, s0 + n) of xn into a chunk y [B, n, cols] (n = S: the whole sequence).
+  auto project = [&](const Tensor& weight, const Tensor& bias, const Tensor& y, int64_t cols, int64_t s0, int64_t n,
+                     const Tensor& residual, ops::Activation act) {
+    const ops::LinearShape s = batched(n, cols, D, S * D, n * cols);
+    ops::LinearEpilogue e;
+    e.bias = bias;
+    e.activation = act;
+    e.residual = residual;
+    ops::linear_batched(rec, rows_of(a.xn, D, s0), weight, y, s, e);
   };
-  // LoRA down projection t = x·Aᵀ into the scratch [B·S, rank] (as a contiguous [B·S, r] view).
-  auto lora_down = [&](const Tensor& x2d, const LoraAdapter& ad) {
-    const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * S, ad.rank}, DType::f32);
-    ops::linear(rec, x2d, ad.down, t);
-    return t;
+  // LoRA: y += (x·Aᵀ)·(scale·B)ᵀ over the rows [s0, s0 + n) of xn, before the q/k norms as in diffusers'
+  // LoRA-wrapped Linear; t = x·Aᵀ goes to the scratch [B, n, rank].
+  auto lora_project = [&](const LoraAdapter& ad, const Tensor& y, int64_t s0, int64_t n) {
+    const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * n, ad.rank}, DType::f32);
+    project(ad.down, Tensor(), t, ad.rank, s0, n, Tensor(), ops::Activation::none);
+    ops::linear(rec, t, ad.up, y.reshape({B * n, D}), ops::LinearEpilogue{.residual = y.reshape({B * n, D})});
   };
 
-  auto adaln = [&](const std::string& norm, const Tensor& table) {
+  auto adaln = [&](const Tensor& weight, const Tensor& bias, const Tensor& table) {
     ops::Modulation m;
     m.table = table;
     m.seq_len = S;
@@ -372,56 +406,59 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     m.scale_col[0] = 4 * D;
     m.shift_col[1] = 0;  // video rows: shift, scale
     m.scale_col[1] = D;
-    ops::layernorm(rec, a.h, a.xn, ln_w(norm), ln_b(norm), cfg_.norm_eps, &m);
+    ops::layernorm(rec, a.h, a.xn, weight, bias, cfg_.norm_eps, &m);
   };
 
-  ops::AttentionShape ashape{B, nh, Dh, S, S};
   ops::AttentionOptions aopt;
   aopt.scale = float(1.0 / std::sqrt(double(Dh)));
-  const Tensor xn2d = a.xn.reshape({B * S, D});
+  const Tensor k2d = a.k.reshape({B * S, D}), v2d = a.v.reshape({B * S, D});
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
     const std::string b = blk(i);
-    const Tensor& mod1 = a.mod1[size_t(i)];
-    const Tensor& mod2 = a.mod2[size_t(i)];
-    adaln(b + "norm1.norm", mod1);
-    const char* proj[3] = {"to_q", "to_k", "to_v"};
-    for (int j = 0; j < 3; ++j) {
-      ops::LinearShape s;
-      s.m = B * S;
-      s.n = D;
-      s.k = D;
-      s.y_row_stride = 3 * D;
-      ops::LinearEpilogue e;
-      e.bias = bias_of(b + "attn1." + proj[j] + ".bias");
-      const Tensor y = element_range(a.qkv, j * D, a.qkv.numel() - j * D);
-      ops::linear_batched(rec, xn2d, w(b + "attn1." + proj[j] + ".weight"), y, s, e);
-      if (const LoraAdapter* ad = lora(b + "attn1." + proj[j])) {
-        // y += (x·Aᵀ)·(scale·B)ᵀ, before the q/k norms as in diffusers' LoRA-wrapped Linear.
-        const Tensor t = lora_down(xn2d, *ad);
-        ops::LinearShape ls = s;
-        ls.k = ad->rank;
-        ops::LinearEpilogue le;
-        le.residual = y;
-        ops::linear_batched(rec, t, ad->up, y, ls, le);
+    if (stream_) stream_->mark_block(rec, i);
+    auto bw = [&](const std::string& suffix) { return block_weight(i, suffix); };
+    auto block_bias = [&](const std::string& suffix) {
+      const bool present = stream_ ? stream_->has(i, b + suffix) : weights_.has(b + suffix);
+      return present ? bw(suffix) : Tensor();
+    };
+    auto ln_of = [&](const std::string& suffix) { return cfg_.norm_affine ? bw(suffix) : Tensor(); };
+    modulation_table(bw("norm1.linear.weight"), bw("norm1.linear.bias"), a.mod1);
+    modulation_table(bw("norm2.linear.weight"), bw("norm2.linear.bias"), a.mod2);
+    adaln(ln_of("norm1.norm.weight"), ln_of("norm1.norm.bias"), a.mod1);
+    // K and V of the whole sequence; per-head LayerNorm on k, RoPE on its video rows.
+    const Tensor* kv[2] = {&a.k, &a.v};
+    const char* kv_name[2] = {"to_k", "to_v"};
+    for (int j = 0; j < 2; ++j) {
+      const std::string proj = std::string("attn1.") + kv_name[j];
+      project(bw(proj + ".weight"), block_bias(proj + ".bias"), *kv[j], D, 0, S, Tensor(), ops::Activation::none);
+      if (const LoraAdapter* ad = lora(b + proj)) lora_project(*ad, *kv[j], 0, S);
+    }
+    ops::head_layernorm(rec, k2d, k2d, nh, Dh, 0, bw("attn1.norm_k.weight"), bw("attn1.norm_k.bias"), 1e-6f);
+    if (N > 0) ops::rope(rec, k2d, k2d, B, S, L, nh, Dh, 0, cos, sin);
+    // Attention chunk by chunk of queries: q, its norm and RoPE, attention over every key, the gated output.
+    for (const auto& [s0, n] : chunks) {
+      const Tensor q = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+      const Tensor o = Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+      const Tensor q2d = q.reshape({B * n, D});
+      project(bw("attn1.to_q.weight"), block_bias("attn1.to_q.bias"), q, D, s0, n, Tensor(), ops::Activation::none);
+      if (const LoraAdapter* ad = lora(b + "attn1.to_q")) lora_project(*ad, q, s0, n);
+      ops::head_layernorm(rec, q2d, q2d, nh, Dh, 0, bw("attn1.norm_q.weight"), bw("attn1.norm_q.bias"), 1e-6f);
+      if (s0 >= L) ops::rope(rec, q2d, q2d, B, n, 0, nh, Dh, 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n));
+      ops::attention(rec, ops::AttentionShape{B, nh, Dh, n, S}, ops::AttentionOperand{q}, ops::AttentionOperand{a.k},
+                     ops::AttentionOperand{a.v}, ops::AttentionOperand{o}, aopt);
+      gated_residual(o, D, bw("attn1.to_out.0.weight"), bw("attn1.to_out.0.bias"), a.mod1, s0, n);
+      if (const LoraAdapter* ad = lora(b + "attn1.to_out.0")) {  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
+        const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * n, ad->rank}, DType::f32);
+        ops::linear(rec, o.reshape({B * n, D}), ad->down, t);
+        gated_residual(t, ad->rank, ad->up, Tensor(), a.mod1, s0, n);
       }
     }
-    ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, 0, w(b + "attn1.norm_q.weight"), w(b + "attn1.norm_q.bias"), 1e-6f);
-    ops::head_layernorm(rec, a.qkv, a.qkv, nh, Dh, D, w(b + "attn1.norm_k.weight"), w(b + "attn1.norm_k.bias"), 1e-6f);
-    // q and k are adjacent: rotate both as 2·heads heads, video tokens only.
-    if (N > 0) ops::rope(rec, a.qkv, a.qkv, B, S, L, 2 * nh, Dh, 0, cos, sin);
-    const Tensor qkv3 = a.qkv.reshape({B, S, 3 * D});
-    ops::attention(rec, ashape, ops::fused_qkv_operand(qkv3, 0, nh, Dh), ops::fused_qkv_operand(qkv3, 1, nh, Dh),
-                   ops::fused_qkv_operand(qkv3, 2, nh, Dh), ops::AttentionOperand{a.attn}, aopt);
-    gated_residual(a.attn, D, b + "attn1.to_out.0", mod1);
-    if (const LoraAdapter* ad = lora(b + "attn1.to_out.0"))  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
-      gated_residual_with(lora_down(a.attn.reshape({B * S, D}), *ad), ad->rank, ad->up, Tensor(), mod1);
 
-    adaln(b + "norm2.norm", mod2);
-    ops::LinearEpilogue e;
-    e.bias = w(b + "ff.net.0.proj.bias");
-    e.activation = ops::Activation::gelu_tanh;
-    ops::linear(rec, a.xn, w(b + "ff.net.0.proj.weight"), a.ff, e);
-    gated_residual(a.ff, 4 * D, b + "ff.net.2", mod2);
+    adaln(ln_of("norm2.norm.weight"), ln_of("norm2.norm.bias"), a.mod2);
+    for (const auto& [s0, n] : chunks) {
+      const Tensor ff = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * 4 * D) * 4), {B, n, 4 * D}, DType::f32);
+      project(bw("ff.net.0.proj.weight"), bw("ff.net.0.proj.bias"), ff, 4 * D, s0, n, Tensor(), ops::Activation::gelu_tanh);
+      gated_residual(ff, 4 * D, bw("ff.net.2.weight"), bw("ff.net.2.bias"), a.mod2, s0, n);
+    }
     tap(a.h);
     // One submission per block (Recorder::boundary): progress and Ctrl-C between blocks.
     rec.boundary("transformer block " + std::to_string(i + 1) + "/" + std::to_string(cfg_.num_layers));
@@ -440,13 +477,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     ops::layernorm(rec, a.xn, a.xn, ln_w("norm_out.norm"), ln_b("norm_out.norm"), cfg_.norm_eps, &m);
   }
   {
-    ops::LinearShape s;
-    s.batch = B;
-    s.m = N;
-    s.n = P;
-    s.k = D;
-    s.x_batch_stride = S * D;
-    s.y_batch_stride = N * P;
+    const ops::LinearShape s = batched(N, P, D, S * D, N * P);
     ops::LinearEpilogue e;
     e.bias = w("proj_out.bias");
     ops::linear_batched(rec, element_range(a.xn, L * D, B * S * D - L * D), w("proj_out.weight"), a.proj, s, e);

@@ -12,7 +12,11 @@
 //   out    = unpatchify(proj_out(LN_out(norm_final(x_video))·(1 + scale) + shift)), (shift, scale) from
 //            norm_out.linear(silu(emb)).                                [B, F, out_channels, H, W]
 // The sequence is kept as one [B, L + N, D] buffer: the per-token ops are the same for text and video rows,
-// only the modulation vectors differ.
+// only the modulation vectors differ. Per block, K and V are made for the whole sequence; q, the attention
+// output and the FFN's hidden state only for one token chunk at a time (token_chunk: the text rows, then the
+// video rows, in chunks sized from the device limits), so no activation grows with 4·D per token over the
+// whole sequence. The block weights are resident or streamed (models/block_stream.hpp): the same recording
+// either way, reading them from the stream's slots.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -25,6 +29,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "models/block_stream.hpp"
 #include "models/cogvideox/lora.hpp"
 #include "models/weights.hpp"
 #include "spec/cogvideox_config.hpp"
@@ -58,12 +63,28 @@ HostTensor cogvideox_sincos_pos_embedding(const CogVideoXTransformerConfig& conf
 class CogVideoXTransformer {
  public:
   // `transformer_dir`: <model>/transformer (config.json + single or sharded safetensors).
-  CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& transformer_dir);
-  // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks).
-  CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights);
+  // `residency`: the block weights on the device, or streamed through `stream_slots` device slots.
+  CogVideoXTransformer(vk::Context& ctx, const std::filesystem::path& transformer_dir,
+                       WeightResidency residency = WeightResidency::resident, int stream_slots = 2);
+  // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks). Streamed: the
+  // block weights move to host memory.
+  CogVideoXTransformer(vk::Context& ctx, ComponentWeights weights, WeightResidency residency = WeightResidency::resident,
+                       int stream_slots = 2);
 
   const CogVideoXTransformerConfig& config() const { return cfg_; }
   ComponentWeights& weights() { return weights_; }
+  WeightResidency residency() const { return stream_ ? WeightResidency::stream : WeightResidency::resident; }
+  const BlockStream* stream() const { return stream_.get(); }  // null when resident
+  BlockStream* stream() { return stream_.get(); }  // record_timestamps (tests, dvs-bench)
+  // Block `block`'s tensor `suffix` ("attn1.to_q.weight"), wherever it lives (its stream slot when streamed).
+  Tensor block_weight(int64_t block, const std::string& suffix);
+
+  // Tokens per chunk of a call's per-token work (q, attention output, FFN hidden state [B, chunk, 4·D] f32):
+  // within `limit` bytes (one binding and one allocation under the device's limits) and at most half the
+  // residual stream [B, S, D] (not below kMinChunkTokens unless the limit says so), a multiple of the rows
+  // that keep each video chunk's RoPE table rows 256-byte aligned. The chunks: [0, L) then [L, S) in pieces.
+  static constexpr int64_t kMinChunkTokens = 1024;
+  static int64_t token_chunk(const CogVideoXTransformerConfig& config, int64_t batch, int64_t seq_len, uint64_t limit);
 
   // latent f32 [B, F, in_channels, H, W] (H, W multiples of patch_size); text f32 [B, L, text_embed_dim];
   // timesteps: B values, or 1 value used for every row. RoPE tables come from the ops_position builder for
@@ -82,13 +103,14 @@ class CogVideoXTransformer {
   // Its blocks under the allocation limit in force (what the arena of that call is made of).
   vk::ArenaLayout arena_layout(int64_t batch, int64_t frames, int64_t height, int64_t width, int64_t text_len) const;
   // The same from a config alone (memory planning without weights); `alignment`: the allocator's;
-  // alloc_limit: maxMemoryAllocationSize the arena's blocks are cut for (vk::Arena).
+  // alloc_limit: maxMemoryAllocationSize the arena's blocks are cut for (vk::Arena); chunk_limit: the bytes
+  // token_chunk keeps a chunk's FFN state within (min(maxStorageBufferRange, maxMemoryAllocationSize)).
   static uint64_t arena_bytes(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
                               int64_t frames, int64_t height, int64_t width, int64_t text_len, int64_t lora_rank = 0,
-                              uint64_t alloc_limit = UINT64_MAX);
+                              uint64_t alloc_limit = UINT64_MAX, uint64_t chunk_limit = UINT64_MAX);
   static vk::ArenaLayout arena_layout(const CogVideoXTransformerConfig& config, uint64_t alignment, int64_t batch,
                                       int64_t frames, int64_t height, int64_t width, int64_t text_len,
-                                      int64_t lora_rank, uint64_t alloc_limit);
+                                      int64_t lora_rank, uint64_t alloc_limit, uint64_t chunk_limit = UINT64_MAX);
 
   // LoRA on the attention projections (transformer_blocks.<i>.attn1.{to_q,to_k,to_v,to_out.0}), applied as two
   // extra GEMMs per adapted projection (see models/lora.hpp). Replaces any previous set; an adapter on another
@@ -111,9 +133,10 @@ class CogVideoXTransformer {
  private:
   struct Activations;
   static Activations plan(const CogVideoXTransformerConfig& cfg, ActivationPlan& p, int64_t B, int64_t F, int64_t H,
-                          int64_t W, int64_t L, int64_t lora_rank);
+                          int64_t W, int64_t L, int64_t lora_rank, int64_t chunk);
   const LoraAdapter* lora(const std::string& module) const;
-  void check_weights();
+  void check_weights(WeightResidency residency, int stream_slots);
+  uint64_t chunk_limit() const;  // min(maxStorageBufferRange, maxMemoryAllocationSize) in force
 
   vk::Context& ctx_;
   ComponentWeights weights_;
@@ -123,6 +146,7 @@ class CogVideoXTransformer {
   std::map<std::string, LoraAdapter> lora_;
   int64_t lora_rank_ = 0;  // largest rank in lora_
   std::unique_ptr<vk::Arena> arena_;
+  std::unique_ptr<BlockStream> stream_;  // the block weights, when streamed
 };
 
 }  // namespace dvs::models

@@ -47,10 +47,10 @@ struct T5Encoder::Activations {
   Tensor h, xn, qkv, attn, ff_a, ff_b, words;
 };
 
-T5Encoder::T5Encoder(vk::Context& ctx, const std::filesystem::path& dir)
-    : T5Encoder(ctx, ComponentWeights(ctx, dir)) {}
+T5Encoder::T5Encoder(vk::Context& ctx, const std::filesystem::path& dir, WeightResidency residency, int stream_slots)
+    : T5Encoder(ctx, ComponentWeights(ctx, dir), residency, stream_slots) {}
 
-T5Encoder::T5Encoder(vk::Context& ctx, ComponentWeights weights)
+T5Encoder::T5Encoder(vk::Context& ctx, ComponentWeights weights, WeightResidency residency, int stream_slots)
     : ctx_(ctx), weights_(std::move(weights)), cfg_(T5EncoderConfig::from_json(weights_.config(), (weights_.dir() / "config.json").string())) {
   embedding_ = weights_.get("shared.weight", {cfg_.vocab_size, cfg_.d_model});
   if (embedding_.dtype() != DType::f32 && embedding_.dtype() != DType::bf16 && embedding_.dtype() != DType::f16)
@@ -58,24 +58,37 @@ T5Encoder::T5Encoder(vk::Context& ctx, ComponentWeights weights)
   if (embedding_.dtype() != DType::f32 && cfg_.d_model % 2 != 0)
     throw Error(weights_.dir().string() + ": 16-bit token embeddings need an even d_model");
   const int64_t D = cfg_.d_model, I = cfg_.inner(), F = cfg_.d_ff;
-  // Upload (and shape-check) every tensor now, so a bad checkpoint fails at load and not mid-recording.
+  // Upload (and shape-check) every tensor now, so a bad checkpoint fails at load and not mid-recording. Streamed
+  // layer weights are shape-checked from their headers and go to host memory instead.
+  std::vector<std::vector<std::string>> streamed(size_t(cfg_.num_layers));
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
     const std::string b = block(i);
-    for (const char* p : {"q", "k", "v"}) weights_.get(b + "layer.0.SelfAttention." + p + ".weight", {I, D});
-    weights_.get(b + "layer.0.SelfAttention.o.weight", {D, I});
-    weights_.get(b + "layer.0.layer_norm.weight", {D});
+    auto need = [&](const std::string& name, const Shape& shape) {
+      if (residency == WeightResidency::resident) {
+        weights_.get(name, shape);
+      } else {
+        weights_.check(name, shape);
+        streamed[size_t(i)].push_back(name);
+      }
+    };
+    for (const char* p : {"q", "k", "v"}) need(b + "layer.0.SelfAttention." + p + ".weight", {I, D});
+    need(b + "layer.0.SelfAttention.o.weight", {D, I});
+    need(b + "layer.0.layer_norm.weight", {D});
     if (cfg_.gated) {
-      weights_.get(b + "layer.1.DenseReluDense.wi_0.weight", {F, D});
-      weights_.get(b + "layer.1.DenseReluDense.wi_1.weight", {F, D});
+      need(b + "layer.1.DenseReluDense.wi_0.weight", {F, D});
+      need(b + "layer.1.DenseReluDense.wi_1.weight", {F, D});
     } else {
-      weights_.get(b + "layer.1.DenseReluDense.wi.weight", {F, D});
+      need(b + "layer.1.DenseReluDense.wi.weight", {F, D});
     }
-    weights_.get(b + "layer.1.DenseReluDense.wo.weight", {D, F});
-    weights_.get(b + "layer.1.layer_norm.weight", {D});
+    need(b + "layer.1.DenseReluDense.wo.weight", {D, F});
+    need(b + "layer.1.layer_norm.weight", {D});
   }
   weights_.get("encoder.final_layer_norm.weight", {D});
   if (cfg_.num_layers > 0)
     weights_.get(block(0) + "layer.0.SelfAttention.relative_attention_bias.weight", {cfg_.num_buckets, cfg_.num_heads});
+  if (residency == WeightResidency::stream && cfg_.num_layers > 0)
+    stream_ = std::make_unique<BlockStream>(
+        ctx_, weights_, cfg_.num_layers, [&](int64_t i) { return streamed[size_t(i)]; }, stream_slots, "T5 layers");
 }
 
 const Tensor& T5Encoder::position_bias(int64_t len) {
@@ -143,6 +156,7 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
 
   ActivationPlan p(arena);
   Activations a = plan(cfg_, embedding_.dtype() != DType::f32, p, B, L);
+  if (stream_) stream_->begin_call(rec);  // the uploads' schedule for this recording's submission
   auto tap = [&](size_t i, const Tensor& t) {
     if (taps) rec.copy(t.buffer(), (*taps)[i].buffer(), t.bytes());
   };
@@ -167,7 +181,10 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
     const std::string b = block(i);
     const std::string att = b + "layer.0.SelfAttention.";
-    ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.0.layer_norm.weight"), cfg_.eps);
+    if (stream_) stream_->mark_block(rec, i);
+    // Layer i's weight `name`: resident, or in the stream slot layer i is uploaded to.
+    auto weight = [&](const std::string& name) { return stream_ ? stream_->get(i, name) : weights_.get(name); };
+    ops::rmsnorm(rec, a.h, a.xn, weight(b + "layer.0.layer_norm.weight"), cfg_.eps);
     // q, k, v into column slices of one [B*L, 3I] buffer.
     const char* names[3] = {"q", "k", "v"};
     // T5's activations (and the products of its FFN, the input of wo) exceed fp16 range: every linear here
@@ -180,28 +197,28 @@ void T5Encoder::record(vk::Recorder& rec, vk::Arena& arena, const Tensor& ids, c
       s.n = I;
       s.k = D;
       s.y_row_stride = 3 * I;
-      ops::linear_batched(rec, a.xn, weights_.get(att + names[w] + ".weight"),
+      ops::linear_batched(rec, a.xn, weight(att + names[w] + ".weight"),
                           element_range(a.qkv, w * I, a.qkv.numel() - w * I), s, fp32_ops);
     }
     ops::attention(rec, ashape, ops::fused_qkv_operand(a.qkv, 0, H, Dh), ops::fused_qkv_operand(a.qkv, 1, H, Dh),
                    ops::fused_qkv_operand(a.qkv, 2, H, Dh), ops::AttentionOperand{a.attn}, aopt);
     ops::LinearEpilogue res = fp32_ops;
     res.residual = a.h;
-    ops::linear(rec, a.attn, weights_.get(att + "o.weight"), a.h, res);
+    ops::linear(rec, a.attn, weight(att + "o.weight"), a.h, res);
 
     const std::string ff = b + "layer.1.DenseReluDense.";
-    ops::rmsnorm(rec, a.h, a.xn, weights_.get(b + "layer.1.layer_norm.weight"), cfg_.eps);
+    ops::rmsnorm(rec, a.h, a.xn, weight(b + "layer.1.layer_norm.weight"), cfg_.eps);
     ops::LinearEpilogue act = fp32_ops;
     act.activation =
         cfg_.activation == T5EncoderConfig::Activation::silu ? ops::Activation::silu : ops::Activation::gelu_tanh;
     if (cfg_.gated) {
-      ops::linear(rec, a.xn, weights_.get(ff + "wi_0.weight"), a.ff_a, act);
-      ops::linear(rec, a.xn, weights_.get(ff + "wi_1.weight"), a.ff_b, fp32_ops);
+      ops::linear(rec, a.xn, weight(ff + "wi_0.weight"), a.ff_a, act);
+      ops::linear(rec, a.xn, weight(ff + "wi_1.weight"), a.ff_b, fp32_ops);
       ops::mul(rec, a.ff_a, a.ff_b, a.ff_a);
     } else {
-      ops::linear(rec, a.xn, weights_.get(ff + "wi.weight"), a.ff_a, act);
+      ops::linear(rec, a.xn, weight(ff + "wi.weight"), a.ff_a, act);
     }
-    ops::linear(rec, a.ff_a, weights_.get(ff + "wo.weight"), a.h, res);
+    ops::linear(rec, a.ff_a, weight(ff + "wo.weight"), a.h, res);
     if (i + 1 < cfg_.num_layers) tap(size_t(i + 1), a.h);
     rec.boundary("T5 layer " + std::to_string(i + 1) + "/" + std::to_string(cfg_.num_layers));  // one submission per layer
   }

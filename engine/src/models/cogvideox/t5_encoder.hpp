@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "models/block_stream.hpp"
 #include "models/weights.hpp"
 #include "spec/t5_config.hpp"
 #include "tensor/ops_linear.hpp"
@@ -41,12 +42,18 @@ int64_t t5_relative_position_bucket(int64_t relative_position, bool bidirectiona
 class T5Encoder {
  public:
   // `text_encoder_dir`: <model>/text_encoder (config.json + single or sharded safetensors).
-  T5Encoder(vk::Context& ctx, const std::filesystem::path& text_encoder_dir);
+  // `residency`: the layers' weights on the device, or streamed through `stream_slots` device slots (the
+  // embedding table, the final norm and layer 0's relative position table stay resident).
+  T5Encoder(vk::Context& ctx, const std::filesystem::path& text_encoder_dir,
+            WeightResidency residency = WeightResidency::resident, int stream_slots = 2);
   // From weights already on the device (ComponentWeights' in-memory constructor; benchmarks).
-  T5Encoder(vk::Context& ctx, ComponentWeights weights);
+  T5Encoder(vk::Context& ctx, ComponentWeights weights, WeightResidency residency = WeightResidency::resident,
+            int stream_slots = 2);
 
   const T5EncoderConfig& config() const { return cfg_; }
   ComponentWeights& weights() { return weights_; }
+  WeightResidency residency() const { return stream_ ? WeightResidency::stream : WeightResidency::resident; }
+  const BlockStream* stream() const { return stream_.get(); }  // null when resident
 
   // ids: B rows of the same length L. key_mask: empty = no mask (how CogVideoX calls T5: pads attend), else
   // B rows of L values, 0 = padding key. Returns last_hidden_state f32 [B, L, d_model] (an owning tensor).
@@ -88,6 +95,7 @@ class T5Encoder {
   Tensor embedding_;  // shared.weight as stored
   std::map<int64_t, Tensor> position_bias_;
   std::unique_ptr<vk::Arena> arena_;
+  std::unique_ptr<BlockStream> stream_;  // the layers' weights, when streamed
 };
 
 }  // namespace dvs::models
