@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "dvs/error.hpp"
 #include "geometry/splat.hpp"
 #include "io/depth.hpp"
 #include "support/gpu.hpp"
@@ -69,9 +70,13 @@ TEST_F(GpuTest, GeometrySplatIdentityGivesBackTheInputAtEverySize) {
                                                                 {31, 45}, {45, 80}, {48, 81}, {49, 80}, {97, 161}, {101, 99},
                                                                 {127, 159}, {129, 131}, {96, 160}, {480, 720}, {479, 721}})
     sizes.push_back(s);
-  int failed = 0;
+  int failed = 0, rendered = 0;
   std::string first;
+  // Under forced limits (DVS_LIMITS binding=64KiB, groups=64) the renderer refuses the larger frames, as it should
+  // (one frame's accumulation is one binding and one dispatch): those sizes are left out there, and only there.
+  const bool forced = ctx().caps().forced_limits.any();
   for (const auto& [H, W] : sizes) {
+    ++rendered;
     for (bool squash : {false, true}) {
       // The disparity's conversion with dvs render's intrinsics; metric depth with the official per-axis ones.
       const Frame f = landscape(H, W, uint32_t(H * 1000 + W), squash);
@@ -80,7 +85,14 @@ TEST_F(GpuTest, GeometrySplatIdentityGivesBackTheInputAtEverySize) {
       o.atomics = SplatAtomics::fixed_point;  // the default path (automatic = fixed point)
       Trajectory identity;
       identity.transforms = {glm::dmat4(1.0)};
-      const RenderedClip r = render_clip(ctx(), f.rgb, f.depth, identity, K, o);
+      RenderedClip r;
+      try {
+        r = render_clip(ctx(), f.rgb, f.depth, identity, K, o);
+      } catch (const dvs::Error& e) {
+        if (!forced || std::string(e.what()).rfind("render: ", 0) != 0) throw;
+        --rendered;
+        break;
+      }
       const Worst w = against_input(r, f, H, W);
       // The input comes back within a hundredth of a level (the fixed-point weights and the neighbours' last-bit
       // projection offsets), every pixel visible.
@@ -92,7 +104,8 @@ TEST_F(GpuTest, GeometrySplatIdentityGivesBackTheInputAtEverySize) {
       }
     }
   }
-  EXPECT_EQ(failed, 0) << failed << " of " << 2 * sizes.size() << " renders differ from the input; the first: " << first;
+  EXPECT_GT(rendered, 100) << "most sizes fit every limit the tests force";
+  EXPECT_EQ(failed, 0) << failed << " of " << 2 * rendered << " renders differ from the input; the first: " << first;
 }
 
 }  // namespace
