@@ -204,8 +204,9 @@ TEST_F(ArenaModels, TransformerOverArenaBlocksIsBitwiseTheSame) {
     if (one_block <= limit) {
       EXPECT_EQ(bytes, one_block) << spec << ": activations that fit one allocation take one block";
     } else {
+      // Several blocks; not necessarily as many bytes as one block: the token chunks are sized from the allocation
+      // limit (models/cogvideox token chunking), so a lower limit also means smaller per-token activations.
       EXPECT_GT(bytes, limit) << spec << ": several blocks";
-      EXPECT_GE(bytes, one_block);
     }
     const HostTensor got = tr.forward(latent, text, t).download(ctx());
     ASSERT_EQ(got.shape, ref.shape);
