@@ -105,7 +105,7 @@ inline std::vector<std::string> damaged_entries(const std::filesystem::path& cac
 }
 
 // run.json without what differs between two runs of one job by design: timings, memory peaks, whether caches
-// were used, and the folders (out, cache) it was given.
+// were used (and so which weights were loaded at all), and the folders (out, cache) it was given.
 inline nlohmann::json stable_record(const std::string& run_json_text) {
   nlohmann::json j = nlohmann::json::parse(run_json_text);
   for (const char* k : {"seconds", "seconds_total", "peak_device_bytes", "peak_host_bytes", "inversion_from_cache"}) j.erase(k);
@@ -114,6 +114,8 @@ inline nlohmann::json stable_record(const std::string& run_json_text) {
   if (j.contains("latent") && j["latent"].is_object()) j["latent"].erase("reused"), j["latent"].erase("path");
   if (j.contains("depth_estimate") && j["depth_estimate"].is_object())
     for (const char* k : {"from_cache", "seconds", "estimate"}) j["depth_estimate"].erase(k);
+  // A run that takes its latent from the cache loads neither model: "not loaded" there, "resident" in a run alone.
+  if (j.contains("weights") && j["weights"].is_object()) j["weights"].erase("transformer"), j["weights"].erase("text_encoder");
   return j;
 }
 
