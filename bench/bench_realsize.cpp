@@ -165,14 +165,23 @@ CallResult weights_result(const std::string& op, const models::ComponentWeights&
   return r;
 }
 
-// The plan's verdict on a VAE call under the limits in force: its largest tensor must fit one allocation. A call
-// the plan refuses is recorded as skipped, with the reason (true), instead of run.
+// The plan's verdict on a VAE call under the limits in force: its largest tensor must fit one allocation and its
+// peak the device memory budget (a run under that budget tiles instead). A call the plan refuses is recorded as
+// skipped, with the reason (true), instead of run.
 bool refused_by_plan(const vk::Context& ctx, const StageMemory& m, CallResult& r, const Progress& progress,
                      std::vector<CallResult>& out) {
   r.plan_bytes = m.total();
-  if (m.largest_bytes <= ctx.caps().max_memory_allocation_size) return false;
-  r.skipped = m.largest_what + " (" + vk::format_bytes(m.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
-              vk::format_bytes(ctx.caps().max_memory_allocation_size);
+  const uint64_t budget = ctx.caps().memory_budget.bytes;
+  if (m.largest_bytes > ctx.caps().max_memory_allocation_size)
+    r.skipped = m.largest_what + " (" + vk::format_bytes(m.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
+                vk::format_bytes(ctx.caps().max_memory_allocation_size);
+  else if (budget && m.total() > budget)
+    r.skipped = "its planned peak " + vk::format_bytes(m.total()) + " exceeds the device memory budget " + vk::format_bytes(budget);
+  else {
+    progress(r.op + ": the plan's peak " + vk::format_bytes(m.total()) + " (largest tensor " + m.largest_what + ", " +
+             vk::format_bytes(m.largest_bytes) + ")");
+    return false;
+  }
   progress(r.op + " skipped: the plan refuses it here (" + r.skipped + ")");
   out.push_back(r);
   return true;

@@ -15,6 +15,7 @@
 #include "dvs/job.hpp"
 #include "dvs/logs.hpp"
 #include "dvs/option_names.hpp"
+#include "dvs/plan.hpp"
 #include "dvs/preflight.hpp"
 #include "dvs/trajectory.hpp"
 #include "io/host_tensor.hpp"
@@ -23,6 +24,7 @@
 #include "support/files.hpp"
 #include "support/pipeline_inputs.hpp"
 #include "support/process.hpp"
+#include "support/random_vda.hpp"
 
 namespace dvs {
 namespace {
@@ -161,6 +163,41 @@ TEST(LibraryMessages, DepthJobRefusalsNameItsFields) {
     ADD_FAILURE() << "a missing video was accepted";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("(give DepthJob::video)"), std::string::npos) << e.what();
+  }
+}
+
+// Advice that is no option's name speaks the caller's language too: an output path the library was given is
+// not "--out", and a depth estimate's forecast is stopped by the cancel function, not Ctrl-C.
+TEST(LibraryMessages, AdviceSpeaksTheCallersLanguage) {
+  test::PipelineInputs in;
+  const test::TempDir dir;
+  DepthJob job;
+  job.video = in.video, job.model = test::random_vda(dir.path / "vda");
+  std::filesystem::create_directories(dir.path / "a-folder.npz");
+  const auto message = [&] {
+    try {
+      estimate_depth(job, dir.path / "a-folder.npz");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "estimate_depth accepted a folder as its output file";
+    return std::string();
+  };
+  const std::string library = message();
+  EXPECT_NE(library.find("give another output path"), std::string::npos) << library;
+  EXPECT_EQ(library.find("--out"), std::string::npos) << library;
+  set_option_names(OptionNames::command_line);
+  const std::string program = message();
+  set_option_names(OptionNames::fields);
+  EXPECT_NE(program.find("give another --out"), std::string::npos) << program;
+
+  MemoryPlanRequest req;
+  req.model = (dir.path / "no-model").string();
+  try {
+    plan_run_memory(req);
+    ADD_FAILURE() << "plan_run_memory accepted a missing model folder";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("(give MemoryPlanRequest::model a folder"), std::string::npos) << e.what();
   }
 }
 

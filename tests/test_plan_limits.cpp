@@ -190,5 +190,22 @@ TEST(PlanLimits, DeviceLimitsHonourDvsLimits) {
   EXPECT_EQ(json::parse(lowered.output)["limits"]["alloc_bytes"].get<uint64_t>(), 256ull << 20);
 }
 
+// Limits so small that attention finds no split: a verdict of the plan (exit 1, the stage says why), never an
+// internal error (exit 3) or a bare exception (before: "internal: attention: no split of heads …").
+TEST(PlanLimits, LimitsNoSplitFitsAreAVerdict) {
+  const auto r = plan("--device 0 --json", "DVS_LIMITS=binding=4KiB,texels=1024,alloc=64KiB");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.output.find("internal"), std::string::npos) << r.output;
+  const json j = json::parse(r.output);
+  int cannot = 0;
+  for (const auto& s : j["stages"])
+    if (s["name"] == "t5_encode" || s["name"] == "transformer_cfg" || s["name"] == "transformer_inversion") {
+      EXPECT_NE(s["what"].get<std::string>().find("attention does not fit this device's limits"), std::string::npos) << s.dump();
+      ++cannot;
+    }
+  EXPECT_EQ(cannot, 3) << r.output;
+  EXPECT_FALSE(j["choice"]["fits"].get<bool>()) << j["choice"].dump();
+}
+
 }  // namespace
 }  // namespace dvs

@@ -6,6 +6,7 @@
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_reduce.hpp"
 #include "vk/context.hpp"
+#include "io/option_names.hpp"
 
 namespace dvs::diffusion {
 
@@ -91,7 +92,8 @@ void krnr_official_round(vk::Recorder& rec, const Tensor& x0, const Tensor& eps,
 }
 
 Tensor adaptive_krnr_paper(vk::Context& ctx, const Tensor& x0, const Tensor& eps_inv, double abar, double k, double delta) {
-  if (!(k > 0) || !(delta > 0)) throw Error("K-RNR: --k and --delta must be > 0");
+  if (!(k > 0) || !(delta > 0)) 
+    throw Error("K-RNR: " + option_name("RunOptions::k") + " and " + option_name("RunOptions::delta") + " must be > 0");
   LatentDims d = LatentDims::of(x0);
   Tensor eps_k = Tensor::empty(ctx, x0.shape(), DType::f32, "K-RNR"), eps_d = Tensor::empty(ctx, x0.shape(), DType::f32, "K-RNR");
   AdainWorkspace ws(ctx, d);

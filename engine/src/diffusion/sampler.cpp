@@ -6,6 +6,7 @@
 #include "tensor/binding_split.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
+#include "io/option_names.hpp"
 
 namespace dvs::diffusion {
 namespace {
@@ -139,7 +140,9 @@ Tensor invert(vk::Context& ctx, const Tensor& x0, const std::vector<StepCoeffici
 SampleResult sample(vk::Context& ctx, const Tensor& x_init, const CogVideoXSchedule& s, const SamplingPlan& plan,
                     const Denoiser& model, const Guidance& guidance, const LoopCallbacks& cb) {
   check_latent(x_init);
-  if (plan.timesteps.empty()) throw Error("sampling: the plan has no steps (raise --strength or --steps)");
+  if (plan.timesteps.empty()) 
+    throw Error("sampling: the plan has no steps (raise " + option_name("RunOptions::strength") + " or " +
+                option_name("RunOptions::steps") + ")");
   check_guidance(guidance, x_init, true);
   LoopBuffers b(ctx, x_init, guidance.enabled);
   vk::Recorder rec(ctx);

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dvs/error.hpp"
+#include "io/option_names.hpp"
 
 namespace dvs::diffusion {
 
@@ -240,7 +241,8 @@ SamplingPlan CogVideoXSchedule::plan(int S, double strength) const {
   const int t_start = std::max(S - init, 0);
   if (init <= 0)
     fail("strength " + std::to_string(strength) + " with " + std::to_string(S) +
-         " steps keeps no sampling step (int(steps*strength) = 0); raise --strength or --steps");
+         " steps keeps no sampling step (int(steps*strength) = 0); raise " + option_name("RunOptions::strength") + " or " +
+         option_name("RunOptions::steps"));
   SamplingPlan p;
   p.num_inference_steps = S;
   p.timesteps.assign(all.begin() + t_start, all.end());

@@ -95,6 +95,10 @@ std::vector<std::string> option_fields() {
   return out;
 }
 
+std::string in_words_of_caller(const std::string& command_line, const std::string& library) {
+  return chosen == OptionNames::command_line ? command_line : library;
+}
+
 std::string option_name(const std::string& field) {
   const std::string flag = option_flag(field);  // checked in every mode, so a new name is caught by any test
   return chosen == OptionNames::command_line ? flag : field;

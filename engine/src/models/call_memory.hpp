@@ -28,6 +28,9 @@ struct StageMemory {
   uint64_t largest_bytes = 0;
   int64_t largest_elements = 0;
   std::string largest_what;
+  // Non-empty when the call cannot run at all under the limits planned for (an op finds no split of its
+  // bindings): the reason, and the byte figures above are not meaningful.
+  std::string problem;
 
   // Keeps the larger of the largest tensor so far and `shape` (`elem` bytes each), described as `what`.
   void consider(const Shape& shape, uint64_t elem, const std::string& what);

@@ -186,7 +186,9 @@ CachedDepth cached_depth(const DepthJob& job, const ProgressFn& progress, const 
     } catch (const vk::DeviceOutOfMemory& e) {  // the advice of this stage, not the CogVideoX run's
       throw Error("depth estimate: " + e.detail() + ". Try a smaller " + input_size_name(job) + " (the network input; " +
                       "default 518) or a smaller " + option_name("DepthJob::max_res") + " / fewer " + frames_name(job) +
-                      "; dvs plan --depth-model " + job.model.filename().string() + " shows what the estimate needs",
+                      in_words_of_caller("; dvs plan --depth-model " + job.model.filename().string(),
+                                           "; dvs::plan_run_memory with MemoryPlanRequest::depth_model") +
+                      " shows what the estimate needs",
                   ErrorKind::out_of_memory);
     } catch (const vk::DeviceLost& e) {
       throw Error(std::string("depth estimate: ") + e.what(), ErrorKind::device_lost);
@@ -205,7 +207,7 @@ DepthSummary estimate_depth(const DepthJob& job, const std::filesystem::path& ou
     check_job(job);
     const std::string ext = out.extension().string();
     if (ext != ".npz" && ext != ".npy") throw Error(out.string() + ": the depth file must end in .npz or .npy");
-    if (auto p = file_write_problem(out, "give another --out")) throw Error(*p);  // before the work, not after
+    if (auto p = file_write_problem(out, in_words_of_caller("give another --out", "give another output path"))) throw Error(*p);  // before the work, not after
     const CachedDepth c = cached_depth(job, progress, cancelled);
     try {
       const HostTensor depth = read_npy(c.file);

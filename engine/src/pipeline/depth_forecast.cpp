@@ -61,7 +61,7 @@ std::optional<std::string> DepthForecast::on_step(const VdaStep& step, double se
     any = true;
   }
   if (!any) m += " a faster device (" + option_name("DepthJob::device") + ")";
-  return m + ". Ctrl-C stops it.";
+  return m + in_words_of_caller(". Ctrl-C stops it.", ". The cancel function stops it.");
 }
 
 }  // namespace dvs

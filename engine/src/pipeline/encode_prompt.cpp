@@ -4,6 +4,7 @@
 #include "dvs/error.hpp"
 #include "dvs/pipeline.hpp"
 #include "io/npy.hpp"
+#include "io/option_names.hpp"
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/tokenizer.hpp"
 #include "vk/context.hpp"
@@ -13,11 +14,15 @@ namespace dvs {
 std::vector<int64_t> encode_prompt(const std::filesystem::path& model, const std::string& prompt,
                                    const std::filesystem::path& out_npy, const std::string& device) {
   if (!std::filesystem::is_directory(model))
-    throw Error(model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+    throw Error(model.string() + ": no such model folder (" +
+                in_words_of_caller("give --model DIR", "the model argument must be a folder") +
+                " laid out like THUDM/CogVideoX-5b-I2V)");
   // The output is checked before the T5 encoder runs (minutes for the real one), naming the user's path.
   if (!out_npy.parent_path().empty() && !std::filesystem::is_directory(out_npy.parent_path()))
-    throw Error(out_npy.string() + ": " + cannot_create_note(out_npy, ENOENT) + " (create it, or give another --out)");
-  if (std::filesystem::is_directory(out_npy)) throw Error(out_npy.string() + ": is a folder; give --out FILE.npy");
+    throw Error(out_npy.string() + ": " + cannot_create_note(out_npy, ENOENT) + " (create it, or give another " +
+                in_words_of_caller("--out", "output path") + ")");
+  if (std::filesystem::is_directory(out_npy)) throw Error(out_npy.string() + ": is a folder; give " +
+                in_words_of_caller("--out FILE.npy", "a file path ending in .npy"));
   const T5Tokenizer tokenizer = T5Tokenizer::load(model);
   const int text_len = max_text_seq_length(model);
   vk::ContextOptions copt;

@@ -30,9 +30,10 @@ namespace dvs {
 JobPlan plan_job(const RunOptions& o) {
   Settings st = resolve(o);
   if (!std::filesystem::is_directory(o.model))
-    throw Error(o.model.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V)");
+    throw Error(o.model.string() + ": no such model folder (give " + option_name("RunOptions::model") +
+                " a folder laid out like THUDM/CogVideoX-5b-I2V)");
   if (!o.lora.empty() && !std::filesystem::is_regular_file(o.lora))
-    throw Error(o.lora.string() + ": no such LoRA file (give --lora FILE.safetensors[:SCALE])");
+    throw Error(o.lora.string() + ": no such LoRA file (give " + option_name("RunOptions::lora") + " a .safetensors file)");
   // Cheap checks of the model before any long work.
   diffusion::CogVideoXSchedule schedule(diffusion::load_scheduler_config(o.model));
   diffusion::SamplingPlan plan = schedule.plan(st.steps, st.strength);
@@ -83,7 +84,8 @@ RenderedInput render_for_model(vk::Context& ctx, const RunOptions& o, StageTrack
   RenderedInput in = render_stage(ctx, o.render, [&](const std::string& s) { stages.say(0, 0, s); });
   const int F = int(in.rgb.shape[0]);
   if ((F - 1) % 4 != 0)
-    throw Error(o.render.video.string() + ": " + std::to_string(F) + " frames were decoded; the model needs 4k+1 — pass --frames");
+    throw Error(o.render.video.string() + ": " + std::to_string(F) + " frames were decoded; the model needs 4k+1 — set " +
+                option_name("RunOptions::render.frames"));
   stages.end();
   return in;
 }

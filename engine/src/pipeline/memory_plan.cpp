@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <functional>
 
 #include "io/option_names.hpp"
 #include "dvs/error.hpp"
@@ -104,8 +105,8 @@ PlanModel builtin_plan_model(std::string_view name) {
 PlanModel plan_model_from_folder(const std::filesystem::path& dir) {
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec))
-    throw Error(dir.string() + ": no such model folder (give --model DIR laid out like THUDM/CogVideoX-5b-I2V, or "
-                "--model cogvideox-5b-i2v for the built-in real configuration)");
+    throw Error(dir.string() + ": no such model folder (give " + option_name("MemoryPlanRequest::model") +
+                " a folder laid out like THUDM/CogVideoX-5b-I2V, or cogvideox-5b-i2v for the built-in real configuration)");
   PlanModel m;
   m.source = dir.string();
   const char* hint = "the model folder needs transformer/, vae/ and text_encoder/ with their config.json";
@@ -265,16 +266,30 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
     rs.consider_buffer(plan.render.largest.bytes, plan.render.largest.what);
     plan.stages.push_back(rs);
   }
-  plan.stages.push_back(
-      with_weights(plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits), "text_encoder"));
-  StageMemory cfg2 = with_weights(
-      plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits),
-      "transformer");
+  // A call whose ops find no split under the limits (ErrorKind::device) is a verdict of the plan, not an error.
+  auto beyond_limits = [&](const std::string& name, const std::function<StageMemory()>& plan_stage) {
+    try {
+      return plan_stage();
+    } catch (const Error& e) {
+      if (e.kind() != ErrorKind::device) throw;
+      StageMemory st;
+      st.name = name;
+      st.problem = name + ": " + e.what();
+      st.what = "CANNOT RUN: " + std::string(e.what());
+      return st;
+    }
+  };
+  plan.stages.push_back(with_weights(beyond_limits("t5_encode", [&] {
+    return plan_t5_stage(model.text_encoder, emb16, req.alignment, req.prompts, L, limits);
+  }), "text_encoder"));
+  StageMemory cfg2 = with_weights(beyond_limits("transformer_cfg", [&] {
+    return plan_transformer_stage(model.transformer, req.alignment, 2, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
+  }), "transformer");
   cfg2.name = "transformer_cfg";
   cfg2.what += " (CFG: negative + positive)";
-  StageMemory inv = with_weights(
-      plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits),
-      "transformer");
+  StageMemory inv = with_weights(beyond_limits("transformer_inversion", [&] {
+    return plan_transformer_stage(model.transformer, req.alignment, 1, Fl, Hl, Wl, L, model.assumed_dtype_bytes, limits);
+  }), "transformer");
   inv.name = "transformer_inversion";
   inv.what += " (inversion)";
   plan.stages.push_back(cfg2);
@@ -380,6 +395,7 @@ MemoryPlan plan_memory(const PlanModel& model, const PlanRequest& req) {
   // A setting runs when its whole-run peak is within the budget and every tensor of every stage fits one
   // allocation (ops split a tensor over bindings and texel views; an allocation cannot be split).
   auto too_big = [&](const StageMemory& st) -> std::string {
+    if (!st.problem.empty()) return st.problem;
     if (!req.limits || st.largest_bytes <= req.limits->alloc) return "";
     return st.name + "'s " + st.largest_what + " (" + format_plan_bytes(st.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
            format_plan_bytes(req.limits->alloc) + " of " + req.limits->source;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "dvs/error.hpp"
+#include "io/option_names.hpp"
 #include "io/crash_points.hpp"
 #include "pipeline/run_outputs.hpp"
 
@@ -37,7 +38,7 @@ OutputLock::OutputLock(const std::filesystem::path& dir) : file_(dir / ".dvs-loc
     fd_ = ::open(file_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd_ < 0)
       throw Error(file_.string() + ": cannot create the output folder's lock file (" + std::strerror(errno) +
-                  "); give an --out folder you can write to");
+                  "); give " + option_name("RenderJob::out_dir") + " a folder you can write to");
     if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
       if (errno != EWOULDBLOCK) {
         // A file system without locks (an NFSv3 mount without lockd, some FUSE ones): the job runs unlocked,
@@ -49,7 +50,8 @@ OutputLock::OutputLock(const std::filesystem::path& dir) : file_(dir / ".dvs-loc
       ::close(fd_);
       fd_ = -1;
       throw Error(dir.string() + ": this output folder is in use by " + holder + " (its lock is " +
-                  file_.filename().string() + "); wait for it to finish, or give another --out");
+                  file_.filename().string() + "); wait for it to finish, or give another " +
+                  option_name("RenderJob::out_dir"));
     }
     // The previous holder removes the file when it is done: a lock taken on a file no longer at that name is no
     // lock on the folder, so take it again on the one that is.

@@ -40,7 +40,7 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
   if (opt.key_mask || opt.bias) p.keys = std::min(p.keys, cap_r);
   p.keys = std::min(p.keys, Lk);
   if (p.keys < Lk && p.keys >= blk.keys) p.keys = p.keys / blk.keys * blk.keys;  // whole softmax blocks: same sums
-  if (p.keys < 1) fail("not even one key of one head fits a binding: head_dim " + std::to_string(D) + ", row stride " +
+  if (p.keys < 1) beyond_limits("not even one key of one head fits a binding: head_dim " + std::to_string(D) + ", row stride " +
                        std::to_string(kvs) + " elements");
   const bool key_split = p.keys < Lk;
 
@@ -69,8 +69,8 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
     }
   }
   if (best == 0)
-    fail("no split of heads " + std::to_string(H) + " x rows " + std::to_string(Lq) + " x keys " + std::to_string(Lk) +
-         " (head_dim " + std::to_string(D) + ") fits the limits in force");
+    beyond_limits("no split of heads " + std::to_string(H) + " x rows " + std::to_string(Lq) + " x keys " +
+                  std::to_string(Lk) + " (head_dim " + std::to_string(D) + ") fits them");
   // As many groups, evened out (48 heads by at most 29: 24 + 24, not 29 + 19): less repack memory.
   p.head_group = div_up(H, div_up(H, p.head_group));
   if (p.repack) {
@@ -78,7 +78,7 @@ AttentionSplit plan_split(const vk::DeviceCaps& caps, const AttentionShape& s, c
     int64_t lc = std::min(Lk, div_floor_pos(cap_t - p.head_group * D, kvs) + 1);
     lc = std::min(lc, div_floor_pos(cap_s - (p.head_group - 1) * Lk * D, D));
     lc = std::min<int64_t>(lc, int64_t(max_groups_1d(caps) * kWorkgroupSize) / (p.head_group * D4));
-    if (lc < 1) fail("the K/V repack of " + std::to_string(p.head_group) + " heads does not fit the limits in force");
+    if (lc < 1) beyond_limits("the K/V repack of " + std::to_string(p.head_group) + " heads fits none of them");
     p.pack_rows = lc;
     if (!opt.workspace) {
       p.kv_scratch_request = uint64_t(2 * align_up(p.head_group * Lk * D * 4));
@@ -210,6 +210,12 @@ void check_sizes(const AttentionShape& s) {
 int64_t padded_dim(int64_t head_dim) { return (head_dim + 3) / 4 * 4; }
 
 [[noreturn]] void fail(const std::string& what) { throw Error("internal: attention: " + what); }
+[[noreturn]] void beyond_limits(const std::string& what) {
+  throw Error("attention does not fit this device's limits: " + what +
+                  " (maxStorageBufferRange, maxTexelBufferElements, maxMemoryAllocationSize, or DVS_LIMITS where set)."
+                  " A device with larger limits runs it",
+              ErrorKind::device);
+}
 
 void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
                    bool vec4) {

@@ -31,6 +31,9 @@ int64_t padded_dim(int64_t head_dim);
 
 // Throws the internal error of a call the op cannot run (what: the reason).
 [[noreturn]] void fail(const std::string& what);
+// Throws the device error of a call no split fits: the device's (or DVS_LIMITS') bindings, texel views or
+// allocations are too small for it. Not a bug: a smaller size or a device with larger limits runs.
+[[noreturn]] void beyond_limits(const std::string& what);
 
 // Validates an operand against the shape: defined f32, aligned columns inside the row stride, large enough.
 // `vec4`: read or written in place as vec4s (head_dim a multiple of 4); else only copied element-wise.
