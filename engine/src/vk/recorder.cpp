@@ -128,6 +128,12 @@ void Recorder::flush_early() {
     // The recording's own boundaries are reported as submit() reports them; the flush's cut is not one.
     if (hook && segment_labels_[i] != kFlushLabel) hook(SegmentProgress{i + 1, segments_, segment_labels_[i]});
   }
+  // Flushed segments are never submitted again (submit() starts after them): their commands go now. A driver
+  // that keeps recorded commands in host memory (lavapipe) otherwise holds every command of the recording, and
+  // a recording of millions of dispatches (an untiled 480x720 VAE decode under the minimum texel-view limit) grew
+  // to 14 GB of host memory beside its 7.6 GiB of tensors.
+  for (uint32_t i = flushed_segments_; i < segments_; ++i)
+    VK_CHECK(vkResetCommandBuffer(cmds_[i], VK_COMMAND_BUFFER_RESET_RELEASE_RESOURCES_BIT));
   flushed_segments_ = segments_;
   recycle_descriptors();
   open_segment();
@@ -281,31 +287,36 @@ void Recorder::dispatch(const Pipeline& p, const std::vector<Binding>& bindings,
   track(accesses);
   vkUpdateDescriptorSets(ctx_.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
 
-  bool timed = ctx_.profiler().enabled() && ctx_.caps().timestamps;
-  uint32_t q = 0;
-  if (timed) {
-    q = uint32_t(query_labels_.size()) * 2;
-    if (q / kQueriesPerPool >= query_pools_.size()) {
-      VkQueryPoolCreateInfo qci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
-      qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
-      qci.queryCount = kQueriesPerPool;
-      VkQueryPool pool;
-      VK_CHECK(vkCreateQueryPool(ctx_.device(), &qci, nullptr, &pool));
-      query_pools_.push_back(pool);
-    }
-    if (q % kQueriesPerPool == 0) vkCmdResetQueryPool(cmd_, query_pools_[q / kQueriesPerPool], 0, kQueriesPerPool);
-    vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool], q % kQueriesPerPool);
-    query_labels_.push_back(label.empty() ? p.name : label);
-  }
+  const uint32_t q = time_begin(label.empty() ? p.name : label);
   vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline);
   vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0, nullptr);
   if (push_bytes) vkCmdPushConstants(cmd_, p.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
   vkCmdDispatch(cmd_, gx, gy, gz);
   segment_empty_ = false;
-  if (timed)
-    vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool],
-                        q % kQueriesPerPool + 1);
+  time_end(q);
   dispatches_++;
+}
+
+uint32_t Recorder::time_begin(const std::string& label) {
+  if (!ctx_.profiler().enabled() || !ctx_.caps().timestamps) return kUntimed;
+  const uint32_t q = uint32_t(query_labels_.size()) * 2;
+  if (q / kQueriesPerPool >= query_pools_.size()) {
+    VkQueryPoolCreateInfo qci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    qci.queryCount = kQueriesPerPool;
+    VkQueryPool pool;
+    VK_CHECK(vkCreateQueryPool(ctx_.device(), &qci, nullptr, &pool));
+    query_pools_.push_back(pool);
+  }
+  if (q % kQueriesPerPool == 0) vkCmdResetQueryPool(cmd_, query_pools_[q / kQueriesPerPool], 0, kQueriesPerPool);
+  vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool], q % kQueriesPerPool);
+  query_labels_.push_back(label);
+  return q;
+}
+
+void Recorder::time_end(uint32_t q) {
+  if (q == kUntimed) return;
+  vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, query_pools_[q / kQueriesPerPool], q % kQueriesPerPool + 1);
 }
 
 void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize bytes) {
@@ -313,7 +324,9 @@ void Recorder::copy(const BufferView& src, const BufferView& dst, VkDeviceSize b
   if (bytes > src.size || bytes > dst.size) throw Error("internal: recorded copy larger than its buffers");
   track({{{src.buffer, src.offset, src.offset + bytes}, false}, {{dst.buffer, dst.offset, dst.offset + bytes}, true}});
   VkBufferCopy region{src.offset, dst.offset, bytes};
+  const uint32_t q = time_begin(kCopyLabel);
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, 1, &region);
+  time_end(q);
   segment_empty_ = false;
 }
 
@@ -328,14 +341,18 @@ void Recorder::copy_regions(const BufferView& src, const BufferView& dst, std::s
     r.dstOffset += dst.offset;
   }
   track({{{src.buffer, src.offset, src.offset + src.size}, false}, {{dst.buffer, dst.offset, dst.offset + dst.size}, true}});
+  const uint32_t q = time_begin(kCopyLabel);
   vkCmdCopyBuffer(cmd_, src.buffer, dst.buffer, uint32_t(absolute.size()), absolute.data());
+  time_end(q);
   segment_empty_ = false;
 }
 
 void Recorder::fill_zero(const BufferView& dst) {
   if (!recording_) throw Error("internal: fill outside begin()/end()");
   track({{{dst.buffer, dst.offset, dst.offset + dst.size}, true}});
+  const uint32_t q = time_begin(kFillLabel);
   vkCmdFillBuffer(cmd_, dst.buffer, dst.offset, (dst.size + 3) / 4 * 4, 0);
+  time_end(q);
   segment_empty_ = false;
 }
 

@@ -1,7 +1,8 @@
 // Records many dispatches, inserting a barrier only where a dispatch touches a buffer range that an earlier,
 // unbarriered dispatch wrote (or writes one it read). The recording can be submitted any number of times;
 // only parameter buffers the caller updates change between replays.
-// With profiling on, each dispatch is bracketed by timestamps and its GPU time goes to the Profiler.
+// With profiling on, each dispatch, copy and fill is bracketed by timestamps and its GPU time goes to the Profiler
+// (copies and fills under the labels kCopyLabel and kFillLabel).
 //
 // Bounded submissions: boundary() closes the current command buffer ("segment") and starts the next; submit()
 // submits the segments one by one, each waited for, and between two of them calls the segment hook (progress,
@@ -37,6 +38,9 @@ struct Binding {
 
 class Recorder {
  public:
+  static constexpr const char* kCopyLabel = "vkCmdCopyBuffer";
+  static constexpr const char* kFillLabel = "vkCmdFillBuffer";
+
   explicit Recorder(Context& ctx);
   ~Recorder();
   Recorder(const Recorder&) = delete;
@@ -108,6 +112,11 @@ class Recorder {
   void close_segment(const std::string& label);
   void full_barrier();
   void collect_timestamps(uint32_t pairs);
+  // With profiling on and timestamps on the queue: a timestamp pair opened before a command (its first query) and
+  // closed after it; else kUntimed, and time_end does nothing.
+  static constexpr uint32_t kUntimed = UINT32_MAX;
+  uint32_t time_begin(const std::string& label);
+  void time_end(uint32_t first_query);
   VkDescriptorSet allocate_set(VkDescriptorSetLayout layout);
   void release_resources();
 
