@@ -4,6 +4,8 @@
 // lavapipe); runs on Mesa 26.1's lavapipe (tests/run_on_mesa_coopmat.sh) and on GPUs with tensor cores.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 #include <string>
@@ -111,6 +113,27 @@ TEST_F(CoopmatSmoke, MulAdd16x16x16) {
                  << "(DVS_TUNING=coopmat=16x16x16 forces it)";
   check({16, 16, 16}, false);
   check({16, 16, 16}, true);
+}
+
+// VK_NV_cooperative_matrix2's facts, as `dvs info` and the device run report them: a device that exposes the
+// extension has at least one of its features, and flexible dimensions come with their shapes (lavapipe 26.1:
+// flexible dimensions, granularity 8x8x8, up to 1024). A wrong structure type would read every feature as "no".
+TEST_F(CoopmatSmoke, Coopmat2FactsAreRead) {
+  const vk::DeviceCaps& c = ctx().caps();
+  if (!c.cooperative_matrix2) GTEST_SKIP() << c.name << " does not expose VK_NV_cooperative_matrix2";
+  ASSERT_TRUE(c.cooperative_matrix2_facts.has_value());
+  const vk::CooperativeMatrix2Facts& f = *c.cooperative_matrix2_facts;
+  EXPECT_TRUE(f.workgroup_scope || f.flexible_dimensions || f.reductions || f.conversions || f.per_element_operations ||
+              f.tensor_addressing || f.block_loads)
+      << "the extension is listed but no feature reads as present";
+  if (!f.flexible_dimensions) return;
+  ASSERT_FALSE(f.flexible_shapes.empty()) << "flexible dimensions without a shape";
+  for (const vk::CooperativeMatrixFlexibleShape& s : f.flexible_shapes) {
+    EXPECT_GT(s.m_granularity, 0u);
+    EXPECT_GT(s.n_granularity, 0u);
+    EXPECT_GT(s.k_granularity, 0u);
+    EXPECT_GE(f.flexible_dimensions_max_dimension, std::max({s.m_granularity, s.n_granularity, s.k_granularity}));
+  }
 }
 
 }  // namespace

@@ -150,7 +150,8 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   c.subgroup_size_control = has_sgctl && fsg.subgroupSizeControl && fsg.computeFullSubgroups;
   c.float32_atomic_add = has_atomic_float && fat.shaderBufferFloat32AtomicAdd;
   c.vulkan_memory_model = f12.vulkanMemoryModel;
-  c.cooperative_matrix2 = c.has_extension("VK_NV_cooperative_matrix2");
+  c.cooperative_matrix2 = c.has_extension(VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
+  c.cooperative_matrix2_facts = query_cooperative_matrix2(instance, pd, c.cooperative_matrix2);
   if (has_coopmat && fcm.cooperativeMatrix && instance != VK_NULL_HANDLE) {
     auto get = reinterpret_cast<PFN_vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR>(
         vkGetInstanceProcAddr(instance, "vkGetPhysicalDeviceCooperativeMatrixPropertiesKHR"));
@@ -266,6 +267,7 @@ std::string describe_device(const DeviceCaps& c) {
       << "+" << component_type_name(s.c) << "->" << component_type_name(s.result)
       << (s.scope == VK_SCOPE_SUBGROUP_KHR ? " subgroup" : s.scope == VK_SCOPE_WORKGROUP_KHR ? " workgroup" : " other-scope")
       << (s.saturating ? " saturating" : "") << "\n";
+  if (c.cooperative_matrix2_facts) print_cooperative_matrix2(o, *c.cooperative_matrix2_facts);
   o
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"

@@ -4,9 +4,11 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "vk/cooperative_matrix2.hpp"
 #include "vk/cooperative_matrix_khr.hpp"
 #include "vk/memory_budget.hpp"
 
@@ -59,6 +61,7 @@ struct DeviceCaps {
   bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix with its cooperativeMatrix feature
   std::vector<CooperativeMatrixShape> cooperative_matrix_shapes;  // what the device offers (empty without)
   bool cooperative_matrix2 = false;  // VK_NV_cooperative_matrix2 exposed (reported; no kernel uses it yet)
+  std::optional<CooperativeMatrix2Facts> cooperative_matrix2_facts;  // its features, limits, flexible shapes
   bool vulkan_memory_model = false;  // Vulkan 1.2 vulkanMemoryModel (the coopmat shaders' memory model)
   bool push_descriptor = false;
 
