@@ -40,6 +40,7 @@
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/pipeline.hpp"
+#include "vk/pipeline_statistics.hpp"
 #include "vk/profiler.hpp"
 #include "vk/recorder.hpp"
 #include "vk/transfer.hpp"
@@ -550,9 +551,29 @@ void block_case(Bench& b) {
   }
 }
 
+// The compiled-code statistics of every kernel the cases created (VK_KHR_pipeline_executable_properties: NVIDIA
+// reports registers, spills, shared memory): one JSON line per pipeline, or one line saying why there are none.
+void pipeline_statistics_lines(vk::Context& ctx) {
+  if (!ctx.caps().pipeline_executable_info) {
+    emit({{"case", str("pipeline_stats")},
+          {"skipped", str(ctx.caps().name + " has no VK_KHR_pipeline_executable_properties (pipelineExecutableInfo)")}});
+    return;
+  }
+  ctx.pipelines().for_each([&](const vk::Pipeline& p) {
+    const std::vector<vk::PipelineStatistic> stats = vk::pipeline_statistics(ctx, p);
+    if (stats.empty()) return;
+    std::string obj = "{";
+    for (const vk::PipelineStatistic& s : stats)
+      obj += (obj.size() > 1 ? "," : "") + str(s.executable + ": " + s.name) + ":" + str(s.value);
+    obj += "}";
+    emit({{"case", str("pipeline_stats")}, {"shader", str(p.name)}, {"stats", obj}});
+  });
+}
+
 void gpu(Bench& b) {
   vk::Context& ctx = b.ctx();
   const auto& caps = ctx.caps();
+  ctx.pipelines().set_capture_statistics(true);  // the kernels the cases create report their statistics at the end
   std::string fams;
   for (auto& f : families(ctx)) fams += (fams.empty() ? "" : ",") + f;
   emit({{"case", str("dvs_info")}, {"device", str(caps.name)}, {"driver", str(caps.driver_name)},
@@ -566,6 +587,8 @@ void gpu(Bench& b) {
   attention_cases(b);
   conv_cases(b);
   block_case(b);
+  pipeline_statistics_lines(ctx);
+  ctx.pipelines().set_capture_statistics(false);
 }
 
 Registration reg("gpu", 60, gpu);

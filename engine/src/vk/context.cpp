@@ -207,6 +207,15 @@ Context::Context(const ContextOptions& options) {
       *tail = &fm4;
       tail = &fm4.pNext;
     }
+    // Compiled-code statistics (registers, spills) for the pipelines that ask for them (PipelineCache).
+    VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR fpe{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+    if (caps_.pipeline_executable_info) {
+      fpe.pipelineExecutableInfo = VK_TRUE;
+      *tail = &fpe;
+      tail = &fpe.pNext;
+      exts.push_back(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+    }
     if (caps_.has_extension("VK_KHR_portability_subset")) exts.push_back("VK_KHR_portability_subset");
     if (caps_.memory_budget_ext) exts.push_back(VK_EXT_MEMORY_BUDGET_EXTENSION_NAME);  // the Allocator reads heap budgets
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};

@@ -142,6 +142,10 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   if (has_coopmat) { *tail = &fcm; tail = &fcm.pNext; }
   bool has_atomic_float = c.has_extension("VK_EXT_shader_atomic_float");
   if (has_atomic_float) { *tail = &fat; tail = &fat.pNext; }
+  VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR fpe{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+  const bool has_executable_properties = c.has_extension(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+  if (has_executable_properties) { *tail = &fpe; tail = &fpe.pNext; }
   vkGetPhysicalDeviceFeatures2(pd, &feats);
   c.storage_16bit = f11.storageBuffer16BitAccess;
   c.storage_8bit = f12.storageBuffer8BitAccess;
@@ -150,6 +154,7 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   c.subgroup_size_control = has_sgctl && fsg.subgroupSizeControl && fsg.computeFullSubgroups;
   c.float32_atomic_add = has_atomic_float && fat.shaderBufferFloat32AtomicAdd;
   c.vulkan_memory_model = f12.vulkanMemoryModel;
+  c.pipeline_executable_info = has_executable_properties && fpe.pipelineExecutableInfo;
   c.cooperative_matrix2 = c.has_extension(VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
   c.cooperative_matrix2_facts = query_cooperative_matrix2(instance, pd, c.cooperative_matrix2);
   if (has_coopmat && fcm.cooperativeMatrix && instance != VK_NULL_HANDLE) {
@@ -268,6 +273,9 @@ std::string describe_device(const DeviceCaps& c) {
       << (s.scope == VK_SCOPE_SUBGROUP_KHR ? " subgroup" : s.scope == VK_SCOPE_WORKGROUP_KHR ? " workgroup" : " other-scope")
       << (s.saturating ? " saturating" : "") << "\n";
   if (c.cooperative_matrix2_facts) print_cooperative_matrix2(o, *c.cooperative_matrix2_facts);
+  o << "  pipeline statistics:  " << yes(c.pipeline_executable_info)
+    << (c.pipeline_executable_info ? " (VK_KHR_pipeline_executable_properties: dvs-bench --filter gpu prints each kernel's)"
+                                   : "") << "\n";
   o
     << "  subgroup arithmetic:  " << yes(c.subgroup_arithmetic) << "\n"
     << "  timestamps:           " << yes(c.timestamps) << " (" << c.timestamp_period_ns << " ns/tick)\n"

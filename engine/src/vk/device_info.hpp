@@ -64,6 +64,9 @@ struct DeviceCaps {
   std::optional<CooperativeMatrix2Facts> cooperative_matrix2_facts;  // its features, limits, flexible shapes
   bool vulkan_memory_model = false;  // Vulkan 1.2 vulkanMemoryModel (the coopmat shaders' memory model)
   bool push_descriptor = false;
+  // VK_KHR_pipeline_executable_properties with pipelineExecutableInfo: a pipeline's compiled code can report its
+  // statistics (registers, spills, ...; vk/pipeline_statistics.hpp). NVIDIA has it; lavapipe does not.
+  bool pipeline_executable_info = false;
 
   // The limits every op and allocation honours: the device's, lowered by DVS_LIMITS where it says so
   // (device_limits holds the device's own values, forced_limits which were lowered).

@@ -215,6 +215,10 @@ const Pipeline& PipelineCache::get(const std::string& shader, std::span<const ui
     ci.stage.flags = VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT;
   }
   ci.layout = p->layout;
+  if (capture_statistics_ && caps.pipeline_executable_info) {
+    ci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
+    p->statistics_captured = true;
+  }
   VkResult r = vkCreateComputePipelines(dev, cache_, 1, &ci, nullptr, &p->pipeline);
   vkDestroyShaderModule(dev, module, nullptr);
   VK_CHECK(r);

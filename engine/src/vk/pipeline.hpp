@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <span>
@@ -26,6 +27,7 @@ struct Pipeline {
   VkPipelineLayout layout = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
   ShaderInterface iface;
+  bool statistics_captured = false;  // created with VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR
 };
 
 enum class CacheLoad { disabled, absent, loaded, rejected };
@@ -48,6 +50,13 @@ class PipelineCache {
   const std::string& load_note() const { return load_note_; }  // why a file was rejected
   const std::string& file() const { return file_; }
   size_t pipelines_created() const { return created_; }
+  // Pipelines created from now on keep their compiled code's statistics where the device can report them
+  // (caps.pipeline_executable_info; vk/pipeline_statistics.hpp reads them). For measurements: dvs-bench.
+  void set_capture_statistics(bool on) { capture_statistics_ = on; }
+  // Every pipeline created so far, in key order.
+  void for_each(const std::function<void(const Pipeline&)>& fn) const {
+    for (const auto& [key, p] : pipelines_) fn(*p);
+  }
 
   // pipelines-<vendor>-<device>.bin in the cache folder cache_dir (io/cache_root.hpp: empty = $DVS_CACHE_DIR, else
   // ~/.cache/dvs), the folder whose inversions/ holds the run caches.
@@ -62,6 +71,7 @@ class PipelineCache {
   CacheLoad load_state_ = CacheLoad::disabled;
   std::string load_note_;
   size_t created_ = 0;
+  bool capture_statistics_ = false;
 };
 
 }  // namespace dvs::vk
