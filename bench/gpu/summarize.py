@@ -134,6 +134,15 @@ def main():
             if "ratio_to_torch_bf16_error" in r:
                 extra = "  (%.2fx torch bf16's: %s)" % (r["ratio_to_torch_bf16_error"], "pass" if r.get("pass") else "miss")
             out.append("- %s: %.3e%s" % (r.get("impl"), r["rel_l2_vs_fp32"], extra))
+    stats = [r for r in dvs_rows if r.get("case") == "pipeline_stats"]
+    if stats:
+        out.append("")
+        out.append("Kernels' compiled-code statistics (VK_KHR_pipeline_executable_properties):")
+        for r in stats:
+            if "skipped" in r:
+                out.append("- none: %s" % r["skipped"])
+            else:
+                out.append("- %s: %s" % (r.get("shader"), ", ".join("%s %s" % (k, v) for k, v in r.get("stats", {}).items())))
     fails = [r for r in dvs_rows if r.get("check") == "FAIL" or "error" in r]
     if fails:
         out.append("")
