@@ -186,12 +186,12 @@ TEST_F(GpuTest, SamplingEdgeCases) {
   check_sampling(ctx(), all, {true, 6.0}, {}, "strength 1.0");
   // A strength that keeps no step: the error names the options to change.
   const std::string msg = error_of([&] { s.plan(10, 0.05); });
-  EXPECT_NE(msg.find("--strength"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("--steps"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("RunOptions::strength"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("RunOptions::steps"), std::string::npos) << msg;
   // An empty plan and a dynamic guidance without positions are refused.
   const Tensor x = Tensor::upload(ctx(), test::random_latent({1, 4, 4, 4}, 1));
   RandomModel m{{1, 4, 4, 4}, {}, {}};
-  EXPECT_NE(error_of([&] { sample(ctx(), x, s, SamplingPlan{10, {}}, std::ref(m), {true, 6.0}); }).find("--strength"),
+  EXPECT_NE(error_of([&] { sample(ctx(), x, s, SamplingPlan{10, {}}, std::ref(m), {true, 6.0}); }).find("RunOptions::strength"),
             std::string::npos);
   Guidance g{true, 6.0};
   g.mode = GuidanceMode::dynamic;

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <string>
 
 #include "dvs/error.hpp"
@@ -115,6 +116,26 @@ TEST_F(GpuTest, AllocatorRefusesBlocksBeyondItsCapacity) {
   vk::Allocator b(ctx());
   b.limit_device_memory(block - 1);  // one byte short of the first block
   EXPECT_THROW(b.allocate(1000, vk::MemoryUse::device, "first"), Error);
+}
+
+// The spare block the allocator keeps after its last buffer goes is given back before a new block is refused:
+// two blocks' buffers, the first freed (its block stays as the spare), then a tensor larger than a block fits a
+// budget of one block plus that tensor only once the spare is gone.
+TEST_F(GpuTest, AllocatorGivesBackItsSpareBeforeRefusing) {
+  vk::Allocator a(ctx());
+  const uint64_t block = a.block_size(), big = block + block / 4;
+  if (big > a.max_allocation())
+    GTEST_SKIP() << "a tensor larger than a block (" << big << " bytes) exceeds the allocation limit in force";
+  a.limit_device_memory(block + big);
+  vk::Buffer first = a.allocate(block - 4096, vk::MemoryUse::device, "first");
+  std::optional<vk::Buffer> second;
+  second.emplace(a.allocate(block / 2, vk::MemoryUse::device, "second"));  // no room in the first: a second block
+  ASSERT_EQ(a.device_memory_reserved(), 2 * block);
+  second.reset();  // its block is now the spare
+  EXPECT_EQ(a.device_memory_reserved(), 2 * block) << "the spare is kept while nothing needs its memory";
+  vk::Buffer third = a.allocate(big, vk::MemoryUse::device, "a tensor larger than a block");
+  EXPECT_EQ(a.device_memory_reserved(), block + big) << "the spare went back before the new block";
+  EXPECT_THROW(a.allocate(block / 2, vk::MemoryUse::device, "one more"), Error) << "the budget still holds";
 }
 
 }  // namespace

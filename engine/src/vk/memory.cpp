@@ -258,7 +258,16 @@ Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string&
   // a block of its own and gets VK_ERROR_OUT_OF_DEVICE_MEMORY, through the real error path (io/injected_faults.hpp).
   const bool injected = faults::fail_now(faults::Kind::alloc, what);
   if (!block || injected) {
-    block = new_block(injected ? need : std::max(need, block_size()), use, what, injected);
+    const VkDeviceSize size = injected ? need : std::max(need, block_size());
+    try {
+      block = new_block(size, use, what, injected);
+    } catch (const DeviceOutOfMemory&) {
+      // The spare blocks return_free_blocks keeps (one standard block per use) are memory nothing holds: give
+      // them back and ask once more before refusing (an untiled real-size decode under an 8 GiB budget was
+      // refused at 8.2 GiB reserved with such a spare held).
+      if (injected || !release_spare_blocks()) throw;
+      block = new_block(size, use, what, false);
+    }
     offset = 0;
   }
   VkDeviceSize range = block->free_ranges[offset];
@@ -324,6 +333,17 @@ void Allocator::return_free_blocks(MemoryUse use) {
     }
     free_block(i);
   }
+}
+
+bool Allocator::release_spare_blocks() {
+  bool released = false;
+  for (size_t i = blocks_.size(); i-- > 0;) {
+    const MemoryBlock& b = *blocks_[i];
+    if (b.use == MemoryUse::pinned || b.free_ranges.size() != 1 || b.free_ranges.begin()->second != b.size) continue;
+    free_block(i);
+    released = true;
+  }
+  return released;
 }
 
 void Allocator::free_block(size_t index) {

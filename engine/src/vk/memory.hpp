@@ -119,6 +119,7 @@ class Allocator {
   // `injected_failure`: the driver's answer is VK_ERROR_OUT_OF_DEVICE_MEMORY (DVS_FAULTS=alloc=N).
   MemoryBlock* new_block(VkDeviceSize size, MemoryUse use, const std::string& what, bool injected_failure = false);
   void return_free_blocks(MemoryUse use);  // see memory.cpp for the policy
+  bool release_spare_blocks();             // every entirely free device block, spares included; true if any
   void free_block(size_t index);
   uint32_t memory_type_for(MemoryUse use, uint32_t type_bits) const;
   void check_budget(VkDeviceSize size, uint32_t heap, const std::string& what) const;  // throws when over
