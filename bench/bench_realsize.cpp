@@ -165,18 +165,20 @@ CallResult weights_result(const std::string& op, const models::ComponentWeights&
   return r;
 }
 
-// The plan's verdict on a VAE call under the limits in force: its largest tensor must fit one allocation and its
-// peak the device memory budget (a run under that budget tiles instead). A call the plan refuses is recorded as
+// The plan's verdict on a VAE call under the limits in force: its largest tensor must fit one allocation, and its
+// peak with what the device already holds (the VAE's weights, the call's input) the device memory budget, as the
+// whole-run plan counts a phase (a run under that budget tiles instead). A call the plan refuses is recorded as
 // skipped, with the reason (true), instead of run.
-bool refused_by_plan(const vk::Context& ctx, const StageMemory& m, CallResult& r, const Progress& progress,
+bool refused_by_plan(vk::Context& ctx, const StageMemory& m, CallResult& r, const Progress& progress,
                      std::vector<CallResult>& out) {
   r.plan_bytes = m.total();
-  const uint64_t budget = ctx.caps().memory_budget.bytes;
+  const uint64_t budget = ctx.caps().memory_budget.bytes, held = ctx.allocator().stats().bytes_in_use;
   if (m.largest_bytes > ctx.caps().max_memory_allocation_size)
     r.skipped = m.largest_what + " (" + vk::format_bytes(m.largest_bytes) + ") exceeds maxMemoryAllocationSize " +
                 vk::format_bytes(ctx.caps().max_memory_allocation_size);
-  else if (budget && m.total() > budget)
-    r.skipped = "its planned peak " + vk::format_bytes(m.total()) + " exceeds the device memory budget " + vk::format_bytes(budget);
+  else if (budget && held + m.total() > budget)
+    r.skipped = "its planned peak " + vk::format_bytes(m.total()) + " with the " + vk::format_bytes(held) +
+                " the device already holds (weights, input) exceeds the device memory budget " + vk::format_bytes(budget);
   else {
     progress(r.op + ": the plan's peak " + vk::format_bytes(m.total()) + " (largest tensor " + m.largest_what + ", " +
              vk::format_bytes(m.largest_bytes) + ")");
