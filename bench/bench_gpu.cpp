@@ -110,7 +110,9 @@ std::string json_escape(const std::string& s) {
 }
 
 // One JSON line: stdout, and the file named by DVS_GPU_BENCH_JSON (flushed per line).
-void emit(const std::map<std::string, std::string>& fields) {
+// DVS_GPU_BENCH_VARIANT (the device stage's sweep, with DVS_TUNING set to it): every line says which variant.
+void emit(std::map<std::string, std::string> fields) {
+  if (const char* v = std::getenv("DVS_GPU_BENCH_VARIANT"); v && *v) fields["variant"] = "\"" + json_escape(v) + "\"";
   std::string j = "{\"source\":\"dvs\"";
   for (const auto& [k, v] : fields) j += ",\"" + k + "\":" + v;
   j += "}";
@@ -580,13 +582,16 @@ void gpu(Bench& b) {
         {"entry", str(ops::device_tuning(caps).entry)}, {"families", str(fams)},
         {"subgroup_size", std::to_string(caps.subgroup_size)}, {"timestamps", caps.timestamps ? "true" : "false"},
         {"smoke", smoke(b) ? "true" : "false"}});
-  // Cheapest and most telling first; the block last (it needs the torch script's folder).
-  copy_case(b);
-  mma_rate_case(b);
-  gemm_cases(b);
-  attention_cases(b);
-  conv_cases(b);
-  block_case(b);
+  // Cheapest and most telling first; the block last (it needs the torch script's folder). DVS_GPU_BENCH_CASES
+  // (e.g. "gemm" for one variant of the sweep) runs only the cases it lists.
+  const char* only = std::getenv("DVS_GPU_BENCH_CASES");
+  auto wanted = [&](const char* c) { return !only || !*only || (std::string(",") + only + ",").find(std::string(",") + c + ",") != std::string::npos; };
+  if (wanted("copy")) copy_case(b);
+  if (wanted("mma_rate")) mma_rate_case(b);
+  if (wanted("gemm")) gemm_cases(b);
+  if (wanted("attention")) attention_cases(b);
+  if (wanted("conv3d")) conv_cases(b);
+  if (wanted("block")) block_case(b);
   pipeline_statistics_lines(ctx);
   ctx.pipelines().set_capture_statistics(false);
 }

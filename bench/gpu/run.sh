@@ -15,7 +15,8 @@
 # --smoke (or DVS_GPU_SMOKE=1): the same script on this machine's Vulkan device (lavapipe) with tiny shapes and
 # few tests, no PyTorch, no nvidia-smi, no dpkg; OUT defaults to a new temporary folder; the programs come from
 # DVS_GPU_BIN (a build tree or an unpacked bundle) or the bundle. ctest runs it (label devicescript).
-# Timeouts (s), overridable: DVS_GPU_T_A=30 _B=90 (split over four runs) _C=150 _D=90 _E=rest of DVS_GPU_TOTAL=420.
+# Timeouts (s), overridable: DVS_GPU_T_A=30 _B=90 (split over four runs) _C=210 (with its 60 s sweep) _D=90 _E=rest of
+# DVS_GPU_TOTAL=480.
 # DVS_GPU_STAGES (default abcde) picks stages, e.g. DVS_GPU_STAGES=e for a rerun of the end-to-end stage alone;
 # DVS_GPU_OPS_FILTER / DVS_GPU_GOLDEN_FILTER replace stage b's gtest filters.
 set -u
@@ -43,7 +44,7 @@ FAILED=""
 STAGES="${DVS_GPU_STAGES:-abcde}"
 want() { [[ "$STAGES" == *"$1"* ]]; }
 if [ "$SMOKE" = 1 ]; then d_a=60 d_b=300 d_c=150 d_d=120 d_total=900  # lavapipe: slower, nothing else waits
-else d_a=30 d_b=90 d_c=150 d_d=90 d_total=420; fi
+else d_a=30 d_b=90 d_c=210 d_d=90 d_total=480; fi
 T_A="${DVS_GPU_T_A:-$d_a}" T_B="${DVS_GPU_T_B:-$d_b}" T_C="${DVS_GPU_T_C:-$d_c}" T_D="${DVS_GPU_T_D:-$d_d}"
 TOTAL="${DVS_GPU_TOTAL:-$d_total}"
 export PYTHONUNBUFFERED=1

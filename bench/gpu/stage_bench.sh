@@ -7,9 +7,11 @@
 #   2. dvs-bench       --filter gpu: the same cases per kernel family, checked by value, and the block from
 #                      $BLOCK through the production loader                                   -> $OUT/dvs.jsonl
 #   3. compare_block   dvs's block output(s) and torch bf16's vs the fp32 reference (relative L2) -> $OUT/dvs.jsonl
-#   4. summarize       the table: each case, dvs per family, torch, ratio, goals             -> $OUT/summary.md
+#   4. sweep           dvs-bench again per tuning variant (tiles, subgroups per workgroup, blocks) of one case and
+#                      family, each line tagged "variant" (issue 35 C.3), within STAGE_T_SWEEP s  -> $OUT/dvs.jsonl
+#   5. summarize       the table: each case, dvs per family, torch, ratio, goals; the sweep's  -> $OUT/summary.md
 # Each step runs under its own timeout (env STAGE_T_TORCH / STAGE_T_DVS, seconds; STAGE_TORCH_ARGS adds torch_ref.py options); JSON lines are written
-# as each case ends, so a timeout keeps what finished. Whole stage <= ~150 s on an H100.
+# as each case ends, so a timeout keeps what finished. Whole stage <= ~210 s on an H100 (60 s of it the sweep).
 # --smoke: tiny shapes, no PyTorch (the python files are only byte-compiled); runs on lavapipe in seconds.
 # Three files in $OUT: torch.jsonl, dvs.jsonl, summary.md (the device returns at most 8 in all); every line is
 # also appended to $DVS_GPU_RESULTS when run.sh sets it. $DVS_BIN or $DVS_GPU_BIN_DIR: the folder of dvs-bench.
@@ -73,12 +75,45 @@ step dvs_bench "${STAGE_T_DVS:-75}" "$BENCH" --filter gpu
 if [ -n "${DVS_GPU_BENCH_DIR:-}" ]; then
   step compare_block 10 "$PY" "$HERE/compare_block.py" "$DVS_GPU_BENCH_DIR" --json "$DJ"
 fi
+# The sweep: "case|family|DVS_TUNING" per variant, most telling first (the defaults first, so each family's row in
+# the sweep is comparable with the main table's); a variant the device cannot run errors or falls back, and says so
+# in its line. STAGE_SWEEP replaces the list (space-separated); every variant gets at most 30 s, the whole sweep
+# STAGE_T_SWEEP s (what is left when it ends is skipped, and said).
+if [ $SMOKE -eq 1 ]; then
+  default_sweep="gemm|tiled|linear_tile_m=32,linear_tile_n=32 attention|tiled|attention_block_q=32,attention_block_k=32"
+else
+  default_sweep="gemm|coopmat|linear_coopmat=2x4x4x2x32 gemm|coopmat|linear_coopmat=2x2x2x2x32
+    gemm|coopmat|linear_coopmat=1x1x2x2x32 gemm|coopmat|linear_coopmat=4x2x2x4x32 gemm|coopmat|linear_coopmat=2x4x4x2x16
+    attention|coopmat|attention_coopmat_subgroups=4 attention|coopmat|attention_coopmat_subgroups=2
+    attention|coopmat|attention_coopmat_subgroups=8 attention|coopmat|attention_coopmat_subgroups=1
+    conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat=2x2x2x2x32 conv3d|coopmat|conv_coopmat=2x4x4x2x32
+    conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
+    attention|tiled|attention_block_q=128,attention_block_k=64 conv3d|tiled|conv_tile_m=128,conv_tile_n=128"
+fi
+sweep_t=${STAGE_T_SWEEP:-$([ $SMOKE -eq 1 ] && echo 120 || echo 60)}
+sweep_start=$SECONDS
+for v in ${STAGE_SWEEP:-$default_sweep}; do
+  IFS='|' read -r vcase vfam vtuning <<< "$v"
+  left=$((sweep_t - (SECONDS - sweep_start)))
+  if [ $left -le 0 ]; then
+    echo "{\"source\":\"stage\",\"step\":\"sweep\",\"variant\":\"$vtuning\",\"case\":\"$vcase\",\"skipped\":\"the sweep's ${sweep_t} s were spent\"}" >> "$DJ"
+    continue
+  fi
+  kept=$status  # a variant the device refuses is a figure of the sweep, not a failure of the stage
+  status=0
+  DVS_TUNING="$vtuning" DVS_GPU_BENCH_VARIANT="$vtuning" DVS_GPU_BENCH_CASES="$vcase" DVS_GPU_BENCH_FAMILIES="$vfam" \
+    step "sweep $vcase $vfam $vtuning" "$(( left < 30 ? left : 30 ))" "$BENCH" --filter gpu
+  [ $status -ne 0 ] &&
+    echo "{\"source\":\"stage\",\"step\":\"sweep\",\"variant\":\"$vtuning\",\"case\":\"$vcase\",\"skipped\":\"dvs-bench failed or timed out (the log says why)\"}" >> "$DJ"
+  status=$kept
+done
 timeout 5 "$PY" "$HERE/summarize.py" "$TJ" "$DJ" > "$OUT/summary.md" || status=1
 cat "$OUT/summary.md"
 # run.sh's results file gets every line too (its own copy of the stage, beside the three files here).
 [ -n "${DVS_GPU_RESULTS:-}" ] && cat "$TJ" "$DJ" >> "$DVS_GPU_RESULTS"
 # A wrong kernel is a failure of the stage (smoke: of the ctest), not a timing.
-if grep -q '"check": *"FAIL"\|"error":' "$DJ"; then
+# (The sweep's variants may error or fall back on a device that cannot run them: a figure, not a failure.)
+if grep -v '"variant"' "$DJ" | grep -q '"check": *"FAIL"\|"error":'; then
   echo "stage_bench: some dvs cases failed their check or errored (see $DJ)"
   status=1
 fi

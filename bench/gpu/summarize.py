@@ -51,6 +51,9 @@ def torch_row(rows, case, shape, want):
 
 def main():
     torch_rows, dvs_rows = load(sys.argv[1]), load(sys.argv[2]) if len(sys.argv) > 2 else []
+    # The sweep's lines (stage_bench.sh step 4) carry "variant": a table of their own, after the main one.
+    sweep_rows = [r for r in dvs_rows if "variant" in r]
+    dvs_rows = [r for r in dvs_rows if "variant" not in r]
     out = []
     info = [r for r in dvs_rows if r.get("case") == "dvs_info"] + [r for r in torch_rows if r.get("case") == "torch_info"]
     for r in info:
@@ -134,6 +137,31 @@ def main():
             if "ratio_to_torch_bf16_error" in r:
                 extra = "  (%.2fx torch bf16's: %s)" % (r["ratio_to_torch_bf16_error"], "pass" if r.get("pass") else "miss")
             out.append("- %s: %.3e%s" % (r.get("impl"), r["rel_l2_vs_fp32"], extra))
+    sweep = [r for r in sweep_rows if r.get("source") != "stage" and r.get("case") in GOALS and r.get("case") != "block"]
+    skipped = [r for r in sweep_rows if r.get("source") == "stage" and "skipped" in r]
+    if sweep or skipped:
+        out.append("")
+        out.append("Sweep (DVS_TUNING variants, one case and family each; ratio to the torch figure of the main table):")
+        out.append("| case | shape | family | variant | dvs | torch | ratio | kernels |")
+        out.append("|---|---|---|---|---|---|---|---|")
+        for r in sweep:
+            case, shape = r.get("case"), r.get("shape")
+            if "error" in r:
+                cell, ratio = "error: %s" % r["error"][:80], ""
+            elif r.get("check") == "FAIL":
+                cell, ratio = "FAIL (err %.1e)" % (r.get("rel_err") or float("inf")), ""
+            elif rate(r) is None:
+                cell, ratio = r.get("skipped", "no figure"), ""
+            else:
+                cell, ratio = "%.4g" % rate(r) + (" GB/s" if "gbps" in r else ""), ""
+            t = torch_row(torch_rows, case, shape, GOALS[case][0])
+            tv = rate(t) if t is not None else None
+            if tv and "error" not in r and r.get("check") != "FAIL" and rate(r) is not None:
+                ratio = "%.2fx" % (rate(r) / tv)
+            out.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % (case, shape, r.get("family"), r["variant"], cell,
+                                                                  "%.4g" % tv if tv else "", ratio, r.get("shaders", "")))
+        for r in skipped:
+            out.append("- %s %s: skipped (%s)" % (r.get("case"), r.get("variant"), r["skipped"]))
     stats = [r for r in dvs_rows if r.get("case") == "pipeline_stats"]
     if stats:
         out.append("")
