@@ -312,14 +312,20 @@ def randn(shape, dev, dtype, gen, scale=1.0):
     return (torch.randn(shape, device=dev, generator=gen, dtype=torch.float32) * scale).to(dtype)
 
 
+def sig(x, digits=4):
+    """x to `digits` significant digits: a rate rounded to decimals reads 0.0 for the smoke's tiny shapes on a busy
+    CPU, and a ratio to 0 is no ratio (gpu_stage_torch_smoke failed on it now and then)."""
+    return float("%.*g" % (digits, x))
+
+
 def run_case(rep, case, shape, fn, dev, flops=0.0, nbytes=0.0, **extra):
     try:
         ms, n = time_ms(fn, dev)
-        d = dict(case=case, shape=shape, ms=round(ms, 4), runs=n, **extra)
+        d = dict(case=case, shape=shape, ms=sig(ms), runs=n, **extra)
         if flops:
-            d["tflops"] = round(flops / (ms * 1e9), 3)
+            d["tflops"] = sig(flops / (ms * 1e9))
         if nbytes:
-            d["gbps"] = round(nbytes / (ms * 1e6), 2)
+            d["gbps"] = sig(nbytes / (ms * 1e6))
         rep.emit(**d)
     except Exception as e:  # one failed case (out of memory, missing backend) must not stop the others
         rep.emit(case=case, shape=shape, error="%s: %s" % (type(e).__name__, str(e)[:300]), **extra)
@@ -495,7 +501,7 @@ def block(rep, dev, out_dir, size, gen):
             out_b = fwd().float()
         np.save(os.path.join(out_dir, "out_torch_bf16.npy"), out_b.cpu().numpy())
         ms, n = time_ms(fwd, dev, warmup=2, reps=10, budget_s=2.0)
-        rep.emit(case="block", shape=shape, ms=round(ms, 3), runs=n, tflops=round(flops / (ms * 1e9), 3),
+        rep.emit(case="block", shape=shape, ms=sig(ms), runs=n, tflops=sig(flops / (ms * 1e9)),
                  dtype=str(bdt)[6:], backend="plain torch eager (SDPA)", write_s=round(written, 1), dir=out_dir)
         del Wb
         if dev.type == "cuda":
