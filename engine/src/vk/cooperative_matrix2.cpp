@@ -60,9 +60,7 @@ void print_cooperative_matrix2(std::ostream& o, const CooperativeMatrix2Facts& f
     << f.flexible_dimensions_max_dimension << "\n";
   for (const CooperativeMatrixFlexibleShape& s : f.flexible_shapes) {
     o << "    coopmat2 flexible:  " << s.m_granularity << "x" << s.n_granularity << "x" << s.k_granularity
-      << " granularity " << component_type_name(s.a) << "*" << component_type_name(s.b) << "+"
-      << component_type_name(s.c) << "->" << component_type_name(s.result)
-      << (s.scope == VK_SCOPE_SUBGROUP_KHR ? " subgroup" : s.scope == VK_SCOPE_WORKGROUP_KHR ? " workgroup" : " other-scope");
+      << " granularity " << cooperative_matrix_types_text(s.a, s.b, s.c, s.result) << " " << scope_name(s.scope);
     if (s.scope == VK_SCOPE_WORKGROUP_KHR) o << " (" << s.workgroup_invocations << " invocations)";
     o << (s.saturating ? " saturating" : "") << "\n";
   }

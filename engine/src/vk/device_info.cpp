@@ -31,6 +31,16 @@ std::string version_string(uint32_t v) {
          std::to_string(VK_API_VERSION_PATCH(v));
 }
 
+std::string cooperative_matrix_types_text(VkComponentTypeKHR a, VkComponentTypeKHR b, VkComponentTypeKHR c,
+                                          VkComponentTypeKHR result) {
+  return std::string(component_type_name(a)) + "*" + component_type_name(b) + "+" + component_type_name(c) + "->" +
+         component_type_name(result);
+}
+
+const char* scope_name(VkScopeKHR s) {
+  return s == VK_SCOPE_SUBGROUP_KHR ? "subgroup" : s == VK_SCOPE_WORKGROUP_KHR ? "workgroup" : "other-scope";
+}
+
 const char* component_type_name(VkComponentTypeKHR t) {
   switch (t) {
     case VK_COMPONENT_TYPE_FLOAT16_KHR: return "f16";
@@ -268,10 +278,8 @@ std::string describe_device(const DeviceCaps& c) {
     << (c.has_extension(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME) ? " (VK_KHR_cooperative_matrix)" : "")
     << (c.cooperative_matrix2 ? ", VK_NV_cooperative_matrix2" : "") << "\n";
   for (const CooperativeMatrixShape& s : c.cooperative_matrix_shapes)
-    o << "    " << s.m << "x" << s.n << "x" << s.k << " " << component_type_name(s.a) << "*" << component_type_name(s.b)
-      << "+" << component_type_name(s.c) << "->" << component_type_name(s.result)
-      << (s.scope == VK_SCOPE_SUBGROUP_KHR ? " subgroup" : s.scope == VK_SCOPE_WORKGROUP_KHR ? " workgroup" : " other-scope")
-      << (s.saturating ? " saturating" : "") << "\n";
+    o << "    " << s.m << "x" << s.n << "x" << s.k << " " << cooperative_matrix_types_text(s.a, s.b, s.c, s.result) << " "
+      << scope_name(s.scope) << (s.saturating ? " saturating" : "") << "\n";
   if (c.cooperative_matrix2_facts) print_cooperative_matrix2(o, *c.cooperative_matrix2_facts);
   o << "  pipeline statistics:  " << yes(c.pipeline_executable_info)
     << (c.pipeline_executable_info ? " (VK_KHR_pipeline_executable_properties: dvs-bench --filter gpu prints each kernel's)"

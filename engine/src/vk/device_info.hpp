@@ -39,6 +39,10 @@ struct CooperativeMatrixShape {
   VkScopeKHR scope = VK_SCOPE_SUBGROUP_KHR;
 };
 const char* component_type_name(VkComponentTypeKHR t);
+// "f16*f16+f32->f32": a shape's A, B, C and result types, as `dvs info` prints them.
+std::string cooperative_matrix_types_text(VkComponentTypeKHR a, VkComponentTypeKHR b, VkComponentTypeKHR c,
+                                          VkComponentTypeKHR result);
+const char* scope_name(VkScopeKHR s);  // "subgroup", "workgroup", "other-scope"
 
 struct DeviceCaps {
   uint32_t index = 0;

@@ -263,8 +263,7 @@ Buffer Allocator::allocate(VkDeviceSize bytes, MemoryUse use, const std::string&
       block = new_block(size, use, what, injected);
     } catch (const DeviceOutOfMemory&) {
       // The spare blocks return_free_blocks keeps (one standard block per use) are memory nothing holds: give
-      // them back and ask once more before refusing (an untiled real-size decode under an 8 GiB budget was
-      // refused at 8.2 GiB reserved with such a spare held).
+      // them back and ask once more before refusing.
       if (injected || !release_spare_blocks()) throw;
       block = new_block(size, use, what, false);
     }
@@ -312,7 +311,7 @@ void Allocator::release(Buffer& b) {
   b.owner_ = nullptr;
   b.block_ = nullptr;
   b.view_ = {};
-  if (fr.size() == 1 && fr.begin()->first == 0 && fr.begin()->second == block->size) return_free_blocks(block->use);
+  if (block->entirely_free()) return_free_blocks(block->use);
 }
 
 // Entirely free blocks of `use` go back to the driver, except one of the standard size. Why one spare: small
@@ -325,8 +324,7 @@ void Allocator::return_free_blocks(MemoryUse use) {
   bool kept = false;
   for (size_t i = blocks_.size(); i-- > 0;) {
     MemoryBlock& b = *blocks_[i];
-    const bool free = b.free_ranges.size() == 1 && b.free_ranges.begin()->second == b.size;
-    if (b.use != use || !free) continue;
+    if (b.use != use || !b.entirely_free()) continue;
     if (!kept && b.size == standard) {
       kept = true;
       continue;
@@ -339,7 +337,7 @@ bool Allocator::release_spare_blocks() {
   bool released = false;
   for (size_t i = blocks_.size(); i-- > 0;) {
     const MemoryBlock& b = *blocks_[i];
-    if (b.use == MemoryUse::pinned || b.free_ranges.size() != 1 || b.free_ranges.begin()->second != b.size) continue;
+    if (b.use == MemoryUse::pinned || !b.entirely_free()) continue;
     free_block(i);
     released = true;
   }

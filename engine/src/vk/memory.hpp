@@ -52,6 +52,8 @@ struct MemoryBlock {
   uint32_t heap = 0;         // memory heap of the allocation
   VkDeviceSize bytes = 0;    // allocation size (memory requirements: may exceed `size`)
   std::map<VkDeviceSize, VkDeviceSize> free_ranges;  // offset -> size, coalesced
+  // No buffer lives in it: one free range, the whole block (ranges are coalesced, so it starts at 0).
+  bool entirely_free() const { return free_ranges.size() == 1 && free_ranges.begin()->second == size; }
 };
 
 // Owning handle to a suballocation; move-only, returns its range on destruction.
