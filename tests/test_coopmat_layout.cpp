@@ -50,10 +50,10 @@ TEST(CoopmatLayout, SharedMemoryOfTheShaders) {
   EXPECT_EQ(conv8.tile_m(), 64);
   EXPECT_EQ(conv8.tile_n(), 64);
   EXPECT_EQ(ops::conv_coopmat_shared_bytes(conv8), 2u * 64 * 40 * 2 + 8 * 64 * 4);
-  // attention: sK, sV [64 keys][D] halves; sS [4 x 16 rows][64] floats; sP the same in halves; the twin adds
-  // sQ [64 rows][D] halves and xch [128] floats.
+  // attention: sK, sV [64 keys][D + 8] halves; sS [4 x 16 rows][64 + 4] floats; sP [4 x 16 rows][64 + 8] halves
+  // (every row padded by 16 bytes against bank conflicts); the twin adds sQ [64 rows][D] halves and xch [128] floats.
   const CoopmatAttention att{k16, 32, 4, 64};
-  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att, 64), 2u * 64 * 64 * 2 + 64 * 64 * 4 + 64 * 64 * 2);
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att, 64), 2u * 64 * 72 * 2 + 64 * 68 * 4 + 64 * 72 * 2);
   EXPECT_EQ(ops::attention_twin_shared_bytes(att, 32),
             ops::attention_coopmat_shared_bytes(att, 32) + 64u * 32 * 2 + 128 * 4);
 }

@@ -418,6 +418,46 @@ TEST_P(LinearTest, TiledModelEpilogues) {
   check(7, 129, 5, e);
 }
 
+// The tensor-core kernel's two load paths and its workgroup order, by value and by the pipeline that ran:
+// shapes whose K, strides and offsets are multiples of 8 take the 16-byte loads (each weight type widens its
+// own way), an X offset of 3 elements the element loads; M spans 7 tile rows and a part, so bands of 3 tile
+// rows end in a partial band (a tile the remapped order missed keeps Y's sentinel, one visited twice is
+// harmless but one missed is not). Where the tuning turns the vector loads off, every call takes element loads.
+TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
+  if (family() != ops::KernelFamily::coopmat) GTEST_SKIP() << "tensor-core family only";
+  const std::string base = GetParam();
+  ops::ScopedTuningOverride bands(base + (base.empty() ? "" : ",") + "linear_coopmat_group_m=3");
+  vk::Context& c = ctx();
+  LinearShape probe;
+  probe.m = probe.n = probe.k = 8;
+  const LinearKernel kern = ops::choose_linear_kernel(c, probe, DType::f32);
+  const int64_t M = kern.tile_m * 7 + 5, N = kern.tile_n * 2 + 3;
+  // The linear_coopmat pipelines created with bands of 3 and this weight code and load path.
+  auto ran = [&](uint32_t wcode, bool vec) {
+    bool found = false;
+    c.pipelines().for_each([&](const vk::Pipeline& pl) {
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 12 && pl.spec[2] == wcode && pl.spec[10] == (vec ? 1u : 0u) &&
+          pl.spec[11] == 3)
+        found = true;
+    });
+    return found;
+  };
+  const bool vector_loads = ops::device_tuning(c.caps()).linear_coopmat_vector_loads;
+  const std::pair<DType, uint32_t> types[] = {{DType::f32, 0}, {DType::f16, 1}, {DType::bf16, 2}};
+  for (const auto& [dt, code] : types) {
+    Options o;
+    o.w_dtype = dt;
+    o.bias = true;
+    check(M, N, 48, o);
+    EXPECT_TRUE(ran(code, vector_loads)) << dtype_name(dt) << ": the aligned call did not take the expected path";
+  }
+  Options u;
+  u.w_dtype = DType::bf16;
+  u.x_lead = 3;
+  check(M, N, 48, u);
+  EXPECT_TRUE(ran(2, false)) << "the misaligned call did not take the element loads";
+}
+
 INSTANTIATE_TEST_SUITE_P(Family, LinearTest, testing::Values("", "linear=tiled"),
                          [](const testing::TestParamInfo<const char*>& i) {
                            return std::string(i.param).empty() ? std::string("device") : std::string("tiled");

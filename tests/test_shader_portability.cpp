@@ -81,5 +81,18 @@ TEST(ShaderPortability, ConvertedShadersKeepUniformTexelBufferBindings) {
   }
 }
 
+// A binding that two variables alias (linear_coopmat reads X and W as elements and as 16-byte vectors) is one
+// descriptor: the layout must not list it twice (vkCreateDescriptorSetLayout rejects duplicates), and it stays
+// read-only only when every alias is; written aliases make it writable.
+TEST(ShaderPortability, AliasedBindingsAreOneDescriptor) {
+  vk::ShaderInterface iface = vk::reflect_shader(vk::find_shader("linalg/linear_coopmat"));
+  ASSERT_EQ(iface.bindings.size(), 8u);
+  for (uint32_t i = 0; i < 8; ++i) {
+    EXPECT_EQ(iface.bindings[i].binding, i);
+    EXPECT_EQ(iface.bindings[i].kind, vk::BindingKind::storage_buffer);
+    EXPECT_EQ(iface.bindings[i].read_only, i != 2) << "binding " << i;  // 2 is Y
+  }
+}
+
 }  // namespace
 }  // namespace dvs

@@ -20,6 +20,13 @@ const int RPL = (ROWS + LANES - 1) / LANES;
 const int PASS = LANES / LPR;   // rows the subgroup's lanes own at once
 const int COLS = BK / LPR;      // keys of a row per lane
 const int OV = D / (4 * LPR);   // vec4 of O per row per lane
+// Row pitches of the shared tiles, padded by 16 bytes: a multiple of 16 bytes (coopMatLoad/Store's stride
+// alignment) that is not one of 128 bytes, so the rows of a fragment, and the rows the softmax's lanes walk at
+// once, start on different banks instead of all on the same one (unpadded, every access was an 8- to 32-way
+// bank conflict on NVIDIA's 32 four-byte banks).
+const int KP = D + 8;   // sK, sV: halves per key row
+const int PP = BK + 8;  // sP: halves per row, of Q (D <= BK) and of P
+const int SP = BK + 4;  // sS: floats per row, of the scores and of the O tile (D <= BK)
 
 const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max before any key
@@ -39,7 +46,7 @@ layout(push_constant) uniform Push {
   uint bias_off, bias_hstride, bias_rstride, mask_off;
 } p;
 
-shared float16_t sK[BK * D];                  // [key][dim]
-shared float16_t sV[BK * D];                  // [key][dim]
-shared float sS[SUBGROUPS * ROWS * BK];       // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D]
-shared float16_t sP[SUBGROUPS * ROWS * BK];   // per subgroup: Q staging [ROWS][D], then P [ROWS][BK]
+shared float16_t sK[BK * KP];                 // [key][dim], pitch KP
+shared float16_t sV[BK * KP];                 // [key][dim], pitch KP
+shared float sS[SUBGROUPS * ROWS * SP];       // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D], pitch SP
+shared float16_t sP[SUBGROUPS * ROWS * PP];   // per subgroup: Q staging [ROWS][D], then P [ROWS][BK], pitch PP

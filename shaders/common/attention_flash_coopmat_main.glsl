@@ -2,17 +2,19 @@
 //   SG_ID, SG_LANE     the subgroup (0..SUBGROUPS-1) and lane (0..LANES-1) of the invocation
 //   SG_BARRIER()       orders the shared-memory accesses of one subgroup (the twin: the workgroup's)
 //   LANE_XOR(x, mask)  x of the lane whose index differs by `mask` (a power of two below LPR)
-//   LOAD_Q()           takes the subgroup's Q (ROWS x D fp16, row-major at sP[sgP], stride D)
-//   SCORES()           S = Q·Kᵀ (ROWS x BK, fp32) into sS[sgS], row-major, stride BK; K is sK [key][dim]
-//   PV()               O_tile = P·V (ROWS x D, fp32) into sS[sgS], row-major, stride D; P is sP[sgP] [row][key]
+//   LOAD_Q()           takes the subgroup's Q (ROWS x D fp16, row-major at sP[sgP], stride PP)
+//   SCORES()           S = Q·Kᵀ (ROWS x BK, fp32) into sS[sgS], row-major, stride SP; K is sK [key][dim], stride KP
+//   PV()               O_tile = P·V (ROWS x D, fp32) into sS[sgS], row-major, stride SP; P is sP[sgP] [row][key],
+//                      stride PP; V is sV [key][dim], stride KP
 void main() {
   const uint h = gl_WorkGroupID.y, b = gl_WorkGroupID.z, tid = gl_LocalInvocationID.x;
   const uint sg = SG_ID, lane = SG_LANE;
-  const uint sgS = sg * ROWS * BK, sgP = sg * ROWS * BK;
+  const uint sgS = sg * ROWS * SP, sgP = sg * ROWS * PP;
   const uint row_base = gl_WorkGroupID.x * (SUBGROUPS * ROWS) + sg * ROWS;
   const uint kbase = b * p.k_bstride + h * p.k_hstride + p.k_off;
   const uint vbase = b * p.v_bstride + h * p.v_hstride + p.v_off;
-  // Softmax and O ownership: lanes part·.. of a row; this lane's rows are rw + PASS·q (q < RPL).
+  // Softmax and O ownership: lane `part` of a row's LPR lanes takes its keys part + LPR·c (interleaved, so the
+  // lanes of a row read neighbouring words) and its O columns part·D/LPR ..; this lane's rows are rw + PASS·q.
   const uint rw = lane / LPR, part = lane % LPR;
 
   // ---- Q (ROWS rows of this subgroup) -> fp16 A fragments, pre-scaled into the exp2 domain ----
@@ -21,7 +23,7 @@ void main() {
     const uint rr = i / D4, c = i % D4;
     const uint row = min(row_base + rr, p.q_len - 1);  // rows past the end: a copy of the last, never stored
     const vec4 x = qb[(b * p.q_len + row) * p.q_stride + p.q_off + h * D4 + c] * qscale;
-    const uint at = sgP + rr * D + c * 4;
+    const uint at = sgP + rr * PP + c * 4;
     sP[at] = float16_t(x.x);
     sP[at + 1] = float16_t(x.y);
     sP[at + 2] = float16_t(x.z);
@@ -49,7 +51,7 @@ void main() {
         kx = kb[kbase + key * p.k_stride + c];
         vx = vb[vbase + key * p.v_stride + c];
       }
-      const uint at = j * D + c * 4;
+      const uint at = j * KP + c * 4;
       sK[at] = float16_t(kx.x);
       sK[at + 1] = float16_t(kx.y);
       sK[at + 2] = float16_t(kx.z);
@@ -61,25 +63,26 @@ void main() {
     }
     barrier();
 
-    // ---- S = Q·Kᵀ (ROWS x BK) into the subgroup's slice of sS, row-major, stride BK ----
+    // ---- S = Q·Kᵀ (ROWS x BK) into the subgroup's slice of sS, row-major, stride SP ----
     SCORES();
     SG_BARRIER();
 
     // ---- online softmax of this lane's rows over this tile (fp32); P to shared as fp16 ----
-    const uint c0 = part * COLS;
     [[unroll]] for (int q = 0; q < RPL; ++q) {
       const uint r = rw + PASS * q;
       float mx = m[q];
-      for (uint c = 0; c < COLS; ++c)
-        if (tile0 + c0 + c < p.kv_len) mx = max(mx, sS[sgS + r * BK + c0 + c]);
+      for (uint c = 0; c < COLS; ++c) {
+        const uint col = part + LPR * c;
+        if (tile0 + col < p.kv_len) mx = max(mx, sS[sgS + r * SP + col]);
+      }
       [[unroll]] for (int x = 1; x < LPR; x <<= 1) mx = max(mx, LANE_XOR(mx, x));
       const float alpha = exp2(m[q] - mx);
       m[q] = mx;
       float sum = 0;
       for (uint c = 0; c < COLS; ++c) {
-        const float16_t pv =
-            tile0 + c0 + c < p.kv_len ? float16_t(exp2(sS[sgS + r * BK + c0 + c] - mx)) : float16_t(0.0);
-        sP[sgP + r * BK + c0 + c] = pv;
+        const uint col = part + LPR * c;
+        const float16_t pv = tile0 + col < p.kv_len ? float16_t(exp2(sS[sgS + r * SP + col] - mx)) : float16_t(0.0);
+        sP[sgP + r * PP + col] = pv;
         sum += float(pv);
       }
       [[unroll]] for (int x = 1; x < LPR; x <<= 1) sum += LANE_XOR(sum, x);
@@ -88,12 +91,12 @@ void main() {
     }
     SG_BARRIER();
 
-    // ---- O_tile = P·V (ROWS x D) into the scores' slice (row-major, stride D), then added to O by the lanes ----
+    // ---- O_tile = P·V (ROWS x D) into the scores' slice (row-major, stride SP), then added to O by the lanes ----
     PV();
     SG_BARRIER();
     [[unroll]] for (int q = 0; q < RPL; ++q)
       [[unroll]] for (int e = 0; e < OV; ++e) {
-        const uint at = sgS + (rw + PASS * q) * D + part * (D / LPR) + e * 4;
+        const uint at = sgS + (rw + PASS * q) * SP + part * (D / LPR) + e * 4;
         o[q][e] += vec4(sS[at], sS[at + 1], sS[at + 2], sS[at + 3]);
       }
     // The next tile's first barrier() orders these reads before the next scores overwrite the slice.

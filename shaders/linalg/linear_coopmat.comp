@@ -17,7 +17,9 @@
 // 8 x 8 x 8 fragments, BM = BN = 64. Per K step of BK values, X[BM x BK] (f32 -> fp16) and W[BN x BK]
 // (f32/f16/bf16 -> fp16) are staged in shared memory, double-buffered: the next step's global loads are
 // issued into registers before this step's MMAs and stored to the other buffer after them, so one barrier per
-// step suffices. fp16 operands: |x| > 65504 becomes inf (callers that may exceed this set
+// step suffices. Two load paths (VEC): 16-byte vectors where K, strides and offsets allow (the models' shapes),
+// else one guarded element per load (any size and offset). Tiles are visited in bands of GROUP_M tile rows.
+// fp16 operands: |x| > 65504 becomes inf (callers that may exceed this set
 // LinearEpilogue::fp16_operands_ok = false and get the tiled kernel); products accumulate in fp32.
 // Epilogue: each subgroup stores one accumulator fragment at a time to its own FRAG_M x FRAG_N f32 staging
 // block and its lanes apply the epilogue to those outputs with bounds checks.
@@ -33,35 +35,102 @@ layout(constant_id = 5) const uint FM = 4;      // fragments per subgroup along 
 layout(constant_id = 6) const uint FN = 2;      // fragments per subgroup along N
 layout(constant_id = 7) const uint FRAG_M = 16;
 layout(constant_id = 8) const uint FRAG_N = 16;
+// 16-byte loads (the host sets it only where K, every X/W stride and offset are multiples of 8 elements and WG
+// a multiple of BK / 4): X as vec4, 16-bit W as uvec4 of 8 values (f32 W as vec4); one bounds test per vector.
+layout(constant_id = 10) const bool VEC = false;
+// Workgroup order: bands of GROUP_M tile rows, each walked down its rows for one tile column after another, so
+// a column panel of W is read by GROUP_M workgroups in a row and the band's X rows stay in L2 meanwhile
+// (1: row by row, the grid's own order).
+layout(constant_id = 11) const uint GROUP_M = 1;
+
+// 16-byte views of the X and W bindings (linear_storage_io.glsl declares their element views).
+layout(std430, binding = 0) readonly buffer Xv { vec4 xv[]; };
+layout(std430, binding = 1) readonly buffer Wv { uvec4 wv[]; };
 
 const uint WG = gl_WorkGroupSize.x;
 const uint BM = SG_M * FM * FRAG_M, BN = SG_N * FN * FRAG_N;
 const uint LDS = BK + 8;        // shared row stride in halves: a multiple of 8 (16 bytes) for coopMatLoad
-const uint ROWS = WG / BK;      // rows the workgroup stages per pass (invocation t: column t % BK, row t / BK)
+const uint LDS4 = LDS / 4;      // the same in the arrays' f16vec4 units
+const uint ROWS = WG / BK;      // scalar staging: rows per pass (invocation t: column t % BK, row t / BK)
 const uint PER_X = BM / ROWS, PER_W = BN / ROWS;  // passes per operand and step (16 each on the H200)
+// Vector staging: X rows are BK / 4 vec4, W rows BK / EW vectors of EW values; RX / RW rows per pass.
+const uint EW = WTYPE == 0 ? 4 : 8;
+const uint XV = BK / 4, WVN = BK / EW;
+const uint RX = WG / XV, RW = WG / WVN;
+const uint VPX = (BM + RX - 1) / RX, VPW = (BN + RW - 1) / RW;
 const uint FRAG = FRAG_M * FRAG_N;
 
-shared float16_t sx[2 * BM * LDS];
-shared float16_t sw[2 * BN * LDS];
+shared f16vec4 sx[2 * BM * LDS4];  // [stage][row][k], fp16; 8-byte units so a staged vector is one store
+shared f16vec4 sw[2 * BN * LDS4];
 shared float stage[SG_M * SG_N * FRAG];
+
+// One vec4 of X: row m, values k .. k+3 (k a multiple of 8 below K or past it), zeros outside the matrix.
+vec4 load_x4(uint b, uint m, uint k) {
+  if (m >= p.M || k >= p.K) return vec4(0.0);
+  return xv[(p.x_off + b * p.x_bs + m * p.ldx + k) / 4];
+}
+
+// One vector of W's row n from value k: EW values (8 halves or 4 floats) as raw words, zeros outside.
+uvec4 load_w4(uint b, uint n, uint k) {
+  if (n >= p.N || k >= p.K) return uvec4(0u);
+  return wv[(p.w_off + b * p.w_bs + n * p.ldw + k) / EW];
+}
+
+// bf16 pair (one word) -> two floats: a bf16 is the high half of its f32.
+vec2 bf16x2(uint u) { return vec2(uintBitsToFloat(u << 16), uintBitsToFloat(u & 0xffff0000u)); }
+
+// Stores a W vector as fp16 at f16vec4 index i (8 values: i and i + 1).
+void store_w4(uint i, uvec4 u) {
+  if (WTYPE == 0) {
+    sw[i] = f16vec4(uintBitsToFloat(u));
+  } else if (WTYPE == 1) {
+    sw[i] = f16vec4(unpackFloat2x16(u.x), unpackFloat2x16(u.y));
+    sw[i + 1] = f16vec4(unpackFloat2x16(u.z), unpackFloat2x16(u.w));
+  } else {
+    sw[i] = f16vec4(vec4(bf16x2(u.x), bf16x2(u.y)));
+    sw[i + 1] = f16vec4(vec4(bf16x2(u.z), bf16x2(u.w)));
+  }
+}
 
 void main() {
   const uint t = gl_LocalInvocationIndex;
-  const uint b = gl_WorkGroupID.z, m0 = gl_WorkGroupID.y * BM, n0 = gl_WorkGroupID.x * BN;
+  uint mt = gl_WorkGroupID.y, nt = gl_WorkGroupID.x;
+  if (GROUP_M > 1) {
+    const uint nx = gl_NumWorkGroups.x, ny = gl_NumWorkGroups.y;
+    const uint pid = gl_WorkGroupID.y * nx + gl_WorkGroupID.x;
+    const uint band = pid / (GROUP_M * nx), first = band * GROUP_M;
+    const uint rows = min(ny - first, GROUP_M), inband = pid - first * nx;
+    mt = first + inband % rows;
+    nt = inband / rows;
+  }
+  const uint b = gl_WorkGroupID.z, m0 = mt * BM, n0 = nt * BN;
   const uint sg = gl_SubgroupID, lane = gl_SubgroupInvocationID;
   const uint sm = sg / SG_N, sn = sg % SG_N;
-  // Staging map: invocation t loads k = t % BK of rows t / BK + ROWS·j (BK consecutive floats per row: coalesced).
+  // Scalar staging map: invocation t loads k = t % BK of rows t / BK + ROWS·j (BK consecutive values per row).
   const uint lk = t % BK, lr = t / BK;
+  // Vector staging map: X vector t % XV of rows t / XV + RX·j; W vector t % WVN of rows t / WVN + RW·j.
+  const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
 
   coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator> acc[FM * FN];
   [[unroll]] for (uint f = 0; f < FM * FN; ++f)
     acc[f] = coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator>(0.0);
 
-  float rx[PER_X], rw[PER_W];
+  float rx[VEC ? 1 : PER_X], rw[VEC ? 1 : PER_W];
+  vec4 vx[VEC ? VPX : 1];
+  uvec4 vw[VEC ? VPW : 1];
   const uint steps = (p.K + BK - 1) / BK;
   if (steps > 0) {
-    [[unroll]] for (uint j = 0; j < PER_X; ++j) sx[(lr + ROWS * j) * LDS + lk] = float16_t(load_x(b, m0 + lr + ROWS * j, lk));
-    [[unroll]] for (uint j = 0; j < PER_W; ++j) sw[(lr + ROWS * j) * LDS + lk] = float16_t(load_w(b, n0 + lr + ROWS * j, lk));
+    if (VEC) {
+      [[unroll]] for (uint j = 0; j < VPX; ++j)
+        if (xr + RX * j < BM) sx[(xr + RX * j) * LDS4 + xc] = f16vec4(load_x4(b, m0 + xr + RX * j, xc * 4));
+      [[unroll]] for (uint j = 0; j < VPW; ++j)
+        if (wr + RW * j < BN) store_w4((wr + RW * j) * LDS4 + wc * (EW / 4), load_w4(b, n0 + wr + RW * j, wc * EW));
+    } else {
+      [[unroll]] for (uint j = 0; j < PER_X; ++j)
+        sx[(lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(load_x(b, m0 + lr + ROWS * j, lk));
+      [[unroll]] for (uint j = 0; j < PER_W; ++j)
+        sw[(lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(load_w(b, n0 + lr + ROWS * j, lk));
+    }
   }
   barrier();
 
@@ -69,25 +138,39 @@ void main() {
     const uint cur = s & 1u, nxt = cur ^ 1u;
     const bool more = s + 1 < steps;
     if (more) {
-      const uint k = (s + 1) * BK + lk;
-      [[unroll]] for (uint j = 0; j < PER_X; ++j) rx[j] = load_x(b, m0 + lr + ROWS * j, k);
-      [[unroll]] for (uint j = 0; j < PER_W; ++j) rw[j] = load_w(b, n0 + lr + ROWS * j, k);
+      const uint k0 = (s + 1) * BK;
+      if (VEC) {
+        [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(b, m0 + xr + RX * j, k0 + xc * 4);
+        [[unroll]] for (uint j = 0; j < VPW; ++j) vw[j] = load_w4(b, n0 + wr + RW * j, k0 + wc * EW);
+      } else {
+        [[unroll]] for (uint j = 0; j < PER_X; ++j) rx[j] = load_x(b, m0 + lr + ROWS * j, k0 + lk);
+        [[unroll]] for (uint j = 0; j < PER_W; ++j) rw[j] = load_w(b, n0 + lr + ROWS * j, k0 + lk);
+      }
     }
-    const uint xb = cur * BM * LDS + sm * (FM * FRAG_M) * LDS, wb = cur * BN * LDS + sn * (FN * FRAG_N) * LDS;
+    const uint xb = (cur * BM + sm * (FM * FRAG_M)) * LDS4, wb = (cur * BN + sn * (FN * FRAG_N)) * LDS4;
     [[unroll]] for (uint kk = 0; kk < BK; kk += FRAG_K) {
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_M, FRAG_K, gl_MatrixUseA> a[FM];
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> w[FN];
       [[unroll]] for (uint i = 0; i < FM; ++i)
-        coopMatLoad(a[i], sx, xb + i * FRAG_M * LDS + kk, LDS, gl_CooperativeMatrixLayoutRowMajor);
+        coopMatLoad(a[i], sx, xb + i * FRAG_M * LDS4 + kk / 4, LDS4, gl_CooperativeMatrixLayoutRowMajor);
       // B[k][n] = W[n][k]: W's rows in shared memory are B's columns.
       [[unroll]] for (uint j = 0; j < FN; ++j)
-        coopMatLoad(w[j], sw, wb + j * FRAG_N * LDS + kk, LDS, gl_CooperativeMatrixLayoutColumnMajor);
+        coopMatLoad(w[j], sw, wb + j * FRAG_N * LDS4 + kk / 4, LDS4, gl_CooperativeMatrixLayoutColumnMajor);
       [[unroll]] for (uint i = 0; i < FM; ++i)
         [[unroll]] for (uint j = 0; j < FN; ++j) acc[i * FN + j] = coopMatMulAdd(a[i], w[j], acc[i * FN + j]);
     }
     if (more) {
-      [[unroll]] for (uint j = 0; j < PER_X; ++j) sx[nxt * BM * LDS + (lr + ROWS * j) * LDS + lk] = float16_t(rx[j]);
-      [[unroll]] for (uint j = 0; j < PER_W; ++j) sw[nxt * BN * LDS + (lr + ROWS * j) * LDS + lk] = float16_t(rw[j]);
+      if (VEC) {
+        [[unroll]] for (uint j = 0; j < VPX; ++j)
+          if (xr + RX * j < BM) sx[(nxt * BM + xr + RX * j) * LDS4 + xc] = f16vec4(vx[j]);
+        [[unroll]] for (uint j = 0; j < VPW; ++j)
+          if (wr + RW * j < BN) store_w4((nxt * BN + wr + RW * j) * LDS4 + wc * (EW / 4), vw[j]);
+      } else {
+        [[unroll]] for (uint j = 0; j < PER_X; ++j)
+          sx[(nxt * BM + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rx[j]);
+        [[unroll]] for (uint j = 0; j < PER_W; ++j)
+          sw[(nxt * BN + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rw[j]);
+      }
     }
     barrier();
   }

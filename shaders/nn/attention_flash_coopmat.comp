@@ -23,9 +23,9 @@
 // adds the same fp16-rounded P that P·V uses, so the weights stay normalised.
 //
 // Limits (tensor/coopmat_layout.cpp checks them): head_dim D a multiple of the fragment's N and K and at most
-// BK (the O tile reuses the scores' slice); shared memory 2·BK·D·2 + SUBGROUPS·ROWS·BK·(4 + 2) bytes (40 KiB
-// on the H200 at D = BK = 64). No bias, key mask or split-key state: such calls run on attention.comp. Not
-// double-buffered.
+// BK (the O tile reuses the scores' slice); shared memory 2·BK·(D + 8)·2 + SUBGROUPS·ROWS·((BK + 4)·4 + (BK + 8)·2)
+// bytes, rows padded against bank conflicts (44 KiB on the H200 at D = BK = 64). No bias, key mask or split-key
+// state: such calls run on attention.comp. Not double-buffered.
 #extension GL_GOOGLE_include_directive : require
 #include "attention_flash_coopmat_decl.glsl"
 
@@ -39,7 +39,7 @@
 #define LOAD_Q()                                                                 \
   coopmat<float16_t, gl_ScopeSubgroup, ROWS, FRAG_K, gl_MatrixUseA> qf[D / FRAG_K]; \
   [[unroll]] for (int d = 0; d < D / FRAG_K; ++d)                               \
-    coopMatLoad(qf[d], sP, sgP + d * FRAG_K, D, gl_CooperativeMatrixLayoutRowMajor)
+    coopMatLoad(qf[d], sP, sgP + d * FRAG_K, PP, gl_CooperativeMatrixLayoutRowMajor)
 // Kᵀ as B is K [key][dim] read column-major.
 #define SCORES()                                                                                \
   [[unroll]] for (int j = 0; j < BK / FRAG_N; ++j) {                                            \
@@ -47,24 +47,24 @@
         coopmat<float, gl_ScopeSubgroup, ROWS, FRAG_N, gl_MatrixUseAccumulator>(0.0);           \
     [[unroll]] for (int d = 0; d < D / FRAG_K; ++d) {                                           \
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> kf;                   \
-      coopMatLoad(kf, sK, j * FRAG_N * D + d * FRAG_K, D, gl_CooperativeMatrixLayoutColumnMajor); \
+      coopMatLoad(kf, sK, j * FRAG_N * KP + d * FRAG_K, KP, gl_CooperativeMatrixLayoutColumnMajor); \
       s = coopMatMulAdd(qf[d], kf, s);                                                          \
     }                                                                                           \
-    coopMatStore(s, sS, sgS + j * FRAG_N, BK, gl_CooperativeMatrixLayoutRowMajor);              \
+    coopMatStore(s, sS, sgS + j * FRAG_N, SP, gl_CooperativeMatrixLayoutRowMajor);              \
   }
 #define PV()                                                                                    \
   coopmat<float16_t, gl_ScopeSubgroup, ROWS, FRAG_K, gl_MatrixUseA> pf[BK / FRAG_K];            \
   [[unroll]] for (int j = 0; j < BK / FRAG_K; ++j)                                              \
-    coopMatLoad(pf[j], sP, sgP + j * FRAG_K, BK, gl_CooperativeMatrixLayoutRowMajor);           \
+    coopMatLoad(pf[j], sP, sgP + j * FRAG_K, PP, gl_CooperativeMatrixLayoutRowMajor);           \
   [[unroll]] for (int d = 0; d < D / FRAG_N; ++d) {                                             \
     coopmat<float, gl_ScopeSubgroup, ROWS, FRAG_N, gl_MatrixUseAccumulator> ot =                \
         coopmat<float, gl_ScopeSubgroup, ROWS, FRAG_N, gl_MatrixUseAccumulator>(0.0);           \
     [[unroll]] for (int j = 0; j < BK / FRAG_K; ++j) {                                          \
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> vf;                   \
-      coopMatLoad(vf, sV, j * FRAG_K * D + d * FRAG_N, D, gl_CooperativeMatrixLayoutRowMajor);  \
+      coopMatLoad(vf, sV, j * FRAG_K * KP + d * FRAG_N, KP, gl_CooperativeMatrixLayoutRowMajor); \
       ot = coopMatMulAdd(pf[j], vf, ot);                                                        \
     }                                                                                           \
-    coopMatStore(ot, sS, sgS + d * FRAG_N, D, gl_CooperativeMatrixLayoutRowMajor);              \
+    coopMatStore(ot, sS, sgS + d * FRAG_N, SP, gl_CooperativeMatrixLayoutRowMajor);              \
   }
 
 #include "attention_flash_coopmat_main.glsl"

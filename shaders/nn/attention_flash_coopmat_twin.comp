@@ -27,21 +27,21 @@ float lane_xor(float x, int mask) {
 }
 #define LANE_XOR(x, mask) lane_xor(x, mask)
 #define LOAD_Q() \
-  for (uint i = lane; i < ROWS * D; i += LANES) sQ[sg * ROWS * D + i] = sP[sgP + i]
+  for (uint i = lane; i < ROWS * D; i += LANES) sQ[sg * ROWS * D + i] = sP[sgP + (i / D) * PP + i % D]
 #define SCORES()                                                               \
   for (uint e = lane; e < ROWS * BK; e += LANES) {                             \
     const uint i = e / BK, n = e % BK;                                         \
     float acc = 0;                                                             \
     for (int k = 0; k < D; ++k)                                                \
-      acc = fma(float(sQ[sg * ROWS * D + i * D + k]), float(sK[n * D + k]), acc); \
-    sS[sgS + i * BK + n] = acc;                                                \
+      acc = fma(float(sQ[sg * ROWS * D + i * D + k]), float(sK[n * KP + k]), acc); \
+    sS[sgS + i * SP + n] = acc;                                                \
   }
 #define PV()                                                                   \
   for (uint e = lane; e < ROWS * D; e += LANES) {                              \
     const uint i = e / D, n = e % D;                                           \
     float acc = 0;                                                             \
-    for (int k = 0; k < BK; ++k) acc = fma(float(sP[sgP + i * BK + k]), float(sV[k * D + n]), acc); \
-    sS[sgS + i * D + n] = acc;                                                 \
+    for (int k = 0; k < BK; ++k) acc = fma(float(sP[sgP + i * PP + k]), float(sV[k * KP + n]), acc); \
+    sS[sgS + i * SP + n] = acc;                                                \
   }
 
 #include "attention_flash_coopmat_main.glsl"

@@ -83,9 +83,10 @@ uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g) {
          uint64_t(g.tile.subgroups()) * g.frag.m * g.frag.n * 4;
 }
 
+// Rows padded as the shader pads them (attention_flash_coopmat_decl.glsl: KP, SP, PP).
 uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t D) {
   const uint64_t bk = uint64_t(a.block_k), rows = uint64_t(a.rows());
-  return 2 * bk * uint64_t(D) * 2 + rows * bk * 4 + rows * bk * 2;
+  return 2 * bk * uint64_t(D + 8) * 2 + rows * (bk + 4) * 4 + rows * (bk + 8) * 2;
 }
 
 uint64_t attention_twin_shared_bytes(const CoopmatAttention& a, int64_t D) {
@@ -157,10 +158,11 @@ std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAtt
                       "attention_coopmat_subgroups, attention_block_k");
 }
 
-std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code) {
+std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
+                                          uint32_t group_m) {
   const CoopmatTile& t = g.tile;
   return {uint32_t(t.sg_m), uint32_t(t.sg_n), weight_code, uint32_t(t.k), g.frag.k, uint32_t(t.frags_m),
-          uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations()};
+          uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations(), vector_loads ? 1u : 0u, group_m};
 }
 
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code) {

@@ -65,7 +65,10 @@ std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAtt
 std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t head_dim);
 
 // Specialization constants (the kernels' constant_id order).
-std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
+// linear: vector_loads selects the 16-byte load path (the host checked K, strides and offsets), group_m the
+// workgroup order's band of tile rows (DeviceTuning::linear_coopmat_group_m).
+std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
+                                          uint32_t group_m);
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim);
 

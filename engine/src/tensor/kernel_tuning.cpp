@@ -47,7 +47,8 @@ CoopmatShape pick_coopmat_shape(const vk::DeviceCaps& c) {
 // at its subgroup size and fragment (tensor/coopmat_layout.hpp checks shared memory, invocations, subgroups).
 // The first rows are the layouts the H200 and H100 ran (bench/results/, 2026-11-27): 8 subgroups of 32 lanes
 // over 128 x 128 x 32 at 16x16x16 (linear: 2 x 4 subgroups of 4 x 2 fragments, 48 KiB; conv: 4 x 2 of 2 x 4,
-// 28 KiB) and 4 subgroups of 16 query rows with 64-key tiles (40 KiB at head_dim 64). The same rows hold
+// 28 KiB) and 4 subgroups of 16 query rows with 64-key tiles (40 KiB at head_dim 64 then, 44 KiB since its rows
+// are padded against bank conflicts). The same rows hold
 // lavapipe's 8 lanes and 32 KiB at its 8x8x8 fragment (tiles of 64 x 64, 32 query rows); at a forced 16x16x16
 // lavapipe takes the smaller rows (linear 64 x 64, attention 2 subgroups).
 constexpr CoopmatTile kLinearCoopmatLayouts[] = {{2, 4, 4, 2, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
@@ -246,6 +247,8 @@ const std::vector<Field>& fields() {
        }},
       coopmat_tile_field("linear_coopmat", &DeviceTuning::linear_coopmat),
       coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
+      bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
+      int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
       int_field("attention_coopmat_subgroups", &DeviceTuning::attention_coopmat_subgroups, 1, 32, "1..32"),
       int_field("linear_tile_m", &DeviceTuning::linear_tile_m, 16, 256, "16..256"),
       int_field("linear_tile_n", &DeviceTuning::linear_tile_n, 16, 256, "16..256"),
@@ -413,7 +416,9 @@ std::string describe_tuning(const DeviceTuning& t) {
     << "  linear:     " << kernel_family_name(t.linear) << unfit(t.linear_unfit);
   if (t.linear == KernelFamily::tiled)
     o << ", tile " << t.linear_tile_m << "x" << t.linear_tile_n << "x" << t.linear_tile_k;
-  if (t.linear == KernelFamily::coopmat) o << ", tile " << linear_coopmat_layout(t).describe();
+  if (t.linear == KernelFamily::coopmat)
+    o << ", tile " << linear_coopmat_layout(t).describe() << ", bands of " << t.linear_coopmat_group_m << " tile rows"
+      << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads");
   o << "\n  attention:  " << kernel_family_name(t.attention) << unfit(t.attention_unfit);
   if (t.attention == KernelFamily::tiled) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
   if (t.attention == KernelFamily::coopmat) o << ", blocks " << attention_coopmat_layout(t).describe();

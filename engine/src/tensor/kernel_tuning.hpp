@@ -100,6 +100,12 @@ struct DeviceTuning {
   // attention, the subgroups of coopmat.m query rows each per workgroup (keys per tile: attention_block_k).
   int coopmat_lanes = 0;
   CoopmatTile linear_coopmat, conv_coopmat;
+  // linear_coopmat's feed: 16-byte global loads where K, strides and offsets are multiples of 8 elements
+  // (off: one guarded element per load everywhere, for A/B runs), and its workgroup order, bands of this many
+  // tile rows walked column by column so a W panel is reused from L2 (1: the grid's row-by-row order). Band 8:
+  // Triton's default grouping, unmeasured on a GPU here (the device script's sweep compares 1 and 8).
+  bool linear_coopmat_vector_loads = true;
+  int linear_coopmat_group_m = 8;
   int attention_coopmat_subgroups = 0;
   // Where a coopmat family was asked for (by the entry or an override) but runs tiled on this device: why,
   // per op ("" where it was not asked or runs). Ops note it with every call they run (kernel_census.hpp).

@@ -150,6 +150,7 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
     k.tile_m = int(g.tile_m());
     k.tile_n = int(g.tile_n());
     k.tile_k = g.tile.k;
+    k.vectorized = k.vectorized && tune.linear_coopmat_vector_loads;
   }
   return k.family == KernelFamily::tiled ? as_tiled(k) : k;
 }
@@ -158,7 +159,7 @@ namespace {
 
 // The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile
 // against what the shader supports and the device's shared memory.
-const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode) {
+const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, bool vec) {
   const vk::DeviceCaps& caps = ctx.caps();
   const uint32_t bm = uint32_t(kern.tile_m), bn = uint32_t(kern.tile_n), bk = uint32_t(kern.tile_k);
   const std::string tile = std::to_string(bm) + "x" + std::to_string(bn) + "x" + std::to_string(bk);
@@ -177,7 +178,7 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   const CoopmatGemm g = linear_coopmat_layout(tune);
   if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
     fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
-  const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode);
+  const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m));
   return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
                           tune.coopmat.defined() ? linear_coopmat_unfit(caps, g)
                                                  : "no cooperative-matrix shape on " + caps.name);
@@ -294,7 +295,13 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   // K = 0: the product is zero, the epilogue still applies; a one-element zero view keeps bindings valid.
   // The 8-value path also needs the X/W offsets on 4/8-element boundaries: every chunk's offset keeps the
   // whole tensor's residue (chunk starts move by multiples of 8 elements), so the choice holds per chunk.
-  const bool vec = kernel.family == KernelFamily::texel && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
+  // The coopmat kernel's 16-byte loads: the same rule (W's 8 values a uvec4 at 16 bits; f32 W as vec4, on
+  // 4-value boundaries that the 8-value rule implies), and its invocations a multiple of the K step's X vectors.
+  const bool vec_family =
+      kernel.family == KernelFamily::texel ||
+      (kernel.family == KernelFamily::coopmat && kernel.tile_k % 8 == 0 &&
+       linear_coopmat_layout(device_tuning(caps)).invocations() % uint32_t(kernel.tile_k / 4) == 0);
+  const bool vec = vec_family && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
                    s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
   const bool use_vec = vec && bind_aligned(x, align).elem_off % 4 == 0 && bind_aligned(w, align).elem_off % 8 == 0;
   const VkFormat x_fmt = use_vec ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
@@ -343,7 +350,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     tile_m = int64_t(sg_m) * rows;
     tile_n = int64_t(8 / sg_m) * 8 * cols;
   } else {
-    pipe_ptr = &storage_pipeline(ctx, kernel, wcode);
+    pipe_ptr = &storage_pipeline(ctx, kernel, wcode, use_vec);
     tile_m = kernel.tile_m;
     tile_n = kernel.tile_n;
   }

@@ -67,7 +67,8 @@ void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const T
 // 16 share X rows by subgroup shuffles, rows 1, 2 or 4 (small M) are fetched by every lane; cols 1..8.
 // lanes: 0 subgroups of exactly 8 (lavapipe), 1 clusters of 8 inside wider subgroups (GPUs), 2 no subgroup
 // operations (shader linalg/linear_nosubgroup). sg_m: clusters of the 64-invocation workgroup along M.
-// vectorized: 8-value K steps through RGBA texels (falls back to scalar texels when the layout forbids).
+// vectorized: 8-value K steps through RGBA texels; on the coopmat family 16-byte loads of X and W (both fall
+// back to element loads when the layout forbids).
 // family: texel (the fields above), tiled (linalg/linear_tiled: storage buffers, shared-memory tiles of
 // tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 64) or coopmat
 // (linalg/linear_coopmat: the same staging in fp16 feeding VK_KHR_cooperative_matrix, fp32 accumulation;

@@ -173,6 +173,7 @@ const Pipeline& PipelineCache::get(const std::string& shader, std::span<const ui
   std::span<const uint32_t> code = find_shader(shader);
   auto p = std::make_unique<Pipeline>();
   p->name = shader;
+  p->spec.assign(spec.begin(), spec.end());
   p->iface = reflect_shader(code);
   VkDevice dev = ctx_.device();
 

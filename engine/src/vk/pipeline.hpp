@@ -23,6 +23,7 @@ class Context;
 
 struct Pipeline {
   std::string name;  // shader name, used for profiling labels and errors
+  std::vector<uint32_t> spec;  // the specialization constants it was created with (which variant ran: tests)
   VkPipeline pipeline = VK_NULL_HANDLE;
   VkPipelineLayout layout = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;

@@ -97,6 +97,19 @@ ShaderInterface reflect_shader(std::span<const uint32_t> w) {
     if (image_info.count(img) && image_info[img].first == DimBuffer) out.combined_texel_buffer_sampler = true;
   std::sort(out.bindings.begin(), out.bindings.end(),
             [](const ShaderBinding& x, const ShaderBinding& y) { return x.binding < y.binding; });
+  // Variables aliasing one binding (e.g. a buffer read as floats and as vec4): one descriptor, written when
+  // any alias writes it.
+  std::vector<ShaderBinding> merged;
+  for (const ShaderBinding& b : out.bindings) {
+    if (merged.empty() || merged.back().binding != b.binding) {
+      merged.push_back(b);
+      continue;
+    }
+    if (merged.back().kind != b.kind)
+      throw Error("internal: binding " + std::to_string(b.binding) + " is declared as two kinds of descriptor");
+    merged.back().read_only = merged.back().read_only && b.read_only;
+  }
+  out.bindings = std::move(merged);
   return out;
 }
 

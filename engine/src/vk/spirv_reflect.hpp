@@ -19,7 +19,7 @@ struct ShaderBinding {
 };
 
 struct ShaderInterface {
-  std::vector<ShaderBinding> bindings;  // sorted by binding number
+  std::vector<ShaderBinding> bindings;  // sorted by binding number, one per number (aliases merged)
   uint32_t push_constant_bytes = 0;     // 0 if none (upper bound is the layout's 128 bytes)
   uint32_t local_size[3] = {1, 1, 1};   // literal LocalSize, when not from specialization constants
   // The module declares a combined image-sampler type over a texel buffer (GLSL samplerBuffer): invalid from
