@@ -307,26 +307,44 @@ TEST_F(AttentionTest, TiledFamilyFallbacks) {
 // with fp32 accumulation: tolerance 5e-3·(1 + max|v|) (the scores' rounding moves the weights by ~1e-3
 // relative at these sizes). head_dim 16..64 in multiples of the fragment run on tensor cores (at 16x16x16:
 // 16, 48, 64; at lavapipe's 8x8x8 also 40); 72 and 128 (over the 64-key tile) on the tiled kernel. Then
-// other layouts of the same kernel: 1 and 2 subgroups, 32-key tiles.
+// other layouts of the same kernel: 1 and 2 subgroups, 32-key tiles. Each twice where the device has
+// VK_NV_cooperative_matrix2's row operations (lavapipe 26.1): the variant that keeps the softmax in the matrices
+// (attention_flash_coopmat2.comp, the default there) and the KHR kernel (attention_coopmat2=off), each call
+// checked to have run the shader its setting names.
 TEST_F(AttentionTest, CoopmatFamilyByValue) {
   if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
   const bool forced = ctx().caps().forced_limits.any();
   fp16_tolerance_ = kFp16Tolerance;
   uint32_t seed = 600;
   double worst = 0;
+  auto calls_of = [&](const std::string& shader) {
+    uint64_t n = 0;
+    for (const auto& [note, count] : ctx().kernel_notes())
+      if (note.shader == shader) n += count;
+    return n;
+  };
+  std::string variant;  // "" or ",attention_coopmat2=off"
   auto run = [&](const std::string& layout, std::initializer_list<int64_t> dims,
                  std::initializer_list<std::pair<int64_t, int64_t>> lengths) {
-    ops::ScopedTuningOverride coop("attention=coopmat" + layout);
-    const ops::CoopmatAttention a = ops::attention_coopmat_layout(ops::device_tuning(ctx().caps()));
+    ops::ScopedTuningOverride coop("attention=coopmat" + layout + variant);
+    const ops::DeviceTuning& t = ops::device_tuning(ctx().caps());
+    const ops::CoopmatAttention a = ops::attention_coopmat_layout(t);
+    const std::string shader = t.attention_coopmat2 && ctx().caps().cooperative_matrix2_row_ops && a.frag.n == a.frag.k
+                                   ? "nn/attention_flash_coopmat2"
+                                   : "nn/attention_flash_coopmat";
     for (int64_t d : dims)
       for (int64_t heads : {1, 3})
         for (auto [lq, lk] : lengths) {
-          SCOPED_TRACE(a.describe());
+          SCOPED_TRACE(a.describe() + variant);
           Case c{2, heads, d, lq, lk, 1.0f / std::sqrt(float(d))};
           c.pad_columns = 4;
           c.out_offset = 4;
           c.out_extra = 8;
+          const uint64_t before = calls_of(shader);
           worst = std::max(worst, check(c, seed++));
+          if (last_family_ == ops::KernelFamily::coopmat) {
+            EXPECT_GT(calls_of(shader), before) << "D" << d << ": not run by " << shader;
+          }
           const bool takes = ops::attention_coopmat_head_dim_unfit(a, d).empty();
           if (!forced) {
             EXPECT_EQ(last_family_, takes ? ops::KernelFamily::coopmat : ops::KernelFamily::tiled)
@@ -334,14 +352,19 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
           }
         }
   };
-  run("", {16, 48, 64, 40, 72, 128}, {{1, 1}, {37, 45}, {130, 129}, {64, 64}, {200, 1000}});
-  for (int64_t d : {64, 62}) {  // fused QKV; 62 padded to 64
-    ops::ScopedTuningOverride coop("attention=coopmat");
-    Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
-    worst = std::max(worst, check(c, seed++));
+  const bool both = ctx().caps().cooperative_matrix2_row_ops;
+  for (const char* v : {"", ",attention_coopmat2=off"}) {
+    if (!both && *v) break;
+    variant = v;
+    run("", {16, 48, 64, 40, 72, 128}, {{1, 1}, {37, 45}, {130, 129}, {64, 64}, {200, 1000}});
+    for (int64_t d : {64, 62}) {  // fused QKV; 62 padded to 64
+      ops::ScopedTuningOverride coop("attention=coopmat" + variant);
+      Case c{2, 3, d, 130, 130, 1.0f / std::sqrt(float(d)), false, false, true};
+      worst = std::max(worst, check(c, seed++));
+    }
+    for (const char* layout : {",attention_coopmat_subgroups=1", ",attention_coopmat_subgroups=2,attention_block_k=32"})
+      run(layout, {16, 32}, {{37, 45}, {130, 129}});
   }
-  for (const char* layout : {",attention_coopmat_subgroups=1", ",attention_coopmat_subgroups=2,attention_block_k=32"})
-    run(layout, {16, 32}, {{37, 45}, {130, 129}});
   fp16_tolerance_ = 0;
   std::cout << "coopmat family: max error " << worst << "\n";
 }

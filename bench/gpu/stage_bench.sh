@@ -87,7 +87,8 @@ else
   default_sweep="gemm|coopmat|linear_coopmat=2x4x4x2x32 gemm|coopmat|linear_coopmat=2x2x4x4x32
     gemm|coopmat|linear_coopmat_vector_loads=off gemm|coopmat|linear_coopmat_group_m=1
     gemm|coopmat|linear_coopmat=2x2x2x2x32 gemm|coopmat|linear_coopmat=1x1x2x2x32 gemm|coopmat|linear_coopmat=4x2x2x4x32 gemm|coopmat|linear_coopmat=2x4x4x2x16
-    attention|coopmat|attention_coopmat_subgroups=4 attention|coopmat|attention_coopmat_subgroups=2
+    attention|coopmat|attention_coopmat_subgroups=4 attention|coopmat|attention_coopmat2=off
+    attention|coopmat|attention_coopmat_subgroups=2
     attention|coopmat|attention_coopmat_subgroups=8 attention|coopmat|attention_coopmat_subgroups=1
     conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat=2x2x2x2x32 conv3d|coopmat|conv_coopmat=2x4x4x2x32
     conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128

@@ -1,5 +1,6 @@
-// Declarations shared by attention_flash_coopmat.comp (tensor cores) and attention_flash_coopmat_twin.comp (its
-// fp32 twin, tested on lavapipe): spec constants, bindings, push constants, shared tiles. See the former.
+// Declarations shared by attention_flash_coopmat.comp (tensor cores), attention_flash_coopmat_twin.comp (its
+// fp32 twin, tested on lavapipe) and attention_flash_coopmat2.comp (its VK_NV_cooperative_matrix2 variant): spec
+// constants, bindings, push constants, the K and V tiles. See the first.
 // The layout comes from the tuning table (DeviceTuning::attention_coopmat_subgroups, attention_block_k,
 // coopmat, coopmat_lanes; tensor/coopmat_layout.cpp checks it against the device and the head_dim).
 layout(local_size_x_id = 7) in;  // SUBGROUPS * LANES
@@ -48,5 +49,25 @@ layout(push_constant) uniform Push {
 
 shared float16_t sK[BK * KP];                 // [key][dim], pitch KP
 shared float16_t sV[BK * KP];                 // [key][dim], pitch KP
-shared float sS[SUBGROUPS * ROWS * SP];       // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D], pitch SP
-shared float16_t sP[SUBGROUPS * ROWS * PP];   // per subgroup: Q staging [ROWS][D], then P [ROWS][BK], pitch PP
+
+// Stages the workgroup's K and V tile from key tile0 (fp16; keys past the end are zeros, so no NaN reaches the
+// products).
+void stage_kv(uint tile0, uint kbase, uint vbase) {
+  for (uint i = gl_LocalInvocationID.x; i < BK * D4; i += gl_WorkGroupSize.x) {
+    const uint j = i / D4, c = i % D4, key = tile0 + j;
+    vec4 kx = vec4(0), vx = vec4(0);
+    if (key < p.kv_len) {
+      kx = kb[kbase + key * p.k_stride + c];
+      vx = vb[vbase + key * p.v_stride + c];
+    }
+    const uint at = j * KP + c * 4;
+    sK[at] = float16_t(kx.x);
+    sK[at + 1] = float16_t(kx.y);
+    sK[at + 2] = float16_t(kx.z);
+    sK[at + 3] = float16_t(kx.w);
+    sV[at] = float16_t(vx.x);
+    sV[at + 1] = float16_t(vx.y);
+    sV[at + 2] = float16_t(vx.z);
+    sV[at + 3] = float16_t(vx.w);
+  }
+}

@@ -6,8 +6,11 @@
 //   SCORES()           S = Q·Kᵀ (ROWS x BK, fp32) into sS[sgS], row-major, stride SP; K is sK [key][dim], stride KP
 //   PV()               O_tile = P·V (ROWS x D, fp32) into sS[sgS], row-major, stride SP; P is sP[sgP] [row][key],
 //                      stride PP; V is sV [key][dim], stride KP
+shared float sS[SUBGROUPS * ROWS * SP];      // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D], pitch SP
+shared float16_t sP[SUBGROUPS * ROWS * PP];  // per subgroup: Q staging [ROWS][D], then P [ROWS][BK], pitch PP
+
 void main() {
-  const uint h = gl_WorkGroupID.y, b = gl_WorkGroupID.z, tid = gl_LocalInvocationID.x;
+  const uint h = gl_WorkGroupID.y, b = gl_WorkGroupID.z;
   const uint sg = SG_ID, lane = SG_LANE;
   const uint sgS = sg * ROWS * SP, sgP = sg * ROWS * PP;
   const uint row_base = gl_WorkGroupID.x * (SUBGROUPS * ROWS) + sg * ROWS;
@@ -42,25 +45,9 @@ void main() {
   }
 
   for (uint tile0 = 0; tile0 < p.kv_len; tile0 += BK) {
-    // ---- stage K and V (fp16; keys past the end are zeros, so no NaN reaches the products) ----
+    // ---- stage K and V ----
     barrier();  // every subgroup is done with the previous tile
-    for (uint i = tid; i < BK * D4; i += gl_WorkGroupSize.x) {
-      const uint j = i / D4, c = i % D4, key = tile0 + j;
-      vec4 kx = vec4(0), vx = vec4(0);
-      if (key < p.kv_len) {
-        kx = kb[kbase + key * p.k_stride + c];
-        vx = vb[vbase + key * p.v_stride + c];
-      }
-      const uint at = j * KP + c * 4;
-      sK[at] = float16_t(kx.x);
-      sK[at + 1] = float16_t(kx.y);
-      sK[at + 2] = float16_t(kx.z);
-      sK[at + 3] = float16_t(kx.w);
-      sV[at] = float16_t(vx.x);
-      sV[at + 1] = float16_t(vx.y);
-      sV[at + 2] = float16_t(vx.z);
-      sV[at + 3] = float16_t(vx.w);
-    }
+    stage_kv(tile0, kbase, vbase);
     barrier();
 
     // ---- S = Q·Kᵀ (ROWS x BK) into the subgroup's slice of sS, row-major, stride SP ----

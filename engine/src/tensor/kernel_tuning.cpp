@@ -250,6 +250,7 @@ const std::vector<Field>& fields() {
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
       int_field("attention_coopmat_subgroups", &DeviceTuning::attention_coopmat_subgroups, 1, 32, "1..32"),
+      bool_field("attention_coopmat2", &DeviceTuning::attention_coopmat2),
       int_field("linear_tile_m", &DeviceTuning::linear_tile_m, 16, 256, "16..256"),
       int_field("linear_tile_n", &DeviceTuning::linear_tile_n, 16, 256, "16..256"),
       int_field("linear_tile_k", &DeviceTuning::linear_tile_k, 8, 64, "8..64"),
@@ -421,7 +422,9 @@ std::string describe_tuning(const DeviceTuning& t) {
       << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads");
   o << "\n  attention:  " << kernel_family_name(t.attention) << unfit(t.attention_unfit);
   if (t.attention == KernelFamily::tiled) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
-  if (t.attention == KernelFamily::coopmat) o << ", blocks " << attention_coopmat_layout(t).describe();
+  if (t.attention == KernelFamily::coopmat)
+    o << ", blocks " << attention_coopmat_layout(t).describe()
+      << (t.attention_coopmat2 ? ", softmax in the matrices where VK_NV_cooperative_matrix2 allows" : "");
   o << (t.attention_kv_workspace ? ", K/V repacked head-major when offered a workspace" : "") << "\n"
     << "  conv:       " << kernel_family_name(t.conv) << unfit(t.conv_unfit) << ", texel tiles " << tile(t.conv_16bit_weights) << " (small "
     << tile(t.conv_small) << ")" << (t.conv == KernelFamily::tiled ? ", tiled " + std::to_string(t.conv_tile_m) + "x" + std::to_string(t.conv_tile_n) : std::string())

@@ -107,6 +107,10 @@ struct DeviceTuning {
   bool linear_coopmat_vector_loads = true;
   int linear_coopmat_group_m = 8;
   int attention_coopmat_subgroups = 0;
+  // The tensor-core attention keeps scores, P and O in the matrices (nn/attention_flash_coopmat2) where the
+  // device has VK_NV_cooperative_matrix2's reductions, conversions and per-element operations and the fragment's
+  // N equals its K; off: the KHR kernel, whose softmax goes through shared memory (A/B runs).
+  bool attention_coopmat2 = true;
   // Where a coopmat family was asked for (by the entry or an override) but runs tiled on this device: why,
   // per op ("" where it was not asked or runs). Ops note it with every call they run (kernel_census.hpp).
   std::string linear_unfit, attention_unfit, conv_unfit;

@@ -113,11 +113,17 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
             off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
             d4,                opt.scale, 0,                 0,  0,       0};
   const bool coop = plan.family == KernelFamily::coopmat;
-  const char* name = coop ? "attention_flash_coopmat" : plan.twin ? "attention_flash_coopmat_twin" : "attention_flash";
+  const DeviceTuning& tune = device_tuning(caps);
+  const CoopmatAttention layout = attention_coopmat_layout(tune);
+  // The coopmat2 variant needs less shared memory than the KHR kernel (no scores or P), which plan() checked.
+  const bool coop2 = coop && tune.attention_coopmat2 && caps.cooperative_matrix2_row_ops && layout.frag.n == layout.frag.k;
+  const char* name = coop2  ? "attention_flash_coopmat2"
+                     : coop ? "attention_flash_coopmat"
+                     : plan.twin ? "attention_flash_coopmat_twin"
+                                 : "attention_flash";
   const vk::Pipeline* pipe_ptr = nullptr;
   if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
-    const DeviceTuning& t = device_tuning(caps);
-    const CoopmatAttention a = attention_coopmat_layout(t);
+    const CoopmatAttention& a = layout;
     const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
                                  attention_coopmat_unfit(caps, a, s.head_dim, plan.twin));

@@ -199,6 +199,17 @@ Context::Context(const ContextOptions& options) {
       tail = &fcm.pNext;
       exts.push_back(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
     }
+    // The coopmat2 features the attention kernel's softmax uses (and only those).
+    VkPhysicalDeviceCooperativeMatrix2FeaturesNV fcm2{};
+    fcm2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_2_FEATURES_NV;
+    if (caps_.cooperative_matrix2_row_ops) {
+      fcm2.cooperativeMatrixReductions = VK_TRUE;
+      fcm2.cooperativeMatrixConversions = VK_TRUE;
+      fcm2.cooperativeMatrixPerElementOperations = VK_TRUE;
+      *tail = &fcm2;
+      tail = &fcm2.pNext;
+      exts.push_back(VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
+    }
     // glslang compiles local_size_x_id for Vulkan 1.3 as LocalSizeId, which needs maintenance4 (every 1.3
     // device has it; cooperative_matrix implies 1.3).
     VkPhysicalDeviceMaintenance4Features fm4{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_4_FEATURES};

@@ -186,6 +186,9 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   // Usable only with the shapes known and the memory model the coopmat shaders are compiled for.
   c.cooperative_matrix = !c.cooperative_matrix_shapes.empty() && c.vulkan_memory_model &&
                          c.api_version >= VK_API_VERSION_1_3;
+  const auto& cm2 = c.cooperative_matrix2_facts;
+  c.cooperative_matrix2_row_ops =
+      c.cooperative_matrix && cm2 && cm2->reductions && cm2->conversions && cm2->per_element_operations;
   c.push_descriptor = c.has_extension("VK_KHR_push_descriptor");
 
   VkPhysicalDeviceMemoryProperties mem{};

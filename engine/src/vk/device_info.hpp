@@ -64,7 +64,11 @@ struct DeviceCaps {
   bool float32_atomic_add = false;   // VK_EXT_shader_atomic_float, buffer add
   bool cooperative_matrix = false;   // VK_KHR_cooperative_matrix with its cooperativeMatrix feature
   std::vector<CooperativeMatrixShape> cooperative_matrix_shapes;  // what the device offers (empty without)
-  bool cooperative_matrix2 = false;  // VK_NV_cooperative_matrix2 exposed (reported; no kernel uses it yet)
+  bool cooperative_matrix2 = false;  // VK_NV_cooperative_matrix2 exposed
+  // Its reductions, conversions and per-element operations, usable (with cooperative_matrix): enabled on the
+  // device dvs creates; the application's must have enabled them. The attention kernel's softmax uses them
+  // (nn/attention_flash_coopmat2).
+  bool cooperative_matrix2_row_ops = false;
   std::optional<CooperativeMatrix2Facts> cooperative_matrix2_facts;  // its features, limits, flexible shapes
   bool vulkan_memory_model = false;  // Vulkan 1.2 vulkanMemoryModel (the coopmat shaders' memory model)
   bool push_descriptor = false;

@@ -77,6 +77,12 @@ EnabledFeatures enabled_features_in(const void* chain) {
       case VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_FEATURES_KHR:
         e.cooperative_matrix |= bool(as<VkPhysicalDeviceCooperativeMatrixFeaturesKHR>(s).cooperativeMatrix);
         break;
+      case VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_2_FEATURES_NV: {
+        const auto& f = as<VkPhysicalDeviceCooperativeMatrix2FeaturesNV>(s);
+        e.cooperative_matrix2_row_ops |=
+            f.cooperativeMatrixReductions && f.cooperativeMatrixConversions && f.cooperativeMatrixPerElementOperations;
+        break;
+      }
       case VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_MEMORY_MODEL_FEATURES: {
         const auto& f = as<VkPhysicalDeviceVulkanMemoryModelFeatures>(s);
         e.vulkan_memory_model |= bool(f.vulkanMemoryModel);
@@ -104,6 +110,8 @@ std::vector<std::string> host_device_options() {
           "shaderBufferFloat32AtomicAdd with VK_EXT_shader_atomic_float (the splat render's float path)",
           "cooperativeMatrix with VK_KHR_cooperative_matrix, vulkanMemoryModel and maintenance4 on Vulkan 1.3 "
           "(tensor-core GEMM, convolution and attention)",
+          "cooperativeMatrixReductions, cooperativeMatrixConversions and cooperativeMatrixPerElementOperations with "
+          "VK_NV_cooperative_matrix2 (the tensor-core attention's softmax in registers)",
           "subgroupSizeControl and computeFullSubgroups (Vulkan 1.3 or VK_EXT_subgroup_size_control)",
           "storageBuffer16BitAccess, storageBuffer8BitAccess, shaderInt8",
           "VK_EXT_memory_budget (the memory budget follows the driver's heap budgets)"};
@@ -180,6 +188,8 @@ DeviceCaps host_device_caps(const HostDevice& host) {
   c.cooperative_matrix = c.cooperative_matrix && v13 && e.cooperative_matrix && e.vulkan_memory_model &&
                          e.maintenance4 && enabled(exts, VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
   if (!c.cooperative_matrix) c.cooperative_matrix_shapes.clear();
+  c.cooperative_matrix2_row_ops = c.cooperative_matrix2_row_ops && c.cooperative_matrix && e.cooperative_matrix2_row_ops &&
+                                  enabled(exts, VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
   c.push_descriptor = c.push_descriptor && enabled(exts, "VK_KHR_push_descriptor");
   if (c.memory_budget_ext && !enabled(exts, VK_EXT_MEMORY_BUDGET_EXTENSION_NAME)) {
     c.memory_budget_ext = false;
