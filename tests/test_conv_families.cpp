@@ -2,9 +2,9 @@
 // runs the tests: "tiled" (shaders/nn/conv_tiled.comp, shared-memory tiles over storage buffers, fp32) at
 // several workgroup tiles, and the tiling / loads / fp16 rounding / epilogue of "coopmat" through its fp32
 // twin (nn/conv_coopmat_twin, from shaders/nn/conv_coopmat.comp; the tensor-core product cannot run on lavapipe).
-// Every conv variant the models use, with odd channel counts (Cin 3, 5, 13, 37; Cout 3, 7, 19, 40, 140) and
-// odd frame / row / column counts, against a plain-C++ reference written out here (explicit time prefix,
-// nearest x2 upsampling and zero padding, then a valid convolution in double).
+// Every conv variant the models use, with odd channel counts (Cin 3, 5, 13, 37, and 32, 64 for whole-tap steps;
+// Cout 3, 7, 19, 40, 140) and odd frame / row / column counts, against a plain-C++ reference written out here
+// (explicit time prefix, nearest x2 upsampling and zero padding, then a valid convolution in double).
 // Tolerances: |gpu - ref| <= 1e-5 * sum_k |w_k x_k| + 1e-6 (fp32 accumulation); for the coopmat twin the
 // reference uses x and w rounded to fp16 as the kernel does, so the same bound holds.
 // The existing suites (ConvOps.*, SplitConv.*: caches, splits under forced limits) also run against the
@@ -265,6 +265,11 @@ std::vector<Case> all_cases() {
       {Kind::upsample_conv, 1, 3, 19, 2, 3, 5, DType::bf16, true, true},
       {Kind::same3x3, 1, 37, 140, 1, 15, 17, DType::bf16},  // 255 pixels x 140 channels: partial tiles both ways
       {Kind::causal, 1, 13, 40, 2, 11, 13, DType::bf16},
+      // Input channels a multiple of the reduction step (32 at the GPUs' and lavapipe's layouts, as the VAE's
+      // 128..512): the tensor-core kernel's one-tap-per-step gather, with and without the fused upsampling.
+      {Kind::same3x3, 1, 64, 19, 2, 7, 9, DType::bf16},
+      {Kind::causal, 1, 32, 7, 3, 5, 7, DType::f16},
+      {Kind::upsample_conv, 1, 32, 7, 2, 3, 5, DType::bf16, true, true},
   };
 }
 

@@ -54,14 +54,25 @@ TEST(CoopmatLayout, SharedMemoryOfTheShaders) {
   // (every row padded by 16 bytes against bank conflicts); the twin adds sQ [64 rows][D] halves and xch [128] floats.
   const CoopmatAttention att{k16, 32, 4, 64};
   EXPECT_EQ(ops::attention_coopmat_shared_bytes(att, 64), 2u * 64 * 72 * 2 + 64 * 68 * 4 + 64 * 72 * 2);
-  EXPECT_EQ(ops::attention_twin_shared_bytes(att, 32),
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att, 32, ops::AttentionKernel::twin),
             ops::attention_coopmat_shared_bytes(att, 32) + 64u * 32 * 2 + 128 * 4);
+  // The coopmat2 variant: K and V, and one [16 rows][16 + 4] fp32 block of Q / O staging per subgroup. So 8
+  // subgroups (128 query rows) take 28 KiB, where the KHR kernel would need 70 KiB.
+  const CoopmatAttention att8{k16, 32, 8, 64};
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att8, 64, ops::AttentionKernel::coopmat2),
+            2u * 64 * 72 * 2 + 8 * 16 * 20 * 4);
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att8, 64, ops::AttentionKernel::coopmat2), 28u * 1024);
+  EXPECT_EQ(ops::attention_coopmat_shared_bytes(att8, 64), 70u * 1024);
 }
 
 TEST(CoopmatLayout, TheGpuLayoutsFitTheGpu) {
   EXPECT_EQ(ops::linear_coopmat_unfit(gpu(), {k16, 32, {2, 4, 4, 2, 32}}), "");
   EXPECT_EQ(ops::conv_coopmat_unfit(gpu(), {k16, 32, {4, 2, 2, 4, 32}}, false), "");
-  EXPECT_EQ(ops::attention_coopmat_unfit(gpu(), {k16, 32, 4, 64}, 64, false), "");
+  EXPECT_EQ(ops::attention_coopmat_unfit(gpu(), {k16, 32, 4, 64}, 64, ops::AttentionKernel::khr), "");
+  // 128 query rows: the coopmat2 variant fits 48 KiB, the KHR kernel does not.
+  EXPECT_EQ(ops::attention_coopmat_unfit(gpu(), {k16, 32, 8, 64}, 64, ops::AttentionKernel::coopmat2), "");
+  EXPECT_NE(ops::attention_coopmat_unfit(gpu(), {k16, 32, 8, 64}, 64, ops::AttentionKernel::khr).find("shared memory"),
+            std::string::npos);
   // 64 lanes through size control (512 invocations, 8 subgroups).
   EXPECT_EQ(ops::linear_coopmat_unfit(gpu(), {k16, 64, {2, 4, 4, 2, 32}}), "");
 }
@@ -117,7 +128,7 @@ TEST(CoopmatLayout, IndexMapsMustDivide) {
   EXPECT_NE(ops::attention_coopmat_head_dim_unfit({{16, 16, 8}, 64, 2, 64}, 40).find("multiples of 16"), std::string::npos);
   EXPECT_NE(ops::attention_coopmat_head_dim_unfit({{8, 8, 8}, 32, 2, 64}, 8).find("multiples of 16"), std::string::npos);
   // Keys per tile a multiple of the fragment's N and K.
-  EXPECT_NE(ops::attention_coopmat_unfit(gpu(), {k16, 32, 2, 40}, 16, false).find("does not divide"),
+  EXPECT_NE(ops::attention_coopmat_unfit(gpu(), {k16, 32, 2, 40}, 16, ops::AttentionKernel::khr).find("does not divide"),
             std::string::npos);
 }
 

@@ -307,10 +307,10 @@ TEST_F(AttentionTest, TiledFamilyFallbacks) {
 // with fp32 accumulation: tolerance 5e-3·(1 + max|v|) (the scores' rounding moves the weights by ~1e-3
 // relative at these sizes). head_dim 16..64 in multiples of the fragment run on tensor cores (at 16x16x16:
 // 16, 48, 64; at lavapipe's 8x8x8 also 40); 72 and 128 (over the 64-key tile) on the tiled kernel. Then
-// other layouts of the same kernel: 1 and 2 subgroups, 32-key tiles. Each twice where the device has
-// VK_NV_cooperative_matrix2's row operations (lavapipe 26.1): the variant that keeps the softmax in the matrices
-// (attention_flash_coopmat2.comp, the default there) and the KHR kernel (attention_coopmat2=off), each call
-// checked to have run the shader its setting names.
+// other layouts of the same kernel: 1 and 2 subgroups, 32-key tiles (and 8 for the coopmat2 variant). Each twice
+// where the device has VK_NV_cooperative_matrix2's row operations (lavapipe 26.1): the variant that keeps the
+// softmax in the matrices (attention_flash_coopmat2.comp, the default there) and the KHR kernel
+// (attention_coopmat2=off), each call checked to have run the shader its setting names.
 TEST_F(AttentionTest, CoopmatFamilyByValue) {
   if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
   const bool forced = ctx().caps().forced_limits.any();
@@ -364,6 +364,8 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
     }
     for (const char* layout : {",attention_coopmat_subgroups=1", ",attention_coopmat_subgroups=2,attention_block_k=32"})
       run(layout, {16, 32}, {{37, 45}, {130, 129}});
+    // 8 subgroups (the GPUs' 128 query rows at 16x16x16): only the coopmat2 variant holds them in shared memory.
+    if (both && variant.empty()) run(",attention_coopmat_subgroups=8", {32, 64}, {{37, 45}, {200, 129}});
   }
   fp16_tolerance_ = 0;
   std::cout << "coopmat family: max error " << worst << "\n";

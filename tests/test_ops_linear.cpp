@@ -436,8 +436,8 @@ TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
   auto ran = [&](uint32_t wcode, bool vec) {
     bool found = false;
     c.pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 12 && pl.spec[2] == wcode && pl.spec[10] == (vec ? 1u : 0u) &&
-          pl.spec[11] == 3)
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 13 && pl.spec[2] == wcode &&
+          pl.spec[10] == (vec ? 1u : 0u) && pl.spec[11] == 3 && pl.spec[12] == 0)
         found = true;
     });
     return found;
@@ -456,6 +456,32 @@ TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
   u.x_lead = 3;
   check(M, N, 48, u);
   EXPECT_TRUE(ran(2, false)) << "the misaligned call did not take the element loads";
+}
+
+// The ablations the device script's sweep times (measurements only) are live: without MMA an aligned call's Y
+// is its bias alone; without global loads Y no longer depends on X (two different X give the same Y).
+TEST_P(LinearTest, CoopmatAblationsAreLive) {
+  if (family() != ops::KernelFamily::coopmat) GTEST_SKIP() << "tensor-core family only";
+  const std::string base = GetParam();
+  vk::Context& c = ctx();
+  const int64_t M = 37, N = 45, K = 48;
+  auto run = [&](const char* ablation, uint32_t seed) {
+    ops::ScopedTuningOverride t(base + (base.empty() ? "" : ",") + "linear_coopmat_ablation=" + ablation);
+    std::vector<float> xv = random_values(size_t(M * K), seed), wv = random_values(size_t(N * K), 2),
+                       bv = random_values(size_t(N), 3);
+    Tensor x = Tensor::upload(c, make_host({M, K}, DType::f32, xv));
+    Tensor w = Tensor::upload(c, make_host({N, K}, DType::bf16, wv));
+    Tensor y = Tensor::empty(c, {M, N}, DType::f32);
+    LinearEpilogue ep;
+    ep.bias = Tensor::upload(c, make_host({N}, DType::f32, bv));
+    ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x, w, y, ep); });
+    return std::make_pair(y.download(c).to_f32(), bv);
+  };
+  const auto [no_mma, bias] = run("no_mma", 1);
+  for (int64_t m = 0; m < M; ++m)
+    for (int64_t n = 0; n < N; ++n) ASSERT_EQ(no_mma[size_t(m * N + n)], bias[size_t(n)]) << m << "," << n;
+  EXPECT_EQ(run("no_global_loads", 1).first, run("no_global_loads", 7).first);
+  EXPECT_NE(run("none", 1).first, run("none", 7).first);
 }
 
 INSTANTIATE_TEST_SUITE_P(Family, LinearTest, testing::Values("", "linear=tiled"),

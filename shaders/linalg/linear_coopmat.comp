@@ -42,6 +42,10 @@ layout(constant_id = 10) const bool VEC = false;
 // a column panel of W is read by GROUP_M workgroups in a row and the band's X rows stay in L2 meanwhile
 // (1: row by row, the grid's own order).
 layout(constant_id = 11) const uint GROUP_M = 1;
+// Ablations for measurements only (DeviceTuning::linear_coopmat_ablation; the results are wrong): 1 the 16-byte
+// path loads no operand from memory (each staged vector is a constant of its row; stores, barriers and MMAs
+// stay), 2 no MMA (the feed alone). 0: the kernel.
+layout(constant_id = 12) const uint ABLATE = 0;
 
 // 16-byte views of the X and W bindings (linear_storage_io.glsl declares their element views).
 layout(std430, binding = 0) readonly buffer Xv { vec4 xv[]; };
@@ -66,12 +70,14 @@ shared float stage[SG_M * SG_N * FRAG];
 
 // One vec4 of X: row m, values k .. k+3 (k a multiple of 8 below K or past it), zeros outside the matrix.
 vec4 load_x4(uint b, uint m, uint k) {
+  if (ABLATE == 1) return vec4(float(m & 7u) * 0.125);
   if (m >= p.M || k >= p.K) return vec4(0.0);
   return xv[(p.x_off + b * p.x_bs + m * p.ldx + k) / 4];
 }
 
 // One vector of W's row n from value k: EW values (8 halves or 4 floats) as raw words, zeros outside.
 uvec4 load_w4(uint b, uint n, uint k) {
+  if (ABLATE == 1) return uvec4(0x3c003c00u ^ (n & 7u));  // fp16 pairs near 1.0 (f32 W: tiny values)
   if (n >= p.N || k >= p.K) return uvec4(0u);
   return wv[(p.w_off + b * p.w_bs + n * p.ldw + k) / EW];
 }
@@ -157,7 +163,8 @@ void main() {
       [[unroll]] for (uint j = 0; j < FN; ++j)
         coopMatLoad(w[j], sw, wb + j * FRAG_N * LDS4 + kk / 4, LDS4, gl_CooperativeMatrixLayoutColumnMajor);
       [[unroll]] for (uint i = 0; i < FM; ++i)
-        [[unroll]] for (uint j = 0; j < FN; ++j) acc[i * FN + j] = coopMatMulAdd(a[i], w[j], acc[i * FN + j]);
+        [[unroll]] for (uint j = 0; j < FN; ++j)
+          if (ABLATE != 2) acc[i * FN + j] = coopMatMulAdd(a[i], w[j], acc[i * FN + j]);
     }
     if (more) {
       if (VEC) {

@@ -17,14 +17,17 @@
 //   hold each row's value in every column; P_j = exp2(S_j - m) rounded to fp16 in place (so the row sum adds the
 //   P that P·V reads), converted to A operands; O_d = O_d·exp2(m_old - m) + Σ_j P_j·V_jd.
 // No shared memory for scores or P (the KHR kernel's sS/sP and its lanes' copies of O, the bank-conflict and
-// shared-traffic cost of that kernel); shared memory holds K and V and one fp32 block per subgroup that stages
-// Q on the way in and O on the way out (rows past the end are neither read nor written).
+// shared-traffic cost of that kernel); shared memory holds K and V and one ROWS x FRAG_N fp32 block per subgroup
+// that stages Q on the way in and O on the way out, one fragment column at a time (rows past the end are neither
+// read nor written). So 8 subgroups (128 query rows at 16x16x16, one K/V tile per 128 rows) take 28 KiB at
+// head_dim 64 (tensor/coopmat_layout.cpp: attention_coopmat2_shared_bytes).
 // Needs the fragment's N equal to its K (the scores' accumulators become P's A operands, Q's become A).
 // Its twin on devices without these features is attention_flash_coopmat.comp, which the tests compare it with.
 #include "../common/attention_flash_coopmat_decl.glsl"
 
-const int OP = D + 4;  // sO row pitch (floats): 16-byte aligned, off the 128-byte bank period
-shared float sO[SUBGROUPS * ROWS * OP];  // per subgroup: Q (scaled, fp32) in, O out; [ROWS][D]
+const int OP = FRAG_N + 4;  // sO row pitch (floats): 16-byte aligned, off the 128-byte bank period
+const int F4 = FRAG_N / 4;  // vec4 per row of a fragment column (FRAG_K = FRAG_N)
+shared float sO[SUBGROUPS * ROWS * OP];  // per subgroup: a fragment column of Q (scaled, fp32) in, of O out
 
 #define ACC coopmat<float, gl_ScopeSubgroup, ROWS, FRAG_N, gl_MatrixUseAccumulator>
 #define OPA coopmat<float16_t, gl_ScopeSubgroup, ROWS, FRAG_K, gl_MatrixUseA>
@@ -62,23 +65,25 @@ void main() {
 
   // ---- Q (this subgroup's ROWS rows) pre-scaled into the exp2 domain, via sO, to fp16 A operands ----
   const float qscale = p.scale * LOG2E;
-  for (uint i = lane; i < ROWS * D4; i += LANES) {
-    const uint rr = i / D4, c = i % D4;
-    const uint row = min(row_base + rr, p.q_len - 1);  // rows past the end: a copy of the last, never stored
-    const vec4 x = qb[(b * p.q_len + row) * p.q_stride + p.q_off + h * D4 + c] * qscale;
-    const uint at = sgO + rr * OP + c * 4;
-    sO[at] = x.x;
-    sO[at + 1] = x.y;
-    sO[at + 2] = x.z;
-    sO[at + 3] = x.w;
-  }
-  subgroupMemoryBarrierShared();
-  subgroupBarrier();
   OPA qf[D / FRAG_K];
   [[unroll]] for (int d = 0; d < D / FRAG_K; ++d) {
+    for (uint i = lane; i < ROWS * F4; i += LANES) {
+      const uint rr = i / F4, c = i % F4;
+      const uint row = min(row_base + rr, p.q_len - 1);  // rows past the end: a copy of the last, never stored
+      const vec4 x = qb[(b * p.q_len + row) * p.q_stride + p.q_off + h * D4 + d * F4 + c] * qscale;
+      const uint at = sgO + rr * OP + c * 4;
+      sO[at] = x.x;
+      sO[at + 1] = x.y;
+      sO[at + 2] = x.z;
+      sO[at + 3] = x.w;
+    }
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();
     ACC q32;
-    coopMatLoad(q32, sO, sgO + d * FRAG_K, OP, gl_CooperativeMatrixLayoutRowMajor);
+    coopMatLoad(q32, sO, sgO, OP, gl_CooperativeMatrixLayoutRowMajor);
     qf[d] = OPA(q32);
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();  // every lane has its part of the fragment before the next column overwrites the block
   }
 
   ACC o[D / FRAG_N];
@@ -134,18 +139,21 @@ void main() {
     }
   }
 
-  // ---- O / l through sO to the rows that exist ----
+  // ---- O / l through sO to the rows that exist, one fragment column at a time ----
   [[unroll]] for (int d = 0; d < D / FRAG_N; ++d) {
     coopMatPerElementNV(o[d], o[d], elem_div, l);
-    coopMatStore(o[d], sO, sgO + d * FRAG_N, OP, gl_CooperativeMatrixLayoutRowMajor);
-  }
-  subgroupMemoryBarrierShared();
-  subgroupBarrier();
-  for (uint i = lane; i < ROWS * D4; i += LANES) {
-    const uint rr = i / D4, c = i % D4, row = row_base + rr;
-    if (row < p.q_len) {
-      const uint at = sgO + rr * OP + c * 4;
-      ob[(b * p.q_len + row) * p.o_stride + p.o_off + h * D4 + c] = vec4(sO[at], sO[at + 1], sO[at + 2], sO[at + 3]);
+    coopMatStore(o[d], sO, sgO, OP, gl_CooperativeMatrixLayoutRowMajor);
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();
+    for (uint i = lane; i < ROWS * F4; i += LANES) {
+      const uint rr = i / F4, c = i % F4, row = row_base + rr;
+      if (row < p.q_len) {
+        const uint at = sgO + rr * OP + c * 4;
+        ob[(b * p.q_len + row) * p.o_stride + p.o_off + h * D4 + d * F4 + c] =
+            vec4(sO[at], sO[at + 1], sO[at + 2], sO[at + 3]);
+      }
     }
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();  // every lane wrote its rows before the next column overwrites the block
   }
 }

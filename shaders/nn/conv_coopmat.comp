@@ -161,7 +161,25 @@ void main() {
       [[unroll]] for (uint r = 0u; r < EPL; ++r) acc[i][j][r] = 0.0;
 #endif
 
+  // Channels a multiple of BK (the VAE's 128, 256 and 512): each step reads BK channels of one tap, so the tap's
+  // offsets and each pixel's source index are worked out once per step (uniform divisions) and a load is one add;
+  // else (few or odd channels) each 4-channel group finds its own tap.
+  const bool tap_steps = cp % BK == 0u;
   for (uint k0 = 0u; k0 < K; k0 += BK) {
+    if (tap_steps) {
+      const uint tap = k0 / cp, c4 = (k0 - tap * cp) >> 2;
+      const uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
+      [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
+        const int ih = ph[i] + int(u), iw = pw[i] + int(v);
+        const bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
+        const uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
+        const uint base = (inside ? pix * cp4 : p.zero_texel) + c4;
+        [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_A; ++s) {
+          const uint q = t / BM + STEP_A * s;  // K is a multiple of BK here: every group is inside
+          put4(false, (t % BM + WG * i) * LD + 4u * q, x[base + q]);
+        }
+      }
+    } else
     [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
       [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_A; ++s) {
         const uint q = t / BM + STEP_A * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)

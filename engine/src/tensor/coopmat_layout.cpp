@@ -83,14 +83,20 @@ uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g) {
          uint64_t(g.tile.subgroups()) * g.frag.m * g.frag.n * 4;
 }
 
-// Rows padded as the shader pads them (attention_flash_coopmat_decl.glsl: KP, SP, PP).
-uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t D) {
-  const uint64_t bk = uint64_t(a.block_k), rows = uint64_t(a.rows());
-  return 2 * bk * uint64_t(D + 8) * 2 + rows * (bk + 4) * 4 + rows * (bk + 8) * 2;
+AttentionKernel attention_coopmat_kernel(const vk::DeviceCaps& caps, const DeviceTuning& t) {
+  const CoopmatAttention a = attention_coopmat_layout(t);
+  return t.attention_coopmat2 && caps.cooperative_matrix2_row_ops && a.frag.n == a.frag.k ? AttentionKernel::coopmat2
+                                                                                           : AttentionKernel::khr;
 }
 
-uint64_t attention_twin_shared_bytes(const CoopmatAttention& a, int64_t D) {
-  return attention_coopmat_shared_bytes(a, D) + uint64_t(a.rows()) * uint64_t(D) * 2 + uint64_t(a.invocations()) * 4;
+// Rows padded as the shaders pad them (attention_flash_coopmat_decl.glsl: KP, SP, PP; attention_flash_coopmat2:
+// OP).
+uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t D, AttentionKernel kernel) {
+  const uint64_t bk = uint64_t(a.block_k), rows = uint64_t(a.rows()), kv = 2 * bk * uint64_t(D + 8) * 2;
+  if (kernel == AttentionKernel::coopmat2) return kv + rows * (a.frag.n + 4) * 4;
+  const uint64_t khr = kv + rows * (bk + 4) * 4 + rows * (bk + 8) * 2;
+  if (kernel == AttentionKernel::khr) return khr;
+  return khr + rows * uint64_t(D) * 2 + uint64_t(a.invocations()) * 4;
 }
 
 std::string linear_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatGemm& g) {
@@ -137,7 +143,9 @@ std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t 
   return "";
 }
 
-std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAttention& a, int64_t D, bool twin) {
+std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAttention& a, int64_t D,
+                                    AttentionKernel kernel) {
+  const bool twin = kernel == AttentionKernel::twin;
   if (!a.frag.defined() || !power_of_two(a.lanes) || a.subgroups < 1 || a.block_k < 1)
     return "layout " + a.describe() +
            " is incomplete (DVS_TUNING: attention_coopmat_subgroups, attention_block_k, coopmat, coopmat_lanes)";
@@ -154,15 +162,15 @@ std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAtt
   }
   if (const std::string why = attention_coopmat_head_dim_unfit(a, D); !why.empty()) return why;
   return device_unfit(caps, a.frag, a.lanes, a.subgroups,
-                      twin ? attention_twin_shared_bytes(a, D) : attention_coopmat_shared_bytes(a, D), twin,
+                      attention_coopmat_shared_bytes(a, D, kernel), twin,
                       "attention_coopmat_subgroups, attention_block_k");
 }
 
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
-                                          uint32_t group_m) {
+                                          uint32_t group_m, uint32_t ablation) {
   const CoopmatTile& t = g.tile;
   return {uint32_t(t.sg_m), uint32_t(t.sg_n), weight_code, uint32_t(t.k), g.frag.k, uint32_t(t.frags_m),
-          uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations(), vector_loads ? 1u : 0u, group_m};
+          uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations(), vector_loads ? 1u : 0u, group_m, ablation};
 }
 
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code) {

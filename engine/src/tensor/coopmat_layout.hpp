@@ -45,14 +45,22 @@ CoopmatGemm linear_coopmat_layout(const DeviceTuning& t);
 CoopmatGemm conv_coopmat_layout(const DeviceTuning& t);
 CoopmatAttention attention_coopmat_layout(const DeviceTuning& t);
 
+// Which attention kernel of the family runs: nn/attention_flash_coopmat (KHR), its coopmat2 variant, or the
+// fp32 twin (tests on devices without tensor cores).
+enum class AttentionKernel { khr, coopmat2, twin };
+// The tensor-core kernel this device runs under this tuning: coopmat2 where attention_coopmat2 is on, the device
+// has VK_NV_cooperative_matrix2's row operations and the fragment's N equals its K; else khr.
+AttentionKernel attention_coopmat_kernel(const vk::DeviceCaps& caps, const DeviceTuning& t);
+
 // Shared memory in bytes. Linear: two stages of fp16 X and W tiles (rows padded by 8 halves) and one fp32
 // fragment of staging per subgroup. Conv: one stage of the same and the staging. Attention at head_dim D
-// (D <= block_k): K and V tiles (fp16), per subgroup the scores / P·V tile (fp32) and P (fp16); the twin adds
-// its own copy of Q and the lanes' exchange slots.
+// (D <= block_k): K and V tiles (fp16) and per subgroup: (KHR) the scores / P·V tile (fp32) and P (fp16);
+// (coopmat2) one fp32 fragment of Q / O staging; (twin) the KHR kernel's, its own copy of Q and the lanes'
+// exchange slots.
 uint64_t linear_coopmat_shared_bytes(const CoopmatGemm& g);
 uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g);
-uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t head_dim);
-uint64_t attention_twin_shared_bytes(const CoopmatAttention& a, int64_t head_dim);
+uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t head_dim,
+                                        AttentionKernel kernel = AttentionKernel::khr);
 
 // Why the device cannot run the layout ("" when it can). `twin`: the fp32 twin (no tensor cores, lanes emulated
 // by the workgroup), which needs the index maps and the memory but neither the subgroup size nor the shape.
@@ -60,15 +68,16 @@ std::string linear_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatGemm& 
 std::string conv_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatGemm& g, bool twin);
 // head_dim 0: the largest the kernel takes (block_k), what the tuning checks.
 std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAttention& a, int64_t head_dim,
-                                    bool twin);
+                                    AttentionKernel kernel);
 // Why the kernel does not take head_dim at all, on any device ("" when it does).
 std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t head_dim);
 
 // Specialization constants (the kernels' constant_id order).
 // linear: vector_loads selects the 16-byte load path (the host checked K, strides and offsets), group_m the
-// workgroup order's band of tile rows (DeviceTuning::linear_coopmat_group_m).
+// workgroup order's band of tile rows (DeviceTuning::linear_coopmat_group_m), ablation a measurement variant
+// (DeviceTuning::linear_coopmat_ablation: 0 none).
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
-                                          uint32_t group_m);
+                                          uint32_t group_m, uint32_t ablation = 0);
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim);
 

@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <span>
 #include <sstream>
 
 #include "dvs/error.hpp"
@@ -54,6 +55,10 @@ CoopmatShape pick_coopmat_shape(const vk::DeviceCaps& c) {
 constexpr CoopmatTile kLinearCoopmatLayouts[] = {{2, 4, 4, 2, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
 constexpr CoopmatTile kConvCoopmatLayouts[] = {{4, 2, 2, 4, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
 constexpr int kAttentionCoopmatSubgroups[] = {4, 2, 1};
+// The coopmat2 variant (no scores or P in shared memory) holds 8 subgroups: 128 query rows per K/V tile at
+// 16x16x16, FlashAttention-2's block for head_dim 64 (its 256-row blocks spilled). Unmeasured in Vulkan here: the
+// device script's sweep times 8 against 4.
+constexpr int kAttentionCoopmat2Subgroups[] = {8, 4, 2, 1};
 
 // CPU drivers (lavapipe, SwiftShader): an 8- or 16-lane subgroup is one SIMD register and every per-lane
 // load is a scalar loop, so register blocks that reuse each fetched texel many times win, as long as the
@@ -135,9 +140,12 @@ void choose_coopmat_layouts(DeviceTuning& t, const vk::DeviceCaps& c) {
       }
   }
   if (!t.attention_coopmat_subgroups) {
-    t.attention_coopmat_subgroups = kAttentionCoopmatSubgroups[0];
-    for (int sg : kAttentionCoopmatSubgroups)
-      if (attention_coopmat_unfit(c, {t.coopmat, t.coopmat_lanes, sg, t.attention_block_k}, 0, false).empty()) {
+    const AttentionKernel kernel = attention_coopmat_kernel(c, t);
+    const std::span<const int> rows = kernel == AttentionKernel::coopmat2 ? std::span<const int>(kAttentionCoopmat2Subgroups)
+                                                                           : std::span<const int>(kAttentionCoopmatSubgroups);
+    t.attention_coopmat_subgroups = rows[0];
+    for (int sg : rows)
+      if (attention_coopmat_unfit(c, {t.coopmat, t.coopmat_lanes, sg, t.attention_block_k}, 0, kernel).empty()) {
         t.attention_coopmat_subgroups = sg;
         break;
       }
@@ -249,6 +257,16 @@ const std::vector<Field>& fields() {
       coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
+      {"linear_coopmat_ablation", "none|no_global_loads|no_mma (measurements only: the results are wrong)",
+       [](DeviceTuning& t, const std::string& v) {
+         const char* names[] = {"none", "no_global_loads", "no_mma"};
+         for (int i = 0; i < 3; ++i)
+           if (v == names[i]) {
+             t.linear_coopmat_ablation = i;
+             return true;
+           }
+         return false;
+       }},
       int_field("attention_coopmat_subgroups", &DeviceTuning::attention_coopmat_subgroups, 1, 32, "1..32"),
       bool_field("attention_coopmat2", &DeviceTuning::attention_coopmat2),
       int_field("linear_tile_m", &DeviceTuning::linear_tile_m, 16, 256, "16..256"),
@@ -381,7 +399,8 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
   };
   settle(t.linear, t.linear_unfit, linear_coopmat_unfit(caps, linear_coopmat_layout(t)));
   settle(t.conv, t.conv_unfit, conv_coopmat_unfit(caps, conv_coopmat_layout(t), false));
-  settle(t.attention, t.attention_unfit, attention_coopmat_unfit(caps, attention_coopmat_layout(t), 0, false));
+  settle(t.attention, t.attention_unfit,
+         attention_coopmat_unfit(caps, attention_coopmat_layout(t), 0, attention_coopmat_kernel(caps, t)));
   return t;
 }
 
@@ -419,7 +438,10 @@ std::string describe_tuning(const DeviceTuning& t) {
     o << ", tile " << t.linear_tile_m << "x" << t.linear_tile_n << "x" << t.linear_tile_k;
   if (t.linear == KernelFamily::coopmat)
     o << ", tile " << linear_coopmat_layout(t).describe() << ", bands of " << t.linear_coopmat_group_m << " tile rows"
-      << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads");
+      << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads")
+      << (t.linear_coopmat_ablation == 1   ? ", ABLATED: no global loads (wrong results)"
+          : t.linear_coopmat_ablation == 2 ? ", ABLATED: no MMA (wrong results)"
+                                           : "");
   o << "\n  attention:  " << kernel_family_name(t.attention) << unfit(t.attention_unfit);
   if (t.attention == KernelFamily::tiled) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
   if (t.attention == KernelFamily::coopmat)

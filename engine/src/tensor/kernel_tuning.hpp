@@ -106,6 +106,9 @@ struct DeviceTuning {
   // Triton's default grouping, unmeasured on a GPU here (the device script's sweep compares 1 and 8).
   bool linear_coopmat_vector_loads = true;
   int linear_coopmat_group_m = 8;
+  // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
+  // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.
+  int linear_coopmat_ablation = 0;
   int attention_coopmat_subgroups = 0;
   // The tensor-core attention keeps scores, P and O in the matrices (nn/attention_flash_coopmat2) where the
   // device has VK_NV_cooperative_matrix2's reductions, conversions and per-element operations and the fragment's

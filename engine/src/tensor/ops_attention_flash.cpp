@@ -65,7 +65,7 @@ Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOp
     const CoopmatAttention a = attention_coopmat_layout(t);
     why_not = attention_coopmat_head_dim_unfit(a, D);
     if (why_not.empty()) {
-      why_not = attention_coopmat_unfit(caps, a, D, false);
+      why_not = attention_coopmat_unfit(caps, a, D, attention_coopmat_kernel(caps, t));
       device_reason = true;
     }
     if (why_not.empty() && !fits_grid(caps, s, uint32_t(a.rows()))) {
@@ -78,7 +78,7 @@ Plan plan(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOp
   // Tests on devices without tensor cores: the coopmat kernel's twin, where it fits.
   if (t.attention_coopmat_twin && caps.float16_arithmetic) {
     const CoopmatAttention a = attention_coopmat_layout(t);
-    if (attention_coopmat_unfit(caps, a, D, true).empty() && fits_grid(caps, s, uint32_t(a.rows())))
+    if (attention_coopmat_unfit(caps, a, D, AttentionKernel::twin).empty() && fits_grid(caps, s, uint32_t(a.rows())))
       return {KernelFamily::tiled, uint32_t(a.rows()), uint32_t(a.block_k), true};
   }
 
@@ -115,8 +115,9 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const bool coop = plan.family == KernelFamily::coopmat;
   const DeviceTuning& tune = device_tuning(caps);
   const CoopmatAttention layout = attention_coopmat_layout(tune);
-  // The coopmat2 variant needs less shared memory than the KHR kernel (no scores or P), which plan() checked.
-  const bool coop2 = coop && tune.attention_coopmat2 && caps.cooperative_matrix2_row_ops && layout.frag.n == layout.frag.k;
+  const AttentionKernel kernel =
+      coop ? attention_coopmat_kernel(caps, tune) : plan.twin ? AttentionKernel::twin : AttentionKernel::khr;
+  const bool coop2 = kernel == AttentionKernel::coopmat2;
   const char* name = coop2  ? "attention_flash_coopmat2"
                      : coop ? "attention_flash_coopmat"
                      : plan.twin ? "attention_flash_coopmat_twin"
@@ -126,7 +127,7 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
     const CoopmatAttention& a = layout;
     const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
-                                 attention_coopmat_unfit(caps, a, s.head_dim, plan.twin));
+                                 attention_coopmat_unfit(caps, a, s.head_dim, kernel));
   } else {
     const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k};
     pipe_ptr = &ctx.pipelines().get(std::string("nn/") + name, spec_tiled);

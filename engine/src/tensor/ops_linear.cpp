@@ -178,7 +178,8 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   const CoopmatGemm g = linear_coopmat_layout(tune);
   if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
     fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
-  const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m));
+  const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m),
+                                                         uint32_t(tune.linear_coopmat_ablation));
   return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
                           tune.coopmat.defined() ? linear_coopmat_unfit(caps, g)
                                                  : "no cooperative-matrix shape on " + caps.name);
