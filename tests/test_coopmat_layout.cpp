@@ -45,6 +45,13 @@ TEST(CoopmatLayout, SharedMemoryOfTheShaders) {
   // conv_coopmat.comp: As, Bs [128][40] halves (one stage) and Stage [8][256] floats: 28 KiB.
   const CoopmatGemm conv{k16, 32, {4, 2, 2, 4, 32}};
   EXPECT_EQ(ops::conv_coopmat_shared_bytes(conv), 28u * 1024);
+  // Two stages of As, Bs: 48 KiB, which a 48 KiB GPU holds and lavapipe's 32 KiB does not (one stage there).
+  EXPECT_EQ(ops::conv_coopmat_shared_bytes(conv, 2), 48u * 1024);
+  EXPECT_EQ(ops::conv_coopmat_stages(gpu(), conv, true), 2);
+  EXPECT_EQ(ops::conv_coopmat_stages(gpu(), conv, false), 1);
+  vk::DeviceCaps small = gpu();
+  small.max_compute_shared_memory = 32 << 10;
+  EXPECT_EQ(ops::conv_coopmat_stages(small, conv, true), 1);
   // At 8x8 fragments the same arrangement holds 64 x 64 and 64-float staging.
   const CoopmatGemm conv8{k8, 8, {4, 2, 2, 4, 32}};
   EXPECT_EQ(conv8.tile_m(), 64);

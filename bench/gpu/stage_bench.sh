@@ -92,7 +92,7 @@ else
     attention|coopmat|attention_coopmat_subgroups=8 attention|coopmat|attention_coopmat_subgroups=4
     attention|coopmat|attention_coopmat2=off attention|coopmat|attention_coopmat_subgroups=2
     attention|coopmat|attention_coopmat_subgroups=1
-    conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat=2x2x2x2x32 conv3d|coopmat|conv_coopmat=2x4x4x2x32
+    conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat_double_buffer=off conv3d|coopmat|conv_coopmat=2x2x2x2x32 conv3d|coopmat|conv_coopmat=2x4x4x2x32
     conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
     attention|tiled|attention_block_q=128,attention_block_k=64 conv3d|tiled|conv_tile_m=128,conv_tile_n=128"
 fi

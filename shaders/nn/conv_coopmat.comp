@@ -14,7 +14,7 @@
 // tap per load; an invocation keeps its pixels for the whole loop: one pixel and several channel groups when
 // there are at least BM invocations, else BM / WG pixels and every group) and the weight tile, rounds both to
 // fp16 into shared memory (As [m][k], Bs [n][k], rows padded to BK + 8 halves), then each subgroup multiplies
-// its part. Epilogue: fragment by fragment through a FRAG_M x FRAG_N fp32 staging area per subgroup
+// its part; with two stages (STAGES) the next step's gather is in flight during this step's products. Epilogue: fragment by fragment through a FRAG_M x FRAG_N fp32 staging area per subgroup
 // (column-major: neighbouring lanes write neighbouring pixels), bias and y's layout as conv_gemm.comp.
 // fp16 operands: |x| or |w| above 65504 becomes inf (the VAE's activations and weights stay far below), and
 // each operand carries a relative rounding error of up to 2^-11; sums are fp32.
@@ -39,6 +39,10 @@ layout(constant_id = 6) const uint FRAG_M = 16;  // the device's fragment shape
 layout(constant_id = 7) const uint FRAG_N = 16;
 layout(constant_id = 8) const uint FRAG_K = 16;
 layout(constant_id = 10) const uint LANES = 32;  // the subgroup size (required at pipeline creation; the twin emulates it)
+// Shared-memory stages of the operand tiles (the host picks 2 where they fit): 2, the next step's operands are
+// loaded into registers before this step's products and stored to the other stage after them, one barrier a
+// step; 1, load, barrier, products, barrier.
+layout(constant_id = 11) const uint STAGES = 1;
 
 const uint WG = gl_WorkGroupSize.x;
 const uint WM = FM * FRAG_M, WN = FN * FRAG_N;   // one subgroup's part
@@ -65,8 +69,8 @@ layout(push_constant) uniform Push {
 // The operand tiles in shared memory, fp16: float16_t for the tensor cores; in the twin the same fp16
 // values as bits, two per uint (fp32 tiles would need 40 KiB, over the 32 KiB lavapipe offers).
 #ifndef TWIN
-shared float16_t As[BM * LD];
-shared float16_t Bs[BN * LD];
+shared float16_t As[STAGES * BM * LD];
+shared float16_t Bs[STAGES * BN * LD];
 void put4(bool b, uint o, vec4 v) {  // elements o..o+3 (o even)
   if (b) {
     Bs[o] = float16_t(v.x); Bs[o + 1u] = float16_t(v.y); Bs[o + 2u] = float16_t(v.z); Bs[o + 3u] = float16_t(v.w);
@@ -75,8 +79,8 @@ void put4(bool b, uint o, vec4 v) {  // elements o..o+3 (o even)
   }
 }
 #else
-shared uint As[BM * LD / 2];
-shared uint Bs[BN * LD / 2];
+shared uint As[STAGES * BM * LD / 2];
+shared uint Bs[STAGES * BN * LD / 2];
 // The value an fp16 operand holds: round to nearest even (as float16_t() converts), on the bits, so that
 // the packing below is exact whatever rounding packHalf2x16 uses. Below 2^-14 fp16 steps by 2^-24
 // (subnormals); above 65504 it is inf.
@@ -124,6 +128,65 @@ void store(uint m, uint n, float f) {
   y[yi] = f;
 }
 
+// The invocation's gather (set up once in main): the pixels and output channels it loads (tails clamped: loaded,
+// never stored), and one step's operands between their loads and their shared stores.
+const uint SA = BK / 4u / STEP_A, SB = BK / 4u / STEP_B;  // 4-element groups per pixel / channel and step
+uint pf[PIX_A];
+int ph[PIX_A], pw[PIX_A];
+uint wrow[PIX_B];
+vec4 ra[PIX_A * SA], rb[PIX_B * SB];
+
+// Loads the operands of the step at reduction element k0 (of K) into ra, rb.
+void load_step(uint k0, uint K) {
+  const uint t = gl_LocalInvocationIndex, cp = p.cp, cp4 = cp >> 2, taps_hw = p.kh * p.kw;
+  // Channels a multiple of BK (the VAE's 128, 256 and 512): each step reads BK channels of one tap, so the tap's
+  // offsets and each pixel's source index are worked out once per step (uniform divisions) and a load is one
+  // add; else (few or odd channels) each 4-channel group finds its own tap.
+  if (cp % BK == 0u) {
+    const uint tap = k0 / cp, c4 = (k0 - tap * cp) >> 2;
+    const uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
+    [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
+      const int ih = ph[i] + int(u), iw = pw[i] + int(v);
+      const bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
+      const uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
+      const uint base = (inside ? pix * cp4 : p.zero_texel) + c4;
+      // K is a multiple of BK here: every group is inside.
+      [[unroll]] for (uint s = 0u; s < SA; ++s) ra[i * SA + s] = x[base + t / BM + STEP_A * s];
+    }
+  } else {
+    [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
+      [[unroll]] for (uint s = 0u; s < SA; ++s) {
+        const uint q = t / BM + STEP_A * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)
+        vec4 a = vec4(0.0);
+        if (k < K) {
+          uint tap = k / cp, c = k - tap * cp;
+          uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
+          int ih = ph[i] + int(u), iw = pw[i] + int(v);
+          bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
+          uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
+          a = x[(inside ? pix * cp4 : p.zero_texel) + (c >> 2)];
+        }
+        ra[i * SA + s] = a;
+      }
+  }
+  [[unroll]] for (uint i = 0u; i < PIX_B; ++i)
+    [[unroll]] for (uint s = 0u; s < SB; ++s) {
+      const uint k = k0 + 4u * (t / BN + STEP_B * s);
+      rb[i * SB + s] = k < K ? w4(wrow[i] + k) : vec4(0.0);
+    }
+}
+
+// Stores ra, rb (fp16) into shared stage `stage`.
+void store_step(uint stage) {
+  const uint t = gl_LocalInvocationIndex;
+  [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
+    [[unroll]] for (uint s = 0u; s < SA; ++s)
+      put4(false, (stage * BM + t % BM + WG * i) * LD + 4u * (t / BM + STEP_A * s), ra[i * SA + s]);
+  [[unroll]] for (uint i = 0u; i < PIX_B; ++i)
+    [[unroll]] for (uint s = 0u; s < SB; ++s)
+      put4(true, (stage * BN + t % BN + WG * i) * LD + 4u * (t / BN + STEP_B * s), rb[i * SB + s]);
+}
+
 void main() {
   const uint t = gl_LocalInvocationIndex;
 #ifndef TWIN
@@ -133,19 +196,15 @@ void main() {
 #endif
   const uint sm = sg % SG_M, sn = sg / SG_M;  // the subgroup's part: pixels sm*WM.., channels sn*WN..
   const uint m0 = gl_WorkGroupID.x * BM, n0 = gl_WorkGroupID.y * BN;
-  const uint M = p.M, N = p.N, cp = p.cp, cp4 = cp >> 2;
+  const uint M = p.M, N = p.N, cp = p.cp;
   const uint taps_hw = p.kh * p.kw, K = p.kt * taps_hw * cp;
 
-  // The pixels and the output channels this invocation gathers (tails clamped: loaded, never stored).
-  uint pf[PIX_A];
-  int ph[PIX_A], pw[PIX_A];
   [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
     uint m = min(m0 + t % BM + WG * i, M - 1u), ow = m % p.wo, r = m / p.wo;
     pf[i] = r / p.rows;
     ph[i] = int((p.oh0 + r % p.rows) * p.stride) - p.pad_top;
     pw[i] = int((p.ow0 + ow) * p.stride) - p.pad_left;
   }
-  uint wrow[PIX_B];
   [[unroll]] for (uint i = 0u; i < PIX_B; ++i) wrow[i] = min(n0 + t % BN + WG * i, N - 1u) * K;
 
 #ifndef TWIN
@@ -161,54 +220,26 @@ void main() {
       [[unroll]] for (uint r = 0u; r < EPL; ++r) acc[i][j][r] = 0.0;
 #endif
 
-  // Channels a multiple of BK (the VAE's 128, 256 and 512): each step reads BK channels of one tap, so the tap's
-  // offsets and each pixel's source index are worked out once per step (uniform divisions) and a load is one add;
-  // else (few or odd channels) each 4-channel group finds its own tap.
-  const bool tap_steps = cp % BK == 0u;
-  for (uint k0 = 0u; k0 < K; k0 += BK) {
-    if (tap_steps) {
-      const uint tap = k0 / cp, c4 = (k0 - tap * cp) >> 2;
-      const uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
-      [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
-        const int ih = ph[i] + int(u), iw = pw[i] + int(v);
-        const bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-        const uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
-        const uint base = (inside ? pix * cp4 : p.zero_texel) + c4;
-        [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_A; ++s) {
-          const uint q = t / BM + STEP_A * s;  // K is a multiple of BK here: every group is inside
-          put4(false, (t % BM + WG * i) * LD + 4u * q, x[base + q]);
-        }
-      }
-    } else
-    [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
-      [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_A; ++s) {
-        const uint q = t / BM + STEP_A * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)
-        vec4 a = vec4(0.0);
-        if (k < K) {
-          uint tap = k / cp, c = k - tap * cp;
-          uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
-          int ih = ph[i] + int(u), iw = pw[i] + int(v);
-          bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-          uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
-          a = x[(inside ? pix * cp4 : p.zero_texel) + (c >> 2)];
-        }
-        put4(false, (t % BM + WG * i) * LD + 4u * q, a);
-      }
-    [[unroll]] for (uint i = 0u; i < PIX_B; ++i)
-      [[unroll]] for (uint s = 0u; s < BK / 4u / STEP_B; ++s) {
-        const uint q = t / BN + STEP_B * s, k = k0 + 4u * q;
-        put4(true, (t % BN + WG * i) * LD + 4u * q, k < K ? w4(wrow[i] + k) : vec4(0.0));
-      }
-    barrier();
+  const uint steps = (K + BK - 1u) / BK;
+  if (steps > 0u) {
+    load_step(0u, K);
+    store_step(0u);
+  }
+  barrier();
+  for (uint step = 0u; step < steps; ++step) {
+    const uint cur = STAGES == 2u ? step & 1u : 0u;
+    const bool more = step + 1u < steps;
+    if (STAGES == 2u && more) load_step((step + 1u) * BK, K);
+    const uint a0 = cur * BM * LD, b0 = cur * BN * LD;
 #ifndef TWIN
     [[unroll]] for (uint kk = 0u; kk < BK; kk += FRAG_K) {
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_M, FRAG_K, gl_MatrixUseA> fa[FM];
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> fb[FN];
       [[unroll]] for (uint i = 0u; i < FM; ++i)
-        coopMatLoad(fa[i], As, (sm * WM + FRAG_M * i) * LD + kk, LD, gl_CooperativeMatrixLayoutRowMajor);
+        coopMatLoad(fa[i], As, a0 + (sm * WM + FRAG_M * i) * LD + kk, LD, gl_CooperativeMatrixLayoutRowMajor);
       // B[k][n] = Bs[n * LD + k]: column-major K x N.
       [[unroll]] for (uint j = 0u; j < FN; ++j)
-        coopMatLoad(fb[j], Bs, (sn * WN + FRAG_N * j) * LD + kk, LD, gl_CooperativeMatrixLayoutColumnMajor);
+        coopMatLoad(fb[j], Bs, b0 + (sn * WN + FRAG_N * j) * LD + kk, LD, gl_CooperativeMatrixLayoutColumnMajor);
       [[unroll]] for (uint i = 0u; i < FM; ++i)
         [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j] = coopMatMulAdd(fa[i], fb[j], acc[i][j]);
     }
@@ -217,13 +248,23 @@ void main() {
       [[unroll]] for (uint r = 0u; r < EPL; ++r) {
         const uint e = lane + LANES * r, row = e % FRAG_M, col = e / FRAG_M;
         float a[FM], b[FN];
-        [[unroll]] for (uint i = 0u; i < FM; ++i) a[i] = a_at((sm * WM + FRAG_M * i + row) * LD + kk);
-        [[unroll]] for (uint j = 0u; j < FN; ++j) b[j] = b_at((sn * WN + FRAG_N * j + col) * LD + kk);
+        [[unroll]] for (uint i = 0u; i < FM; ++i) a[i] = a_at(a0 + (sm * WM + FRAG_M * i + row) * LD + kk);
+        [[unroll]] for (uint j = 0u; j < FN; ++j) b[j] = b_at(b0 + (sn * WN + FRAG_N * j + col) * LD + kk);
         [[unroll]] for (uint i = 0u; i < FM; ++i)
           [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j][r] = fma(a[i], b[j], acc[i][j][r]);
       }
 #endif
-    barrier();
+    if (STAGES == 2u) {
+      if (more) store_step(cur ^ 1u);
+      barrier();  // this stage read by all and the other written, before the next step swaps them
+    } else {
+      barrier();  // every subgroup is done with the stage before it is refilled
+      if (more) {
+        load_step((step + 1u) * BK, K);
+        store_step(0u);
+        barrier();
+      }
+    }
   }
 
   // Epilogue, one fragment at a time through the subgroup's staging area.

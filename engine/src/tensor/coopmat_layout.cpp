@@ -78,9 +78,13 @@ uint64_t linear_coopmat_shared_bytes(const CoopmatGemm& g) {
          uint64_t(g.tile.subgroups()) * g.frag.m * g.frag.n * 4;
 }
 
-uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g) {
-  return uint64_t(g.tile_m() + g.tile_n()) * uint64_t(g.tile.k + 8) * 2 +
+uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g, int stages) {
+  return uint64_t(stages) * uint64_t(g.tile_m() + g.tile_n()) * uint64_t(g.tile.k + 8) * 2 +
          uint64_t(g.tile.subgroups()) * g.frag.m * g.frag.n * 4;
+}
+
+int conv_coopmat_stages(const vk::DeviceCaps& caps, const CoopmatGemm& g, bool double_buffer) {
+  return double_buffer && conv_coopmat_shared_bytes(g, 2) <= caps.max_compute_shared_memory ? 2 : 1;
 }
 
 AttentionKernel attention_coopmat_kernel(const vk::DeviceCaps& caps, const DeviceTuning& t) {
@@ -173,10 +177,10 @@ std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_
           uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations(), vector_loads ? 1u : 0u, group_m, ablation};
 }
 
-std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code) {
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages) {
   const CoopmatTile& t = g.tile;
   return {weight_code, uint32_t(t.sg_m), uint32_t(t.sg_n), uint32_t(t.frags_m), uint32_t(t.frags_n), uint32_t(t.k),
-          g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes)};
+          g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes), uint32_t(stages)};
 }
 
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D) {

@@ -58,7 +58,11 @@ AttentionKernel attention_coopmat_kernel(const vk::DeviceCaps& caps, const Devic
 // (coopmat2) one fp32 fragment of Q / O staging; (twin) the KHR kernel's, its own copy of Q and the lanes'
 // exchange slots.
 uint64_t linear_coopmat_shared_bytes(const CoopmatGemm& g);
-uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g);
+uint64_t conv_coopmat_shared_bytes(const CoopmatGemm& g, int stages = 1);
+// The conv kernel's operand stages: 2 (the next step's gather during this step's products) where asked for
+// (DeviceTuning::conv_coopmat_double_buffer) and they fit the device's shared memory, else 1, which the layout
+// checks (conv_coopmat_unfit) require to fit.
+int conv_coopmat_stages(const vk::DeviceCaps& caps, const CoopmatGemm& g, bool double_buffer);
 uint64_t attention_coopmat_shared_bytes(const CoopmatAttention& a, int64_t head_dim,
                                         AttentionKernel kernel = AttentionKernel::khr);
 
@@ -78,7 +82,7 @@ std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t 
 // (DeviceTuning::linear_coopmat_ablation: 0 none).
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
                                           uint32_t group_m, uint32_t ablation = 0);
-std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code);
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim);
 
 // The pipeline of a tensor-core kernel: throws dvs::Error("<shader>: <unfit>") when `unfit` is not empty, else

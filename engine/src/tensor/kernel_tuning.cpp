@@ -256,6 +256,7 @@ const std::vector<Field>& fields() {
       coopmat_tile_field("linear_coopmat", &DeviceTuning::linear_coopmat),
       coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
+      bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
       {"linear_coopmat_ablation", "none|no_global_loads|no_mma (measurements only: the results are wrong)",
        [](DeviceTuning& t, const std::string& v) {
@@ -450,7 +451,9 @@ std::string describe_tuning(const DeviceTuning& t) {
   o << (t.attention_kv_workspace ? ", K/V repacked head-major when offered a workspace" : "") << "\n"
     << "  conv:       " << kernel_family_name(t.conv) << unfit(t.conv_unfit) << ", texel tiles " << tile(t.conv_16bit_weights) << " (small "
     << tile(t.conv_small) << ")" << (t.conv == KernelFamily::tiled ? ", tiled " + std::to_string(t.conv_tile_m) + "x" + std::to_string(t.conv_tile_n) : std::string())
-    << (t.conv == KernelFamily::coopmat ? ", tile " + conv_coopmat_layout(t).describe() : std::string())
+    << (t.conv == KernelFamily::coopmat ? ", tile " + conv_coopmat_layout(t).describe() +
+                                              (t.conv_coopmat_double_buffer ? ", two operand stages where they fit" : "")
+                                        : std::string())
     << ", repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
     << " per invocation\n"
     << "  norms:      " << (t.norm_row_per_invocation ? "one invocation per row" : "one workgroup per row") << "\n"

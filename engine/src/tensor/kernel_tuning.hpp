@@ -109,6 +109,9 @@ struct DeviceTuning {
   // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
   // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.
   int linear_coopmat_ablation = 0;
+  // conv_coopmat's operand tiles in two shared-memory stages where they fit (the next step's gather in flight
+  // during this step's products, one barrier a step); off: one stage. Unmeasured on a GPU (the sweep compares).
+  bool conv_coopmat_double_buffer = true;
   int attention_coopmat_subgroups = 0;
   // The tensor-core attention keeps scores, P and O in the matrices (nn/attention_flash_coopmat2) where the
   // device has VK_NV_cooperative_matrix2's reductions, conversions and per-element operations and the fragment's

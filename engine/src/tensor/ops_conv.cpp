@@ -378,7 +378,10 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   const vk::Pipeline& gemm =
       fam.kind == KernelFamily::tiled     ? ctx.pipelines().get("nn/conv_tiled", tiled_spec)
       : fam.kind == KernelFamily::coopmat
-          ? coopmat_pipeline(ctx, fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat", conv_coopmat_spec(fam.layout, wdt),
+          ? coopmat_pipeline(ctx, fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat",
+                             conv_coopmat_spec(fam.layout, wdt,
+                                               conv_coopmat_stages(caps, fam.layout,
+                                                                   device_tuning(caps).conv_coopmat_double_buffer)),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
