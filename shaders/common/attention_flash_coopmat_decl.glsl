@@ -50,24 +50,38 @@ layout(push_constant) uniform Push {
 shared float16_t sK[BK * KP];                 // [key][dim], pitch KP
 shared float16_t sV[BK * KP];                 // [key][dim], pitch KP
 
-// Stages the workgroup's K and V tile from key tile0 (fp16; keys past the end are zeros, so no NaN reaches the
-// products).
-void stage_kv(uint tile0, uint kbase, uint vbase) {
-  for (uint i = gl_LocalInvocationID.x; i < BK * D4; i += gl_WorkGroupSize.x) {
-    const uint j = i / D4, c = i % D4, key = tile0 + j;
-    vec4 kx = vec4(0), vx = vec4(0);
-    if (key < p.kv_len) {
-      kx = kb[kbase + key * p.k_stride + c];
-      vx = vb[vbase + key * p.v_stride + c];
+// The K and V tile is prefetched: load_kv reads the next tile into registers while the current one is in use,
+// store_kv writes them (fp16) to sK/sV once every subgroup is done with it. Invocation i takes the vec4s
+// i + WG·r of the tile (key (i + WG·r) / D4, column (i + WG·r) % D4); keys past the end are zeros, so no NaN
+// reaches the products.
+const uint KV_PER = (BK * D4 + gl_WorkGroupSize.x - 1) / gl_WorkGroupSize.x;
+vec4 rk[KV_PER], rv[KV_PER];
+
+void load_kv(uint tile0, uint kbase, uint vbase) {
+  [[unroll]] for (uint r = 0; r < KV_PER; ++r) {
+    const uint i = gl_LocalInvocationID.x + gl_WorkGroupSize.x * r, key = tile0 + i / D4, c = i % D4;
+    rk[r] = vec4(0);
+    rv[r] = vec4(0);
+    if (i < BK * D4 && key < p.kv_len) {
+      rk[r] = kb[kbase + key * p.k_stride + c];
+      rv[r] = vb[vbase + key * p.v_stride + c];
     }
-    const uint at = j * KP + c * 4;
-    sK[at] = float16_t(kx.x);
-    sK[at + 1] = float16_t(kx.y);
-    sK[at + 2] = float16_t(kx.z);
-    sK[at + 3] = float16_t(kx.w);
-    sV[at] = float16_t(vx.x);
-    sV[at + 1] = float16_t(vx.y);
-    sV[at + 2] = float16_t(vx.z);
-    sV[at + 3] = float16_t(vx.w);
+  }
+}
+
+void store_kv() {
+  [[unroll]] for (uint r = 0; r < KV_PER; ++r) {
+    const uint i = gl_LocalInvocationID.x + gl_WorkGroupSize.x * r;
+    if (i < BK * D4) {
+      const uint at = (i / D4) * KP + (i % D4) * 4;
+      sK[at] = float16_t(rk[r].x);
+      sK[at + 1] = float16_t(rk[r].y);
+      sK[at + 2] = float16_t(rk[r].z);
+      sK[at + 3] = float16_t(rk[r].w);
+      sV[at] = float16_t(rv[r].x);
+      sV[at + 1] = float16_t(rv[r].y);
+      sV[at + 2] = float16_t(rv[r].z);
+      sV[at + 3] = float16_t(rv[r].w);
+    }
   }
 }

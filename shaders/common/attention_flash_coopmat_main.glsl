@@ -44,11 +44,13 @@ void main() {
     l[q] = 0;
   }
 
+  load_kv(0, kbase, vbase);
   for (uint tile0 = 0; tile0 < p.kv_len; tile0 += BK) {
-    // ---- stage K and V ----
+    // ---- stage K and V; the next tile's loads then run during this tile's math ----
     barrier();  // every subgroup is done with the previous tile
-    stage_kv(tile0, kbase, vbase);
+    store_kv();
     barrier();
+    if (tile0 + BK < p.kv_len) load_kv(tile0 + BK, kbase, vbase);
 
     // ---- S = Q·Kᵀ (ROWS x BK) into the subgroup's slice of sS, row-major, stride SP ----
     SCORES();

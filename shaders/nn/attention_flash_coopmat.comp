@@ -25,7 +25,8 @@
 // Limits (tensor/coopmat_layout.cpp checks them): head_dim D a multiple of the fragment's N and K and at most
 // BK (the O tile reuses the scores' slice); shared memory 2·BK·(D + 8)·2 + SUBGROUPS·ROWS·((BK + 4)·4 + (BK + 8)·2)
 // bytes, rows padded against bank conflicts (44 KiB on the H200 at D = BK = 64). No bias, key mask or split-key
-// state: such calls run on attention.comp. Not double-buffered.
+// state: such calls run on attention.comp. K and V are prefetched: the next tile is read into registers during this
+// tile's math (attention_flash_coopmat_decl.glsl: load_kv, store_kv).
 #extension GL_GOOGLE_include_directive : require
 #include "attention_flash_coopmat_decl.glsl"
 

@@ -90,10 +90,12 @@ void main() {
   [[unroll]] for (int d = 0; d < D / FRAG_N; ++d) o[d] = ACC(0.0);
   ACC m = ACC(MASKED), l = ACC(0.0);
 
+  load_kv(0, kbase, vbase);
   for (uint tile0 = 0; tile0 < p.kv_len; tile0 += BK) {
     barrier();  // every subgroup is done with the previous tile
-    stage_kv(tile0, kbase, vbase);
+    store_kv();
     barrier();
+    if (tile0 + BK < p.kv_len) load_kv(tile0 + BK, kbase, vbase);  // in flight during this tile's math
 
     // ---- S_j = Q·K_jᵀ; the last tile's keys past the end masked ----
     ACC s[BK / FRAG_N];
