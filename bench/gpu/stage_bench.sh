@@ -82,18 +82,21 @@ fi
 if [ $SMOKE -eq 1 ]; then
   default_sweep="gemm|tiled|linear_tile_m=32,linear_tile_n=32 attention|tiled|attention_block_q=32,attention_block_k=32"
 else
-  # GEMM: the default; a 64x64 tile per subgroup (2x2 subgroups of 4x4 fragments); without the 16-byte loads and
-  # without the banded workgroup order (what each contributes); the design study's ablations (no global loads,
-  # no MMA: where the time goes; their by-value check fails by design); then other tiles.
-  default_sweep="gemm|coopmat|linear_coopmat=2x4x4x2x32 gemm|coopmat|linear_coopmat=2x2x4x4x32
+  # Round 1, each family's default and the one change per family most worth timing: GEMM with a 64x64 tile per
+  # subgroup (2x2 subgroups of 4x4 fragments), attention's KHR kernel beside the coopmat2 variant's default,
+  # conv with one operand stage. Round 2: what each GEMM feed change contributes (16-byte loads off, banded order
+  # off) and the design study's ablations (no global loads, no MMA: where the time goes; their by-value check
+  # fails by design); attention at 4 subgroups. Then other tiles.
+  default_sweep="gemm|coopmat|linear_coopmat=2x4x4x2x32 attention|coopmat|attention_coopmat_subgroups=8
+    conv3d|coopmat|conv_coopmat=4x2x2x4x32 gemm|coopmat|linear_coopmat=2x2x4x4x32 attention|coopmat|attention_coopmat2=off
+    conv3d|coopmat|conv_coopmat_double_buffer=off
     gemm|coopmat|linear_coopmat_vector_loads=off gemm|coopmat|linear_coopmat_group_m=1
     gemm|coopmat|linear_coopmat_ablation=no_global_loads gemm|coopmat|linear_coopmat_ablation=no_mma
-    gemm|coopmat|linear_coopmat=2x2x2x2x32 gemm|coopmat|linear_coopmat=1x1x2x2x32 gemm|coopmat|linear_coopmat=4x2x2x4x32 gemm|coopmat|linear_coopmat=2x4x4x2x16
-    attention|coopmat|attention_coopmat_subgroups=8 attention|coopmat|attention_coopmat_subgroups=4
-    attention|coopmat|attention_coopmat2=off attention|coopmat|attention_coopmat_subgroups=2
-    attention|coopmat|attention_coopmat_subgroups=1
-    conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat_double_buffer=off conv3d|coopmat|conv_coopmat=2x2x2x2x32 conv3d|coopmat|conv_coopmat=2x4x4x2x32
-    conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
+    attention|coopmat|attention_coopmat_subgroups=4
+    gemm|coopmat|linear_coopmat=2x2x2x2x32 gemm|coopmat|linear_coopmat=1x1x2x2x32 gemm|coopmat|linear_coopmat=4x2x2x4x32
+    gemm|coopmat|linear_coopmat=2x4x4x2x16 attention|coopmat|attention_coopmat_subgroups=2
+    attention|coopmat|attention_coopmat_subgroups=1 conv3d|coopmat|conv_coopmat=2x2x2x2x32
+    conv3d|coopmat|conv_coopmat=2x4x4x2x32 conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
     attention|tiled|attention_block_q=128,attention_block_k=64 conv3d|tiled|conv_tile_m=128,conv_tile_n=128"
 fi
 sweep_t=${STAGE_T_SWEEP:-$([ $SMOKE -eq 1 ] && echo 120 || echo 60)}
