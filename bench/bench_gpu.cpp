@@ -148,6 +148,9 @@ struct Timing {
   double gpu_ms = 0, wall_ms = 0;
   int runs = 0;
   std::string shaders;  // the profiler labels of the dispatches (which shaders ran)
+  // GPU ms per label, the mean over the timed runs (the first run where it was the figure): which dispatch of an
+  // op takes the time (e.g. a convolution's input repack, weight repack and GEMM). Empty without timestamps.
+  std::map<std::string, double> shader_ms;
 };
 
 // Records with timestamps around each dispatch, submits once (warm: first touch; two more warm-ups when
@@ -173,6 +176,8 @@ Timing time_recorded(vk::Context& ctx, const std::function<void(vk::Recorder&)>&
   for (const auto& [label, e] : prof.entries()) labels.insert(label), first_ns += e.total_ns;
   for (const auto& l : labels) t.shaders += (t.shaders.empty() ? "" : " ") + l;
   if (first > 1500) {  // a slow old kernel: its first run is the figure (~5 s cap per case)
+    if (ctx.caps().timestamps)
+      for (const auto& [label, e] : prof.entries()) t.shader_ms[label] = e.total_ns * 1e-6;
     t.gpu_ms = ctx.caps().timestamps && first_ns > 0 ? first_ns * 1e-6 : first;
     t.wall_ms = first;
     t.runs = 1;
@@ -190,9 +195,13 @@ Timing time_recorded(vk::Context& ctx, const std::function<void(vk::Recorder&)>&
     rec.submit();
     wall.push_back(std::chrono::duration<double, std::milli>(clock::now() - a).count());
     double ns = 0;
-    for (const auto& [label, e] : prof.entries()) ns += e.total_ns;
+    for (const auto& [label, e] : prof.entries()) {
+      ns += e.total_ns;
+      if (ctx.caps().timestamps) t.shader_ms[label] += e.total_ns * 1e-6;
+    }
     gpu.push_back(ctx.caps().timestamps && ns > 0 ? ns * 1e-6 : wall.back());
   }
+  for (auto& [label, ms] : t.shader_ms) ms /= double(gpu.size());
   prof.clear();
   prof.set_enabled(was);
   auto median = [](std::vector<double> v) {
@@ -211,6 +220,11 @@ void report(Bench& b, const std::string& c, const std::string& shape, const std:
   extra["shape"] = str(shape);
   extra["family"] = str(family);
   extra["shaders"] = str(t.shaders);
+  if (!t.shader_ms.empty()) {
+    std::string o;
+    for (const auto& [label, ms] : t.shader_ms) o += (o.empty() ? "{" : ",") + str(label) + ":" + num(ms);
+    extra["shader_ms"] = o + "}";
+  }
   extra["ms"] = num(t.gpu_ms);
   extra["ms_wall"] = num(t.wall_ms);
   extra["runs"] = std::to_string(t.runs);

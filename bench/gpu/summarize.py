@@ -148,6 +148,9 @@ def main():
             case, shape = r.get("case"), r.get("shape")
             if "error" in r:
                 cell, ratio = "error: %s" % r["error"][:80], ""
+            elif r.get("check") == "FAIL" and "linear_coopmat_ablation" in r["variant"] and rate(r) is not None:
+                # an ablation computes wrong results by design: its time is the figure
+                cell, ratio = "%.4g (%.4g ms; ablated, wrong by design)" % (rate(r), r.get("ms", 0)), ""
             elif r.get("check") == "FAIL":
                 cell, ratio = "FAIL (err %.1e)" % (r.get("rel_err") or float("inf")), ""
             elif rate(r) is None:
@@ -171,6 +174,13 @@ def main():
                 out.append("- none: %s" % r["skipped"])
             else:
                 out.append("- %s: %s" % (r.get("shader"), ", ".join("%s %s" % (k, v) for k, v in r.get("stats", {}).items())))
+    split = [r for r in dvs_rows if len(r.get("shader_ms") or {}) > 1 and "variant" not in r]
+    if split:
+        out.append("")
+        out.append("Time per dispatch (GPU ms, mean of the timed runs) where a case runs more than one shader:")
+        for r in split:
+            out.append("- %s %s %s: %s" % (r.get("case"), r.get("shape"), r.get("family"),
+                                           ", ".join("%s %.3f" % (k, v) for k, v in sorted(r["shader_ms"].items()))))
     fails = [r for r in dvs_rows if r.get("check") == "FAIL" or "error" in r]
     if fails:
         out.append("")
