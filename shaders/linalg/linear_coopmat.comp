@@ -98,8 +98,45 @@ void store_w4(uint i, uvec4 u) {
   }
 }
 
-void main() {
+// The workgroup's tile (set in main) and one step's operands between their loads and their shared stores.
+uint tb, tm0, tn0;  // batch item, first row, first column
+float rx[VEC ? 1 : PER_X], rw[VEC ? 1 : PER_W];
+vec4 vx[VEC ? VPX : 1];
+uvec4 vw[VEC ? VPW : 1];
+
+// Loads the operands of the step at K value k0 into the registers above. Scalar map: invocation t loads
+// k = t % BK of rows t / BK + ROWS·j (BK consecutive values per row); vector map: X vector t % XV of rows
+// t / XV + RX·j, W vector t % WVN of rows t / WVN + RW·j.
+void load_step(uint k0) {
   const uint t = gl_LocalInvocationIndex;
+  if (VEC) {
+    const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
+    [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(tb, tm0 + xr + RX * j, k0 + xc * 4);
+    [[unroll]] for (uint j = 0; j < VPW; ++j) vw[j] = load_w4(tb, tn0 + wr + RW * j, k0 + wc * EW);
+  } else {
+    const uint lk = t % BK, lr = t / BK;
+    [[unroll]] for (uint j = 0; j < PER_X; ++j) rx[j] = load_x(tb, tm0 + lr + ROWS * j, k0 + lk);
+    [[unroll]] for (uint j = 0; j < PER_W; ++j) rw[j] = load_w(tb, tn0 + lr + ROWS * j, k0 + lk);
+  }
+}
+
+// Stores the registers (fp16) into shared stage `stage`.
+void store_step(uint stage) {
+  const uint t = gl_LocalInvocationIndex;
+  if (VEC) {
+    const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
+    [[unroll]] for (uint j = 0; j < VPX; ++j)
+      if (xr + RX * j < BM) sx[(stage * BM + xr + RX * j) * LDS4 + xc] = f16vec4(vx[j]);
+    [[unroll]] for (uint j = 0; j < VPW; ++j)
+      if (wr + RW * j < BN) store_w4((stage * BN + wr + RW * j) * LDS4 + wc * (EW / 4), vw[j]);
+  } else {
+    const uint lk = t % BK, lr = t / BK;
+    [[unroll]] for (uint j = 0; j < PER_X; ++j) sx[(stage * BM + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rx[j]);
+    [[unroll]] for (uint j = 0; j < PER_W; ++j) sw[(stage * BN + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rw[j]);
+  }
+}
+
+void main() {
   uint mt = gl_WorkGroupID.y, nt = gl_WorkGroupID.x;
   if (GROUP_M > 1) {
     const uint nx = gl_NumWorkGroups.x, ny = gl_NumWorkGroups.y;
@@ -109,50 +146,27 @@ void main() {
     mt = first + inband % rows;
     nt = inband / rows;
   }
-  const uint b = gl_WorkGroupID.z, m0 = mt * BM, n0 = nt * BN;
+  tb = gl_WorkGroupID.z;
+  tm0 = mt * BM;
+  tn0 = nt * BN;
   const uint sg = gl_SubgroupID, lane = gl_SubgroupInvocationID;
   const uint sm = sg / SG_N, sn = sg % SG_N;
-  // Scalar staging map: invocation t loads k = t % BK of rows t / BK + ROWS·j (BK consecutive values per row).
-  const uint lk = t % BK, lr = t / BK;
-  // Vector staging map: X vector t % XV of rows t / XV + RX·j; W vector t % WVN of rows t / WVN + RW·j.
-  const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
 
   coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator> acc[FM * FN];
   [[unroll]] for (uint f = 0; f < FM * FN; ++f)
     acc[f] = coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator>(0.0);
 
-  float rx[VEC ? 1 : PER_X], rw[VEC ? 1 : PER_W];
-  vec4 vx[VEC ? VPX : 1];
-  uvec4 vw[VEC ? VPW : 1];
   const uint steps = (p.K + BK - 1) / BK;
   if (steps > 0) {
-    if (VEC) {
-      [[unroll]] for (uint j = 0; j < VPX; ++j)
-        if (xr + RX * j < BM) sx[(xr + RX * j) * LDS4 + xc] = f16vec4(load_x4(b, m0 + xr + RX * j, xc * 4));
-      [[unroll]] for (uint j = 0; j < VPW; ++j)
-        if (wr + RW * j < BN) store_w4((wr + RW * j) * LDS4 + wc * (EW / 4), load_w4(b, n0 + wr + RW * j, wc * EW));
-    } else {
-      [[unroll]] for (uint j = 0; j < PER_X; ++j)
-        sx[(lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(load_x(b, m0 + lr + ROWS * j, lk));
-      [[unroll]] for (uint j = 0; j < PER_W; ++j)
-        sw[(lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(load_w(b, n0 + lr + ROWS * j, lk));
-    }
+    load_step(0);
+    store_step(0);
   }
   barrier();
 
   for (uint s = 0; s < steps; ++s) {
-    const uint cur = s & 1u, nxt = cur ^ 1u;
+    const uint cur = s & 1u;
     const bool more = s + 1 < steps;
-    if (more) {
-      const uint k0 = (s + 1) * BK;
-      if (VEC) {
-        [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(b, m0 + xr + RX * j, k0 + xc * 4);
-        [[unroll]] for (uint j = 0; j < VPW; ++j) vw[j] = load_w4(b, n0 + wr + RW * j, k0 + wc * EW);
-      } else {
-        [[unroll]] for (uint j = 0; j < PER_X; ++j) rx[j] = load_x(b, m0 + lr + ROWS * j, k0 + lk);
-        [[unroll]] for (uint j = 0; j < PER_W; ++j) rw[j] = load_w(b, n0 + lr + ROWS * j, k0 + lk);
-      }
-    }
+    if (more) load_step((s + 1) * BK);
     const uint xb = (cur * BM + sm * (FM * FRAG_M)) * LDS4, wb = (cur * BN + sn * (FN * FRAG_N)) * LDS4;
     [[unroll]] for (uint kk = 0; kk < BK; kk += FRAG_K) {
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_M, FRAG_K, gl_MatrixUseA> a[FM];
@@ -166,19 +180,7 @@ void main() {
         [[unroll]] for (uint j = 0; j < FN; ++j)
           if (ABLATE != 2) acc[i * FN + j] = coopMatMulAdd(a[i], w[j], acc[i * FN + j]);
     }
-    if (more) {
-      if (VEC) {
-        [[unroll]] for (uint j = 0; j < VPX; ++j)
-          if (xr + RX * j < BM) sx[(nxt * BM + xr + RX * j) * LDS4 + xc] = f16vec4(vx[j]);
-        [[unroll]] for (uint j = 0; j < VPW; ++j)
-          if (wr + RW * j < BN) store_w4((nxt * BN + wr + RW * j) * LDS4 + wc * (EW / 4), vw[j]);
-      } else {
-        [[unroll]] for (uint j = 0; j < PER_X; ++j)
-          sx[(nxt * BM + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rx[j]);
-        [[unroll]] for (uint j = 0; j < PER_W; ++j)
-          sw[(nxt * BN + lr + ROWS * j) * LDS4 + lk / 4][lk % 4] = float16_t(rw[j]);
-      }
-    }
+    if (more) store_step(cur ^ 1u);
     barrier();
   }
 
@@ -188,10 +190,10 @@ void main() {
       coopMatStore(acc[i * FN + j], stage, st, FRAG_N, gl_CooperativeMatrixLayoutRowMajor);
       subgroupMemoryBarrierShared();
       subgroupBarrier();
-      const uint mb = m0 + sm * (FM * FRAG_M) + i * FRAG_M, nb = n0 + sn * (FN * FRAG_N) + j * FRAG_N;
+      const uint mb = tm0 + sm * (FM * FRAG_M) + i * FRAG_M, nb = tn0 + sn * (FN * FRAG_N) + j * FRAG_N;
       for (uint e = lane; e < FRAG; e += gl_SubgroupSize) {
         const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
-        if (m < p.M && n < p.N) store_output(b, m, n, stage[st + e]);
+        if (m < p.M && n < p.N) store_output(tb, m, n, stage[st + e]);
       }
       subgroupMemoryBarrierShared();
       subgroupBarrier();  // every lane read the block before the next fragment overwrites it

@@ -136,37 +136,35 @@ int ph[PIX_A], pw[PIX_A];
 uint wrow[PIX_B];
 vec4 ra[PIX_A * SA], rb[PIX_B * SB];
 
+// The first texel (channels 0..3) of the input pixel that tap `tap` of the kernel reads for gathered pixel i: the
+// packed chunk's pixel, or the zero pixel where the tap falls in the padding.
+uint tap_texel(uint i, uint tap) {
+  const uint taps_hw = p.kh * p.kw, at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
+  const int ih = ph[i] + int(u), iw = pw[i] + int(v);
+  const bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
+  const uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
+  return inside ? pix * (p.cp >> 2) : p.zero_texel;
+}
+
 // Loads the operands of the step at reduction element k0 (of K) into ra, rb.
 void load_step(uint k0, uint K) {
-  const uint t = gl_LocalInvocationIndex, cp = p.cp, cp4 = cp >> 2, taps_hw = p.kh * p.kw;
+  const uint t = gl_LocalInvocationIndex, cp = p.cp;
   // Channels a multiple of BK (the VAE's 128, 256 and 512): each step reads BK channels of one tap, so the tap's
   // offsets and each pixel's source index are worked out once per step (uniform divisions) and a load is one
   // add; else (few or odd channels) each 4-channel group finds its own tap.
   if (cp % BK == 0u) {
     const uint tap = k0 / cp, c4 = (k0 - tap * cp) >> 2;
-    const uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
     [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
-      const int ih = ph[i] + int(u), iw = pw[i] + int(v);
-      const bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-      const uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
-      const uint base = (inside ? pix * cp4 : p.zero_texel) + c4;
+      const uint base = tap_texel(i, tap) + c4;
       // K is a multiple of BK here: every group is inside.
       [[unroll]] for (uint s = 0u; s < SA; ++s) ra[i * SA + s] = x[base + t / BM + STEP_A * s];
     }
   } else {
     [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
       [[unroll]] for (uint s = 0u; s < SA; ++s) {
-        const uint q = t / BM + STEP_A * s, k = k0 + 4u * q;  // reduction elements k..k+3 (one tap)
-        vec4 a = vec4(0.0);
-        if (k < K) {
-          uint tap = k / cp, c = k - tap * cp;
-          uint at = tap / taps_hw, uv = tap - at * taps_hw, u = uv / p.kw, v = uv - u * p.kw;
-          int ih = ph[i] + int(u), iw = pw[i] + int(v);
-          bool inside = ih >= 0 && ih < int(p.in_h) && iw >= 0 && iw < int(p.in_w);
-          uint pix = ((pf[i] + at) * p.src_rows + uint(ih) / p.up - p.src_r0) * p.src_w + uint(iw) / p.up - p.src_c0;
-          a = x[(inside ? pix * cp4 : p.zero_texel) + (c >> 2)];
-        }
-        ra[i * SA + s] = a;
+        const uint k = k0 + 4u * (t / BM + STEP_A * s), tap = k / cp;  // reduction elements k..k+3 (one tap)
+        ra[i * SA + s] = vec4(0.0);
+        if (k < K) ra[i * SA + s] = x[tap_texel(i, tap) + ((k - tap * cp) >> 2)];
       }
   }
   [[unroll]] for (uint i = 0u; i < PIX_B; ++i)

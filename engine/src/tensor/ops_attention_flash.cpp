@@ -114,17 +114,15 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
             d4,                opt.scale, 0,                 0,  0,       0};
   const bool coop = plan.family == KernelFamily::coopmat;
   const DeviceTuning& tune = device_tuning(caps);
-  const CoopmatAttention layout = attention_coopmat_layout(tune);
-  const AttentionKernel kernel =
-      coop ? attention_coopmat_kernel(caps, tune) : plan.twin ? AttentionKernel::twin : AttentionKernel::khr;
-  const bool coop2 = kernel == AttentionKernel::coopmat2;
-  const char* name = coop2  ? "attention_flash_coopmat2"
-                     : coop ? "attention_flash_coopmat"
-                     : plan.twin ? "attention_flash_coopmat_twin"
-                                 : "attention_flash";
+  // The family's kernel (meaningful where coop or plan.twin).
+  const AttentionKernel kernel = plan.twin ? AttentionKernel::twin : attention_coopmat_kernel(caps, tune);
+  const char* name = plan.twin ? "attention_flash_coopmat_twin"
+                     : !coop   ? "attention_flash"
+                     : kernel == AttentionKernel::coopmat2 ? "attention_flash_coopmat2"
+                                                           : "attention_flash_coopmat";
   const vk::Pipeline* pipe_ptr = nullptr;
   if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
-    const CoopmatAttention& a = layout;
+    const CoopmatAttention a = attention_coopmat_layout(tune);
     const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
                                  attention_coopmat_unfit(caps, a, s.head_dim, kernel));
