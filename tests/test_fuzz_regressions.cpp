@@ -132,6 +132,19 @@ TEST_F(FuzzRegressions, ExrDeclaringMorePixelsThanADepthFrameIsRefused) {
   dvs::test::expect_error([&] { dvs::read_depth_exr(file); }, {file.string(), "declares a 30000x30000 image", "at most"});
 }
 
+// fuzz_depth_png and fuzz_depth_exr: OpenCV picks its decoder by content, so this file (EXR magic, a DICOM marker
+// at byte 128) reached Debian's GDCM through either name, whose assertion aborted the process. A .png must start
+// with the PNG signature and a .exr with the EXR magic; an EXR with the DICOM marker is refused before OpenCV.
+TEST_F(FuzzRegressions, DepthImagesOpenCvWouldDecodeAsAnotherFormatAreRefused) {
+  if (without_video_io()) GTEST_SKIP() << "built without video I/O";
+  const auto png = as("depth_png", "regression_exr_magic_and_dicom_marker", "d_0001.png");
+  dvs::test::expect_error([&] { dvs::read_depth_png(png); }, {png.string(), "not a PNG file", "PNG signature"});
+  const auto exr = as("depth_exr", "regression_dicom_marker_at_128", "d_0002.exr");
+  dvs::test::expect_error([&] { dvs::read_depth_exr(exr); }, {exr.string(), "DICOM marker at byte 128"});
+  const auto png_named_exr = as("depth_png", "gray16_4x6", "d_0003.exr");
+  dvs::test::expect_error([&] { dvs::read_depth_exr(png_named_exr); }, {png_named_exr.string(), "not an EXR file"});
+}
+
 // The seeds themselves are valid files: the checks above refuse only what is declared too large.
 TEST_F(FuzzRegressions, SeedDepthImagesStillRead) {
   if (without_video_io()) GTEST_SKIP() << "built without video I/O";

@@ -63,13 +63,34 @@ DeclaredSize declared_size(const std::string& head) {
   return d;
 }
 
-// Refuses an image whose header declares more pixels than a depth frame has (kMaxDepthImagePixels) or than a PNG
-// of this file's size can hold (deflate expands at most ~1032:1), before OpenCV allocates them.
-void check_declared_size(const std::filesystem::path& file, const char* kind) {
+// The first bytes of the file (enough for a PNG's IHDR and an EXR's header attributes).
+std::string file_head(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   std::string head(64 * 1024, '\0');
   in.read(head.data(), std::streamsize(head.size()));
   head.resize(size_t(in.gcount()));
+  return head;
+}
+
+// OpenCV picks its decoder by the file's content, not its name: a ".png" holding DICOM, JPEG 2000 or a raster
+// format would reach decoders dvs never meant to run (fuzz_depth_png found Debian's GDCM asserting, which aborts
+// the process). So a .png must start with the PNG signature and a .exr with the EXR magic; and since OpenCV 4.6
+// tries its DICOM reader (a "DICM" marker at byte 128) before its EXR reader, an EXR carrying that marker is
+// refused too.
+void check_signature(const std::filesystem::path& file, const std::string& head, const char* kind) {
+  const bool png = kind == std::string("PNG");
+  const std::string magic = png ? std::string("\x89PNG\r\n\x1a\n", 8) : std::string("\x76\x2f\x31\x01", 4);
+  if (head.compare(0, magic.size(), magic) != 0)
+    throw Error(file.string() + (png ? ": not a PNG file" : ": not an EXR file") + " (it does not start with the " + kind +
+                " signature); depth images must be " + (png ? "8/16-bit grayscale PNG" : "single-channel float EXR"));
+  if (!png && head.size() >= 132 && head.compare(128, 4, "DICM") == 0)
+    throw Error(file.string() + ": holds a DICOM marker at byte 128, which OpenCV would decode as DICOM, not EXR "
+                "(corrupt file?)");
+}
+
+// Refuses an image whose header declares more pixels than a depth frame has (kMaxDepthImagePixels) or than a PNG
+// of this file's size can hold (deflate expands at most ~1032:1), before OpenCV allocates them.
+void check_declared_size(const std::filesystem::path& file, const std::string& head, const char* kind) {
   const DeclaredSize d = declared_size(head);
   if (d.width == 0 && d.height == 0) return;
   const std::string what = file.string() + ": the " + kind + " header declares a " + std::to_string(d.width) + "x" +
@@ -90,7 +111,9 @@ HostTensor read_single_channel(const std::filesystem::path& file, const char* ki
   if (!std::filesystem::is_regular_file(file)) throw Error(name + ": cannot open the depth image (no such file)");
   const VideoBackend* backend = video_backend();
   if (!backend) needs_video_component(file, std::string("reading ") + kind + " depth images");
-  check_declared_size(file, kind);
+  const std::string head = file_head(file);
+  check_signature(file, head, kind);
+  check_declared_size(file, head, kind);
   return backend->read_depth_image(file, kind);
 }
 
