@@ -1,6 +1,7 @@
 // dvs-bench group "gpu": the device stage's cases at the real shapes, beside bench/gpu/torch_ref.py's
 // PyTorch figures (bench/gpu/summarize.py joins them by case and shape):
-//   gemm       X f32 [M, K] · W bf16 [N, K]ᵀ, M = 2 x 17,776; K x N = 3072x3072, 3072x9216, 3072x12288, 12288x3072
+//   gemm       X f32 [M, K] · W bf16 [N, K]ᵀ, M = 2 x 17,776; K x N = 3072x3072, 3072x9216, 3072x12288, 12288x3072;
+//              W kept fp16 where the model keeps it so (ops::gemm_weight_dtype: the coopmat family)
 //   attention  B=2, H=48, D=64, S=17,776, q|k|v fused [B, S, 3·H·D] as the transformer uses it
 //   conv3d     causal 3x3x3 at the VAE decoder's shapes, 4 output frames, bf16 weights
 //   copy       vkCmdCopyBuffer 256 MiB (bytes read + written)
@@ -37,6 +38,7 @@
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_attention.hpp"
 #include "tensor/ops_conv.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_linear.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/pipeline.hpp"
@@ -280,12 +282,18 @@ void gemm_cases(Bench& b) {
       }
       const HostTensor hw = random_host({N, K}, DType::bf16, 12 + uint64_t(N), 1.0f / std::sqrt(float(K)));
       Tensor w = Tensor::upload(ctx, hw, "gpu bench w");
+      Tensor w_f16;  // the same values as the model keeps them where the tensor cores run its GEMMs
       Tensor y = Tensor::empty(ctx, {M, N}, DType::f32, "gpu bench y");
       for (const std::string& fam : families(ctx)) {
         try {
           ops::ScopedTuningOverride ov("linear=" + fam);
+          const bool f16 = ops::gemm_weight_dtype(ctx.caps()) == DType::f16;
+          if (f16 && !w_f16.defined()) {
+            w_f16 = Tensor::empty(ctx, {N, K}, DType::f16, "gpu bench w f16");
+            ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, w, w_f16); });
+          }
           ops::run_now(ctx, [&](vk::Recorder& r) { r.fill_zero(y.buffer()); });  // poison: unwritten outputs fail
-          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, x, w, y); });
+          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, x, f16 ? w_f16 : w, y); });
           Check c;
           Rng pick(99);
           for (int i = 0; i < 32; ++i) {  // 32 rows x 8 columns
@@ -299,7 +307,7 @@ void gemm_cases(Bench& b) {
             }
           }
           report(b, "gemm", shape, fam, t, 2.0 * M * N * K, 0, &c, tolerance_for(fam),
-                 {{"dtype", str("x f32, w bf16")}});
+                 {{"dtype", str(f16 ? "x f32, w bf16 kept f16" : "x f32, w bf16")}});
         } catch (const std::exception& e) {
           report_error("gemm", shape, fam, e.what());
         }

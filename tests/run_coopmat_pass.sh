@@ -32,7 +32,7 @@ grep -q "fell back from tensor cores for a reason of the device" "$build/coopmat
 
 # 2. The op tests (the suites of .ci/run's GPU-entry pass), the layouts, the tuning and the smoke test.
 ops='Ops*:*Ops.*:*Ops/*:Split*:Paths/*:AttentionTest.*:Family/*:ConvFamilies.*:LinearCoopmatTest.*:Resize*'
-ops+=':KernelTuning*:LinearTuning.*:AttentionFlashPlan.*:CoopmatLayout*:CoopmatSmoke.*'
+ops+=':KernelTuning*:LinearTuning.*:AttentionFlashPlan.*:CoopmatLayout*:CoopmatSmoke.*:GemmWeights.*'
 "$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
 # 3. The golden tests, the whole-pipeline (PipelineE2e) tests among them.
 "$run" "$build/tests/dvs_golden_tests"

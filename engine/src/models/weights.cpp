@@ -5,10 +5,21 @@
 
 #include "dvs/error.hpp"
 #include "spec/model_schema.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/ops_elementwise.hpp"
 #include "vk/context.hpp"
 #include "vk/transfer.hpp"
 
 namespace dvs::models {
+
+namespace {
+
+// bf16 words to fp16 words, rounded to nearest even (io/host_tensor.hpp's conversions).
+void bf16_to_f16_in_place(uint16_t* v, size_t n) {
+  for (size_t i = 0; i < n; ++i) v[i] = f32_to_f16(bf16_to_f32(v[i]));
+}
+
+}  // namespace
 
 const char* residency_name(WeightResidency r) { return r == WeightResidency::stream ? "stream" : "resident"; }
 
@@ -51,6 +62,10 @@ const Tensor& ComponentWeights::get(const std::string& name) {
   if (weights_.find(name) == nullptr)
     throw Error(dir_.string() + ": the weights have no tensor '" + name + "' (is this the right model folder?)");
   HostTensor h = weights_.load(name);
+  if (as_f16_.count(name)) {
+    bf16_to_f16_in_place(h.as<uint16_t>(), size_t(h.numel()));
+    h.dtype = DType::f16;
+  }
   Tensor t = Tensor::upload(ctx_, h, name);
   bytes_ += t.bytes();
   return uploaded_.emplace(name, std::move(t)).first->second;
@@ -63,7 +78,7 @@ ComponentWeights::Info ComponentWeights::info(const std::string& name) const {
   if (!ref) throw Error(dir_.string() + ": the weights have no tensor '" + name + "' (is this the right model folder?)");
   if (!ref->info->dtype)
     throw Error(dir_.string() + ": tensor '" + name + "' has dtype " + ref->info->dtype_name + ", which dvs cannot use");
-  return {ref->info->shape, *ref->info->dtype, ref->info->nbytes()};
+  return {ref->info->shape, as_f16_.count(name) ? DType::f16 : *ref->info->dtype, ref->info->nbytes()};
 }
 
 void ComponentWeights::check(const std::string& name, const Shape& expected) const {
@@ -82,6 +97,26 @@ void ComponentWeights::copy_to_host(const std::string& name, void* dst) const {
   const TensorBytes bytes = weights_.bytes(name);
   if (bytes.size() != i.bytes) throw Error("internal: tensor '" + name + "': stored bytes differ from its header");
   std::memcpy(dst, bytes.data(), bytes.size());
+  if (as_f16_.count(name)) bf16_to_f16_in_place(static_cast<uint16_t*>(dst), bytes.size() / 2);
+}
+
+bool ComponentWeights::store_as(const std::string& name, DType dtype) {
+  if (dtype != DType::f16) throw Error("internal: ComponentWeights::store_as: only f16 is supported");
+  if (auto it = uploaded_.find(name); it != uploaded_.end()) {
+    if (it->second.dtype() != DType::bf16) return it->second.dtype() == DType::f16;
+    Tensor f16 = Tensor::empty(ctx_, it->second.shape(), DType::f16, name);
+    ops::run_now(ctx_, [&](vk::Recorder& rec) { ops::cast(rec, it->second, f16); });
+    it->second = std::move(f16);
+    return true;
+  }
+  if (as_f16_.count(name)) return true;
+  if (info(name).dtype != DType::bf16) return false;
+  const TensorBytes bytes = weights_.bytes(name);
+  const auto* v = reinterpret_cast<const uint16_t*>(bytes.data());
+  for (size_t i = 0; i < bytes.size() / 2; ++i)
+    if ((v[i] & 0x7fffu) >= 0x4780u && (v[i] & 0x7fffu) < 0x7f80u) return false;  // finite, rounds past 65504
+  as_f16_.insert(name);
+  return true;
 }
 
 void ComponentWeights::release(const std::string& name) {

@@ -1,9 +1,11 @@
 // The weights of one model component on the device: opened from its folder (single or sharded
 // safetensors), checked against the schema its config.json implies, and uploaded tensor by tensor in the
-// stored dtype (bf16 stays bf16; shaders widen it). A missing or mismatched tensor is an error naming it.
+// stored dtype (bf16 stays bf16; shaders widen it), except GEMM weights a model asks for in its tensor cores'
+// operand type (store_as). A missing or mismatched tensor is an error naming it.
 #pragma once
 #include <filesystem>
 #include <map>
+#include <set>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -57,12 +59,22 @@ class ComponentWeights {
   // Drops the device copy of `name` (in-memory weights: the tensor itself, so copy it out first).
   void release(const std::string& name);
 
+  // GEMM operands (docs/devices.md, linear_weights_fp16): `name`, when stored bf16, is kept as `dtype` (only f16,
+  // the tensor cores' operand type), converted once: weights from files as they are read (get() uploads f16,
+  // info() says f16, copy_to_host() writes f16, so a streamed block's host copy is f16 too); weights already on
+  // the device by ops::cast now (values past fp16's range become ±Inf: only benchmarks' random weights live
+  // there). Round to nearest even, as the GEMM kernel's per-element conversion does, so a tensor-core GEMM
+  // computes the same bits. A file tensor holding a finite value past fp16's range (|v| > 65504) stays bf16, so
+  // that no fp32 kernel reads an Inf the checkpoint does not hold. Returns whether `name` is now f16.
+  bool store_as(const std::string& name, DType dtype);
+
  private:
   vk::Context& ctx_;
   std::filesystem::path dir_;
   nlohmann::json config_;
   WeightSet weights_;
   std::map<std::string, Tensor> uploaded_;
+  std::set<std::string> as_f16_;  // file tensors stored bf16 that are read as f16 (store_as)
   uint64_t bytes_ = 0;
 };
 

@@ -106,6 +106,10 @@ struct DeviceTuning {
   // Triton's default grouping, unmeasured on a GPU here (the device script's sweep compares 1 and 8).
   bool linear_coopmat_vector_loads = true;
   int linear_coopmat_group_m = 8;
+  // Where the linear family is coopmat, GEMM weights a model stores in bf16 are kept on the device in fp16, the
+  // operand type the tensor cores read: converted once at load (ComponentWeights::store_as) instead of per element
+  // in every GEMM's loads. Off: kept bf16 and converted in the loads (A/B runs). Same bits either way.
+  bool linear_weights_fp16 = true;
   // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
   // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.
   int linear_coopmat_ablation = 0;

@@ -155,6 +155,11 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   return k.family == KernelFamily::tiled ? as_tiled(k) : k;
 }
 
+DType gemm_weight_dtype(const vk::DeviceCaps& caps) {
+  const DeviceTuning& tune = device_tuning(caps);
+  return tune.linear == KernelFamily::coopmat && tune.linear_weights_fp16 ? DType::f16 : DType::bf16;
+}
+
 namespace {
 
 // The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile

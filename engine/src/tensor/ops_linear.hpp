@@ -81,6 +81,9 @@ struct LinearKernel {
   int tile_m = 64, tile_n = 64, tile_k = 16;
 };
 LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape, DType w_dtype);
+// The dtype a model keeps its bf16-stored GEMM weights in on this device: f16 where the linear family is coopmat
+// (the tensor cores' operand type; DeviceTuning::linear_weights_fp16), else bf16, as stored.
+DType gemm_weight_dtype(const vk::DeviceCaps& caps);
 void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y,
                          const LinearShape& shape, const LinearEpilogue& ep, LinearKernel kernel);
 

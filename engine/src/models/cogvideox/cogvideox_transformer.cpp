@@ -58,7 +58,10 @@ void CogVideoXTransformer::check_weights(WeightResidency residency, int stream_s
       streamed[size_t(block)].push_back(name);
     }
   };
+  // Every Linear's weight feeds only a GEMM: kept in the tensor cores' operand type where they run it.
+  const bool f16_gemm_weights = ops::gemm_weight_dtype(ctx_.caps()) == DType::f16;
   auto lin = [&](const std::string& name, int64_t in, int64_t out, bool bias) {
+    if (f16_gemm_weights) weights_.store_as(name + ".weight", DType::f16);
     need(name + ".weight", {out, in});
     if (bias) need(name + ".bias", {out});
   };
