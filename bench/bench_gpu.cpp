@@ -1,7 +1,8 @@
 // dvs-bench group "gpu": the device stage's cases at the real shapes, beside bench/gpu/torch_ref.py's
 // PyTorch figures (bench/gpu/summarize.py joins them by case and shape):
 //   gemm       X f32 [M, K] · W bf16 [N, K]ᵀ, M = 2 x 17,776; K x N = 3072x3072, 3072x9216, 3072x12288, 12288x3072;
-//              W kept fp16 where the model keeps it so (ops::gemm_weight_dtype: the coopmat family)
+//              X and W in fp16 where the model keeps them so (ops::gemm_activation_dtype, gemm_weight_dtype: the
+//              coopmat family)
 //   attention  B=2, H=48, D=64, S=17,776, q|k|v fused [B, S, 3·H·D] as the transformer uses it
 //   conv3d     causal 3x3x3 at the VAE decoder's shapes, 4 output frames, bf16 weights
 //   copy       vkCmdCopyBuffer 256 MiB (bytes read + written)
@@ -269,13 +270,13 @@ void gemm_cases(Bench& b) {
         : std::vector<std::pair<int64_t, int64_t>>{{3072, 3072}, {3072, 9216}, {3072, 12288}, {12288, 3072}};
   int64_t have_k = 0;
   HostTensor hx;
-  Tensor x;
+  Tensor x, x_f16;  // x_f16: X as a LayerNorm writes it where the tensor cores run the GEMMs
   for (auto [K, N] : kn) {
     char shape[64];
     std::snprintf(shape, sizeof shape, "%lldx%lldx%lld", (long long)M, (long long)K, (long long)N);
     try {
       if (have_k != K) {
-        x = Tensor();
+        x = x_f16 = Tensor();
         hx = random_host({M, K}, DType::f32, 11 + uint64_t(K));
         x = Tensor::upload(ctx, hx, "gpu bench x");
         have_k = K;
@@ -288,12 +289,17 @@ void gemm_cases(Bench& b) {
         try {
           ops::ScopedTuningOverride ov("linear=" + fam);
           const bool f16 = ops::gemm_weight_dtype(ctx.caps()) == DType::f16;
+          const bool x16 = ops::gemm_activation_dtype(ctx.caps()) == DType::f16;
           if (f16 && !w_f16.defined()) {
             w_f16 = Tensor::empty(ctx, {N, K}, DType::f16, "gpu bench w f16");
             ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, w, w_f16); });
           }
+          if (x16 && !x_f16.defined()) {
+            x_f16 = Tensor::empty(ctx, {M, K}, DType::f16, "gpu bench x f16");
+            ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, x, x_f16); });
+          }
           ops::run_now(ctx, [&](vk::Recorder& r) { r.fill_zero(y.buffer()); });  // poison: unwritten outputs fail
-          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, x, f16 ? w_f16 : w, y); });
+          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, x16 ? x_f16 : x, f16 ? w_f16 : w, y); });
           Check c;
           Rng pick(99);
           for (int i = 0; i < 32; ++i) {  // 32 rows x 8 columns
@@ -307,7 +313,7 @@ void gemm_cases(Bench& b) {
             }
           }
           report(b, "gemm", shape, fam, t, 2.0 * M * N * K, 0, &c, tolerance_for(fam),
-                 {{"dtype", str(f16 ? "x f32, w bf16 kept f16" : "x f32, w bf16")}});
+                 {{"dtype", str(std::string(x16 ? "x f16" : "x f32") + (f16 ? ", w bf16 kept f16" : ", w bf16"))}});
         } catch (const std::exception& e) {
           report_error("gemm", shape, fam, e.what());
         }

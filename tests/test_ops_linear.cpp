@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "support/gpu.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
@@ -53,6 +54,7 @@ HostTensor make_host(Shape s, DType dt, std::vector<float>& values) {
 
 struct Options {
   DType w_dtype = DType::f32;
+  DType x_dtype = DType::f32;  // f16: activations written in 16 bits by their producer (storage families)
   bool bias = false;
   DType bias_dtype = DType::f32;
   Activation act = Activation::none;
@@ -116,7 +118,7 @@ class LinearTest : public test::GpuTest, public testing::WithParamInterface<cons
     std::vector<float> gv = random_values(size_t(vcount), seed + 6);
     std::vector<float> rv = random_values(size_t(o.y_lead + B * ybs), seed + 7);
 
-    Tensor xt = Tensor::upload(c, make_host({int64_t(xv.size())}, DType::f32, xv));
+    Tensor xt = Tensor::upload(c, make_host({int64_t(xv.size())}, o.x_dtype, xv));
     Tensor wt = Tensor::upload(c, make_host({int64_t(wv.size())}, o.w_dtype, wv));
     Tensor x = o.x_lead ? xt.rows(o.x_lead, B * xbs) : xt;
     Tensor w = o.w_lead ? wt.rows(o.w_lead, wcount) : wt;
@@ -436,8 +438,8 @@ TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
   auto ran = [&](uint32_t wcode, bool vec) {
     bool found = false;
     c.pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 13 && pl.spec[2] == wcode &&
-          pl.spec[10] == (vec ? 1u : 0u) && pl.spec[11] == 3 && pl.spec[12] == 0)
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[2] == wcode &&
+          pl.spec[10] == (vec ? 1u : 0u) && pl.spec[11] == 3 && pl.spec[12] == 0 && pl.spec[13] == 0)
         found = true;
     });
     return found;
@@ -456,6 +458,66 @@ TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
   u.x_lead = 3;
   check(M, N, 48, u);
   EXPECT_TRUE(ran(2, false)) << "the misaligned call did not take the element loads";
+}
+
+// Activations stored in f16 (what a producer writes where the GEMM runs on tensor cores): the storage families
+// read them on both load paths, each weight type, an offset, a padded stride and batches, against the reference on
+// the same f16-rounded X; on the tensor-core family the pipelines that ran are the f16-X ones (16-byte loads where
+// aligned, element loads at an odd offset). The texel family refuses them by name.
+TEST_P(LinearTest, HalfActivations) {
+  if (!tiled()) {
+    vk::Context& c = ctx();
+    Tensor x = Tensor::empty(c, {4, 8}, DType::f16), w = Tensor::empty(c, {3, 8}, DType::f32);
+    Tensor y = Tensor::empty(c, {4, 3}, DType::f32);
+    test::expect_error([&] { ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x, w, y); }); },
+                       {"x must be f32 (or f16 on the tiled and coopmat families)"});
+    return;
+  }
+  vk::Context& c = ctx();
+  auto ran_x16 = [&](bool vec) {
+    bool found = false;
+    c.pipelines().for_each([&](const vk::Pipeline& pl) {
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[10] == (vec ? 1u : 0u) &&
+          pl.spec[13] == 1)
+        found = true;
+    });
+    return found;
+  };
+  const bool coopmat = family() == ops::KernelFamily::coopmat;
+  const bool vector_loads = ops::device_tuning(c.caps()).linear_coopmat_vector_loads;
+  for (DType wdt : {DType::f16, DType::bf16, DType::f32}) {
+    Options o;
+    o.x_dtype = DType::f16;
+    o.w_dtype = wdt;
+    o.bias = true;
+    check(37, 45, 48, o);  // aligned: 16-byte loads on the tensor-core family
+    if (coopmat) {
+      EXPECT_TRUE(ran_x16(vector_loads)) << dtype_name(wdt);
+    }
+  }
+  Options lead;  // 8 halves in: still aligned for 8-value vectors; 3 more: element loads
+  lead.x_dtype = DType::f16;
+  lead.w_dtype = DType::f16;
+  lead.x_lead = 8;
+  check(29, 21, 40, lead);
+  lead.x_lead = 3;
+  check(29, 21, 40, lead);
+  if (coopmat) {
+    EXPECT_TRUE(ran_x16(false)) << "the misaligned f16 X did not take the element loads";
+  }
+  Options batched;  // a padded X stride (not a multiple of 8: element loads), batches, modulation and residual
+  batched.x_dtype = DType::f16;
+  batched.w_dtype = DType::bf16;
+  batched.batch = 2;
+  batched.x_pad = 3;
+  batched.modulation = true;
+  batched.residual = true;
+  batched.act = Activation::gelu_tanh;
+  check(19, 27, 24, batched);
+  Options odd;  // K not a multiple of 8
+  odd.x_dtype = DType::f16;
+  odd.w_dtype = DType::bf16;
+  check(13, 11, 21, odd);
 }
 
 // The ablations the device script's sweep times (measurements only) are live: without MMA an aligned call's Y

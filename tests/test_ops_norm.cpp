@@ -186,6 +186,55 @@ TEST_F(NormOps, LayerNormAndRmsNormBothMappings) {
   }
 }
 
+// An f16 y (the activation of a GEMM on tensor cores): each value the f32 y's rounded to nearest even, bit for
+// bit (the same statistics, one rounding), with affine and modulation, both row mappings, a row past the register
+// cache, and y a view 64 rows into a larger f16 tensor; an f16 y off the 4-element path is refused.
+TEST_F(NormOps, LayerNormHalfOutput) {
+  vk::Context& c = ctx();
+  auto run = [&](const LnCase& k) {
+    const int64_t rows = k.B * k.L, D = k.D;
+    std::vector<float> x = random_values(size_t(rows * D), 21 + uint32_t(D), k.offset);
+    std::vector<float> w = random_values(size_t(D), 22, 1.0f, 0.3f), b = random_values(size_t(D), 23, 0.0f, 0.5f);
+    std::vector<float> table = random_values(size_t(k.B * 6 * D), 24, 0.0f, 0.5f);
+    Tensor xt = upload_f32(c, x, {k.B, k.L, D});
+    Tensor wt, bt;
+    if (k.affine) {
+      wt = Tensor::upload(c, stored_as(w, {D}, k.wdt));
+      bt = Tensor::upload(c, stored_as(b, {D}, k.wdt));
+    }
+    ops::Modulation mod;
+    if (k.modulate) {
+      mod.table = upload_f32(c, table, {k.B, 6 * D});
+      mod.seq_len = k.L;
+      mod.split = k.L / 3;
+      mod.shift_col[0] = 3 * D, mod.scale_col[0] = 4 * D, mod.shift_col[1] = 0, mod.scale_col[1] = D;
+    }
+    Tensor y32 = Tensor::empty(c, {k.B, k.L, D}, DType::f32);
+    Tensor big = Tensor::zeros(c, {64 + rows + 5, D}, DType::f16);  // y: rows 64.. of it (256-byte aligned)
+    Tensor y16 = big.rows(64, rows).reshape({k.B, k.L, D});
+    ops::run_now(c, [&](vk::Recorder& rec) {
+      ops::layernorm(rec, xt, y32, wt, bt, 1e-5f, k.modulate ? &mod : nullptr);
+      ops::layernorm(rec, xt, y16, wt, bt, 1e-5f, k.modulate ? &mod : nullptr);
+    });
+    const std::vector<float> f = y32.download(c).to_f32();
+    const HostTensor h = big.download(c);
+    size_t differ = 0;
+    for (size_t i = 0; i < f.size(); ++i) differ += h.as<uint16_t>()[size_t(64 * D) + i] != f32_to_f16(f[i]);
+    EXPECT_EQ(differ, 0u) << "D=" << D << ": f16 values that are not the f32 y rounded";
+    for (int64_t i = 0; i < 64 * D; ++i) ASSERT_EQ(h.as<uint16_t>()[size_t(i)], 0u) << "written before the view";
+    for (int64_t i = (64 + rows) * D; i < (69 + rows) * D; ++i) ASSERT_EQ(h.as<uint16_t>()[size_t(i)], 0u) << "after";
+  };
+  for (const char* m : {"norm_row_per_invocation=off", "norm_row_per_invocation=on"}) {
+    SCOPED_TRACE(m);
+    ops::ScopedTuningOverride mapping(m);
+    run({2, 40, 32, DType::bf16, true, true, false, 0.0f});
+    run({1, 2, 4100, DType::f32, true, false, false, 0.0f});
+    run({3, 5, 72, DType::f16, false, false, false, 3.0f});
+  }
+  Tensor x = Tensor::zeros(c, {2, 5, 33}, DType::f32), y = Tensor::zeros(c, {2, 5, 33}, DType::f16), none;
+  EXPECT_THROW(ops::run_now(c, [&](vk::Recorder& rec) { ops::layernorm(rec, x, y, none, none, 1e-5f); }), Error);
+}
+
 TEST_F(NormOps, LayerNormRejectsBadModulation) {
   Tensor x = Tensor::zeros(ctx(), {2, 4, 8}, DType::f32), w, b;
   ops::Modulation mod;

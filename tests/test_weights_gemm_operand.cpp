@@ -1,9 +1,10 @@
-// GEMM weights kept in the tensor cores' operand type (ComponentWeights::store_as, DeviceTuning::linear_weights_fp16):
+// GEMM operands kept in the tensor cores' operand type. Weights (ComponentWeights::store_as, DeviceTuning::linear_weights_fp16):
 // a bf16 weight asked for as f16 reaches the device as fp16, each value the bf16 one rounded to nearest even (checked
 // against the file's own bytes converted here), from files (resident and through the streaming host copy) and from
 // tensors already on the device; other tensors keep their dtype; a weight with a finite value past fp16's range
 // stays bf16. On a device whose linear family is coopmat (the tensor-core pass), the transformer keeps its Linear
-// weights fp16 and computes the same bytes as with the per-element conversion in the kernel's loads.
+// weights fp16 and writes its LayerNorm outputs fp16 (DeviceTuning::linear_activations_fp16), and computes the same
+// bytes as with the per-element conversions in the GEMM's loads.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -19,6 +20,7 @@
 #include "support/gpu.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_linear.hpp"
+#include "vk/pipeline.hpp"
 
 namespace dvs {
 namespace {
@@ -112,10 +114,13 @@ TEST_F(GemmWeights, TensorsAlreadyOnTheDeviceAreConvertedThere) {
 }
 
 // The tensor-core pass (DVS_TUNING=gpu-coopmat on Mesa 26.1): a bf16 transformer keeps every Linear weight fp16 (and
-// nothing else), resident or streamed, and its output is the same bytes as with linear_weights_fp16=off.
-TEST_F(GemmWeights, TransformerKeepsLinearWeightsFp16WithTheSameResult) {
+// nothing else), resident or streamed, its LayerNorms write the GEMMs' input in fp16 (the f16-X GEMM pipelines
+// run), and its output is the same bytes with either switch off (linear_weights_fp16, linear_activations_fp16).
+// Bands of 5 tile rows throughout (the order changes no value) make the pipelines this test creates its own.
+TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
   if (ops::gemm_weight_dtype(ctx().caps()) != DType::f16)
     GTEST_SKIP() << "the linear family is not coopmat on this device (the tensor-core pass runs this)";
+  ops::ScopedTuningOverride bands("linear_coopmat_group_m=5");
   const fs::path dir = folder("transformer");
   models::TinyModelSpec spec;
   spec.dtype = DType::bf16;
@@ -138,10 +143,28 @@ TEST_F(GemmWeights, TransformerKeepsLinearWeightsFp16WithTheSameResult) {
     return words(tr.forward(Tensor::upload(ctx(), lat), Tensor::upload(ctx(), txt), std::span<const float>(&t, 1))
                      .download(ctx()));
   };
-  const std::vector<uint16_t> converted = run(models::WeightResidency::resident, DType::f16);
-  EXPECT_EQ(run(models::WeightResidency::stream, DType::f16), converted);
-  ops::ScopedTuningOverride off("linear_weights_fp16=off");
-  EXPECT_EQ(run(models::WeightResidency::resident, DType::bf16), converted);
+  auto ran_f16_x = [&] {
+    bool found = false;
+    ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[11] == 5 && pl.spec[13] == 1)
+        found = true;
+    });
+    return found;
+  };
+  ASSERT_FALSE(ran_f16_x());
+  const std::vector<uint16_t> both = run(models::WeightResidency::resident, DType::f16);
+  EXPECT_TRUE(ran_f16_x()) << "no GEMM read an f16 X";
+  EXPECT_EQ(run(models::WeightResidency::stream, DType::f16), both);
+  {
+    ops::ScopedTuningOverride off("linear_weights_fp16=off");
+    EXPECT_EQ(run(models::WeightResidency::resident, DType::bf16), both) << "weights converted in the loads";
+  }
+  {
+    ops::ScopedTuningOverride off("linear_activations_fp16=off");
+    EXPECT_EQ(run(models::WeightResidency::resident, DType::f16), both) << "X f32, converted in the loads";
+  }
+  ops::ScopedTuningOverride off("linear_weights_fp16=off,linear_activations_fp16=off");
+  EXPECT_EQ(run(models::WeightResidency::resident, DType::bf16), both) << "both converted in the loads";
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 // creation): SG_M x SG_N subgroups, each owning FM x FN fp32 accumulator fragments of FRAG_M x FRAG_N, so a
 // workgroup computes a BM x BN tile of Y. On the H200: 8 subgroups of 32 as 2 x 4, 4 x 2 fragments of
 // 16 x 16 x 16 each (64 x 32 outputs), BM = BN = 128; on lavapipe (8 lanes, 32 KiB) the same arrangement of
-// 8 x 8 x 8 fragments, BM = BN = 64. Per K step of BK values, X[BM x BK] (f32 -> fp16) and W[BN x BK]
+// 8 x 8 x 8 fragments, BM = BN = 64. Per K step of BK values, X[BM x BK] (f32 -> fp16, or fp16 as stored) and W[BN x BK]
 // (f32/f16/bf16 -> fp16) are staged in shared memory, double-buffered: the next step's global loads are
 // issued into registers before this step's MMAs and stored to the other buffer after them, so one barrier per
 // step suffices. Two load paths (VEC): 16-byte vectors where K, strides and offsets allow (the models' shapes),
@@ -36,7 +36,8 @@ layout(constant_id = 6) const uint FN = 2;      // fragments per subgroup along 
 layout(constant_id = 7) const uint FRAG_M = 16;
 layout(constant_id = 8) const uint FRAG_N = 16;
 // 16-byte loads (the host sets it only where K, every X/W stride and offset are multiples of 8 elements and WG
-// a multiple of BK / 4): X as vec4, 16-bit W as uvec4 of 8 values (f32 W as vec4); one bounds test per vector.
+// a multiple of BK / 4): f32 X as vec4, f16 X and 16-bit W as uvec4 of 8 values (f32 W as vec4); one bounds
+// test per vector.
 layout(constant_id = 10) const bool VEC = false;
 // Workgroup order: bands of GROUP_M tile rows, each walked down its rows for one tile column after another, so
 // a column panel of W is read by GROUP_M workgroups in a row and the band's X rows stay in L2 meanwhile
@@ -49,6 +50,7 @@ layout(constant_id = 12) const uint ABLATE = 0;
 
 // 16-byte views of the X and W bindings (linear_storage_io.glsl declares their element views).
 layout(std430, binding = 0) readonly buffer Xv { vec4 xv[]; };
+layout(std430, binding = 0) readonly buffer Xhv { uvec4 xhv[]; };
 layout(std430, binding = 1) readonly buffer Wv { uvec4 wv[]; };
 
 const uint WG = gl_WorkGroupSize.x;
@@ -57,9 +59,10 @@ const uint LDS = BK + 8;        // shared row stride in halves: a multiple of 8 
 const uint LDS4 = LDS / 4;      // the same in the arrays' f16vec4 units
 const uint ROWS = WG / BK;      // scalar staging: rows per pass (invocation t: column t % BK, row t / BK)
 const uint PER_X = BM / ROWS, PER_W = BN / ROWS;  // passes per operand and step (16 each on the H200)
-// Vector staging: X rows are BK / 4 vec4, W rows BK / EW vectors of EW values; RX / RW rows per pass.
-const uint EW = WTYPE == 0 ? 4 : 8;
-const uint XV = BK / 4, WVN = BK / EW;
+// Vector staging: X rows are BK / EX vectors of EX values (4 floats or 8 halves), W rows BK / EW; RX / RW rows
+// per pass.
+const uint EW = WTYPE == 0 ? 4 : 8, EX = XTYPE == 0 ? 4 : 8;
+const uint XV = BK / EX, WVN = BK / EW;
 const uint RX = WG / XV, RW = WG / WVN;
 const uint VPX = (BM + RX - 1) / RX, VPW = (BN + RW - 1) / RW;
 const uint FRAG = FRAG_M * FRAG_N;
@@ -68,11 +71,23 @@ shared f16vec4 sx[2 * BM * LDS4];  // [stage][row][k], fp16; 8-byte units so a s
 shared f16vec4 sw[2 * BN * LDS4];
 shared float stage[SG_M * SG_N * FRAG];
 
-// One vec4 of X: row m, values k .. k+3 (k a multiple of 8 below K or past it), zeros outside the matrix.
-vec4 load_x4(uint b, uint m, uint k) {
-  if (ABLATE == 1) return vec4(float(m & 7u) * 0.125);
-  if (m >= p.M || k >= p.K) return vec4(0.0);
-  return xv[(p.x_off + b * p.x_bs + m * p.ldx + k) / 4];
+// One vector of X's row m from value k (k a multiple of EX below K or past it): 4 floats, or 8 halves as raw
+// words; zeros outside the matrix.
+uvec4 load_x4(uint b, uint m, uint k) {
+  if (ABLATE == 1) return XTYPE == 0 ? floatBitsToUint(vec4(float(m & 7u) * 0.125)) : uvec4(0x30003000u ^ (m & 7u));
+  if (m >= p.M || k >= p.K) return uvec4(0u);
+  const uint e = p.x_off + b * p.x_bs + m * p.ldx + k;
+  return XTYPE == 0 ? floatBitsToUint(xv[e / 4]) : xhv[e / 8];
+}
+
+// Stores an X vector as fp16 at f16vec4 index i (EX values: i, and i + 1 for 8 halves).
+void store_x4(uint i, uvec4 u) {
+  if (XTYPE == 0) {
+    sx[i] = f16vec4(uintBitsToFloat(u));
+  } else {
+    sx[i] = f16vec4(unpackFloat2x16(u.x), unpackFloat2x16(u.y));
+    sx[i + 1] = f16vec4(unpackFloat2x16(u.z), unpackFloat2x16(u.w));
+  }
 }
 
 // One vector of W's row n from value k: EW values (8 halves or 4 floats) as raw words, zeros outside.
@@ -101,7 +116,7 @@ void store_w4(uint i, uvec4 u) {
 // The workgroup's tile (set in main) and one step's operands between their loads and their shared stores.
 uint tb, tm0, tn0;  // batch item, first row, first column
 float rx[VEC ? 1 : PER_X], rw[VEC ? 1 : PER_W];
-vec4 vx[VEC ? VPX : 1];
+uvec4 vx[VEC ? VPX : 1];
 uvec4 vw[VEC ? VPW : 1];
 
 // Loads the operands of the step at K value k0 into the registers above. Scalar map: invocation t loads
@@ -111,7 +126,7 @@ void load_step(uint k0) {
   const uint t = gl_LocalInvocationIndex;
   if (VEC) {
     const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
-    [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(tb, tm0 + xr + RX * j, k0 + xc * 4);
+    [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(tb, tm0 + xr + RX * j, k0 + xc * EX);
     [[unroll]] for (uint j = 0; j < VPW; ++j) vw[j] = load_w4(tb, tn0 + wr + RW * j, k0 + wc * EW);
   } else {
     const uint lk = t % BK, lr = t / BK;
@@ -126,7 +141,7 @@ void store_step(uint stage) {
   if (VEC) {
     const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
     [[unroll]] for (uint j = 0; j < VPX; ++j)
-      if (xr + RX * j < BM) sx[(stage * BM + xr + RX * j) * LDS4 + xc] = f16vec4(vx[j]);
+      if (xr + RX * j < BM) store_x4((stage * BM + xr + RX * j) * LDS4 + xc * (EX / 4), vx[j]);
     [[unroll]] for (uint j = 0; j < VPW; ++j)
       if (wr + RW * j < BN) store_w4((stage * BN + wr + RW * j) * LDS4 + wc * (EW / 4), vw[j]);
   } else {

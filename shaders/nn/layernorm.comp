@@ -25,9 +25,13 @@ layout(constant_id = 5) const uint CACHE = 1;
 // One invocation per row instead of one workgroup (CPU drivers: barriers and shared memory cost more than
 // re-reading a cache-hot row; the row is read three times and never exchanged between invocations).
 layout(constant_id = 6) const bool PER_INVOCATION = false;
+// y stored f16 (VEC4 only: four halves a store): the activation of a GEMM that runs on tensor cores, rounded
+// once here (to nearest even, as the GEMM's own conversion of an f32 X) instead of in every GEMM tile's loads.
+layout(constant_id = 7) const bool Y_F16 = false;
 
 layout(std430, binding = 0) readonly buffer X { vec4 x4[]; };
 layout(std430, binding = 1) writeonly buffer Y { vec4 y4[]; };
+layout(std430, binding = 1) writeonly buffer Yh { uvec2 yh4[]; };  // Y_F16: 4 halves per element
 layout(std430, binding = 2) readonly buffer W { uvec4 w4[]; };
 layout(std430, binding = 3) readonly buffer B { uvec4 b4[]; };
 layout(std430, binding = 4) readonly buffer M { vec4 table4[]; };
@@ -41,6 +45,7 @@ layout(push_constant) uniform Push {
   // whole tensor, x_off elements into the views (aligned-down binding offset); the bound table starts at
   // table row table_row0, table_off elements into its view.
   uint row0, table_row0, table_off, x_off;
+  uint y_off;  // the same for y's view (its own alignment: y may be f16)
 } p;
 
 // Weight element i, and weight elements 4j..4j+3, from packed storage.
@@ -80,11 +85,16 @@ float workgroup_sum(float v) {
   return r;
 }
 
-void store4(uint base4, uint j, vec4 xv, float mean, float rstd, uint scale_at, uint shift_at) {
+// y's vec4 j of the row whose y starts at element ybase (a multiple of 4 on the VEC4 path).
+void store4(uint ybase, uint j, vec4 xv, float mean, float rstd, uint scale_at, uint shift_at) {
   vec4 v = (xv - mean) * rstd;
   if (AFFINE) v = v * load_w4(j) + load_b4(j);
   if (MODULATE) v = v * (1.0 + table4[(scale_at >> 2) + j]) + table4[(shift_at >> 2) + j];
-  y4[base4 + j] = v;
+  if (Y_F16) {
+    yh4[(ybase >> 2) + j] = uvec2(packHalf2x16(v.xy), packHalf2x16(v.zw));
+  } else {
+    y4[(ybase >> 2) + j] = v;
+  }
 }
 
 float x1(uint i) { return x4[i >> 2][i & 3u]; }
@@ -126,7 +136,7 @@ void row_per_invocation(uint row) {
       kahan_add(q, c, d * d);
     }
     float rstd = inversesqrt(hsum(q) / float(p.D) + p.eps);
-    for (uint j = 0; j < n4; ++j) store4(base4, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
+    for (uint j = 0; j < n4; ++j) store4(p.y_off + row * p.D, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
     return;
   }
   for (uint i = 0; i < p.D; ++i) kahan_add(s, c, vec4(x1(base + i), 0.0, 0.0, 0.0));
@@ -142,7 +152,8 @@ void row_per_invocation(uint row) {
     float v = (x1(base + i) - mean) * rstd;
     if (AFFINE) v = v * load_w1(i) + load_b1(i);
     if (MODULATE) v = v * (1.0 + table1(scale_at + i)) + table1(shift_at + i);
-    y4[(base + i) >> 2][(base + i) & 3u] = v;
+    const uint yi = p.y_off + row * p.D + i;
+    y4[yi >> 2][yi & 3u] = v;
   }
 }
 
@@ -186,9 +197,10 @@ void main() {
     float rstd = inversesqrt(workgroup_sum(q) / float(p.D) + p.eps);
     [[unroll]] for (uint k = 0; k < CACHE; ++k) {
       uint j = t + k * LOCAL;
-      if (j < n4) store4(base4, j, cache[k], mean, rstd, scale_at, shift_at);
+      if (j < n4) store4(p.y_off + row * p.D, j, cache[k], mean, rstd, scale_at, shift_at);
     }
-    for (uint j = t + CACHE * LOCAL; j < n4; j += LOCAL) store4(base4, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
+    for (uint j = t + CACHE * LOCAL; j < n4; j += LOCAL)
+      store4(p.y_off + row * p.D, j, x4[base4 + j], mean, rstd, scale_at, shift_at);
     return;
   }
 
@@ -205,6 +217,7 @@ void main() {
     float v = (x4[(base + i) >> 2][(base + i) & 3u] - mean) * rstd;
     if (AFFINE) v = v * load_w1(i) + load_b1(i);
     if (MODULATE) v = v * (1.0 + table1(scale_at + i)) + table1(shift_at + i);
-    y4[(base + i) >> 2][(base + i) & 3u] = v;
+    const uint yi = p.y_off + row * p.D + i;
+    y4[yi >> 2][yi & 3u] = v;
   }
 }

@@ -257,6 +257,7 @@ const std::vector<Field>& fields() {
       coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
       bool_field("linear_weights_fp16", &DeviceTuning::linear_weights_fp16),
+      bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
       {"linear_coopmat_ablation", "none|no_global_loads|no_mma (measurements only: the results are wrong)",
@@ -442,6 +443,7 @@ std::string describe_tuning(const DeviceTuning& t) {
     o << ", tile " << linear_coopmat_layout(t).describe() << ", bands of " << t.linear_coopmat_group_m << " tile rows"
       << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads")
       << (t.linear_weights_fp16 ? ", bf16 weights kept fp16" : ", bf16 weights converted in the loads")
+      << (t.linear_activations_fp16 ? ", norm outputs written fp16" : ", norm outputs f32")
       << (t.linear_coopmat_ablation == 1   ? ", ABLATED: no global loads (wrong results)"
           : t.linear_coopmat_ablation == 2 ? ", ABLATED: no MMA (wrong results)"
                                            : "");

@@ -160,11 +160,17 @@ DType gemm_weight_dtype(const vk::DeviceCaps& caps) {
   return tune.linear == KernelFamily::coopmat && tune.linear_weights_fp16 ? DType::f16 : DType::bf16;
 }
 
+DType gemm_activation_dtype(const vk::DeviceCaps& caps) {
+  const DeviceTuning& tune = device_tuning(caps);
+  return tune.linear == KernelFamily::coopmat && tune.linear_activations_fp16 ? DType::f16 : DType::f32;
+}
+
 namespace {
 
 // The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile
 // against what the shader supports and the device's shared memory.
-const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, bool vec) {
+const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, uint32_t xcode,
+                                     bool vec) {
   const vk::DeviceCaps& caps = ctx.caps();
   const uint32_t bm = uint32_t(kern.tile_m), bn = uint32_t(kern.tile_n), bk = uint32_t(kern.tile_k);
   const std::string tile = std::to_string(bm) + "x" + std::to_string(bn) + "x" + std::to_string(bk);
@@ -175,7 +181,8 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
     const uint64_t shared = uint64_t(bk) * (bm + 1 + bn + 1) * 4;
     if (shared > caps.max_compute_shared_memory)
       fail("tiled kernel: tile " + tile + " needs " + std::to_string(shared) + " bytes of shared memory");
-    const uint32_t spec[] = {bm, bn, wcode, bk, bm / 16, bn / 16, 256};
+    // Constant ids 7..12 are the coopmat kernel's (unused here); 13 is X's storage (linear_storage_io.glsl).
+    const uint32_t spec[] = {bm, bn, wcode, bk, bm / 16, bn / 16, 256, 0, 0, 0, 0, 0, 0, xcode};
     return ctx.pipelines().get("linalg/linear_tiled", spec);
   }
   // coopmat: the tuning's layout, whose tile the kernel configuration must be (choose_linear_kernel's).
@@ -184,7 +191,7 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
     fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
   const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m),
-                                                         uint32_t(tune.linear_coopmat_ablation));
+                                                         uint32_t(tune.linear_coopmat_ablation), xcode);
   return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
                           tune.coopmat.defined() ? linear_coopmat_unfit(caps, g)
                                                  : "no cooperative-matrix shape on " + caps.name);
@@ -208,7 +215,7 @@ struct Plan {
   const LinearShape& s;
   const LinearEpilogue& ep;
   uint64_t align, x_cap, w_cap, storage_cap;  // bytes
-  size_t w_es;
+  size_t x_es, w_es;
   int64_t tile_m, tile_n;
   uint32_t max_groups[3];
   bool vec;  // 8-value K steps: K chunks start on multiples of 8
@@ -218,7 +225,7 @@ struct Plan {
     const uint64_t slack = align + 4;
     auto within = [&](int64_t count, uint64_t es, uint64_t cap) { return uint64_t(count) * es + slack <= cap; };
     const int64_t vec_elems = extent(bc, s.vec_batch_stride, 1, 0, nc);
-    return within(extent(bc, s.x_batch_stride, mc, s.x_row_stride, kc), 4, x_cap) &&
+    return within(extent(bc, s.x_batch_stride, mc, s.x_row_stride, kc), x_es, x_cap) &&
            within(extent(bc, s.w_batch_stride, nc, s.k, kc), w_es, w_cap) &&
            within(extent(bc, s.y_batch_stride, mc, s.y_row_stride, nc), 4, storage_cap) &&  // y and residual
            (!ep.bias.defined() || within(nc, dtype_size(ep.bias.dtype()), storage_cap)) &&
@@ -276,7 +283,11 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   const LinearShape s = normalized(shape_in);
   if (s.batch < 0 || s.m < 0 || s.n < 0 || s.k < 0) fail("negative size");
   if (s.batch == 0 || s.m == 0 || s.n == 0) return;
-  expect_f32("x", x);
+  // X in f16 (written so by its producer where the GEMM runs on tensor cores): the storage families read it.
+  if (x.dtype() != DType::f32 && !(x.dtype() == DType::f16 && kernel.family != KernelFamily::texel))
+    fail("x must be f32 (or f16 on the tiled and coopmat families), got " + x.describe());
+  const bool x16 = x.dtype() == DType::f16;
+  const uint32_t xcode = x16 ? 1u : 0u, x_vec = x16 ? 8u : 4u;  // elements per 16-byte X vector
   expect_f32("y", y);
   const uint32_t wcode = dtype_code(w.dtype(), "w");
   if (s.x_row_stride < s.k || s.y_row_stride < s.n) fail("row stride smaller than the row");
@@ -307,9 +318,10 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
       kernel.family == KernelFamily::texel ||
       (kernel.family == KernelFamily::coopmat && kernel.tile_k % 8 == 0 &&
        linear_coopmat_layout(device_tuning(caps)).invocations() % uint32_t(kernel.tile_k / 4) == 0);
-  const bool vec = vec_family && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % 4 == 0 &&
-                   s.x_batch_stride % 4 == 0 && s.w_batch_stride % 8 == 0;
-  const bool use_vec = vec && bind_aligned(x, align).elem_off % 4 == 0 && bind_aligned(w, align).elem_off % 8 == 0;
+  const bool vec = vec_family && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % x_vec == 0 &&
+                   s.x_batch_stride % x_vec == 0 && s.w_batch_stride % 8 == 0;
+  const bool use_vec =
+      vec && bind_aligned(x, align).elem_off % x_vec == 0 && bind_aligned(w, align).elem_off % 8 == 0;
   const VkFormat x_fmt = use_vec ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT;
   const VkFormat w_fmt = use_vec ? VK_FORMAT_R32G32B32A32_UINT
                                  : (w.dtype() == DType::f32 ? VK_FORMAT_R32_UINT : VK_FORMAT_R16_UINT);
@@ -356,7 +368,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     tile_m = int64_t(sg_m) * rows;
     tile_n = int64_t(8 / sg_m) * 8 * cols;
   } else {
-    pipe_ptr = &storage_pipeline(ctx, kernel, wcode, use_vec);
+    pipe_ptr = &storage_pipeline(ctx, kernel, wcode, xcode, use_vec);
     tile_m = kernel.tile_m;
     tile_n = kernel.tile_n;
   }
@@ -369,6 +381,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
                   storage ? binding_capacity(caps, 0) : binding_capacity(caps, xt),
                   storage ? binding_capacity(caps, 0) : binding_capacity(caps, wt),
                   binding_capacity(caps, 0),
+                  dtype_size(x.dtype()),
                   dtype_size(w.dtype()),
                   tile_m,
                   tile_n,
@@ -394,7 +407,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     Bound bw = storage ? bind_storage(elems(w, w0, std::max<int64_t>(w_len, 1)), align)
                        : bind_texels(elems(w, w0, std::max<int64_t>(w_len, 1)), align, wt);
     Bound by = bind_storage(elems(y, y0, y_len), align);
-    if ((use_vec && (bx.elem_off % 4 || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
+    if ((use_vec && (bx.elem_off % x_vec || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
       fail("a chunk's x/w offsets lost their alignment");
     Push q = p;
     q.M = u32(c.mc, "M");

@@ -1,6 +1,7 @@
 // Linear layers (GEMM with the weight in PyTorch nn.Linear layout) and their fused epilogues.
 //
-//   Y[b] = epilogue(X[b] · W[b]ᵀ)     X f32 [M,K], W [N,K] stored f32, f16 or bf16, Y f32 [M,N]
+//   Y[b] = epilogue(X[b] · W[b]ᵀ)     X f32 [M,K] (f16 on the tiled and coopmat families), W [N,K] stored f32,
+//                                      f16 or bf16, Y f32 [M,N]
 //
 // Arithmetic and accumulation are fp32; 16-bit weights are widened in the shader. Any M, N, K work; the
 // fast path wants K and the element offsets/strides of X and W to be multiples of 8 (true for every model
@@ -84,6 +85,10 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
 // The dtype a model keeps its bf16-stored GEMM weights in on this device: f16 where the linear family is coopmat
 // (the tensor cores' operand type; DeviceTuning::linear_weights_fp16), else bf16, as stored.
 DType gemm_weight_dtype(const vk::DeviceCaps& caps);
+// The dtype a producer writes a GEMM's X in on this device: f16 where the linear family is coopmat (the tensor
+// cores' operand type; DeviceTuning::linear_activations_fp16), else f32. linear() reads f16 X on the tiled and
+// coopmat families (the ones a coopmat tuning can fall back to).
+DType gemm_activation_dtype(const vk::DeviceCaps& caps);
 void linear_batched_with(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor& y,
                          const LinearShape& shape, const LinearEpilogue& ep, LinearKernel kernel);
 

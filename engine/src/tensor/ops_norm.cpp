@@ -61,9 +61,9 @@ int affine_code(const char* op, const Tensor& w, const Tensor& b, int64_t n) {
   return int(cw);
 }
 
-void check_rows(const char* op, const Tensor& x, const Tensor& y) {
+void check_rows(const char* op, const Tensor& x, const Tensor& y, bool y_may_be_f16 = false) {
   expect_dtype(op, "x", x, DType::f32);
-  expect_dtype(op, "y", y, DType::f32);
+  if (!(y_may_be_f16 && y.dtype() == DType::f16)) expect_dtype(op, "y", y, DType::f32);
   expect_shape(op, "y", y, x.shape());
   if (x.rank() < 1 || x.numel() == 0) throw Error(std::string("internal: ") + op + ": empty input " + x.describe());
   if (x.numel() > int64_t(UINT32_MAX)) throw Error(std::string("internal: ") + op + ": " + x.describe() + " too large");
@@ -95,8 +95,9 @@ struct RowView {
   uint32_t off = 0;
 };
 RowView row_view(const vk::DeviceCaps& caps, const Tensor& t, int64_t row_elems, int64_t first, int64_t count) {
-  const uint64_t start = uint64_t(first * row_elems) * 4, delta = start % binding_alignment(caps);
-  return {vec4_view(t.buffer().sub(start - delta, uint64_t(count * row_elems) * 4 + delta)), uint32_t(delta / 4)};
+  const uint64_t es = dtype_size(t.dtype());
+  const uint64_t start = uint64_t(first * row_elems) * es, delta = start % binding_alignment(caps);
+  return {vec4_view(t.buffer().sub(start - delta, uint64_t(count * row_elems) * es + delta)), uint32_t(delta / es)};
 }
 
 }  // namespace
@@ -104,7 +105,7 @@ RowView row_view(const vk::DeviceCaps& caps, const Tensor& t, int64_t row_elems,
 void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,
                float eps, const Modulation* mod) {
   const char* op = "layernorm";
-  check_rows(op, x, y);
+  check_rows(op, x, y, true);
   const int64_t D = x.dim(-1), rows = x.numel() / D;
   int code = affine_code(op, weight, bias, D);
   struct {
@@ -113,8 +114,8 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
     uint32_t L, split, table_stride;
     uint32_t shift0, scale0, shift1, scale1;  // column offsets into a table row
     uint32_t row0, table_row0, table_off;     // chunk: first row, first table row bound, its element offset
-    uint32_t x_off;                           // chunk: element offset of its first row in the x/y views
-  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    uint32_t x_off, y_off;                    // chunk: element offset of its first row in the x / y view
+  } p{uint32_t(rows), uint32_t(D), eps, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   int64_t W = 0;
   if (mod) {
     expect_dtype(op, "modulation table", mod->table, DType::f32);
@@ -137,13 +138,17 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
   }
   bool vec4 = D % 4 == 0;
   if (mod) vec4 = vec4 && p.table_stride % 4 == 0 && (p.shift0 | p.scale0 | p.shift1 | p.scale1) % 4 == 0;
+  const bool y16 = y.dtype() == DType::f16;
+  if (y16 && (!vec4 || y.buffer().offset % 8))
+    throw Error("internal: layernorm: an f16 y needs D, the modulation columns and y's offset on 4-element "
+                "boundaries, got " + y.describe());
   const int64_t n4 = vec4 ? D / 4 : D;
   const bool per_invocation = row_per_invocation(rec);
   const uint32_t local = per_invocation ? 64u : row_local(n4);
   const uint32_t cache =
       vec4 && !per_invocation ? uint32_t(std::min<int64_t>(kRowCache, (n4 + local - 1) / local)) : 1u;
   uint32_t spec[] = {local,          code < 0 ? 0u : uint32_t(code), code >= 0 ? 1u : 0u, mod ? 1u : 0u,
-                     vec4 ? 1u : 0u, cache,                          per_invocation ? 1u : 0u};
+                     vec4 ? 1u : 0u, cache,                          per_invocation ? 1u : 0u, y16 ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/layernorm", spec);
   const vk::DeviceCaps& caps = rec.context().caps();
   const uint32_t rows_per_group = per_invocation ? 64 : 1;
@@ -166,7 +171,9 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
     vk::BufferView xv = xr.view, mv = xv;
     p.rows = uint32_t(rc);
     p.row0 = uint32_t(r0);
+    const RowView yr = row_view(caps, y, D, r0, rc);
     p.x_off = xr.off;
+    p.y_off = yr.off;
     if (mod) {
       // The table rows of the batches this chunk touches (a chunk may start inside a batch), bound from an
       // aligned-down offset: the shader adds table_off elements.
@@ -177,7 +184,7 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
       p.table_off = uint32_t(delta / 4) - uint32_t(col_lo);  // wraps; the shader adds the columns back
     }
     Grid g = grid_1d(caps, rc, rows_per_group);
-    rec.dispatch(pipe, {xv, row_view(caps, y, D, r0, rc).view, code >= 0 ? wv : xv, code >= 0 ? bv : xv, mv}, &p,
+    rec.dispatch(pipe, {xv, yr.view, code >= 0 ? wv : xv, code >= 0 ? bv : xv, mv}, &p,
                  sizeof p, g.x, g.y, 1, "layernorm");
   });
 }

@@ -27,7 +27,9 @@ struct Modulation {
 // more than re-reading a cache-hot row), one workgroup per row elsewhere. Tests and benchmarks force each
 // mapping with ScopedTuningOverride("norm_row_per_invocation=on|off").
 
-// LayerNorm over the last dim D of x [..., D]. weight/bias [D] (both or neither: no affine); mod optional.
+// LayerNorm over the last dim D of x [..., D]. weight/bias [D] (both or neither: no affine); mod optional. y f32,
+// or f16 (the input of GEMMs on tensor cores: ops::gemm_activation_dtype) where D and the modulation columns are
+// multiples of 4; each f16 value is the f32 result rounded to nearest even.
 void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, const Tensor& bias,
                float eps, const Modulation* mod = nullptr);
 

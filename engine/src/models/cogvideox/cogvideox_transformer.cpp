@@ -366,6 +366,11 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   std::vector<std::pair<int64_t, int64_t>> chunks;  // first row, rows
   for (int64_t s0 = 0; s0 < L; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, L - s0));
   for (int64_t s0 = L; s0 < S; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, S - s0));
+  // The blocks' LayerNorm output, which only GEMMs read (q/k/v, the FFN's first layer, LoRA's A): in the tensor
+  // cores' operand type where they run them, in the first half of xn's bytes.
+  const Tensor xn = ops::gemm_activation_dtype(ctx_.caps()) == DType::f16
+                        ? Tensor::on(a.xn.buffer().sub(0, VkDeviceSize(a.xn.numel()) * 2), a.xn.shape(), DType::f16)
+                        : a.xn;
   // Rows [s0, s0 + n) of every batch row of a [B, S, cols] tensor, as the flat range a strided GEMM walks.
   auto rows_of = [&](const Tensor& t, int64_t cols, int64_t s0) { return element_range(t, s0 * cols, B * S * cols - s0 * cols); };
   // h[rows s0..s0+n) += gate ⊙ (x·Wᵀ + b), x a chunk [B, n, k]; text rows gate from column 5D (enc_gate), video rows
@@ -390,7 +395,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     e.bias = bias;
     e.activation = act;
     e.residual = residual;
-    ops::linear_batched(rec, rows_of(a.xn, D, s0), weight, y, s, e);
+    ops::linear_batched(rec, rows_of(xn, D, s0), weight, y, s, e);
   };
   // LoRA: y += (x·Aᵀ)·(scale·B)ᵀ over the rows [s0, s0 + n) of xn, before the q/k norms as in diffusers'
   // LoRA-wrapped Linear; t = x·Aᵀ goes to the scratch [B, n, rank].
@@ -409,7 +414,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     m.scale_col[0] = 4 * D;
     m.shift_col[1] = 0;  // video rows: shift, scale
     m.scale_col[1] = D;
-    ops::layernorm(rec, a.h, a.xn, weight, bias, cfg_.norm_eps, &m);
+    ops::layernorm(rec, a.h, xn, weight, bias, cfg_.norm_eps, &m);
   };
 
   ops::AttentionOptions aopt;
