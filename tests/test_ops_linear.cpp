@@ -438,7 +438,7 @@ TEST_P(LinearTest, CoopmatLoadPathsAndBands) {
   auto ran = [&](uint32_t wcode, bool vec) {
     bool found = false;
     c.pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[2] == wcode &&
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 15 && pl.spec[2] == wcode &&
           pl.spec[10] == (vec ? 1u : 0u) && pl.spec[11] == 3 && pl.spec[12] == 0 && pl.spec[13] == 0)
         found = true;
     });
@@ -477,7 +477,7 @@ TEST_P(LinearTest, HalfActivations) {
   auto ran_x16 = [&](bool vec) {
     bool found = false;
     c.pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[10] == (vec ? 1u : 0u) &&
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 15 && pl.spec[10] == (vec ? 1u : 0u) &&
           pl.spec[13] == 1)
         found = true;
     });
@@ -518,6 +518,56 @@ TEST_P(LinearTest, HalfActivations) {
   odd.x_dtype = DType::f16;
   odd.w_dtype = DType::bf16;
   check(13, 11, 21, odd);
+}
+
+// Y stored f16 by the tensor-core kernel (the FFN's GELU output, the next GEMM's X): each value the f32 Y of the
+// same call rounded to nearest even, bit for bit, written in pairs into a padded, batched view at an offset (the
+// padding and the elements around the view stay untouched); refused where a pair could straddle a row (odd N),
+// with a residual, and on the other families.
+TEST_P(LinearTest, CoopmatHalfOutputs) {
+  if (family() != ops::KernelFamily::coopmat) GTEST_SKIP() << "tensor-core family only";
+  vk::Context& c = ctx();
+  const int64_t B = 2, M = 37, N = 46, K = 48, ldy = N + 2, lead = 6;
+  std::vector<float> xv = random_values(size_t(B * M * K), 5), wv = random_values(size_t(N * K), 6),
+                     bv = random_values(size_t(N), 7);
+  Tensor x = Tensor::upload(c, make_host({B * M * K}, DType::f16, xv));
+  Tensor w = Tensor::upload(c, make_host({N, K}, DType::bf16, wv));
+  LinearEpilogue ep;
+  ep.bias = Tensor::upload(c, make_host({N}, DType::f32, bv));
+  ep.activation = Activation::gelu_tanh;
+  LinearShape s;
+  s.batch = B, s.m = M, s.n = N, s.k = K, s.x_batch_stride = M * K, s.y_batch_stride = M * ldy, s.y_row_stride = ldy;
+  Tensor y32 = Tensor::empty(c, {B * M * ldy}, DType::f32);
+  Tensor big = Tensor::zeros(c, {lead + B * M * ldy + 4}, DType::f16);
+  Tensor y16 = big.rows(lead, B * M * ldy);
+  ops::run_now(c, [&](vk::Recorder& rec) {
+    ops::linear_batched(rec, x, w, y32, s, ep);
+    ops::linear_batched(rec, x, w, y16, s, ep);
+  });
+  const std::vector<float> f = y32.download(c).to_f32();
+  const HostTensor h = big.download(c);
+  size_t differ = 0, touched = 0;
+  for (int64_t i = 0; i < int64_t(h.numel()); ++i) {
+    const int64_t o = i - lead, col = o % ldy;
+    const bool inside = o >= 0 && o < B * M * ldy && col < N;
+    if (inside) differ += h.as<uint16_t>()[size_t(i)] != f32_to_f16(f[size_t(o)]);
+    else touched += h.as<uint16_t>()[size_t(i)] != 0;
+  }
+  EXPECT_EQ(differ, 0u) << "f16 outputs that are not the f32 ones rounded";
+  EXPECT_EQ(touched, 0u) << "writes outside the view or into the padding";
+
+  std::vector<float> wodd_v(wv.begin(), wv.begin() + (N - 1) * K);
+  Tensor odd = Tensor::empty(c, {M, N - 1}, DType::f16), wodd = Tensor::upload(c, make_host({N - 1, K}, DType::f32, wodd_v));
+  const Tensor x2 = x.rows(0, M * K).reshape({M, K});
+  test::expect_error([&] { ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x2, wodd, odd); }); },
+                     {"an f16 y needs the coopmat family, N and y's strides even and no residual"});
+  Tensor ye = Tensor::zeros(c, {M, N}, DType::f16);
+  test::expect_error([&] {
+    ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x2, w, ye, LinearEpilogue{.residual = ye}); });
+  }, {"no residual"});
+  ops::ScopedTuningOverride tiled("linear=tiled");
+  test::expect_error([&] { ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x2, w, ye); }); },
+                     {"an f16 y needs the coopmat family"});
 }
 
 // The ablations the device script's sweep times (measurements only) are live: without MMA an aligned call's Y

@@ -3,7 +3,7 @@
 // against the file's own bytes converted here), from files (resident and through the streaming host copy) and from
 // tensors already on the device; other tensors keep their dtype; a weight with a finite value past fp16's range
 // stays bf16. On a device whose linear family is coopmat (the tensor-core pass), the transformer keeps its Linear
-// weights fp16 and writes its LayerNorm outputs fp16 (DeviceTuning::linear_activations_fp16), and computes the same
+// weights fp16 and writes its LayerNorm and GELU outputs fp16 (DeviceTuning::linear_activations_fp16), and computes the same
 // bytes as with the per-element conversions in the GEMM's loads.
 #include <gtest/gtest.h>
 
@@ -114,8 +114,8 @@ TEST_F(GemmWeights, TensorsAlreadyOnTheDeviceAreConvertedThere) {
 }
 
 // The tensor-core pass (DVS_TUNING=gpu-coopmat on Mesa 26.1): a bf16 transformer keeps every Linear weight fp16 (and
-// nothing else), resident or streamed, its LayerNorms write the GEMMs' input in fp16 (the f16-X GEMM pipelines
-// run), and its output is the same bytes with either switch off (linear_weights_fp16, linear_activations_fp16).
+// nothing else), resident or streamed, its LayerNorms and its FFN's first GEMM write the next GEMMs' input in fp16
+// (the f16-X and f16-Y GEMM pipelines run), and its output is the same bytes with either switch off (linear_weights_fp16, linear_activations_fp16).
 // Bands of 5 tile rows throughout (the order changes no value) make the pipelines this test creates its own.
 TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
   if (ops::gemm_weight_dtype(ctx().caps()) != DType::f16)
@@ -143,17 +143,20 @@ TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
     return words(tr.forward(Tensor::upload(ctx(), lat), Tensor::upload(ctx(), txt), std::span<const float>(&t, 1))
                      .download(ctx()));
   };
-  auto ran_f16_x = [&] {
+  // Whether a tensor-core GEMM pipeline of this test (bands of 5) read an f16 X / wrote an f16 Y.
+  auto ran = [&](size_t spec_index) {
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 14 && pl.spec[11] == 5 && pl.spec[13] == 1)
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 15 && pl.spec[11] == 5 && pl.spec[spec_index] == 1)
         found = true;
     });
     return found;
   };
-  ASSERT_FALSE(ran_f16_x());
+  const size_t f16_x = 13, f16_y = 14;
+  ASSERT_FALSE(ran(f16_x) || ran(f16_y));
   const std::vector<uint16_t> both = run(models::WeightResidency::resident, DType::f16);
-  EXPECT_TRUE(ran_f16_x()) << "no GEMM read an f16 X";
+  EXPECT_TRUE(ran(f16_x)) << "no GEMM read an f16 X";
+  EXPECT_TRUE(ran(f16_y)) << "no GEMM wrote an f16 Y (the FFN's GELU output)";
   EXPECT_EQ(run(models::WeightResidency::stream, DType::f16), both);
   {
     ops::ScopedTuningOverride off("linear_weights_fp16=off");

@@ -47,6 +47,10 @@ layout(constant_id = 11) const uint GROUP_M = 1;
 // path loads no operand from memory (each staged vector is a constant of its row; stores, barriers and MMAs
 // stay), 2 no MMA (the feed alone). 0: the kernel.
 layout(constant_id = 12) const uint ABLATE = 0;
+// Y stored f16 (the next GEMM's X: the FFN's GELU output): each lane writes a pair of neighbouring outputs as one
+// word (the host requires N, Y's strides and offset even and no residual, so a pair never straddles a row).
+layout(constant_id = 14) const bool Y_F16 = false;
+layout(std430, binding = 2) writeonly buffer Yh { uint yh[]; };
 
 // 16-byte views of the X and W bindings (linear_storage_io.glsl declares their element views).
 layout(std430, binding = 0) readonly buffer Xv { vec4 xv[]; };
@@ -206,9 +210,19 @@ void main() {
       subgroupMemoryBarrierShared();
       subgroupBarrier();
       const uint mb = tm0 + sm * (FM * FRAG_M) + i * FRAG_M, nb = tn0 + sn * (FN * FRAG_N) + j * FRAG_N;
-      for (uint e = lane; e < FRAG; e += gl_SubgroupSize) {
-        const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
-        if (m < p.M && n < p.N) store_output(tb, m, n, stage[st + e]);
+      if (Y_F16) {
+        for (uint e = 2u * lane; e < FRAG; e += 2u * gl_SubgroupSize) {
+          const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
+          if (m < p.M && n < p.N) {
+            const vec2 v = vec2(epilogue_value(tb, m, n, stage[st + e]), epilogue_value(tb, m, n + 1u, stage[st + e + 1u]));
+            yh[(p.y_off + tb * p.y_bs + m * p.ldy + n) >> 1] = packHalf2x16(v);
+          }
+        }
+      } else {
+        for (uint e = lane; e < FRAG; e += gl_SubgroupSize) {
+          const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
+          if (m < p.M && n < p.N) store_output(tb, m, n, stage[st + e]);
+        }
       }
       subgroupMemoryBarrierShared();
       subgroupBarrier();  // every lane read the block before the next fragment overwrites it

@@ -37,16 +37,17 @@ float activate(float f, uint act) {
   return f;
 }
 
-// The 5 epilogue steps on the product f of output (b, m, n), then the store; callers check m < M, n < N.
-// The residual may alias Y: this invocation reads the element before writing it.
-void store_output(uint b, uint m, uint n, float f) {
+// The 5 epilogue steps on the product f of output (b, m, n); callers check m < M, n < N.
+float epilogue_value(uint b, uint m, uint n, float f) {
   const uint flags = p.flags;
   if ((flags & 4u) != 0u) f += load_bias(n);
   f = activate(f, flags & 3u);
   uint v = b * p.vec_bs + n;
   if ((flags & 8u) != 0u) f = f * (1.0 + scale[p.scale_off + v]) + shift[p.shift_off + v];
   if ((flags & 16u) != 0u) f *= gate[p.gate_off + v];
-  uint o = b * p.y_bs + m * p.ldy + n;
-  if ((flags & 32u) != 0u) f += res[p.res_off + o];
-  y[p.y_off + o] = f;
+  if ((flags & 32u) != 0u) f += res[p.res_off + b * p.y_bs + m * p.ldy + n];
+  return f;
 }
+
+// The epilogue and the f32 store. The residual may alias Y: this invocation reads the element before writing it.
+void store_output(uint b, uint m, uint n, float f) { y[p.y_off + b * p.y_bs + m * p.ldy + n] = epilogue_value(b, m, n, f); }

@@ -171,11 +171,11 @@ std::string attention_coopmat_unfit(const vk::DeviceCaps& caps, const CoopmatAtt
 }
 
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
-                                          uint32_t group_m, uint32_t ablation, uint32_t x_code) {
+                                          uint32_t group_m, uint32_t ablation, uint32_t x_code, bool y_f16) {
   const CoopmatTile& t = g.tile;
   return {uint32_t(t.sg_m), uint32_t(t.sg_n), weight_code, uint32_t(t.k), g.frag.k, uint32_t(t.frags_m),
           uint32_t(t.frags_n), g.frag.m, g.frag.n, g.invocations(), vector_loads ? 1u : 0u, group_m, ablation,
-          x_code};
+          x_code, y_f16 ? 1u : 0u};
 }
 
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages) {

@@ -79,9 +79,10 @@ std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t 
 // Specialization constants (the kernels' constant_id order).
 // linear: vector_loads selects the 16-byte load path (the host checked K, strides and offsets), group_m the
 // workgroup order's band of tile rows (DeviceTuning::linear_coopmat_group_m), ablation a measurement variant
-// (DeviceTuning::linear_coopmat_ablation: 0 none), x_code X's storage (0 f32, 1 f16).
+// (DeviceTuning::linear_coopmat_ablation: 0 none), x_code X's storage (0 f32, 1 f16), y_f16 Y stored f16.
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
-                                          uint32_t group_m, uint32_t ablation = 0, uint32_t x_code = 0);
+                                          uint32_t group_m, uint32_t ablation = 0, uint32_t x_code = 0,
+                                          bool y_f16 = false);
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim);
 

@@ -443,7 +443,7 @@ std::string describe_tuning(const DeviceTuning& t) {
     o << ", tile " << linear_coopmat_layout(t).describe() << ", bands of " << t.linear_coopmat_group_m << " tile rows"
       << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads")
       << (t.linear_weights_fp16 ? ", bf16 weights kept fp16" : ", bf16 weights converted in the loads")
-      << (t.linear_activations_fp16 ? ", norm outputs written fp16" : ", norm outputs f32")
+      << (t.linear_activations_fp16 ? ", norm and GELU outputs written fp16" : ", norm and GELU outputs f32")
       << (t.linear_coopmat_ablation == 1   ? ", ABLATED: no global loads (wrong results)"
           : t.linear_coopmat_ablation == 2 ? ", ABLATED: no MMA (wrong results)"
                                            : "");

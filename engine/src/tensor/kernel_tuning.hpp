@@ -110,8 +110,9 @@ struct DeviceTuning {
   // operand type the tensor cores read: converted once at load (ComponentWeights::store_as) instead of per element
   // in every GEMM's loads. Off: kept bf16 and converted in the loads (A/B runs). Same bits either way.
   bool linear_weights_fp16 = true;
-  // Where the linear family is coopmat, the transformer's LayerNorms write the GEMMs' input (xn) in fp16, rounded
-  // once there instead of in every GEMM tile's loads, at half the bytes. Off: f32 (A/B runs). Same bits.
+  // Where the linear family is coopmat, what the transformer's GEMMs alone read is written in fp16: the block
+  // LayerNorms' output and the FFN's GELU output (by the GEMM's epilogue), rounded once there instead of in every
+  // GEMM tile's loads, at half the bytes. Off: f32 (A/B runs). Same bits.
   bool linear_activations_fp16 = true;
   // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
   // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.

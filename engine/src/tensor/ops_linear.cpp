@@ -170,7 +170,7 @@ namespace {
 // The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile
 // against what the shader supports and the device's shared memory.
 const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, uint32_t xcode,
-                                     bool vec) {
+                                     bool y16, bool vec) {
   const vk::DeviceCaps& caps = ctx.caps();
   const uint32_t bm = uint32_t(kern.tile_m), bn = uint32_t(kern.tile_n), bk = uint32_t(kern.tile_k);
   const std::string tile = std::to_string(bm) + "x" + std::to_string(bn) + "x" + std::to_string(bk);
@@ -191,7 +191,7 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
   if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
     fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
   const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m),
-                                                         uint32_t(tune.linear_coopmat_ablation), xcode);
+                                                         uint32_t(tune.linear_coopmat_ablation), xcode, y16);
   return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
                           tune.coopmat.defined() ? linear_coopmat_unfit(caps, g)
                                                  : "no cooperative-matrix shape on " + caps.name);
@@ -288,7 +288,14 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     fail("x must be f32 (or f16 on the tiled and coopmat families), got " + x.describe());
   const bool x16 = x.dtype() == DType::f16;
   const uint32_t xcode = x16 ? 1u : 0u, x_vec = x16 ? 8u : 4u;  // elements per 16-byte X vector
-  expect_f32("y", y);
+  // Y in f16 (the next GEMM's X) on the tensor-core family: written in pairs, so N and Y's strides even, no
+  // residual and no K split (partial sums need f32).
+  const bool y16 = y.dtype() == DType::f16;
+  if (y16 && (kernel.family != KernelFamily::coopmat || s.n % 2 || s.y_row_stride % 2 || s.y_batch_stride % 2 ||
+              ep.residual.defined()))
+    fail("an f16 y needs the coopmat family, N and y's strides even and no residual, got " + y.describe() + " (N " +
+         std::to_string(s.n) + ")");
+  if (!y16) expect_f32("y", y);
   const uint32_t wcode = dtype_code(w.dtype(), "w");
   if (s.x_row_stride < s.k || s.y_row_stride < s.n) fail("row stride smaller than the row");
   expect_fits("x", x, extent(s.batch, s.x_batch_stride, s.m, s.x_row_stride, s.k));
@@ -368,7 +375,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     tile_m = int64_t(sg_m) * rows;
     tile_n = int64_t(8 / sg_m) * 8 * cols;
   } else {
-    pipe_ptr = &storage_pipeline(ctx, kernel, wcode, xcode, use_vec);
+    pipe_ptr = &storage_pipeline(ctx, kernel, wcode, xcode, y16, use_vec);
     tile_m = kernel.tile_m;
     tile_n = kernel.tile_n;
   }
@@ -409,6 +416,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     Bound by = bind_storage(elems(y, y0, y_len), align);
     if ((use_vec && (bx.elem_off % x_vec || bw.elem_off % 8)) || bx.view.size == 0 || bw.view.size == 0)
       fail("a chunk's x/w offsets lost their alignment");
+    if (y16 && (by.elem_off % 2 || !first_k)) fail("an f16 y needs an even offset and no K split");
     Push q = p;
     q.M = u32(c.mc, "M");
     q.N = u32(c.nc, "N");

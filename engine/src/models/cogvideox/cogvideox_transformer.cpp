@@ -366,9 +366,10 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
   std::vector<std::pair<int64_t, int64_t>> chunks;  // first row, rows
   for (int64_t s0 = 0; s0 < L; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, L - s0));
   for (int64_t s0 = L; s0 < S; s0 += chunk) chunks.emplace_back(s0, std::min(chunk, S - s0));
-  // The blocks' LayerNorm output, which only GEMMs read (q/k/v, the FFN's first layer, LoRA's A): in the tensor
-  // cores' operand type where they run them, in the first half of xn's bytes.
-  const Tensor xn = ops::gemm_activation_dtype(ctx_.caps()) == DType::f16
+  // What only GEMMs read (the blocks' LayerNorm output: q/k/v, the FFN's first layer, LoRA's A; the FFN's hidden
+  // state): in the tensor cores' operand type where they run them, in the first half of their f32 space.
+  const DType gemm_x = ops::gemm_activation_dtype(ctx_.caps());
+  const Tensor xn = gemm_x == DType::f16
                         ? Tensor::on(a.xn.buffer().sub(0, VkDeviceSize(a.xn.numel()) * 2), a.xn.shape(), DType::f16)
                         : a.xn;
   // Rows [s0, s0 + n) of every batch row of a [B, S, cols] tensor, as the flat range a strided GEMM walks.
@@ -463,7 +464,8 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
 
     adaln(ln_of("norm2.norm.weight"), ln_of("norm2.norm.bias"), a.mod2);
     for (const auto& [s0, n] : chunks) {
-      const Tensor ff = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * 4 * D) * 4), {B, n, 4 * D}, DType::f32);
+      const Tensor ff = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * 4 * D) * dtype_size(gemm_x)),
+                                   {B, n, 4 * D}, gemm_x);
       project(bw("ff.net.0.proj.weight"), bw("ff.net.0.proj.bias"), ff, 4 * D, s0, n, Tensor(), ops::Activation::gelu_tanh);
       gated_residual(ff, 4 * D, bw("ff.net.2.weight"), bw("ff.net.2.bias"), a.mod2, s0, n);
     }
