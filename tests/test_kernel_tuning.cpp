@@ -9,6 +9,7 @@
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
 #include "support/process.hpp"
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_elementwise.hpp"
 
@@ -238,7 +239,11 @@ TEST(KernelTuning, BadOverridesThrowAndListTheFields) {
                         "coopmat=on", "reduce_min_chunk=1026", "reduce_min_chunk=512", "linear_tile_m=4",
                         "conv_pack_columns=-1", "linear_tile_k=", "coopmat=12x16x16", "coopmat=16x16",
                         "coopmat=16x16x16x", "linear_coopmat=2x4x4x2", "linear_coopmat=2x4x4x2x32x1",
-                        "conv_coopmat=2x0x2x2x32", "coopmat_lanes=24", "attention_coopmat_subgroups=0"}) {
+                        "conv_coopmat=2x0x2x2x32", "coopmat_lanes=24", "attention_coopmat_subgroups=0",
+                        "linear_coopmat_by_shape=", "linear_coopmat_by_shape=n>=9216", "linear_coopmat_by_shape=:2x2x2x2x32",
+                        "linear_coopmat_by_shape=n>9216:2x2x2x2x32", "linear_coopmat_by_shape=n>=0:2x2x2x2x32",
+                        "linear_coopmat_by_shape=n>=8&n>=9:2x2x2x2x32", "linear_coopmat_by_shape=n>=8:2x2x2x2x32+",
+                        "linear_coopmat_by_shape=m<=8:2x2x2x2"}) {
     SCOPED_TRACE(s);
     const std::string e = error_of([&] { ops::select_tuning(cpu_device(), s); });
     ASSERT_FALSE(e.empty()) << "no error";
@@ -255,6 +260,37 @@ TEST(KernelTuning, BadOverridesThrowAndListTheFields) {
   const std::string v = error_of([] { ops::select_tuning(cpu_device(), "attention=fast"); });
   EXPECT_NE(v.find("texel|tiled|coopmat"), std::string::npos) << v;
   EXPECT_EQ(ops::tuning_field_names().find("  an entry: cpu-simd gpu-coopmat gpu\n"), 0u) << ops::tuning_field_names();
+}
+
+// The GEMM's per-shape tile table: rows parsed in order, the first match picks a call's layout (N at least, M at
+// most, both), the rest get linear_coopmat; `dvs info` lists the rows; a row the device cannot hold is an error
+// naming it (where the family runs on tensor cores); "none" empties it.
+TEST(KernelTuning, LinearPerShapeTileTable) {
+  const ops::DeviceTuning t = ops::select_tuning(
+      coopmat_gpu(), "linear_coopmat=2x4x4x2x32,linear_coopmat_by_shape=n>=9216:2x2x4x4x32+m<=256&n>=64:2x2x2x2x32");
+  ASSERT_EQ(t.linear_coopmat_by_shape.size(), 2u);
+  EXPECT_EQ(t.linear_coopmat_by_shape[0].min_n, 9216);
+  EXPECT_EQ(t.linear_coopmat_by_shape[0].max_m, 0);
+  EXPECT_EQ(t.linear_coopmat_by_shape[1].min_n, 64);
+  EXPECT_EQ(t.linear_coopmat_by_shape[1].max_m, 256);
+  auto tile_of = [&](int64_t m, int64_t n) { return ops::linear_coopmat_layout(t, m, n).tile; };
+  EXPECT_EQ(tile_of(35552, 12288).frags_n, 4);   // row 1
+  EXPECT_EQ(tile_of(35552, 9216).frags_n, 4);    // row 1, at its bound
+  EXPECT_EQ(tile_of(200, 12288).frags_n, 4);     // both match: the first wins
+  EXPECT_EQ(tile_of(256, 3072).sg_n, 2);         // row 2, at its M bound
+  EXPECT_EQ(tile_of(257, 3072).sg_n, 4);         // past it: linear_coopmat
+  EXPECT_EQ(tile_of(100, 63).sg_n, 4);           // N under row 2's bound
+  const std::string d = ops::describe_tuning(t);
+  EXPECT_NE(d.find("(n>=9216:2x2x4x4x32) (n>=64&m<=256:2x2x2x2x32)"), std::string::npos) << d;
+  // A row past the device's shared memory (8 x 8 fragments of 16x16 per subgroup) is refused by name.
+  const std::string e =
+      error_of([] { ops::select_tuning(coopmat_gpu(), "gpu-coopmat,linear_coopmat_by_shape=n>=8:4x4x8x8x64"); });
+  EXPECT_NE(e.find("linear_coopmat_by_shape row n>=8:4x4x8x8x64 does not fit"), std::string::npos) << e;
+  // Off tensor cores the rows are not used, so not checked.
+  EXPECT_NO_THROW(ops::select_tuning(discrete_gpu(), "linear_coopmat_by_shape=n>=8:4x4x8x8x64"));
+  EXPECT_TRUE(ops::select_tuning(coopmat_gpu(), "linear_coopmat_by_shape=n>=8:2x2x2x2x32,linear_coopmat_by_shape=none")
+                  .linear_coopmat_by_shape.empty());
+  EXPECT_TRUE(ops::select_tuning(coopmat_gpu(), "").linear_coopmat_by_shape.empty());  // no row is measured yet
 }
 
 // The tensor-core layout fields: taken as given (the layout is checked against the device: a misfit runs tiled

@@ -26,6 +26,7 @@ using ops::Activation;
 using ops::LinearEpilogue;
 using ops::LinearKernel;
 using ops::LinearShape;
+using ops::CoopmatTile;
 
 std::vector<float> random_values(size_t n, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -568,6 +569,44 @@ TEST_P(LinearTest, CoopmatHalfOutputs) {
   ops::ScopedTuningOverride tiled("linear=tiled");
   test::expect_error([&] { ops::run_now(c, [&](vk::Recorder& rec) { ops::linear(rec, x2, w, ye); }); },
                      {"an f16 y needs the coopmat family"});
+}
+
+// The per-shape tile table by value: a call with N >= 40 takes row 1's layout, one with M <= 20 (and N under 40)
+// row 2's, the others the tuning's linear_coopmat, each checked against the reference and by the pipeline that ran
+// (its layout's specialization constants).
+TEST_P(LinearTest, CoopmatPerShapeTiles) {
+  if (family() != ops::KernelFamily::coopmat) GTEST_SKIP() << "tensor-core family only";
+  const std::string base = GetParam();
+  ops::ScopedTuningOverride rows(base + (base.empty() ? "" : ",") +
+                                 "linear_coopmat_by_shape=n>=40:1x1x1x1x8+m<=20:4x2x1x3x16");
+  vk::Context& c = ctx();
+  const CoopmatTile fallback = ops::device_tuning(c.caps()).linear_coopmat;
+  auto ran = [&](const CoopmatTile& t) {
+    bool found = false;
+    c.pipelines().for_each([&](const vk::Pipeline& pl) {
+      if (pl.name == "linalg/linear_coopmat" && pl.spec.size() == 15 && pl.spec[0] == uint32_t(t.sg_m) &&
+          pl.spec[1] == uint32_t(t.sg_n) && pl.spec[3] == uint32_t(t.k) && pl.spec[5] == uint32_t(t.frags_m) &&
+          pl.spec[6] == uint32_t(t.frags_n))
+        found = true;
+    });
+    return found;
+  };
+  const struct {
+    int64_t m, n, k;
+    CoopmatTile tile;
+  } cases[] = {{37, 45, 48, {1, 1, 1, 1, 8}}, {19, 24, 40, {4, 2, 1, 3, 16}}, {37, 24, 48, fallback}};
+  for (const auto& k : cases) {
+    LinearShape s;
+    s.m = k.m, s.n = k.n, s.k = k.k;
+    const LinearKernel kern = ops::choose_linear_kernel(c, s, DType::bf16);
+    EXPECT_EQ(kern.coopmat.sg_m, k.tile.sg_m) << k.m << "x" << k.n;
+    EXPECT_EQ(kern.coopmat.frags_n, k.tile.frags_n) << k.m << "x" << k.n;
+    Options o;
+    o.w_dtype = DType::bf16;
+    o.bias = true;
+    check(k.m, k.n, k.k, o);
+    EXPECT_TRUE(ran(k.tile)) << k.m << "x" << k.n << ": its layout's pipeline did not run";
+  }
 }
 
 // The ablations the device script's sweep times (measurements only) are live: without MMA an aligned call's Y

@@ -68,6 +68,11 @@ std::string CoopmatAttention::describe() const {
 CoopmatShape layout_fragment(const DeviceTuning& t) { return t.coopmat.defined() ? t.coopmat : CoopmatShape{16, 16, 16}; }
 
 CoopmatGemm linear_coopmat_layout(const DeviceTuning& t) { return {layout_fragment(t), t.coopmat_lanes, t.linear_coopmat}; }
+CoopmatGemm linear_coopmat_layout(const DeviceTuning& t, int64_t m, int64_t n) {
+  for (const LinearCoopmatRule& r : t.linear_coopmat_by_shape)
+    if ((!r.min_n || n >= r.min_n) && (!r.max_m || m <= r.max_m)) return {layout_fragment(t), t.coopmat_lanes, r.tile};
+  return linear_coopmat_layout(t);
+}
 CoopmatGemm conv_coopmat_layout(const DeviceTuning& t) { return {layout_fragment(t), t.coopmat_lanes, t.conv_coopmat}; }
 CoopmatAttention attention_coopmat_layout(const DeviceTuning& t) {
   return {layout_fragment(t), t.coopmat_lanes, t.attention_coopmat_subgroups, t.attention_block_k};

@@ -42,6 +42,9 @@ struct CoopmatAttention {
 // The layouts the tuning holds for this device (coopmat_lanes and the per-kernel fields of DeviceTuning). The
 // fragment is the device's shape; on a device without one (where only the twins run) the GPUs' 16x16x16.
 CoopmatGemm linear_coopmat_layout(const DeviceTuning& t);
+// The layout of a GEMM of m rows (per batch item) by n columns: its row of the per-shape table
+// (DeviceTuning::linear_coopmat_by_shape), else the one above.
+CoopmatGemm linear_coopmat_layout(const DeviceTuning& t, int64_t m, int64_t n);
 CoopmatGemm conv_coopmat_layout(const DeviceTuning& t);
 CoopmatAttention attention_coopmat_layout(const DeviceTuning& t);
 

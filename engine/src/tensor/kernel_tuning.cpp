@@ -208,6 +208,39 @@ Field coopmat_tile_field(const char* name, CoopmatTile DeviceTuning::*m) {
           }};
 }
 
+// The per-shape tile table as DVS_TUNING writes it: "none", or rows "COND:SGMxSGNxFMxFNxK" joined by '+', COND
+// "n>=N", "m<=M" or "n>=N&m<=M".
+bool parse_linear_rules(const std::string& v, std::vector<LinearCoopmatRule>& out) {
+  out.clear();
+  if (v == "none") return true;
+  std::stringstream rows(v);
+  for (std::string row; std::getline(rows, row, '+');) {
+    const size_t colon = row.find(':');
+    if (colon == std::string::npos) return false;
+    LinearCoopmatRule r;
+    std::stringstream conds(row.substr(0, colon));
+    for (std::string c; std::getline(conds, c, '&');) {
+      int64_t x;
+      if (c.rfind("n>=", 0) == 0 && !r.min_n && parse_int(c.substr(3), 1, int64_t(1) << 31, x)) r.min_n = x;
+      else if (c.rfind("m<=", 0) == 0 && !r.max_m && parse_int(c.substr(3), 1, int64_t(1) << 40, x)) r.max_m = x;
+      else return false;
+    }
+    std::vector<int64_t> d;
+    if ((!r.min_n && !r.max_m) || !parse_dims(row.substr(colon + 1), 5, 256, d)) return false;
+    r.tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4])};
+    out.push_back(r);
+  }
+  return !out.empty() && v.back() != '+';
+}
+
+std::string describe_linear_rule(const LinearCoopmatRule& r) {
+  std::string cond = r.min_n ? "n>=" + std::to_string(r.min_n) : "";
+  if (r.max_m) cond += (cond.empty() ? "" : "&") + std::string("m<=") + std::to_string(r.max_m);
+  const CoopmatTile& t = r.tile;
+  return cond + ":" + std::to_string(t.sg_m) + "x" + std::to_string(t.sg_n) + "x" + std::to_string(t.frags_m) + "x" +
+         std::to_string(t.frags_n) + "x" + std::to_string(t.k);
+}
+
 Field family_field(const char* name, KernelFamily DeviceTuning::*m) {
   return {name, "texel|tiled|coopmat", [m](DeviceTuning& t, const std::string& v) { return parse_family(v, t.*m); }};
 }
@@ -255,6 +288,10 @@ const std::vector<Field>& fields() {
        }},
       coopmat_tile_field("linear_coopmat", &DeviceTuning::linear_coopmat),
       coopmat_tile_field("conv_coopmat", &DeviceTuning::conv_coopmat),
+      {"linear_coopmat_by_shape",
+       "none, or rows COND:SGMxSGNxFMxFNxK joined by '+', COND n>=N, m<=M or n>=N&m<=M (the first matching row's "
+       "layout instead of linear_coopmat)",
+       [](DeviceTuning& t, const std::string& v) { return parse_linear_rules(v, t.linear_coopmat_by_shape); }},
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
       bool_field("linear_weights_fp16", &DeviceTuning::linear_weights_fp16),
       bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
@@ -401,6 +438,13 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
     if (turned_off || !unfit.empty()) k = KernelFamily::tiled;
   };
   settle(t.linear, t.linear_unfit, linear_coopmat_unfit(caps, linear_coopmat_layout(t)));
+  if (t.linear == KernelFamily::coopmat)
+    for (const LinearCoopmatRule& r : t.linear_coopmat_by_shape) {
+      const std::string why = linear_coopmat_unfit(caps, {t.coopmat, t.coopmat_lanes, r.tile});
+      if (!why.empty())
+        throw Error("DVS_TUNING: linear_coopmat_by_shape row " + describe_linear_rule(r) + " does not fit " +
+                    caps.name + ": " + why);
+    }
   settle(t.conv, t.conv_unfit, conv_coopmat_unfit(caps, conv_coopmat_layout(t), false));
   settle(t.attention, t.attention_unfit,
          attention_coopmat_unfit(caps, attention_coopmat_layout(t), 0, attention_coopmat_kernel(caps, t)));
@@ -439,14 +483,17 @@ std::string describe_tuning(const DeviceTuning& t) {
     << "  linear:     " << kernel_family_name(t.linear) << unfit(t.linear_unfit);
   if (t.linear == KernelFamily::tiled)
     o << ", tile " << t.linear_tile_m << "x" << t.linear_tile_n << "x" << t.linear_tile_k;
-  if (t.linear == KernelFamily::coopmat)
-    o << ", tile " << linear_coopmat_layout(t).describe() << ", bands of " << t.linear_coopmat_group_m << " tile rows"
+  if (t.linear == KernelFamily::coopmat) {
+    o << ", tile " << linear_coopmat_layout(t).describe();
+    for (const LinearCoopmatRule& r : t.linear_coopmat_by_shape) o << " (" << describe_linear_rule(r) << ")";
+    o << ", bands of " << t.linear_coopmat_group_m << " tile rows"
       << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads")
       << (t.linear_weights_fp16 ? ", bf16 weights kept fp16" : ", bf16 weights converted in the loads")
       << (t.linear_activations_fp16 ? ", norm and GELU outputs written fp16" : ", norm and GELU outputs f32")
       << (t.linear_coopmat_ablation == 1   ? ", ABLATED: no global loads (wrong results)"
           : t.linear_coopmat_ablation == 2 ? ", ABLATED: no MMA (wrong results)"
                                            : "");
+  }
   o << "\n  attention:  " << kernel_family_name(t.attention) << unfit(t.attention_unfit);
   if (t.attention == KernelFamily::tiled) o << ", blocks " << t.attention_block_q << " queries x " << t.attention_block_k << " keys";
   if (t.attention == KernelFamily::coopmat)

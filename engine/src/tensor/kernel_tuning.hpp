@@ -56,6 +56,13 @@ struct CoopmatTile {
   int subgroups() const { return sg_m * sg_n; }
 };
 
+// One row of the GEMM's per-shape tile table: calls with N >= min_n and M <= max_m (0: any; M the rows of one batch
+// item) use `tile` instead of DeviceTuning::linear_coopmat. The first matching row wins.
+struct LinearCoopmatRule {
+  int64_t min_n = 0, max_m = 0;
+  CoopmatTile tile;
+};
+
 struct DeviceTuning {
   std::string entry;  // table entry name ("cpu-simd", "gpu", "gpu-coopmat", ...)
   std::string overrides;  // the DVS_TUNING / ScopedTuningOverride string applied ("" when none)
@@ -100,6 +107,10 @@ struct DeviceTuning {
   // attention, the subgroups of coopmat.m query rows each per workgroup (keys per tile: attention_block_k).
   int coopmat_lanes = 0;
   CoopmatTile linear_coopmat, conv_coopmat;
+  // The GEMM's per-shape tile table, checked against the device like linear_coopmat (a row that does not fit is
+  // an error naming it). Empty in every entry until a device run measures a better tile for some shapes (the
+  // sweep times each tile at each of the transformer's shapes); DVS_TUNING sets it for A/B runs.
+  std::vector<LinearCoopmatRule> linear_coopmat_by_shape;
   // linear_coopmat's feed: 16-byte global loads where K, strides and offsets are multiples of 8 elements
   // (off: one guarded element per load everywhere, for A/B runs), and its workgroup order, bands of this many
   // tile rows walked column by column so a W panel is reused from L2 (1: the grid's row-by-row order). Band 8:

@@ -146,7 +146,8 @@ LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& sha
   k.tile_n = tune.linear_tile_n;
   k.tile_k = tune.linear_tile_k;
   if (k.family == KernelFamily::coopmat) {
-    const CoopmatGemm g = linear_coopmat_layout(tune);
+    const CoopmatGemm g = linear_coopmat_layout(tune, s.m, s.n);
+    k.coopmat = g.tile;
     k.tile_m = int(g.tile_m());
     k.tile_n = int(g.tile_n());
     k.tile_k = g.tile.k;
@@ -167,6 +168,13 @@ DType gemm_activation_dtype(const vk::DeviceCaps& caps) {
 
 namespace {
 
+// The coopmat family's layout of a kernel configuration: its own, or the tuning's where it has none (pinned).
+CoopmatGemm kernel_coopmat_layout(const DeviceTuning& tune, const LinearKernel& kern) {
+  CoopmatGemm g = linear_coopmat_layout(tune);
+  if (kern.coopmat.defined()) g.tile = kern.coopmat;
+  return g;
+}
+
 // The storage-buffer families' pipeline (tiled / coopmat) for a kernel configuration, after checking the tile
 // against what the shader supports and the device's shared memory.
 const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, uint32_t xcode,
@@ -185,11 +193,11 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
     const uint32_t spec[] = {bm, bn, wcode, bk, bm / 16, bn / 16, 256, 0, 0, 0, 0, 0, 0, xcode};
     return ctx.pipelines().get("linalg/linear_tiled", spec);
   }
-  // coopmat: the tuning's layout, whose tile the kernel configuration must be (choose_linear_kernel's).
+  // coopmat: the configuration's layout (choose_linear_kernel's), whose tile its tile_m/n/k must be.
   const DeviceTuning& tune = device_tuning(caps);
-  const CoopmatGemm g = linear_coopmat_layout(tune);
+  const CoopmatGemm g = kernel_coopmat_layout(tune, kern);
   if (int64_t(bm) != g.tile_m() || int64_t(bn) != g.tile_n() || int(bk) != g.tile.k)
-    fail("coopmat kernel: tile " + tile + " is not the tuning's layout " + g.describe());
+    fail("coopmat kernel: tile " + tile + " is not its layout " + g.describe());
   const std::vector<uint32_t> spec = linear_coopmat_spec(g, wcode, vec, uint32_t(tune.linear_coopmat_group_m),
                                                          uint32_t(tune.linear_coopmat_ablation), xcode, y16);
   return coopmat_pipeline(ctx, "linalg/linear_coopmat", spec, uint32_t(g.lanes),
@@ -324,7 +332,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   const bool vec_family =
       kernel.family == KernelFamily::texel ||
       (kernel.family == KernelFamily::coopmat && kernel.tile_k % 8 == 0 &&
-       linear_coopmat_layout(device_tuning(caps)).invocations() % uint32_t(kernel.tile_k / 4) == 0);
+       kernel_coopmat_layout(device_tuning(caps), kernel).invocations() % uint32_t(kernel.tile_k / 4) == 0);
   const bool vec = vec_family && kernel.vectorized && s.k > 0 && s.k % 8 == 0 && s.x_row_stride % x_vec == 0 &&
                    s.x_batch_stride % x_vec == 0 && s.w_batch_stride % 8 == 0;
   const bool use_vec =

@@ -73,13 +73,15 @@ void linear_batched(vk::Recorder& rec, const Tensor& x, const Tensor& w, const T
 // family: texel (the fields above), tiled (linalg/linear_tiled: storage buffers, shared-memory tiles of
 // tile_m x tile_n outputs, tile_k K values per step, fp32 FMA; tile_m/n multiples of 16 up to 64) or coopmat
 // (linalg/linear_coopmat: the same staging in fp16 feeding VK_KHR_cooperative_matrix, fp32 accumulation;
-// its layout is the tuning's, DeviceTuning::linear_coopmat, and tile_m/n/k are that layout's tile).
+// its layout, `coopmat`, is the tuning's for the shape: DeviceTuning::linear_coopmat or its per-shape table's
+// row; tile_m/n/k are that layout's tile; undefined in a pinned kernel: the tuning's linear_coopmat).
 // choose_linear_kernel takes the family and tiles from device_tuning(caps).
 struct LinearKernel {
   int rows = 8, cols = 3, lanes = 0, sg_m = 2;
   bool vectorized = true;
   KernelFamily family = KernelFamily::texel;
   int tile_m = 64, tile_n = 64, tile_k = 16;
+  CoopmatTile coopmat;
 };
 LinearKernel choose_linear_kernel(const vk::Context& ctx, const LinearShape& shape, DType w_dtype);
 // The dtype a model keeps its bf16-stored GEMM weights in on this device: f16 where the linear family is coopmat
