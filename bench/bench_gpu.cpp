@@ -290,16 +290,18 @@ void gemm_cases(Bench& b) {
           ops::ScopedTuningOverride ov("linear=" + fam);
           const bool f16 = ops::gemm_weight_dtype(ctx.caps()) == DType::f16;
           const bool x16 = ops::gemm_activation_dtype(ctx.caps()) == DType::f16;
-          if (f16 && !w_f16.defined()) {
-            w_f16 = Tensor::empty(ctx, {N, K}, DType::f16, "gpu bench w f16");
-            ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, w, w_f16); });
-          }
-          if (x16 && !x_f16.defined()) {
-            x_f16 = Tensor::empty(ctx, {M, K}, DType::f16, "gpu bench x f16");
-            ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, x, x_f16); });
-          }
+          // The f16 copy of `src`, made on first use.
+          auto half_copy = [&](const Tensor& src, Tensor& copy, const char* what) -> const Tensor& {
+            if (!copy.defined()) {
+              copy = Tensor::empty(ctx, src.shape(), DType::f16, what);
+              ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, src, copy); });
+            }
+            return copy;
+          };
+          const Tensor& xs = x16 ? half_copy(x, x_f16, "gpu bench x f16") : x;
+          const Tensor& ws = f16 ? half_copy(w, w_f16, "gpu bench w f16") : w;
           ops::run_now(ctx, [&](vk::Recorder& r) { r.fill_zero(y.buffer()); });  // poison: unwritten outputs fail
-          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, x16 ? x_f16 : x, f16 ? w_f16 : w, y); });
+          Timing t = time_recorded(ctx, [&](vk::Recorder& r) { ops::linear(r, xs, ws, y); });
           Check c;
           Rng pick(99);
           for (int i = 0; i < 32; ++i) {  // 32 rows x 8 columns

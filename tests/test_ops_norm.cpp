@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "support/gpu.hpp"
+#include "support/stored_values.hpp"
 #include "support/scoped_limits.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_norm.hpp"
@@ -27,22 +28,7 @@ std::vector<float> random_values(size_t n, uint32_t seed, float offset = 0.0f, f
   return v;
 }
 
-// Host tensor of the values stored as `dt`; `values` are replaced by what the device will actually read.
-HostTensor stored_as(std::vector<float>& values, Shape shape, DType dt) {
-  HostTensor h(std::move(shape), dt);
-  for (size_t i = 0; i < values.size(); ++i) {
-    if (dt == DType::f32) {
-      h.as<float>()[i] = values[i];
-    } else if (dt == DType::bf16) {
-      h.as<uint16_t>()[i] = f32_to_bf16(values[i]);
-      values[i] = bf16_to_f32(h.as<uint16_t>()[i]);
-    } else {
-      h.as<uint16_t>()[i] = f32_to_f16(values[i]);
-      values[i] = f16_to_f32(h.as<uint16_t>()[i]);
-    }
-  }
-  return h;
-}
+using test::stored_as;
 
 Tensor upload_f32(vk::Context& ctx, const std::vector<float>& v, Shape shape) {
   return Tensor::upload(ctx, HostTensor::from_f32(std::move(shape), v));

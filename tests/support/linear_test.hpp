@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "support/gpu.hpp"
+#include "support/stored_values.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_linear.hpp"
@@ -37,21 +38,7 @@ inline std::vector<float> random_values(size_t n, uint32_t seed) {
 }
 
 // Host tensor of dtype dt from f32 values; `values` is replaced by what the tensor really holds.
-inline HostTensor make_host(Shape s, DType dt, std::vector<float>& values) {
-  HostTensor h(s, dt);
-  for (size_t i = 0; i < values.size(); ++i) {
-    if (dt == DType::f32) {
-      h.as<float>()[i] = values[i];
-    } else if (dt == DType::bf16) {
-      h.as<uint16_t>()[i] = f32_to_bf16(values[i]);
-      values[i] = bf16_to_f32(h.as<uint16_t>()[i]);
-    } else {
-      h.as<uint16_t>()[i] = f32_to_f16(values[i]);
-      values[i] = f16_to_f32(h.as<uint16_t>()[i]);
-    }
-  }
-  return h;
-}
+inline HostTensor make_host(Shape s, DType dt, std::vector<float>& values) { return stored_as(values, std::move(s), dt); }
 
 struct Options {
   DType w_dtype = DType::f32;
