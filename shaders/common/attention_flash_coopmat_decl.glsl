@@ -12,6 +12,7 @@ layout(constant_id = 3) const int ROWS = 16;       // the fragment shape: ROWS x
 layout(constant_id = 4) const int FRAG_N = 16;
 layout(constant_id = 5) const int FRAG_K = 16;
 layout(constant_id = 6) const int LANES = 32;      // the subgroup size (required at pipeline creation; the twin emulates it)
+layout(constant_id = 8) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
 const int D4 = D / 4;
 // Softmax and O ownership: LPR lanes per row where a subgroup has more lanes than rows (the H200: 32 lanes,
 // 16 rows, 2 lanes a row), else RPL rows per lane (lavapipe at 16 rows: 8 lanes, 2 rows a lane); each lane of a
@@ -36,6 +37,16 @@ layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
 layout(std430, binding = 3) writeonly buffer Ob { vec4 ob[]; };
+layout(std430, binding = 3) writeonly buffer Oh { uvec2 oh[]; };  // O_F16: 4 halves per element
+
+// Stores one vec4 of O at element-group i of the out binding (vec4 units, or 4-half units under O_F16).
+void store_o(uint i, vec4 o) {
+  if (O_F16) {
+    oh[i] = uvec2(packHalf2x16(o.xy), packHalf2x16(o.zw));
+  } else {
+    ob[i] = o;
+  }
+}
 
 // attention.comp's push constants (vec4 units); the bias and mask fields are unused here.
 layout(push_constant) uniform Push {

@@ -96,7 +96,7 @@ void main() {
     if (row < p.q_len) {
       const float inv = 1.0 / l[q];
       const uint base = (b * p.q_len + row) * p.o_stride + p.o_off + h * D4 + part * OV;
-      [[unroll]] for (int e = 0; e < OV; ++e) ob[base + e] = o[q][e] * inv;
+      [[unroll]] for (int e = 0; e < OV; ++e) store_o(base + e, o[q][e] * inv);
     }
   }
 }

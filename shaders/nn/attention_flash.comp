@@ -14,6 +14,7 @@
 layout(local_size_x_id = 0) in;                 // BQ: query rows per workgroup
 layout(constant_id = 1) const int D4 = 16;      // head_dim / 4
 layout(constant_id = 2) const int BK = 64;      // keys per shared tile, a multiple of KB
+layout(constant_id = 3) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
 const int KB = 4;                               // keys per step of the online softmax
 
 const float LOG2E = 1.4426950408889634;
@@ -23,6 +24,7 @@ layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
 layout(std430, binding = 3) writeonly buffer Ob { vec4 ob[]; };
+layout(std430, binding = 3) writeonly buffer Oh { uvec2 oh[]; };  // O_F16: 4 halves per element
 
 // The same layout as attention.comp's push constants (vec4 units); the bias and mask fields are unused here.
 layout(push_constant) uniform Push {
@@ -96,6 +98,13 @@ void main() {
   if (row < p.q_len) {
     const float inv = 1.0 / l;
     const uint base = (b * p.q_len + row) * p.o_stride + p.o_off + h * D4;
-    [[unroll]] for (int c = 0; c < D4; ++c) ob[base + c] = acc[c] * inv;
+    [[unroll]] for (int c = 0; c < D4; ++c) {
+      const vec4 o = acc[c] * inv;
+      if (O_F16) {
+        oh[base + c] = uvec2(packHalf2x16(o.xy), packHalf2x16(o.zw));
+      } else {
+        ob[base + c] = o;
+      }
+    }
   }
 }

@@ -151,8 +151,8 @@ void main() {
       const uint rr = i / F4, c = i % F4, row = row_base + rr;
       if (row < p.q_len) {
         const uint at = sgO + rr * OP + c * 4;
-        ob[(b * p.q_len + row) * p.o_stride + p.o_off + h * D4 + d * F4 + c] =
-            vec4(sO[at], sO[at + 1], sO[at + 2], sO[at + 3]);
+        store_o((b * p.q_len + row) * p.o_stride + p.o_off + h * D4 + d * F4 + c,
+                vec4(sO[at], sO[at + 1], sO[at + 2], sO[at + 3]));
       }
     }
     subgroupMemoryBarrierShared();

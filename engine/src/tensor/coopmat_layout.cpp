@@ -189,9 +189,9 @@ std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_co
           g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes), uint32_t(stages)};
 }
 
-std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D) {
-  return {uint32_t(D), uint32_t(a.block_k), uint32_t(a.subgroups), a.frag.m, a.frag.n, a.frag.k, uint32_t(a.lanes),
-          a.invocations()};
+std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16) {
+  return {uint32_t(D),        uint32_t(a.block_k),  uint32_t(a.subgroups), a.frag.m, a.frag.n, a.frag.k,
+          uint32_t(a.lanes),  a.invocations(),      out_f16 ? 1u : 0u};
 }
 
 const vk::Pipeline& coopmat_pipeline(vk::Context& ctx, const std::string& shader, std::span<const uint32_t> spec,

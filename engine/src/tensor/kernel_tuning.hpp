@@ -122,8 +122,9 @@ struct DeviceTuning {
   // in every GEMM's loads. Off: kept bf16 and converted in the loads (A/B runs). Same bits either way.
   bool linear_weights_fp16 = true;
   // Where the linear family is coopmat, what the transformer's GEMMs alone read is written in fp16: the block
-  // LayerNorms' output and the FFN's GELU output (by the GEMM's epilogue), rounded once there instead of in every
-  // GEMM tile's loads, at half the bytes. Off: f32 (A/B runs). Same bits.
+  // LayerNorms' output, the attention output (where a flash kernel runs the call: ops::attention_writes_f16) and the
+  // FFN's GELU output (by the GEMM's epilogue), rounded once there instead of in every GEMM tile's loads, at half
+  // the bytes. Off: f32 (A/B runs). Same bits.
   bool linear_activations_fp16 = true;
   // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
   // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.

@@ -24,9 +24,10 @@ bool fits_bindings(const vk::DeviceCaps& caps, const AttentionShape& s, const At
   const int64_t lens[4] = {s.q_len, s.kv_len, s.kv_len, s.q_len};
   const uint64_t align = binding_alignment(caps), cap = binding_capacity(caps, 0);
   for (int i = 0; i < 4; ++i) {
-    const uint64_t bytes = uint64_t(span_elements(s, *ops[i], lens[i], strides[i])) * 4 +
+    const uint64_t elem = dtype_size(ops[i]->t.dtype());  // 4, or 2 for an f16 out
+    const uint64_t bytes = uint64_t(span_elements(s, *ops[i], lens[i], strides[i])) * elem +
                            ops[i]->t.buffer().offset % align;
-    if (bytes > cap || bytes / 16 > UINT32_MAX) return false;
+    if (bytes > cap || bytes / (4 * elem) > UINT32_MAX) return false;
   }
   return true;
 }
@@ -101,9 +102,10 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   uint32_t off4[4], stride4[4];
   for (int i = 0; i < 4; ++i) {
     const AttentionOperand& a = *ops[i];
-    const uint64_t bytes = uint64_t(span_elements(s, a, lens[i], strides[i])) * 4;
-    uint32_t base = 0;  // vec4 of the tensor at the view's start, modulo 2^32 (0 or "minus the shift")
-    views[i] = aligned_view(a.t.buffer(), 0, bytes, align, 16, base);
+    const uint32_t elem = uint32_t(dtype_size(a.t.dtype()));  // 4, or 2 for an f16 out
+    const uint64_t bytes = uint64_t(span_elements(s, a, lens[i], strides[i])) * elem;
+    uint32_t base = 0;  // group of 4 elements at the view's start, modulo 2^32 (0 or "minus the shift")
+    views[i] = aligned_view(a.t.buffer(), 0, bytes, align, 4 * elem, base);
     off4[i] = uint32_t(a.column_offset / 4) - base;
     stride4[i] = uint32_t(strides[i] / 4);
   }
@@ -112,6 +114,7 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   AttentionPush push{uint32_t(s.q_len), kv_len,   uint32_t(s.heads), off4[0], stride4[0], off4[3], stride4[3],
             off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
             d4,                opt.scale, 0,                 0,  0,       0};
+  const bool out_f16 = ops[3]->t.dtype() == DType::f16;  // O_F16: out's offsets and strides in groups of 4 halves
   const bool coop = plan.family == KernelFamily::coopmat;
   const DeviceTuning& tune = device_tuning(caps);
   // The family's kernel (meaningful where coop or plan.twin).
@@ -123,11 +126,11 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const vk::Pipeline* pipe_ptr = nullptr;
   if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
     const CoopmatAttention a = attention_coopmat_layout(tune);
-    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim);
+    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim, out_f16);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
                                  attention_coopmat_unfit(caps, a, s.head_dim, kernel));
   } else {
-    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k};
+    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k, out_f16 ? 1u : 0u};
     pipe_ptr = &ctx.pipelines().get(std::string("nn/") + name, spec_tiled);
   }
   const vk::Pipeline& pipe = *pipe_ptr;

@@ -218,13 +218,15 @@ int64_t padded_dim(int64_t head_dim) { return (head_dim + 3) / 4 * 4; }
 }
 
 void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
-                   bool vec4) {
+                   bool vec4, bool half_ok) {
   if (!a.t.defined()) fail(std::string(name) + " is not given");
-  expect_dtype("attention", name, a.t, DType::f32);
-  // Read and written as vec4s from (aligned-down) windows: the shift must be whole vec4s.
-  if (vec4 && a.t.buffer().offset % 16)
-    fail(std::string(name) + " starts at a byte offset that is not a multiple of 16");
-  if (a.t.buffer().offset % 4) fail(std::string(name) + " starts at a byte offset that is not a multiple of 4");
+  if (!(half_ok && a.t.dtype() == DType::f16)) expect_dtype("attention", name, a.t, DType::f32);
+  // Read and written in groups of 4 elements from (aligned-down) windows: the shift must be whole groups.
+  const uint64_t elem = dtype_size(a.t.dtype());
+  if (vec4 && a.t.buffer().offset % (4 * elem))
+    fail(std::string(name) + " starts at a byte offset that is not a multiple of " + std::to_string(4 * elem));
+  if (a.t.buffer().offset % elem)
+    fail(std::string(name) + " starts at a byte offset that is not a multiple of " + std::to_string(elem));
   int64_t stride = a.row_stride ? a.row_stride : width;
   if (a.column_offset < 0 || stride < 0)
     fail(std::string(name) + ": negative column offset " + std::to_string(a.column_offset) + " or row stride " +
@@ -290,7 +292,7 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   check_operand("q", q, s.batch, s.q_len, width);
   check_operand("k", k, s.batch, s.kv_len, width);
   check_operand("v", v, s.batch, s.kv_len, width);
-  check_operand("out", out, s.batch, s.q_len, width);
+  check_operand("out", out, s.batch, s.q_len, width, true, true);
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
   pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
@@ -298,6 +300,10 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
   pr.flash = flash::plan(caps, s, all, strides, opt);
   pr.split.family = pr.flash.family;
+  if (out.t.dtype() == DType::f16 && pr.flash.family == KernelFamily::texel)
+    fail("an f16 out is written by the tiled and tensor-core kernels only, and this call runs the texel kernel" +
+         (pr.flash.fallback.empty() ? std::string(" (DeviceTuning::attention)") : " (" + pr.flash.fallback + ")") +
+         "; ask attention_writes_f16() first");
   if (pr.flash.family != KernelFamily::texel) return pr;  // one dispatch, nothing cut (split stays whole)
   if (!fits_whole(caps, s, all, pr.geo, opt, pr.blk))
     pr.split = plan_split(caps, s, pr.geo, opt, pr.blk, opt.workspace ? VkDeviceSize(opt.workspace->numel()) * 4 : 0);
@@ -317,6 +323,9 @@ Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const Atte
   check_operand("q", q, s.batch, s.q_len, width, false);
   check_operand("k", k, s.batch, s.kv_len, width, false);
   check_operand("v", v, s.batch, s.kv_len, width, false);
+  if (out.t.defined() && out.t.dtype() == DType::f16)
+    fail("an f16 out needs a head_dim that is a multiple of 4 (head_dim " + std::to_string(s.head_dim) +
+         " runs on padded copies, copied back in f32); ask attention_writes_f16() first");
   check_operand("out", out, s.batch, s.q_len, width, false);
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
@@ -368,6 +377,13 @@ AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const Atte
   return attention_split_plan(caps, s, fused_qkv_operand(qkv, 0, s.heads, s.head_dim),
                               fused_qkv_operand(qkv, 1, s.heads, s.head_dim),
                               fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out}, opt);
+}
+
+bool attention_writes_f16(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
+                          const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out_f32,
+                          const AttentionOptions& options) {
+  if (s.head_dim % 4 != 0 || out_f32.t.buffer().offset % 8) return false;
+  return attention_split_plan(caps, s, q, k, v, out_f32, options).family != KernelFamily::texel;
 }
 
 AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& s) {

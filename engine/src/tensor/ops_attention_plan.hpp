@@ -35,10 +35,11 @@ int64_t padded_dim(int64_t head_dim);
 // allocations are too small for it. Not a bug: a smaller size or a device with larger limits runs.
 [[noreturn]] void beyond_limits(const std::string& what);
 
-// Validates an operand against the shape: defined f32, aligned columns inside the row stride, large enough.
-// `vec4`: read or written in place as vec4s (head_dim a multiple of 4); else only copied element-wise.
+// Validates an operand against the shape: defined f32 (or f16 where `half_ok`: the flash kernels' out), aligned
+// columns inside the row stride, large enough. `vec4`: read or written in place as groups of 4 elements (head_dim a
+// multiple of 4; the tensor's byte offset a multiple of 4 elements); else only copied element-wise.
 void check_operand(const char* name, const AttentionOperand& a, int64_t batch, int64_t len, int64_t width,
-                   bool vec4 = true);
+                   bool vec4 = true, bool half_ok = false);
 
 struct Geometry {  // the operand strides of a call, elements
   int64_t qs, ks, vs, os;

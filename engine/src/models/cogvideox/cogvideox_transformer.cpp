@@ -446,14 +446,20 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     // Attention chunk by chunk of queries: q, its norm and RoPE, attention over every key, the gated output.
     for (const auto& [s0, n] : chunks) {
       const Tensor q = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
-      const Tensor o = Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+      // The attention output is only the to_out GEMM's (and LoRA's A's) X: in their operand type where the
+      // attention kernel can write it so.
+      const ops::AttentionShape shape{B, nh, Dh, n, S};
+      const Tensor o32 = Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+      const Tensor o = gemm_x == DType::f16 && ops::attention_writes_f16(ctx_.caps(), shape, {q}, {a.k}, {a.v}, {o32}, aopt)
+                           ? Tensor::on(o32.buffer().sub(0, VkDeviceSize(B * n * D) * 2), {B, n, D}, DType::f16)
+                           : o32;
       const Tensor q2d = q.reshape({B * n, D});
       project(bw("attn1.to_q.weight"), block_bias("attn1.to_q.bias"), q, D, s0, n, Tensor(), ops::Activation::none);
       if (const LoraAdapter* ad = lora(b + "attn1.to_q")) lora_project(*ad, q, s0, n);
       ops::head_layernorm(rec, q2d, q2d, nh, Dh, 0, bw("attn1.norm_q.weight"), bw("attn1.norm_q.bias"), 1e-6f);
       if (s0 >= L) ops::rope(rec, q2d, q2d, B, n, 0, nh, Dh, 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n));
-      ops::attention(rec, ops::AttentionShape{B, nh, Dh, n, S}, ops::AttentionOperand{q}, ops::AttentionOperand{a.k},
-                     ops::AttentionOperand{a.v}, ops::AttentionOperand{o}, aopt);
+      ops::attention(rec, shape, ops::AttentionOperand{q}, ops::AttentionOperand{a.k}, ops::AttentionOperand{a.v},
+                     ops::AttentionOperand{o}, aopt);
       gated_residual(o, D, bw("attn1.to_out.0.weight"), bw("attn1.to_out.0.bias"), a.mod1, s0, n);
       if (const LoraAdapter* ad = lora(b + "attn1.to_out.0")) {  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
         const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * n, ad->rank}, DType::f32);
