@@ -425,7 +425,7 @@ TEST_F(ConvOps, SplitsOverFramesAndRows) {
   std::vector<Vid> whole = convs.run();
   convs.expect_reference(whole, "unsplit");
   uint32_t previous = convs.dispatches;
-  const int64_t cp_bytes = 16 * 4;  // 12 channels pad to 16, f32
+  const int64_t cp_bytes = 16 * int64_t(dtype_size(ops::conv_repack_dtype(c.caps())));  // 12 channels pad to 16
   // One frame of the padded axis is h*w pixels: room for 4 padded frames (2 output frames + the prefix),
   // then for 9 source rows of padded frames (the causal conv: 3 frames x 3 rows = one output row per chunk).
   for (int64_t budget : {4 * h * w * cp_bytes + cp_bytes, 9 * w * cp_bytes + cp_bytes}) {
@@ -458,7 +458,7 @@ TEST_F(ConvOps, InputRepackSegments) {
   ops::set_conv_register_block({0, 0, -1, 0, 1000});  // whole rows
   std::vector<Vid> whole = convs.run();
   convs.expect_reference(whole, "whole-row repack");
-  const int64_t cp_bytes = 8 * 4;  // 5 channels pad to 8, f32
+  const int64_t cp_bytes = 8 * int64_t(dtype_size(ops::conv_repack_dtype(ctx().caps())));  // 5 channels pad to 8
   for (int64_t budget : {int64_t(0), 9 * 4 * cp_bytes + cp_bytes}) {  // unsplit; 3 frames x 3 rows x 4 columns
     ops::set_conv_chunk_bytes(uint64_t(budget));
     for (int seg : {1, 3, 4, 11}) {

@@ -115,13 +115,16 @@ TEST_F(GemmWeights, TensorsAlreadyOnTheDeviceAreConvertedThere) {
 
 // The tensor-core pass (DVS_TUNING=gpu-coopmat on Mesa 26.1): a bf16 transformer keeps every Linear weight fp16 (and
 // nothing else), resident or streamed, its LayerNorms, its attention and its FFN's first GEMM write the next GEMMs'
-// input in fp16 (the f16-X and f16-Y GEMM pipelines and an f16-out attention pipeline run), and its output is the
+// input in fp16, its attention reads K and V cast to fp16 (the f16-X and f16-Y GEMM pipelines and an attention
+// pipeline with f16 K, V and out run), and its output is the
 // same bytes with either switch off (linear_weights_fp16, linear_activations_fp16). Bands of 5 tile rows and 16-key
 // attention tiles throughout (the same in every run) make the pipelines this test creates its own.
 TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
   if (ops::gemm_weight_dtype(ctx().caps()) != DType::f16)
     GTEST_SKIP() << "the linear family is not coopmat on this device (the tensor-core pass runs this)";
-  ops::ScopedTuningOverride bands("linear_coopmat_group_m=5,attention_block_k=16");
+  // (An override replaces the one in force: the runs below name these too.)
+  const std::string mine = "linear_coopmat_group_m=5,attention_block_k=16";
+  ops::ScopedTuningOverride bands(mine);
   const fs::path dir = folder("transformer");
   models::TinyModelSpec spec;
   spec.dtype = DType::bf16;
@@ -153,32 +156,33 @@ TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
     });
     return found;
   };
-  // Whether a tensor-core attention pipeline of this test (head_dim 16, 16-key tiles) wrote an f16 out.
-  auto attention_wrote_f16 = [&] {
+  // Whether a tensor-core attention pipeline of this test (head_dim 16, 16-key tiles) read f16 K and V and wrote an
+  // f16 out.
+  auto attention_f16 = [&] {
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name.starts_with("nn/attention_flash_coopmat") && pl.spec.size() == 9 && pl.spec[0] == 16 &&
-          pl.spec[1] == 16 && pl.spec[8] == 1)
+      if (pl.name.starts_with("nn/attention_flash_coopmat") && pl.spec.size() == 10 && pl.spec[0] == 16 &&
+          pl.spec[1] == 16 && pl.spec[8] == 1 && pl.spec[9] == 1)
         found = true;
     });
     return found;
   };
   const size_t f16_x = 13, f16_y = 14;
-  ASSERT_FALSE(ran(f16_x) || ran(f16_y) || attention_wrote_f16());
+  ASSERT_FALSE(ran(f16_x) || ran(f16_y) || attention_f16());
   const std::vector<uint16_t> both = run(models::WeightResidency::resident, DType::f16);
   EXPECT_TRUE(ran(f16_x)) << "no GEMM read an f16 X";
   EXPECT_TRUE(ran(f16_y)) << "no GEMM wrote an f16 Y (the FFN's GELU output)";
-  EXPECT_TRUE(attention_wrote_f16()) << "the attention did not write to_out's X in f16";
+  EXPECT_TRUE(attention_f16()) << "the attention did not read K, V and write to_out's X in f16";
   EXPECT_EQ(run(models::WeightResidency::stream, DType::f16), both);
   {
-    ops::ScopedTuningOverride off("linear_weights_fp16=off");
+    ops::ScopedTuningOverride off(mine + ",linear_weights_fp16=off");
     EXPECT_EQ(run(models::WeightResidency::resident, DType::bf16), both) << "weights converted in the loads";
   }
   {
-    ops::ScopedTuningOverride off("linear_activations_fp16=off");
+    ops::ScopedTuningOverride off(mine + ",linear_activations_fp16=off");
     EXPECT_EQ(run(models::WeightResidency::resident, DType::f16), both) << "X f32, converted in the loads";
   }
-  ops::ScopedTuningOverride off("linear_weights_fp16=off,linear_activations_fp16=off");
+  ops::ScopedTuningOverride off(mine + ",linear_weights_fp16=off,linear_activations_fp16=off");
   EXPECT_EQ(run(models::WeightResidency::resident, DType::bf16), both) << "both converted in the loads";
 }
 

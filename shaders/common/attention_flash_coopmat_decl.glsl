@@ -13,6 +13,7 @@ layout(constant_id = 4) const int FRAG_N = 16;
 layout(constant_id = 5) const int FRAG_K = 16;
 layout(constant_id = 6) const int LANES = 32;      // the subgroup size (required at pipeline creation; the twin emulates it)
 layout(constant_id = 8) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
+layout(constant_id = 9) const bool KV_F16 = false;  // k and v in fp16 (the operand type): offsets, strides in 4 halves
 const int D4 = D / 4;
 // Softmax and O ownership: LPR lanes per row where a subgroup has more lanes than rows (the H200: 32 lanes,
 // 16 rows, 2 lanes a row), else RPL rows per lane (lavapipe at 16 rows: 8 lanes, 2 rows a lane); each lane of a
@@ -36,6 +37,8 @@ const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max befor
 layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
+layout(std430, binding = 1) readonly buffer Kh { uvec2 kh[]; };  // KV_F16: 4 halves per element
+layout(std430, binding = 2) readonly buffer Vh { uvec2 vh[]; };
 layout(std430, binding = 3) writeonly buffer Ob { vec4 ob[]; };
 layout(std430, binding = 3) writeonly buffer Oh { uvec2 oh[]; };  // O_F16: 4 halves per element
 
@@ -74,8 +77,14 @@ void load_kv(uint tile0, uint kbase, uint vbase) {
     rk[r] = vec4(0);
     rv[r] = vec4(0);
     if (i < BK * D4 && key < p.kv_len) {
-      rk[r] = kb[kbase + key * p.k_stride + c];
-      rv[r] = vb[vbase + key * p.v_stride + c];
+      if (KV_F16) {  // already the operand values: the fp16 stores below keep them
+        const uvec2 hk = kh[kbase + key * p.k_stride + c], hv = vh[vbase + key * p.v_stride + c];
+        rk[r] = vec4(unpackHalf2x16(hk.x), unpackHalf2x16(hk.y));
+        rv[r] = vec4(unpackHalf2x16(hv.x), unpackHalf2x16(hv.y));
+      } else {
+        rk[r] = kb[kbase + key * p.k_stride + c];
+        rv[r] = vb[vbase + key * p.v_stride + c];
+      }
     }
   }
 }

@@ -15,6 +15,7 @@ layout(local_size_x_id = 0) in;                 // BQ: query rows per workgroup
 layout(constant_id = 1) const int D4 = 16;      // head_dim / 4
 layout(constant_id = 2) const int BK = 64;      // keys per shared tile, a multiple of KB
 layout(constant_id = 3) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
+layout(constant_id = 4) const bool KV_F16 = false;  // k and v in fp16: their offsets and strides in 4 halves
 const int KB = 4;                               // keys per step of the online softmax
 
 const float LOG2E = 1.4426950408889634;
@@ -23,6 +24,10 @@ const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max befor
 layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
+layout(std430, binding = 1) readonly buffer Kh { uvec2 kh[]; };  // KV_F16: 4 halves per element
+layout(std430, binding = 2) readonly buffer Vh { uvec2 vh[]; };
+vec4 k4(uint i) { return KV_F16 ? vec4(unpackHalf2x16(kh[i].x), unpackHalf2x16(kh[i].y)) : kb[i]; }
+vec4 v4(uint i) { return KV_F16 ? vec4(unpackHalf2x16(vh[i].x), unpackHalf2x16(vh[i].y)) : vb[i]; }
 layout(std430, binding = 3) writeonly buffer Ob { vec4 ob[]; };
 layout(std430, binding = 3) writeonly buffer Oh { uvec2 oh[]; };  // O_F16: 4 halves per element
 
@@ -63,8 +68,8 @@ void main() {
     barrier();  // everyone is done with the previous tile
     for (uint i = tid; i < tile_keys * D4; i += nthreads) {
       const uint j = i / D4, c = i % D4;
-      ks[i] = kb[kbase + (tile0 + j) * p.k_stride + c];
-      vs[i] = vb[vbase + (tile0 + j) * p.v_stride + c];
+      ks[i] = k4(kbase + (tile0 + j) * p.k_stride + c);
+      vs[i] = v4(vbase + (tile0 + j) * p.v_stride + c);
     }
     barrier();
 

@@ -43,6 +43,9 @@ layout(constant_id = 10) const uint LANES = 32;  // the subgroup size (required 
 // loaded into registers before this step's products and stored to the other stage after them, one barrier a
 // step; 1, load, barrier, products, barrier.
 layout(constant_id = 11) const uint STAGES = 1;
+// The packed input chunk in fp16 (conv_pack_input.comp's OUT_F16): 4 channels per 8 bytes at the same indices,
+// already the operand values (half the bytes every tap reads); else fp32, rounded here.
+layout(constant_id = 12) const bool X_F16 = false;
 
 const uint WG = gl_WorkGroupSize.x;
 const uint WM = FM * FRAG_M, WN = FN * FRAG_N;   // one subgroup's part
@@ -55,6 +58,8 @@ const uint PIX_A = (BM + WG - 1) / WG, STEP_A = (WG + BM - 1) / BM;
 const uint PIX_B = (BN + WG - 1) / WG, STEP_B = (WG + BN - 1) / BN;
 
 layout(std430, binding = 0) readonly buffer X { vec4 x[]; };  // packed input chunk + one zero pixel
+layout(std430, binding = 0) readonly buffer XH { uvec2 xh[]; };  // X_F16: the same, 4 halves per element
+vec4 x4(uint i) { return X_F16 ? vec4(unpackHalf2x16(xh[i].x), unpackHalf2x16(xh[i].y)) : x[i]; }
 layout(std430, binding = 1) readonly buffer W { uint w[]; };  // packed weights, the stored dtype
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };
 layout(std430, binding = 3) buffer Y { float y[]; };
@@ -157,14 +162,14 @@ void load_step(uint k0, uint K) {
     [[unroll]] for (uint i = 0u; i < PIX_A; ++i) {
       const uint base = tap_texel(i, tap) + c4;
       // K is a multiple of BK here: every group is inside.
-      [[unroll]] for (uint s = 0u; s < SA; ++s) ra[i * SA + s] = x[base + t / BM + STEP_A * s];
+      [[unroll]] for (uint s = 0u; s < SA; ++s) ra[i * SA + s] = x4(base + t / BM + STEP_A * s);
     }
   } else {
     [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
       [[unroll]] for (uint s = 0u; s < SA; ++s) {
         const uint k = k0 + 4u * (t / BM + STEP_A * s), tap = k / cp;  // reduction elements k..k+3 (one tap)
         ra[i * SA + s] = vec4(0.0);
-        if (k < K) ra[i * SA + s] = x[tap_texel(i, tap) + ((k - tap * cp) >> 2)];
+        if (k < K) ra[i * SA + s] = x4(tap_texel(i, tap) + ((k - tap * cp) >> 2));
       }
   }
   [[unroll]] for (uint i = 0u; i < PIX_B; ++i)

@@ -18,12 +18,27 @@
 //   1: x frame tp == 0 ? 0 : 1 + (tp - 1) / 2   (CogVideoXUpsample3D, odd frame count)
 //   2: x frame tp / 2                           (CogVideoXUpsample3D, even frame count)
 //   3: tp < prefix ? cache frame tp : x frame tp - prefix   (causal conv with the previous batch's cache)
+//
+// OUT_F16 (the tensor-core kernel's operand type, DeviceTuning::conv_activations_fp16): the packed chunk holds fp16,
+// 4 channels per 8 bytes (the values rounded to nearest even, as that kernel rounds an fp32 chunk), at the same
+// indices in units of 4 channels: half the bytes written here and read by every tap of the GEMM.
 layout(local_size_x = 64) in;
 #include "index.glsl"
+layout(constant_id = 0) const bool OUT_F16 = false;
 
 layout(binding = 0) uniform textureBuffer X;      // R32F, [B, C, F, H, W]
 layout(binding = 1) uniform textureBuffer Cache;  // R32F, [B, C, prefix, H, W] (time_mode 3; else any)
 layout(std430, binding = 2) buffer Out { vec4 o[]; };
+layout(std430, binding = 2) buffer OutH { uvec2 oh[]; };  // OUT_F16
+
+vec4 load_out(uint i) { return OUT_F16 ? vec4(unpackHalf2x16(oh[i].x), unpackHalf2x16(oh[i].y)) : o[i]; }
+void store_out(uint i, vec4 v) {
+  if (OUT_F16) {
+    oh[i] = uvec2(packHalf2x16(v.xy), packHalf2x16(v.zw));
+  } else {
+    o[i] = v;
+  }
+}
 
 layout(push_constant) uniform Push {
   uint texels;        // frames * rows * w * cp4 (the zero pixel follows)
@@ -46,7 +61,7 @@ void main() {
   uint i = flat_index();
   uint items = p.nq * p.rows * p.nseg * p.nc4;
   if (i >= items) {  // the zero pixel
-    if (p.zero != 0u && i < items + p.cp4) o[p.texels + i - items] = vec4(0.0);
+    if (p.zero != 0u && i < items + p.cp4) store_out(p.texels + i - items, vec4(0.0));
     return;
   }
   uint c4 = p.c4a + i % p.nc4, s = i / p.nc4, t = s / p.nseg;
@@ -70,11 +85,11 @@ void main() {
   }
   uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc0) * p.cp4 + c4;
   for (uint pc = pc0; pc < pc1; ++pc, out_i += p.cp4) {
-    vec4 v = p.partial != 0u ? o[out_i] : vec4(0.0);
+    vec4 v = p.partial != 0u ? load_out(out_i) : vec4(0.0);
     [[unroll]] for (uint j = 0; j < 4u; ++j) {
       if (mode[j] == 1u) v[j] = 0.0;
       else if (mode[j] == 2u) v[j] = from_cache ? texelFetch(Cache, int(e[j] + pc)).x : texelFetch(X, int(e[j] + pc)).x;
     }
-    o[out_i] = v;
+    store_out(out_i, v);
   }
 }

@@ -183,15 +183,15 @@ std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_
           x_code, y_f16 ? 1u : 0u};
 }
 
-std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages) {
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16) {
   const CoopmatTile& t = g.tile;
   return {weight_code, uint32_t(t.sg_m), uint32_t(t.sg_n), uint32_t(t.frags_m), uint32_t(t.frags_n), uint32_t(t.k),
-          g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes), uint32_t(stages)};
+          g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes), uint32_t(stages), x_f16 ? 1u : 0u};
 }
 
-std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16) {
-  return {uint32_t(D),        uint32_t(a.block_k),  uint32_t(a.subgroups), a.frag.m, a.frag.n, a.frag.k,
-          uint32_t(a.lanes),  a.invocations(),      out_f16 ? 1u : 0u};
+std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16, bool kv_f16) {
+  return {uint32_t(D),       uint32_t(a.block_k), uint32_t(a.subgroups), a.frag.m,         a.frag.n, a.frag.k,
+          uint32_t(a.lanes), a.invocations(),     out_f16 ? 1u : 0u,     kv_f16 ? 1u : 0u};
 }
 
 const vk::Pipeline& coopmat_pipeline(vk::Context& ctx, const std::string& shader, std::span<const uint32_t> spec,

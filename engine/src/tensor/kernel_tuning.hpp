@@ -122,9 +122,10 @@ struct DeviceTuning {
   // in every GEMM's loads. Off: kept bf16 and converted in the loads (A/B runs). Same bits either way.
   bool linear_weights_fp16 = true;
   // Where the linear family is coopmat, what the transformer's GEMMs alone read is written in fp16: the block
-  // LayerNorms' output, the attention output (where a flash kernel runs the call: ops::attention_writes_f16) and the
+  // LayerNorms' output, the attention output (where a flash kernel runs the call: ops::attention_takes_f16) and the
   // FFN's GELU output (by the GEMM's epilogue), rounded once there instead of in every GEMM tile's loads, at half
-  // the bytes. Off: f32 (A/B runs). Same bits.
+  // the bytes; where the attention runs on tensor cores, its K and V are cast to fp16 once a block. Off: f32 (A/B
+  // runs). Same bits.
   bool linear_activations_fp16 = true;
   // Measurements only, the results are then wrong (issue 35's ablations, dvs-bench in the device script): 1 the
   // 16-byte path loads no operand (constants staged instead), 2 no MMA. 0: none.
@@ -132,6 +133,10 @@ struct DeviceTuning {
   // conv_coopmat's operand tiles in two shared-memory stages where they fit (the next step's gather in flight
   // during this step's products, one barrier a step); off: one stage. Unmeasured on a GPU (the sweep compares).
   bool conv_coopmat_double_buffer = true;
+  // Where the conv family is coopmat, each call's channels-last repack of its input (what only the GEMM reads) is
+  // written in fp16, the tensor cores' operand type: rounded once there instead of in every tap's loads, at half the
+  // bytes written and read. Off: f32 (A/B runs). Same bits.
+  bool conv_activations_fp16 = true;
   int attention_coopmat_subgroups = 0;
   // The tensor-core attention keeps scores, P and O in the matrices (nn/attention_flash_coopmat2) where the
   // device has VK_NV_cooperative_matrix2's reductions, conversions and per-element operations and the fragment's

@@ -21,8 +21,9 @@
 
 namespace dvs::ops {
 
-// Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset. `out` may be f16
-// where attention_writes_f16() says so (the next GEMM's X on tensor cores); its byte offset is then a multiple of 8.
+// Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset. k and v (both) and
+// out may be f16 where attention_takes_f16() says so (the tensor cores' operand type, the next GEMM's X); their byte
+// offsets are then multiples of 8.
 struct AttentionOperand {
   Tensor t;
   // Elements. Multiples of 4 (and the tensor's byte offset a multiple of 16) when head_dim is a multiple of
@@ -116,13 +117,14 @@ AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const Atte
 // transformer's query chunks against the whole sequence's keys).
 AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& shape);
 
-// Whether attention() can write this call's out in f16 on this device: the call (out given as its f32 form, at the
-// same byte offset) runs on a flash kernel (tiled or tensor cores: DeviceTuning::attention, within the limits in
-// force; an f16 out only needs fewer bytes) and head_dim is a multiple of 4 (no padded copies). The values are the
-// f32 out's rounded to nearest even; the texel kernel and the padded path refuse an f16 out.
-bool attention_writes_f16(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
-                          const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out_f32,
-                          const AttentionOptions& options = {});
+// Whether attention() takes this call's k and v and out in f16 on this device: the call (its operands given in f32,
+// at byte offsets that are multiples of 8) runs on a flash kernel (tiled or tensor cores: DeviceTuning::attention,
+// within the limits in force; f16 operands only need fewer bytes) and head_dim is a multiple of 4 (no padded copies).
+// An f16 out holds the f32 out rounded to nearest even; f16 k and v give the result of f32 ones holding the same
+// values. The texel kernel and the padded path refuse f16 operands.
+bool attention_takes_f16(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
+                         const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                         const AttentionOptions& options = {});
 
 // Contiguous convenience form: q [B, Lq, H·D], k and v [B, Lk, H·D], out [B, Lq, H·D].
 void attention(vk::Recorder& rec, const Tensor& q, const Tensor& k, const Tensor& v, const Tensor& out,

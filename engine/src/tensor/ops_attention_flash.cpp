@@ -114,7 +114,8 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   AttentionPush push{uint32_t(s.q_len), kv_len,   uint32_t(s.heads), off4[0], stride4[0], off4[3], stride4[3],
             off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
             d4,                opt.scale, 0,                 0,  0,       0};
-  const bool out_f16 = ops[3]->t.dtype() == DType::f16;  // O_F16: out's offsets and strides in groups of 4 halves
+  // O_F16, KV_F16: those operands' offsets and strides in groups of 4 halves.
+  const bool out_f16 = ops[3]->t.dtype() == DType::f16, kv_f16 = ops[1]->t.dtype() == DType::f16;
   const bool coop = plan.family == KernelFamily::coopmat;
   const DeviceTuning& tune = device_tuning(caps);
   // The family's kernel (meaningful where coop or plan.twin).
@@ -126,11 +127,11 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const vk::Pipeline* pipe_ptr = nullptr;
   if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
     const CoopmatAttention a = attention_coopmat_layout(tune);
-    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim, out_f16);
+    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim, out_f16, kv_f16);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
                                  attention_coopmat_unfit(caps, a, s.head_dim, kernel));
   } else {
-    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k, out_f16 ? 1u : 0u};
+    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k, out_f16 ? 1u : 0u, kv_f16 ? 1u : 0u};
     pipe_ptr = &ctx.pipelines().get(std::string("nn/") + name, spec_tiled);
   }
   const vk::Pipeline& pipe = *pipe_ptr;

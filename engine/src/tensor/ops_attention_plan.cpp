@@ -290,9 +290,10 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   if (s.batch == 0 || s.q_len == 0) return pr;
   const int64_t width = s.heads * s.head_dim;
   check_operand("q", q, s.batch, s.q_len, width);
-  check_operand("k", k, s.batch, s.kv_len, width);
-  check_operand("v", v, s.batch, s.kv_len, width);
+  check_operand("k", k, s.batch, s.kv_len, width, true, true);
+  check_operand("v", v, s.batch, s.kv_len, width, true, true);
   check_operand("out", out, s.batch, s.q_len, width, true, true);
+  if (k.t.dtype() != v.t.dtype()) fail("k is " + k.t.describe() + " and v " + v.t.describe() + ": one dtype for both");
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
   pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
@@ -300,10 +301,10 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
   pr.flash = flash::plan(caps, s, all, strides, opt);
   pr.split.family = pr.flash.family;
-  if (out.t.dtype() == DType::f16 && pr.flash.family == KernelFamily::texel)
-    fail("an f16 out is written by the tiled and tensor-core kernels only, and this call runs the texel kernel" +
+  if ((out.t.dtype() == DType::f16 || k.t.dtype() == DType::f16) && pr.flash.family == KernelFamily::texel)
+    fail("an f16 k, v or out is taken by the tiled and tensor-core kernels only, and this call runs the texel kernel" +
          (pr.flash.fallback.empty() ? std::string(" (DeviceTuning::attention)") : " (" + pr.flash.fallback + ")") +
-         "; ask attention_writes_f16() first");
+         "; ask attention_takes_f16() first");
   if (pr.flash.family != KernelFamily::texel) return pr;  // one dispatch, nothing cut (split stays whole)
   if (!fits_whole(caps, s, all, pr.geo, opt, pr.blk))
     pr.split = plan_split(caps, s, pr.geo, opt, pr.blk, opt.workspace ? VkDeviceSize(opt.workspace->numel()) * 4 : 0);
@@ -323,9 +324,10 @@ Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const Atte
   check_operand("q", q, s.batch, s.q_len, width, false);
   check_operand("k", k, s.batch, s.kv_len, width, false);
   check_operand("v", v, s.batch, s.kv_len, width, false);
-  if (out.t.defined() && out.t.dtype() == DType::f16)
-    fail("an f16 out needs a head_dim that is a multiple of 4 (head_dim " + std::to_string(s.head_dim) +
-         " runs on padded copies, copied back in f32); ask attention_writes_f16() first");
+  for (const AttentionOperand* a : {&k, &v, &out})
+    if (a->t.defined() && a->t.dtype() == DType::f16)
+      fail("an f16 k, v or out needs a head_dim that is a multiple of 4 (head_dim " + std::to_string(s.head_dim) +
+           " runs on padded f32 copies); ask attention_takes_f16() first");
   check_operand("out", out, s.batch, s.q_len, width, false);
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
@@ -379,11 +381,11 @@ AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const Atte
                               fused_qkv_operand(qkv, 2, s.heads, s.head_dim), AttentionOperand{out}, opt);
 }
 
-bool attention_writes_f16(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
-                          const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out_f32,
-                          const AttentionOptions& options) {
-  if (s.head_dim % 4 != 0 || out_f32.t.buffer().offset % 8) return false;
-  return attention_split_plan(caps, s, q, k, v, out_f32, options).family != KernelFamily::texel;
+bool attention_takes_f16(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
+                         const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
+                         const AttentionOptions& options) {
+  if (s.head_dim % 4 != 0) return false;
+  return attention_split_plan(caps, s, q, k, v, out, options).family != KernelFamily::texel;
 }
 
 AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& s) {

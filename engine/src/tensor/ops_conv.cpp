@@ -201,11 +201,11 @@ struct PackInputPush {
 static_assert(sizeof(PackInputPush) <= 128);
 
 // Repacks input channels [c0, c0 + cc) of padded frames [tp0, tp0 + nframes), source rows [r0, r0 + rows) and
-// columns [col0, col0 + wc) of batch item b into `packed` (+ the zero pixel): one dispatch when x's part fits one texel view, else one
-// per group of channels (and of frames, when one channel's frames do not fit).
+// columns [col0, col0 + wc) of batch item b into `packed` (+ the zero pixel; fp16 where `f16`, else f32): one dispatch
+// when x's part fits one texel view, else one per group of channels (and of frames, when one channel's frames do not fit).
 void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const ConvLimits& l, int64_t b,
                 int64_t c0, int64_t cc, int64_t cpc, int64_t tp0, int64_t nframes, int64_t r0, int64_t rows,
-                int64_t col0, int64_t wc, const vk::BufferView& packed) {
+                int64_t col0, int64_t wc, bool f16, const vk::BufferView& packed) {
   const int64_t cp4 = cpc / 4, texels = nframes * rows * wc * cp4;
   const uint64_t cap = l.r32;  // bytes of one R32F view
   const int64_t tuned = g_block_override.pack_columns ? g_block_override.pack_columns : conv_pack_columns(rec.context().caps());
@@ -230,7 +230,8 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   while (nc > 1 && !fits_all(nc, nq)) --nc;
   while (nq > 1 && !fits_all(nc, nq)) --nq;
   expect(fits_all(nc, nq), op, "one source row of one channel exceeds one texel view");
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input");
+  const std::array<uint32_t, 1> spec = {f16 ? 1u : 0u};  // OUT_F16
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input", spec);
   bool zero = true;
   for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
     for_each_chunk(cc, nc, [&](int64_t ca, int64_t n) {
@@ -285,6 +286,9 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   // (conv_coopmat.comp; its fp32 twin when a test asks for it). All three read the same repacked operands
   // with the same push constants and serve every variant (2D/3D, strides, upsampling, channels-last y).
   const ConvFamily fam = conv_family(caps);
+  // The repacked input: fp16 where the tensor-core kernel reads it (its operand type), else f32.
+  const bool x16 = conv_repack_dtype(caps) == DType::f16;
+  const uint64_t xb = x16 ? 2 : 4;
   int64_t tile_m = int64_t(tile.sg_m) * tile.rows, tile_n = int64_t(8 / tile.sg_m) * 8 * tile.cols;
   if (fam.kind != KernelFamily::texel) tile_m = fam.tile_m, tile_n = fam.tile_n;
 
@@ -297,7 +301,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   if (given) in_cap = std::min<uint64_t>(in_cap, uint64_t(given->input.bytes()));
   if (given) w_cap = std::min<uint64_t>(w_cap, uint64_t(given->weights.bytes()));
   if (g_chunk_bytes_override) in_cap = std::min<uint64_t>(in_cap, g_chunk_bytes_override);
-  in_cap = std::min<uint64_t>(in_cap, l.groups_1d * 64 * 16);  // one pack dispatch's grid
+  in_cap = std::min<uint64_t>(in_cap, l.groups_1d * 64 * 4 * xb);  // one pack dispatch's grid (4 channels each)
   const uint64_t y_cap = l.storage > l.align ? l.storage - l.align : 0;
 
   // Source rows of r output rows, wherever they lie (interior rows read the most: the span plus the kernel,
@@ -311,7 +315,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   // Bytes of the repacked input of nfo output frames x r rows x c columns (+ the zero pixel).
   auto chunk_bytes = [&](int64_t nfo, int64_t r, int64_t cpc, int64_t c) {
     return uint64_t(nfo + j.kt - 1) * uint64_t(src_of(r, j.ho, j.kh, j.h, all_rows)) *
-               uint64_t(src_of(c, j.wo, j.kw, j.w, all_cols)) * uint64_t(cpc) * 4 + uint64_t(cpc) * 4;
+               uint64_t(src_of(c, j.wo, j.kw, j.w, all_cols)) * uint64_t(cpc) * xb + uint64_t(cpc) * xb;
   };
   // Elements of y one dispatch of ng channels, nfo frames, r rows and c columns writes, first to last.
   auto y_span = [&](int64_t ng, int64_t nfo, int64_t r, int64_t c) {
@@ -381,7 +385,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
           ? coopmat_pipeline(ctx, fam.twin ? "nn/conv_coopmat_twin" : "nn/conv_coopmat",
                              conv_coopmat_spec(fam.layout, wdt,
                                                conv_coopmat_stages(caps, fam.layout,
-                                                                   device_tuning(caps).conv_coopmat_double_buffer)),
+                                                                   device_tuning(caps).conv_coopmat_double_buffer),
+                                               x16),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
@@ -403,8 +408,9 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
             const int64_t src_cols = std::max<int64_t>(cs.end - cs.first, 0);
             const int64_t texels = packed_frames * src_rows * src_cols * (cpc / 4);
             vk::BufferView packed_x = packed_x_all;
-            packed_x.size = uint64_t(texels + cpc / 4) * 16;
-            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first, src_cols, packed_x);
+            packed_x.size = uint64_t(texels + cpc / 4) * 4 * xb;
+            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first, src_cols, x16,
+                       packed_x);
 
             GemmPush pc{};
             const int64_t m = nfo * nr * nc;
@@ -524,6 +530,11 @@ void set_conv_register_block(const ConvRegisterBlock& block) {
 }
 
 void set_conv_chunk_bytes(uint64_t bytes) { g_chunk_bytes_override = bytes; }
+
+DType conv_repack_dtype(const vk::DeviceCaps& caps) {
+  return conv_family(caps).kind == KernelFamily::coopmat && device_tuning(caps).conv_activations_fp16 ? DType::f16
+                                                                                                       : DType::f32;
+}
 
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
   const char* op = "conv2d";

@@ -107,5 +107,8 @@ void set_conv_register_block(const ConvRegisterBlock& block);
 // Largest repacked input chunk in bytes (0 = the device's limits): smaller values force the frame and row
 // splits that the real size needs, on small tensors.
 void set_conv_chunk_bytes(uint64_t bytes);
+// The dtype a convolution repacks its input chunks in on this device: f16 where the tensor-core kernel (or its twin)
+// reads them and DeviceTuning::conv_activations_fp16 is on, else f32 (chunk budgets count its bytes).
+DType conv_repack_dtype(const vk::DeviceCaps& caps);
 
 }  // namespace dvs::ops

@@ -420,6 +420,27 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
 
   ops::AttentionOptions aopt;
   aopt.scale = float(1.0 / std::sqrt(double(Dh)));
+  // A chunk's q and attention output (f32; the output is f16 where attn16 below says so).
+  auto chunk_q = [&](int64_t n) {
+    return Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+  };
+  auto chunk_o32 = [&](int64_t n) {
+    return Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
+  };
+  // Beside tensor-core GEMMs, where every chunk's attention runs on a flash kernel, its output (the to_out GEMM's
+  // X) is written fp16; where that kernel is the tensor cores', K and V are cast to fp16 once a block (their operand
+  // type: half the bytes every query block reads), K into xn's second half (xn is fp16 then), V into k's first half.
+  bool attn16 = gemm_x == DType::f16, kv16 = attn16;
+  for (const auto& [s0, n] : chunks) {
+    const ops::AttentionShape shape{B, nh, Dh, n, S};
+    attn16 = attn16 && ops::attention_takes_f16(ctx_.caps(), shape, {chunk_q(n)}, {a.k}, {a.v}, {chunk_o32(n)}, aopt);
+    kv16 = kv16 && attn16 &&
+           ops::attention_split_plan(ctx_.caps(), shape, {chunk_q(n)}, {a.k}, {a.v}, {chunk_o32(n)}, aopt).family ==
+               ops::KernelFamily::coopmat;
+  }
+  const VkDeviceSize half_bytes = VkDeviceSize(B * S * D) * 2;
+  const Tensor attn_k = kv16 ? Tensor::on(a.xn.buffer().sub(half_bytes, half_bytes), {B, S, D}, DType::f16) : a.k;
+  const Tensor attn_v = kv16 ? Tensor::on(a.k.buffer().sub(0, half_bytes), {B, S, D}, DType::f16) : a.v;
   const Tensor k2d = a.k.reshape({B * S, D}), v2d = a.v.reshape({B * S, D});
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
     const std::string b = blk(i);
@@ -443,23 +464,21 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     }
     ops::head_layernorm(rec, k2d, k2d, nh, Dh, 0, bw("attn1.norm_k.weight"), bw("attn1.norm_k.bias"), 1e-6f);
     if (N > 0) ops::rope(rec, k2d, k2d, B, S, L, nh, Dh, 0, cos, sin);
+    if (kv16) {  // k is read before v overwrites its first half
+      ops::cast(rec, a.k, attn_k);
+      ops::cast(rec, a.v, attn_v);
+    }
     // Attention chunk by chunk of queries: q, its norm and RoPE, attention over every key, the gated output.
     for (const auto& [s0, n] : chunks) {
-      const Tensor q = Tensor::on(a.region.buffer().sub(0, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
-      // The attention output is only the to_out GEMM's (and LoRA's A's) X: in their operand type where the
-      // attention kernel can write it so.
-      const ops::AttentionShape shape{B, nh, Dh, n, S};
-      const Tensor o32 = Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
-      const Tensor o = gemm_x == DType::f16 && ops::attention_writes_f16(ctx_.caps(), shape, {q}, {a.k}, {a.v}, {o32}, aopt)
-                           ? Tensor::on(o32.buffer().sub(0, VkDeviceSize(B * n * D) * 2), {B, n, D}, DType::f16)
-                           : o32;
+      const Tensor q = chunk_q(n), o32 = chunk_o32(n);
+      const Tensor o = attn16 ? Tensor::on(o32.buffer().sub(0, VkDeviceSize(B * n * D) * 2), {B, n, D}, DType::f16) : o32;
       const Tensor q2d = q.reshape({B * n, D});
       project(bw("attn1.to_q.weight"), block_bias("attn1.to_q.bias"), q, D, s0, n, Tensor(), ops::Activation::none);
       if (const LoraAdapter* ad = lora(b + "attn1.to_q")) lora_project(*ad, q, s0, n);
       ops::head_layernorm(rec, q2d, q2d, nh, Dh, 0, bw("attn1.norm_q.weight"), bw("attn1.norm_q.bias"), 1e-6f);
       if (s0 >= L) ops::rope(rec, q2d, q2d, B, n, 0, nh, Dh, 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n));
-      ops::attention(rec, shape, ops::AttentionOperand{q}, ops::AttentionOperand{a.k}, ops::AttentionOperand{a.v},
-                     ops::AttentionOperand{o}, aopt);
+      ops::attention(rec, ops::AttentionShape{B, nh, Dh, n, S}, ops::AttentionOperand{q}, ops::AttentionOperand{attn_k},
+                     ops::AttentionOperand{attn_v}, ops::AttentionOperand{o}, aopt);
       gated_residual(o, D, bw("attn1.to_out.0.weight"), bw("attn1.to_out.0.bias"), a.mod1, s0, n);
       if (const LoraAdapter* ad = lora(b + "attn1.to_out.0")) {  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
         const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * n, ad->rank}, DType::f32);

@@ -1,0 +1,139 @@
+// The tensor-core convolution's repacked input in fp16 (DeviceTuning::conv_activations_fp16: conv_pack_input.comp's
+// OUT_F16, conv_coopmat.comp's X_F16). The kernel rounds an f32 chunk to fp16 as it loads it; packed in fp16 it reads
+// the same values, so every convolution must give the same bits either way: every conv path of the VAE (causal
+// 3x3x3 with and without a cache, 3x3, stride-2 downsample, 1x1, the fused x2 upsample), at channel counts that are
+// not a multiple of 4 (5, 37) and one whose steps are whole taps (64), whole and under the limits that split the
+// repack (texels=256: x read per channel, so a dispatch merges its channels into groups of 4 others wrote) and the
+// call (binding=4KiB: rows and columns). Runs the tensor-core kernel where the device has one (the
+// tensor-core pass), else its fp32 twin, which shares the loads. By-value correctness of the family against a
+// plain-C++ reference is test_conv_families.cpp's (which runs with the default, fp16, on).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "support/gpu.hpp"
+#include "support/scoped_limits.hpp"
+#include "tensor/dispatch.hpp"
+#include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_conv.hpp"
+#include "vk/pipeline.hpp"
+
+namespace dvs {
+namespace {
+
+Tensor random_tensor(vk::Context& c, const Shape& s, uint32_t seed, float scale, DType dt) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> d(-scale, scale);
+  HostTensor h(s, dt);
+  for (int64_t i = 0; i < h.numel(); ++i) {
+    const float v = d(rng);
+    if (dt == DType::bf16) h.as<uint16_t>()[i] = f32_to_bf16(v);
+    else h.as<float>()[i] = v;
+  }
+  return Tensor::upload(c, h);
+}
+
+class HalfInputConvOps : public test::GpuTest {
+ protected:
+  void SetUp() override {
+    test::GpuTest::SetUp();
+    twin_ = !ops::device_tuning(ctx().caps()).coopmat.defined();
+    ops::ConvRegisterBlock blk;
+    blk.coopmat_twin = twin_;
+    ops::set_conv_register_block(blk);
+  }
+  void TearDown() override {
+    ops::set_conv_register_block({});
+    test::GpuTest::TearDown();
+  }
+  // y of every conv path on a [1, cin, 5, 13, 11] input, one vector each, under `limits` (nullptr: none).
+  std::vector<std::vector<uint32_t>> all_convs(int64_t cin, const char* limits) {
+    vk::Context& c = ctx();
+    const int64_t cout = 7, F = 5, H = 13, W = 11;
+    const Tensor x = random_tensor(c, {1, cin, F, H, W}, 1, 1.f, DType::f32);
+    const Tensor cache = random_tensor(c, {1, cin, 2, H, W}, 2, 1.f, DType::f32);
+    const Tensor w3 = random_tensor(c, {cout, cin, 3, 3, 3}, 3, 0.2f, DType::bf16);
+    const Tensor w2 = random_tensor(c, {cout, cin, 3, 3}, 4, 0.2f, DType::bf16);
+    const Tensor w1 = random_tensor(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
+    const Tensor b = random_tensor(c, {cout}, 6, 0.5f, DType::bf16);
+    const Shape y = {1, cout, F, H, W};
+    Shape down = ops::conv2d_shape(x.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
+    Shape up = ops::upsample2x_shape(x.shape(), true);
+    up[1] = cout;
+    std::vector<std::pair<Shape, std::function<void(vk::Recorder&, const Tensor&)>>> ops_list = {
+        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, w3, &b, o); }},
+        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, w3, &b, o, &cache); }},
+        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, w2, &b, o, ops::Conv2dParams::same3x3()); }},
+        {down, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, w2, nullptr, o, ops::Conv2dParams::downsample3x3()); }},
+        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv1x1(rec, x, w1, nullptr, o); }},
+        {up, [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x_conv3x3(rec, x, w2, &b, o, true); }},
+    };
+    std::vector<std::vector<uint32_t>> out;
+    for (auto& [shape, op] : ops_list) {
+      const Tensor o = Tensor::empty(c, shape, DType::f32);
+      {
+        std::unique_ptr<test::ScopedLimits> scope;
+        if (limits) scope = std::make_unique<test::ScopedLimits>(c, limits);
+        ops::run_now(c, [&](vk::Recorder& rec) { op(rec, o); });
+      }
+      const HostTensor h = o.download(c);
+      out.emplace_back(size_t(h.numel()));
+      std::memcpy(out.back().data(), h.data.data(), out.back().size() * 4);
+    }
+    return out;
+  }
+  bool twin_ = false;
+};
+
+// A layout no other test uses (2 x 1 subgroups of 1 x 2 fragments, K 16) makes the kernel's pipelines this test's own.
+TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
+  // (An override replaces the one in force: each run names the layout too.)
+  const std::string layout = std::string(twin_ ? "" : "conv=coopmat,") + "conv_coopmat=2x1x1x2x16";
+  const std::string gemm = twin_ ? "nn/conv_coopmat_twin" : "nn/conv_coopmat";
+  // Whether this test's layout of the kernel was created reading an fp16 (x16) or an f32 chunk.
+  auto ran = [&](bool x16) {
+    bool found = false;
+    ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
+      if (pl.name == gemm && pl.spec.size() == 13 && pl.spec[1] == 2 && pl.spec[2] == 1 && pl.spec[3] == 1 &&
+          pl.spec[4] == 2 && pl.spec[5] == 16 && pl.spec[12] == (x16 ? 1u : 0u))
+        found = true;
+    });
+    return found;
+  };
+  ASSERT_FALSE(ran(true) || ran(false));
+  const char* names[] = {"causal conv", "causal conv with cache", "conv2d 3x3", "downsample 3x3 s2", "conv 1x1",
+                         "upsample x2 + conv 3x3"};
+  // binding=4KiB only at 5 channels: at 37 it would cut the f32 repack into input-channel chunks (27 x 40 x 4 B a
+  // pixel) but not the fp16 one (half that), and chunks add partial sums in another order.
+  const std::pair<int64_t, const char*> runs[] = {{5, nullptr},  {5, "texels=256"},  {5, "binding=4KiB"},
+                                                  {37, nullptr}, {37, "texels=256"}, {64, nullptr}};
+  for (const auto& [cin, limits] : runs) {
+      const std::string where = "Cin " + std::to_string(cin) + (limits ? std::string(" under ") + limits : "");
+      std::vector<std::vector<uint32_t>> f16, f32;
+      {
+        ops::ScopedTuningOverride on(layout + ",conv_activations_fp16=on");
+        f16 = all_convs(cin, limits);
+      }
+      {
+        ops::ScopedTuningOverride off(layout + ",conv_activations_fp16=off");
+        f32 = all_convs(cin, limits);
+      }
+      ASSERT_EQ(f16.size(), f32.size());
+      for (size_t i = 0; i < f16.size(); ++i) {
+        size_t differ = 0;
+        for (size_t k = 0; k < f16[i].size(); ++k) differ += f16[i][k] != f32[i][k];
+        EXPECT_EQ(differ, 0u) << names[i] << ", " << where << ": elements that differ from the f32 repack's";
+      }
+    }
+  // The f16 runs read an fp16 chunk (which an f32 repack would have turned to garbage), the f32 runs an f32 one.
+  EXPECT_TRUE(ran(true)) << "no " << gemm << " read an fp16 chunk";
+  EXPECT_TRUE(ran(false)) << "no " << gemm << " read an f32 chunk";
+}
+
+}  // namespace
+}  // namespace dvs
