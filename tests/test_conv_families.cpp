@@ -20,6 +20,7 @@
 
 #include "io/host_tensor.hpp"
 #include "support/gpu.hpp"
+#include "support/stored_values.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -56,21 +57,8 @@ float round_f16(float v) { return f16_to_f32(f32_to_f16(v)); }
 
 // Weights or bias stored as `dt`; `seen` receives the values the kernel reads.
 HostTensor stored(const Shape& s, DType dt, uint32_t seed, float scale, std::vector<float>& seen) {
-  std::vector<float> v = randoms(size_t(shape_numel(s)), seed, scale);
-  HostTensor h(s, dt);
-  seen.resize(v.size());
-  for (size_t i = 0; i < v.size(); ++i) {
-    if (dt == DType::f32) {
-      h.as<float>()[i] = seen[i] = v[i];
-    } else if (dt == DType::f16) {
-      h.as<uint16_t>()[i] = f32_to_f16(v[i]);
-      seen[i] = f16_to_f32(h.as<uint16_t>()[i]);
-    } else {
-      h.as<uint16_t>()[i] = f32_to_bf16(v[i]);
-      seen[i] = bf16_to_f32(h.as<uint16_t>()[i]);
-    }
-  }
-  return h;
+  seen = randoms(size_t(shape_numel(s)), seed, scale);
+  return test::stored_as(seen, s, dt);
 }
 
 // The time prefix (P frames: the cache, else copies of frame 0), then zero padding in H and W.

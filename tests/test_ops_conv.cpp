@@ -19,6 +19,7 @@
 
 #include "dvs/error.hpp"
 #include "support/gpu.hpp"
+#include "support/stored_values.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -55,22 +56,8 @@ Vid random_vid(int64_t b, int64_t c, int64_t f, int64_t h, int64_t w, uint32_t s
 
 // Weights (or bias) stored as `dt`; `rounded` receives the values the GPU sees.
 HostTensor make_weights(const Shape& s, DType dt, uint32_t seed, float scale, std::vector<float>& rounded) {
-  std::vector<float> v = random_values(size_t(shape_numel(s)), seed, -scale, scale);
-  HostTensor h(s, dt);
-  rounded.resize(v.size());
-  for (size_t i = 0; i < v.size(); ++i) {
-    if (dt == DType::f32) {
-      h.as<float>()[i] = v[i];
-      rounded[i] = v[i];
-    } else if (dt == DType::f16) {
-      h.as<uint16_t>()[i] = f32_to_f16(v[i]);
-      rounded[i] = f16_to_f32(h.as<uint16_t>()[i]);
-    } else {
-      h.as<uint16_t>()[i] = f32_to_bf16(v[i]);
-      rounded[i] = bf16_to_f32(h.as<uint16_t>()[i]);
-    }
-  }
-  return h;
+  rounded = random_values(size_t(shape_numel(s)), seed, -scale, scale);
+  return test::stored_as(rounded, s, dt);
 }
 
 Tensor up(vk::Context& ctx, const Vid& x) { return Tensor::upload(ctx, HostTensor::from_f32(x.shape(), x.v)); }

@@ -24,7 +24,7 @@ bool fits_bindings(const vk::DeviceCaps& caps, const AttentionShape& s, const At
   const int64_t lens[4] = {s.q_len, s.kv_len, s.kv_len, s.q_len};
   const uint64_t align = binding_alignment(caps), cap = binding_capacity(caps, 0);
   for (int i = 0; i < 4; ++i) {
-    const uint64_t elem = dtype_size(ops[i]->t.dtype());  // 4, or 2 for an f16 out
+    const uint64_t elem = dtype_size(ops[i]->t.dtype());  // 4, or 2 for an f16 k, v or out
     const uint64_t bytes = uint64_t(span_elements(s, *ops[i], lens[i], strides[i])) * elem +
                            ops[i]->t.buffer().offset % align;
     if (bytes > cap || bytes / (4 * elem) > UINT32_MAX) return false;
@@ -102,7 +102,7 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   uint32_t off4[4], stride4[4];
   for (int i = 0; i < 4; ++i) {
     const AttentionOperand& a = *ops[i];
-    const uint32_t elem = uint32_t(dtype_size(a.t.dtype()));  // 4, or 2 for an f16 out
+    const uint32_t elem = uint32_t(dtype_size(a.t.dtype()));  // 4, or 2 for an f16 k, v or out
     const uint64_t bytes = uint64_t(span_elements(s, a, lens[i], strides[i])) * elem;
     uint32_t base = 0;  // group of 4 elements at the view's start, modulo 2^32 (0 or "minus the shift")
     views[i] = aligned_view(a.t.buffer(), 0, bytes, align, 4 * elem, base);
