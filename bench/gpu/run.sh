@@ -204,7 +204,7 @@ BISECT=(cpu-simd gpu gpu,eltwise_texel_inputs=on gpu,norm_row_per_invocation=on 
         gpu,attention_rows_by_head_dim=on gpu,conv=texel cpu-simd,eltwise_texel_inputs=off cpu-simd,norm_row_per_invocation=off
         cpu-simd,attention_rows_by_head_dim=off gpu-coopmat gpu-coopmat,attention_coopmat2=off
         gpu-coopmat,linear_coopmat_vector_loads=off,linear_coopmat_group_m=1,linear_weights_fp16=off
-        gpu-coopmat,linear_activations_fp16=off gpu-coopmat,conv_activations_fp16=off)
+        gpu-coopmat,linear_activations_fp16=off gpu-coopmat,conv_activations_fp16=off gpu-coopmat,conv_weights_fp16=off)
 if want b && [ "$SMOKE" != 1 ]; then
   for t in "${BISECT[@]}"; do DVS_TUNING="$t" gtest_run "bisect:$t" 20 "$GOLDEN" "$BISECT_FILTER"; done
 fi

@@ -84,12 +84,12 @@ if [ $SMOKE -eq 1 ]; then
 else
   # Round 1, each family's default and the one change per family most worth timing: GEMM with a 64x64 tile per
   # subgroup (2x2 subgroups of 4x4 fragments), attention's KHR kernel beside the coopmat2 variant's default,
-  # conv with one operand stage, and with its input repacked f32 instead of fp16. Round 2: what each GEMM feed
+  # conv with one operand stage, with its input repacked f32 instead of fp16, with bf16 weights instead of fp16. Round 2: what each GEMM feed
   # change contributes (16-byte loads off, banded order off, W bf16 and X f32 converted in the loads instead of kept fp16) and the design study's ablations (no global loads, no MMA: where the time goes; their by-value check
   # fails by design); attention at 4 subgroups. Then other tiles.
   default_sweep="gemm|coopmat|linear_coopmat=2x4x4x2x32 attention|coopmat|attention_coopmat_subgroups=8
     conv3d|coopmat|conv_coopmat=4x2x2x4x32 gemm|coopmat|linear_coopmat=2x2x4x4x32 attention|coopmat|attention_coopmat2=off
-    conv3d|coopmat|conv_coopmat_double_buffer=off conv3d|coopmat|conv_activations_fp16=off
+    conv3d|coopmat|conv_coopmat_double_buffer=off conv3d|coopmat|conv_activations_fp16=off conv3d|coopmat|conv_weights_fp16=off
     gemm|coopmat|linear_coopmat_vector_loads=off gemm|coopmat|linear_coopmat_group_m=1 gemm|coopmat|linear_weights_fp16=off
     gemm|coopmat|linear_activations_fp16=off
     gemm|coopmat|linear_coopmat_ablation=no_global_loads gemm|coopmat|linear_coopmat_ablation=no_mma

@@ -46,6 +46,7 @@ layout(constant_id = 11) const uint STAGES = 1;
 // The packed input chunk in fp16 (conv_pack_input.comp's OUT_F16): 4 channels per 8 bytes at the same indices,
 // already the operand values (half the bytes every tap reads); else fp32, rounded here.
 layout(constant_id = 12) const bool X_F16 = false;
+layout(constant_id = 13) const int BTYPE = 2;  // bias storage (conv_bias.glsl): 0 f32, 1 f16, 2 bf16
 
 const uint WG = gl_WorkGroupSize.x;
 const uint WM = FM * FRAG_M, WN = FN * FRAG_N;   // one subgroup's part
@@ -110,11 +111,7 @@ float b_at(uint i) { return unpackHalf2x16(Bs[i >> 1])[i & 1u]; }
 #endif
 shared float Stage[SG_M * SG_N * FRAG];  // one fp32 fragment per subgroup, column-major
 
-float w_bias(uint n) {
-  if (WTYPE == 0) return uintBitsToFloat(bias[n]);
-  uint u = bias[n >> 1], bits = (n & 1u) == 0u ? (u & 0xffffu) : (u >> 16);
-  return WTYPE == 1 ? unpackHalf2x16(bits).x : uintBitsToFloat(bits << 16);
-}
+#include "conv_bias.glsl"
 
 vec4 w4(uint e) {  // four consecutive packed weights from element e (a multiple of 4)
   if (WTYPE == 0) return vec4(uintBitsToFloat(w[e]), uintBitsToFloat(w[e + 1u]), uintBitsToFloat(w[e + 2u]), uintBitsToFloat(w[e + 3u]));

@@ -38,6 +38,7 @@ layout(constant_id = 4) const int SG_M = 2;   // clusters of a workgroup along M
 // 8-channel steps per trip of the channel loop (CP must be a multiple of 8 * KU): lavapipe merges every
 // loop-carried value (the accumulators) with the execution mask once per trip, so longer trips amortise it.
 layout(constant_id = 5) const int KU = 1;
+layout(constant_id = 6) const int BTYPE = 2;  // bias storage (conv_bias.glsl): 0 f32, 1 f16, 2 bf16
 
 #ifdef CONV_NO_SUBGROUPS
 const bool DIRECT = true;
@@ -49,7 +50,7 @@ const int SG_N = 8 / SG_M;
 
 layout(binding = 0) uniform textureBuffer Xt;   // RGBA32F, packed input chunk + one zero pixel
 layout(binding = 1) uniform utextureBuffer Wt;  // RGBA32UI, packed weights
-layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };  // the weights' dtype (16-bit pairs)
+layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };  // BTYPE (16-bit pairs)
 layout(std430, binding = 3) buffer Y { float y[]; };  // read back only when accumulating
 
 layout(push_constant) uniform Push {
@@ -72,11 +73,7 @@ layout(push_constant) uniform Push {
   uint src_c0;      // first source column packed (src_w: packed columns)
 } p;
 
-float w_bias(uint n) {
-  if (WTYPE == 0) return uintBitsToFloat(bias[n]);
-  uint u = bias[n >> 1], bits = (n & 1u) == 0u ? (u & 0xffffu) : (u >> 16);
-  return WTYPE == 1 ? unpackHalf2x16(bits).x : uintBitsToFloat(bits << 16);
-}
+#include "conv_bias.glsl"
 
 #include "weight_texels.glsl"  // w_step: eight weights from Wt
 

@@ -1,5 +1,6 @@
 #version 450
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_GOOGLE_include_directive : require
 // Convolution as an implicit GEMM for GPUs (the "tiled" family, kernel_tuning.hpp): the same GEMM, the
 // same repacked operands and the same push constants as conv_gemm.comp, but read through storage buffers
 // (no 2^27-element texel-view cap) and staged through shared memory:
@@ -17,6 +18,7 @@ layout(local_size_x = 256) in;
 layout(constant_id = 0) const int TM = 4;     // pixels per invocation (BM = 16 * TM: 32, 64 or 128)
 layout(constant_id = 1) const int TN = 4;     // channels per invocation (BN = 16 * TN)
 layout(constant_id = 2) const int WTYPE = 2;  // weight storage: 0 f32, 1 f16, 2 bf16
+layout(constant_id = 3) const int BTYPE = 2;  // bias storage (conv_bias.glsl): 0 f32, 1 f16, 2 bf16
 
 const int BM = 16 * TM, BN = 16 * TN, BK = 16;
 const int SA = BM * 4 > 256 ? BM * 4 / 256 : 1;  // vec4 loads per invocation per step (input, weights)
@@ -38,11 +40,7 @@ layout(push_constant) uniform Push {
 shared float As[BK][BM];
 shared float Bs[BK][BN];
 
-float w_bias(uint n) {
-  if (WTYPE == 0) return uintBitsToFloat(bias[n]);
-  uint u = bias[n >> 1], bits = (n & 1u) == 0u ? (u & 0xffffu) : (u >> 16);
-  return WTYPE == 1 ? unpackHalf2x16(bits).x : uintBitsToFloat(bits << 16);
-}
+#include "conv_bias.glsl"
 
 // Four consecutive packed weights from element e (a multiple of 4).
 vec4 w4(uint e) {

@@ -49,16 +49,19 @@ ComponentWeights::ComponentWeights(vk::Context& ctx, nlohmann::json config, std:
 std::vector<std::string> ComponentWeights::names() const {
   std::set<std::string> all;
   for (const auto& [name, t] : uploaded_) all.insert(name);
+  for (const auto& [name, p] : packed_) all.insert(name);
   for (const auto& [name, ref] : weights_.entries()) all.insert(name);
   return {all.begin(), all.end()};
 }
 
 bool ComponentWeights::has(const std::string& name) const {
-  return uploaded_.count(name) != 0 || weights_.find(name) != nullptr;
+  return uploaded_.count(name) != 0 || packed_.count(name) != 0 || weights_.find(name) != nullptr;
 }
 
 const Tensor& ComponentWeights::get(const std::string& name) {
   if (auto it = uploaded_.find(name); it != uploaded_.end()) return it->second;
+  if (packed_.count(name) && weights_.find(name) == nullptr)
+    throw Error("internal: ComponentWeights::get: '" + name + "' lives only on the device and was packed (packed_conv)");
   if (weights_.find(name) == nullptr)
     throw Error(dir_.string() + ": the weights have no tensor '" + name + "' (is this the right model folder?)");
   HostTensor h = weights_.load(name);
@@ -117,6 +120,18 @@ bool ComponentWeights::store_as(const std::string& name, DType dtype) {
     if ((v[i] & 0x7fffu) >= 0x4780u && (v[i] & 0x7fffu) < 0x7f80u) return false;  // finite, rounds past 65504
   as_f16_.insert(name);
   return true;
+}
+
+const ops::PackedConvWeights& ComponentWeights::packed_conv(const std::string& name) {
+  if (auto it = packed_.find(name); it != packed_.end()) return it->second;
+  if (ops::conv_weight_dtype(ctx_.caps()) == DType::f16) store_as(name, DType::f16);
+  const Tensor& w = get(name);
+  ops::PackedConvWeights p{Tensor::empty(ctx_, ops::packed_conv_weights_shape(w.shape()), w.dtype(), name + " (packed)"),
+                           w.shape()};
+  ops::run_now(ctx_, [&](vk::Recorder& rec) { ops::pack_conv_weights(rec, w, p.packed); });
+  release(name);
+  bytes_ += p.packed.bytes();
+  return packed_.emplace(name, std::move(p)).first->second;
 }
 
 void ComponentWeights::release(const std::string& name) {

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "spec/model_folder.hpp"
+#include "tensor/ops_conv_weights.hpp"
 #include "tensor/tensor.hpp"
 
 namespace dvs::vk {
@@ -68,6 +69,12 @@ class ComponentWeights {
   // that no fp32 kernel reads an Inf the checkpoint does not hold. Returns whether `name` is now f16.
   bool store_as(const std::string& name, DType dtype);
 
+  // Convolution weights `name` packed once into the layout the conv kernels read (ops_conv_weights.hpp), in the
+  // device's conv operand type (bf16 kept fp16 through store_as where ops::conv_weight_dtype says so), on first
+  // use; the stored device copy is dropped then (the packed one replaces it: has() stays true, get() of a tensor
+  // that lived only on the device is an error). Every call after returns the same packed weights.
+  const ops::PackedConvWeights& packed_conv(const std::string& name);
+
  private:
   vk::Context& ctx_;
   std::filesystem::path dir_;
@@ -75,6 +82,7 @@ class ComponentWeights {
   WeightSet weights_;
   std::map<std::string, Tensor> uploaded_;
   std::set<std::string> as_f16_;  // file tensors stored bf16 that are read as f16 (store_as)
+  std::map<std::string, ops::PackedConvWeights> packed_;  // packed_conv
   uint64_t bytes_ = 0;
 };
 

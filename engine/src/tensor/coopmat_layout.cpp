@@ -183,10 +183,12 @@ std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_
           x_code, y_f16 ? 1u : 0u};
 }
 
-std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16) {
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16,
+                                        uint32_t bias_code) {
   const CoopmatTile& t = g.tile;
   return {weight_code, uint32_t(t.sg_m), uint32_t(t.sg_n), uint32_t(t.frags_m), uint32_t(t.frags_n), uint32_t(t.k),
-          g.frag.m, g.frag.n, g.frag.k, g.invocations(), uint32_t(g.lanes), uint32_t(stages), x_f16 ? 1u : 0u};
+          g.frag.m,    g.frag.n,         g.frag.k,         g.invocations(),    uint32_t(g.lanes),  uint32_t(stages),
+          x_f16 ? 1u : 0u, bias_code == UINT32_MAX ? weight_code : bias_code};
 }
 
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16, bool kv_f16) {

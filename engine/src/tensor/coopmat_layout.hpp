@@ -86,7 +86,9 @@ std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t 
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
                                           uint32_t group_m, uint32_t ablation = 0, uint32_t x_code = 0,
                                           bool y_f16 = false);
-std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16 = false);
+// conv: x_f16 the repacked input in fp16, bias_code the bias's storage (UINT32_MAX: the weights').
+std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16 = false,
+                                        uint32_t bias_code = UINT32_MAX);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim, bool out_f16 = false,
                                              bool kv_f16 = false);
 

@@ -137,6 +137,10 @@ struct DeviceTuning {
   // written in fp16, the tensor cores' operand type: rounded once there instead of in every tap's loads, at half the
   // bytes written and read. Off: f32 (A/B runs). Same bits.
   bool conv_activations_fp16 = true;
+  // Where the conv family is coopmat, conv weights a model stores in bf16 are kept on the device in fp16, the operand
+  // type the tensor cores read, converted once at load before they are packed (ops::conv_weight_dtype, models'
+  // ComponentWeights::packed_conv) instead of per element in every tile's loads. Off: kept bf16 (A/B runs). Same bits.
+  bool conv_weights_fp16 = true;
   int attention_coopmat_subgroups = 0;
   // The tensor-core attention keeps scores, P and O in the matrices (nn/attention_flash_coopmat2) where the
   // device has VK_NV_cooperative_matrix2's reductions, conversions and per-element operations and the fragment's

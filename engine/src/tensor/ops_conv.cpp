@@ -12,6 +12,7 @@
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_census.hpp"
 #include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_conv_weights.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -89,9 +90,10 @@ struct GemmPush {
 static_assert(sizeof(GemmPush) <= 128);
 
 
-void check_bias(const char* op, const Tensor& w, const Tensor* bias, int64_t cout) {
+// The bias has a dtype of its own (weights packed at load in fp16 keep a bf16 bias exact): shaders' BTYPE.
+void check_bias(const char* op, const Tensor* bias, int64_t cout) {
   if (!bias) return;
-  expect(bias->dtype() == w.dtype(), op, "bias " + bias->describe() + " must have the weights' dtype " + dtype_name(w.dtype()));
+  weight_code(op, bias->dtype());
   expect(bias->numel() == cout, op, "bias " + bias->describe() + " must hold Cout = " + std::to_string(cout) + " values");
 }
 
@@ -167,33 +169,6 @@ std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b
   return {first, end};
 }
 
-// Packed weights of output channels [co0, co0 + ng) and input channels [ci0, ci0 + cc) into `packed`
-// ([ng, taps, cpc] in the weights' dtype), in as many dispatches as the source sub-views need.
-void pack_weights(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& w, uint32_t wdt, const ConvLimits& l,
-                  int64_t co0, int64_t ng, int64_t ci0, int64_t cc, int64_t cpc, const vk::BufferView& packed) {
-  const int64_t taps = j.kt * j.kh * j.kw, per = wdt == 0 ? 1 : 2, eb = wdt == 0 ? 4 : 2;
-  const int64_t items_per_co = cpc / per;  // one invocation per output channel and packed word of one tap
-  // Source bytes one dispatch of n output channels reads (plus the alignment slack of its start).
-  auto src_bytes = [&](int64_t n) { return uint64_t(((n - 1) * j.cin + cc) * taps * eb) + l.align + 4; };
-  int64_t step = ng;
-  while (step > 1 && (src_bytes(step) > l.storage || uint64_t(step * items_per_co) > l.groups_1d * 64)) --step;
-  expect(src_bytes(step) <= l.storage, op, "one output channel's weights exceed one binding");
-  std::array<uint32_t, 1> spec = {wdt};
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_weights", spec);
-  for_each_chunk(ng, step, [&](int64_t c0, int64_t n) {
-    const uint64_t first = uint64_t(((co0 + c0) * j.cin + ci0) * taps * eb);
-    const uint64_t end = uint64_t(((co0 + c0 + n - 1) * j.cin + ci0 + cc) * taps * eb);
-    uint32_t base = 0;
-    vk::BufferView src = aligned_view(w.buffer(), first, end, l.align, uint32_t(eb), base);
-    struct {
-      uint32_t items, cin, taps, cp, co0, ci0, cc, item0, src_base;
-    } pc{u32(op, n * items_per_co), u32(op, j.cin), u32(op, taps), u32(op, cpc), u32(op, co0), u32(op, ci0), u32(op, cc),
-         u32(op, c0 * items_per_co), base};
-    Grid g = grid_1d(rec.context().caps(), n * items_per_co, 64);
-    rec.dispatch(pipe, {src, packed}, &pc, sizeof pc, g.x, g.y, 1, std::string(op) + "_pack_weights");
-  });
-}
-
 struct PackInputPush {
   uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
   uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc, seg, nseg;
@@ -266,15 +241,15 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
 //    group's weights are repacked per group (a binding, a texel view, the scratch), gy within the grid limit;
 //  - per batch item, output frames and, when one frame is too large, output rows (then columns): the chunk's input repacked
 //    channels-last stays within one binding / texel view / the scratch, its pixels within the grid limit.
-// When everything fits (the default on real devices at small sizes) this is one weight pack, then one input
-// pack and one GEMM per chunk of frames, as before.
-void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const Tensor& w,
+// When everything fits (the default on real devices at small sizes) this is one weight pack (none for weights
+// packed at load: ops_conv_weights.hpp), then one input pack and one GEMM per chunk of frames.
+void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const ConvWeights& w,
                  const Tensor* bias, const Tensor& y, const ConvScratch* given) {
   if (j.b == 0 || j.frames_out == 0 || j.ho == 0 || j.wo == 0 || j.cout == 0) return;
   vk::Context& ctx = rec.context();
   const vk::DeviceCaps& caps = ctx.caps();
   const ConvLimits l = conv_limits(caps);
-  uint32_t wdt = weight_code(op, w.dtype());
+  const uint32_t wdt = weight_code(op, w.dtype()), bdt = bias ? weight_code(op, bias->dtype()) : wdt;
   const int64_t up = j.upsample ? 2 : 1, taps = j.kt * j.kh * j.kw, wb = wdt == 0 ? 4 : 2;
 
   GemmTile tile = conv_tile(caps, w.dtype(), j.frames_out * j.ho * j.wo, j.cout);
@@ -370,15 +345,25 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
 
   uint64_t packed_bytes_max = std::min<uint64_t>(chunk_bytes(chunk_frames, chunk_rows, cpc, chunk_cols), in_cap);
   vk::BufferView packed_x_all = given ? given->input.buffer() : rec.scratch(0, packed_bytes_max, "convolution input chunk (repacked)");
+  // One group's weights: packed at load, bound in place where the group takes every input channel and starts
+  // aligned; else repacked (from the stored or the packed layout) into the staging.
+  auto in_place = [&](int64_t n0) {
+    return w.packed() && cc == j.cin && (w.tensor().buffer().offset + uint64_t(n0 * taps * cpc * wb)) % l.align == 0;
+  };
+  bool staged = false;
+  for (int64_t n0 = 0; n0 < j.cout && !staged; n0 += ng) staged = !in_place(n0);
   const uint64_t packed_w_bytes = uint64_t(ng * taps * cpc * wb);
-  vk::BufferView packed_w = given ? given->weights.buffer() : rec.scratch(1, packed_w_bytes, "convolution weights (repacked)");
-  packed_w.size = packed_w_bytes;
+  vk::BufferView packed_w;
+  if (staged) {
+    packed_w = given ? given->weights.buffer() : rec.scratch(1, packed_w_bytes, "convolution weights (repacked)");
+    packed_w.size = packed_w_bytes;
+  }
 
   const int64_t steps = cpc / 8;
   const uint32_t ku = steps % 4 == 0 ? std::min<uint32_t>(4, uint32_t(tile.k_unroll)) : (steps % 2 == 0 ? std::min<uint32_t>(2, uint32_t(tile.k_unroll)) : 1u);
-  std::array<uint32_t, 6> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
-                                       uint32_t(tile.sg_m), std::max(ku, 1u)};
-  std::array<uint32_t, 3> tiled_spec = {uint32_t(tile_m / 16), uint32_t(tile_n / 16), wdt};
+  std::array<uint32_t, 7> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
+                                       uint32_t(tile.sg_m), std::max(ku, 1u), bdt};
+  std::array<uint32_t, 4> tiled_spec = {uint32_t(tile_m / 16), uint32_t(tile_n / 16), wdt, bdt};
   const vk::Pipeline& gemm =
       fam.kind == KernelFamily::tiled     ? ctx.pipelines().get("nn/conv_tiled", tiled_spec)
       : fam.kind == KernelFamily::coopmat
@@ -386,19 +371,28 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
                              conv_coopmat_spec(fam.layout, wdt,
                                                conv_coopmat_stages(caps, fam.layout,
                                                                    device_tuning(caps).conv_coopmat_double_buffer),
-                                               x16),
+                                               x16, bdt),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
               {fam.kind == KernelFamily::coopmat ? std::string() : device_tuning(caps).conv_unfit, true});
-  const vk::BufferView bias_view = bias ? word_view(*bias) : packed_w;
+  vk::BufferView bias_view = x.buffer();  // without a bias: any aligned buffer (x's first word; never read)
+  bias_view.size = 4;
+  if (bias) bias_view = word_view(*bias);
   const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 
   if (cc < j.cin || ng < j.cout || chunk_frames < j.frames_out || chunk_rows < j.ho || chunk_cols < j.wo)
     ctx.note_split(op);  // once per call: the GEMM runs in several chunks
   for_each_chunk(j.cin, cc, [&](int64_t c0, int64_t ncc) {
     for_each_chunk(j.cout, ng, [&](int64_t n0, int64_t nn) {
-      pack_weights(rec, op, j, w, wdt, l, n0, nn, c0, ncc, cpc, packed_w);
+      vk::BufferView wv = packed_w;
+      if (in_place(n0)) {
+        wv = w.tensor().buffer();
+        wv.offset += uint64_t(n0 * taps * cpc * wb);
+        wv.size = uint64_t(nn * taps * cpc * wb);
+      } else {
+        pack_conv_weight_slice(rec, op, w, n0, nn, c0, ncc, cpc, packed_w);
+      }
       for (int64_t b = 0; b < j.b; ++b)
         for_each_chunk(j.frames_out, chunk_frames, [&](int64_t fo0, int64_t nfo) {
           for_each_chunk(j.ho, chunk_rows, [&](int64_t oh0, int64_t nr) {
@@ -437,10 +431,10 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
             if (fam.kind == KernelFamily::texel)
               rec.dispatch(gemm,
                            {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
-                            vk::Binding(packed_w, VK_FORMAT_R32G32B32A32_UINT), bias_view, yv},
+                            vk::Binding(wv, VK_FORMAT_R32G32B32A32_UINT), bias_view, yv},
                            &pc, sizeof pc, gx, gy, 1, op);
             else
-              rec.dispatch(gemm, {packed_x, packed_w, bias_view, yv}, &pc, sizeof pc, gx, gy, 1, op);
+              rec.dispatch(gemm, {packed_x, wv, bias_view, yv}, &pc, sizeof pc, gx, gy, 1, op);
            });
           });
         });
@@ -511,7 +505,7 @@ void record_cache(vk::Recorder& rec, const ConvJob& j, const Tensor& x, const Te
 }
 
 // Weight shape as (Cout, Cin, kt, kh, kw) from a 4-D or 5-D tensor.
-std::array<int64_t, 5> kernel_dims(const char* op, const Tensor& w) {
+std::array<int64_t, 5> kernel_dims(const char* op, const ConvWeights& w) {
   const Shape& s = w.shape();
   if (s.size() == 5) return {s[0], s[1], s[2], s[3], s[4]};
   if (s.size() == 4) return {s[0], s[1], 1, s[2], s[3]};
@@ -530,6 +524,11 @@ void set_conv_register_block(const ConvRegisterBlock& block) {
 }
 
 void set_conv_chunk_bytes(uint64_t bytes) { g_chunk_bytes_override = bytes; }
+
+DType conv_weight_dtype(const vk::DeviceCaps& caps) {
+  return conv_family(caps).kind == KernelFamily::coopmat && device_tuning(caps).conv_weights_fp16 ? DType::f16
+                                                                                                   : DType::bf16;
+}
 
 DType conv_repack_dtype(const vk::DeviceCaps& caps) {
   return conv_family(caps).kind == KernelFamily::coopmat && device_tuning(caps).conv_activations_fp16 ? DType::f16
@@ -551,7 +550,7 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& p) {
   return p.channels_last_out ? Shape{x[0], x[2], ho, wo, cout} : Shape{x[0], cout, x[2], ho, wo};
 }
 
-void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void conv2d(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
             const Conv2dParams& p, const ConvScratch* scratch) {
   const char* op = "conv2d";
   expect_dtype(op, "x", x, DType::f32);
@@ -577,7 +576,7 @@ void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* b
   } else {
     j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
   }
-  check_bias(op, w, bias, j.cout);
+  check_bias(op, bias, j.cout);
   record_conv(rec, op, j, x, w, bias, y, scratch);
 }
 
@@ -586,7 +585,7 @@ Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w) {
   return {x[0], x[1], w[2] - 1, x[3], x[4]};
 }
 
-void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void causal_conv3d(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
                    const Tensor* cache_in, const Tensor* cache_out, const ConvScratch* scratch) {
   const char* op = "causal_conv3d";
   expect_dtype(op, "x", x, DType::f32);
@@ -614,7 +613,7 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   }
   int64_t plane = j.h * j.w;
   j.ys_w = 1, j.ys_h = j.w, j.ys_f = plane, j.ys_c = j.frames * plane, j.ys_b = j.cout * j.frames * plane;
-  check_bias(op, w, bias, j.cout);
+  check_bias(op, bias, j.cout);
   // The prefix replicates frame 0 (first frame batch) or is the previous batch's cache; either way the
   // taps are summed in the same order, so a clip run in frame batches equals the whole clip bit for bit.
   j.time_mode = cache_in ? 3 : 0;
@@ -624,18 +623,17 @@ void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
   if (cache_out && j.frames > 0) record_cache(rec, j, x, cache_in, *cache_out);
 }
 
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void conv1x1(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
              const ConvScratch* scratch) {
   const char* op = "conv1x1";
   auto k = kernel_dims(op, w);
   expect(k[2] == 1 && k[3] == 1 && k[4] == 1, op, "weights " + w.describe() + " are not 1x1x1");
   expect(x.rank() == 5, op, "input must be [B, C, F, H, W], got " + x.describe());
-  Tensor w5 = w.reshape({k[0], k[1], 1, 1, 1});
-  causal_conv3d(rec, x, w5, bias, y, nullptr, nullptr, scratch);
+  causal_conv3d(rec, x, w, bias, y, nullptr, nullptr, scratch);  // kernel_dims reads [Cout, Cin] as 1x1x1
 }
 
 
-void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
                         bool compress_time, const ConvScratch* scratch) {
   const char* op = "upsample2x_conv3x3";
   expect_dtype(op, "x", x, DType::f32);
@@ -654,7 +652,7 @@ void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, con
   j.time_mode = !compress_time || f <= 1 ? 0 : (f % 2 == 1 ? 1 : 2);
   int64_t plane = j.ho * j.wo;
   j.ys_w = 1, j.ys_h = j.wo, j.ys_f = plane, j.ys_c = j.frames_out * plane, j.ys_b = j.cout * j.frames_out * plane;
-  check_bias(op, w, bias, j.cout);
+  check_bias(op, bias, j.cout);
   record_conv(rec, op, j, x, w, bias, y, scratch);
 }
 

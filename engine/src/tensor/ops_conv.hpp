@@ -1,11 +1,13 @@
 // Convolutions and resampling of the CogVideoX 3D VAE and of the transformer's patch embedding.
 // Video tensors are [B, C, F, H, W] (contiguous, f32). Weights are [Cout, Cin, kt, kh, kw] (3D) or
-// [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader; the bias (optional, [Cout])
-// has the weights' dtype. Arithmetic and accumulation are fp32. Every function records into `rec`;
+// [Cout, Cin, kh, kw] (2D), stored f32, f16 or bf16 and widened in the shader, or packed once at load
+// (ops_conv_weights.hpp); the bias (optional, [Cout]) is f32, f16 or bf16, any of them whatever the weights' dtype.
+// Arithmetic and accumulation are fp32. Every function records into `rec`;
 // outputs are allocated by the caller with the shapes the *_shape() helpers give, and must not alias
 // the inputs. The convolutions run as an implicit GEMM (shaders/nn/conv_gemm.comp) over chunks of output
 // frames and rows whose input is first repacked channels-last into recorder scratch (the chunks stay within
-// maxStorageBufferRange and maxTexelBufferElements); the weights are repacked once per call. x and a cache
+// maxStorageBufferRange and maxTexelBufferElements); stored weights are repacked once per call, packed ones
+// are bound in place (a slice is repacked only where the call splits the input channels). x and a cache
 // are read through texel buffers: each must start at an allocation-aligned offset (whole tensors and arena
 // views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
 // The GEMM itself is one of three kernel families (kernel_tuning.hpp, DeviceTuning::conv): texel
@@ -15,6 +17,7 @@
 #pragma once
 #include <cstdint>
 
+#include "tensor/ops_conv_weights.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/recorder.hpp"
 
@@ -47,7 +50,7 @@ struct ConvScratchSize {
 };
 
 // x: [B, Cin, F, H, W] or [N, Cin, H, W] (images); w: [Cout, Cin, kh, kw] or [Cout, Cin, 1, kh, kw].
-void conv2d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void conv2d(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
             const Conv2dParams& params, const ConvScratch* scratch = nullptr);
 ConvScratchSize conv2d_scratch(const Shape& x, const Shape& w);
 Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
@@ -59,14 +62,14 @@ Shape conv2d_shape(const Shape& x, const Shape& w, const Conv2dParams& params);
 // (what diffusers returns as conv_cache). cache_out may be the same tensor as cache_in (updated in place
 // after the convolution has read it). With kt = 1 this is the pointwise / per-frame conv and caches are
 // not allowed.
-void causal_conv3d(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void causal_conv3d(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
                    const Tensor* cache_in = nullptr, const Tensor* cache_out = nullptr,
                    const ConvScratch* scratch = nullptr);
 ConvScratchSize causal_conv3d_scratch(const Shape& x, const Shape& w);  // also conv1x1
 Shape causal_conv3d_cache_shape(const Shape& x, const Shape& w);  // [B, Cin, kt-1, H, W]
 
 // 1x1x1 convolution (CogVideoXSafeConv3d k=1, conv_shortcut): x [B, Cin, F, H, W], w [Cout, Cin(,1,1,1)].
-void conv1x1(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void conv1x1(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
              const ConvScratch* scratch = nullptr);
 
 // Temporal pair averaging of CogVideoXDownsample3D (compress_time): odd F keeps frame 0 and averages the
@@ -87,7 +90,7 @@ void upsample2x(vk::Recorder& rec, const Tensor& x, const Tensor& y, bool compre
 // CogVideoXUpsample3D whole: upsample2x followed by its Conv2d(3x3, stride 1, pad 1) per frame, fused so
 // the 4x larger upsampled tensor is never stored. w: [Cout, Cin, 3, 3]. y: [B, Cout, Fo, 2H, 2W] with Fo
 // from upsample2x_shape. Results are bit-identical to upsample2x then conv2d(same3x3).
-void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Tensor* bias, const Tensor& y,
+void upsample2x_conv3x3(vk::Recorder& rec, const Tensor& x, const ConvWeights& w, const Tensor* bias, const Tensor& y,
                         bool compress_time, const ConvScratch* scratch = nullptr);
 ConvScratchSize upsample2x_conv3x3_scratch(const Shape& x, const Shape& w, bool compress_time);
 

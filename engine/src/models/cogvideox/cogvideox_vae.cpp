@@ -138,6 +138,12 @@ struct Layers {
     if (s == weight_shapes->end()) throw Error("internal: VAE dry run: no tensor " + n + " in the schema");
     return dry_weights.emplace(n, shape_only(s->second)).first->second;
   }
+  // Convolution weights: packed once at load on a live run (ComponentWeights::packed_conv), the shape-only stored
+  // tensor on a dry run (only shapes are read there).
+  ops::ConvWeights CW(const std::string& n) {
+    if (weights) return weights->packed_conv(n);
+    return W(n);
+  }
   const Tensor* Bias(const std::string& n) {
     const bool present = weights ? weights->has(n) : weight_shapes->count(n) > 0;
     return present ? &W(n) : nullptr;
@@ -155,7 +161,7 @@ struct Layers {
   }
 
   Tensor causal_conv(Run& run, const Tensor& x, const std::string& prefix) {
-    const Tensor& wt = W(prefix + ".conv.weight");
+    const ops::ConvWeights wt = CW(prefix + ".conv.weight");
     const Tensor* b = Bias(prefix + ".conv.bias");
     Tensor y = run.get({x.dim(0), wt.dim(0), x.dim(2), x.dim(3), x.dim(4)});
     const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(x.shape(), wt.shape()));
@@ -191,10 +197,10 @@ struct Layers {
     }
     const Tensor& zq = it->second;
     Tensor cy = run.get(f.shape()), cb = run.get(f.shape()), y = run.get(f.shape());
-    const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(zq.shape(), W(prefix + ".conv_y.conv.weight").shape()));
+    const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(zq.shape(), CW(prefix + ".conv_y.conv.weight").shape()));
     if (rec) {
-      ops::conv1x1(*rec, zq, W(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy, &cs);
-      ops::conv1x1(*rec, zq, W(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb, &cs);
+      ops::conv1x1(*rec, zq, CW(prefix + ".conv_y.conv.weight"), Bias(prefix + ".conv_y.conv.bias"), cy, &cs);
+      ops::conv1x1(*rec, zq, CW(prefix + ".conv_b.conv.weight"), Bias(prefix + ".conv_b.conv.bias"), cb, &cs);
     }
     put_scratch(run, cs);
     group_norm(run, f, y, prefix + ".norm_layer", 1e-6f, false);
@@ -233,9 +239,9 @@ struct Layers {
     run.put(h2);
     if (cin != out.dim(1)) {
       Tensor s = run.get(out.shape());
-      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(x.shape(), W(p + ".conv_shortcut.weight").shape()));
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(x.shape(), CW(p + ".conv_shortcut.weight").shape()));
       if (rec) {
-        ops::conv1x1(*rec, x, W(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s, &cs);
+        ops::conv1x1(*rec, x, CW(p + ".conv_shortcut.weight"), Bias(p + ".conv_shortcut.bias"), s, &cs);
         ops::add(*rec, out, s, out);
       }
       put_scratch(run, cs);
@@ -267,7 +273,7 @@ struct Layers {
           run.put(h);
           h = t;
         }
-        const Tensor& wt = W(p + ".downsamplers.0.conv.weight");
+        const ops::ConvWeights wt = CW(p + ".downsamplers.0.conv.weight");
         const auto params = ops::Conv2dParams::downsample3x3();
         Tensor y = run.get(ops::conv2d_shape(h.shape(), wt.shape(), params));
         const ops::ConvScratch cs = conv_scratch(run, ops::conv2d_scratch(h.shape(), wt.shape()));
@@ -288,8 +294,8 @@ struct Layers {
     run.put(h);
     if (cfg.use_quant_conv) {
       Tensor q = run.get(out.shape());
-      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(out.shape(), W("quant_conv.weight").shape()));
-      if (rec) ops::conv1x1(*rec, out, W("quant_conv.weight"), Bias("quant_conv.bias"), q, &cs);
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(out.shape(), CW("quant_conv.weight").shape()));
+      if (rec) ops::conv1x1(*rec, out, CW("quant_conv.weight"), Bias("quant_conv.bias"), q, &cs);
       put_scratch(run, cs);
       out = q;
     }
@@ -302,8 +308,8 @@ struct Layers {
     Tensor z = z_in;
     if (cfg.use_post_quant_conv) {
       z = run.get(z_in.shape());
-      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(z_in.shape(), W("post_quant_conv.weight").shape()));
-      if (rec) ops::conv1x1(*rec, z_in, W("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z, &cs);
+      const ops::ConvScratch cs = conv_scratch(run, ops::causal_conv3d_scratch(z_in.shape(), CW("post_quant_conv.weight").shape()));
+      if (rec) ops::conv1x1(*rec, z_in, CW("post_quant_conv.weight"), Bias("post_quant_conv.bias"), z, &cs);
       put_scratch(run, cs);
     }
     run.z = z;
@@ -325,7 +331,7 @@ struct Layers {
         Tensor u = run.get(ops::upsample2x_shape(h.shape(), compress_time));
         if (rec) ops::upsample2x(*rec, h, u, compress_time);
         run.put(h);
-        const Tensor& wt = W(p + ".upsamplers.0.conv.weight");
+        const ops::ConvWeights wt = CW(p + ".upsamplers.0.conv.weight");
         const auto params = ops::Conv2dParams::same3x3();
         Tensor y = run.get(ops::conv2d_shape(u.shape(), wt.shape(), params));
         const ops::ConvScratch cs = conv_scratch(run, ops::conv2d_scratch(u.shape(), wt.shape()));
