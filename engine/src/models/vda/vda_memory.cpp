@@ -33,6 +33,7 @@ VdaMemory plan_vda_memory(const VdaConfig& c, int64_t T, int64_t input_h, int64_
       const Shape& k = shape_of.at(name.substr(0, name.size() - 4) + "weight");
       n *= k[2] * k[3];
     }
+    if (VdaModel::packs_as_conv(name, shape)) n = shape_numel(ops::packed_conv_weights_shape(shape));  // Cin to 8
     if (name.find("ff.net.0.proj") != std::string::npos) {  // split into two halves
       m.weights += 2 * bytes(n / 2);
       continue;

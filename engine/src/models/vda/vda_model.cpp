@@ -123,10 +123,20 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
     host.erase(p + "bias");
   }
   m.pos_table_ = need("pretrained.pos_embed");
+  // The convolutions' weights packed once here into the layout the conv kernels read (packs_as_conv).
   for (auto& [name, t] : host) {
     if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;  // host table / unused
+    Tensor up = Tensor::upload(ctx, t, "vda " + name);
+    if (packs_as_conv(name, t.shape)) {
+      ops::PackedConvWeights p{Tensor::empty(ctx, ops::packed_conv_weights_shape(t.shape), t.dtype, "vda " + name + " (packed)"),
+                               t.shape};
+      run(ctx, [&](vk::Recorder& r) { ops::pack_conv_weights(r, up, p.packed); });
+      m.weight_bytes_ += p.packed.bytes();
+      m.conv_weights_.emplace(name, std::move(p));
+      continue;
+    }
     m.weight_bytes_ += t.bytes();
-    m.weights_.emplace(name, Tensor::upload(ctx, t, "vda " + name));
+    m.weights_.emplace(name, std::move(up));
   }
   return m;
 }
@@ -134,6 +144,17 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
 const Tensor& VdaModel::w(const std::string& name) const {
   auto it = weights_.find(name);
   if (it == weights_.end()) throw Error(file_.string() + ": tensor " + name + " is missing");
+  return it->second;
+}
+
+bool VdaModel::packs_as_conv(const std::string& name, const Shape& shape) {
+  return shape.size() == 4 && (name == "pretrained.patch_embed.proj.weight" || name == "head.resize_layers.3.weight" ||
+                               (name.starts_with("head.scratch.") && name.ends_with(".weight")));
+}
+
+const ops::PackedConvWeights& VdaModel::conv_weights(const std::string& name) const {
+  auto it = conv_weights_.find(name);
+  if (it == conv_weights_.end()) throw Error(file_.string() + ": convolution weights " + name + " are missing");
   return it->second;
 }
 
@@ -211,7 +232,8 @@ std::array<Tensor, 4> VdaModel::encode(const Tensor& x) {
     Tensor cls_t = Tensor::upload(ctx, cls_rows, "vit cls");
     ops::Conv2dParams patch{int(cfg_.patch_size), 0, 0, 0, 0, true};
     run(ctx, [&](vk::Recorder& r) {
-      ops::conv2d(r, x.rows(f0, n), w("pretrained.patch_embed.proj.weight"), &w("pretrained.patch_embed.proj.bias"), patches, patch);
+      ops::conv2d(r, x.rows(f0, n), conv_weights("pretrained.patch_embed.proj.weight"), &w("pretrained.patch_embed.proj.bias"),
+                  patches, patch);
       ops::concat(r, {cls_t, patches.reshape({n, h * wd, d})}, tok, 1);
       ops::add(r, tok, pe, tok);
     });
@@ -340,7 +362,7 @@ Tensor VdaModel::temporal(int j, const Tensor& x, int64_t frames) {
 // ---------------------------------------------------------------------------------------------- DPT head
 
 Tensor VdaModel::conv(const std::string& prefix, const Tensor& x, int stride, int pad, bool bias) {
-  const Tensor& wt = w(prefix + "weight");
+  const ops::ConvWeights wt = conv_weights(prefix + "weight");
   ops::Conv2dParams cp{stride, pad, pad, pad, pad, false};
   Tensor y = empty(*ctx_, ops::conv2d_shape(x.shape(), wt.shape(), cp), "head conv");
   run(*ctx_, [&](vk::Recorder& r) { ops::conv2d(r, x, wt, bias ? &w(prefix + "bias") : nullptr, y, cp); });

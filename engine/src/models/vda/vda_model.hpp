@@ -14,6 +14,7 @@
 #include <string>
 
 #include "spec/vda_config.hpp"
+#include "tensor/ops_conv_weights.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/context.hpp"
 
@@ -27,6 +28,9 @@ class VdaModel {
   static VdaModel load(vk::Context& ctx, const std::filesystem::path& checkpoint);
   // The architecture alone, from the tensors' names and shapes (no weights read): a cheap check before long work.
   static VdaConfig inspect(const std::filesystem::path& checkpoint);
+  // Whether load() keeps tensor `name` packed for the conv kernels (ops_conv_weights.hpp: the patch embedding, the
+  // DPT head's stride-2 resize and scratch convs; the head's 1x1 projections run as Linears and stay as stored).
+  static bool packs_as_conv(const std::string& name, const Shape& shape);
 
   const VdaConfig& config() const { return cfg_; }
   vk::Context& context() const { return *ctx_; }
@@ -69,6 +73,7 @@ class VdaModel {
  private:
   VdaModel(vk::Context& ctx, VdaConfig cfg) : ctx_(&ctx), cfg_(std::move(cfg)) {}
   const Tensor& w(const std::string& name) const;
+  const ops::PackedConvWeights& conv_weights(const std::string& name) const;  // packed at load
   void probe(const std::string& name, const Tensor& t) const {
     if (probe_) probe_(name, t);
   }
@@ -83,6 +88,7 @@ class VdaModel {
   VdaConfig cfg_;
   std::filesystem::path file_;
   std::map<std::string, Tensor> weights_;
+  std::map<std::string, ops::PackedConvWeights> conv_weights_;  // the convolutions' (load())
   std::map<std::pair<int64_t, int64_t>, Tensor> pos_embed_;  // resampled tables per patch grid
   HostTensor pos_table_;
   uint64_t weight_bytes_ = 0;
