@@ -18,6 +18,7 @@
 
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/vae_conv_paths.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -61,25 +62,15 @@ class HalfInputConvOps : public test::GpuTest {
     const Tensor w2 = random_tensor(c, {cout, cin, 3, 3}, 4, 0.2f, DType::bf16);
     const Tensor w1 = random_tensor(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
     const Tensor b = random_tensor(c, {cout}, 6, 0.5f, DType::bf16);
-    const Shape y = {1, cout, F, H, W};
-    Shape down = ops::conv2d_shape(x.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
-    Shape up = ops::upsample2x_shape(x.shape(), true);
-    up[1] = cout;
-    std::vector<std::pair<Shape, std::function<void(vk::Recorder&, const Tensor&)>>> ops_list = {
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, w3, &b, o); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, w3, &b, o, &cache); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, w2, &b, o, ops::Conv2dParams::same3x3()); }},
-        {down, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, w2, nullptr, o, ops::Conv2dParams::downsample3x3()); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv1x1(rec, x, w1, nullptr, o); }},
-        {up, [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x_conv3x3(rec, x, w2, &b, o, true); }},
-    };
     std::vector<std::vector<uint32_t>> out;
-    for (auto& [shape, op] : ops_list) {
-      const Tensor o = Tensor::empty(c, shape, DType::f32);
+    names_.clear();
+    for (const test::VaeConvPath& path : test::vae_conv_paths(x, cache, w3, w2, w1, b)) {
+      names_.push_back(path.name);
+      const Tensor o = Tensor::empty(c, path.out, DType::f32);
       {
         std::unique_ptr<test::ScopedLimits> scope;
         if (limits) scope = std::make_unique<test::ScopedLimits>(c, limits);
-        ops::run_now(c, [&](vk::Recorder& rec) { op(rec, o); });
+        ops::run_now(c, [&](vk::Recorder& rec) { path.call(rec, o); });
       }
       const HostTensor h = o.download(c);
       out.emplace_back(size_t(h.numel()));
@@ -88,6 +79,7 @@ class HalfInputConvOps : public test::GpuTest {
     return out;
   }
   bool twin_ = false;
+  std::vector<std::string> names_;  // of the paths all_convs ran, in order
 };
 
 // A layout no other test uses (2 x 1 subgroups of 1 x 2 fragments, K 16) makes the kernel's pipelines this test's own.
@@ -106,8 +98,6 @@ TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
     return found;
   };
   ASSERT_FALSE(ran(true) || ran(false));
-  const char* names[] = {"causal conv", "causal conv with cache", "conv2d 3x3", "downsample 3x3 s2", "conv 1x1",
-                         "upsample x2 + conv 3x3"};
   // binding=4KiB only at 5 channels: at 37 it would cut the f32 repack into input-channel chunks (27 x 40 x 4 B a
   // pixel) but not the fp16 one (half that), and chunks add partial sums in another order.
   const std::pair<int64_t, const char*> runs[] = {{5, nullptr},  {5, "texels=256"},  {5, "binding=4KiB"},
@@ -127,7 +117,7 @@ TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
       for (size_t i = 0; i < f16.size(); ++i) {
         size_t differ = 0;
         for (size_t k = 0; k < f16[i].size(); ++k) differ += f16[i][k] != f32[i][k];
-        EXPECT_EQ(differ, 0u) << names[i] << ", " << where << ": elements that differ from the f32 repack's";
+        EXPECT_EQ(differ, 0u) << names_[i] << ", " << where << ": elements that differ from the f32 repack's";
       }
     }
   // The f16 runs read an fp16 chunk (which an f32 repack would have turned to garbage), the f32 runs an f32 one.

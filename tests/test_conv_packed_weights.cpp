@@ -20,6 +20,7 @@
 #include "support/files.hpp"
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
+#include "support/vae_conv_paths.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -74,6 +75,7 @@ class PackedConvOps : public test::GpuTest {
   struct Result {
     std::vector<std::vector<uint32_t>> y;
     std::vector<uint32_t> dispatches;  // per conv call
+    std::vector<std::string> names;
   };
   // y of every conv path on a [1, cin, F, H, W] input with `cout` output channels, the weights as stored (mode 0),
   // packed (1) or packed at an unaligned offset (2), under `limits` (nullptr: none).
@@ -100,26 +102,15 @@ class PackedConvOps : public test::GpuTest {
       return *keep.back();
     };
     const ops::ConvWeights p3 = weights(w3), p2 = weights(w2), p1 = weights(w1);
-    const Shape y = {1, cout, F, H, W};
-    Shape down = ops::conv2d_shape(x.shape(), w2.shape(), ops::Conv2dParams::downsample3x3());
-    Shape up = ops::upsample2x_shape(x.shape(), true);
-    up[1] = cout;
-    std::vector<std::pair<Shape, std::function<void(vk::Recorder&, const Tensor&)>>> calls = {
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, p3, &b, o); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::causal_conv3d(rec, x, p3, &b, o, &cache); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, p2, &b, o, ops::Conv2dParams::same3x3()); }},
-        {down, [&](vk::Recorder& rec, const Tensor& o) { ops::conv2d(rec, x, p2, nullptr, o, ops::Conv2dParams::downsample3x3()); }},
-        {y, [&](vk::Recorder& rec, const Tensor& o) { ops::conv1x1(rec, x, p1, nullptr, o); }},
-        {up, [&](vk::Recorder& rec, const Tensor& o) { ops::upsample2x_conv3x3(rec, x, p2, &b, o, true); }},
-    };
     Result r;
-    for (auto& [shape, call] : calls) {
-      const Tensor o = Tensor::empty(c, shape, DType::f32);
+    for (const test::VaeConvPath& path : test::vae_conv_paths(x, cache, p3, p2, p1, b)) {
+      r.names.push_back(path.name);
+      const Tensor o = Tensor::empty(c, path.out, DType::f32);
       {
         std::unique_ptr<test::ScopedLimits> scope;
         if (limits) scope = std::make_unique<test::ScopedLimits>(c, limits);
         ops::run_now(c, [&](vk::Recorder& rec) {
-          call(rec, o);
+          path.call(rec, o);
           r.dispatches.push_back(rec.dispatch_count());
         });
       }
@@ -170,8 +161,6 @@ TEST_F(PackedConvOps, LayoutIsTheKernelsForEveryDtypeAndSplit) {
 
 
 TEST_F(PackedConvOps, EveryPathGivesTheStoredWeightsBits) {
-  const char* names[] = {"causal conv", "causal conv with cache", "conv2d 3x3", "downsample 3x3 s2", "conv 1x1",
-                         "upsample x2 + conv 3x3"};
   struct Run {
     int64_t cin, cout, frames, h, w;
     const char* limits;
@@ -194,13 +183,13 @@ TEST_F(PackedConvOps, EveryPathGivesTheStoredWeightsBits) {
         differ += stored.y[i][k] != packed.y[i][k];
         differ_unaligned += stored.y[i][k] != unaligned.y[i][k];
       }
-      EXPECT_EQ(differ, 0u) << names[i] << ", " << where << ": elements that differ from the stored weights'";
-      EXPECT_EQ(differ_unaligned, 0u) << names[i] << ", " << where << ", packed at an unaligned offset";
+      EXPECT_EQ(differ, 0u) << stored.names[i] << ", " << where << ": elements that differ from the stored weights'";
+      EXPECT_EQ(differ_unaligned, 0u) << stored.names[i] << ", " << where << ", packed at an unaligned offset";
       // Unsplit, the packed group is bound in place: one weight repack fewer. Unaligned, it is repacked as stored
       // weights are.
       if (!run.limits) {
-        EXPECT_EQ(packed.dispatches[i] + 1, stored.dispatches[i]) << names[i] << ", " << where << ": dispatches";
-        EXPECT_EQ(unaligned.dispatches[i], stored.dispatches[i]) << names[i] << ", " << where << ": dispatches";
+        EXPECT_EQ(packed.dispatches[i] + 1, stored.dispatches[i]) << stored.names[i] << ", " << where << ": dispatches";
+        EXPECT_EQ(unaligned.dispatches[i], stored.dispatches[i]) << stored.names[i] << ", " << where << ": dispatches";
       }
     }
   }
