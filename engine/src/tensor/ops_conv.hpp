@@ -41,7 +41,9 @@ struct Conv2dParams {
 // recorder scratch (vk::Recorder::scratch); callers that plan their memory (the VAE) pass buffers of the
 // sizes *_scratch() gives, f32 elements each, which depend on shapes alone (not the device, not the weight
 // dtype: the weights part is sized for f32): the input part is the whole repacked input, capped at 128 MiB
-// (the smallest maxStorageBufferRange Vulkan allows; larger inputs run in chunks of at most that).
+// (the smallest maxStorageBufferRange Vulkan allows; larger inputs run in chunks of at most that). Weights packed
+// at load leave the weights part unused unless the call repacks a slice of them (split input channels, an
+// unaligned group); it also bounds the output-channel groups either way.
 struct ConvScratch {
   Tensor input, weights;
 };
