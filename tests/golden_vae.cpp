@@ -232,16 +232,24 @@ TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
     return m;
   };
   CogVideoXVae& v = vae();
+  const Tensor video = up(load("vae/chunk17_video.npy")), z = up(load("vae/chunk17_encode_mean.npy"));
+  // The kernels' own error on the batched path (the golden's), measured first: the whole-clip difference may move
+  // from the recorded one by at most the whole-clip path's own error (|max|w - g| - max|w* - g|| <= max|w - w*|,
+  // w* diffusers' whole clip), which the batched path's error estimates (twice it: a margin for the estimate). Tiny
+  // with fp32 kernels; with 16-bit ones far above the fp32 tolerance (the H200, 2026-11-29: the encode mean's
+  // difference 7.3e-4 from the recorded one).
+  const double enc_err = max_diff(dl(v.encode(video).mean), load("vae/chunk17_encode_mean.npy"));
+  const double dec_err = max_diff(dl(v.decode(z)), load("vae/chunk17_decode_frames.npy"));
   v.sample_frames_batch = 1 << 20;
   v.latent_frames_batch = 1 << 20;
-  const auto post = v.encode(up(load("vae/chunk17_video.npy")));
+  const auto post = v.encode(video);
   const double enc = max_diff(dl(post.mean), load("vae/chunk17_encode_mean.npy"));
-  const Tensor z = up(load("vae/chunk17_encode_mean.npy"));
   const double dec = max_diff(dl(v.decode(z)), load("vae/chunk17_decode_frames.npy"));
-  std::printf("[ golden ] whole clip: encode_mean diff %.6g (recorded %.6g), decode diff %.6g (recorded %.6g)\n", enc,
-              rec["encode_mean"].get<double>(), dec, rec["decode"].get<double>());
-  EXPECT_NEAR(enc, rec["encode_mean"].get<double>(), 1e-3 * rec["encode_mean"].get<double>() + 1e-4);
-  EXPECT_NEAR(dec, rec["decode"].get<double>(), 1e-3 * rec["decode"].get<double>() + 1e-3);
+  std::printf("[ golden ] whole clip: encode_mean diff %.6g (recorded %.6g), decode diff %.6g (recorded %.6g); the "
+              "batched path's own error %.3g, %.3g\n",
+              enc, rec["encode_mean"].get<double>(), dec, rec["decode"].get<double>(), enc_err, dec_err);
+  EXPECT_NEAR(enc, rec["encode_mean"].get<double>(), 1e-3 * rec["encode_mean"].get<double>() + 1e-4 + 2 * enc_err);
+  EXPECT_NEAR(dec, rec["decode"].get<double>(), 1e-3 * rec["decode"].get<double>() + 1e-3 + 2 * dec_err);
 }
 
 // Which decoded frames dvs keeps for an even latent count, against diffusers' decode of even-count latents

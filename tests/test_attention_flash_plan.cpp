@@ -79,17 +79,18 @@ TEST(AttentionFlashPlan, CogVideoXRealSizeOnTensorCores) {
   EXPECT_EQ(ops::attention_split_plan_fused(caps, {2, 64, 64, 226, 226}, true, true).family, KernelFamily::texel);
 }
 
-// Where the device has VK_NV_cooperative_matrix2's row operations, the coopmat2 variant runs and takes 8
-// subgroups (128 query rows, 28 KiB at head_dim 64); with attention_coopmat2=off the KHR kernel keeps 4.
-TEST(AttentionFlashPlan, Coopmat2TakesOneHundredTwentyEightRows) {
+// Where the device has VK_NV_cooperative_matrix2's row operations, the coopmat2 variant runs and takes 16
+// subgroups (256 query rows, 38 KiB at head_dim 64: the H200's best, 2026-11-29); with attention_coopmat2=off the
+// KHR kernel keeps 4.
+TEST(AttentionFlashPlan, Coopmat2TakesTwoHundredFiftySixRows) {
   if (std::getenv("DVS_TUNING")) GTEST_SKIP() << "checks the table's own choices, which DVS_TUNING overrides";
   vk::DeviceCaps caps = gpu_caps(32, true);
   caps.cooperative_matrix2_row_ops = true;
   const ops::DeviceTuning t = ops::select_tuning(caps, "");
   EXPECT_EQ(ops::attention_coopmat_kernel(caps, t), ops::AttentionKernel::coopmat2);
-  EXPECT_EQ(ops::attention_coopmat_layout(t).rows(), 128);
+  EXPECT_EQ(ops::attention_coopmat_layout(t).rows(), 256);
   EXPECT_EQ(ops::attention_coopmat_shared_bytes(ops::attention_coopmat_layout(t), 64, ops::AttentionKernel::coopmat2),
-            28u * 1024);
+            38u * 1024);
   const ops::DeviceTuning off = ops::select_tuning(caps, "attention_coopmat2=off");
   EXPECT_EQ(ops::attention_coopmat_kernel(caps, off), ops::AttentionKernel::khr);
   EXPECT_EQ(ops::attention_coopmat_layout(off).rows(), 64);

@@ -48,14 +48,15 @@ TEST(LinearTuning, CoopmatOnSubgroup32With48KiB) {
   EXPECT_EQ(t.entry, "gpu-coopmat");
   EXPECT_EQ(t.linear, ops::KernelFamily::coopmat);
   EXPECT_EQ(t.coopmat.k, 16u);
-  // The layout the H200 ran: 2 x 4 subgroups of 32 lanes, 4 x 2 fragments each, K 32: 128 x 128 x 32, 48 KiB.
+  // The H200's best (2026-11-29): 2 x 2 subgroups of 32 lanes, 4 x 4 fragments each (64 x 64 per subgroup), K 32:
+  // 128 x 128 x 32, 44 KiB.
   EXPECT_EQ(t.coopmat_lanes, 32);
-  EXPECT_TRUE(same(t.linear_coopmat, {2, 4, 4, 2, 32}));
+  EXPECT_TRUE(same(t.linear_coopmat, {2, 2, 4, 4, 32}));
   const ops::CoopmatGemm g = ops::linear_coopmat_layout(t);
   EXPECT_EQ(g.tile_m(), 128);
   EXPECT_EQ(g.tile_n(), 128);
-  EXPECT_EQ(g.invocations(), 256u);
-  EXPECT_EQ(ops::linear_coopmat_shared_bytes(g), 48u * 1024);
+  EXPECT_EQ(g.invocations(), 128u);
+  EXPECT_EQ(ops::linear_coopmat_shared_bytes(g), 44u * 1024);
   // The tiled family keeps its own tile.
   EXPECT_EQ(t.linear_tile_m, 64);
   EXPECT_EQ(t.linear_tile_k, 16);
@@ -67,11 +68,12 @@ TEST(LinearTuning, SmallerLayoutWhereSharedMemoryIsShort) {
   EXPECT_EQ(t.linear, ops::KernelFamily::coopmat);
   EXPECT_TRUE(same(t.linear_coopmat, {2, 2, 2, 2, 32}));
   EXPECT_EQ(ops::linear_coopmat_shared_bytes(ops::linear_coopmat_layout(t)), 24u * 1024);
-  // 64 lanes: the first row, at 512 invocations.
+  // 64 lanes: the first row, at 256 invocations.
   ops::DeviceTuning w = ops::select_tuning(gpu(64, 64 * 1024, true), "");
   EXPECT_EQ(w.linear, ops::KernelFamily::coopmat);
   EXPECT_EQ(w.coopmat_lanes, 64);
-  EXPECT_TRUE(same(w.linear_coopmat, {2, 4, 4, 2, 32}));
+  EXPECT_TRUE(same(w.linear_coopmat, {2, 2, 4, 4, 32}));
+  EXPECT_EQ(ops::linear_coopmat_layout(w).invocations(), 256u);
   // Not even the smallest row (16 KiB): tiled, and why.
   ops::DeviceTuning s = ops::select_tuning(gpu(32, 8 * 1024, true), "");
   EXPECT_EQ(s.linear, ops::KernelFamily::tiled);
@@ -95,7 +97,7 @@ TEST(LinearTuning, TiledWithoutATensorCoreShape) {
 
 TEST(LinearTuning, LavapipeSizedLayouts) {
   // The coopmat entry forced on lavapipe 26.1: its listed 8x8x8, 8 lanes, the GPUs' arrangement of subgroups and
-  // fragments (64 x 64 x 32, 64 invocations, 22 KiB).
+  // fragments (64 x 64 x 32, 32 invocations, 21 KiB).
   ops::DeviceTuning t = ops::select_tuning(lavapipe_26(), "gpu-coopmat");
   EXPECT_EQ(t.linear, ops::KernelFamily::coopmat);
   EXPECT_EQ(t.conv, ops::KernelFamily::coopmat);
@@ -103,13 +105,13 @@ TEST(LinearTuning, LavapipeSizedLayouts) {
   EXPECT_EQ(t.coopmat.m, 8u);
   EXPECT_EQ(t.coopmat.k, 8u);
   EXPECT_EQ(t.coopmat_lanes, 8);
-  EXPECT_TRUE(same(t.linear_coopmat, {2, 4, 4, 2, 32}));
+  EXPECT_TRUE(same(t.linear_coopmat, {2, 2, 4, 4, 32}));
   EXPECT_EQ(ops::linear_coopmat_layout(t).tile_m(), 64);
-  EXPECT_EQ(ops::linear_coopmat_layout(t).invocations(), 64u);
-  EXPECT_EQ(ops::linear_coopmat_shared_bytes(ops::linear_coopmat_layout(t)), 22u * 1024);
+  EXPECT_EQ(ops::linear_coopmat_layout(t).invocations(), 32u);
+  EXPECT_EQ(ops::linear_coopmat_shared_bytes(ops::linear_coopmat_layout(t)), 21u * 1024);
   EXPECT_TRUE(same(t.conv_coopmat, {4, 2, 2, 4, 32}));
   EXPECT_EQ(t.attention_coopmat_subgroups, 4);
-  // The GPUs' 16x16x16 forced: linear takes the 64 x 64 row (the first needs 48 KiB), attention 2 subgroups
+  // The GPUs' 16x16x16 forced: linear takes the 64 x 64 row (the first two need 44 and 48 KiB), attention 2 subgroups
   // (4 need 44 KiB at 64 keys), conv keeps 128 x 128 (28 KiB) with 64 invocations gathering 2 pixels each.
   ops::DeviceTuning f = ops::select_tuning(lavapipe_26(), "gpu-coopmat,coopmat=16x16x16");
   EXPECT_EQ(f.coopmat.m, 16u);

@@ -52,13 +52,17 @@ CoopmatShape pick_coopmat_shape(const vk::DeviceCaps& c) {
 // are padded against bank conflicts). The same rows hold
 // lavapipe's 8 lanes and 32 KiB at its 8x8x8 fragment (tiles of 64 x 64, 32 query rows); at a forced 16x16x16
 // lavapipe takes the smaller rows (linear 64 x 64, attention 2 subgroups).
-constexpr CoopmatTile kLinearCoopmatLayouts[] = {{2, 4, 4, 2, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
+// Measured on the H200 (2026-11-29, bench/results/h200-2026-11-29*, TFLOP/s at the transformer's four GEMM shapes):
+// 2x2x4x4x32 (a 64x64 tile per subgroup, 128x128 per workgroup) 172-193, 2x4x4x2x32 (the first row until then)
+// 119-122, 2x2x4x2x32 125-129, 2x2x2x4x32 115-124, 2x2x4x4x16 136-145, 1x1x4x4x32 88-96; 4x2x4x4x32, 2x4x4x4x32 and
+// 2x2x4x4x64 do not fit its 48 KiB (they ran tiled).
+constexpr CoopmatTile kLinearCoopmatLayouts[] = {{2, 2, 4, 4, 32}, {2, 4, 4, 2, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
 constexpr CoopmatTile kConvCoopmatLayouts[] = {{4, 2, 2, 4, 32}, {2, 2, 2, 2, 32}, {1, 1, 2, 2, 32}};
 constexpr int kAttentionCoopmatSubgroups[] = {4, 2, 1};
-// The coopmat2 variant (no scores or P in shared memory) holds 8 subgroups: 128 query rows per K/V tile at
-// 16x16x16, FlashAttention-2's block for head_dim 64 (its 256-row blocks spilled). Unmeasured in Vulkan here: the
-// device script's sweep times 8 against 4.
-constexpr int kAttentionCoopmat2Subgroups[] = {8, 4, 2, 1};
+// The coopmat2 variant (no scores or P in shared memory) holds 16 subgroups: 256 query rows per K/V tile at
+// 16x16x16. Measured on the H200 (2026-11-29, 2x48x17776, head_dim 64): 16 subgroups 160.3 TFLOP/s, 8 97.5-97.6,
+// 4 62.7 (SDPA flash 312.6 in the same run).
+constexpr int kAttentionCoopmat2Subgroups[] = {16, 8, 4, 2, 1};
 
 // CPU drivers (lavapipe, SwiftShader): an 8- or 16-lane subgroup is one SIMD register and every per-lane
 // load is a scalar loop, so register blocks that reuse each fetched texel many times win, as long as the
