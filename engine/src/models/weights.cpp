@@ -125,10 +125,7 @@ bool ComponentWeights::store_as(const std::string& name, DType dtype) {
 const ops::PackedConvWeights& ComponentWeights::packed_conv(const std::string& name) {
   if (auto it = packed_.find(name); it != packed_.end()) return it->second;
   if (ops::conv_weight_dtype(ctx_.caps()) == DType::f16) store_as(name, DType::f16);
-  const Tensor& w = get(name);
-  ops::PackedConvWeights p{Tensor::empty(ctx_, ops::packed_conv_weights_shape(w.shape()), w.dtype(), name + " (packed)"),
-                           w.shape()};
-  ops::run_now(ctx_, [&](vk::Recorder& rec) { ops::pack_conv_weights(rec, w, p.packed); });
+  ops::PackedConvWeights p = ops::packed_conv_weights_now(ctx_, get(name), name);
   release(name);
   bytes_ += p.packed.bytes();
   return packed_.emplace(name, std::move(p)).first->second;

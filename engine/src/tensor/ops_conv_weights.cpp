@@ -4,6 +4,7 @@
 
 #include "dvs/error.hpp"
 #include "tensor/binding_split.hpp"
+#include "tensor/dispatch.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
@@ -48,6 +49,12 @@ void pack_conv_weights(vk::Recorder& rec, const Tensor& w, const Tensor& packed)
                  dtype_name(w.dtype()) + " for weights " + w.describe());
   const Dims d = dims_of(op, w.shape());
   pack_conv_weight_slice(rec, op, ConvWeights(w), 0, d.cout, 0, d.cin, round8(d.cin), packed.buffer());
+}
+
+PackedConvWeights packed_conv_weights_now(vk::Context& ctx, const Tensor& w, const std::string& what) {
+  PackedConvWeights p{Tensor::empty(ctx, packed_conv_weights_shape(w.shape()), w.dtype(), what + " (packed)"), w.shape()};
+  run_now(ctx, [&](vk::Recorder& rec) { pack_conv_weights(rec, w, p.packed); });
+  return p;
 }
 
 void pack_conv_weight_slice(vk::Recorder& rec, const char* op, const ConvWeights& w, int64_t co0, int64_t ng,

@@ -54,6 +54,8 @@ DType conv_weight_dtype(const vk::DeviceCaps& caps);
 // Packs stored weights `w` into `packed` (allocated by the caller: packed_conv_weights_shape(w.shape()), w's
 // dtype), in as many dispatches as the limits in force need.
 void pack_conv_weights(vk::Recorder& rec, const Tensor& w, const Tensor& packed);
+// A model's load: `w` packed into a new tensor (named `what` + " (packed)"), recorded and submitted now.
+PackedConvWeights packed_conv_weights_now(vk::Context& ctx, const Tensor& w, const std::string& what);
 
 // For ops_conv.cpp: output channels [co0, co0 + ng) and input channels [ci0, ci0 + cc) of `w` (stored or packed)
 // packed into `dst` ([ng, taps, cpc], cpc = cc rounded up to 8, w's dtype), in as many dispatches as the source's

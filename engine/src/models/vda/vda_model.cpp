@@ -128,9 +128,7 @@ VdaModel VdaModel::load(vk::Context& ctx, const std::filesystem::path& checkpoin
     if (name == "pretrained.pos_embed" || name == "pretrained.mask_token") continue;  // host table / unused
     Tensor up = Tensor::upload(ctx, t, "vda " + name);
     if (packs_as_conv(name, t.shape)) {
-      ops::PackedConvWeights p{Tensor::empty(ctx, ops::packed_conv_weights_shape(t.shape), t.dtype, "vda " + name + " (packed)"),
-                               t.shape};
-      run(ctx, [&](vk::Recorder& r) { ops::pack_conv_weights(r, up, p.packed); });
+      ops::PackedConvWeights p = ops::packed_conv_weights_now(ctx, up, "vda " + name);
       m.weight_bytes_ += p.packed.bytes();
       m.conv_weights_.emplace(name, std::move(p));
       continue;
