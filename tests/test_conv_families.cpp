@@ -258,6 +258,11 @@ std::vector<Case> all_cases() {
       {Kind::same3x3, 1, 64, 19, 2, 7, 9, DType::bf16},
       {Kind::causal, 1, 32, 7, 3, 5, 7, DType::f16},
       {Kind::upsample_conv, 1, 32, 7, 2, 3, 5, DType::bf16, true, true},
+      // The same with every other variant: the stride-2 downsample, the cache's frames, a 1x1 kernel (the 16-byte
+      // gathers of DeviceTuning::conv_coopmat_vector_loads take all of them).
+      {Kind::downsample, 1, 32, 19, 2, 9, 8, DType::bf16},
+      {Kind::causal_cached, 1, 32, 7, 2, 5, 7, DType::bf16},
+      {Kind::pointwise, 1, 64, 7, 3, 5, 7, DType::bf16},
   };
 }
 

@@ -91,7 +91,7 @@ TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
   auto ran = [&](bool x16) {
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == gemm && pl.spec.size() == 14 && pl.spec[1] == 2 && pl.spec[2] == 1 && pl.spec[3] == 1 &&
+      if (pl.name == gemm && pl.spec.size() == 15 && pl.spec[1] == 2 && pl.spec[2] == 1 && pl.spec[3] == 1 &&
           pl.spec[4] == 2 && pl.spec[5] == 16 && pl.spec[12] == (x16 ? 1u : 0u))
         found = true;
     });

@@ -266,7 +266,7 @@ TEST_F(PackedConvOps, VaeKeepsBf16ConvWeightsFp16WithTheSameResult) {
   auto ran = [&](uint32_t wcode, uint32_t bcode) {
     bool found = false;
     c.pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name == gemm && pl.spec.size() == 14 && pl.spec[0] == wcode && pl.spec[13] == bcode) found = true;
+      if (pl.name == gemm && pl.spec.size() == 15 && pl.spec[0] == wcode && pl.spec[13] == bcode) found = true;
     });
     return found;
   };

@@ -47,6 +47,13 @@ layout(constant_id = 11) const uint STAGES = 1;
 // already the operand values (half the bytes every tap reads); else fp32, rounded here.
 layout(constant_id = 12) const bool X_F16 = false;
 layout(constant_id = 13) const int BTYPE = 2;  // bias storage (conv_bias.glsl): 0 f32, 1 f16, 2 bf16
+// 16-byte gathers (the host sets it for an fp16 input chunk, channels a multiple of BK, 16-bit weights and kernels
+// of at most 16 x 16 taps per frame: the VAE's convolutions on GPUs): each load is 8 channels (one uvec4), stored
+// to shared memory as it is (fp16; bf16 weights converted), invocation t taking vector t % (BK / 8) of pixels
+// t / (BK / 8) + (WG / (BK / 8))·j, so neighbouring lanes read one pixel's contiguous channels. Each pixel's
+// source index and which of its taps fall inside the image are worked out once (gather_setup), so a load is a
+// mask test and two adds: no division in the loop.
+layout(constant_id = 14) const bool VEC8 = false;
 
 const uint WG = gl_WorkGroupSize.x;
 const uint WM = FM * FRAG_M, WN = FN * FRAG_N;   // one subgroup's part
@@ -61,7 +68,9 @@ const uint PIX_B = (BN + WG - 1) / WG, STEP_B = (WG + BN - 1) / BN;
 layout(std430, binding = 0) readonly buffer X { vec4 x[]; };  // packed input chunk + one zero pixel
 layout(std430, binding = 0) readonly buffer XH { uvec2 xh[]; };  // X_F16: the same, 4 halves per element
 vec4 x4(uint i) { return X_F16 ? vec4(unpackHalf2x16(xh[i].x), unpackHalf2x16(xh[i].y)) : x[i]; }
+layout(std430, binding = 0) readonly buffer XV8 { uvec4 xv8[]; };  // VEC8: the fp16 chunk, 8 channels per element
 layout(std430, binding = 1) readonly buffer W { uint w[]; };  // packed weights, the stored dtype
+layout(std430, binding = 1) readonly buffer WV8 { uvec4 wv8[]; };  // VEC8: 16-bit weights, 8 per element
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };
 layout(std430, binding = 3) buffer Y { float y[]; };
 
@@ -74,14 +83,28 @@ layout(push_constant) uniform Push {
 
 // The operand tiles in shared memory, fp16: float16_t for the tensor cores; in the twin the same fp16
 // values as bits, two per uint (fp32 tiles would need 40 KiB, over the 32 KiB lavapipe offers).
+// bf16 pair (one word) -> two floats: a bf16 is the high half of its f32.
+vec2 bf16x2(uint u) { return vec2(uintBitsToFloat(u << 16), uintBitsToFloat(u & 0xffff0000u)); }
+
 #ifndef TWIN
-shared float16_t As[STAGES * BM * LD];
-shared float16_t Bs[STAGES * BN * LD];
-void put4(bool b, uint o, vec4 v) {  // elements o..o+3 (o even)
+// In 8-byte units (f16vec4), so that four staged values are one store; coopMatLoad counts in the same units.
+shared f16vec4 As[STAGES * BM * LD / 4];
+shared f16vec4 Bs[STAGES * BN * LD / 4];
+void put4(bool b, uint o, vec4 v) {  // elements o..o+3 (o a multiple of 4)
   if (b) {
-    Bs[o] = float16_t(v.x); Bs[o + 1u] = float16_t(v.y); Bs[o + 2u] = float16_t(v.z); Bs[o + 3u] = float16_t(v.w);
+    Bs[o >> 2] = f16vec4(v);
   } else {
-    As[o] = float16_t(v.x); As[o + 1u] = float16_t(v.y); As[o + 2u] = float16_t(v.z); As[o + 3u] = float16_t(v.w);
+    As[o >> 2] = f16vec4(v);
+  }
+}
+// Eight 16-bit values (one uvec4) at element o (a multiple of 8): fp16 as they are, bf16 (bf16 = true) rounded to fp16.
+void put8(bool b, uint o, uvec4 u, bool bf16) {
+  const f16vec4 lo = bf16 ? f16vec4(vec4(bf16x2(u.x), bf16x2(u.y))) : f16vec4(unpackFloat2x16(u.x), unpackFloat2x16(u.y));
+  const f16vec4 hi = bf16 ? f16vec4(vec4(bf16x2(u.z), bf16x2(u.w))) : f16vec4(unpackFloat2x16(u.z), unpackFloat2x16(u.w));
+  if (b) {
+    Bs[o >> 2] = lo; Bs[(o >> 2) + 1u] = hi;
+  } else {
+    As[o >> 2] = lo; As[(o >> 2) + 1u] = hi;
   }
 }
 #else
@@ -105,6 +128,16 @@ void put4(bool b, uint o, vec4 v) {
     As[o >> 1] = lo; As[(o >> 1) + 1u] = hi;
   }
 }
+void put8(bool b, uint o, uvec4 u, bool bf16) {
+  if (bf16) {
+    put4(b, o, vec4(bf16x2(u.x), bf16x2(u.y)));
+    put4(b, o + 4u, vec4(bf16x2(u.z), bf16x2(u.w)));
+  } else if (b) {  // fp16 pairs: already the operand bits
+    Bs[o >> 1] = u.x; Bs[(o >> 1) + 1u] = u.y; Bs[(o >> 1) + 2u] = u.z; Bs[(o >> 1) + 3u] = u.w;
+  } else {
+    As[o >> 1] = u.x; As[(o >> 1) + 1u] = u.y; As[(o >> 1) + 2u] = u.z; As[(o >> 1) + 3u] = u.w;
+  }
+}
 float a_at(uint i) { return unpackHalf2x16(As[i >> 1])[i & 1u]; }
 const uint EPL = FRAG / LANES;  // fragment elements per emulated lane (the host checks LANES divides FRAG)
 float b_at(uint i) { return unpackHalf2x16(Bs[i >> 1])[i & 1u]; }
@@ -117,14 +150,18 @@ vec4 w4(uint e) {  // four consecutive packed weights from element e (a multiple
   if (WTYPE == 0) return vec4(uintBitsToFloat(w[e]), uintBitsToFloat(w[e + 1u]), uintBitsToFloat(w[e + 2u]), uintBitsToFloat(w[e + 3u]));
   uint a = w[e >> 1], b = w[(e >> 1) + 1u];
   if (WTYPE == 1) return vec4(unpackHalf2x16(a), unpackHalf2x16(b));
-  return vec4(uintBitsToFloat(a << 16), uintBitsToFloat(a & 0xffff0000u), uintBitsToFloat(b << 16), uintBitsToFloat(b & 0xffff0000u));
+  return vec4(bf16x2(a), bf16x2(b));
 }
 
-// Output element (m, n) of the tile, with the bias (first input-channel chunk) or added to y (later ones).
-void store(uint m, uint n, float f) {
-  if (m >= p.M || n >= p.N) return;
-  uint ow = m % p.wo, r = m / p.wo;
-  uint yi = p.y_base + (r / p.rows) * p.ys_f + (r % p.rows) * p.ys_h + ow * p.ys_w + n * p.ys_c;
+// y's element of output pixel m (< M), channel 0 of the group.
+uint pixel_offset(uint m) {
+  const uint ow = m % p.wo, r = m / p.wo;
+  return p.y_base + (r / p.rows) * p.ys_f + (r % p.rows) * p.ys_h + ow * p.ys_w;
+}
+// Output channel n of the pixel at y element yi0, with the bias (first input-channel chunk) or added to y (later ones).
+void store_at(uint yi0, uint n, float f) {
+  if (n >= p.N) return;
+  const uint yi = yi0 + n * p.ys_c;
   if (p.accumulate != 0u) f = y[yi] + f;
   else if (p.has_bias != 0u) f += w_bias(p.n_base + n);
   y[yi] = f;
@@ -137,6 +174,33 @@ uint pf[PIX_A];
 int ph[PIX_A], pw[PIX_A];
 uint wrow[PIX_B];
 vec4 ra[PIX_A * SA], rb[PIX_B * SB];
+// VEC8's gather: vector t % XV of pixels t / XV + RV·j (j < VPA) and of weight rows t / XV + RV·j (j < VPB); the
+// host checks that RV divides BM and BN.
+const uint XV = BK / 8u, RV = WG / XV, VPA = BM / RV, VPB = BN / RV;
+int vbase[VEC8 ? VPA : 1];   // the packed pixel that tap (0, 0, 0) reads, were it inside (may lie outside the chunk)
+uint vmask[VEC8 ? VPA : 1];  // bit u: the tap row u is inside the image; bit 16 + v: tap column v
+uint vpar[VEC8 ? VPA : 1];   // upsampling: bit 0 the first tap row's parity, bit 1 the first tap column's
+uint vwrow[VEC8 ? VPB : 1];  // first weight of the row
+uvec4 va[VEC8 ? VPA : 1], vb[VEC8 ? VPB : 1];
+// The tap the next load_step reads (steps are loaded in order, from 0): its first channel / 8, kernel row u, column
+// v, frame.
+uvec4 vtap = uvec4(0u);
+
+// VEC8: each gathered pixel's source index and in-image taps (the divisions happen here, once).
+void gather_setup(uint m0, uint n0, uint K) {
+  const uint t = gl_LocalInvocationIndex, sh = p.up == 2u ? 1u : 0u, odd = p.up - 1u;
+  [[unroll]] for (uint j = 0u; j < VPA; ++j) {
+    const uint m = min(m0 + t / XV + RV * j, p.M - 1u), ow = m % p.wo, r = m / p.wo;
+    const int ih0 = int((p.oh0 + r % p.rows) * p.stride) - p.pad_top, iw0 = int((p.ow0 + ow) * p.stride) - p.pad_left;
+    uint mask = 0u;
+    for (uint u = 0u; u < p.kh; ++u) mask |= (ih0 + int(u) >= 0 && ih0 + int(u) < int(p.in_h)) ? 1u << u : 0u;
+    for (uint v = 0u; v < p.kw; ++v) mask |= (iw0 + int(v) >= 0 && iw0 + int(v) < int(p.in_w)) ? 1u << (16u + v) : 0u;
+    vmask[j] = mask;
+    vpar[j] = (uint(ih0) & odd) | ((uint(iw0) & odd) << 1);
+    vbase[j] = (int(r / p.rows * p.src_rows) + (ih0 >> sh) - int(p.src_r0)) * int(p.src_w) + (iw0 >> sh) - int(p.src_c0);
+  }
+  [[unroll]] for (uint j = 0u; j < VPB; ++j) vwrow[j] = min(n0 + t / XV + RV * j, p.N - 1u) * K;
+}
 
 // The first texel (channels 0..3) of the input pixel that tap `tap` of the kernel reads for gathered pixel i: the
 // packed chunk's pixel, or the zero pixel where the tap falls in the padding.
@@ -151,6 +215,27 @@ uint tap_texel(uint i, uint tap) {
 // Loads the operands of the step at reduction element k0 (of K) into ra, rb.
 void load_step(uint k0, uint K) {
   const uint t = gl_LocalInvocationIndex, cp = p.cp;
+  if (VEC8) {  // one tap, BK channels (vtap): a mask test and two adds a load
+    const uint c8 = vtap.x, u = vtap.y, v = vtap.z, sh = p.up == 2u ? 1u : 0u, xc = t % XV;
+    const int frame_rows = int(vtap.w * p.src_rows);
+    [[unroll]] for (uint j = 0u; j < VPA; ++j) {
+      const uint mk = vmask[j], par = vpar[j];
+      const bool inside = ((mk >> u) & (mk >> (16u + v)) & 1u) != 0u;
+      const int pix = vbase[j] + (frame_rows + int(((par & 1u) + u) >> sh)) * int(p.src_w) + int(((par >> 1) + v) >> sh);
+      va[j] = inside ? xv8[uint(pix) * (cp >> 3) + c8 + xc] : uvec4(0u);  // zeros: the tap is in the padding
+    }
+    [[unroll]] for (uint j = 0u; j < VPB; ++j) vb[j] = wv8[((vwrow[j] + k0) >> 3) + xc];
+    // The next step's tap: BK channels on, then the next column, row, frame of the kernel (no division).
+    vtap.x += BK / 8u;
+    if (vtap.x == cp >> 3) {
+      vtap.x = 0u;
+      if (++vtap.z == p.kw) {
+        vtap.z = 0u;
+        if (++vtap.y == p.kh) vtap.y = 0u, ++vtap.w;
+      }
+    }
+    return;
+  }
   // Channels a multiple of BK (the VAE's 128, 256 and 512): each step reads BK channels of one tap, so the tap's
   // offsets and each pixel's source index are worked out once per step (uniform divisions) and a load is one
   // add; else (few or odd channels) each 4-channel group finds its own tap.
@@ -179,6 +264,12 @@ void load_step(uint k0, uint K) {
 // Stores ra, rb (fp16) into shared stage `stage`.
 void store_step(uint stage) {
   const uint t = gl_LocalInvocationIndex;
+  if (VEC8) {
+    const uint r = t / XV, xc = t % XV;
+    [[unroll]] for (uint j = 0u; j < VPA; ++j) put8(false, (stage * BM + r + RV * j) * LD + 8u * xc, va[j], false);
+    [[unroll]] for (uint j = 0u; j < VPB; ++j) put8(true, (stage * BN + r + RV * j) * LD + 8u * xc, vb[j], WTYPE == 2);
+    return;
+  }
   [[unroll]] for (uint i = 0u; i < PIX_A; ++i)
     [[unroll]] for (uint s = 0u; s < SA; ++s)
       put4(false, (stage * BM + t % BM + WG * i) * LD + 4u * (t / BM + STEP_A * s), ra[i * SA + s]);
@@ -206,6 +297,7 @@ void main() {
     pw[i] = int((p.ow0 + ow) * p.stride) - p.pad_left;
   }
   [[unroll]] for (uint i = 0u; i < PIX_B; ++i) wrow[i] = min(n0 + t % BN + WG * i, N - 1u) * K;
+  if (VEC8) gather_setup(m0, n0, K);
 
 #ifndef TWIN
   coopmat<float, gl_ScopeSubgroup, FRAG_M, FRAG_N, gl_MatrixUseAccumulator> acc[FM][FN];
@@ -236,10 +328,10 @@ void main() {
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_M, FRAG_K, gl_MatrixUseA> fa[FM];
       coopmat<float16_t, gl_ScopeSubgroup, FRAG_K, FRAG_N, gl_MatrixUseB> fb[FN];
       [[unroll]] for (uint i = 0u; i < FM; ++i)
-        coopMatLoad(fa[i], As, a0 + (sm * WM + FRAG_M * i) * LD + kk, LD, gl_CooperativeMatrixLayoutRowMajor);
+        coopMatLoad(fa[i], As, (a0 + (sm * WM + FRAG_M * i) * LD + kk) / 4u, LD / 4u, gl_CooperativeMatrixLayoutRowMajor);
       // B[k][n] = Bs[n * LD + k]: column-major K x N.
       [[unroll]] for (uint j = 0u; j < FN; ++j)
-        coopMatLoad(fb[j], Bs, b0 + (sn * WN + FRAG_N * j) * LD + kk, LD, gl_CooperativeMatrixLayoutColumnMajor);
+        coopMatLoad(fb[j], Bs, (b0 + (sn * WN + FRAG_N * j) * LD + kk) / 4u, LD / 4u, gl_CooperativeMatrixLayoutColumnMajor);
       [[unroll]] for (uint i = 0u; i < FM; ++i)
         [[unroll]] for (uint j = 0u; j < FN; ++j) acc[i][j] = coopMatMulAdd(fa[i], fb[j], acc[i][j]);
     }
@@ -267,22 +359,32 @@ void main() {
     }
   }
 
-  // Epilogue, one fragment at a time through the subgroup's staging area.
-  [[unroll]] for (uint i = 0u; i < FM; ++i)
+  // Epilogue, one fragment at a time through the subgroup's staging area. Lane l handles elements l + LANES·r of
+  // the column-major fragment: when LANES is a multiple of FRAG_M these are one pixel (row l % FRAG_M), whose y
+  // offset is worked out once per fragment row.
+  const bool LANE_PIXEL = LANES % FRAG_M == 0u;
+  [[unroll]] for (uint i = 0u; i < FM; ++i) {
+    const uint mrow = m0 + sm * WM + FRAG_M * i, mlane = mrow + lane % FRAG_M;
+    const uint yi_lane = LANE_PIXEL && mlane < M ? pixel_offset(mlane) : 0u;
     [[unroll]] for (uint j = 0u; j < FN; ++j) {
 #ifndef TWIN
       coopMatStore(acc[i][j], Stage, sg * FRAG, FRAG_M, gl_CooperativeMatrixLayoutColumnMajor);
       subgroupMemoryBarrierShared();
       subgroupBarrier();
-      for (uint e = lane; e < FRAG; e += LANES)
-        store(m0 + sm * WM + FRAG_M * i + e % FRAG_M, n0 + sn * WN + FRAG_N * j + e / FRAG_M, Stage[sg * FRAG + e]);
-      subgroupBarrier();  // every lane has read the fragment before the next one overwrites it
 #else
       [[unroll]] for (uint r = 0u; r < EPL; ++r) Stage[sg * FRAG + lane + LANES * r] = acc[i][j][r];
       barrier();  // (orders workgroup memory too)
-      for (uint e = lane; e < FRAG; e += LANES)
-        store(m0 + sm * WM + FRAG_M * i + e % FRAG_M, n0 + sn * WN + FRAG_N * j + e / FRAG_M, Stage[sg * FRAG + e]);
+#endif
+      const uint nb = n0 + sn * WN + FRAG_N * j;
+      for (uint e = lane; e < FRAG; e += LANES) {
+        const uint m = mrow + e % FRAG_M;
+        if (m < M) store_at(LANE_PIXEL ? yi_lane : pixel_offset(m), nb + e / FRAG_M, Stage[sg * FRAG + e]);
+      }
+#ifndef TWIN
+      subgroupBarrier();  // every lane has read the fragment before the next one overwrites it
+#else
       barrier();
 #endif
     }
+  }
 }

@@ -184,11 +184,19 @@ std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_
 }
 
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16,
-                                        uint32_t bias_code) {
+                                        uint32_t bias_code, bool vec8) {
   const CoopmatTile& t = g.tile;
   return {weight_code, uint32_t(t.sg_m), uint32_t(t.sg_n), uint32_t(t.frags_m), uint32_t(t.frags_n), uint32_t(t.k),
           g.frag.m,    g.frag.n,         g.frag.k,         g.invocations(),    uint32_t(g.lanes),  uint32_t(stages),
-          x_f16 ? 1u : 0u, bias_code == UINT32_MAX ? weight_code : bias_code};
+          x_f16 ? 1u : 0u, bias_code == UINT32_MAX ? weight_code : bias_code, vec8 ? 1u : 0u};
+}
+
+bool conv_coopmat_vec8_fits(const CoopmatGemm& g, int64_t cp, uint32_t weight_code, int64_t kh, int64_t kw, bool x_f16) {
+  // The map: invocation i loads vector i % (K / 8) of rows i / (K / 8) + (invocations / (K / 8))·j, whole passes
+  // over both tiles' rows.
+  const int64_t k = g.tile.k, vectors = k / 8, rows = vectors ? g.invocations() / vectors : 0;
+  return x_f16 && weight_code != 0 && k % 8 == 0 && cp % k == 0 && g.invocations() % vectors == 0 &&
+         g.tile_m() % rows == 0 && g.tile_n() % rows == 0 && kh <= 16 && kw <= 16;
 }
 
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16, bool kv_f16) {

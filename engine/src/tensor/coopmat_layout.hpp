@@ -86,9 +86,15 @@ std::string attention_coopmat_head_dim_unfit(const CoopmatAttention& a, int64_t 
 std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, bool vector_loads,
                                           uint32_t group_m, uint32_t ablation = 0, uint32_t x_code = 0,
                                           bool y_f16 = false);
-// conv: x_f16 the repacked input in fp16, bias_code the bias's storage (UINT32_MAX: the weights').
+// conv: x_f16 the repacked input in fp16, bias_code the bias's storage (UINT32_MAX: the weights'), vec8 the
+// 16-byte gathers (conv_coopmat.comp's VEC8; the caller checks conv_coopmat_vec8_fits).
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16 = false,
-                                        uint32_t bias_code = UINT32_MAX);
+                                        uint32_t bias_code = UINT32_MAX, bool vec8 = false);
+// Whether conv_coopmat.comp's 16-byte gathers (VEC8) take a convolution of `cp` packed input channels (a chunk's,
+// rounded up to 8), weights of `weight_code` (0 f32, 1 f16, 2 bf16) and kh x kw taps per frame: an fp16 input
+// repack, channels a multiple of the tile's K, 16-bit weights, kh and kw at most 16 (the shader's tap masks), and a
+// tile whose pixels and channels are whole passes of the gather (invocations / (K / 8) rows each).
+bool conv_coopmat_vec8_fits(const CoopmatGemm& g, int64_t cp, uint32_t weight_code, int64_t kh, int64_t kw, bool x_f16);
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim, bool out_f16 = false,
                                              bool kv_f16 = false);
 

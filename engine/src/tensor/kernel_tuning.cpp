@@ -300,6 +300,7 @@ const std::vector<Field>& fields() {
       bool_field("linear_weights_fp16", &DeviceTuning::linear_weights_fp16),
       bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
+      bool_field("conv_coopmat_vector_loads", &DeviceTuning::conv_coopmat_vector_loads),
       bool_field("conv_activations_fp16", &DeviceTuning::conv_activations_fp16),
       bool_field("conv_weights_fp16", &DeviceTuning::conv_weights_fp16),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
@@ -510,6 +511,7 @@ std::string describe_tuning(const DeviceTuning& t) {
     << tile(t.conv_small) << ")" << (t.conv == KernelFamily::tiled ? ", tiled " + std::to_string(t.conv_tile_m) + "x" + std::to_string(t.conv_tile_n) : std::string())
     << (t.conv == KernelFamily::coopmat ? ", tile " + conv_coopmat_layout(t).describe() +
                                               (t.conv_coopmat_double_buffer ? ", two operand stages where they fit" : "") +
+                                              (t.conv_coopmat_vector_loads ? ", 16-byte gathers where they apply" : "") +
                                               (t.conv_activations_fp16 ? ", input repacked fp16" : ", input repacked f32") +
                                               (t.conv_weights_fp16 ? ", bf16 weights kept fp16" : "")
                                         : std::string())

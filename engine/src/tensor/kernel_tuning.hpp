@@ -133,6 +133,11 @@ struct DeviceTuning {
   // conv_coopmat's operand tiles in two shared-memory stages where they fit (the next step's gather in flight
   // during this step's products, one barrier a step); off: one stage. Unmeasured on a GPU (the sweep compares).
   bool conv_coopmat_double_buffer = true;
+  // conv_coopmat gathers 8 channels (16 bytes) per load, with each pixel's taps worked out once (no division in the
+  // loop), where its input is repacked fp16, the channels are a multiple of the tile's K, the weights are 16-bit and
+  // the kernel at most 16 x 16 per frame (the VAE's convolutions on GPUs); off: 4 channels per load, each step's
+  // taps found by division (A/B runs). Same bits.
+  bool conv_coopmat_vector_loads = true;
   // Where the conv family is coopmat, each call's channels-last repack of its input (what only the GEMM reads) is
   // written in fp16, the tensor cores' operand type: rounded once there instead of in every tap's loads, at half the
   // bytes written and read. Off: f32 (A/B runs). Same bits.

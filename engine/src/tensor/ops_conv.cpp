@@ -364,6 +364,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   std::array<uint32_t, 7> gemm_spec = {uint32_t(tile.rows), uint32_t(tile.cols), wdt, uint32_t(tile.lanes),
                                        uint32_t(tile.sg_m), std::max(ku, 1u), bdt};
   std::array<uint32_t, 4> tiled_spec = {uint32_t(tile_m / 16), uint32_t(tile_n / 16), wdt, bdt};
+  const bool vec8 = fam.kind == KernelFamily::coopmat && device_tuning(caps).conv_coopmat_vector_loads &&
+                    conv_coopmat_vec8_fits(fam.layout, cpc, wdt, j.kh, j.kw, x16);
   const vk::Pipeline& gemm =
       fam.kind == KernelFamily::tiled     ? ctx.pipelines().get("nn/conv_tiled", tiled_spec)
       : fam.kind == KernelFamily::coopmat
@@ -371,7 +373,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
                              conv_coopmat_spec(fam.layout, wdt,
                                                conv_coopmat_stages(caps, fam.layout,
                                                                    device_tuning(caps).conv_coopmat_double_buffer),
-                                               x16, bdt),
+                                               x16, bdt, vec8),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
