@@ -25,6 +25,7 @@
 // block and its lanes apply the epilogue to those outputs with bounds checks.
 // Shared memory: 2 x (BM + BN) x (BK + 8) halves + one fragment per subgroup (48 KiB on the H200).
 #include "linear_storage_io.glsl"
+#include "gemm_tile_order.glsl"
 
 layout(local_size_x_id = 9) in;                 // WG = SG_M * SG_N * the subgroup size
 layout(constant_id = 0) const uint SG_M = 2;    // subgroups along M
@@ -39,9 +40,7 @@ layout(constant_id = 8) const uint FRAG_N = 16;
 // a multiple of BK / 4): f32 X as vec4, f16 X and 16-bit W as uvec4 of 8 values (f32 W as vec4); one bounds
 // test per vector.
 layout(constant_id = 10) const bool VEC = false;
-// Workgroup order: bands of GROUP_M tile rows, each walked down its rows for one tile column after another, so
-// a column panel of W is read by GROUP_M workgroups in a row and the band's X rows stay in L2 meanwhile
-// (1: row by row, the grid's own order).
+// Workgroup order (gemm_tile_order.glsl): bands of GROUP_M tile rows (1: row by row, the grid's own order).
 layout(constant_id = 11) const uint GROUP_M = 1;
 // Ablations for measurements only (DeviceTuning::linear_coopmat_ablation; the results are wrong): 1 the 16-byte
 // path loads no operand from memory (each staged vector is a constant of its row; stores, barriers and MMAs
@@ -156,18 +155,10 @@ void store_step(uint stage) {
 }
 
 void main() {
-  uint mt = gl_WorkGroupID.y, nt = gl_WorkGroupID.x;
-  if (GROUP_M > 1) {
-    const uint nx = gl_NumWorkGroups.x, ny = gl_NumWorkGroups.y;
-    const uint pid = gl_WorkGroupID.y * nx + gl_WorkGroupID.x;
-    const uint band = pid / (GROUP_M * nx), first = band * GROUP_M;
-    const uint rows = min(ny - first, GROUP_M), inband = pid - first * nx;
-    mt = first + inband % rows;
-    nt = inband / rows;
-  }
+  const uvec2 tile = gemm_tile_order(GROUP_M);
   tb = gl_WorkGroupID.z;
-  tm0 = mt * BM;
-  tn0 = nt * BN;
+  tm0 = tile.x * BM;
+  tn0 = tile.y * BN;
   const uint sg = gl_SubgroupID, lane = gl_SubgroupInvocationID;
   const uint sm = sg / SG_N, sn = sg % SG_N;
 

@@ -191,6 +191,28 @@ std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_co
           x_f16 ? 1u : 0u, bias_code == UINT32_MAX ? weight_code : bias_code, vec8 ? 1u : 0u};
 }
 
+std::string linear_coopmat2_unfit(const vk::DeviceCaps& caps, const DeviceTuning::Coopmat2Tile& t) {
+  const std::string tile = std::to_string(t.m) + "x" + std::to_string(t.n) + "x" + std::to_string(t.k) + "x" +
+                           std::to_string(t.invocations);
+  if (!caps.cooperative_matrix2_gemm || !caps.cooperative_matrix2_facts)
+    return "the device lacks VK_NV_cooperative_matrix2's workgroup scope, flexible dimensions and tensor addressing";
+  const vk::CooperativeMatrix2Facts& f = *caps.cooperative_matrix2_facts;
+  if (uint32_t(t.invocations) > f.workgroup_scope_max_workgroup_size ||
+      uint32_t(std::max({t.m, t.n, t.k})) > f.flexible_dimensions_max_dimension)
+    return "tile " + tile + " exceeds the workgroup scope's " + std::to_string(f.workgroup_scope_max_workgroup_size) +
+           " invocations or its dimensions' " + std::to_string(f.flexible_dimensions_max_dimension) +
+           " (DVS_TUNING: linear_coopmat2_tile)";
+  for (const vk::CooperativeMatrixFlexibleShape& s : f.flexible_shapes)
+    if (s.scope == VK_SCOPE_WORKGROUP_KHR && s.workgroup_invocations == uint32_t(t.invocations) &&
+        s.a == VK_COMPONENT_TYPE_FLOAT16_KHR && s.b == VK_COMPONENT_TYPE_FLOAT16_KHR &&
+        s.c == VK_COMPONENT_TYPE_FLOAT32_KHR && s.result == VK_COMPONENT_TYPE_FLOAT32_KHR && !s.saturating &&
+        s.m_granularity && s.n_granularity && s.k_granularity && t.m % s.m_granularity == 0 &&
+        t.n % s.n_granularity == 0 && t.k % s.k_granularity == 0)
+      return "";
+  return "tile " + tile + " matches none of the device's workgroup-scope fp16 x fp16 + fp32 shapes (their " +
+         "invocations and granularities: dvs info) (DVS_TUNING: linear_coopmat2_tile)";
+}
+
 bool conv_coopmat_vec8_fits(const CoopmatGemm& g, int64_t cp, uint32_t weight_code, int64_t kh, int64_t kw, bool x_f16) {
   // The map: invocation i loads vector i % (K / 8) of rows i / (K / 8) + (invocations / (K / 8))·j, whole passes
   // over both tiles' rows.

@@ -90,6 +90,11 @@ std::vector<uint32_t> linear_coopmat_spec(const CoopmatGemm& g, uint32_t weight_
 // 16-byte gathers (conv_coopmat.comp's VEC8; the caller checks conv_coopmat_vec8_fits).
 std::vector<uint32_t> conv_coopmat_spec(const CoopmatGemm& g, uint32_t weight_code, int stages, bool x_f16 = false,
                                         uint32_t bias_code = UINT32_MAX, bool vec8 = false);
+// Why the coopmat2 GEMM (linalg/linear_coopmat2.comp) cannot run tile `t` on this device ("" when it can): the
+// device needs VK_NV_cooperative_matrix2's workgroup scope, flexible dimensions, tensor addressing and per-element
+// operations, and a workgroup-scope fp16 x fp16 + fp32 shape for t.invocations whose granularity divides the tile.
+std::string linear_coopmat2_unfit(const vk::DeviceCaps& caps, const DeviceTuning::Coopmat2Tile& t);
+
 // Whether conv_coopmat.comp's 16-byte gathers (VEC8) take a convolution of `cp` packed input channels (a chunk's,
 // rounded up to 8), weights of `weight_code` (0 f32, 1 f16, 2 bf16) and kh x kw taps per frame: an fp16 input
 // repack, channels a multiple of the tile's K, 16-bit weights, kh and kw at most 16 (the shader's tap masks), and a

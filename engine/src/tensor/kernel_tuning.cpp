@@ -297,6 +297,14 @@ const std::vector<Field>& fields() {
        "layout instead of linear_coopmat)",
        [](DeviceTuning& t, const std::string& v) { return parse_linear_rules(v, t.linear_coopmat_by_shape); }},
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
+      bool_field("linear_coopmat2", &DeviceTuning::linear_coopmat2),
+      {"linear_coopmat2_tile", "BMxBNxBKxWG (output rows, columns, K per step, invocations)",
+       [](DeviceTuning& t, const std::string& v) {
+         std::vector<int64_t> d;
+         if (!parse_dims(v, 4, 1024, d)) return false;
+         t.linear_coopmat2_tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3])};
+         return true;
+       }},
       bool_field("linear_weights_fp16", &DeviceTuning::linear_weights_fp16),
       bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
@@ -452,6 +460,8 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
         throw Error("DVS_TUNING: linear_coopmat_by_shape row " + describe_linear_rule(r) + " does not fit " +
                     caps.name + ": " + why);
     }
+  if (t.linear == KernelFamily::coopmat && t.linear_coopmat2)
+    t.linear_coopmat2_unfit = linear_coopmat2_unfit(caps, t.linear_coopmat2_tile);
   settle(t.conv, t.conv_unfit, conv_coopmat_unfit(caps, conv_coopmat_layout(t), false));
   settle(t.attention, t.attention_unfit,
          attention_coopmat_unfit(caps, attention_coopmat_layout(t), 0, attention_coopmat_kernel(caps, t)));
@@ -497,6 +507,12 @@ std::string describe_tuning(const DeviceTuning& t) {
       << (t.linear_coopmat_vector_loads ? ", 16-byte loads where aligned" : ", element loads")
       << (t.linear_weights_fp16 ? ", bf16 weights kept fp16" : ", bf16 weights converted in the loads")
       << (t.linear_activations_fp16 ? ", norm and GELU outputs written fp16" : ", norm and GELU outputs f32")
+      << (!t.linear_coopmat2 ? std::string()
+          : t.linear_coopmat2_unfit.empty()
+              ? ", VK_NV_cooperative_matrix2 kernel (tile " + std::to_string(t.linear_coopmat2_tile.m) + "x" +
+                    std::to_string(t.linear_coopmat2_tile.n) + "x" + std::to_string(t.linear_coopmat2_tile.k) + ", " +
+                    std::to_string(t.linear_coopmat2_tile.invocations) + " invocations) for fp16 X and W"
+              : ", VK_NV_cooperative_matrix2 kernel not on this device: " + t.linear_coopmat2_unfit)
       << (t.linear_coopmat_ablation == 1   ? ", ABLATED: no global loads (wrong results)"
           : t.linear_coopmat_ablation == 2 ? ", ABLATED: no MMA (wrong results)"
                                            : "");

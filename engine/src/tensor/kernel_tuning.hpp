@@ -117,6 +117,17 @@ struct DeviceTuning {
   // Triton's default grouping, unmeasured on a GPU here (the device script's sweep compares 1 and 8).
   bool linear_coopmat_vector_loads = true;
   int linear_coopmat_group_m = 8;
+  // The GEMM through VK_NV_cooperative_matrix2 (linalg/linear_coopmat2.comp: workgroup-scope matrices loaded with
+  // tensor addressing, the driver's own shared-memory staging) where the device has its workgroup scope, flexible
+  // dimensions and tensor addressing, X and W are fp16 and the tile fits the device's workgroup-scope shapes; the
+  // KHR kernel elsewhere. Off until a device run has checked it by value and timed it (lavapipe cannot run it).
+  bool linear_coopmat2 = false;
+  // Its tile: output rows x columns x K per step, and the workgroup's invocations (which one of the device's
+  // workgroup-scope shapes must name).
+  struct Coopmat2Tile {
+    int m = 128, n = 128, k = 32, invocations = 256;
+  } linear_coopmat2_tile;
+  std::string linear_coopmat2_unfit;  // why linear_coopmat2 cannot run on this device ("" where it can or is off)
   // Where the linear family is coopmat, GEMM weights a model stores in bf16 are kept on the device in fp16, the
   // operand type the tensor cores read: converted once at load (ComponentWeights::store_as) instead of per element
   // in every GEMM's loads. Off: kept bf16 and converted in the loads (A/B runs). Same bits either way.

@@ -205,6 +205,20 @@ const vk::Pipeline& storage_pipeline(vk::Context& ctx, const LinearKernel& kern,
                                                  : "no cooperative-matrix shape on " + caps.name);
 }
 
+// The coopmat2 GEMM's pipeline (linalg/linear_coopmat2.comp) for a call of the coopmat family, where the tuning asks
+// for it, X and W are fp16 and the tuning's tile fits the device (linear_coopmat2_unfit); nullptr otherwise (the KHR
+// kernel runs). Constant ids as the shader numbers them (2 and 13 are linear_storage_io.glsl's).
+const vk::Pipeline* coopmat2_pipeline(vk::Context& ctx, const LinearKernel& kern, uint32_t wcode, uint32_t xcode,
+                                      bool y16) {
+  const DeviceTuning& tune = device_tuning(ctx.caps());
+  if (kern.family != KernelFamily::coopmat || !tune.linear_coopmat2 || wcode != 1 || xcode != 1) return nullptr;
+  const DeviceTuning::Coopmat2Tile& t = tune.linear_coopmat2_tile;
+  if (!linear_coopmat2_unfit(ctx.caps(), t).empty()) return nullptr;
+  const uint32_t spec[] = {uint32_t(t.m), uint32_t(t.n), wcode, uint32_t(t.k), uint32_t(t.invocations), 0, 0, 0, 0, 0,
+                           0, uint32_t(tune.linear_coopmat_group_m), 0, xcode, y16 ? 1u : 0u};
+  return &ctx.pipelines().get("linalg/linear_coopmat2", spec);
+}
+
 // One dispatch's share of a call: batch items [b0, b0+bc), rows [m0, m0+mc), columns [n0, n0+nc), the
 // products over k in [k0, k0+kc).
 struct Chunk {
@@ -382,6 +396,10 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
     pipe_ptr = &ctx.pipelines().get(kernel.lanes == 2 ? "linalg/linear_nosubgroup" : "linalg/linear", spec);
     tile_m = int64_t(sg_m) * rows;
     tile_n = int64_t(8 / sg_m) * 8 * cols;
+  } else if (const vk::Pipeline* cm2 = coopmat2_pipeline(ctx, kernel, wcode, xcode, y16)) {
+    pipe_ptr = cm2;
+    tile_m = device_tuning(caps).linear_coopmat2_tile.m;
+    tile_n = device_tuning(caps).linear_coopmat2_tile.n;
   } else {
     pipe_ptr = &storage_pipeline(ctx, kernel, wcode, xcode, y16, use_vec);
     tile_m = kernel.tile_m;
@@ -455,7 +473,7 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
                                 storage ? vk::Binding(bw.view) : vk::Binding(bw.view, w_fmt)};
     rec.dispatch(pipe, {bxw[0], bxw[1], by.view, bbias.view, bscale.view, bshift.view, bgate.view, bres.view}, &q,
                  sizeof q, div_up(c.nc, tile_n), div_up(c.mc, tile_m), u32(c.bc, "batch"),
-                 !storage ? "linear" : kernel.family == KernelFamily::coopmat ? "linear_coopmat" : "linear_tiled");
+                 !storage ? "linear" : kernel.family == KernelFamily::coopmat ? pipe.name.substr(7) : "linear_tiled");
   };
   if (size.bc < s.batch || size.nc < s.n || size.mc < s.m || size.kc < s.k) rec.context().note_split("linear");
   for_each_chunk(s.batch, size.bc, [&](int64_t b0, int64_t bc) {

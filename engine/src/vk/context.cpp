@@ -199,13 +199,18 @@ Context::Context(const ContextOptions& options) {
       tail = &fcm.pNext;
       exts.push_back(VK_KHR_COOPERATIVE_MATRIX_EXTENSION_NAME);
     }
-    // The coopmat2 features the attention kernel's softmax uses (and only those).
+    // The coopmat2 features the attention kernel's softmax uses and those the coopmat2 GEMM uses (and only those).
     VkPhysicalDeviceCooperativeMatrix2FeaturesNV fcm2{};
     fcm2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_COOPERATIVE_MATRIX_2_FEATURES_NV;
-    if (caps_.cooperative_matrix2_row_ops) {
-      fcm2.cooperativeMatrixReductions = VK_TRUE;
-      fcm2.cooperativeMatrixConversions = VK_TRUE;
+    if (caps_.cooperative_matrix2_row_ops || caps_.cooperative_matrix2_gemm) {
+      fcm2.cooperativeMatrixReductions = caps_.cooperative_matrix2_row_ops ? VK_TRUE : VK_FALSE;
+      fcm2.cooperativeMatrixConversions = caps_.cooperative_matrix2_row_ops ? VK_TRUE : VK_FALSE;
       fcm2.cooperativeMatrixPerElementOperations = VK_TRUE;
+      if (caps_.cooperative_matrix2_gemm) {
+        fcm2.cooperativeMatrixWorkgroupScope = VK_TRUE;
+        fcm2.cooperativeMatrixFlexibleDimensions = VK_TRUE;
+        fcm2.cooperativeMatrixTensorAddressing = VK_TRUE;
+      }
       *tail = &fcm2;
       tail = &fcm2.pNext;
       exts.push_back(VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);

@@ -69,6 +69,10 @@ struct DeviceCaps {
   // device dvs creates; the application's must have enabled them. The attention kernel's softmax uses them
   // (nn/attention_flash_coopmat2).
   bool cooperative_matrix2_row_ops = false;
+  // Its workgroup-scope matrices with flexible dimensions, tensor addressing and per-element operations, usable
+  // (with cooperative_matrix): enabled on the device dvs creates; the application's must have enabled them. The GEMM
+  // kernel linalg/linear_coopmat2 uses them (DeviceTuning::linear_coopmat2).
+  bool cooperative_matrix2_gemm = false;
   std::optional<CooperativeMatrix2Facts> cooperative_matrix2_facts;  // its features, limits, flexible shapes
   bool vulkan_memory_model = false;  // Vulkan 1.2 vulkanMemoryModel (the coopmat shaders' memory model)
   bool push_descriptor = false;

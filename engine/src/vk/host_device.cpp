@@ -81,6 +81,8 @@ EnabledFeatures enabled_features_in(const void* chain) {
         const auto& f = as<VkPhysicalDeviceCooperativeMatrix2FeaturesNV>(s);
         e.cooperative_matrix2_row_ops |=
             f.cooperativeMatrixReductions && f.cooperativeMatrixConversions && f.cooperativeMatrixPerElementOperations;
+        e.cooperative_matrix2_gemm |= f.cooperativeMatrixWorkgroupScope && f.cooperativeMatrixFlexibleDimensions &&
+                                      f.cooperativeMatrixTensorAddressing && f.cooperativeMatrixPerElementOperations;
         break;
       }
       case VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_MEMORY_MODEL_FEATURES: {
@@ -112,6 +114,9 @@ std::vector<std::string> host_device_options() {
           "(tensor-core GEMM, convolution and attention)",
           "cooperativeMatrixReductions, cooperativeMatrixConversions and cooperativeMatrixPerElementOperations with "
           "VK_NV_cooperative_matrix2 (the tensor-core attention's softmax in registers)",
+          "cooperativeMatrixWorkgroupScope, cooperativeMatrixFlexibleDimensions, cooperativeMatrixTensorAddressing and "
+          "cooperativeMatrixPerElementOperations with VK_NV_cooperative_matrix2 (the coopmat2 GEMM, where the tuning "
+          "asks for it)",
           "subgroupSizeControl and computeFullSubgroups (Vulkan 1.3 or VK_EXT_subgroup_size_control)",
           "storageBuffer16BitAccess, storageBuffer8BitAccess, shaderInt8",
           "VK_EXT_memory_budget (the memory budget follows the driver's heap budgets)"};
@@ -190,6 +195,8 @@ DeviceCaps host_device_caps(const HostDevice& host) {
   if (!c.cooperative_matrix) c.cooperative_matrix_shapes.clear();
   c.cooperative_matrix2_row_ops = c.cooperative_matrix2_row_ops && c.cooperative_matrix && e.cooperative_matrix2_row_ops &&
                                   enabled(exts, VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
+  c.cooperative_matrix2_gemm = c.cooperative_matrix2_gemm && c.cooperative_matrix && e.cooperative_matrix2_gemm &&
+                               enabled(exts, VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
   c.push_descriptor = c.push_descriptor && enabled(exts, "VK_KHR_push_descriptor");
   if (c.memory_budget_ext && !enabled(exts, VK_EXT_MEMORY_BUDGET_EXTENSION_NAME)) {
     c.memory_budget_ext = false;

@@ -22,6 +22,7 @@ struct EnabledFeatures {
   bool float32_atomic_add = false;
   bool cooperative_matrix = false;
   bool cooperative_matrix2_row_ops = false;  // VK_NV_cooperative_matrix2's reductions, conversions, per-element ops
+  bool cooperative_matrix2_gemm = false;  // its workgroup scope, flexible dimensions, tensor addressing, per-element ops
   bool vulkan_memory_model = false, vulkan_memory_model_device_scope = false;
   bool maintenance4 = false;
 };
