@@ -16,9 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "support/gpu.hpp"
-#include "support/scoped_limits.hpp"
-#include "support/vae_conv_paths.hpp"
+#include "support/conv_kernel_test.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -39,19 +37,8 @@ Tensor random_tensor(vk::Context& c, const Shape& s, uint32_t seed, float scale,
   return Tensor::upload(c, h);
 }
 
-class HalfInputConvOps : public test::GpuTest {
+class HalfInputConvOps : public test::ConvKernelTest {
  protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    twin_ = !ops::device_tuning(ctx().caps()).coopmat.defined();
-    ops::ConvRegisterBlock blk;
-    blk.coopmat_twin = twin_;
-    ops::set_conv_register_block(blk);
-  }
-  void TearDown() override {
-    ops::set_conv_register_block({});
-    test::GpuTest::TearDown();
-  }
   // y of every conv path on a [1, cin, 5, 13, 11] input, one vector each, under `limits` (nullptr: none).
   std::vector<std::vector<uint32_t>> all_convs(int64_t cin, const char* limits) {
     vk::Context& c = ctx();
@@ -62,31 +49,15 @@ class HalfInputConvOps : public test::GpuTest {
     const Tensor w2 = random_tensor(c, {cout, cin, 3, 3}, 4, 0.2f, DType::bf16);
     const Tensor w1 = random_tensor(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
     const Tensor b = random_tensor(c, {cout}, 6, 0.5f, DType::bf16);
-    std::vector<std::vector<uint32_t>> out;
-    names_.clear();
-    for (const test::VaeConvPath& path : test::vae_conv_paths(x, cache, w3, w2, w1, b)) {
-      names_.push_back(path.name);
-      const Tensor o = Tensor::empty(c, path.out, DType::f32);
-      {
-        std::unique_ptr<test::ScopedLimits> scope;
-        if (limits) scope = std::make_unique<test::ScopedLimits>(c, limits);
-        ops::run_now(c, [&](vk::Recorder& rec) { path.call(rec, o); });
-      }
-      const HostTensor h = o.download(c);
-      out.emplace_back(size_t(h.numel()));
-      std::memcpy(out.back().data(), h.data.data(), out.back().size() * 4);
-    }
-    return out;
+    return run_paths(test::vae_conv_paths(x, cache, w3, w2, w1, b), limits);
   }
-  bool twin_ = false;
-  std::vector<std::string> names_;  // of the paths all_convs ran, in order
 };
 
 // A layout no other test uses (2 x 1 subgroups of 1 x 2 fragments, K 16) makes the kernel's pipelines this test's own.
 TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
   // (An override replaces the one in force: each run names the layout too.)
   const std::string layout = std::string(twin_ ? "" : "conv=coopmat,") + "conv_coopmat=2x1x1x2x16";
-  const std::string gemm = twin_ ? "nn/conv_coopmat_twin" : "nn/conv_coopmat";
+  const std::string gemm = gemm_name();
   // Whether this test's layout of the kernel was created reading an fp16 (x16) or an f32 chunk.
   auto ran = [&](bool x16) {
     bool found = false;

@@ -20,10 +20,8 @@
 #include <string>
 #include <vector>
 
-#include "support/gpu.hpp"
-#include "support/scoped_limits.hpp"
+#include "support/conv_kernel_test.hpp"
 #include "support/stored_values.hpp"
-#include "support/vae_conv_paths.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -41,19 +39,8 @@ Tensor random_stored(vk::Context& c, const Shape& s, uint32_t seed, float scale,
   return Tensor::upload(c, test::stored_as(v, s, dt));
 }
 
-class VectorGatherConvOps : public test::GpuTest {
+class VectorGatherConvOps : public test::ConvKernelTest {
  protected:
-  void SetUp() override {
-    test::GpuTest::SetUp();
-    twin_ = !ops::device_tuning(ctx().caps()).coopmat.defined();
-    ops::ConvRegisterBlock blk;
-    blk.coopmat_twin = twin_;
-    ops::set_conv_register_block(blk);
-  }
-  void TearDown() override {
-    ops::set_conv_register_block({});
-    test::GpuTest::TearDown();
-  }
   // y of every conv path on a [1, cin, 3, 11, 13] input with 19 output channels, one vector each, under `limits`
   // (nullptr: none); weights bf16 as stored or packed in fp16 (`packed`).
   std::vector<std::vector<uint32_t>> all_convs(int64_t cin, bool packed, const char* limits) {
@@ -70,25 +57,11 @@ class VectorGatherConvOps : public test::GpuTest {
       for (const Tensor* w : {&w3, &w2, &w1}) p.push_back(ops::packed_conv_weights_now(c, *w, "test weights"));
     const auto paths = packed ? test::vae_conv_paths(x, cache, p[0], p[1], p[2], b)
                               : test::vae_conv_paths(x, cache, w3, w2, w1, b);
-    std::vector<std::vector<uint32_t>> out;
-    names_.clear();
-    for (const test::VaeConvPath& path : paths) {
-      names_.push_back(path.name);
-      const Tensor o = Tensor::empty(c, path.out, DType::f32);
-      {
-        std::unique_ptr<test::ScopedLimits> scope;
-        if (limits) scope = std::make_unique<test::ScopedLimits>(c, limits);
-        ops::run_now(c, [&](vk::Recorder& rec) { path.call(rec, o); });
-      }
-      const HostTensor h = o.download(c);
-      out.emplace_back(size_t(h.numel()));
-      std::memcpy(out.back().data(), h.data.data(), out.back().size() * 4);
-    }
-    return out;
+    return run_paths(paths, limits);
   }
   // Whether a conv kernel of layout `l` (sg_m, sg_n, fm, fn, k) was created with the 16-byte gathers on (`vec8`) or off.
   bool ran(const std::array<uint32_t, 5>& l, bool vec8) {
-    const std::string gemm = twin_ ? "nn/conv_coopmat_twin" : "nn/conv_coopmat";
+    const std::string gemm = gemm_name();
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
       if (pl.name == gemm && pl.spec.size() == 15 && std::equal(l.begin(), l.end(), pl.spec.begin() + 1) &&
@@ -97,8 +70,6 @@ class VectorGatherConvOps : public test::GpuTest {
     });
     return found;
   }
-  bool twin_ = false;
-  std::vector<std::string> names_;  // of the paths all_convs ran, in order
 };
 
 // Layouts no other test uses, so the pipelines this test finds are its own: 1 x 2 subgroups of 2 x 1 fragments, K 16
