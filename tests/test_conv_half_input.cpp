@@ -96,5 +96,40 @@ TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
   EXPECT_TRUE(ran(false)) << "no " << gemm << " read an f32 chunk";
 }
 
+// The repack's invocation order (DeviceTuning::conv_pack_pixel_major: neighbouring invocations on neighbouring pixels
+// instead of neighbouring channel groups) writes the same values to the same places: every conv path gives the same
+// bits either way, whole and under the texel limit that splits the repack into channel groups (each dispatch a vec4
+// range that starts past 0, some merging their channels into vec4s others wrote) and frames.
+TEST_F(HalfInputConvOps, PixelMajorRepackSameBits) {
+  const std::string family = twin_ ? "" : "conv=coopmat,";
+  auto ran = [&](bool pixel_major) {
+    bool found = false;
+    ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
+      found = found || (pl.name == "nn/conv_pack_input" && pl.spec.size() == 2 && pl.spec[1] == (pixel_major ? 1u : 0u));
+    });
+    return found;
+  };
+  for (const auto& [cin, limits] : {std::pair<int64_t, const char*>{5, nullptr}, {37, "texels=256"}, {64, nullptr}}) {
+    std::vector<std::vector<uint32_t>> on, off;
+    {
+      ops::ScopedTuningOverride t(family + "conv_pack_pixel_major=on");
+      on = all_convs(cin, limits);
+    }
+    {
+      ops::ScopedTuningOverride t(family + "conv_pack_pixel_major=off");
+      off = all_convs(cin, limits);
+    }
+    ASSERT_EQ(on.size(), off.size());
+    for (size_t i = 0; i < on.size(); ++i) {
+      size_t differ = 0;
+      for (size_t k = 0; k < on[i].size(); ++k) differ += on[i][k] != off[i][k];
+      EXPECT_EQ(differ, 0u) << names_[i] << ", Cin " << cin << (limits ? std::string(" under ") + limits : "")
+                            << ": elements that differ between the two repack orders";
+    }
+  }
+  EXPECT_TRUE(ran(true));
+  EXPECT_TRUE(ran(false));
+}
+
 }  // namespace
 }  // namespace dvs

@@ -25,6 +25,10 @@
 layout(local_size_x = 64) in;
 #include "index.glsl"
 layout(constant_id = 0) const bool OUT_F16 = false;
+// Invocation order (DeviceTuning::conv_pack_pixel_major): neighbouring invocations take neighbouring pixel segments
+// of one vec4 of channels (a subgroup's reads of each channel plane contiguous); else neighbouring vec4s of one
+// segment.
+layout(constant_id = 1) const bool PIXEL_MAJOR = false;
 
 layout(binding = 0) uniform textureBuffer X;      // R32F, [B, C, F, H, W]
 layout(binding = 1) uniform textureBuffer Cache;  // R32F, [B, C, prefix, H, W] (time_mode 3; else any)
@@ -64,7 +68,8 @@ void main() {
     if (p.zero != 0u && i < items + p.cp4) store_out(p.texels + i - items, vec4(0.0));
     return;
   }
-  uint c4 = p.c4a + i % p.nc4, s = i / p.nc4, t = s / p.nseg;
+  const uint segs = p.nq * p.rows * p.nseg;
+  uint c4 = p.c4a + (PIXEL_MAJOR ? i / segs : i % p.nc4), s = PIXEL_MAJOR ? i % segs : i / p.nc4, t = s / p.nseg;
   uint pc0 = (s % p.nseg) * p.seg, pc1 = min(pc0 + p.seg, p.wc);
   uint row = p.r0 + t % p.rows, q = p.q0 + t / p.rows, tp = p.tp0 + q;
   bool from_cache = p.time_mode == 3u && tp < p.prefix;

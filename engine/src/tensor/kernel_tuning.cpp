@@ -100,6 +100,7 @@ void fill_gpu(DeviceTuning& t, const vk::DeviceCaps&) {
   t.conv_f32_weights = t.conv_16bit_weights = {8, 2, 2, 0, 1};
   t.conv_small = {4, 2, 1, 0, 1};
   t.conv_pack_columns = 4;
+  t.conv_pack_pixel_major = true;
   t.norm_row_per_invocation = false;
   t.attention_rows_by_head_dim = false;
   t.attention_kv_workspace = false;
@@ -309,6 +310,7 @@ const std::vector<Field>& fields() {
       bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
       bool_field("conv_coopmat_vector_loads", &DeviceTuning::conv_coopmat_vector_loads),
+      bool_field("conv_pack_pixel_major", &DeviceTuning::conv_pack_pixel_major),
       bool_field("conv_activations_fp16", &DeviceTuning::conv_activations_fp16),
       bool_field("conv_weights_fp16", &DeviceTuning::conv_weights_fp16),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
@@ -532,7 +534,7 @@ std::string describe_tuning(const DeviceTuning& t) {
                                               (t.conv_weights_fp16 ? ", bf16 weights kept fp16" : "")
                                         : std::string())
     << ", repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
-    << " per invocation\n"
+    << " per invocation" << (t.conv_pack_pixel_major ? ", neighbouring invocations on neighbouring pixels" : "") << "\n"
     << "  norms:      " << (t.norm_row_per_invocation ? "one invocation per row" : "one workgroup per row") << "\n"
     << "  elementwise: " << (t.eltwise_texel_inputs ? "texel-buffer inputs" : "storage-buffer inputs")
     << "; reductions: partials of at least " << t.reduce_min_chunk << " elements\n"

@@ -89,6 +89,11 @@ struct DeviceTuning {
   GemmTile conv_f32_weights, conv_16bit_weights;  // large convolutions (texel family)
   GemmTile conv_small;                            // fewer than 8 * rows output pixels per chunk
   int conv_pack_columns = 0;  // pixels of a row per invocation of the input repack (0: the whole row)
+  // The input repack's neighbouring invocations take neighbouring pixels of one channel group, so a subgroup's reads
+  // of each channel plane are contiguous (its writes, 8 or 16 bytes a pixel, are then strided); off: neighbouring
+  // channel groups of one pixel (contiguous writes, each read from another plane). On for GPUs (reads are the larger
+  // half: f32 in, fp16 out), unmeasured there (the device script's sweep compares); off on CPUs. Same bits.
+  bool conv_pack_pixel_major = false;
   // tiled family (shaders/nn/conv_tiled.comp): workgroup tile of pixels x output channels, each 32, 64 or
   // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's: conv_coopmat.
   int conv_tile_m = 64, conv_tile_n = 64;

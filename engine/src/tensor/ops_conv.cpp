@@ -205,7 +205,7 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   while (nc > 1 && !fits_all(nc, nq)) --nc;
   while (nq > 1 && !fits_all(nc, nq)) --nq;
   expect(fits_all(nc, nq), op, "one source row of one channel exceeds one texel view");
-  const std::array<uint32_t, 1> spec = {f16 ? 1u : 0u};  // OUT_F16
+  const std::array<uint32_t, 2> spec = {f16 ? 1u : 0u, device_tuning(rec.context().caps()).conv_pack_pixel_major ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input", spec);
   bool zero = true;
   for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
