@@ -21,9 +21,11 @@
 #include "io/host_tensor.hpp"
 #include "support/gpu.hpp"
 #include "support/stored_values.hpp"
+#include "tensor/coopmat_layout.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
+#include "vk/pipeline.hpp"
 
 namespace dvs {
 namespace {
@@ -324,6 +326,36 @@ TEST_F(ConvFamilies, CoopmatEveryVariant) {
   for (const char* o : {"conv=coopmat,conv_coopmat=2x2x2x2x32", "conv=coopmat,conv_coopmat=1x1x2x2x16",
                         "conv=coopmat,conv_coopmat_double_buffer=off"})
     run_all(o, false, cases, true);
+}
+
+// The coopmat2 kernel (nn/conv_coopmat2, DeviceTuning::conv_coopmat2) against the reference, where the device has
+// VK_NV_cooperative_matrix2's workgroup scope and tensor addressing (the device script runs ConvFamilies.* there):
+// fp16 weights (the ones it takes, as the VAE packs them), input channels multiples of its K, every stride-1 variant
+// (3x3 with its padding read by clamping, causal with and without the cache, 1x1, the x2 upsampling read through
+// block size 2), output patches and channels past their tiles' ends; frames of a multiple of 4 pixels, whose first
+// outputs the tensor store can take (16-byte aligned). Elsewhere the KHR kernel runs the same calls.
+TEST_F(ConvFamilies, Coopmat2EveryStrideOneVariant) {
+  if (!ops::device_tuning(ctx().caps()).coopmat.defined()) GTEST_SKIP() << "no cooperative-matrix shape";
+  const std::vector<Case> cases = {
+      {Kind::same3x3, 1, 64, 19, 2, 7, 8, DType::f16},
+      {Kind::same3x3, 1, 32, 140, 1, 15, 36, DType::f16},  // 2 channel tiles, 4 row tiles, 2 column tiles
+      {Kind::causal, 2, 32, 7, 3, 5, 8, DType::f16},
+      {Kind::causal_cached, 1, 64, 40, 2, 5, 8, DType::f16},
+      {Kind::pointwise, 1, 64, 7, 3, 5, 8, DType::f16},
+      {Kind::upsample_conv, 1, 32, 19, 2, 3, 5, DType::f16, true, true},
+      {Kind::upsample_conv, 1, 64, 7, 3, 5, 4, DType::f16, true, false},
+  };
+  auto created = [&] {
+    bool found = false;
+    ctx().pipelines().for_each([&](const vk::Pipeline& pl) { found = found || pl.name == "nn/conv_coopmat2"; });
+    return found;
+  };
+  run_all("conv=coopmat,conv_coopmat2=on", false, cases, true);
+  if (!ops::linear_coopmat2_unfit(ctx().caps(), {128, 128, 32, 256}).empty()) {
+    EXPECT_FALSE(created()) << "the coopmat2 conv kernel was made on a device without its features";
+    GTEST_SKIP() << "no coopmat2 here (the KHR kernel ran the cases)";
+  }
+  EXPECT_TRUE(created());
 }
 
 // Without usable cooperative matrices a forced coopmat family falls back to tiled (same results, bit for bit).

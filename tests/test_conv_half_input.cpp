@@ -75,21 +75,8 @@ TEST_F(HalfInputConvOps, SameBitsAsTheFloatRepackOnEveryPathAndSplit) {
                                                   {37, nullptr}, {37, "texels=256"}, {64, nullptr}};
   for (const auto& [cin, limits] : runs) {
       const std::string where = "Cin " + std::to_string(cin) + (limits ? std::string(" under ") + limits : "");
-      std::vector<std::vector<uint32_t>> f16, f32;
-      {
-        ops::ScopedTuningOverride on(layout + ",conv_activations_fp16=on");
-        f16 = all_convs(cin, limits);
-      }
-      {
-        ops::ScopedTuningOverride off(layout + ",conv_activations_fp16=off");
-        f32 = all_convs(cin, limits);
-      }
-      ASSERT_EQ(f16.size(), f32.size());
-      for (size_t i = 0; i < f16.size(); ++i) {
-        size_t differ = 0;
-        for (size_t k = 0; k < f16[i].size(); ++k) differ += f16[i][k] != f32[i][k];
-        EXPECT_EQ(differ, 0u) << names_[i] << ", " << where << ": elements that differ from the f32 repack's";
-      }
+      expect_same_bits(layout + ",conv_activations_fp16=on", layout + ",conv_activations_fp16=off",
+                       [&] { return all_convs(cin, limits); }, where);
     }
   // The f16 runs read an fp16 chunk (which an f32 repack would have turned to garbage), the f32 runs an f32 one.
   EXPECT_TRUE(ran(true)) << "no " << gemm << " read an fp16 chunk";
@@ -110,22 +97,9 @@ TEST_F(HalfInputConvOps, PixelMajorRepackSameBits) {
     return found;
   };
   for (const auto& [cin, limits] : {std::pair<int64_t, const char*>{5, nullptr}, {37, "texels=256"}, {64, nullptr}}) {
-    std::vector<std::vector<uint32_t>> on, off;
-    {
-      ops::ScopedTuningOverride t(family + "conv_pack_pixel_major=on");
-      on = all_convs(cin, limits);
-    }
-    {
-      ops::ScopedTuningOverride t(family + "conv_pack_pixel_major=off");
-      off = all_convs(cin, limits);
-    }
-    ASSERT_EQ(on.size(), off.size());
-    for (size_t i = 0; i < on.size(); ++i) {
-      size_t differ = 0;
-      for (size_t k = 0; k < on[i].size(); ++k) differ += on[i][k] != off[i][k];
-      EXPECT_EQ(differ, 0u) << names_[i] << ", Cin " << cin << (limits ? std::string(" under ") + limits : "")
-                            << ": elements that differ between the two repack orders";
-    }
+    expect_same_bits(family + "conv_pack_pixel_major=on", family + "conv_pack_pixel_major=off",
+                     [&] { return all_convs(cin, limits); },
+                     "Cin " + std::to_string(cin) + (limits ? std::string(" under ") + limits : ""));
   }
   EXPECT_TRUE(ran(true));
   EXPECT_TRUE(ran(false));

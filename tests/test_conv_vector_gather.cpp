@@ -100,21 +100,8 @@ TEST_F(VectorGatherConvOps, SameBitsAsTheFourChannelGatherOnEveryPathAndSplit) {
     const std::string where = std::string(r.layout) + ", Cin " + std::to_string(r.cin) +
                               (r.packed ? ", fp16 weights packed at load" : ", bf16 weights") +
                               (r.limits ? std::string(" under ") + r.limits : "");
-    std::vector<std::vector<uint32_t>> on, off;
-    {
-      ops::ScopedTuningOverride t(base + ",conv_coopmat_vector_loads=on");
-      on = all_convs(r.cin, r.packed, r.limits);
-    }
-    {
-      ops::ScopedTuningOverride t(base + ",conv_coopmat_vector_loads=off");
-      off = all_convs(r.cin, r.packed, r.limits);
-    }
-    ASSERT_EQ(on.size(), off.size());
-    for (size_t i = 0; i < on.size(); ++i) {
-      size_t differ = 0;
-      for (size_t e = 0; e < on[i].size(); ++e) differ += on[i][e] != off[i][e];
-      EXPECT_EQ(differ, 0u) << names_[i] << ", " << where << ": elements that differ from the 4-channel gather's";
-    }
+    expect_same_bits(base + ",conv_coopmat_vector_loads=on", base + ",conv_coopmat_vector_loads=off",
+                     [&] { return all_convs(r.cin, r.packed, r.limits); }, where);
     // Both kernels ran: the option is applied, and the comparison is not one kernel against itself.
     EXPECT_TRUE(ran(r.l, true)) << where << ": no 16-byte gather ran";
     EXPECT_TRUE(ran(r.l, false)) << where << ": no 4-channel gather ran";

@@ -8,7 +8,7 @@
 # info.txt, plus what stage c (bench/gpu/stage_bench.sh, another script) writes, at most 4 more.
 #   a  device facts: nvidia-smi, `dvs info` (extensions, coopmat shapes, limits, tuning entry), dvs-bench limits
 #   b  op and golden tests by value: default tuning (gpu-coopmat on a GPU with tensor cores), then DVS_TUNING=gpu
-#      and the goldens with the coopmat2 GEMM on (a bisection over tuning choices only where the default entry's
+#      and the goldens with the coopmat2 GEMM and convolution on (a bisection over tuning choices only where the default entry's
 #      goldens fail)
 #   c  bench/gpu/stage_bench.sh when it exists (PyTorch references and dvs-bench's gpu group)
 #   d  dvs-bench --filter realsize (T5 2 layers, 1 transformer block at batch 2, VAE of one frame; CPU references),
@@ -220,10 +220,10 @@ if want b; then
   fi
   gtest_run ops-default "$tb" "$TESTS" "$OPS_FILTER"
   DVS_TUNING=gpu gtest_run golden-tuning-gpu "$tg" "$GOLDEN" "$GOLDEN_FILTER"
-  # The coopmat2 GEMM (off by default until measured; LinearTest.Coopmat2ByValue in the op tests checks it alone):
-  # the models' goldens with every fp16 GEMM on it.
-  [ "$SMOKE" != 1 ] && DVS_TUNING=linear_coopmat2=on gtest_run golden-coopmat2 "$tg" "$GOLDEN" \
-    "GoldenTransformer.*:GoldenT5.*:PipelineE2e.*"
+  # The coopmat2 GEMM and convolution (off by default until measured; LinearTest.Coopmat2ByValue and
+  # ConvFamilies.Coopmat2EveryStrideOneVariant in the op tests check them alone): the models' goldens on them.
+  [ "$SMOKE" != 1 ] && DVS_TUNING=linear_coopmat2=on,conv_coopmat2=on gtest_run golden-coopmat2 "$tg" "$GOLDEN" \
+    "GoldenTransformer.*:GoldenT5.*:PipelineE2e.*:VaeGolden.*"
   DVS_TUNING=gpu gtest_run ops-tuning-gpu "$tg" "$TESTS" "$OPS_FILTER"
   [ "$SMOKE" != 1 ] && gtest_run ops-head-dims "$tg" "$TESTS" "AttentionTest.EveryHeadDimUpTo256"
 fi

@@ -84,14 +84,17 @@ if [ $SMOKE -eq 1 ]; then
 else
   # Round 1, each family's default (as the H200 run of 2026-11-29 set them) and the one change per family most worth
   # timing: conv's 16-byte gathers off (the kernel that run measured), at the GEMM's best tile (2x2 subgroups of
-  # 4x4 fragments) and 2x4x4x2, and its input repack in the former channel-major order, GEMM with the former 2x4 subgroups of 4x2 fragments, attention at the former 8
+  # 4x4 fragments) and 2x4x4x2, its input repack in the former channel-major order, and through
+  # VK_NV_cooperative_matrix2 (off by default: unmeasured) at four tiles, GEMM with the former 2x4 subgroups of 4x2 fragments, attention at the former 8
   # subgroups and its KHR kernel, the GEMM through VK_NV_cooperative_matrix2 (off by default: unmeasured) at its
   # default tile and four others, conv with one operand stage, with its input repacked f32 instead of fp16, with bf16 weights instead of fp16. Round 2: what each GEMM feed
   # change contributes (16-byte loads off, banded order off, W bf16 and X f32 converted in the loads instead of kept fp16) and the design study's ablations (no global loads, no MMA: where the time goes; their by-value check
   # fails by design); attention at 4 subgroups. Then other tiles.
   default_sweep="gemm|coopmat|linear_coopmat=2x2x4x4x32 attention|coopmat|attention_coopmat_subgroups=16
     conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_coopmat_vector_loads=off conv3d|coopmat|conv_coopmat=2x2x4x4x32
-    conv3d|coopmat|conv_pack_pixel_major=off
+    conv3d|coopmat|conv_pack_pixel_major=off conv3d|coopmat|conv_coopmat2=on
+    conv3d|coopmat|conv_coopmat2=on,conv_coopmat2_tile=2x64x128x32x256 conv3d|coopmat|conv_coopmat2=on,conv_coopmat2_tile=4x32x256x32x256
+    conv3d|coopmat|conv_coopmat2=on,conv_coopmat2_tile=4x32x128x64x256
     conv3d|coopmat|conv_coopmat=2x4x4x2x32 gemm|coopmat|linear_coopmat2=on gemm|coopmat|linear_coopmat2=on,linear_coopmat2_tile=256x128x32x256
     gemm|coopmat|linear_coopmat2=on,linear_coopmat2_tile=128x256x32x256 gemm|coopmat|linear_coopmat2=on,linear_coopmat2_tile=128x128x64x256
     gemm|coopmat|linear_coopmat2=on,linear_coopmat2_tile=128x128x32x128 gemm|coopmat|linear_coopmat=2x4x4x2x32 attention|coopmat|attention_coopmat_subgroups=8

@@ -74,12 +74,7 @@ layout(std430, binding = 1) readonly buffer WV8 { uvec4 wv8[]; };  // VEC8: 16-b
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };
 layout(std430, binding = 3) buffer Y { float y[]; };
 
-layout(push_constant) uniform Push {
-  uint M, N, cp, kt, kh, kw, stride, up, wo, rows, oh0;
-  int pad_top, pad_left;
-  uint in_h, in_w, src_r0, src_rows, src_w, zero_texel, y_base;
-  uint ys_f, ys_h, ys_w, ys_c, has_bias, n_base, accumulate, ow0, src_c0;
-} p;
+#include "conv_push.glsl"
 
 // The operand tiles in shared memory, fp16: float16_t for the tensor cores; in the twin the same fp16
 // values as bits, two per uint (fp32 tiles would need 40 KiB, over the 32 KiB lavapipe offers).

@@ -51,6 +51,26 @@ class ConvKernelTest : public GpuTest {
     }
     return out;
   }
+  // The paths `run` (a callable returning run_paths' result) gives under tuning override `a` against under `b` (each
+  // replaces the override in force): every path's output the same bits; failures name the path and `where`.
+  template <class Run>
+  void expect_same_bits(const std::string& a, const std::string& b, Run run, const std::string& where) {
+    std::vector<std::vector<uint32_t>> ya, yb;
+    {
+      ops::ScopedTuningOverride t(a);
+      ya = run();
+    }
+    {
+      ops::ScopedTuningOverride t(b);
+      yb = run();
+    }
+    ASSERT_EQ(ya.size(), yb.size());
+    for (size_t i = 0; i < ya.size(); ++i) {
+      size_t differ = 0;
+      for (size_t k = 0; k < ya[i].size(); ++k) differ += ya[i][k] != yb[i][k];
+      EXPECT_EQ(differ, 0u) << names_[i] << ", " << where << ": elements that differ between " << a << " and " << b;
+    }
+  }
   bool twin_ = false;
   std::vector<std::string> names_;
 };

@@ -203,6 +203,17 @@ bool parse_dims(const std::string& v, size_t count, int64_t hi, std::vector<int6
   return out.size() == count && v.back() != 'x';
 }
 
+// A tile of `count` "x"-separated positive integers up to 1024, handed to `assign`.
+Field dims_field(const char* name, const char* values, size_t count,
+                 void (*assign)(DeviceTuning&, const std::vector<int64_t>&)) {
+  return {name, values, [count, assign](DeviceTuning& t, const std::string& v) {
+            std::vector<int64_t> d;
+            if (!parse_dims(v, count, 1024, d)) return false;
+            assign(t, d);
+            return true;
+          }};
+}
+
 Field coopmat_tile_field(const char* name, CoopmatTile DeviceTuning::*m) {
   return {name, "SGMxSGNxFMxFNxK (subgroups along M and N, fragments per subgroup along M and N, K per step)",
           [m](DeviceTuning& t, const std::string& v) {
@@ -299,17 +310,20 @@ const std::vector<Field>& fields() {
        [](DeviceTuning& t, const std::string& v) { return parse_linear_rules(v, t.linear_coopmat_by_shape); }},
       bool_field("linear_coopmat_vector_loads", &DeviceTuning::linear_coopmat_vector_loads),
       bool_field("linear_coopmat2", &DeviceTuning::linear_coopmat2),
-      {"linear_coopmat2_tile", "BMxBNxBKxWG (output rows, columns, K per step, invocations)",
-       [](DeviceTuning& t, const std::string& v) {
-         std::vector<int64_t> d;
-         if (!parse_dims(v, 4, 1024, d)) return false;
-         t.linear_coopmat2_tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3])};
-         return true;
-       }},
+      dims_field("linear_coopmat2_tile", "BMxBNxBKxWG (output rows, columns, K per step, invocations)", 4,
+                 [](DeviceTuning& t, const std::vector<int64_t>& d) {
+                   t.linear_coopmat2_tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3])};
+                 }),
       bool_field("linear_weights_fp16", &DeviceTuning::linear_weights_fp16),
       bool_field("linear_activations_fp16", &DeviceTuning::linear_activations_fp16),
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
       bool_field("conv_coopmat_vector_loads", &DeviceTuning::conv_coopmat_vector_loads),
+      bool_field("conv_coopmat2", &DeviceTuning::conv_coopmat2),
+      dims_field("conv_coopmat2_tile",
+                 "PHxPWxBNxBKxWG (output rows and columns of a patch, output channels, K per step, invocations)", 5,
+                 [](DeviceTuning& t, const std::vector<int64_t>& d) {
+                   t.conv_coopmat2_tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4])};
+                 }),
       bool_field("conv_pack_pixel_major", &DeviceTuning::conv_pack_pixel_major),
       bool_field("conv_activations_fp16", &DeviceTuning::conv_activations_fp16),
       bool_field("conv_weights_fp16", &DeviceTuning::conv_weights_fp16),
@@ -530,6 +544,7 @@ std::string describe_tuning(const DeviceTuning& t) {
     << (t.conv == KernelFamily::coopmat ? ", tile " + conv_coopmat_layout(t).describe() +
                                               (t.conv_coopmat_double_buffer ? ", two operand stages where they fit" : "") +
                                               (t.conv_coopmat_vector_loads ? ", 16-byte gathers where they apply" : "") +
+                                              (t.conv_coopmat2 ? ", VK_NV_cooperative_matrix2 kernel where the device and call allow" : "") +
                                               (t.conv_activations_fp16 ? ", input repacked fp16" : ", input repacked f32") +
                                               (t.conv_weights_fp16 ? ", bf16 weights kept fp16" : "")
                                         : std::string())

@@ -154,6 +154,15 @@ struct DeviceTuning {
   // the kernel at most 16 x 16 per frame (the VAE's convolutions on GPUs); off: 4 channels per load, each step's
   // taps found by division (A/B runs). Same bits.
   bool conv_coopmat_vector_loads = true;
+  // The convolution through VK_NV_cooperative_matrix2 (nn/conv_coopmat2.comp: the gather by tensor addressing, the
+  // padding by its clamp, the driver's own staging) where the device has what linear_coopmat2 needs, the stride is
+  // 1, the input repack and the weights are fp16 and the channels a multiple of the tile's K; the KHR kernel
+  // elsewhere. Off until a device run has checked it by value and timed it (lavapipe cannot run it).
+  bool conv_coopmat2 = false;
+  // Its tile: a patch of output rows x columns, output channels, input channels per step, invocations.
+  struct ConvCoopmat2Tile {
+    int rows = 4, cols = 32, n = 128, k = 32, invocations = 256;
+  } conv_coopmat2_tile;
   // Where the conv family is coopmat, each call's channels-last repack of its input (what only the GEMM reads) is
   // written in fp16, the tensor cores' operand type: rounded once there instead of in every tap's loads, at half the
   // bytes written and read. Off: f32 (A/B runs). Same bits.

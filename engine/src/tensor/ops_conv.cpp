@@ -12,6 +12,7 @@
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_census.hpp"
 #include "tensor/kernel_tuning.hpp"
+#include "tensor/ops_conv_coopmat2.hpp"
 #include "tensor/ops_conv_weights.hpp"
 #include "vk/context.hpp"
 
@@ -376,6 +377,9 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
                                                x16, bdt, vec8),
                              fam.twin ? 0u : uint32_t(fam.layout.lanes), conv_coopmat_unfit(caps, fam.layout, fam.twin))
           : ctx.pipelines().get(tile.lanes == 2 ? "nn/conv_gemm_nosubgroup" : "nn/conv_gemm", gemm_spec);
+  // The coopmat2 kernel in its place for the chunks it takes (ops_conv_coopmat2.hpp).
+  const ConvCoopmat2 cm2 = conv_coopmat2_kernel(ctx, {fam.kind == KernelFamily::coopmat && !fam.twin, x16, cpc, j.stride,
+                                                      j.ho, j.wo, j.ys_c, j.ys_h, j.ys_w, wdt, bdt});
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
               {fam.kind == KernelFamily::coopmat ? std::string() : device_tuning(caps).conv_unfit, true});
   vk::BufferView bias_view = x.buffer();  // without a bias: any aligned buffer (x's first word; never read)
@@ -430,7 +434,11 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
             vk::BufferView yv = whole_y ? y.buffer() : aligned_view(y.buffer(), y0 * 4, (y0 + y_span(nn, nfo, nr, nc)) * 4, l.align, 4, ybase);
             pc.y_base = uint32_t(y0) - ybase;
             uint32_t gx = div_up(m, tile_m), gy = div_up(nn, tile_n);
-            if (fam.kind == KernelFamily::texel)
+            if (cm2.takes({packed_x.offset, wv.offset, yv.offset + 4 * pc.y_base}, j.ys_f, nfo, nr, nc)) {
+              note_kernel(ctx, "conv", KernelFamily::coopmat, cm2.pipe->name);
+              rec.dispatch(*cm2.pipe, {packed_x, wv, bias_view, yv}, &pc, sizeof pc, cm2.groups_x(nfo, nr, nc),
+                           div_up(nn, cm2.n), 1, op);
+            } else if (fam.kind == KernelFamily::texel)
               rec.dispatch(gemm,
                            {vk::Binding(packed_x, VK_FORMAT_R32G32B32A32_SFLOAT),
                             vk::Binding(wv, VK_FORMAT_R32G32B32A32_UINT), bias_view, yv},
