@@ -102,8 +102,10 @@ models::ComponentWeights random_weights(vk::Context& ctx, const nlohmann::json& 
     const int64_t chunk = ops::rows_per_chunk(ctx.caps(), "random weights", {{4, 16}, {2, 8}}, std::min(n, cap));
     Tensor draw = Tensor::empty(ctx, {chunk}, DType::f32, "random weight draw");
     const uint32_t this_stream = stream++;
-    ops::for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
-      ops::run_now(ctx, [&](vk::Recorder& rec) {
+    // One submission per tensor (the recorder orders each chunk's draw after the previous chunk's cast read it): the
+    // H200 run of 2026-11-29 spent 50 s making T5's weights chunk by chunk, one submission each.
+    ops::run_now(ctx, [&](vk::Recorder& rec) {
+      ops::for_each_chunk(n, chunk, [&](int64_t first, int64_t count) {
         const Tensor d = Tensor::on(draw.buffer().sub(0, VkDeviceSize(count) * 4), {count}, DType::f32);
         ops::random_normal(rec, d, {seed, this_stream, uint64_t(first)}, mean, std);
         // The whole tensor when it is one chunk (keeps an odd-length bf16 tensor's slack for cast).
