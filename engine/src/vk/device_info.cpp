@@ -189,8 +189,10 @@ DeviceCaps query_device_caps(VkPhysicalDevice pd, uint32_t index, VkInstance ins
   const auto& cm2 = c.cooperative_matrix2_facts;
   c.cooperative_matrix2_row_ops =
       c.cooperative_matrix && cm2 && cm2->reductions && cm2->conversions && cm2->per_element_operations;
-  c.cooperative_matrix2_gemm = c.cooperative_matrix && cm2 && cm2->workgroup_scope && cm2->flexible_dimensions &&
-                               cm2->tensor_addressing && cm2->per_element_operations;
+  // The coopmat2 kernels use fp16 arithmetic and buffers (Float16, StorageBuffer16BitAccess) as well.
+  c.cooperative_matrix2_gemm = c.cooperative_matrix && c.storage_16bit && c.float16_arithmetic && cm2 &&
+                               cm2->workgroup_scope && cm2->flexible_dimensions && cm2->tensor_addressing &&
+                               cm2->per_element_operations;
   c.push_descriptor = c.has_extension("VK_KHR_push_descriptor");
 
   VkPhysicalDeviceMemoryProperties mem{};

@@ -195,7 +195,8 @@ DeviceCaps host_device_caps(const HostDevice& host) {
   if (!c.cooperative_matrix) c.cooperative_matrix_shapes.clear();
   c.cooperative_matrix2_row_ops = c.cooperative_matrix2_row_ops && c.cooperative_matrix && e.cooperative_matrix2_row_ops &&
                                   enabled(exts, VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
-  c.cooperative_matrix2_gemm = c.cooperative_matrix2_gemm && c.cooperative_matrix && e.cooperative_matrix2_gemm &&
+  c.cooperative_matrix2_gemm = c.cooperative_matrix2_gemm && c.cooperative_matrix && c.storage_16bit &&
+                               c.float16_arithmetic && e.cooperative_matrix2_gemm &&
                                enabled(exts, VK_NV_COOPERATIVE_MATRIX_2_EXTENSION_NAME);
   c.push_descriptor = c.push_descriptor && enabled(exts, "VK_KHR_push_descriptor");
   if (c.memory_budget_ext && !enabled(exts, VK_EXT_MEMORY_BUDGET_EXTENSION_NAME)) {
