@@ -107,7 +107,7 @@ else
     gemm|coopmat|linear_coopmat=2x2x2x2x32 gemm|coopmat|linear_coopmat=1x1x2x2x32 gemm|coopmat|linear_coopmat=4x2x2x4x32
     gemm|coopmat|linear_coopmat=2x4x4x2x16 attention|coopmat|attention_coopmat_subgroups=2
     attention|coopmat|attention_coopmat_subgroups=1 conv3d|coopmat|conv_coopmat=2x2x2x2x32
-    conv3d|coopmat|conv_coopmat=2x4x4x2x32 conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
+    conv3d|coopmat|conv_coopmat=1x1x2x2x32 gemm|tiled|linear_tile_m=128,linear_tile_n=128
     attention|tiled|attention_block_q=128,attention_block_k=64 conv3d|tiled|conv_tile_m=128,conv_tile_n=128"
 fi
 sweep_t=${STAGE_T_SWEEP:-$([ $SMOKE -eq 1 ] && echo 120 || echo 60)}
