@@ -476,7 +476,7 @@ DeviceTuning select_tuning(const vk::DeviceCaps& caps, const std::string& overri
         throw Error("DVS_TUNING: linear_coopmat_by_shape row " + describe_linear_rule(r) + " does not fit " +
                     caps.name + ": " + why);
     }
-  if (t.linear == KernelFamily::coopmat && t.linear_coopmat2)
+  if (t.linear_coopmat2)
     t.linear_coopmat2_unfit = linear_coopmat2_unfit(caps, t.linear_coopmat2_tile);
   settle(t.conv, t.conv_unfit, conv_coopmat_unfit(caps, conv_coopmat_layout(t), false));
   settle(t.attention, t.attention_unfit,

@@ -213,7 +213,7 @@ const vk::Pipeline* coopmat2_pipeline(vk::Context& ctx, const LinearKernel& kern
   const DeviceTuning& tune = device_tuning(ctx.caps());
   if (kern.family != KernelFamily::coopmat || !tune.linear_coopmat2 || wcode != 1 || xcode != 1) return nullptr;
   const DeviceTuning::Coopmat2Tile& t = tune.linear_coopmat2_tile;
-  if (!linear_coopmat2_unfit(ctx.caps(), t).empty()) return nullptr;
+  if (!tune.linear_coopmat2_unfit.empty()) return nullptr;  // worked out once, with the tuning
   const uint32_t spec[] = {uint32_t(t.m), uint32_t(t.n), wcode, uint32_t(t.k), uint32_t(t.invocations), 0, 0, 0, 0, 0,
                            0, uint32_t(tune.linear_coopmat_group_m), 0, xcode, y16 ? 1u : 0u};
   return &ctx.pipelines().get("linalg/linear_coopmat2", spec);
