@@ -148,6 +148,7 @@ class Context {
   void release();
   uint64_t queue_submit(VkCommandBuffer cmd);  // one vkQueueSubmit signalling the next timeline value
   void release_reached();                      // runs the release_after actions whose tickets were reached
+  void drain_shared_queue();                   // vkQueueWaitIdle on the application's queue, under its locks
 
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;

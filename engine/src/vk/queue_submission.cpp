@@ -122,6 +122,13 @@ uint64_t Context::submit(VkCommandBuffer cmd) {
   return ticket;
 }
 
+void Context::drain_shared_queue() {
+  if (!queue_) return;
+  std::lock_guard<std::mutex> own(queue_mutex(queue_));
+  QueueLock lock(lock_queue_, unlock_queue_);
+  vkQueueWaitIdle(queue_);  // a lost device returns at once: nothing left to drain
+}
+
 uint64_t Context::completed_value() const {
   uint64_t value = 0;
   VK_CHECK(vkGetSemaphoreCounterValue(device_, timeline_, &value));
