@@ -177,10 +177,10 @@ def main():
     split = [r for r in dvs_rows if len(r.get("shader_ms") or {}) > 1 and "variant" not in r]
     if split:
         out.append("")
-        out.append("Time per dispatch (GPU ms, mean of the timed runs) where a case runs more than one shader:")
+        out.append("Time per shader (GPU ms per run, mean of the timed runs, largest first) where a case runs more than one:")
         for r in split:
             out.append("- %s %s %s: %s" % (r.get("case"), r.get("shape"), r.get("family"),
-                                           ", ".join("%s %.3f" % (k, v) for k, v in sorted(r["shader_ms"].items()))))
+                                           ", ".join("%s %.3f" % (k, v) for k, v in sorted(r["shader_ms"].items(), key=lambda kv: -kv[1]))))
     fails = [r for r in dvs_rows if r.get("check") == "FAIL" or "error" in r]
     if fails:
         out.append("")
