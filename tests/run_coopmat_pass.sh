@@ -30,10 +30,30 @@ fi
 grep -q "fell back from tensor cores for a reason of the device" "$build/coopmat_pass_planted.log" ||
   { echo "run_coopmat_pass.sh: the planted misfit failed for another reason:" >&2; tail -20 "$build/coopmat_pass_planted.log" >&2; exit 1; }
 
-# 2. The op tests (the suites of .ci/run's GPU-entry pass), the layouts, the tuning and the smoke test.
+# 2. The op tests (the suites of .ci/run's GPU-entry pass), the layouts, the tuning and the smoke test, in two
+# shards at once (GoogleTest's GTEST_TOTAL_SHARDS), then 3. the golden tests, the whole-pipeline (PipelineE2e) tests
+# among them, after the second shard. From a cold shader cache Mesa 26.1 spends most of this pass compiling (one
+# process: 637 s of op tests and 101 s of goldens on 2 cores); each process is one compile at a time, so two use both
+# cores. Each shard still holds linear, attention and conv tests, so DVS_REQUIRE_COOPMAT's census holds per process.
 ops='Ops*:*Ops.*:*Ops/*:Split*:Paths/*:AttentionTest.*:Family/*:ConvFamilies.*:LinearCoopmatTest.*:Resize*'
 ops+=':KernelTuning*:LinearTuning.*:AttentionFlashPlan.*:CoopmatLayout*:CoopmatSmoke.*:GemmWeights.*'
-"$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
-# 3. The golden tests, the whole-pipeline (PipelineE2e) tests among them.
-"$run" "$build/tests/dvs_golden_tests"
+ops_shard() {
+  GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX="$1" \
+    "$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
+}
+ops_shard 0 > "$build/coopmat_pass_ops0.log" 2>&1 &
+first=$!
+{ ops_shard 1 && "$run" "$build/tests/dvs_golden_tests"; } > "$build/coopmat_pass_ops1_golden.log" 2>&1 &
+second=$!
+rc=0
+wait "$first" || rc=1
+echo "== run_coopmat_pass.sh: op tests, shard 1 of 2 ($build/coopmat_pass_ops0.log)"
+cat "$build/coopmat_pass_ops0.log"
+wait "$second" || rc=1
+echo "== run_coopmat_pass.sh: op tests, shard 2 of 2, then the golden tests ($build/coopmat_pass_ops1_golden.log)"
+cat "$build/coopmat_pass_ops1_golden.log"
+if [ "$rc" -ne 0 ]; then
+  echo "run_coopmat_pass.sh: FAILED (the logs above say which test)" >&2
+  exit 1
+fi
 echo "run_coopmat_pass.sh: passed in $(( $(date +%s) - start )) s"
