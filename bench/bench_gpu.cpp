@@ -563,8 +563,7 @@ void block_case(Bench& b) {
         const bool was = prof.enabled();
         prof.set_enabled(true);
         std::vector<double> gpu, wall;
-        std::set<std::string> labels;
-        std::map<std::string, double> shader_ms;
+        std::map<std::string, double> shader_ms;  // summed over the runs: where the block's time goes
         const auto start = std::chrono::steady_clock::now();
         while (int(gpu.size()) < max_runs && (gpu.size() < 2 || std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < 3.0)) {
           prof.clear();
@@ -572,10 +571,7 @@ void block_case(Bench& b) {
           out = model.forward(dl, dt, steps);
           wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
           double ns = 0;
-          for (const auto& [label, e] : prof.entries()) {
-            ns += e.total_ns, labels.insert(label);
-            shader_ms[label] += e.total_ns * 1e-6;  // where the block's time goes, shader by shader
-          }
+          for (const auto& [label, e] : prof.entries()) ns += e.total_ns, shader_ms[label] += e.total_ns * 1e-6;
           gpu.push_back(ctx.caps().timestamps && ns > 0 ? ns * 1e-6 : wall.back());
           if (wall.back() > 1500) break;
         }
@@ -587,9 +583,10 @@ void block_case(Bench& b) {
         t.gpu_ms = gpu[gpu.size() / 2];
         t.wall_ms = wall[wall.size() / 2];
         t.runs = int(gpu.size());
-        for (const auto& l : labels) t.shaders += (t.shaders.empty() ? "" : " ") + l;
-        if (ctx.caps().timestamps)
-          for (auto& [label, ms] : shader_ms) t.shader_ms[label] = ms / double(gpu.size());  // mean of the runs
+        for (const auto& [label, ms] : shader_ms) {
+          t.shaders += (t.shaders.empty() ? "" : " ") + label;
+          if (ctx.caps().timestamps) t.shader_ms[label] = ms / double(gpu.size());  // mean of the runs
+        }
         report(b, "block", shape, fam, t, flops, 0, nullptr, 0,
                {{"output", str((dir / ("out_dvs_" + fam + ".npy")).string())},
                 {"entry", str(ops::device_tuning(ctx.caps()).entry)}});

@@ -333,21 +333,15 @@ Context::~Context() {
 }
 
 void Context::release() {
-  // dvs's own work only: on the application's device, its other queues and work are none of dvs's business.
-  if (device_ && owns_device_) vkDeviceWaitIdle(device_);
-  if (device_ && !owns_device_ && timeline_ && submissions_ > 0) {
-    VkSemaphoreWaitInfo wi{VK_STRUCTURE_TYPE_SEMAPHORE_WAIT_INFO};
-    wi.semaphoreCount = 1;
-    wi.pSemaphores = &timeline_;
-    wi.pValues = &submissions_;
-    vkWaitSemaphores(device_, &wi, UINT64_MAX);  // a lost device returns at once; nothing more to wait for
-  }
-  // The application's submissions may wait on dvs's timeline, and a driver may still touch it after they are seen
-  // complete: Mesa 22.3's queue thread releases a submission's semaphore waits after signalling its fence, so an
-  // application that waited for its fence and then destroyed dvs's context crashed in that thread now and then
+  // On its own device dvs waits for everything. On the application's, dvs submits only to the queue it was given
+  // (uploads included), and that queue is drained rather than dvs's last ticket waited for: the application's
+  // submissions may wait on dvs's timeline, and a driver may still touch it after they are seen complete. Mesa 22.3's
+  // queue thread releases a submission's semaphore waits after signalling its fence, so an application that waited
+  // for its fence and then destroyed dvs's context crashed in that thread now and then
   // (SceneDeviceMemoryTest.ImagesAreLeftInTheFinalLayoutAskedFor, three copies at once under synchronization
-  // validation: 26 crashes in 1838 runs; with this drain 0 in 1807). Draining the queue they share first costs the
-  // destructor the application's last work on it.
+  // validation: 26 crashes in 1838 runs; with the drain 0 in 1807). It costs the destructor the application's last
+  // work on that queue; the application's other queues are none of dvs's business.
+  if (device_ && owns_device_) vkDeviceWaitIdle(device_);
   if (device_ && !owns_device_ && timeline_) drain_shared_queue();
   for (auto& [ticket, action] : pending_releases_) action();
   pending_releases_.clear();
