@@ -3,7 +3,8 @@
 //   gemm       X f32 [M, K] · W bf16 [N, K]ᵀ, M = 2 x 17,776; K x N = 3072x3072, 3072x9216, 3072x12288, 12288x3072;
 //              X and W in fp16 where the model keeps them so (ops::gemm_activation_dtype, gemm_weight_dtype: the
 //              coopmat family)
-//   attention  B=2, H=48, D=64, S=17,776, q|k|v fused [B, S, 3·H·D] as the transformer uses it
+//   attention  B=2, H=48, D=64, S=17,776; q|k|v fused [B, S, 3·H·D] f32, or for the coopmat family where the model
+//              keeps its GEMM operands fp16: q, k, v fp16 head-major [B, H, S, D] as the transformer gives them
 //   conv3d     causal 3x3x3 at the VAE decoder's shapes, 4 output frames, bf16 weights
 //   copy       vkCmdCopyBuffer 256 MiB (bytes read + written)
 //   mma_rate   register-only cooperative-matrix rate (shaders/bench/coopmat_mma_rate.comp), where it exists
@@ -42,6 +43,7 @@
 #include "tensor/ops_conv.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_linear.hpp"
+#include "tensor/ops_norm.hpp"
 #include "tensor/tensor.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/pipeline_statistics.hpp"
@@ -345,20 +347,30 @@ void attention_cases(Bench& b) {
     sh.q_len = sh.kv_len = S;
     ops::AttentionOptions opt;
     opt.scale = 1.0f / std::sqrt(float(D));
-    Tensor qkv16;  // k and v as the transformer gives them to the tensor cores' attention (fp16), made on first use
+    // q, k and v as the transformer gives them to the tensor cores' attention: fp16, head-major [B, H, S, D], each
+    // written by ops::attention_heads (here without norm and RoPE) from its own f32 [B, S, H·D]; made on first use.
+    Tensor heads16[3];
     for (const std::string& fam : families(ctx)) {
       try {
         ops::ScopedTuningOverride ov("attention=" + fam);
-        const bool kv16 = fam == "coopmat" && ops::gemm_activation_dtype(ctx.caps()) == DType::f16;
-        if (kv16 && !qkv16.defined()) {
-          qkv16 = Tensor::empty(ctx, qkv.shape(), DType::f16, "gpu bench qkv f16");
-          ops::run_now(ctx, [&](vk::Recorder& r) { ops::cast(r, qkv, qkv16); });
+        const bool f16_heads = fam == "coopmat" && ops::gemm_activation_dtype(ctx.caps()) == DType::f16;
+        if (f16_heads && !heads16[0].defined()) {
+          for (int64_t which = 0; which < 3; ++which) {
+            HostTensor part({B, S, H * D}, DType::f32);
+            for (int64_t row = 0; row < B * S; ++row)
+              std::copy_n(hqkv.as<float>() + (row * 3 + which) * H * D, H * D, part.as<float>() + row * H * D);
+            const Tensor x = Tensor::upload(ctx, part, "gpu bench q/k/v f32");
+            heads16[which] = Tensor::empty(ctx, {B, H, S, D}, DType::f16, "gpu bench q/k/v f16 head-major");
+            ops::run_now(ctx, [&](vk::Recorder& r) { ops::attention_heads(r, x, heads16[which], H, {}); });
+          }
         }
-        const Tensor& kv = kv16 ? qkv16 : qkv;
+        auto operand = [&](int which) {
+          return f16_heads ? ops::AttentionOperand{heads16[which], 0, 0, true}
+                           : ops::fused_qkv_operand(qkv, which, H, D);
+        };
         ops::run_now(ctx, [&](vk::Recorder& r) { r.fill_zero(out.buffer()); });
         Timing t = time_recorded(ctx, [&](vk::Recorder& r) {
-          ops::attention(r, sh, ops::fused_qkv_operand(qkv, 0, H, D), ops::fused_qkv_operand(kv, 1, H, D),
-                         ops::fused_qkv_operand(kv, 2, H, D), {out, 0, 0}, opt);
+          ops::attention(r, sh, operand(0), operand(1), operand(2), {out, 0, 0}, opt);
         });
         Check c;
         Rng pick(98);
@@ -385,7 +397,7 @@ void attention_cases(Bench& b) {
           }
         }
         report(b, "attention", shape, fam, t, 4.0 * B * H * double(S) * S * D, 0, &c, tolerance_for(fam),
-               {{"layout", str(kv16 ? "fused qkv [B,S,3HD], q f32, k v f16" : "fused qkv [B,S,3HD], f32")}});
+               {{"layout", str(f16_heads ? "q k v f16 head-major [B,H,S,D] (the transformer's)" : "fused qkv [B,S,3HD], f32")}});
       } catch (const std::exception& e) {
         report_error("attention", shape, fam, e.what());
       }

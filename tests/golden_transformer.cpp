@@ -20,6 +20,7 @@
 #include "support/gpu.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_linear.hpp"
+#include "vk/pipeline.hpp"
 
 namespace fs = std::filesystem;
 using dvs::HostTensor;
@@ -96,6 +97,22 @@ TEST_F(GoldenTransformer, T999OutputAndIntermediates) {
   expect_close("t999 norm_final", taps.norm_final, "transformer/t999_norm_final.npy", tol);
   expect_close("t999 proj_out", taps.proj_out, "transformer/t999_proj_out.npy", tol);
   expect_close("transformer_t999 output", out.download(ctx()), "transformer/output_t999.npy", tol);
+
+  // Where the attention ran on the tensor cores beside tensor-core GEMMs, q, k and v reached it fp16 and head-major
+  // through ops::attention_heads (q and k with their norm and RoPE, v without): pipelines of each kind were made.
+  bool coopmat_attention = false;
+  for (const auto& [note, count] : ctx().kernel_notes())
+    coopmat_attention |= note.op == "attention" && note.family == "coopmat";
+  if (coopmat_attention && dvs::ops::gemm_activation_dtype(ctx().caps()) == dvs::DType::f16) {
+    bool qk = false, v = false;  // spec: WDTYPE, NORM, AFFINE, ROPE, Y_F16, N4
+    ctx().pipelines().for_each([&](const dvs::vk::Pipeline& pl) {
+      if (pl.name != "nn/attention_heads" || pl.spec.size() < 5 || pl.spec[4] != 1) return;
+      qk |= pl.spec[1] == 1 && pl.spec[3] == 1;
+      v |= pl.spec[1] == 0 && pl.spec[3] == 0;
+    });
+    EXPECT_TRUE(qk) << "no fp16 attention_heads pipeline with norm and RoPE (q, k) under tensor-core attention";
+    EXPECT_TRUE(v) << "no fp16 attention_heads pipeline without norm or RoPE (v) under tensor-core attention";
+  }
 }
 
 TEST_F(GoldenTransformer, T500) {

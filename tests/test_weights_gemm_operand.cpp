@@ -161,7 +161,7 @@ TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
   auto attention_f16 = [&] {
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
-      if (pl.name.starts_with("nn/attention_flash_coopmat") && pl.spec.size() == 10 && pl.spec[0] == 16 &&
+      if (pl.name.starts_with("nn/attention_flash_coopmat") && pl.spec.size() == 11 && pl.spec[0] == 16 &&
           pl.spec[1] == 16 && pl.spec[8] == 1 && pl.spec[9] == 1)
         found = true;
     });

@@ -14,6 +14,7 @@ layout(constant_id = 5) const int FRAG_K = 16;
 layout(constant_id = 6) const int LANES = 32;      // the subgroup size (required at pipeline creation; the twin emulates it)
 layout(constant_id = 8) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
 layout(constant_id = 9) const bool KV_F16 = false;  // k and v in fp16 (the operand type): offsets, strides in 4 halves
+layout(constant_id = 10) const bool Q_F16 = false;  // q in fp16: its offset and strides in 4 halves
 const int D4 = D / 4;
 // Softmax and O ownership: LPR lanes per row where a subgroup has more lanes than rows (the H200: 32 lanes,
 // 16 rows, 2 lanes a row), else RPL rows per lane (lavapipe at 16 rows: 8 lanes, 2 rows a lane); each lane of a
@@ -35,6 +36,7 @@ const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max before any key
 
 layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
+layout(std430, binding = 0) readonly buffer Qh { uvec2 qh[]; };  // Q_F16: 4 halves per element
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
 layout(std430, binding = 1) readonly buffer Kh { uvec2 kh[]; };  // KV_F16: 4 halves per element
@@ -51,7 +53,7 @@ void store_o(uint i, vec4 o) {
   }
 }
 
-// attention.comp's push constants (vec4 units); the bias and mask fields are unused here.
+// attention.comp's push constants (vec4 units) and q's batch and head strides; the bias and mask fields are unused here.
 layout(push_constant) uniform Push {
   uint q_len, kv_len, heads;
   uint q_off, q_stride, o_off, o_stride;
@@ -59,7 +61,14 @@ layout(push_constant) uniform Push {
   uint v_off, v_stride, v_bstride, v_hstride;
   float scale;
   uint bias_off, bias_hstride, bias_rstride, mask_off;
+  uint q_bstride, q_hstride;  // the flash kernels' own: q token-major or head-major
 } p;
+
+// Vec4 c of row `row` of q's head h in batch element b (converted from fp16 under Q_F16).
+vec4 load_q(uint b, uint h, uint row, uint c) {
+  const uint i = b * p.q_bstride + h * p.q_hstride + row * p.q_stride + p.q_off + c;
+  return Q_F16 ? vec4(unpackHalf2x16(qh[i].x), unpackHalf2x16(qh[i].y)) : qb[i];
+}
 
 shared float16_t sK[BK * KP];                 // [key][dim], pitch KP
 shared float16_t sV[BK * KP];                 // [key][dim], pitch KP

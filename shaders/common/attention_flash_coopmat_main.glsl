@@ -3,7 +3,8 @@
 //   SG_BARRIER()       orders the shared-memory accesses of one subgroup (the twin: the workgroup's)
 //   LANE_XOR(x, mask)  x of the lane whose index differs by `mask` (a power of two below LPR)
 //   LOAD_Q()           takes the subgroup's Q (ROWS x D fp16, row-major at sP[sgP], stride PP)
-//   SCORES()           S = Q·Kᵀ (ROWS x BK, fp32) into sS[sgS], row-major, stride SP; K is sK [key][dim], stride KP
+//   SCORES()           S = Q·Kᵀ·qscale (ROWS x BK, fp32) into sS[sgS], row-major, stride SP; K is sK [key][dim],
+//                      stride KP
 //   PV()               O_tile = P·V (ROWS x D, fp32) into sS[sgS], row-major, stride SP; P is sP[sgP] [row][key],
 //                      stride PP; V is sV [key][dim], stride KP
 shared float sS[SUBGROUPS * ROWS * SP];      // per subgroup: scores [ROWS][BK], then the O tile [ROWS][D], pitch SP
@@ -20,12 +21,12 @@ void main() {
   // lanes of a row read neighbouring words) and its O columns part·D/LPR ..; this lane's rows are rw + PASS·q.
   const uint rw = lane / LPR, part = lane % LPR;
 
-  // ---- Q (ROWS rows of this subgroup) -> fp16 A fragments, pre-scaled into the exp2 domain ----
-  const float qscale = p.scale * LOG2E;
+  // ---- Q (ROWS rows of this subgroup) -> fp16 A fragments, as given: the scores are scaled into the exp2 domain ----
+  const float qscale = p.scale * LOG2E;  // SCORES() multiplies by it (fp32)
   for (uint i = lane; i < ROWS * D4; i += LANES) {
     const uint rr = i / D4, c = i % D4;
     const uint row = min(row_base + rr, p.q_len - 1);  // rows past the end: a copy of the last, never stored
-    const vec4 x = qb[(b * p.q_len + row) * p.q_stride + p.q_off + h * D4 + c] * qscale;
+    const vec4 x = load_q(b, h, row, c);
     const uint at = sgP + rr * PP + c * 4;
     sP[at] = float16_t(x.x);
     sP[at + 1] = float16_t(x.y);

@@ -16,12 +16,15 @@ layout(constant_id = 1) const int D4 = 16;      // head_dim / 4
 layout(constant_id = 2) const int BK = 64;      // keys per shared tile, a multiple of KB
 layout(constant_id = 3) const bool O_F16 = false;  // out in fp16 (the next GEMM's X): o_off, o_stride in 4 halves
 layout(constant_id = 4) const bool KV_F16 = false;  // k and v in fp16: their offsets and strides in 4 halves
+layout(constant_id = 5) const bool Q_F16 = false;   // q in fp16: its offset and strides in 4 halves
 const int KB = 4;                               // keys per step of the online softmax
 
 const float LOG2E = 1.4426950408889634;
 const float MASKED = -3.4028234663852886e38;  // -FLT_MAX: the running max before any key
 
 layout(std430, binding = 0) readonly buffer Qb { vec4 qb[]; };
+layout(std430, binding = 0) readonly buffer Qh { uvec2 qh[]; };  // Q_F16: 4 halves per element
+vec4 q4(uint i) { return Q_F16 ? vec4(unpackHalf2x16(qh[i].x), unpackHalf2x16(qh[i].y)) : qb[i]; }
 layout(std430, binding = 1) readonly buffer Kb { vec4 kb[]; };
 layout(std430, binding = 2) readonly buffer Vb { vec4 vb[]; };
 layout(std430, binding = 1) readonly buffer Kh { uvec2 kh[]; };  // KV_F16: 4 halves per element
@@ -31,7 +34,8 @@ vec4 v4(uint i) { return KV_F16 ? vec4(unpackHalf2x16(vh[i].x), unpackHalf2x16(v
 layout(std430, binding = 3) writeonly buffer Ob { vec4 ob[]; };
 layout(std430, binding = 3) writeonly buffer Oh { uvec2 oh[]; };  // O_F16: 4 halves per element
 
-// The same layout as attention.comp's push constants (vec4 units); the bias and mask fields are unused here.
+// The same layout as attention.comp's push constants (vec4 units); the bias and mask fields are unused here, and
+// q's batch and head strides are the flash kernels' own (q token-major or head-major).
 layout(push_constant) uniform Push {
   uint q_len, kv_len, heads;
   uint q_off, q_stride, o_off, o_stride;
@@ -39,6 +43,7 @@ layout(push_constant) uniform Push {
   uint v_off, v_stride, v_bstride, v_hstride;
   float scale;
   uint bias_off, bias_hstride, bias_rstride, mask_off;
+  uint q_bstride, q_hstride;
 } p;
 
 shared vec4 ks[BK * D4];
@@ -55,9 +60,9 @@ void main() {
   // of the last row (they must still help stage the tiles) and store nothing.
   vec4 q[D4], acc[D4];
   {
-    const uint base = (b * p.q_len + min(row, p.q_len - 1)) * p.q_stride + p.q_off + h * D4;
+    const uint base = b * p.q_bstride + h * p.q_hstride + min(row, p.q_len - 1) * p.q_stride + p.q_off;
     [[unroll]] for (int c = 0; c < D4; ++c) {
-      q[c] = qb[base + c] * (p.scale * LOG2E);
+      q[c] = q4(base + c) * (p.scale * LOG2E);
       acc[c] = vec4(0);
     }
   }

@@ -18,9 +18,10 @@
 // of O; P·V goes to the same fp32 slice, and each lane adds its share into O, which it keeps in registers
 // (the fragment layout of a cooperative matrix is opaque, so per-row rescaling happens outside it).
 //
-// fp16 operands: Q is pre-multiplied by scale·log2(e) before rounding; |q·scale·log2 e|, |k| or |v| over
-// 65504 becomes inf (activations of the supported models are far below that). P is in [0, 1]; the row sum
-// adds the same fp16-rounded P that P·V uses, so the weights stay normalised.
+// fp16 operands: Q, K and V are rounded once (here from f32, or given fp16: the same values then, so the same bits),
+// and the fp32 scores are scaled by scale·log2(e) (as SDPA scales its fp32 scores); |q|, |k| or |v| over 65504
+// becomes inf (activations of the supported models are far below that). P is in [0, 1]; the row sum adds the same
+// fp16-rounded P that P·V uses, so the weights stay normalised.
 //
 // Limits (tensor/coopmat_layout.cpp checks them): head_dim D a multiple of the fragment's N and K and at most
 // BK (the O tile reuses the scores' slice); shared memory 2·BK·(D + 8)·2 + SUBGROUPS·ROWS·((BK + 4)·4 + (BK + 8)·2)
@@ -51,6 +52,7 @@
       coopMatLoad(kf, sK, j * FRAG_N * KP + d * FRAG_K, KP, gl_CooperativeMatrixLayoutColumnMajor); \
       s = coopMatMulAdd(qf[d], kf, s);                                                          \
     }                                                                                           \
+    s = s * qscale;                                                                             \
     coopMatStore(s, sS, sgS + j * FRAG_N, SP, gl_CooperativeMatrixLayoutRowMajor);              \
   }
 #define PV()                                                                                    \

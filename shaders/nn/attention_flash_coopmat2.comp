@@ -16,6 +16,7 @@
 //   the row max over the tile by coopMatReduceNV, the running max m and sum l kept as accumulators whose rows
 //   hold each row's value in every column; P_j = exp2(S_j - m) rounded to fp16 in place (so the row sum adds the
 //   P that P·V reads), converted to A operands; O_d = O_d·exp2(m_old - m) + Σ_j P_j·V_jd.
+// Q is rounded as given and the fp32 scores scaled by scale·log2(e), as in the KHR kernel.
 // No shared memory for scores or P (the KHR kernel's sS/sP and its lanes' copies of O, the bank-conflict and
 // shared-traffic cost of that kernel); shared memory holds K and V and one ROWS x FRAG_N fp32 block per subgroup
 // that stages Q on the way in and O on the way out, one fragment column at a time (rows past the end are neither
@@ -24,10 +25,11 @@
 // Needs the fragment's N equal to its K (the scores' accumulators become P's A operands, Q's become A).
 // Its twin on devices without these features is attention_flash_coopmat.comp, which the tests compare it with.
 #include "../common/attention_flash_coopmat_decl.glsl"
+#include "../common/f16.glsl"
 
 const int OP = FRAG_N + 4;  // sO row pitch (floats): 16-byte aligned, off the 128-byte bank period
 const int F4 = FRAG_N / 4;  // vec4 per row of a fragment column (FRAG_K = FRAG_N)
-shared float sO[SUBGROUPS * ROWS * OP];  // per subgroup: a fragment column of Q (scaled, fp32) in, of O out
+shared float sO[SUBGROUPS * ROWS * OP];  // per subgroup: a fragment column of Q (fp32) in, of O out
 
 #define ACC coopmat<float, gl_ScopeSubgroup, ROWS, FRAG_N, gl_MatrixUseAccumulator>
 #define OPA coopmat<float16_t, gl_ScopeSubgroup, ROWS, FRAG_K, gl_MatrixUseA>
@@ -63,19 +65,21 @@ void main() {
   const uint kbase = b * p.k_bstride + h * p.k_hstride + p.k_off;
   const uint vbase = b * p.v_bstride + h * p.v_hstride + p.v_off;
 
-  // ---- Q (this subgroup's ROWS rows) pre-scaled into the exp2 domain, via sO, to fp16 A operands ----
-  const float qscale = p.scale * LOG2E;
+  // ---- Q (this subgroup's ROWS rows), via sO, to fp16 A operands as given (the scores are scaled below) ----
+  // Each value is rounded to fp16 here (nearest even, on the bits: f16.glsl), so the matrix conversion to the A operand
+  // is exact: lavapipe's rounds otherwise, and an f32 q then gave other bits than the same q rounded to fp16.
+  const float qscale = p.scale * LOG2E;  // into the exp2 domain, in fp32
   OPA qf[D / FRAG_K];
   [[unroll]] for (int d = 0; d < D / FRAG_K; ++d) {
     for (uint i = lane; i < ROWS * F4; i += LANES) {
       const uint rr = i / F4, c = i % F4;
       const uint row = min(row_base + rr, p.q_len - 1);  // rows past the end: a copy of the last, never stored
-      const vec4 x = qb[(b * p.q_len + row) * p.q_stride + p.q_off + h * D4 + d * F4 + c] * qscale;
+      const vec4 x = load_q(b, h, row, d * F4 + c);
       const uint at = sgO + rr * OP + c * 4;
-      sO[at] = x.x;
-      sO[at + 1] = x.y;
-      sO[at + 2] = x.z;
-      sO[at + 3] = x.w;
+      sO[at] = f16_value(x.x);
+      sO[at + 1] = f16_value(x.y);
+      sO[at + 2] = f16_value(x.z);
+      sO[at + 3] = f16_value(x.w);
     }
     subgroupMemoryBarrierShared();
     subgroupBarrier();
@@ -106,6 +110,7 @@ void main() {
         coopMatLoad(kf, sK, j * FRAG_N * KP + d * FRAG_K, KP, gl_CooperativeMatrixLayoutColumnMajor);
         s[j] = coopMatMulAdd(qf[d], kf, s[j]);
       }
+      s[j] = s[j] * qscale;
     }
     if (tile0 + BK > p.kv_len)
       [[unroll]] for (int j = 0; j < BK / FRAG_N; ++j)

@@ -34,7 +34,7 @@ float lane_xor(float x, int mask) {
     float acc = 0;                                                             \
     for (int k = 0; k < D; ++k)                                                \
       acc = fma(float(sQ[sg * ROWS * D + i * D + k]), float(sK[n * KP + k]), acc); \
-    sS[sgS + i * SP + n] = acc;                                                \
+    sS[sgS + i * SP + n] = acc * qscale;                                       \
   }
 #define PV()                                                                   \
   for (uint e = lane; e < ROWS * D; e += LANES) {                              \

@@ -7,6 +7,7 @@
 // 32-bit words (no 16-bit storage needed). With an odd count of 16-bit outputs the last word is shared with
 // whatever follows the tensor: its other half is kept (atomic and/or).
 #include "bf16.glsl"
+#include "f16.glsl"
 
 layout(constant_id = 0) const uint SRC = 0;
 layout(constant_id = 1) const uint DST = 0;
@@ -21,30 +22,6 @@ layout(std430, binding = 1) buffer Y { uint y[]; };
 layout(push_constant) uniform Push { uint n; } p;  // elements
 
 const bool SRC16 = SRC == 1u || SRC == 2u, DST16 = DST == 1u || DST == 2u;
-
-float f16_bits_to_f32(uint h) {
-  uint sign = (h & 0x8000u) << 16, e = (h >> 10) & 0x1fu, m = h & 0x3ffu;
-  if (e == 0u) return uintBitsToFloat(sign | floatBitsToUint(float(m) * (1.0 / 16777216.0)));  // subnormal: exact
-  if (e == 31u) return uintBitsToFloat(sign | 0x7f800000u | (m << 13));
-  return uintBitsToFloat(sign | ((e + 112u) << 23) | (m << 13));
-}
-
-uint f32_to_f16_bits(float f) {
-  uint u = floatBitsToUint(f);
-  uint sign = (u >> 16) & 0x8000u, a = u & 0x7fffffffu;
-  if (a > 0x7f800000u) return sign | 0x7e00u | ((a >> 13) & 0x3ffu);  // NaN, quiet
-  if (a >= 0x477ff000u) return sign | 0x7c00u;                      // ≥ 65520 rounds to Inf
-  if (a >= 0x38800000u) {                                           // normal half (≥ 2^-14)
-    uint r = a - 0x38000000u;                                       // rebias 127 -> 15
-    return sign | ((r + 0xfffu + ((r >> 13) & 1u)) >> 13);
-  }
-  if (a <= 0x33000000u) return sign;                                // ≤ 2^-25: ties to even give 0
-  uint e = a >> 23, m = (a & 0x7fffffu) | 0x800000u;
-  uint shift = 126u - e;                                            // 14..24: to units of 2^-24
-  uint q = m >> shift, rem = m & ((1u << shift) - 1u), half_ = 1u << (shift - 1u);
-  if (rem > half_ || (rem == half_ && (q & 1u) != 0u)) q += 1u;
-  return sign | q;
-}
 
 float decode(uint bits) {
   if (SRC == 0u) return uintBitsToFloat(bits);

@@ -75,6 +75,7 @@ layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };
 layout(std430, binding = 3) buffer Y { float y[]; };
 
 #include "conv_push.glsl"
+#include "f16.glsl"
 
 // The operand tiles in shared memory, fp16: float16_t for the tensor cores; in the twin the same fp16
 // values as bits, two per uint (fp32 tiles would need 40 KiB, over the 32 KiB lavapipe offers).
@@ -105,16 +106,7 @@ void put8(bool b, uint o, uvec4 u, bool bf16) {
 #else
 shared uint As[STAGES * BM * LD / 2];
 shared uint Bs[STAGES * BN * LD / 2];
-// The value an fp16 operand holds: round to nearest even (as float16_t() converts), on the bits, so that
-// the packing below is exact whatever rounding packHalf2x16 uses. Below 2^-14 fp16 steps by 2^-24
-// (subnormals); above 65504 it is inf.
-float f16_value(float v) {
-  if (abs(v) < 6.103515625e-05) return roundEven(v * 16777216.0) * 5.9604644775390625e-08;
-  uint b = floatBitsToUint(v);
-  b = (b + 0xfffu + ((b >> 13) & 1u)) & ~0x1fffu;
-  float r = uintBitsToFloat(b);
-  return abs(r) > 65504.0 ? uintBitsToFloat((b & 0x80000000u) | 0x7f800000u) : r;
-}
+// f16_value (f16.glsl) rounds on the bits, so that the packing below is exact whatever rounding packHalf2x16 uses.
 void put4(bool b, uint o, vec4 v) {
   uint lo = packHalf2x16(vec2(f16_value(v.x), f16_value(v.y))), hi = packHalf2x16(vec2(f16_value(v.z), f16_value(v.w)));
   if (b) {

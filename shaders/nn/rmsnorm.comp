@@ -20,21 +20,8 @@ layout(std430, binding = 2) readonly buffer W { uvec4 w4[]; };
 // x_off: element offset of row 0 in the bound views (row chunks are bound from aligned-down offsets).
 layout(push_constant) uniform Push { uint rows, D; float eps; uint x_off; } p;
 
-float half_bits_to_float(uint h) { return WDTYPE == 1 ? uintBitsToFloat(h << 16) : unpackHalf2x16(h).x; }
-float load_w1(uint i) {
-  if (WDTYPE == 0) return uintBitsToFloat(w4[i >> 2][i & 3u]);
-  uint word = w4[i >> 3][(i >> 1) & 3u];
-  return half_bits_to_float((i & 1u) != 0u ? word >> 16 : word & 0xffffu);
-}
-vec4 load_w4(uint j) {
-  if (WDTYPE == 0) return uintBitsToFloat(w4[j]);
-  uvec4 q = w4[j >> 1];
-  uvec2 wd = (j & 1u) == 0u ? q.xy : q.zw;
-  if (WDTYPE == 1)
-    return vec4(uintBitsToFloat(wd.x << 16), uintBitsToFloat(wd.x & 0xffff0000u), uintBitsToFloat(wd.y << 16),
-                uintBitsToFloat(wd.y & 0xffff0000u));
-  return vec4(unpackHalf2x16(wd.x), unpackHalf2x16(wd.y));
-}
+#include "norm_weights.glsl"  // after WDTYPE
+WEIGHT_LOADERS(load_w, w4)
 
 shared float red[LOCAL];
 

@@ -221,9 +221,10 @@ bool conv_coopmat_vec8_fits(const CoopmatGemm& g, int64_t cp, uint32_t weight_co
          g.tile_m() % rows == 0 && g.tile_n() % rows == 0 && kh <= 16 && kw <= 16;
 }
 
-std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16, bool kv_f16) {
+std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t D, bool out_f16, bool kv_f16,
+                                             bool q_f16) {
   return {uint32_t(D),       uint32_t(a.block_k), uint32_t(a.subgroups), a.frag.m,         a.frag.n, a.frag.k,
-          uint32_t(a.lanes), a.invocations(),     out_f16 ? 1u : 0u,     kv_f16 ? 1u : 0u};
+          uint32_t(a.lanes), a.invocations(),     out_f16 ? 1u : 0u,     kv_f16 ? 1u : 0u, q_f16 ? 1u : 0u};
 }
 
 const vk::Pipeline& coopmat_pipeline(vk::Context& ctx, const std::string& shader, std::span<const uint32_t> spec,

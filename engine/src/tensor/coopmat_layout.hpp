@@ -100,8 +100,10 @@ std::string linear_coopmat2_unfit(const vk::DeviceCaps& caps, const DeviceTuning
 // repack, channels a multiple of the tile's K, 16-bit weights, kh and kw at most 16 (the shader's tap masks), and a
 // tile whose pixels and channels are whole passes of the gather (invocations / (K / 8) rows each).
 bool conv_coopmat_vec8_fits(const CoopmatGemm& g, int64_t cp, uint32_t weight_code, int64_t kh, int64_t kw, bool x_f16);
+// The specialization constants of the tensor-core attention kernels (attention_flash_coopmat_decl.glsl) and the
+// twin: the layout, head_dim, and which operands are fp16.
 std::vector<uint32_t> attention_coopmat_spec(const CoopmatAttention& a, int64_t head_dim, bool out_f16 = false,
-                                             bool kv_f16 = false);
+                                             bool kv_f16 = false, bool q_f16 = false);
 
 // The pipeline of a tensor-core kernel: throws dvs::Error("<shader>: <unfit>") when `unfit` is not empty, else
 // creates it with subgroups of `lanes` required (twins: lanes 0, nothing required).

@@ -21,15 +21,18 @@
 
 namespace dvs::ops {
 
-// Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset. k and v (both) and
-// out may be f16 where attention_takes_f16() says so (the tensor cores' operand type, the next GEMM's X); their byte
-// offsets are then multiples of 8.
+// Rows of a [B, L, ·] f32 tensor holding H heads of D columns each, starting at column_offset. Where
+// attention_takes_f16() says so (a flash kernel runs the call): q, k and v (both) and out may be f16 (the tensor
+// cores' operand type, the next GEMM's X; byte offsets then multiples of 8), and q, k and v head-major.
 struct AttentionOperand {
   Tensor t;
   // Elements. Multiples of 4 (and the tensor's byte offset a multiple of 16) when head_dim is a multiple of
   // 4; any values otherwise (the operands are then copied, see above).
   int64_t column_offset = 0;
   int64_t row_stride = 0;  // elements between consecutive tokens; 0 = H·D (contiguous)
+  // [B, H, L, D] contiguous from the tensor's start instead (ops::attention_heads writes it): element (b, l, h, d) at
+  // ((b·H + h)·L + l)·D + d; column_offset and row_stride 0. Each head's rows are one block: a key tile is one read.
+  bool head_major = false;
 };
 
 struct AttentionShape {
@@ -117,11 +120,12 @@ AttentionSplit attention_split_plan_fused(const vk::DeviceCaps& caps, const Atte
 // transformer's query chunks against the whole sequence's keys).
 AttentionSplit attention_split_plan_contiguous(const vk::DeviceCaps& caps, const AttentionShape& shape);
 
-// Whether attention() takes this call's k and v and out in f16 on this device: the call (its operands given in f32,
-// at byte offsets that are multiples of 8) runs on a flash kernel (tiled or tensor cores: DeviceTuning::attention,
-// within the limits in force; f16 operands only need fewer bytes) and head_dim is a multiple of 4 (no padded copies).
-// An f16 out holds the f32 out rounded to nearest even; f16 k and v give the result of f32 ones holding the same
-// values. The texel kernel and the padded path refuse f16 operands.
+// Whether attention() takes this call's operands in f16 and q, k, v head-major on this device: the call (its operands
+// given in f32, token-major, at byte offsets that are multiples of 8) runs on a flash kernel (tiled or tensor cores:
+// DeviceTuning::attention, within the limits in force; f16 or head-major operands need no more bytes) and head_dim is
+// a multiple of 4 (no padded copies). An f16 out holds the f32 out rounded to nearest even; f16 or head-major q, k and
+// v give the result of f32 token-major ones holding the same values. The texel kernel and the padded path refuse
+// f16 and head-major operands.
 bool attention_takes_f16(const vk::DeviceCaps& caps, const AttentionShape& shape, const AttentionOperand& q,
                          const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
                          const AttentionOptions& options = {});

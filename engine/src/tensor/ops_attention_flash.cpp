@@ -98,24 +98,29 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const vk::DeviceCaps& caps = ctx.caps();
   const int64_t lens[4] = {s.q_len, s.kv_len, s.kv_len, s.q_len};
   const uint64_t align = binding_alignment(caps);
+  const uint32_t d4 = uint32_t(s.head_dim / 4);
   vk::BufferView views[4];
-  uint32_t off4[4], stride4[4];
+  // Per operand, in groups of 4 elements: the offset, and the strides between rows, heads and batch elements.
+  // Token-major: rows strides[i] apart, heads D, batch elements L rows; head-major [B, H, L, D]: rows D apart, heads
+  // L·D, batch elements H·L·D.
+  uint32_t off4[4], row4[4], head4[4], batch4[4];
   for (int i = 0; i < 4; ++i) {
     const AttentionOperand& a = *ops[i];
-    const uint32_t elem = uint32_t(dtype_size(a.t.dtype()));  // 4, or 2 for an f16 k, v or out
+    const uint32_t elem = uint32_t(dtype_size(a.t.dtype()));  // 4, or 2 for an f16 operand
     const uint64_t bytes = uint64_t(span_elements(s, a, lens[i], strides[i])) * elem;
     uint32_t base = 0;  // group of 4 elements at the view's start, modulo 2^32 (0 or "minus the shift")
     views[i] = aligned_view(a.t.buffer(), 0, bytes, align, 4 * elem, base);
     off4[i] = uint32_t(a.column_offset / 4) - base;
-    stride4[i] = uint32_t(strides[i] / 4);
+    row4[i] = a.head_major ? d4 : uint32_t(strides[i] / 4);
+    head4[i] = a.head_major ? uint32_t(lens[i]) * d4 : d4;
+    batch4[i] = a.head_major ? uint32_t(s.heads) * head4[i] : uint32_t(lens[i]) * row4[i];
   }
-  const uint32_t d4 = uint32_t(s.head_dim / 4), kv_len = uint32_t(s.kv_len);
-  // k and v token-major: batch stride Lk rows, head stride D (the head-major workspace pays on CPUs only).
-  AttentionPush push{uint32_t(s.q_len), kv_len,   uint32_t(s.heads), off4[0], stride4[0], off4[3], stride4[3],
-            off4[1],           stride4[1], kv_len * stride4[1], d4, off4[2],    stride4[2], kv_len * stride4[2],
-            d4,                opt.scale, 0,                 0,  0,       0};
-  // O_F16, KV_F16: those operands' offsets and strides in groups of 4 halves.
+  AttentionPush push{uint32_t(s.q_len), uint32_t(s.kv_len), uint32_t(s.heads), off4[0], row4[0], off4[3], row4[3],
+                     off4[1], row4[1], batch4[1], head4[1], off4[2], row4[2], batch4[2], head4[2], opt.scale, 0, 0,
+                     0, 0, batch4[0], head4[0]};
+  // O_F16, KV_F16, Q_F16: those operands' offsets and strides in groups of 4 halves.
   const bool out_f16 = ops[3]->t.dtype() == DType::f16, kv_f16 = ops[1]->t.dtype() == DType::f16;
+  const bool q_f16 = ops[0]->t.dtype() == DType::f16;
   const bool coop = plan.family == KernelFamily::coopmat;
   const DeviceTuning& tune = device_tuning(caps);
   // The family's kernel (meaningful where coop or plan.twin).
@@ -127,11 +132,11 @@ void record(vk::Recorder& rec, const AttentionShape& s, const AttentionOperand* 
   const vk::Pipeline* pipe_ptr = nullptr;
   if (coop || plan.twin) {  // the layout plan() checked, with this head_dim
     const CoopmatAttention a = attention_coopmat_layout(tune);
-    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim, out_f16, kv_f16);
+    const std::vector<uint32_t> spec = attention_coopmat_spec(a, s.head_dim, out_f16, kv_f16, q_f16);
     pipe_ptr = &coopmat_pipeline(ctx, std::string("nn/") + name, spec, coop ? uint32_t(a.lanes) : 0u,
                                  attention_coopmat_unfit(caps, a, s.head_dim, kernel));
   } else {
-    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k, out_f16 ? 1u : 0u, kv_f16 ? 1u : 0u};
+    const uint32_t spec_tiled[] = {plan.block_q, d4, plan.block_k, out_f16 ? 1u : 0u, kv_f16 ? 1u : 0u, q_f16 ? 1u : 0u};
     pipe_ptr = &ctx.pipelines().get(std::string("nn/") + name, spec_tiled);
   }
   const vk::Pipeline& pipe = *pipe_ptr;

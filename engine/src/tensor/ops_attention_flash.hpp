@@ -16,7 +16,8 @@
 namespace dvs::ops {
 
 // The push constants of every attention kernel (shaders/nn/attention.comp and the flash kernels, which leave the
-// bias/mask fields unused). Offsets and strides in vec4 units; bias and mask offsets in elements.
+// bias/mask fields unused; q's batch and head strides are the flash kernels' alone: attention.comp reads q
+// token-major). Offsets and strides in vec4 units (groups of 4 elements); bias and mask offsets in elements.
 struct AttentionPush {
   uint32_t q_len, kv_len, heads;
   uint32_t q_off, q_stride, o_off, o_stride;
@@ -24,6 +25,7 @@ struct AttentionPush {
   uint32_t v_off, v_stride, v_bstride, v_hstride;
   float scale;
   uint32_t bias_off, bias_hstride, bias_rstride, mask_off;
+  uint32_t q_bstride, q_hstride;
 };
 
 }  // namespace dvs::ops

@@ -227,7 +227,10 @@ void check_operand(const char* name, const AttentionOperand& a, int64_t batch, i
     fail(std::string(name) + " starts at a byte offset that is not a multiple of " + std::to_string(4 * elem));
   if (a.t.buffer().offset % elem)
     fail(std::string(name) + " starts at a byte offset that is not a multiple of " + std::to_string(elem));
-  int64_t stride = a.row_stride ? a.row_stride : width;
+  if (a.head_major && (a.column_offset || a.row_stride))
+    fail(std::string(name) + " is head-major, with column offset " + std::to_string(a.column_offset) +
+         " and row stride " + std::to_string(a.row_stride) + ": a head-major operand is [B, H, L, D] contiguous (both 0)");
+  int64_t stride = a.row_stride ? a.row_stride : width;  // head-major: the same B·L·H·D elements
   if (a.column_offset < 0 || stride < 0)
     fail(std::string(name) + ": negative column offset " + std::to_string(a.column_offset) + " or row stride " +
          std::to_string(stride));
@@ -278,6 +281,16 @@ AttentionOptions group_options(const AttentionOptions& opt, const AttentionShape
   return o;
 }
 
+namespace {
+// Whether any operand is f16 or head-major: what only the flash kernels take.
+bool flash_only_operands(const AttentionOperand& q, const AttentionOperand& k, const AttentionOperand& v,
+                         const AttentionOperand& out) {
+  for (const AttentionOperand* a : {&q, &k, &v, &out})
+    if (a->head_major || (a->t.defined() && a->t.dtype() == DType::f16)) return true;
+  return false;
+}
+}  // namespace
+
 Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, const AttentionOperand& q,
                          const AttentionOperand& k, const AttentionOperand& v, const AttentionOperand& out,
                          const AttentionOptions& opt) {
@@ -289,11 +302,12 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   }
   if (s.batch == 0 || s.q_len == 0) return pr;
   const int64_t width = s.heads * s.head_dim;
-  check_operand("q", q, s.batch, s.q_len, width);
+  check_operand("q", q, s.batch, s.q_len, width, true, true);
   check_operand("k", k, s.batch, s.kv_len, width, true, true);
   check_operand("v", v, s.batch, s.kv_len, width, true, true);
   check_operand("out", out, s.batch, s.q_len, width, true, true);
   if (k.t.dtype() != v.t.dtype()) fail("k is " + k.t.describe() + " and v " + v.t.describe() + ": one dtype for both");
+  if (out.head_major) fail("out is head-major: the kernels write it token-major (the next GEMM's rows)");
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };
   pr.geo = {stride_of(q), stride_of(k), stride_of(v), stride_of(out)};
@@ -301,8 +315,9 @@ Prepared prepare_aligned(const vk::DeviceCaps& caps, const AttentionShape& s, co
   const int64_t strides[4] = {pr.geo.qs, pr.geo.ks, pr.geo.vs, pr.geo.os};
   pr.flash = flash::plan(caps, s, all, strides, opt);
   pr.split.family = pr.flash.family;
-  if ((out.t.dtype() == DType::f16 || k.t.dtype() == DType::f16) && pr.flash.family == KernelFamily::texel)
-    fail("an f16 k, v or out is taken by the tiled and tensor-core kernels only, and this call runs the texel kernel" +
+  if (flash_only_operands(q, k, v, out) && pr.flash.family == KernelFamily::texel)
+    fail("an f16 or head-major operand is taken by the tiled and tensor-core kernels only, and this call runs the "
+         "texel kernel" +
          (pr.flash.fallback.empty() ? std::string(" (DeviceTuning::attention)") : " (" + pr.flash.fallback + ")") +
          "; ask attention_takes_f16() first");
   if (pr.flash.family != KernelFamily::texel) return pr;  // one dispatch, nothing cut (split stays whole)
@@ -324,10 +339,9 @@ Prepared prepare(const vk::DeviceCaps& caps, const AttentionShape& s, const Atte
   check_operand("q", q, s.batch, s.q_len, width, false);
   check_operand("k", k, s.batch, s.kv_len, width, false);
   check_operand("v", v, s.batch, s.kv_len, width, false);
-  for (const AttentionOperand* a : {&k, &v, &out})
-    if (a->t.defined() && a->t.dtype() == DType::f16)
-      fail("an f16 k, v or out needs a head_dim that is a multiple of 4 (head_dim " + std::to_string(s.head_dim) +
-           " runs on padded f32 copies); ask attention_takes_f16() first");
+  if (flash_only_operands(q, k, v, out))
+    fail("an f16 or head-major operand needs a head_dim that is a multiple of 4 (head_dim " +
+         std::to_string(s.head_dim) + " runs on padded f32 token-major copies); ask attention_takes_f16() first");
   check_operand("out", out, s.batch, s.q_len, width, false);
   check_options(s, opt);
   auto stride_of = [&](const AttentionOperand& a) { return a.row_stride ? a.row_stride : width; };

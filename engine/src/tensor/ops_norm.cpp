@@ -222,6 +222,68 @@ void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t
   });
 }
 
+void attention_heads(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads,
+                     const AttentionHeadsOptions& o) {
+  const char* op = "attention_heads";
+  expect_dtype(op, "x", x, DType::f32);
+  if (y.dtype() != DType::f16) expect_dtype(op, "y", y, DType::f32);
+  if (x.rank() != 3 || heads < 1 || x.dim(2) % heads)
+    throw Error("internal: attention_heads: x must be [B, L, H·D] with H = " + std::to_string(heads) + ", got " +
+                x.describe());
+  const int64_t B = x.dim(0), L = x.dim(1), D = x.dim(2) / heads, rows = B * L;
+  expect_shape(op, "y", y, {B, heads, L, D});
+  if (D % 4 || D > 256)
+    throw Error("internal: attention_heads: head_dim " + std::to_string(D) + " is not a multiple of 4 up to 256");
+  const uint64_t ye = dtype_size(y.dtype());
+  if (x.buffer().offset % 16 || y.buffer().offset % (4 * ye))
+    throw Error("internal: attention_heads: x must start at a multiple of 16 bytes and y at one of " +
+                std::to_string(4 * ye) + " (" + x.describe() + ", " + y.describe() + ")");
+  const int code = o.norm ? affine_code(op, o.norm_weight, o.norm_bias, D) : -1;
+  int64_t n_rot = 0;
+  if (o.rope) {
+    expect_dtype(op, "cos", o.cos, DType::f32);
+    expect_dtype(op, "sin", o.sin, DType::f32);
+    if (o.cos.rank() != 2 || o.cos.dim(1) != D) throw Error("internal: attention_heads: cos is " + o.cos.describe());
+    expect_shape(op, "sin", o.sin, o.cos.shape());
+    n_rot = o.cos.dim(0);
+    if (o.rope_first < 0 || o.rope_first + n_rot > L)
+      throw Error("internal: attention_heads: tokens [" + std::to_string(o.rope_first) + ", " +
+                  std::to_string(o.rope_first + n_rot) + ") to rotate do not fit " + std::to_string(L) + " tokens");
+  }
+  if (rows == 0) return;
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const uint64_t cap = binding_capacity(caps, 0), align = binding_alignment(caps);
+  for (const Tensor* t : {&y, &o.cos, &o.sin})
+    if (t->defined() && t->bytes() + align > cap)
+      throw Error("attention_heads: " + t->describe() + " does not fit one binding of " + std::to_string(cap) +
+                      " bytes (maxStorageBufferRange or DVS_LIMITS); the attention that reads it would not either",
+                  ErrorKind::device);
+  if (uint64_t(y.numel()) / 4 > UINT32_MAX) throw Error("internal: attention_heads: " + y.describe() + " too large");
+  uint32_t y_base = 0;
+  const vk::BufferView yv = aligned_view(y.buffer(), 0, y.bytes(), align, uint32_t(4 * ye), y_base);
+  const bool rope = o.rope && n_rot > 0;
+  const vk::BufferView cv = rope ? vec4_view(o.cos) : yv, sv = rope ? vec4_view(o.sin) : yv;
+  const vk::BufferView wv = code >= 0 ? vec4_view(o.norm_weight) : yv, bv = code >= 0 ? vec4_view(o.norm_bias) : yv;
+  const uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), o.norm ? 1u : 0u, code >= 0 ? 1u : 0u, rope ? 1u : 0u,
+                           ye == 2 ? 1u : 0u, uint32_t(D / 4)};
+  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/attention_heads", spec);
+  struct {
+    uint32_t rows, row0, L, H, rope_first, n_rot, x_off, y_off;
+    float eps;
+  } p{0, 0, uint32_t(L), uint32_t(heads), uint32_t(o.rope_first), uint32_t(n_rot), 0, 0u - y_base, o.eps};
+  // Row chunks of x; one invocation per (row, head).
+  const int64_t chunk = row_chunk(caps, op, uint64_t(x.dim(2)) * 4, rows, int64_t(max_groups_1d(caps)) * 64 / heads);
+  if (chunk < rows) rec.context().note_split(op);  // once per call, not per chunk
+  for_each_chunk(rows, chunk, [&](int64_t r0, int64_t rc) {
+    const RowView xr = row_view(caps, x, x.dim(2), r0, rc);
+    p.rows = uint32_t(rc);
+    p.row0 = uint32_t(r0);
+    p.x_off = xr.off / 4;
+    const Grid g = grid_1d(caps, rc * heads, 64);
+    rec.dispatch(pipe, {xr.view, yv, wv, bv, cv, sv}, &p, sizeof p, g.x, g.y, 1, op);
+  });
+}
+
 void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, float eps) {
   const char* op = "rmsnorm";
   check_rows(op, x, y);

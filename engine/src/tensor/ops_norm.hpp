@@ -39,6 +39,24 @@ void layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor
 void head_layernorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads, int64_t head_dim,
                     int64_t col_offset, const Tensor& weight, const Tensor& bias, float eps = 1e-6f);
 
+// q, k or v for the flash attention kernels, in the layout and type they read best: from x [B, L, H·D] f32 (a linear
+// layer's output, token-major, contiguous) to y [B, H, L, D] head-major, f16 (rounded to nearest even: the tensor
+// cores' operand type) or f32, each (token, head) slice of D columns through, in diffusers' order, the per-head
+// LayerNorm (`norm`: weight/bias [D] or neither, eps) and RoPE on tokens [rope_first, rope_first + n) of every batch
+// element, n the tables' rows (`rope`: cos/sin f32 [n, D], diffusers' interleaved pairs, as ops::rope). One pass:
+// x read once, y written once (instead of head_layernorm, rope and a cast over f32). D a multiple of 4, at most 256;
+// y (and the tables) within one binding each (the attention that reads y needs that too); x is walked in row chunks.
+struct AttentionHeadsOptions {
+  bool norm = false;
+  Tensor norm_weight, norm_bias;
+  float eps = 1e-6f;
+  bool rope = false;
+  Tensor cos, sin;
+  int64_t rope_first = 0;
+};
+void attention_heads(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_t heads,
+                     const AttentionHeadsOptions& options);
+
 // RMSNorm (T5): y = weight * x / sqrt(mean(x^2) + eps) over the last dim D of x [..., D].
 void rmsnorm(vk::Recorder& rec, const Tensor& x, const Tensor& y, const Tensor& weight, float eps = 1e-6f);
 

@@ -428,20 +428,30 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
     return Tensor::on(a.region.buffer().sub(a.attn_offset, VkDeviceSize(B * n * D) * 4), {B, n, D}, DType::f32);
   };
   // Beside tensor-core GEMMs, where every chunk's attention runs on a flash kernel, its output (the to_out GEMM's
-  // X) is written fp16; where that kernel is the tensor cores', K and V are cast to fp16 once a block (their operand
-  // type: half the bytes every query block reads), K into xn's second half (xn is fp16 then), V into k's first half.
-  bool attn16 = gemm_x == DType::f16, kv16 = attn16;
+  // X) is written fp16. Where that kernel is the tensor cores', q, k and v reach it in their operand type and
+  // head-major (half the bytes every query block reads, each key tile one contiguous block), written by one pass
+  // each (ops::attention_heads: the per-head LayerNorm and RoPE on q and k, the fp16 rounding, the layout) instead
+  // of in-place f32 passes and casts: K into xn's second half (xn is fp16 then), V into k's first half once K is
+  // read, each chunk's Q into the second half of its f32 attention output's space (the f16 output takes the first).
+  bool attn16 = gemm_x == DType::f16, qkv16 = attn16;
   for (const auto& [s0, n] : chunks) {
     const ops::AttentionShape shape{B, nh, Dh, n, S};
     attn16 = attn16 && ops::attention_takes_f16(ctx_.caps(), shape, {chunk_q(n)}, {a.k}, {a.v}, {chunk_o32(n)}, aopt);
-    kv16 = kv16 && attn16 &&
-           ops::attention_split_plan(ctx_.caps(), shape, {chunk_q(n)}, {a.k}, {a.v}, {chunk_o32(n)}, aopt).family ==
-               ops::KernelFamily::coopmat;
+    qkv16 = qkv16 && attn16 &&
+            ops::attention_split_plan(ctx_.caps(), shape, {chunk_q(n)}, {a.k}, {a.v}, {chunk_o32(n)}, aopt).family ==
+                ops::KernelFamily::coopmat;
   }
   const VkDeviceSize half_bytes = VkDeviceSize(B * S * D) * 2;
-  const Tensor attn_k = kv16 ? Tensor::on(a.xn.buffer().sub(half_bytes, half_bytes), {B, S, D}, DType::f16) : a.k;
-  const Tensor attn_v = kv16 ? Tensor::on(a.k.buffer().sub(0, half_bytes), {B, S, D}, DType::f16) : a.v;
-  const Tensor k2d = a.k.reshape({B * S, D}), v2d = a.v.reshape({B * S, D});
+  const Tensor k16 = Tensor::on(a.xn.buffer().sub(half_bytes, half_bytes), {B, nh, S, Dh}, DType::f16);
+  const Tensor v16 = Tensor::on(a.k.buffer().sub(0, half_bytes), {B, nh, S, Dh}, DType::f16);
+  const ops::AttentionOperand attn_k = qkv16 ? ops::AttentionOperand{k16, 0, 0, true} : ops::AttentionOperand{a.k};
+  const ops::AttentionOperand attn_v = qkv16 ? ops::AttentionOperand{v16, 0, 0, true} : ops::AttentionOperand{a.v};
+  // A chunk's q for the tensor-core kernel: [B, H, n, Dh] fp16 after the f16 attention output.
+  auto chunk_q16 = [&](int64_t n) {
+    const VkDeviceSize bytes = VkDeviceSize(B * n * D) * 2;
+    return Tensor::on(a.region.buffer().sub(a.attn_offset + bytes, bytes), {B, nh, n, Dh}, DType::f16);
+  };
+  const Tensor k2d = a.k.reshape({B * S, D});
   for (int64_t i = 0; i < cfg_.num_layers; ++i) {
     const std::string b = blk(i);
     if (stream_) stream_->mark_block(rec, i);
@@ -462,11 +472,26 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
       project(bw(proj + ".weight"), block_bias(proj + ".bias"), *kv[j], D, 0, S, Tensor(), ops::Activation::none);
       if (const LoraAdapter* ad = lora(b + proj)) lora_project(*ad, *kv[j], 0, S);
     }
-    ops::head_layernorm(rec, k2d, k2d, nh, Dh, 0, bw("attn1.norm_k.weight"), bw("attn1.norm_k.bias"), 1e-6f);
-    if (N > 0) ops::rope(rec, k2d, k2d, B, S, L, nh, Dh, 0, cos, sin);
-    if (kv16) {  // k is read before v overwrites its first half
-      ops::cast(rec, a.k, attn_k);
-      ops::cast(rec, a.v, attn_v);
+    // q and k: diffusers' norm_q/norm_k (LayerNorm per head, eps 1e-6), then RoPE on the video tokens.
+    auto qk_heads = [&](const char* norm, int64_t rope_first, const Tensor& cos_rows, const Tensor& sin_rows) {
+      ops::AttentionHeadsOptions o{.norm = true,
+                                   .norm_weight = bw(std::string("attn1.") + norm + ".weight"),
+                                   .norm_bias = bw(std::string("attn1.") + norm + ".bias"),
+                                   .eps = 1e-6f};
+      if (cos_rows.defined() && cos_rows.dim(0) > 0) {
+        o.rope = true;
+        o.cos = cos_rows;
+        o.sin = sin_rows;
+        o.rope_first = rope_first;
+      }
+      return o;
+    };
+    if (qkv16) {  // k is read before v overwrites its first half
+      ops::attention_heads(rec, a.k, k16, nh, qk_heads("norm_k", L, cos, sin));
+      ops::attention_heads(rec, a.v, v16, nh, {});
+    } else {
+      ops::head_layernorm(rec, k2d, k2d, nh, Dh, 0, bw("attn1.norm_k.weight"), bw("attn1.norm_k.bias"), 1e-6f);
+      if (N > 0) ops::rope(rec, k2d, k2d, B, S, L, nh, Dh, 0, cos, sin);
     }
     // Attention chunk by chunk of queries: q, its norm and RoPE, attention over every key, the gated output.
     for (const auto& [s0, n] : chunks) {
@@ -475,10 +500,17 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
       const Tensor q2d = q.reshape({B * n, D});
       project(bw("attn1.to_q.weight"), block_bias("attn1.to_q.bias"), q, D, s0, n, Tensor(), ops::Activation::none);
       if (const LoraAdapter* ad = lora(b + "attn1.to_q")) lora_project(*ad, q, s0, n);
-      ops::head_layernorm(rec, q2d, q2d, nh, Dh, 0, bw("attn1.norm_q.weight"), bw("attn1.norm_q.bias"), 1e-6f);
-      if (s0 >= L) ops::rope(rec, q2d, q2d, B, n, 0, nh, Dh, 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n));
-      ops::attention(rec, ops::AttentionShape{B, nh, Dh, n, S}, ops::AttentionOperand{q}, ops::AttentionOperand{attn_k},
-                     ops::AttentionOperand{attn_v}, ops::AttentionOperand{o}, aopt);
+      ops::AttentionOperand attn_q{q};
+      if (qkv16) {  // a chunk is all text (no RoPE) or all video
+        attn_q = {chunk_q16(n), 0, 0, true};
+        ops::attention_heads(rec, q, attn_q.t, nh,
+                             s0 >= L ? qk_heads("norm_q", 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n))
+                                     : qk_heads("norm_q", 0, Tensor(), Tensor()));
+      } else {
+        ops::head_layernorm(rec, q2d, q2d, nh, Dh, 0, bw("attn1.norm_q.weight"), bw("attn1.norm_q.bias"), 1e-6f);
+        if (s0 >= L) ops::rope(rec, q2d, q2d, B, n, 0, nh, Dh, 0, cos.rows(s0 - L, n), sin.rows(s0 - L, n));
+      }
+      ops::attention(rec, ops::AttentionShape{B, nh, Dh, n, S}, attn_q, attn_k, attn_v, ops::AttentionOperand{o}, aopt);
       gated_residual(o, D, bw("attn1.to_out.0.weight"), bw("attn1.to_out.0.bias"), a.mod1, s0, n);
       if (const LoraAdapter* ad = lora(b + "attn1.to_out.0")) {  // gate ⊙ (u + v) = gate ⊙ u + gate ⊙ v
         const Tensor t = Tensor::on(a.lora_tmp.buffer(), {B * n, ad->rank}, DType::f32);
