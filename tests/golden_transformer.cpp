@@ -18,6 +18,7 @@
 #include "support/golden_compare.hpp"
 #include "support/precision_rule.hpp"
 #include "support/gpu.hpp"
+#include "support/scoped_limits.hpp"
 #include "tensor/ops_elementwise.hpp"
 #include "tensor/ops_linear.hpp"
 #include "vk/pipeline.hpp"
@@ -113,6 +114,26 @@ TEST_F(GoldenTransformer, T999OutputAndIntermediates) {
     EXPECT_TRUE(qk) << "no fp16 attention_heads pipeline with norm and RoPE (q, k) under tensor-core attention";
     EXPECT_TRUE(v) << "no fp16 attention_heads pipeline without norm or RoPE (v) under tensor-core attention";
   }
+}
+
+// Small bindings cut the sequence into token chunks (the text, then several video chunks): each chunk's q (its norm,
+// its RoPE rows from its first token, its fp16 head-major copy where the attention runs on tensor cores), its
+// attention against every key and its rows of the output must land where the whole-sequence call puts them. The
+// pack's sequence is otherwise one video chunk (kMinChunkTokens), as every real-size run is not. (At 8 KiB the FFN's
+// first GEMM also splits its columns: an f16 output's column chunks must stay even.)
+TEST_F(GoldenTransformer, T999InSeveralTokenChunks) {
+  dvs::models::CogVideoXTransformer tr(ctx(), pack() / "model" / "transformer");
+  const dvs::Tensor latent = upload("transformer/hidden_states.npy");
+  const dvs::Tensor text = upload("transformer/encoder_hidden_states.npy");
+  const float t = scalar("transformer/timestep_999.npy");
+  const auto& cfg = tr.config();
+  const int64_t L = text.dim(1), N = latent.dim(1) * (latent.dim(3) / cfg.patch_size) * (latent.dim(4) / cfg.patch_size);
+  dvs::test::ScopedLimits small(ctx(), "binding=8KiB");
+  const int64_t chunk = dvs::models::CogVideoXTransformer::token_chunk(cfg, 1, L + N, 8 * 1024);
+  ASSERT_LT(2 * chunk, N) << "8 KiB bindings leave the video tokens in fewer than three chunks";
+  const dvs::Tensor out = tr.forward(latent, text, std::span<const float>(&t, 1));
+  expect_close("transformer_t999 output, " + std::to_string(chunk) + "-token chunks", out.download(ctx()),
+               "transformer/output_t999.npy", case_tolerance("transformer_t999"));
 }
 
 TEST_F(GoldenTransformer, T500) {

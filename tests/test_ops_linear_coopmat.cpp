@@ -10,6 +10,8 @@
 
 #include "support/expect_error.hpp"
 #include "support/linear_test.hpp"
+#include "support/scoped_limits.hpp"
+#include "support/split_check.hpp"
 #include "vk/shader_registry.hpp"
 
 namespace dvs {
@@ -93,6 +95,19 @@ TEST_P(LinearTest, CoopmatHalfOutputs) {
   }
   EXPECT_EQ(differ, 0u) << "f16 outputs that are not the f32 ones rounded";
   EXPECT_EQ(touched, 0u) << "writes outside the view or into the padding";
+  // Cut into chunks by small bindings: 31 rows of W (96 B each) fit 3 KiB, so the column chunks are made even (a
+  // pair must not straddle two chunks) and the bits stay the whole call's.
+  if (!c.caps().forced_limits.any()) {
+    Tensor big_split = Tensor::zeros(c, {lead + B * M * ldy + 4}, DType::f16);
+    {
+      test::ScopedLimits small(c, "binding=3KiB");
+      const uint32_t dispatches = test::run_counted(c, [&](vk::Recorder& rec) {
+        ops::linear_batched(rec, x, w, big_split.rows(lead, B * M * ldy), s, ep);
+      });
+      EXPECT_GT(dispatches, 1u) << "the 3 KiB bindings did not split the call";
+    }
+    EXPECT_EQ(big_split.download(c).data, h.data) << "the split f16 call gives other bytes than the whole one";
+  }
 
   std::vector<float> wodd_v(wv.begin(), wv.begin() + (N - 1) * K);
   Tensor odd = Tensor::empty(c, {M, N - 1}, DType::f16), wodd = Tensor::upload(c, make_host({N - 1, K}, DType::f32, wodd_v));

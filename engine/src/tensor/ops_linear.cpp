@@ -241,6 +241,7 @@ struct Plan {
   int64_t tile_m, tile_n;
   uint32_t max_groups[3];
   bool vec;  // 8-value K steps: K chunks start on multiples of 8
+  bool y16;  // an f16 y, written in pairs: column chunks even, no K split
 
   bool fits(int64_t bc, int64_t mc, int64_t nc) const { return fits(bc, mc, nc, s.k); }
   bool fits(int64_t bc, int64_t mc, int64_t nc, int64_t kc) const {
@@ -278,16 +279,18 @@ struct Plan {
     if (c.bc > 0) return c;
     c.bc = 1;
     if (!fits(1, 1, 1)) {
-      if (ep.activation != Activation::none || ep.scale.defined() || ep.gate.defined())
+      if (ep.activation != Activation::none || ep.scale.defined() || ep.gate.defined() || y16)
         fail("one row of x / w (K = " + std::to_string(s.k) + ") does not fit one binding / texel view of the limits " +
-             "in force, and a K split cannot apply an activation, modulation or gate (K at most 12288 in the models)");
+             "in force, and a K split cannot apply an activation, modulation or gate, nor write an f16 y (K at most " +
+             "12288 in the models)");
       c.kc = largest(s.k, [&](int64_t k) { return fits(1, 1, 1, k); });
       if (vec) c.kc = c.kc / 8 * 8;
       if (c.kc == 0) fail("not even one 8-value K step fits one binding / texel view");
     }
     if (!fits(1, 1, s.n, c.kc)) {
       c.nc = largest(s.n, [&](int64_t n) { return fits(1, 1, n, c.kc); });
-      if (c.nc > tile_n) c.nc = c.nc / tile_n * tile_n;
+      if (c.nc > tile_n) c.nc = c.nc / tile_n * tile_n;  // (tiles are even)
+      else if (y16 && c.nc > 1) c.nc = c.nc / 2 * 2;     // every chunk's first column even
     }
     c.mc = largest(s.m, [&](int64_t m) { return fits(1, m, c.nc, c.kc); });
     if (c.mc < s.m && c.mc > tile_m) c.mc = c.mc / tile_m * tile_m;
@@ -419,7 +422,8 @@ void record_linear(vk::Recorder& rec, const Tensor& x, const Tensor& w, const Te
                   tile_m,
                   tile_n,
                   {caps.max_workgroup_count[0], caps.max_workgroup_count[1], caps.max_workgroup_count[2]},
-                  use_vec};
+                  use_vec,
+                  y16};
   const Chunk size = plan.sizes();
 
   // Each chunk binds only its own ranges: X rows, W rows (columns of Y), the Y/residual block, the vector
