@@ -115,8 +115,8 @@ TEST_F(GemmWeights, TensorsAlreadyOnTheDeviceAreConvertedThere) {
 
 // The tensor-core pass (DVS_TUNING=gpu-coopmat on Mesa 26.1): a bf16 transformer keeps every Linear weight fp16 (and
 // nothing else), resident or streamed, its LayerNorms, its attention and its FFN's first GEMM write the next GEMMs'
-// input in fp16, its attention reads K and V cast to fp16 (the f16-X and f16-Y GEMM pipelines and an attention
-// pipeline with f16 K, V and out run), and its output is the
+// input in fp16, its attention reads Q, K and V in fp16 (head-major, from ops::attention_heads: the f16-X and f16-Y
+// GEMM pipelines and an attention pipeline with f16 Q, K, V and out run), and its output is the
 // same bytes with either switch off (linear_weights_fp16, linear_activations_fp16). Bands of 5 tile rows and 16-key
 // attention tiles throughout (the same in every run) make the pipelines this test creates its own.
 TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
@@ -156,13 +156,13 @@ TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
     });
     return found;
   };
-  // Whether a tensor-core attention pipeline of this test (head_dim 16, 16-key tiles) read f16 K and V and wrote an
-  // f16 out.
+  // Whether a tensor-core attention pipeline of this test (head_dim 16, 16-key tiles) read f16 Q, K and V and wrote
+  // an f16 out.
   auto attention_f16 = [&] {
     bool found = false;
     ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
       if (pl.name.starts_with("nn/attention_flash_coopmat") && pl.spec.size() == 11 && pl.spec[0] == 16 &&
-          pl.spec[1] == 16 && pl.spec[8] == 1 && pl.spec[9] == 1)
+          pl.spec[1] == 16 && pl.spec[8] == 1 && pl.spec[9] == 1 && pl.spec[10] == 1)
         found = true;
     });
     return found;
@@ -172,7 +172,7 @@ TEST_F(GemmWeights, TransformerKeepsGemmOperandsFp16WithTheSameResult) {
   const std::vector<uint16_t> both = run(models::WeightResidency::resident, DType::f16);
   EXPECT_TRUE(ran(f16_x)) << "no GEMM read an f16 X";
   EXPECT_TRUE(ran(f16_y)) << "no GEMM wrote an f16 Y (the FFN's GELU output)";
-  EXPECT_TRUE(attention_f16()) << "the attention did not read K, V and write to_out's X in f16";
+  EXPECT_TRUE(attention_f16()) << "the attention did not read Q, K, V and write to_out's X in f16";
   EXPECT_EQ(run(models::WeightResidency::stream, DType::f16), both);
   {
     ops::ScopedTuningOverride off(mine + ",linear_weights_fp16=off");
