@@ -16,6 +16,7 @@
 #include "support/attention_reference.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
+#include "support/kernel_calls.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/coopmat_layout.hpp"
 #include "tensor/kernel_tuning.hpp"
@@ -317,12 +318,6 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
   fp16_tolerance_ = kFp16Tolerance;
   uint32_t seed = 600;
   double worst = 0;
-  auto calls_of = [&](const std::string& shader) {
-    uint64_t n = 0;
-    for (const auto& [note, count] : ctx().kernel_notes())
-      if (note.shader == shader) n += count;
-    return n;
-  };
   std::string variant;  // "" or ",attention_coopmat2=off"
   auto run = [&](const std::string& layout, std::initializer_list<int64_t> dims,
                  std::initializer_list<std::pair<int64_t, int64_t>> lengths) {
@@ -340,10 +335,10 @@ TEST_F(AttentionTest, CoopmatFamilyByValue) {
           c.pad_columns = 4;
           c.out_offset = 4;
           c.out_extra = 8;
-          const uint64_t before = calls_of(shader);
+          const uint64_t before = test::kernel_calls(ctx(), shader);
           worst = std::max(worst, check(c, seed++));
           if (last_family_ == ops::KernelFamily::coopmat) {
-            EXPECT_GT(calls_of(shader), before) << "D" << d << ": not run by " << shader;
+            EXPECT_GT(test::kernel_calls(ctx(), shader), before) << "D" << d << ": not run by " << shader;
           }
           const bool takes = ops::attention_coopmat_head_dim_unfit(a, d).empty();
           if (!forced) {

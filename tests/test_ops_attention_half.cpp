@@ -18,6 +18,7 @@
 #include "support/attention_reference.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
+#include "support/kernel_calls.hpp"
 #include "tensor/coopmat_layout.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
@@ -48,12 +49,6 @@ class AttentionOps : public GpuTest {
     const Tensor whole = Tensor::upload(ctx(), h);
     keep_.push_back(whole);
     return Tensor::on(whole.buffer().sub(lead, bytes), {s.batch, s.q_len, s.heads * s.head_dim + kExtra}, dt);
-  }
-  uint64_t calls_of(const std::string& shader) {
-    uint64_t n = 0;
-    for (const auto& [note, count] : ctx().kernel_notes())
-      if (note.shader == shader) n += count;
-    return n;
   }
   // Whether a pipeline of `shader` with its O_F16 constant (spec entry `index`) set was created.
   bool half_pipeline(const std::string& shader, size_t index) {
@@ -94,13 +89,13 @@ class AttentionOps : public GpuTest {
       ASSERT_TRUE(ctx().caps().forced_limits.any()) << "a flash kernel's call must take f16 operands";
       GTEST_SKIP() << "the limits in force send this call to the texel kernel";
     }
-    const uint64_t before = calls_of(shader);
+    const uint64_t before = kernel_calls(ctx(), shader);
     ops::run_now(ctx(), [&](vk::Recorder& rec) {
       ops::attention(rec, s, in.q, k32, v32, {out32, kColumn, os}, opt);
       ops::attention(rec, s, in.q, k32, v32, {out16, kColumn, os}, opt);
       ops::attention(rec, s, in.q, k16, v16, {out_kv16, kColumn, os}, opt);
     });
-    EXPECT_EQ(calls_of(shader), before + 3) << "not run by " << shader;
+    EXPECT_EQ(kernel_calls(ctx(), shader), before + 3) << "not run by " << shader;
     EXPECT_TRUE(half_pipeline(shader, o_f16_index)) << "no " << shader << " pipeline with O_F16 set";
     EXPECT_TRUE(half_pipeline(shader, o_f16_index + 1)) << "no " << shader << " pipeline with KV_F16 set";
     const std::vector<float> f = out32.download(ctx()).to_f32();

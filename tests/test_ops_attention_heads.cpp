@@ -17,6 +17,7 @@
 #include "support/attention_reference.hpp"
 #include "support/expect_error.hpp"
 #include "support/gpu.hpp"
+#include "support/kernel_calls.hpp"
 #include "support/scoped_limits.hpp"
 #include "support/split_check.hpp"
 #include "support/stored_values.hpp"
@@ -250,12 +251,6 @@ class HeadMajorAttentionOps : public GpuTest {
     p.heads = {Tensor::upload(ctx(), hm), 0, 0, true};
     return p;
   }
-  uint64_t calls_of(const std::string& shader) {
-    uint64_t n = 0;
-    for (const auto& [note, count] : ctx().kernel_notes())
-      if (note.shader == shader) n += count;
-    return n;
-  }
   // The call with token-major f32 q, k, v and with head-major `dt` ones: the same bits, and near the double reference
   // (within the fp16 rounding of P on the tensor-core kernels). A kernel that rounds its operands to fp16 itself
   // (`rounds`: the tensor-core kernels and the twin) gets the raw f32 values token-major, so its rounding must be the
@@ -274,12 +269,12 @@ class HeadMajorAttentionOps : public GpuTest {
       ASSERT_TRUE(ctx().caps().forced_limits.any()) << "a flash kernel's call must take head-major operands";
       GTEST_SKIP() << "the limits in force send this call to the texel kernel";
     }
-    const uint64_t before = calls_of(shader);
+    const uint64_t before = kernel_calls(ctx(), shader);
     ops::run_now(ctx(), [&](vk::Recorder& rec) {
       ops::attention(rec, s, q.token, k.token, v.token, {out_token}, opt);
       ops::attention(rec, s, q.heads, k.heads, v.heads, {out_heads}, opt);
     });
-    EXPECT_EQ(calls_of(shader), before + 2) << "not run by " << shader;
+    EXPECT_EQ(kernel_calls(ctx(), shader), before + 2) << "not run by " << shader;
     const HostTensor a = out_token.download(ctx()), b = out_heads.download(ctx());
     const std::vector<float> fa = a.to_f32();
     const std::vector<double> ref = attention_ref::reference(s, hq, hk, hv, opt.scale, nullptr, nullptr);

@@ -261,7 +261,7 @@ void attention_heads(vk::Recorder& rec, const Tensor& x, const Tensor& y, int64_
   if (uint64_t(y.numel()) / 4 > UINT32_MAX) throw Error("internal: attention_heads: " + y.describe() + " too large");
   uint32_t y_base = 0;
   const vk::BufferView yv = aligned_view(y.buffer(), 0, y.bytes(), align, uint32_t(4 * ye), y_base);
-  const bool rope = o.rope && n_rot > 0;
+  const bool rope = n_rot > 0;  // asked for, with rows to rotate
   const vk::BufferView cv = rope ? vec4_view(o.cos) : yv, sv = rope ? vec4_view(o.sin) : yv;
   const vk::BufferView wv = code >= 0 ? vec4_view(o.norm_weight) : yv, bv = code >= 0 ? vec4_view(o.norm_bias) : yv;
   const uint32_t spec[] = {code < 0 ? 0u : uint32_t(code), o.norm ? 1u : 0u, code >= 0 ? 1u : 0u, rope ? 1u : 0u,

@@ -478,7 +478,7 @@ void CogVideoXTransformer::record(vk::Recorder& rec, vk::Arena& arena, const Ten
                                    .norm_weight = bw(std::string("attn1.") + norm + ".weight"),
                                    .norm_bias = bw(std::string("attn1.") + norm + ".bias"),
                                    .eps = 1e-6f};
-      if (cos_rows.defined() && cos_rows.dim(0) > 0) {
+      if (cos_rows.defined()) {  // (no rows: nothing rotated)
         o.rope = true;
         o.cos = cos_rows;
         o.sin = sin_rows;
