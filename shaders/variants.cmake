@@ -13,6 +13,7 @@ set(DVS_SHADER_VARIANTS
   "nn/concat_copy_tex4            nn/concat_copy.comp       VEC4 TEXEL"
   "nn/conv_coopmat_twin           nn/conv_coopmat.comp      TWIN"
   "nn/conv_gemm_nosubgroup        nn/conv_gemm.comp         CONV_NO_SUBGROUPS"
+  "nn/conv_shifted_coopmat        linalg/linear_coopmat.comp CONV_SHIFTED"
   "nn/eltwise_affine_vec4         nn/eltwise_affine.comp    VEC4"
   "nn/eltwise_affine_tex4         nn/eltwise_affine.comp    TEXEL"
   "nn/eltwise_binary_vec4         nn/eltwise_binary.comp    VEC4"

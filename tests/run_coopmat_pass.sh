@@ -41,13 +41,25 @@ ops_shard() {
   GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX="$1" \
     "$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
 }
-ops_shard 0 > "$build/coopmat_pass_ops0.log" 2>&1 &
+# 4. (after the first shard) The VAE and whole-pipeline goldens with the convolutions through the GEMM kernel
+# (conv_shifted_gemm, off by default until a device run times it), at a GEMM layout whose K of 8 takes the tiny VAE's
+# 8- and 16-channel convolutions; the census must show that kernel ran.
+shifted_goldens() {
+  local log="$build/coopmat_pass_shifted.log" rc=0
+  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on,linear_coopmat=2x2x4x4x8 \
+    "$run" "$build/tests/dvs_golden_tests" --gtest_filter='VaeGolden.*:PipelineE2e.*' > "$log" 2>&1 || rc=1
+  cat "$log"
+  [ "$rc" -eq 0 ] || return 1
+  grep -q "conv: nn/conv_shifted_coopmat (coopmat)" "$log" ||
+    { echo "run_coopmat_pass.sh: the goldens under conv_shifted_gemm=on never ran nn/conv_shifted_coopmat" >&2; return 1; }
+}
+{ ops_shard 0 && shifted_goldens; } > "$build/coopmat_pass_ops0.log" 2>&1 &
 first=$!
 { ops_shard 1 && "$run" "$build/tests/dvs_golden_tests"; } > "$build/coopmat_pass_ops1_golden.log" 2>&1 &
 second=$!
 rc=0
 wait "$first" || rc=1
-echo "== run_coopmat_pass.sh: op tests, shard 1 of 2 ($build/coopmat_pass_ops0.log)"
+echo "== run_coopmat_pass.sh: op tests, shard 1 of 2, then the goldens with conv_shifted_gemm ($build/coopmat_pass_ops0.log)"
 cat "$build/coopmat_pass_ops0.log"
 wait "$second" || rc=1
 echo "== run_coopmat_pass.sh: op tests, shard 2 of 2, then the golden tests ($build/coopmat_pass_ops1_golden.log)"

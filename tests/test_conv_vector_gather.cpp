@@ -31,13 +31,7 @@
 namespace dvs {
 namespace {
 
-Tensor random_stored(vk::Context& c, const Shape& s, uint32_t seed, float scale, DType dt) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> d(-scale, scale);
-  std::vector<float> v(size_t(shape_numel(s)));
-  for (float& e : v) e = d(rng);
-  return Tensor::upload(c, test::stored_as(v, s, dt));
-}
+using test::random_stored;
 
 class VectorGatherConvOps : public test::ConvKernelTest {
  protected:

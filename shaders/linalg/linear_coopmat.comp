@@ -24,7 +24,17 @@
 // Epilogue: each subgroup stores one accumulator fragment at a time to its own FRAG_M x FRAG_N f32 staging
 // block and its lanes apply the epilogue to those outputs with bounds checks.
 // Shared memory: 2 x (BM + BN) x (BK + 8) halves + one fragment per subgroup (48 KiB on the H200).
+// Variant nn/conv_shifted_coopmat (CONV_SHIFTED, conv_shifted_io.glsl): a stride-1 convolution as this GEMM, X the
+// input repacked channels-last fp16 on its zero-padded grid and W the weights packed at load ([Cout][tap][CP]);
+// each step's X rows are shifted by its tap's offset on the grid, and the epilogue maps grid rows to output pixels.
+// Added to each X element index of the step being loaded (x_step_shift; 0 for a plain GEMM).
+uint x_shift = 0u;
+#ifdef CONV_SHIFTED
+#include "conv_shifted_io.glsl"
+#else
 #include "linear_storage_io.glsl"
+uint x_step_shift(uint k0) { return 0u; }
+#endif
 #include "gemm_tile_order.glsl"
 
 layout(local_size_x_id = 9) in;                 // WG = SG_M * SG_N * the subgroup size
@@ -49,7 +59,9 @@ layout(constant_id = 12) const uint ABLATE = 0;
 // Y stored f16 (the next GEMM's X: the FFN's GELU output): each lane writes a pair of neighbouring outputs as one
 // word (the host requires N, Y's strides and offset even and no residual, so a pair never straddles a row).
 layout(constant_id = 14) const bool Y_F16 = false;
+#ifndef CONV_SHIFTED
 layout(std430, binding = 2) writeonly buffer Yh { uint yh[]; };
+#endif
 
 // 16-byte views of the X and W bindings (linear_storage_io.glsl declares their element views).
 layout(std430, binding = 0) readonly buffer Xv { vec4 xv[]; };
@@ -79,7 +91,7 @@ shared float stage[SG_M * SG_N * FRAG];
 uvec4 load_x4(uint b, uint m, uint k) {
   if (ABLATE == 1) return XTYPE == 0 ? floatBitsToUint(vec4(float(m & 7u) * 0.125)) : uvec4(0x30003000u ^ (m & 7u));
   if (m >= p.M || k >= p.K) return uvec4(0u);
-  const uint e = p.x_off + b * p.x_bs + m * p.ldx + k;
+  const uint e = p.x_off + b * p.x_bs + m * p.ldx + k + x_shift;
   return XTYPE == 0 ? floatBitsToUint(xv[e / 4]) : xhv[e / 8];
 }
 
@@ -127,6 +139,7 @@ uvec4 vw[VEC ? VPW : 1];
 // t / XV + RX·j, W vector t % WVN of rows t / WVN + RW·j.
 void load_step(uint k0) {
   const uint t = gl_LocalInvocationIndex;
+  x_shift = x_step_shift(k0);
   if (VEC) {
     const uint xc = t % XV, xr = t / XV, wc = t % WVN, wr = t / WVN;
     [[unroll]] for (uint j = 0; j < VPX; ++j) vx[j] = load_x4(tb, tm0 + xr + RX * j, k0 + xc * EX);
@@ -201,6 +214,12 @@ void main() {
       subgroupMemoryBarrierShared();
       subgroupBarrier();
       const uint mb = tm0 + sm * (FM * FRAG_M) + i * FRAG_M, nb = tn0 + sn * (FN * FRAG_N) + j * FRAG_N;
+#ifdef CONV_SHIFTED
+      for (uint e = lane; e < FRAG; e += gl_SubgroupSize) {
+        const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
+        if (m < p.M && n < p.N) store_conv_output(m, n, stage[st + e]);
+      }
+#else
       if (Y_F16) {
         for (uint e = 2u * lane; e < FRAG; e += 2u * gl_SubgroupSize) {
           const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
@@ -215,6 +234,7 @@ void main() {
           if (m < p.M && n < p.N) store_output(tb, m, n, stage[st + e]);
         }
       }
+#endif
       subgroupMemoryBarrierShared();
       subgroupBarrier();  // every lane read the block before the next fragment overwrites it
     }

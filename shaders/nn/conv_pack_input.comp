@@ -8,6 +8,10 @@
 // that falls into the spatial padding). One invocation writes one vec4 (4 channels) of `seg` consecutive
 // pixels of one row (kernel_tuning.cpp: the whole row on CPU drivers, where the index arithmetic's integer
 // divisions are a scalar loop per lane, a few pixels on GPUs).
+// With a halo (the shifted-GEMM convolution, ops_conv_shifted.cpp) the rows and columns are those of the zero-padded
+// grid: rows_p rows of which rows [halo_top, halo_top + rows) are source rows [r0, r0 + rows), cols_p columns of
+// which [halo_left, halo_left + wc) are source columns [col0, col0 + wc), every other pixel zero; without one,
+// rows_p = rows, cols_p = wc and both halos 0.
 // Only source columns [col0, col0 + wc) are packed (a row split into column chunks). The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
 // dispatch packs a sub-range (packed frames [q0, q0 + nq), channels [ca, cb) of the chunk) read through
 // sub-views of X and Cache starting at elements x_base / cache_base; `partial` dispatches (a channel range
@@ -45,7 +49,6 @@ void store_out(uint i, vec4 v) {
 }
 
 layout(push_constant) uniform Push {
-  uint texels;        // frames * rows * w * cp4 (the zero pixel follows)
   uint cp4;           // CP / 4
   uint c, src_frames, h, w;
   uint batch;         // batch item packed
@@ -58,20 +61,24 @@ layout(push_constant) uniform Push {
   uint x_base, cache_base;  // element of x / cache at the start of the bound views
   uint zero, partial;  // 1: also write the zero pixel; 1: merge into the existing vec4s
   uint col0, wc;       // source columns [col0, col0 + wc) (w: x's width)
-  uint seg, nseg;      // pixels of a row per invocation, segments per row (wc / seg rounded up)
+  uint seg;           // packed pixels of a row per invocation
+  uint halo_top, rows_p, halo_left, cols_p;  // the packed grid (see above)
 } p;
 
 void main() {
   uint i = flat_index();
-  uint items = p.nq * p.rows * p.nseg * p.nc4;
-  if (i >= items) {  // the zero pixel
-    if (p.zero != 0u && i < items + p.cp4) store_out(p.texels + i - items, vec4(0.0));
+  const uint nseg = (p.cols_p + p.seg - 1u) / p.seg;  // segments per packed row
+  uint items = p.nq * p.rows_p * nseg * p.nc4;
+  if (i >= items) {  // the zero pixel, after frames * rows_p * cols_p pixels
+    if (p.zero != 0u && i < items + p.cp4) store_out(p.frames * p.rows_p * p.cols_p * p.cp4 + i - items, vec4(0.0));
     return;
   }
-  const uint segs = p.nq * p.rows * p.nseg;
-  uint c4 = p.c4a + (PIXEL_MAJOR ? i / segs : i % p.nc4), s = PIXEL_MAJOR ? i % segs : i / p.nc4, t = s / p.nseg;
-  uint pc0 = (s % p.nseg) * p.seg, pc1 = min(pc0 + p.seg, p.wc);
-  uint row = p.r0 + t % p.rows, q = p.q0 + t / p.rows, tp = p.tp0 + q;
+  const uint segs = p.nq * p.rows_p * nseg;
+  uint c4 = p.c4a + (PIXEL_MAJOR ? i / segs : i % p.nc4), s = PIXEL_MAJOR ? i % segs : i / p.nc4, t = s / nseg;
+  uint pc0 = (s % nseg) * p.seg, pc1 = min(pc0 + p.seg, p.cols_p);
+  const uint prow = t % p.rows_p;  // the packed row; source row r0 + prow - halo_top where that is one
+  const bool row_in = prow >= p.halo_top && prow - p.halo_top < p.rows;
+  uint row = p.r0 + prow - p.halo_top, q = p.q0 + t / p.rows_p, tp = p.tp0 + q;
   bool from_cache = p.time_mode == 3u && tp < p.prefix;
   uint frame;
   if (p.time_mode == 1u) frame = tp == 0u ? 0u : 1u + (tp - 1u) / 2u;
@@ -88,12 +95,14 @@ void main() {
     e[j] = ((p.batch * p.c + p.c0 + min(ch, p.cc - 1u)) * frames + frame) * hw + inner;
     e[j] -= from_cache ? p.cache_base : p.x_base;
   }
-  uint out_i = ((q * p.rows + t % p.rows) * p.wc + pc0) * p.cp4 + c4;
+  uint out_i = ((q * p.rows_p + prow) * p.cols_p + pc0) * p.cp4 + c4;
   for (uint pc = pc0; pc < pc1; ++pc, out_i += p.cp4) {
     vec4 v = p.partial != 0u ? load_out(out_i) : vec4(0.0);
+    const uint col = pc - p.halo_left;  // source column col0 + col where inside
+    const bool inside = row_in && pc >= p.halo_left && col < p.wc;
     [[unroll]] for (uint j = 0; j < 4u; ++j) {
-      if (mode[j] == 1u) v[j] = 0.0;
-      else if (mode[j] == 2u) v[j] = from_cache ? texelFetch(Cache, int(e[j] + pc)).x : texelFetch(X, int(e[j] + pc)).x;
+      if (mode[j] == 1u || (mode[j] == 2u && !inside)) v[j] = 0.0;
+      else if (mode[j] == 2u) v[j] = from_cache ? texelFetch(Cache, int(e[j] + col)).x : texelFetch(X, int(e[j] + col)).x;
     }
     store_out(out_i, v);
   }

@@ -2,9 +2,11 @@
 // with `values` replaced by what the device will actually read, so a reference computed from them sees the same
 // rounded operands.
 #pragma once
+#include <random>
 #include <vector>
 
 #include "io/host_tensor.hpp"
+#include "tensor/tensor.hpp"
 
 namespace dvs::test {
 
@@ -22,6 +24,15 @@ inline HostTensor stored_as(std::vector<float>& values, Shape shape, DType dt) {
     }
   }
   return h;
+}
+
+// A device tensor of uniform random values in [-scale, scale] (seeded), stored as `dt`.
+inline Tensor random_stored(vk::Context& c, const Shape& s, uint32_t seed, float scale, DType dt) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> d(-scale, scale);
+  std::vector<float> v(size_t(shape_numel(s)));
+  for (float& e : v) e = d(rng);
+  return Tensor::upload(c, stored_as(v, s, dt));
 }
 
 }  // namespace dvs::test

@@ -319,6 +319,7 @@ const std::vector<Field>& fields() {
       bool_field("conv_coopmat_double_buffer", &DeviceTuning::conv_coopmat_double_buffer),
       bool_field("conv_coopmat_vector_loads", &DeviceTuning::conv_coopmat_vector_loads),
       bool_field("conv_coopmat2", &DeviceTuning::conv_coopmat2),
+      bool_field("conv_shifted_gemm", &DeviceTuning::conv_shifted_gemm),
       dims_field("conv_coopmat2_tile",
                  "PHxPWxBNxBKxWG (output rows and columns of a patch, output channels, K per step, invocations)", 5,
                  [](DeviceTuning& t, const std::vector<int64_t>& d) {
@@ -545,6 +546,7 @@ std::string describe_tuning(const DeviceTuning& t) {
                                               (t.conv_coopmat_double_buffer ? ", two operand stages where they fit" : "") +
                                               (t.conv_coopmat_vector_loads ? ", 16-byte gathers where they apply" : "") +
                                               (t.conv_coopmat2 ? ", VK_NV_cooperative_matrix2 kernel where the device and call allow" : "") +
+                                              (t.conv_shifted_gemm ? ", same-size convolutions through the GEMM kernel where they allow" : "") +
                                               (t.conv_activations_fp16 ? ", input repacked fp16" : ", input repacked f32") +
                                               (t.conv_weights_fp16 ? ", bf16 weights kept fp16" : "")
                                         : std::string())

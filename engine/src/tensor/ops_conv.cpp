@@ -13,19 +13,24 @@
 #include "tensor/kernel_census.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv_coopmat2.hpp"
+#include "tensor/ops_conv_job.hpp"
+#include "tensor/ops_conv_pack.hpp"
+#include "tensor/ops_conv_shifted.hpp"
 #include "tensor/ops_conv_weights.hpp"
 #include "vk/context.hpp"
 
 namespace dvs::ops {
 namespace {
 
+using conv::ConvJob;
+using conv::ConvLimits;
+using conv::conv_limits;
+using conv::expect;
+using conv::fail;
+using conv::RowSpan;
+using conv::u32;
+
 constexpr uint32_t kMaxCachePrefix = 4;  // shaders/nn/conv3d_cache.comp MAXP
-
-[[noreturn]] void fail(const char* op, const std::string& what) { throw Error(std::string("internal: ") + op + ": " + what); }
-
-void expect(bool ok, const char* op, const std::string& what) {
-  if (!ok) fail(op, what);
-}
 
 uint32_t weight_code(const char* op, DType t) {
   switch (t) {
@@ -43,13 +48,13 @@ vk::BufferView word_view(const Tensor& t) {
   return v;
 }
 
-uint32_t u32(const char* op, int64_t v) {
-  if (v < 0 || v > int64_t(UINT32_MAX)) fail(op, "size " + std::to_string(v) + " out of range");
-  return uint32_t(v);
-}
-
 ConvRegisterBlock g_block_override;
 uint64_t g_chunk_bytes_override = 0;
+
+// Pixels of a row per invocation of the input repack: the override's, else the tuning's.
+int64_t pack_columns(const vk::DeviceCaps& caps) {
+  return g_block_override.pack_columns ? g_block_override.pack_columns : conv_pack_columns(caps);
+}
 
 // The GEMM family of this device (and its workgroup tile, pixels x channels, for the storage-buffer ones).
 struct ConvFamily {
@@ -70,17 +75,6 @@ ConvFamily conv_family(const vk::DeviceCaps& caps) {
   }
   return f;
 }
-
-// Everything a convolution needs, for a [B, Cin, F, H, W] input.
-struct ConvJob {
-  int64_t b = 1, cin = 1, frames = 1, h = 1, w = 1;
-  int64_t cout = 1, kt = 1, kh = 1, kw = 1, stride = 1;
-  int64_t pad_top = 0, pad_left = 0, ho = 1, wo = 1, frames_out = 1, prefix = 0;
-  int64_t ys_b = 0, ys_c = 0, ys_f = 0, ys_h = 0, ys_w = 0;
-  bool upsample = false;     // read the nearest x2 spatial upsampling of the input (h, w: input sizes)
-  uint32_t time_mode = 0;    // padded frame -> source frame, see conv_pack_input.comp
-  const Tensor* cache = nullptr;  // time_mode 3: the previous batch's last `prefix` frames
-};
 
 struct GemmPush {
   uint32_t m, n, cp, kt, kh, kw, stride, up, wo, rows, oh0;
@@ -107,132 +101,6 @@ ConvScratchSize scratch_size(int64_t frames_out, int64_t kt, int64_t h, int64_t 
   uint64_t input = uint64_t(frames_out + kt - 1) * uint64_t(h * w) * uint64_t(cp) * 4 + uint64_t(cp) * 4;
   uint64_t weights = uint64_t(cout * taps * cp) * 4;  // f32, the largest weight dtype
   return {int64_t(std::min(input, kScratchInputCap) / 4), int64_t(std::min(weights, kScratchInputCap) / 4)};
-}
-
-// Source rows [first, end) that output rows [oh0, oh1) read (empty when they read only padding).
-struct RowSpan {
-  int64_t first = 0, end = 0;
-};
-RowSpan source_span(const ConvJob& j, int64_t o0, int64_t o1, int64_t pad, int64_t k, int64_t n) {
-  int64_t up = j.upsample ? 2 : 1;
-  int64_t lo = std::max<int64_t>(o0 * j.stride - pad, 0);
-  int64_t hi = std::min<int64_t>((o1 - 1) * j.stride - pad + k - 1, up * n - 1);
-  if (hi < lo) return {};
-  return {lo / up, hi / up + 1};
-}
-RowSpan source_rows(const ConvJob& j, int64_t oh0, int64_t oh1) { return source_span(j, oh0, oh1, j.pad_top, j.kh, j.h); }
-// Source columns [first, end) that output columns [ow0, ow1) read.
-RowSpan source_cols(const ConvJob& j, int64_t ow0, int64_t ow1) { return source_span(j, ow0, ow1, j.pad_left, j.kw, j.w); }
-
-// The limits one convolution plans against (the ones in force: the device's, or lower under DVS_LIMITS).
-struct ConvLimits {
-  uint64_t storage = 0, r32 = 0, rgba = 0, align = 4, groups_x = 0, groups_y = 0, groups_z = 0, groups_1d = 0;
-};
-ConvLimits conv_limits(const vk::DeviceCaps& caps) {
-  ConvLimits l;
-  l.storage = caps.max_storage_buffer_range;
-  l.r32 = binding_capacity(caps, 4);
-  l.rgba = binding_capacity(caps, 16);
-  l.align = binding_alignment(caps);
-  l.groups_x = caps.max_workgroup_count[0];
-  l.groups_y = caps.max_workgroup_count[1];
-  l.groups_z = caps.max_workgroup_count[2];
-  l.groups_1d = max_groups_1d(caps);
-  return l;
-}
-
-// Source frame of packed (time-padded) frame tp, and whether it comes from the cache (conv_pack_input.comp).
-std::pair<int64_t, bool> source_frame(const ConvJob& j, int64_t tp) {
-  switch (j.time_mode) {
-    case 1: return {tp == 0 ? 0 : 1 + (tp - 1) / 2, false};
-    case 2: return {tp / 2, false};
-    case 3: return tp < j.prefix ? std::pair<int64_t, bool>{tp, true} : std::pair<int64_t, bool>{tp - j.prefix, false};
-    default: return {std::max<int64_t>(tp - j.prefix, 0), false};
-  }
-}
-
-// Elements [first, end) of x (cache = false) or of the cache that packing chunk channels [ca, cb) (absolute
-// channels), padded frames [tpa, tpb), source rows [r0, r0 + rows) and columns [col0, col0 + wc) reads;
-// empty: {0, 0}.
-std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b, int64_t ca, int64_t cb, int64_t tpa,
-                                         int64_t tpb, int64_t r0, int64_t rows, int64_t col0, int64_t wc) {
-  int64_t lo = -1, hi = -1;
-  for (int64_t tp = tpa; tp < tpb; ++tp) {
-    auto [f, from_cache] = source_frame(j, tp);
-    if (from_cache != cache) continue;
-    lo = lo < 0 ? f : std::min(lo, f);
-    hi = std::max(hi, f);
-  }
-  if (lo < 0 || rows == 0 || wc == 0) return {0, 0};
-  const int64_t frames = cache ? j.prefix : j.frames, hw = j.h * j.w;
-  uint64_t first = uint64_t(((b * j.cin + ca) * frames + lo) * hw + r0 * j.w + col0);
-  uint64_t end = uint64_t(((b * j.cin + cb - 1) * frames + hi) * hw + (r0 + rows - 1) * j.w + col0 + wc);
-  return {first, end};
-}
-
-struct PackInputPush {
-  uint32_t texels, cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
-  uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc, seg, nseg;
-};
-static_assert(sizeof(PackInputPush) <= 128);
-
-// Repacks input channels [c0, c0 + cc) of padded frames [tp0, tp0 + nframes), source rows [r0, r0 + rows) and
-// columns [col0, col0 + wc) of batch item b into `packed` (+ the zero pixel; fp16 where `f16`, else f32): one dispatch
-// when x's part fits one texel view, else one per group of channels (and of frames, when one channel's frames do not fit).
-void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tensor& x, const ConvLimits& l, int64_t b,
-                int64_t c0, int64_t cc, int64_t cpc, int64_t tp0, int64_t nframes, int64_t r0, int64_t rows,
-                int64_t col0, int64_t wc, bool f16, const vk::BufferView& packed) {
-  const int64_t cp4 = cpc / 4, texels = nframes * rows * wc * cp4;
-  const uint64_t cap = l.r32;  // bytes of one R32F view
-  const int64_t tuned = g_block_override.pack_columns ? g_block_override.pack_columns : conv_pack_columns(rec.context().caps());
-  const int64_t seg = tuned > 0 && tuned < wc ? tuned : wc, nseg = (wc + seg - 1) / seg;  // pixels per invocation
-  auto fits = [&](int64_t ca, int64_t cb, int64_t qa, int64_t qb) {
-    for (bool cache : {false, true}) {
-      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows, col0, wc);
-      if ((end - first) * 4 + l.align > cap) return false;
-    }
-    int64_t c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
-    return uint64_t((qb - qa) * rows * nseg * (c4b - c4a) + cp4) <= l.groups_1d * 64;
-  };
-  // Every chunk must fit, not only the first: with the causal prefix the first frames all read frame 0
-  // (a small span), later ones read as many frames as they pack.
-  auto fits_all = [&](int64_t nc, int64_t nq) {
-    for (int64_t qa = 0; qa < nframes; qa += nq)
-      for (int64_t ca = 0; ca < cc; ca += nc)
-        if (!fits(ca, std::min(ca + nc, cc), qa, std::min(qa + nq, nframes))) return false;
-    return true;
-  };
-  int64_t nc = cc, nq = nframes;
-  while (nc > 1 && !fits_all(nc, nq)) --nc;
-  while (nq > 1 && !fits_all(nc, nq)) --nq;
-  expect(fits_all(nc, nq), op, "one source row of one channel exceeds one texel view");
-  const std::array<uint32_t, 2> spec = {f16 ? 1u : 0u, device_tuning(rec.context().caps()).conv_pack_pixel_major ? 1u : 0u};
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input", spec);
-  bool zero = true;
-  for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
-    for_each_chunk(cc, nc, [&](int64_t ca, int64_t n) {
-      const int64_t cb = ca + n, c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
-      PackInputPush pp{u32(op, texels), u32(op, cp4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
-                       u32(op, b), u32(op, tp0), u32(op, nframes), u32(op, r0), u32(op, rows), u32(op, j.prefix),
-                       j.time_mode, u32(op, c0), u32(op, cc), u32(op, qa), u32(op, q), u32(op, ca), u32(op, cb),
-                       u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
-                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc),
-                       u32(op, seg), u32(op, nseg)};
-      // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
-      vk::BufferView views[2];
-      for (int k = 0; k < 2; ++k) {
-        const Tensor& t = k == 1 && j.cache ? *j.cache : x;
-        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, r0, rows, col0, wc);
-        if (end == first) first = 0, end = 4;
-        views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
-      }
-      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows * nseg * (c4b - c4a)) + (zero ? cp4 : 0), 64);
-      rec.dispatch(pipe,
-                   {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT), vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed},
-                   &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
-      zero = false;
-    });
-  });
 }
 
 // The convolution, split so that every dispatch stays within the limits in force:
@@ -278,6 +146,11 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
   if (given) w_cap = std::min<uint64_t>(w_cap, uint64_t(given->weights.bytes()));
   if (g_chunk_bytes_override) in_cap = std::min<uint64_t>(in_cap, g_chunk_bytes_override);
   in_cap = std::min<uint64_t>(in_cap, l.groups_1d * 64 * 4 * xb);  // one pack dispatch's grid (4 channels each)
+  // A same-size convolution through the GEMM kernel itself where the tuning asks for it and the call allows
+  // (ops_conv_shifted.hpp); the implicit-GEMM kernels below otherwise.
+  if (conv::record_shifted(rec, op, j, x, w, bias, y,
+                           {fam.kind == KernelFamily::coopmat && !fam.twin, x16, pack_columns(caps), in_cap, given}))
+    return;
   const uint64_t y_cap = l.storage > l.align ? l.storage - l.align : 0;
 
   // Source rows of r output rows, wherever they lie (interior rows read the most: the span plus the kernel,
@@ -409,8 +282,8 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
             const int64_t texels = packed_frames * src_rows * src_cols * (cpc / 4);
             vk::BufferView packed_x = packed_x_all;
             packed_x.size = uint64_t(texels + cpc / 4) * 4 * xb;
-            pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first, src_cols, x16,
-                       packed_x);
+            conv::pack_input(rec, op, j, x, l, b, c0, ncc, cpc, fo0, packed_frames, rs.first, src_rows, cs.first,
+                             src_cols, x16, packed_x, pack_columns(caps));
 
             GemmPush pc{};
             const int64_t m = nfo * nr * nc;
