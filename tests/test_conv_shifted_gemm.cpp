@@ -4,10 +4,11 @@
 // same fp16 operands as the implicit-GEMM kernel (conv_coopmat.comp) and sums them in the same order (tap by tap, K
 // ascending, in fragments of the device's K), so every path it takes must give that kernel's bits, which
 // test_conv_families.cpp holds to a plain-C++ reference on the same pass: the causal 3x3x3 conv with and without a
-// cache, 3x3 and 1x1, on odd frame, row and column counts, 19 output channels (no whole tile), fp16 and bf16 weights
+// cache, 3x3, 1x1 and the 3x3 of upsample2x_conv3x3 (its grid the upsampled input's), on odd frame, row and
+// column counts, 19 output channels (no whole tile), fp16 and bf16 weights
 // packed at load, whole and under limits that split the call into output-channel groups and row chunks (a chunk's grid
-// then starts or ends inside the image, its halo rows real rows). The paths it cannot take (the stride-2 downsample,
-// the fused x2 upsample) must still run the implicit-GEMM kernel. Runs where the device has tensor cores (the
+// then starts or ends inside the image, its halo rows real rows). The path it cannot take (the stride-2 downsample)
+// must still run the implicit-GEMM kernel. Runs where the device has tensor cores (the
 // tensor-core pass, tests/run_coopmat_pass.sh); elsewhere there is no GEMM kernel to run it with.
 #include <gtest/gtest.h>
 
@@ -55,8 +56,9 @@ class ShiftedGemmConvOps : public test::ConvKernelTest {
   }
 };
 
-// The paths of vae_conv_paths() the shifted GEMM takes: every stride-1 same-size conv (not the downsample or upsample).
-constexpr int kPathsTaken = 4;
+// The paths of vae_conv_paths() the shifted GEMM takes: every stride-1 same-size conv, upsample2x_conv3x3's among
+// them (not the stride-2 downsample).
+constexpr int kPathsTaken = 5;
 
 TEST_F(ShiftedGemmConvOps, SameBitsAsTheImplicitGemmKernelOnEveryPathAndSplit) {
   struct Run {
@@ -67,12 +69,13 @@ TEST_F(ShiftedGemmConvOps, SameBitsAsTheImplicitGemmKernelOnEveryPathAndSplit) {
   };
   // Channels a multiple of the GEMM tile's K (32 on the tensor-core pass and the GPUs' entry). binding=16KiB and
   // 12KiB cut the 19 channels into groups and each frame into row chunks; under 8KiB one output row of the 3x3x3
-  // convs at 64 channels (3 frames x 3 rows x 15 columns padded) does not fit a chunk: those two paths fall back.
+  // convs at 64 channels (3 frames x 3 rows x 15 columns padded) and of the upsampling conv (3 rows x 28 columns) does
+  // not fit a chunk: those three paths fall back.
   const Run runs[] = {{32, DType::f16, nullptr, kPathsTaken},
                       {64, DType::bf16, nullptr, kPathsTaken},
                       {32, DType::f16, "binding=16KiB", kPathsTaken},
                       {32, DType::bf16, "binding=12KiB", kPathsTaken},
-                      {64, DType::f16, "binding=8KiB", kPathsTaken - 2}};
+                      {64, DType::f16, "binding=8KiB", kPathsTaken - 3}};
   for (const Run& r : runs) {
     const std::string where = "Cin " + std::to_string(r.cin) + ", " + dtype_name(r.w) + " weights packed at load" +
                               (r.limits ? std::string(" under ") + r.limits : "");
@@ -121,9 +124,13 @@ TEST_F(ShiftedGemmConvOps, RefusesWhatItCannotTakeAndSaysWhy) {
   strided.stride = 2, strided.kt = 1, strided.prefix = 0, strided.pad_top = 0, strided.pad_left = 0, strided.ho = 2,
   strided.wo = 3;
   EXPECT_NE(why(on, strided, p32, call).find("stride 2"), std::string::npos);
-  ops::conv::ConvJob up = j;
-  up.upsample = true;
-  EXPECT_NE(why(on, up, p32, call).find("upsampled"), std::string::npos);
+  ops::conv::ConvJob up = j;  // the fused x2 upsampling's 3x3 conv: taken, on the upsampled grid
+  up.upsample = true, up.kt = 1, up.prefix = 0, up.ho = 10, up.wo = 14, up.time_mode = 2, up.frames_out = 4;
+  const Tensor w2 = random_stored(c, {8, 32, 3, 3}, 3, 0.2f, DType::f16);
+  const ops::PackedConvWeights p2 = ops::packed_conv_weights_now(c, w2, "w2");
+  EXPECT_EQ(why(on, up, p2, call), "");
+  up.ho = 5;  // an output that is not the upsampled size
+  EXPECT_NE(why(on, up, p2, call).find("not a same-size"), std::string::npos);
   ops::conv::ShiftedCall f32 = call;
   f32.x_f16 = false;
   EXPECT_NE(why(on, j, p32, f32).find("repacked f32"), std::string::npos);

@@ -11,7 +11,9 @@
 // With a halo (the shifted-GEMM convolution, ops_conv_shifted.cpp) the rows and columns are those of the zero-padded
 // grid: rows_p rows of which rows [halo_top, halo_top + rows) are source rows [r0, r0 + rows), cols_p columns of
 // which [halo_left, halo_left + wc) are source columns [col0, col0 + wc), every other pixel zero; without one,
-// rows_p = rows, cols_p = wc and both halos 0.
+// rows_p = rows, cols_p = wc and both halos 0. up_shift 1: the rows and columns (r0, rows, col0, wc and the grid) are
+// those of x's nearest x2 spatial upsampling, row r and column c reading x's (r / 2, c / 2) (the shifted GEMM's fused
+// upsampling convolution); 0: x's own.
 // Only source columns [col0, col0 + wc) are packed (a row split into column chunks). The channels are those of one input-channel chunk [c0, c0 + cc) of x. Within the device's limits one
 // dispatch packs a sub-range (packed frames [q0, q0 + nq), channels [ca, cb) of the chunk) read through
 // sub-views of X and Cache starting at elements x_base / cache_base; `partial` dispatches (a channel range
@@ -63,6 +65,7 @@ layout(push_constant) uniform Push {
   uint col0, wc;       // source columns [col0, col0 + wc) (w: x's width)
   uint seg;           // packed pixels of a row per invocation
   uint halo_top, rows_p, halo_left, cols_p;  // the packed grid (see above)
+  uint up_shift;      // 1: rows and columns of the x2 upsampling (see above)
 } p;
 
 void main() {
@@ -86,7 +89,7 @@ void main() {
   else if (p.time_mode == 3u) frame = from_cache ? tp : tp - p.prefix;
   else frame = uint(max(int(tp) - int(p.prefix), 0));
   uint frames = from_cache ? p.prefix : p.src_frames;
-  uint hw = p.h * p.w, inner = row * p.w + p.col0;
+  uint hw = p.h * p.w, inner = (row >> p.up_shift) * p.w;
   // Per channel of the vec4: 0 another dispatch's channel (kept), 1 zero (past the chunk's channels), 2 read.
   uint mode[4], e[4];
   [[unroll]] for (uint j = 0; j < 4u; ++j) {
@@ -102,7 +105,10 @@ void main() {
     const bool inside = row_in && pc >= p.halo_left && col < p.wc;
     [[unroll]] for (uint j = 0; j < 4u; ++j) {
       if (mode[j] == 1u || (mode[j] == 2u && !inside)) v[j] = 0.0;
-      else if (mode[j] == 2u) v[j] = from_cache ? texelFetch(Cache, int(e[j] + col)).x : texelFetch(X, int(e[j] + col)).x;
+      else if (mode[j] == 2u) {
+        const int at = int(e[j] + ((p.col0 + col) >> p.up_shift));
+        v[j] = from_cache ? texelFetch(Cache, at).x : texelFetch(X, at).x;
+      }
     }
     store_out(out_i, v);
   }

@@ -159,11 +159,12 @@ struct DeviceTuning {
   // 1, the input repack and the weights are fp16 and the channels a multiple of the tile's K; the KHR kernel
   // elsewhere. Off until a device run has checked it by value and timed it (lavapipe cannot run it).
   bool conv_coopmat2 = false;
-  // A stride-1, same-size convolution with weights packed at load and channels a multiple of the GEMM tile's K, on
-  // the tensor-core family, as the tensor-core GEMM itself (nn/conv_shifted_coopmat, a variant of linear_coopmat.comp:
-  // its tile, loads and order, linear_coopmat's layout): the input repacked fp16 on its zero-padded grid, each step's
-  // X rows shifted by its tap's offset on the grid, so no gather, division or bounds test is left in the loop
-  // (ops_conv_shifted.hpp). Same bits as conv_coopmat. Off until a device run has timed it (the sweep compares).
+  // A stride-1, same-size convolution (upsample2x_conv3x3's too) with weights packed at load and channels a
+  // multiple of the GEMM tile's K, on the tensor-core family, as the tensor-core GEMM itself (nn/conv_shifted_coopmat,
+  // a variant of linear_coopmat.comp: its tile, loads and order, linear_coopmat's layout): the input repacked fp16 on
+  // its zero-padded grid, each step's X rows shifted by its tap's offset on the grid, so no gather, division or bounds
+  // test is left in the loop (ops_conv_shifted.hpp). Same bits as conv_coopmat. Off until a device run has timed it
+  // (the sweep compares).
   bool conv_shifted_gemm = false;
   // Its tile: a patch of output rows x columns, output channels, input channels per step, invocations.
   struct ConvCoopmat2Tile {

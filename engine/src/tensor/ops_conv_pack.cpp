@@ -44,7 +44,7 @@ std::pair<uint64_t, uint64_t> pack_reads(const ConvJob& j, bool cache, int64_t b
 struct PackInputPush {
   uint32_t cp4, c, src_frames, h, w, batch, tp0, frames, r0, rows, prefix, time_mode;
   uint32_t c0, cc, q0, nq, ca, cb, c4a, nc4, x_base, cache_base, zero, partial, col0, wc, seg;
-  uint32_t halo_top, rows_p, halo_left, cols_p;
+  uint32_t halo_top, rows_p, halo_left, cols_p, up_shift;
 };
 static_assert(sizeof(PackInputPush) <= 128);
 
@@ -58,13 +58,21 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   const int64_t rows_p = grid.rows_p ? grid.rows_p : rows, cols_p = grid.cols_p ? grid.cols_p : wc;
   expect(grid.halo_top >= 0 && grid.halo_top + rows <= rows_p && grid.halo_left >= 0 && grid.halo_left + wc <= cols_p,
          op, "the packed grid does not hold its source rows and columns");
+  expect(grid.up == 1 || grid.up == 2, op, "upsampling by " + std::to_string(grid.up));
+  // The rows and columns of x itself that the grid's (upsampled) ones read: what the views must hold.
+  auto source = [&](int64_t first, int64_t n) {
+    return std::pair<int64_t, int64_t>{first / grid.up, n == 0 ? 0 : (first + n - 1) / grid.up - first / grid.up + 1};
+  };
+  const auto [src_r0, src_rows] = source(r0, rows);
+  const auto [src_col0, src_wc] = source(col0, wc);
   const int64_t cp4 = cpc / 4;
   const uint64_t cap = l.r32;  // bytes of one R32F view
   const int64_t seg = pack_columns > 0 && pack_columns < cols_p ? pack_columns : cols_p;  // pixels per invocation
   const int64_t nseg = (cols_p + seg - 1) / seg;
   auto fits = [&](int64_t ca, int64_t cb, int64_t qa, int64_t qb) {
     for (bool cache : {false, true}) {
-      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, r0, rows, col0, wc);
+      auto [first, end] = pack_reads(j, cache, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qb, src_r0, src_rows, src_col0,
+                                     src_wc);
       if ((end - first) * 4 + l.align > cap) return false;
     }
     int64_t c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
@@ -94,12 +102,13 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
                        u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
                        (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc),
                        u32(op, seg), u32(op, grid.halo_top), u32(op, rows_p), u32(op, grid.halo_left),
-                       u32(op, cols_p)};
+                       u32(op, cols_p), grid.up == 2 ? 1u : 0u};
       // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
       vk::BufferView views[2];
       for (int k = 0; k < 2; ++k) {
         const Tensor& t = k == 1 && j.cache ? *j.cache : x;
-        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, r0, rows, col0, wc);
+        auto [first, end] = pack_reads(j, k == 1, b, c0 + ca, c0 + cb, tp0 + qa, tp0 + qa + q, src_r0, src_rows,
+                                       src_col0, src_wc);
         if (end == first) first = 0, end = 4;
         views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
       }

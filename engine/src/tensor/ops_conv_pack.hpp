@@ -11,9 +11,10 @@
 namespace dvs::ops::conv {
 
 // The packed grid around the source rows and columns: halo_top zero rows before them and rows_p rows in all,
-// halo_left zero columns before them and cols_p in all. Default (rows_p = cols_p = 0): no halo.
+// halo_left zero columns before them and cols_p in all. Default (rows_p = cols_p = 0): no halo. up 2: the rows and
+// columns (pack_input's r0, rows, col0, wc and this grid) are those of x's nearest x2 spatial upsampling.
 struct PackGrid {
-  int64_t halo_top = 0, rows_p = 0, halo_left = 0, cols_p = 0;
+  int64_t halo_top = 0, rows_p = 0, halo_left = 0, cols_p = 0, up = 1;
 };
 
 // Repacks input channels [c0, c0 + cc) (cpc of them with the zero channels) of padded frames [tp0, tp0 + nframes),

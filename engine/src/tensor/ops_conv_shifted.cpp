@@ -40,9 +40,10 @@ Plan plan(const vk::DeviceCaps& caps, const DeviceTuning& tune, const ConvJob& j
   if (!tune.conv_shifted_gemm) return refuse("off (conv_shifted_gemm)");
   if (!call.coopmat) return refuse("the conv family is not the tensor-core kernel");
   if (!call.x_f16) return refuse("the input is repacked f32 (conv_activations_fp16)");
-  if (j.stride != 1 || j.upsample) return refuse("stride " + std::to_string(j.stride) + (j.upsample ? ", upsampled" : ""));
-  if (j.kh % 2 == 0 || j.kw % 2 == 0 || j.pad_top != (j.kh - 1) / 2 || j.pad_left != (j.kw - 1) / 2 || j.ho != j.h ||
-      j.wo != j.w || j.frames_out + j.kt - 1 != j.frames + j.prefix)
+  if (j.stride != 1) return refuse("stride " + std::to_string(j.stride));
+  const int64_t up = j.upsample ? 2 : 1;  // the grid is that of the x2 upsampling the call reads
+  if (j.kh % 2 == 0 || j.kw % 2 == 0 || j.pad_top != (j.kh - 1) / 2 || j.pad_left != (j.kw - 1) / 2 ||
+      j.ho != up * j.h || j.wo != up * j.w)
     return refuse("not a same-size convolution (odd kernel, padding (k - 1) / 2 on each side)");
   if (!w.packed()) return refuse("the weights are not packed at load");
   const DType wd = w.dtype();
@@ -53,7 +54,7 @@ Plan plan(const vk::DeviceCaps& caps, const DeviceTuning& tune, const ConvJob& j
   p.cpc = (j.cin + 7) / 8 * 8;
   p.taps = j.kt * j.kh * j.kw;
   p.kh = j.kh;
-  p.wp = j.w + j.kw - 1;
+  p.wp = j.wo + j.kw - 1;
   if (p.cpc % p.g.tile.k != 0)
     return refuse(std::to_string(p.cpc) + " packed input channels, not a multiple of the GEMM tile's K (" +
                   std::to_string(p.g.tile.k) + ")");
@@ -70,11 +71,14 @@ Plan plan(const vk::DeviceCaps& caps, const DeviceTuning& tune, const ConvJob& j
   auto y_span = [&](int64_t ng, int64_t nfo, int64_t nr) {
     return uint64_t((ng - 1) * j.ys_c + (nfo - 1) * j.ys_f + (nr - 1) * j.ys_h + (j.wo - 1) * j.ys_w + 1);
   };
+  const uint64_t w_slack = std::max<uint64_t>(l.align, 16);  // a group's weights are bound from an aligned base
+  auto group_fits = [&](int64_t ng) {
+    return y_span(ng, 1, 1) * 4 <= y_cap && uint64_t(ng) * w_row + w_slack <= l.storage;
+  };
   p.channels = j.cout;
-  while (p.channels > 1 && (y_span(p.channels, 1, 1) * 4 > y_cap || uint64_t(p.channels) * w_row + 16 > l.storage))
+  while (p.channels > 1 && !group_fits(p.channels))
     p.channels = p.channels > p.g.tile_n() ? (p.channels - 1) / p.g.tile_n() * p.g.tile_n() : p.channels - 1;
-  if (y_span(p.channels, 1, 1) * 4 > y_cap || uint64_t(p.channels) * w_row + 16 > l.storage)
-    return refuse("one output channel's row or weights exceed one binding");
+  if (!group_fits(p.channels)) return refuse("one output channel's row or weights exceed one binding");
   if (uint64_t((p.channels + p.g.tile_n() - 1) / p.g.tile_n()) > l.groups_x) return refuse("too many output channels");
   // Frames per chunk: the most whose repacked grid, grid rows and y fit; else one frame's rows.
   auto fits = [&](int64_t nfo, int64_t nr) {
@@ -107,6 +111,7 @@ bool record_shifted(vk::Recorder& rec, const char* op, const ConvJob& j, const T
   const DeviceTuning& tune = device_tuning(caps);
   const Plan p = plan(caps, tune, j, w, call);
   if (!p.refusal.empty()) return false;
+  const int64_t up = j.upsample ? 2 : 1;
   const ConvLimits l = conv_limits(caps);
   const std::vector<uint32_t> spec = linear_coopmat_spec(p.g, weight_code(w.dtype()), true,
                                                          uint32_t(tune.linear_coopmat_group_m), 0, 1, false);
@@ -132,13 +137,15 @@ bool record_shifted(vk::Recorder& rec, const char* op, const ConvJob& j, const T
    for (int64_t b = 0; b < j.b; ++b)
     for_each_chunk(j.frames_out, p.frames, [&](int64_t fo0, int64_t nfo) {
       for_each_chunk(j.ho, p.rows, [&](int64_t oh0, int64_t nr) {
-        // The chunk's grid: output rows [oh0, oh0 + nr) read grid rows from oh0 - pad_top, zero outside the image.
-        const RowSpan rs = source_rows(j, oh0, oh0 + nr);
-        const int64_t rp = p.rows_p(nr), halo_top = rs.first - (oh0 - j.pad_top);
+        // The chunk's grid: output rows [oh0, oh0 + nr) read grid rows from oh0 - pad_top, zero outside the image
+        // (rows of the x2 upsampling where the call reads it; the pack maps them to x's).
+        const int64_t in_rows = up * j.h, r0 = std::max<int64_t>(oh0 - j.pad_top, 0);
+        const int64_t r1 = std::min<int64_t>(oh0 + nr - 1 - j.pad_top + j.kh - 1, in_rows - 1);  // last row read
+        const int64_t rp = p.rows_p(nr), halo_top = r0 - (oh0 - j.pad_top);
         vk::BufferView packed = packed_all;
         packed.size = uint64_t(nfo + j.kt - 1) * uint64_t(rp * p.wp) * uint64_t(p.cpc) * 2 + uint64_t(p.cpc) * 2;
-        pack_input(rec, op, j, x, l, b, 0, j.cin, p.cpc, fo0, nfo + j.kt - 1, rs.first, rs.end - rs.first, 0, j.w, true,
-                   packed, call.pack_columns, PackGrid{halo_top, rp, j.pad_left, p.wp});
+        pack_input(rec, op, j, x, l, b, 0, j.cin, p.cpc, fo0, nfo + j.kt - 1, r0, r1 - r0 + 1, 0, up * j.w, true,
+                   packed, call.pack_columns, PackGrid{halo_top, rp, j.pad_left, p.wp, up});
 
         ShiftedPush pc{};
         const int64_t m = (nfo - 1) * rp * p.wp + (nr - 1) * p.wp + j.wo;

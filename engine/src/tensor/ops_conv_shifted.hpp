@@ -1,10 +1,11 @@
 // A convolution as the tensor-core GEMM itself (DeviceTuning::conv_shifted_gemm; shaders/linalg/conv_shifted_io.glsl
-// says how): for a stride-1 "same" convolution (every causal 3D conv of the VAE, its 3x3 and 1x1 convs) with weights
-// packed at load, each chunk of output frames (or of one frame's rows) repacks its input fp16 channels-last on the
-// zero-padded grid, and nn/conv_shifted_coopmat (linear_coopmat.comp's tile, 16-byte loads and order) multiplies it
-// by the packed weights, each K step's rows shifted by its tap's offset on the grid; the epilogue drops the grid's
-// padding rows and adds the bias. No gather: the loads are a GEMM's. ops_conv.cpp tries it first and runs the
-// implicit-GEMM kernels where it refuses.
+// says how): for a stride-1 "same" convolution (every causal 3D conv of the VAE, its 3x3 and 1x1 convs, the 3x3 conv
+// of upsample2x_conv3x3) with weights packed at load, each chunk of output frames (or of one frame's rows) repacks its
+// input fp16 channels-last on the zero-padded grid (of the upsampled input where the call upsamples), and
+// nn/conv_shifted_coopmat (linear_coopmat.comp's tile, 16-byte loads and order) multiplies it by the packed weights,
+// each K step's rows shifted by its tap's offset on the grid; the epilogue drops the grid's padding rows and adds the
+// bias. No gather: the loads are a GEMM's. ops_conv.cpp tries it first and runs the implicit-GEMM kernels where it
+// refuses.
 #pragma once
 #include <cstdint>
 #include <string>
