@@ -53,13 +53,20 @@ shifted_goldens() {
   grep -q "conv: nn/conv_shifted_coopmat (coopmat)" "$log" ||
     { echo "run_coopmat_pass.sh: the goldens under conv_shifted_gemm=on never ran nn/conv_shifted_coopmat" >&2; return 1; }
 }
-{ ops_shard 0 && shifted_goldens; } > "$build/coopmat_pass_ops0.log" 2>&1 &
+# 5. (then) The real-size calls at small scale (the real 3072-wide GEMMs, the 128- to 512-channel convolutions, the
+# latter through the GEMM kernel) against their CPU references and plans (tests/check_realsize_small.sh).
+realsize_small() {
+  [ -x "$build/bench/dvs-bench" ] || { echo "run_coopmat_pass.sh: no $build/bench/dvs-bench" >&2; return 1; }
+  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on tests/check_realsize_small.sh transformer,vae_encode,vae_decode \
+    "$build/bench/dvs-bench" "$run"
+}
+{ ops_shard 0 && shifted_goldens && realsize_small; } > "$build/coopmat_pass_ops0.log" 2>&1 &
 first=$!
 { ops_shard 1 && "$run" "$build/tests/dvs_golden_tests"; } > "$build/coopmat_pass_ops1_golden.log" 2>&1 &
 second=$!
 rc=0
 wait "$first" || rc=1
-echo "== run_coopmat_pass.sh: op tests, shard 1 of 2, then the goldens with conv_shifted_gemm ($build/coopmat_pass_ops0.log)"
+echo "== run_coopmat_pass.sh: op tests, shard 1 of 2, then the goldens with conv_shifted_gemm and the real-size calls ($build/coopmat_pass_ops0.log)"
 cat "$build/coopmat_pass_ops0.log"
 wait "$second" || rc=1
 echo "== run_coopmat_pass.sh: op tests, shard 2 of 2, then the golden tests ($build/coopmat_pass_ops1_golden.log)"
