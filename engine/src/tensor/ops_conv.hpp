@@ -12,7 +12,9 @@
 // views do) and hold at most maxTexelBufferElements (2^27 on lavapipe and NVIDIA); y is bound whole.
 // The GEMM itself is one of three kernel families (kernel_tuning.hpp, DeviceTuning::conv): texel
 // (conv_gemm.comp, CPU drivers), tiled (conv_tiled.comp: shared-memory tiles over storage buffers, fp32) or
-// coopmat (conv_coopmat.comp: tensor cores, fp16 operands, fp32 sums); each serves every op below.
+// coopmat (conv_coopmat.comp: tensor cores, fp16 operands, fp32 sums); each serves every op below. On the coopmat
+// family a stride-1 same-size convolution can run as the tensor-core GEMM kernel itself instead
+// (DeviceTuning::conv_shifted_gemm, ops_conv_shifted.hpp: its input repacked on the zero-padded grid).
 // (The resampling ops are implemented in ops_resample.cpp.)
 #pragma once
 #include <cstdint>

@@ -59,12 +59,13 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   expect(grid.halo_top >= 0 && grid.halo_top + rows <= rows_p && grid.halo_left >= 0 && grid.halo_left + wc <= cols_p,
          op, "the packed grid does not hold its source rows and columns");
   expect(grid.up == 1 || grid.up == 2, op, "upsampling by " + std::to_string(grid.up));
-  // The rows and columns of x itself that the grid's (upsampled) ones read: what the views must hold.
-  auto source = [&](int64_t first, int64_t n) {
-    return std::pair<int64_t, int64_t>{first / grid.up, n == 0 ? 0 : (first + n - 1) / grid.up - first / grid.up + 1};
+  // The rows and columns of x itself that the grid's (upsampled) ones read: what the views must hold. (Plain
+  // variables, not a structured binding: the lambdas below capture them, which clang's C++20 refuses for bindings.)
+  auto source_count = [&](int64_t first, int64_t n) {
+    return n == 0 ? int64_t(0) : (first + n - 1) / grid.up - first / grid.up + 1;
   };
-  const auto [src_r0, src_rows] = source(r0, rows);
-  const auto [src_col0, src_wc] = source(col0, wc);
+  const int64_t src_r0 = r0 / grid.up, src_rows = source_count(r0, rows);
+  const int64_t src_col0 = col0 / grid.up, src_wc = source_count(col0, wc);
   const int64_t cp4 = cpc / 4;
   const uint64_t cap = l.r32;  // bytes of one R32F view
   const int64_t seg = pack_columns > 0 && pack_columns < cols_p ? pack_columns : cols_p;  // pixels per invocation
