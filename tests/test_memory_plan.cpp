@@ -55,7 +55,7 @@ HostTensor random_f32(const Shape& s, uint32_t seed) {
 }
 
 // Uploads every weight of the component, so that the peak counter afterwards measures the call alone. The VAE
-// reads its convolutions' weights packed (`convs`: every tensor of rank 4 or 5, packed as the VAE does on first use;
+// reads its convolutions' weights packed (`convs`: every tensor of rank 4 or 5, packed as the VAE does when it is made;
 // packing drops the stored copy, so the peak is reset after).
 void preload(models::ComponentWeights& w, vk::Context* convs = nullptr) {
   const WeightSet set = WeightSet::open_dir(w.dir());

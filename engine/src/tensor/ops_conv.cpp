@@ -29,24 +29,9 @@ using conv::expect;
 using conv::fail;
 using conv::RowSpan;
 using conv::u32;
+using conv::weight_code;
 
 constexpr uint32_t kMaxCachePrefix = 4;  // shaders/nn/conv3d_cache.comp MAXP
-
-uint32_t weight_code(const char* op, DType t) {
-  switch (t) {
-    case DType::f32: return 0;
-    case DType::f16: return 1;
-    case DType::bf16: return 2;
-    default: fail(op, std::string("weights must be f32, f16 or bf16, got ") + dtype_name(t));
-  }
-}
-
-// Packed 16-bit tensors are read as uints: widen the bound range to whole words.
-vk::BufferView word_view(const Tensor& t) {
-  vk::BufferView v = t.buffer();
-  v.size = (v.size + 3) / 4 * 4;
-  return v;
-}
 
 ConvRegisterBlock g_block_override;
 uint64_t g_chunk_bytes_override = 0;
@@ -255,9 +240,7 @@ void record_conv(vk::Recorder& rec, const char* op, const ConvJob& j, const Tens
                                                       j.ho, j.wo, j.ys_c, j.ys_h, j.ys_w, wdt, bdt});
   note_kernel(ctx, "conv", fam.twin ? KernelFamily::tiled : fam.kind, gemm.name,
               {fam.kind == KernelFamily::coopmat ? std::string() : device_tuning(caps).conv_unfit, true});
-  vk::BufferView bias_view = x.buffer();  // without a bias: any aligned buffer (x's first word; never read)
-  bias_view.size = 4;
-  if (bias) bias_view = word_view(*bias);
+  const vk::BufferView bias_view = conv::bias_binding(x, bias);
   const bool whole_y = uint64_t(y.bytes()) <= l.storage;  // bound whole as before; else per dispatch
 
   if (cc < j.cin || ng < j.cout || chunk_frames < j.frames_out || chunk_rows < j.ho || chunk_cols < j.wo)

@@ -24,6 +24,24 @@ inline uint32_t u32(const char* op, int64_t v) {
   return uint32_t(v);
 }
 
+// The shaders' code of a weight or bias dtype: 0 f32, 1 f16, 2 bf16.
+inline uint32_t weight_code(const char* op, DType t) {
+  switch (t) {
+    case DType::f32: return 0;
+    case DType::f16: return 1;
+    case DType::bf16: return 2;
+    default: fail(op, std::string("weights must be f32, f16 or bf16, got ") + dtype_name(t));
+  }
+}
+
+// The bias's binding, its range widened to whole words (16-bit biases are read as uints); without a bias, x's
+// first word (any aligned buffer: never read).
+inline vk::BufferView bias_binding(const Tensor& x, const Tensor* bias) {
+  vk::BufferView v = bias ? bias->buffer() : x.buffer();
+  v.size = bias ? (v.size + 3) / 4 * 4 : 4;
+  return v;
+}
+
 // Everything a convolution needs, for a [B, Cin, F, H, W] input.
 struct ConvJob {
   int64_t b = 1, cin = 1, frames = 1, h = 1, w = 1;
