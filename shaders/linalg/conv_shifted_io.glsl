@@ -10,12 +10,6 @@
 // Grid rows that are no output pixel (a row's last kw - 1 columns, a frame's last kh - 1 rows) are computed and
 // dropped by the epilogue; the largest row read is the grid's last pixel, so no read leaves the chunk.
 
-layout(constant_id = 2) const int WTYPE = 1;   // weights: 0 f32, 1 f16, 2 bf16 (packed at load)
-layout(constant_id = 13) const int XTYPE = 1;  // the repacked input: fp16 (the host sets 1)
-
-layout(std430, binding = 0) readonly buffer Xb { float xs[]; };
-layout(std430, binding = 0) readonly buffer Xh { uint xh[]; };
-layout(std430, binding = 1) readonly buffer Wb { uint ws[]; };
 layout(std430, binding = 2) readonly buffer Bias { uint bias[]; };  // f32, or 16-bit pairs
 layout(std430, binding = 3) buffer Yb { float y[]; };               // [.., Cout, F, H, W] at the strides below
 
@@ -30,29 +24,13 @@ layout(push_constant) uniform Push {
   uint ys_f, ys_h, ys_w, ys_c;  // y's strides in elements
   uint bias_type;        // 0 no bias, 1 f32, 2 f16, 3 bf16
 } p;
+// X (the repacked grid, XTYPE 1) and W (the weights packed at load) with their loads; X's loads add x_shift.
+#include "gemm_operands.glsl"
 
 // Step k0's X shift in elements: its tap's offset on the grid minus the tap's place in K (both times CP).
 uint x_step_shift(uint k0) {
   const uint tap = k0 / p.ldx, dt = tap / p.khw, r = tap - dt * p.khw, dh = r / p.kw, dw = r - dh * p.kw;
   return (dt * p.plane + dh * p.wp + dw - tap) * p.ldx;
-}
-
-// X[m][k] of the step being loaded (k within its tap's CP channels), 0 outside the GEMM.
-float load_x(uint b, uint m, uint k) {
-  if (m >= p.M || k >= p.K) return 0.0;
-  const uint e = p.x_off + m * p.ldx + k + x_shift;
-  if (XTYPE == 0) return xs[e];
-  const uint u = xh[e >> 1];
-  return unpackHalf2x16((e & 1u) == 0u ? u : u >> 16).x;
-}
-
-// W[n][k] widened to f32, 0 outside the matrix.
-float load_w(uint b, uint n, uint k) {
-  if (n >= p.N || k >= p.K) return 0.0;
-  const uint e = p.w_off + n * p.ldw + k;
-  if (WTYPE == 0) return uintBitsToFloat(ws[e]);
-  const uint u = ws[e >> 1], h = (e & 1u) == 0u ? (u & 0xffffu) : (u >> 16);
-  return WTYPE == 1 ? unpackHalf2x16(h).x : uintBitsToFloat(h << 16);
 }
 
 float conv_bias(uint n) {

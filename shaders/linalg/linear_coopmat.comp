@@ -27,8 +27,6 @@
 // Variant nn/conv_shifted_coopmat (CONV_SHIFTED, conv_shifted_io.glsl): a stride-1 convolution as this GEMM, X the
 // input repacked channels-last fp16 on its zero-padded grid and W the weights packed at load ([Cout][tap][CP]);
 // each step's X rows are shifted by its tap's offset on the grid, and the epilogue maps grid rows to output pixels.
-// Added to each X element index of the step being loaded (x_step_shift; 0 for a plain GEMM).
-uint x_shift = 0u;
 #ifdef CONV_SHIFTED
 #include "conv_shifted_io.glsl"
 #else
