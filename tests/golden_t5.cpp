@@ -16,6 +16,7 @@
 #include "models/cogvideox/t5_encoder.hpp"
 #include "models/cogvideox/tokenizer.hpp"
 #include "support/golden_compare.hpp"
+#include "support/pack.hpp"
 #include "support/precision_rule.hpp"
 #include "support/gpu.hpp"
 
@@ -24,26 +25,10 @@ using dvs::HostTensor;
 
 namespace {
 
-fs::path pack() { return fs::path(dvs::test::golden_dir()); }
-
-struct Tol {
-  double atol = 1e-5, rtol = 1e-4;
-};
-
-// Tolerance of case `name` in cases.json; `part` selects a sub-entry (bf16_sharded: "t5", "transformer").
-Tol case_tolerance(const std::string& name, const std::string& part = {}) {
-  std::ifstream f(pack() / "cases.json");
-  const auto j = nlohmann::json::parse(f);
-  for (const auto& c : j.at("cases"))
-    if (c.at("name") == name) {
-      const auto& t = part.empty() ? c.at("tolerance") : c.at("tolerance").at(part);
-      return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
-    }
-  ADD_FAILURE() << "case " << name << " not in cases.json";
-  return {};
-}
-
-HostTensor npy(const std::string& rel) { return dvs::read_npy(pack() / rel); }
+fs::path pack() { return dvs::test::golden_path(); }
+using Tol = dvs::test::PackTolerance;
+using dvs::test::pack_npy;
+using dvs::test::pack_tolerance;
 
 std::vector<std::vector<int32_t>> id_rows(const HostTensor& t) {
   const auto v = t.to_f32();
@@ -90,16 +75,16 @@ TEST(GoldenT5Buckets, RelativePositionBucketsMatchTransformers) {
 
 TEST_F(GoldenT5, MaskedWithPerLayerHiddenStates) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
-  const auto ids = id_rows(npy("t5/masked_input_ids.npy"));
-  const auto mask_t = npy("t5/masked_attention_mask.npy").to_f32();
+  const auto ids = id_rows(pack_npy("t5/masked_input_ids.npy"));
+  const auto mask_t = pack_npy("t5/masked_attention_mask.npy").to_f32();
   std::vector<std::vector<float>> mask(ids.size());
   for (size_t b = 0; b < ids.size(); ++b)
     mask[b].assign(mask_t.begin() + long(b * ids[b].size()), mask_t.begin() + long((b + 1) * ids[b].size()));
   std::vector<HostTensor> hidden;
   const dvs::Tensor out = t5.encode(ids, mask, &hidden);
   expect_close("t5_masked last_hidden_state", out.download(ctx()), "t5/masked_last_hidden_state.npy",
-               case_tolerance("t5_masked"));
-  const Tol layers = case_tolerance("t5_masked_layers");
+               pack_tolerance("t5_masked"));
+  const Tol layers = pack_tolerance("t5_masked_layers");
   ASSERT_EQ(int64_t(hidden.size()), t5.config().num_layers + 1);
   for (size_t i = 0; i < hidden.size(); ++i) {
     const std::string rel = "t5/masked_hidden_state_" + std::to_string(i) + ".npy";
@@ -110,8 +95,8 @@ TEST_F(GoldenT5, MaskedWithPerLayerHiddenStates) {
 
 TEST_F(GoldenT5, NoMask) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
-  const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
-  expect_close("t5_nomask", out.download(ctx()), "t5/nomask_last_hidden_state.npy", case_tolerance("t5_nomask"));
+  const dvs::Tensor out = t5.encode(id_rows(pack_npy("t5/masked_input_ids.npy")));
+  expect_close("t5_nomask", out.download(ctx()), "t5/nomask_last_hidden_state.npy", pack_tolerance("t5_nomask"));
 }
 
 TEST_F(GoldenT5, TextToEmbeddings) {
@@ -122,7 +107,7 @@ TEST_F(GoldenT5, TextToEmbeddings) {
   dvs::models::T5Encoder t5(ctx(), model / "text_encoder");
   const dvs::Tensor out = t5.encode_prompts(tok, {prompts.at(0)}, dvs::max_text_seq_length(model));
   expect_close("t5_text_to_embeddings", out.download(ctx()), "t5/text_embeds.npy",
-               case_tolerance("t5_text_to_embeddings"));
+               pack_tolerance("t5_text_to_embeddings"));
 }
 
 // The three e2e prompts in ONE batch of 3 rows (batching must not mix rows).
@@ -130,10 +115,10 @@ TEST_F(GoldenT5, E2EPromptsAsOneBatch) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
   const char* names[3] = {"prompt", "negative", "empty"};
   std::vector<std::vector<int32_t>> ids;
-  for (const char* n : names) ids.push_back(id_rows(npy(std::string("e2e/") + n + "_input_ids.npy")).at(0));
+  for (const char* n : names) ids.push_back(id_rows(pack_npy(std::string("e2e/") + n + "_input_ids.npy")).at(0));
   const dvs::Tensor out = t5.encode(ids);
   const HostTensor v = out.download(ctx());
-  const Tol tol = case_tolerance("t5_e2e_prompts");
+  const Tol tol = pack_tolerance("t5_e2e_prompts");
   for (size_t i = 0; i < 3; ++i)
     expect_close(std::string("t5_e2e_prompts ") + names[i], v,
                  std::string("e2e/") + names[i] + "_embeds.npy", tol, int64_t(i));
@@ -142,15 +127,15 @@ TEST_F(GoldenT5, E2EPromptsAsOneBatch) {
 TEST_F(GoldenT5, Bf16Sharded) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model_bf16" / "text_encoder");
   EXPECT_EQ(t5.weights().get("shared.weight").dtype(), dvs::DType::bf16);
-  const dvs::Tensor out = t5.encode(id_rows(npy("t5/masked_input_ids.npy")));
+  const dvs::Tensor out = t5.encode(id_rows(pack_npy("t5/masked_input_ids.npy")));
   expect_close("bf16_sharded t5", out.download(ctx()), "bf16_sharded/t5_nomask_last_hidden_state.npy",
-               case_tolerance("bf16_sharded", "t5"));
+               pack_tolerance("bf16_sharded", "t5"));
 }
 
 // Not asserted: encode time at the pack's size (recording included, as a caller sees it).
 TEST_F(GoldenT5, EncodeTimeAtPackSize) {
   dvs::models::T5Encoder t5(ctx(), pack() / "model" / "text_encoder");
-  const auto ids = id_rows(npy("t5/masked_input_ids.npy"));
+  const auto ids = id_rows(pack_npy("t5/masked_input_ids.npy"));
   t5.encode(ids);  // warm-up
   const int reps = 3;
   const auto t0 = std::chrono::steady_clock::now();

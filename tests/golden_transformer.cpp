@@ -16,6 +16,7 @@
 #include "io/npy.hpp"
 #include "models/cogvideox/cogvideox_transformer.hpp"
 #include "support/golden_compare.hpp"
+#include "support/pack.hpp"
 #include "support/precision_rule.hpp"
 #include "support/gpu.hpp"
 #include "support/scoped_limits.hpp"
@@ -28,25 +29,10 @@ using dvs::HostTensor;
 
 namespace {
 
-fs::path pack() { return fs::path(dvs::test::golden_dir()); }
-
-struct Tol {
-  double atol = 1e-5, rtol = 1e-4;
-};
-
-Tol case_tolerance(const std::string& name, const std::string& part = {}) {
-  std::ifstream f(pack() / "cases.json");
-  const auto j = nlohmann::json::parse(f);
-  for (const auto& c : j.at("cases"))
-    if (c.at("name") == name) {
-      const auto& t = part.empty() ? c.at("tolerance") : c.at("tolerance").at(part);
-      return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
-    }
-  ADD_FAILURE() << "case " << name << " not in cases.json";
-  return {};
-}
-
-HostTensor npy(const std::string& rel) { return dvs::read_npy(pack() / rel); }
+fs::path pack() { return dvs::test::golden_path(); }
+using Tol = dvs::test::PackTolerance;
+using dvs::test::pack_npy;
+using dvs::test::pack_tolerance;
 
 // Compares `ours` (or its row `row` of the outermost dimension) with the pack file `rel`, shapes included, by the
 // precision rule for the transformer's ops (support/precision_rule.hpp: the case's tolerance, or 2x PyTorch's bf16
@@ -61,11 +47,11 @@ void expect_close(const std::string& what, const HostTensor& ours, const std::st
   dvs::test::expect_golden(what, part, rel, tol.atol, tol.rtol, ops);
 }
 
-float scalar(const std::string& rel) { return npy(rel).to_f32().at(0); }
+float scalar(const std::string& rel) { return pack_npy(rel).to_f32().at(0); }
 
 class GoldenTransformer : public dvs::test::GpuTest {
  protected:
-  dvs::Tensor upload(const std::string& rel) { return dvs::Tensor::upload(ctx(), npy(rel)); }
+  dvs::Tensor upload(const std::string& rel) { return dvs::Tensor::upload(ctx(), pack_npy(rel)); }
 };
 
 }  // namespace
@@ -77,14 +63,14 @@ TEST_F(GoldenTransformer, T999OutputAndIntermediates) {
   const float t = scalar("transformer/timestep_999.npy");
   dvs::models::CogVideoXTaps taps;
   const dvs::Tensor out = tr.forward(latent, text, std::span<const float>(&t, 1), &taps);
-  const Tol tol = case_tolerance("transformer_t999");
+  const Tol tol = pack_tolerance("transformer_t999");
 
   // The RoPE tables the model built for this latent size are the pipeline's (case rope).
   const auto& rope = tr.rope_tables(latent.dim(1), latent.dim(3), latent.dim(4));
   // (tables of the positions: no linear, attention or convolution makes them)
-  expect_close("rope cos", rope.first.download(ctx()), "transformer/rope_cos.npy", case_tolerance("rope"), -1,
+  expect_close("rope cos", rope.first.download(ctx()), "transformer/rope_cos.npy", pack_tolerance("rope"), -1,
                dvs::test::kNoKernelOps);
-  expect_close("rope sin", rope.second.download(ctx()), "transformer/rope_sin.npy", case_tolerance("rope"), -1,
+  expect_close("rope sin", rope.second.download(ctx()), "transformer/rope_sin.npy", pack_tolerance("rope"), -1,
                dvs::test::kNoKernelOps);
 
   expect_close("t999 time_embedding", taps.time_embedding, "transformer/t999_time_embedding.npy", tol);
@@ -133,7 +119,7 @@ TEST_F(GoldenTransformer, T999InSeveralTokenChunks) {
   ASSERT_LT(2 * chunk, N) << "8 KiB bindings leave the video tokens in fewer than three chunks";
   const dvs::Tensor out = tr.forward(latent, text, std::span<const float>(&t, 1));
   expect_close("transformer_t999 output, " + std::to_string(chunk) + "-token chunks", out.download(ctx()),
-               "transformer/output_t999.npy", case_tolerance("transformer_t999"));
+               "transformer/output_t999.npy", pack_tolerance("transformer_t999"));
 }
 
 TEST_F(GoldenTransformer, T500) {
@@ -142,7 +128,7 @@ TEST_F(GoldenTransformer, T500) {
   dvs::models::CogVideoXTaps taps;
   const dvs::Tensor out = tr.forward(upload("transformer/hidden_states.npy"), upload("transformer/encoder_hidden_states.npy"),
                                      std::span<const float>(&t, 1), &taps);
-  const Tol tol = case_tolerance("transformer_t500");
+  const Tol tol = pack_tolerance("transformer_t500");
   expect_close("t500 time_embedding", taps.time_embedding, "transformer/t500_time_embedding.npy", tol);
   expect_close("t500 block0 hidden", taps.block_hidden.at(0), "transformer/t500_block0_hidden.npy", tol);
   expect_close("t500 block0 encoder", taps.block_encoder.at(0), "transformer/t500_block0_encoder.npy", tol);
@@ -153,8 +139,8 @@ TEST_F(GoldenTransformer, T500) {
 // t500 golden; row 1 must equal a batch-1 call on its own inputs (rows must not mix).
 TEST_F(GoldenTransformer, BatchOfTwoWithDifferentTextAndTimesteps) {
   dvs::models::CogVideoXTransformer tr(ctx(), pack() / "model" / "transformer");
-  const HostTensor lat = npy("transformer/hidden_states.npy");
-  const HostTensor txt = npy("transformer/encoder_hidden_states.npy");
+  const HostTensor lat = pack_npy("transformer/hidden_states.npy");
+  const HostTensor txt = pack_npy("transformer/encoder_hidden_states.npy");
   auto stack2 = [](const HostTensor& a, const HostTensor& b) {
     HostTensor r = a;
     r.shape[0] = 2;
@@ -167,7 +153,7 @@ TEST_F(GoldenTransformer, BatchOfTwoWithDifferentTextAndTimesteps) {
   const dvs::Tensor out2 = tr.forward(dvs::Tensor::upload(ctx(), stack2(lat, lat)), dvs::Tensor::upload(ctx(), stack2(txt, half)),
                                       std::span<const float>(ts, 2));
   const HostTensor v2 = out2.download(ctx());
-  const Tol tol = case_tolerance("transformer_t500");
+  const Tol tol = pack_tolerance("transformer_t500");
   expect_close("batch2 row0 (t500)", v2, "transformer/output_t500.npy", tol, 0);
   const dvs::Tensor out1 = tr.forward(dvs::Tensor::upload(ctx(), lat), dvs::Tensor::upload(ctx(), half),
                                       std::span<const float>(&ts[1], 1));
@@ -185,7 +171,7 @@ TEST_F(GoldenTransformer, Bf16Sharded) {
   const dvs::Tensor out = tr.forward(upload("transformer/hidden_states.npy"), upload("transformer/encoder_hidden_states.npy"),
                                      std::span<const float>(&t, 1));
   expect_close("bf16_sharded transformer", out.download(ctx()), "bf16_sharded/transformer_output_t999.npy",
-               case_tolerance("bf16_sharded", "transformer"));
+               pack_tolerance("bf16_sharded", "transformer"));
 }
 
 // Not asserted: forward time at the pack's size (the recording included, as a caller sees it).

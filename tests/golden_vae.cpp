@@ -24,6 +24,7 @@
 #include "pipeline/job_stages.hpp"
 #include "pipeline/memory_plan.hpp"
 #include "support/gpu.hpp"
+#include "support/pack.hpp"
 #include "support/precision_rule.hpp"
 #include "tensor/dispatch.hpp"
 #include "vk/profiler.hpp"
@@ -35,28 +36,12 @@ using dvs::models::CogVideoXVae;
 
 namespace {
 
-fs::path pack() { return fs::path(dvs::test::golden_dir()); }
-
-HostTensor load(const std::string& rel) { return dvs::read_npy(pack() / rel); }
-
-const nlohmann::json& cases() {
-  static const nlohmann::json j = [] {
-    std::ifstream f(pack() / "cases.json");
-    return nlohmann::json::parse(f);
-  }();
-  return j;
-}
-
-const nlohmann::json& case_of(const std::string& name) {
-  for (const auto& c : cases()["cases"])
-    if (c["name"] == name) return c;
-  throw std::runtime_error("cases.json has no case " + name);
-}
-
-struct Tol {
-  double atol, rtol;
-};
-Tol tol_of(const nlohmann::json& t) { return {t["atol"].get<double>(), t["rtol"].get<double>()}; }
+fs::path pack() { return dvs::test::golden_path(); }
+using Tol = dvs::test::PackTolerance;
+using dvs::test::pack_case;
+using dvs::test::pack_cases;
+using dvs::test::tolerance_of;
+HostTensor load(const std::string& rel) { return dvs::test::pack_npy(rel); }
 
 // `got` against the pack file `rel` by the precision rule for convolutions (support/precision_rule.hpp: the
 // case's tolerance, or 2x PyTorch's bf16 run under 16-bit-operand kernels); prints both errors.
@@ -143,7 +128,7 @@ TEST(VaeMemoryPlan, Real5BSizes) {
 }
 
 TEST_F(VaeGolden, Encode) {
-  const Tol tol = tol_of(case_of("vae_encode")["tolerance"]);
+  const Tol tol = tolerance_of(pack_case("vae_encode")["tolerance"]);
   const Tensor video = up(load("vae/video.npy"));
   auto t0 = std::chrono::steady_clock::now();
   const auto post = vae().encode(video);
@@ -157,7 +142,7 @@ TEST_F(VaeGolden, Encode) {
 }
 
 TEST_F(VaeGolden, Decode) {
-  const Tol tol = tol_of(case_of("vae_decode")["tolerance"]);
+  const Tol tol = tolerance_of(pack_case("vae_decode")["tolerance"]);
   const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
   auto t0 = std::chrono::steady_clock::now();
   const Tensor frames = vae().decode(z);
@@ -167,26 +152,26 @@ TEST_F(VaeGolden, Decode) {
 
 // Tiling off (the tile is at least the input): encode_tiled / decode_tiled must give the untiled result.
 TEST_F(VaeGolden, TilingDisabledExplicit) {
-  const auto& tc = case_of("vae_tiling_disabled_explicit")["tolerance"];
+  const auto& tc = pack_case("vae_tiling_disabled_explicit")["tolerance"];
   const HostTensor video = load("vae/video.npy");
   dvs::models::VaeTiling off;
   off.tile_sample_min_height = video.shape[3];
   off.tile_sample_min_width = video.shape[4];
   const auto post = vae().encode_tiled(up(video), off);
-  expect_close("vae_tiling_disabled mean", dl(post.mean), "vae/encode_mean.npy", tol_of(tc["encode"]));
+  expect_close("vae_tiling_disabled mean", dl(post.mean), "vae/encode_mean.npy", tolerance_of(tc["encode"]));
   const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
   expect_close("vae_tiling_disabled decode", dl(vae().decode_tiled(z, off)), "vae/decode_frames.npy",
-               tol_of(tc["decode"]));
+               tolerance_of(tc["decode"]));
 }
 
 TEST_F(VaeGolden, FrameBatching17) {
-  const auto& tc = case_of("vae_frame_batching")["tolerance"];
+  const auto& tc = pack_case("vae_frame_batching")["tolerance"];
   const Tensor video = up(load("vae/chunk17_video.npy"));
   auto t0 = std::chrono::steady_clock::now();
   const auto post = vae().encode(video);
   std::printf("[ golden ] vae encode %s: %.3f s\n", dvs::shape_str(video.shape()).c_str(), seconds_since(t0));
-  expect_close("vae_frame_batching mean", dl(post.mean), "vae/chunk17_encode_mean.npy", tol_of(tc["encode"]));
-  expect_close("vae_frame_batching std", dl(post.std), "vae/chunk17_encode_std.npy", tol_of(tc["encode"]));
+  expect_close("vae_frame_batching mean", dl(post.mean), "vae/chunk17_encode_mean.npy", tolerance_of(tc["encode"]));
+  expect_close("vae_frame_batching std", dl(post.std), "vae/chunk17_encode_std.npy", tolerance_of(tc["encode"]));
   // The dry-run memory plan is exactly what the live call allocated.
   EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::encode_working_bytes(vae().weights().config(), video.shape()));
   // Decode the golden mean (not ours) so the decoder is judged on its own.
@@ -194,12 +179,12 @@ TEST_F(VaeGolden, FrameBatching17) {
   t0 = std::chrono::steady_clock::now();
   const Tensor frames = vae().decode(z);
   std::printf("[ golden ] vae decode %s: %.3f s\n", dvs::shape_str(z.shape()).c_str(), seconds_since(t0));
-  expect_close("vae_frame_batching decode", dl(frames), "vae/chunk17_decode_frames.npy", tol_of(tc["decode"]));
+  expect_close("vae_frame_batching decode", dl(frames), "vae/chunk17_decode_frames.npy", tolerance_of(tc["decode"]));
   EXPECT_EQ(vae().last_working_bytes(), CogVideoXVae::decode_working_bytes(vae().weights().config(), z.shape()));
 }
 
 TEST_F(VaeGolden, Tiled) {
-  const auto& c = case_of("vae_tiled");
+  const auto& c = pack_case("vae_tiled");
   const auto& t = c["tiling"];
   dvs::models::VaeTiling tiling;
   tiling.tile_sample_min_height = t["tile_sample_min_height"].get<int64_t>();
@@ -210,13 +195,13 @@ TEST_F(VaeGolden, Tiled) {
   auto t0 = std::chrono::steady_clock::now();
   const auto post = vae().encode_tiled(video, tiling);
   std::printf("[ golden ] vae tiled encode: %.3f s\n", seconds_since(t0));
-  expect_close("vae_tiled mean", dl(post.mean), "vae/tiled_encode_mean.npy", tol_of(c["tolerance"]["encode"]));
-  expect_close("vae_tiled std", dl(post.std), "vae/tiled_encode_std.npy", tol_of(c["tolerance"]["encode"]));
+  expect_close("vae_tiled mean", dl(post.mean), "vae/tiled_encode_mean.npy", tolerance_of(c["tolerance"]["encode"]));
+  expect_close("vae_tiled std", dl(post.std), "vae/tiled_encode_std.npy", tolerance_of(c["tolerance"]["encode"]));
   const Tensor z = up(divided(load("vae/encode_scaled_latent.npy"), scaling()));
   t0 = std::chrono::steady_clock::now();
   const Tensor frames = vae().decode_tiled(z, tiling);
   std::printf("[ golden ] vae tiled decode: %.3f s\n", seconds_since(t0));
-  expect_close("vae_tiled decode", dl(frames), "vae/tiled_decode_frames.npy", tol_of(c["tolerance"]["decode"]));
+  expect_close("vae_tiled decode", dl(frames), "vae/tiled_decode_frames.npy", tolerance_of(c["tolerance"]["decode"]));
 }
 
 
@@ -224,7 +209,7 @@ TEST_F(VaeGolden, Tiled) {
 // move away from the golden by the recorded whole_clip_max_abs_diff, proving the batches matter and that the
 // whole-clip path is the one diffusers would take (encode of the video; decode of the golden mean).
 TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
-  const auto& rec = case_of("vae_frame_batching")["whole_clip_max_abs_diff"];
+  const auto& rec = pack_case("vae_frame_batching")["whole_clip_max_abs_diff"];
   auto max_diff = [](const HostTensor& a, const HostTensor& b) {
     const auto x = a.to_f32(), y = b.to_f32();
     double m = 0;
@@ -259,11 +244,11 @@ TEST_F(VaeGolden, WholeClipDiffersAsRecorded) {
 // fails here: the test also checks that the golden's frames differ by more than the tolerance under a shift.
 TEST_F(VaeGolden, EvenLatentCountDecode) {
   const nlohmann::json* found = nullptr;
-  for (const auto& c : cases()["cases"])
+  for (const auto& c : pack_cases()["cases"])
     if (c["name"] == "vae_decode_even_latent") found = &c;
   if (!found) GTEST_SKIP() << pack() << "/cases.json has no case vae_decode_even_latent (our pack A has it)";
   const nlohmann::json& c = *found;
-  const Tol tol = tol_of(c["tolerance"]);
+  const Tol tol = tolerance_of(c["tolerance"]);
   std::vector<std::string> inputs, outputs;
   for (const auto& f : c["files"]) (f["role"] == "input" ? inputs : outputs).push_back(f["file"].get<std::string>());
   ASSERT_EQ(inputs.size(), outputs.size());

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <string>
 
+#include "support/files.hpp"
 #include "vk/validation_log.hpp"
 
 namespace dvs::test {
@@ -143,9 +144,6 @@ bool sync_validation_enabled() {
   return e && std::string(e).find("VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT") != std::string::npos;
 }
 
-std::string golden_dir() {
-  const char* env = std::getenv("DVS_GOLDEN_DIR");
-  return env && *env ? env : DVS_DEFAULT_GOLDEN_DIR;
-}
+std::string golden_dir() { return golden_path().string(); }
 
 }  // namespace dvs::test

@@ -33,9 +33,15 @@ struct PackTolerance {
   double atol, rtol;  // |ours − golden| ≤ atol + rtol·|golden|
 };
 
-inline PackTolerance pack_tolerance(const std::string& name) {
-  const auto& t = pack_case(name).at("tolerance");
+// A tolerance entry of cases.json: {"atol": .., "rtol": ..}.
+inline PackTolerance tolerance_of(const nlohmann::json& t) {
   return {t.at("atol").get<double>(), t.at("rtol").get<double>()};
+}
+
+// Case `name`'s tolerance; `part` selects a sub-entry (bf16_sharded: "t5", "transformer").
+inline PackTolerance pack_tolerance(const std::string& name, const std::string& part = {}) {
+  const auto& t = pack_case(name).at("tolerance");
+  return tolerance_of(part.empty() ? t : t.at(part));
 }
 
 // Diffusion latent = scaling_factor × VAE latent, from the pack's VAE config.

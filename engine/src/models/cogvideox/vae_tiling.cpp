@@ -35,40 +35,36 @@ HostTensor crop(const HostTensor& x, int64_t h0, int64_t hn, int64_t w0, int64_t
   return out;
 }
 
+// diffusers' tiling, either way: tiles of in_h x in_w at strides of (1 - overlap) of that size, each giving an
+// out_h x out_w result that blends `overlap` of its size with its neighbours' and keeps the rest.
+TilePlan plan_tiles(int64_t in_h, int64_t in_w, int64_t out_h, int64_t out_w, const VaeTiling& t) {
+  TilePlan p;
+  p.tile_in_h = in_h;
+  p.tile_in_w = in_w;
+  p.stride_h = trunc(double(in_h) * (1.0 - t.tile_overlap_factor_height));
+  p.stride_w = trunc(double(in_w) * (1.0 - t.tile_overlap_factor_width));
+  p.blend_h = trunc(double(out_h) * t.tile_overlap_factor_height);
+  p.blend_w = trunc(double(out_w) * t.tile_overlap_factor_width);
+  p.limit_h = out_h - p.blend_h;
+  p.limit_w = out_w - p.blend_w;
+  return p;
+}
+
 }  // namespace
 
+// Encode: sample tiles in, latent tiles out; decode the other way round.
 TilePlan TilePlan::for_encode(const VaeConfig& cfg, const VaeTiling& t) {
   int64_t sh, sw;
   resolve(cfg, t, sh, sw);
   const int64_t r = cfg.spatial_ratio();
-  const int64_t lh = trunc(double(sh) / double(r)), lw = trunc(double(sw) / double(r));
-  TilePlan p;
-  p.tile_in_h = sh;
-  p.tile_in_w = sw;
-  p.stride_h = trunc(double(sh) * (1.0 - t.tile_overlap_factor_height));
-  p.stride_w = trunc(double(sw) * (1.0 - t.tile_overlap_factor_width));
-  p.blend_h = trunc(double(lh) * t.tile_overlap_factor_height);
-  p.blend_w = trunc(double(lw) * t.tile_overlap_factor_width);
-  p.limit_h = lh - p.blend_h;
-  p.limit_w = lw - p.blend_w;
-  return p;
+  return plan_tiles(sh, sw, trunc(double(sh) / double(r)), trunc(double(sw) / double(r)), t);
 }
 
 TilePlan TilePlan::for_decode(const VaeConfig& cfg, const VaeTiling& t) {
   int64_t sh, sw;
   resolve(cfg, t, sh, sw);
   const int64_t r = cfg.spatial_ratio();
-  const int64_t lh = trunc(double(sh) / double(r)), lw = trunc(double(sw) / double(r));
-  TilePlan p;
-  p.tile_in_h = lh;
-  p.tile_in_w = lw;
-  p.stride_h = trunc(double(lh) * (1.0 - t.tile_overlap_factor_height));
-  p.stride_w = trunc(double(lw) * (1.0 - t.tile_overlap_factor_width));
-  p.blend_h = trunc(double(sh) * t.tile_overlap_factor_height);
-  p.blend_w = trunc(double(sw) * t.tile_overlap_factor_width);
-  p.limit_h = sh - p.blend_h;
-  p.limit_w = sw - p.blend_w;
-  return p;
+  return plan_tiles(trunc(double(sh) / double(r)), trunc(double(sw) / double(r)), sh, sw, t);
 }
 
 void blend_rows(const HostTensor& a, HostTensor& b, int64_t extent) {
