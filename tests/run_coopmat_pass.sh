@@ -42,11 +42,12 @@ ops_shard() {
     "$run" "$build/tests/dvs_tests" --gtest_filter="$ops-KernelTuning.DvsInfoPrintsTheChoice"
 }
 # 4. (after the first shard) The VAE and whole-pipeline goldens with the convolutions through the GEMM kernel
-# (conv_shifted_gemm, off by default until a device run times it), at a GEMM layout whose K of 8 takes the tiny VAE's
-# 8- and 16-channel convolutions; the census must show that kernel ran.
+# (conv_shifted_gemm) and their input repacked by the transpose through shared memory (conv_pack_tiled), both off by
+# default until a device run times them, at a GEMM layout whose K of 8 takes the tiny VAE's 8- and 16-channel
+# convolutions; the census must show that kernel ran.
 shifted_goldens() {
   local log="$build/coopmat_pass_shifted.log" rc=0
-  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on,linear_coopmat=2x2x4x4x8 \
+  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on,conv_pack_tiled=on,linear_coopmat=2x2x4x4x8 \
     "$run" "$build/tests/dvs_golden_tests" --gtest_filter='VaeGolden.*:PipelineE2e.*' > "$log" 2>&1 || rc=1
   cat "$log"
   [ "$rc" -eq 0 ] || return 1
@@ -54,10 +55,11 @@ shifted_goldens() {
     { echo "run_coopmat_pass.sh: the goldens under conv_shifted_gemm=on never ran nn/conv_shifted_coopmat" >&2; return 1; }
 }
 # 5. (then) The real-size calls at small scale (the real 3072-wide GEMMs, the 128- to 512-channel convolutions, the
-# latter through the GEMM kernel) against their CPU references and plans (tests/check_realsize_small.sh).
+# latter through the GEMM kernel with the transposing repack: real row widths) against their CPU references and plans
+# (tests/check_realsize_small.sh).
 realsize_small() {
   [ -x "$build/bench/dvs-bench" ] || { echo "run_coopmat_pass.sh: no $build/bench/dvs-bench" >&2; return 1; }
-  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on tests/check_realsize_small.sh transformer,vae_encode,vae_decode \
+  DVS_TUNING=gpu-coopmat,conv_shifted_gemm=on,conv_pack_tiled=on tests/check_realsize_small.sh transformer,vae_encode,vae_decode \
     "$build/bench/dvs-bench" "$run"
 }
 { ops_shard 0 && shifted_goldens && realsize_small; } > "$build/coopmat_pass_ops0.log" 2>&1 &

@@ -39,10 +39,10 @@ Tensor random_tensor(vk::Context& c, const Shape& s, uint32_t seed, float scale,
 
 class HalfInputConvOps : public test::ConvKernelTest {
  protected:
-  // y of every conv path on a [1, cin, 5, 13, 11] input, one vector each, under `limits` (nullptr: none).
-  std::vector<std::vector<uint32_t>> all_convs(int64_t cin, const char* limits) {
+  // y of every conv path on a [1, cin, 5, 13, W] input, one vector each, under `limits` (nullptr: none).
+  std::vector<std::vector<uint32_t>> all_convs(int64_t cin, const char* limits, int64_t W = 11) {
     vk::Context& c = ctx();
-    const int64_t cout = 7, F = 5, H = 13, W = 11;
+    const int64_t cout = 7, F = 5, H = 13;
     const Tensor x = random_tensor(c, {1, cin, F, H, W}, 1, 1.f, DType::f32);
     const Tensor cache = random_tensor(c, {1, cin, 2, H, W}, 2, 1.f, DType::f32);
     const Tensor w3 = random_tensor(c, {cout, cin, 3, 3, 3}, 3, 0.2f, DType::bf16);
@@ -50,6 +50,14 @@ class HalfInputConvOps : public test::ConvKernelTest {
     const Tensor w1 = random_tensor(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
     const Tensor b = random_tensor(c, {cout}, 6, 0.5f, DType::bf16);
     return run_paths(test::vae_conv_paths(x, cache, w3, w2, w1, b), limits);
+  }
+  // Whether the transposing repack's pipeline exists for fp16 (x16) or f32 output.
+  bool tiled_repack_made(bool x16) {
+    bool found = false;
+    ctx().pipelines().for_each([&](const vk::Pipeline& pl) {
+      found = found || (pl.name == "nn/conv_pack_input_tiled" && pl.spec.size() == 1 && pl.spec[0] == (x16 ? 1u : 0u));
+    });
+    return found;
   }
 };
 
@@ -103,6 +111,36 @@ TEST_F(HalfInputConvOps, PixelMajorRepackSameBits) {
   }
   EXPECT_TRUE(ran(true));
   EXPECT_TRUE(ran(false));
+}
+
+// The repack transposed through shared memory (DeviceTuning::conv_pack_tiled, conv_pack_input_tiled.comp: tiles of 32
+// channels x 64 columns of a packed row) gives every conv path the same bits as the invocation-per-vec4 repack:
+// channel counts with a partial channel tile (5, 37: also a partial vec4, zero channels up to 8) and whole ones (64),
+// rows of one and of two column tiles (11 and 67 columns, the second tile partial), whole and under texels=256 (a
+// channel per dispatch: the dispatches that merge channels into vec4s others wrote run the other kernel), fp16 and
+// f32 packed chunks. Byte for byte, column chunks and the padded grids included: test_conv_repack.cpp.
+TEST_F(HalfInputConvOps, TiledRepackSameBits) {
+  const std::string family = twin_ ? "" : "conv=coopmat,";
+  // Nothing else makes the f32 form (the shifted-GEMM convolution packs fp16): this test must make it.
+  ASSERT_FALSE(tiled_repack_made(false));
+  struct Run {
+    int64_t cin;
+    const char* limits;
+    bool wide;        // 67 columns (else 11)
+    const char* f16;  // conv_activations_fp16
+  };
+  // (texels=256 holds less than the rows of one channel that a 67-column call must repack at once.)
+  const Run runs[] = {{5, nullptr, false, "on"},  {37, "texels=256", false, "on"}, {64, nullptr, false, "on"},
+                      {5, nullptr, true, "on"},  {5, nullptr, true, "off"}};
+  for (const Run& r : runs) {
+    const std::string base = family + "conv_activations_fp16=" + r.f16 + ",conv_pack_tiled=";
+    const std::string where = "Cin " + std::to_string(r.cin) + (r.limits ? std::string(" under ") + r.limits : "") +
+                              ", " + (r.wide ? "67" : "11") + " columns, fp16 chunk " + r.f16;
+    expect_same_bits(base + "on", base + "off",
+                     [&] { return all_convs(r.cin, r.limits, r.wide ? 67 : 11); }, where);
+  }
+  EXPECT_TRUE(tiled_repack_made(true));
+  EXPECT_TRUE(tiled_repack_made(false));
 }
 
 }  // namespace

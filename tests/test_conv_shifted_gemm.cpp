@@ -40,10 +40,10 @@ class ShiftedGemmConvOps : public test::ConvKernelTest {
     ConvKernelTest::SetUp();
     if (twin_) GTEST_SKIP() << "no tensor cores on " << ctx().caps().name << " (the tensor-core pass runs this)";
   }
-  // y of every VAE conv path on a [2, cin, 3, 11, 13] input with 19 output channels, weights packed at load as `dt`.
-  std::vector<std::vector<uint32_t>> all_convs(int64_t cin, DType dt, const char* limits) {
+  // y of every VAE conv path on a [2, cin, 3, 11, W] input with 19 output channels, weights packed at load as `dt`.
+  std::vector<std::vector<uint32_t>> all_convs(int64_t cin, DType dt, const char* limits, int64_t W = 13) {
     vk::Context& c = ctx();
-    const int64_t cout = 19, F = 3, H = 11, W = 13;
+    const int64_t cout = 19, F = 3, H = 11;
     const Tensor x = random_stored(c, {2, cin, F, H, W}, 1, 1.f, DType::f32);
     const Tensor cache = random_stored(c, {2, cin, 2, H, W}, 2, 1.f, DType::f32);
     const Tensor w3 = random_stored(c, {cout, cin, 3, 3, 3}, 3, 0.2f, dt);
@@ -93,6 +93,19 @@ TEST_F(ShiftedGemmConvOps, SameBitsAsTheImplicitGemmKernelOnEveryPathAndSplit) {
       EXPECT_EQ(ctx().splits().count("conv2d as a GEMM"), 1u) << where;
       EXPECT_EQ(ctx().splits().count("causal_conv3d as a GEMM"), 1u) << where;
     }
+  }
+}
+
+// Its input repack transposed through shared memory (DeviceTuning::conv_pack_tiled) gives the same bits: the padded
+// grid's halo rows and columns, the x2-upsampled grid, whole and in the row chunks of binding=12KiB (a chunk's halo
+// rows real rows), and grids of two and three 64-column tiles (67 columns: 69 padded, 136 upsampled).
+TEST_F(ShiftedGemmConvOps, TiledRepackSameBits) {
+  const std::string on = "conv=coopmat,conv_shifted_gemm=on,conv_pack_tiled=";
+  for (const auto& [w, limits] : {std::pair<int64_t, const char*>{13, nullptr}, {13, "binding=12KiB"}, {67, nullptr}}) {
+    const uint64_t before = test::kernel_calls(ctx(), kShader);
+    const std::string where = std::to_string(w) + " columns" + (limits ? std::string(" under ") + limits : "");
+    expect_same_bits(on + "on", on + "off", [&] { return all_convs(32, DType::f16, limits, w); }, where);
+    EXPECT_EQ(test::kernel_calls(ctx(), kShader) - before, uint64_t(2 * kPathsTaken)) << where;
   }
 }
 

@@ -153,7 +153,7 @@ fi
 # --- b. tests by value -------------------------------------------------------------------------------------
 OPS_FILTER="AttentionTest.*:OpsCheck*:ConvOps.*:ElementwiseOps*:LayoutOps*:LinearTest.*:GpuTest.*:RowMappingTest.*"
 OPS_FILTER+=":RopeTables.*:RandomOps.*:ResizeBilinear.*:Split*:TinyModel.*:Kernel*:Tuning*:Coopmat*:Tiled*"
-OPS_FILTER+=":PackedConvOps.*:HalfInputConvOps.*:VectorGatherConvOps.*:ShiftedGemmConvOps.*:ConvFamilies.*"
+OPS_FILTER+=":PackedConvOps.*:HalfInputConvOps.*:VectorGatherConvOps.*:ShiftedGemmConvOps.*:ConvRepackOps.*:ConvFamilies.*"
 # Every head dim up to 256 creates ~100 pipelines: on the H200 (2026-11-29) its compiles took the whole of a 27 s
 # share. It runs on its own after the rest (ops-head-dims).
 OPS_FILTER+="-AttentionTest.EveryHeadDimUpTo256"
@@ -224,9 +224,10 @@ if want b; then
   # ConvFamilies.Coopmat2EveryStrideOneVariant in the op tests check them alone): the models' goldens on them.
   [ "$SMOKE" != 1 ] && DVS_TUNING=linear_coopmat2=on,conv_coopmat2=on gtest_run golden-coopmat2 "$tg" "$GOLDEN" \
     "GoldenTransformer.*:GoldenT5.*:PipelineE2e.*:VaeGolden.*"
-  # The convolution as the GEMM kernel (off by default until measured; ShiftedGemmConvOps.* in the op tests checks it
-  # alone): the VAE's goldens on it, at a GEMM K of 16 so that the tiny VAE's 16-channel convolutions take it.
-  [ "$SMOKE" != 1 ] && DVS_TUNING=conv_shifted_gemm=on,linear_coopmat=2x2x4x4x16 gtest_run golden-conv-shifted $((tg / 2)) "$GOLDEN" \
+  # The convolution as the GEMM kernel and its input repack transposed through shared memory (both off by default
+  # until measured; ShiftedGemmConvOps.*, ConvRepackOps.* and HalfInputConvOps.* in the op tests check them alone):
+  # the VAE's goldens on them, at a GEMM K of 16 so that the tiny VAE's 16-channel convolutions take it.
+  [ "$SMOKE" != 1 ] && DVS_TUNING=conv_shifted_gemm=on,conv_pack_tiled=on,linear_coopmat=2x2x4x4x16 gtest_run golden-conv-shifted $((tg / 2)) "$GOLDEN" \
     "VaeGolden.*:PipelineE2e.*"
   DVS_TUNING=gpu gtest_run ops-tuning-gpu "$tg" "$TESTS" "$OPS_FILTER"
   [ "$SMOKE" != 1 ] && gtest_run ops-head-dims "$tg" "$TESTS" "AttentionTest.EveryHeadDimUpTo256"

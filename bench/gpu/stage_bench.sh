@@ -83,8 +83,9 @@ if [ $SMOKE -eq 1 ]; then
   default_sweep="gemm|tiled|linear_tile_m=32,linear_tile_n=32 attention|tiled|attention_block_q=32,attention_block_k=32"
 else
   # Round 1, each family's default (as the H200 run of 2026-11-29 set them) and the one change per family most worth
-  # timing: conv as the GEMM kernel itself (conv_shifted_gemm: off by default, unmeasured) at the GEMM's tile and
-  # at 2x4x4x2, conv's 16-byte gathers off (the kernel that run measured), at the GEMM's best tile (2x2 subgroups of
+  # timing: conv as the GEMM kernel itself (conv_shifted_gemm: off by default, unmeasured) at the GEMM's tile, with and
+  # without its input repack transposed through shared memory (conv_pack_tiled: off by default, unmeasured; also
+  # under the implicit-GEMM kernel), and at 2x4x4x2, conv's 16-byte gathers off (the kernel that run measured), at the GEMM's best tile (2x2 subgroups of
   # 4x4 fragments) and 2x4x4x2, its input repack in the former channel-major order, and through
   # VK_NV_cooperative_matrix2 (off by default: unmeasured) at four tiles, GEMM with the former 2x4 subgroups of 4x2 fragments, attention at the former 8
   # subgroups and its KHR kernel, the GEMM through VK_NV_cooperative_matrix2 (off by default: unmeasured) at its
@@ -93,6 +94,7 @@ else
   # fails by design); attention at 4 subgroups. Then other tiles.
   default_sweep="gemm|coopmat|linear_coopmat=2x2x4x4x32 attention|coopmat|attention_coopmat_subgroups=16
     conv3d|coopmat|conv_coopmat=4x2x2x4x32 conv3d|coopmat|conv_shifted_gemm=on
+    conv3d|coopmat|conv_shifted_gemm=on,conv_pack_tiled=on conv3d|coopmat|conv_pack_tiled=on
     conv3d|coopmat|conv_shifted_gemm=on,linear_coopmat=2x4x4x2x32
     conv3d|coopmat|conv_coopmat_vector_loads=off conv3d|coopmat|conv_coopmat=2x2x4x4x32
     conv3d|coopmat|conv_pack_pixel_major=off conv3d|coopmat|conv_coopmat2=on

@@ -326,6 +326,7 @@ const std::vector<Field>& fields() {
                    t.conv_coopmat2_tile = {int(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4])};
                  }),
       bool_field("conv_pack_pixel_major", &DeviceTuning::conv_pack_pixel_major),
+      bool_field("conv_pack_tiled", &DeviceTuning::conv_pack_tiled),
       bool_field("conv_activations_fp16", &DeviceTuning::conv_activations_fp16),
       bool_field("conv_weights_fp16", &DeviceTuning::conv_weights_fp16),
       int_field("linear_coopmat_group_m", &DeviceTuning::linear_coopmat_group_m, 1, 64, "1..64"),
@@ -551,7 +552,8 @@ std::string describe_tuning(const DeviceTuning& t) {
                                               (t.conv_weights_fp16 ? ", bf16 weights kept fp16" : "")
                                         : std::string())
     << ", repack " << (t.conv_pack_columns ? std::to_string(t.conv_pack_columns) + " pixels" : "whole rows")
-    << " per invocation" << (t.conv_pack_pixel_major ? ", neighbouring invocations on neighbouring pixels" : "") << "\n"
+    << " per invocation" << (t.conv_pack_pixel_major ? ", neighbouring invocations on neighbouring pixels" : "")
+    << (t.conv_pack_tiled ? ", or transposed through shared memory where a dispatch owns whole vec4s" : "") << "\n"
     << "  norms:      " << (t.norm_row_per_invocation ? "one invocation per row" : "one workgroup per row") << "\n"
     << "  elementwise: " << (t.eltwise_texel_inputs ? "texel-buffer inputs" : "storage-buffer inputs")
     << "; reductions: partials of at least " << t.reduce_min_chunk << " elements\n"

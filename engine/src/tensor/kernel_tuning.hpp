@@ -94,6 +94,11 @@ struct DeviceTuning {
   // channel groups of one pixel (contiguous writes, each read from another plane). On for GPUs (reads are the larger
   // half: f32 in, fp16 out), unmeasured there (the device script's sweep compares); off on CPUs. Same bits.
   bool conv_pack_pixel_major = false;
+  // The input repack as a transpose through shared memory (conv_pack_input_tiled.comp: 32 channels x 64 columns a
+  // workgroup, read along the planes' rows, written along the pixels' channels: both sides contiguous), where a
+  // dispatch owns whole vec4s of channels. Off everywhere until a GPU has timed it (the H200, 2026-11-29: the repack
+  // 4.1 ms beside the convolution's 48.6, ten times its bytes at the memory's rate); same bits.
+  bool conv_pack_tiled = false;
   // tiled family (shaders/nn/conv_tiled.comp): workgroup tile of pixels x output channels, each 32, 64 or
   // 128 (16 x 16 invocations, each a tile/16 x tile/16 register block). The coopmat family's: conv_coopmat.
   int conv_tile_m = 64, conv_tile_n = 64;

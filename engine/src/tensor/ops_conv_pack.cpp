@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <string>
+#include <span>
 #include <utility>
+#include <vector>
 
 #include "tensor/kernel_tuning.hpp"
 #include "vk/context.hpp"
@@ -91,17 +93,20 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   while (nc > 1 && !fits_all(nc, nq)) --nc;
   while (nq > 1 && !fits_all(nc, nq)) --nq;
   expect(fits_all(nc, nq), op, "one source row of one channel exceeds one texel view");
-  const std::array<uint32_t, 2> spec = {f16 ? 1u : 0u, device_tuning(rec.context().caps()).conv_pack_pixel_major ? 1u : 0u};
+  const vk::DeviceCaps& caps = rec.context().caps();
+  const DeviceTuning& tuning = device_tuning(caps);
+  const std::array<uint32_t, 2> spec = {f16 ? 1u : 0u, tuning.conv_pack_pixel_major ? 1u : 0u};
   const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input", spec);
   bool zero = true;
   for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
     for_each_chunk(cc, nc, [&](int64_t ca, int64_t n) {
       const int64_t cb = ca + n, c4a = ca / 4, c4b = cb == cc ? cp4 : (cb + 3) / 4;
+      const bool partial = ca % 4 != 0 || (cb % 4 != 0 && cb != cc);
       PackInputPush pp{u32(op, cp4), u32(op, j.cin), u32(op, j.frames), u32(op, j.h), u32(op, j.w),
                        u32(op, b), u32(op, tp0), u32(op, nframes), u32(op, r0), u32(op, rows), u32(op, j.prefix),
                        j.time_mode, u32(op, c0), u32(op, cc), u32(op, qa), u32(op, q), u32(op, ca), u32(op, cb),
                        u32(op, c4a), u32(op, c4b - c4a), 0, 0, zero ? 1u : 0u,
-                       (ca % 4 != 0 || (cb % 4 != 0 && cb != cc)) ? 1u : 0u, u32(op, col0), u32(op, wc),
+                       partial ? 1u : 0u, u32(op, col0), u32(op, wc),
                        u32(op, seg), u32(op, grid.halo_top), u32(op, rows_p), u32(op, grid.halo_left),
                        u32(op, cols_p), grid.up == 2 ? 1u : 0u};
       // x and the cache as R32F sub-views; a tensor this dispatch does not read is bound as x's first texels.
@@ -113,10 +118,19 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
         if (end == first) first = 0, end = 4;
         views[k] = aligned_view(t.buffer(), first * 4, end * 4, l.align, 4, k == 0 ? pp.x_base : pp.cache_base);
       }
-      Grid g = grid_1d(rec.context().caps(), int64_t(q * rows_p * nseg * (c4b - c4a)) + (zero ? cp4 : 0), 64);
-      rec.dispatch(pipe,
-                   {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT), vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed},
-                   &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+      const std::vector<vk::Binding> bindings = {vk::Binding(views[0], VK_FORMAT_R32_SFLOAT),
+                                                 vk::Binding(views[1], VK_FORMAT_R32_SFLOAT), packed};
+      // The transposing kernel: tiles of 32 channels x 64 columns of a packed row, a workgroup each, and one for the
+      // zero pixel. Where a dispatch merges channels into vec4s others wrote, or its tiles exceed the grid, the other.
+      const int64_t tiles = q * rows_p * ((cols_p + 63) / 64) * ((c4b - c4a + 7) / 8) + (zero ? 1 : 0);
+      if (tuning.conv_pack_tiled && !partial && uint64_t(tiles) <= l.groups_1d) {
+        const Grid g = grid_1d(caps, tiles, 1);
+        rec.dispatch(rec.context().pipelines().get("nn/conv_pack_input_tiled", std::span(spec).first(1)), bindings, &pp,
+                     sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+      } else {
+        const Grid g = grid_1d(caps, int64_t(q * rows_p * nseg * (c4b - c4a)) + (zero ? cp4 : 0), 64);
+        rec.dispatch(pipe, bindings, &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+      }
       zero = false;
     });
   });
