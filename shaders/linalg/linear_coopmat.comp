@@ -22,7 +22,8 @@
 // fp16 operands: |x| > 65504 becomes inf (callers that may exceed this set
 // LinearEpilogue::fp16_operands_ok = false and get the tiled kernel); products accumulate in fp32.
 // Epilogue: each subgroup stores one accumulator fragment at a time to its own FRAG_M x FRAG_N f32 staging
-// block and its lanes apply the epilogue to those outputs with bounds checks.
+// block (row-major; column-major for the convolution, whose y is channel-planar) and its lanes apply the epilogue to
+// those outputs with bounds checks.
 // Shared memory: 2 x (BM + BN) x (BK + 8) halves + one fragment per subgroup (48 KiB on the H200).
 // Variant nn/conv_shifted_coopmat (CONV_SHIFTED, conv_shifted_io.glsl): a stride-1 convolution as this GEMM, X the
 // input repacked channels-last fp16 on its zero-padded grid and W the weights packed at load ([Cout][tap][CP]);
@@ -208,13 +209,19 @@ void main() {
   const uint st = sg * FRAG;
   [[unroll]] for (uint i = 0; i < FM; ++i)
     [[unroll]] for (uint j = 0; j < FN; ++j) {
+#ifdef CONV_SHIFTED
+      // Column-major: neighbouring lanes take neighbouring grid rows (pixels) of one output channel below, which are
+      // neighbours in y's channel plane, so the stores are contiguous runs (row-major would scatter them over planes).
+      coopMatStore(acc[i * FN + j], stage, st, FRAG_M, gl_CooperativeMatrixLayoutColumnMajor);
+#else
       coopMatStore(acc[i * FN + j], stage, st, FRAG_N, gl_CooperativeMatrixLayoutRowMajor);
+#endif
       subgroupMemoryBarrierShared();
       subgroupBarrier();
       const uint mb = tm0 + sm * (FM * FRAG_M) + i * FRAG_M, nb = tn0 + sn * (FN * FRAG_N) + j * FRAG_N;
 #ifdef CONV_SHIFTED
       for (uint e = lane; e < FRAG; e += gl_SubgroupSize) {
-        const uint m = mb + e / FRAG_N, n = nb + e % FRAG_N;
+        const uint m = mb + e % FRAG_M, n = nb + e / FRAG_M;
         if (m < p.M && n < p.N) store_conv_output(m, n, stage[st + e]);
       }
 #else
