@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <array>
-#include <string>
 #include <span>
+#include <string>
 #include <utility>
 #include <vector>
 

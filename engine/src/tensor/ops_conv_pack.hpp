@@ -1,4 +1,5 @@
-// A convolution chunk's input repacked channels-last (shaders/nn/conv_pack_input.comp) for the GEMM kernels that
+// A convolution chunk's input repacked channels-last (shaders/nn/conv_pack_input.comp, or its transpose through shared
+// memory shaders/nn/conv_pack_input_tiled.comp where DeviceTuning::conv_pack_tiled is on) for the GEMM kernels that
 // read it: frames of the time-padded axis (causal prefix, cache, upsampled time), a range of source rows and columns,
 // channels rounded up to 8, fp16 or f32, and one zero pixel after; optionally on a zero-padded grid (a halo of rows
 // and columns around the source ones: the shifted-GEMM convolution, ops_conv_shifted.cpp).
