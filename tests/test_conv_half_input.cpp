@@ -12,11 +12,11 @@
 #include <cstring>
 #include <functional>
 #include <memory>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "support/conv_kernel_test.hpp"
+#include "support/stored_values.hpp"
 #include "tensor/dispatch.hpp"
 #include "tensor/kernel_tuning.hpp"
 #include "tensor/ops_conv.hpp"
@@ -25,17 +25,7 @@
 namespace dvs {
 namespace {
 
-Tensor random_tensor(vk::Context& c, const Shape& s, uint32_t seed, float scale, DType dt) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> d(-scale, scale);
-  HostTensor h(s, dt);
-  for (int64_t i = 0; i < h.numel(); ++i) {
-    const float v = d(rng);
-    if (dt == DType::bf16) h.as<uint16_t>()[i] = f32_to_bf16(v);
-    else h.as<float>()[i] = v;
-  }
-  return Tensor::upload(c, h);
-}
+using test::random_stored;
 
 class HalfInputConvOps : public test::ConvKernelTest {
  protected:
@@ -43,12 +33,12 @@ class HalfInputConvOps : public test::ConvKernelTest {
   std::vector<std::vector<uint32_t>> all_convs(int64_t cin, const char* limits, int64_t W = 11) {
     vk::Context& c = ctx();
     const int64_t cout = 7, F = 5, H = 13;
-    const Tensor x = random_tensor(c, {1, cin, F, H, W}, 1, 1.f, DType::f32);
-    const Tensor cache = random_tensor(c, {1, cin, 2, H, W}, 2, 1.f, DType::f32);
-    const Tensor w3 = random_tensor(c, {cout, cin, 3, 3, 3}, 3, 0.2f, DType::bf16);
-    const Tensor w2 = random_tensor(c, {cout, cin, 3, 3}, 4, 0.2f, DType::bf16);
-    const Tensor w1 = random_tensor(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
-    const Tensor b = random_tensor(c, {cout}, 6, 0.5f, DType::bf16);
+    const Tensor x = random_stored(c, {1, cin, F, H, W}, 1, 1.f, DType::f32);
+    const Tensor cache = random_stored(c, {1, cin, 2, H, W}, 2, 1.f, DType::f32);
+    const Tensor w3 = random_stored(c, {cout, cin, 3, 3, 3}, 3, 0.2f, DType::bf16);
+    const Tensor w2 = random_stored(c, {cout, cin, 3, 3}, 4, 0.2f, DType::bf16);
+    const Tensor w1 = random_stored(c, {cout, cin, 1, 1, 1}, 5, 0.4f, DType::f32);
+    const Tensor b = random_stored(c, {cout}, 6, 0.5f, DType::bf16);
     return run_paths(test::vae_conv_paths(x, cache, w3, w2, w1, b), limits);
   }
   // Whether the transposing repack's pipeline exists for fp16 (x16) or f32 output.

@@ -96,7 +96,6 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
   const vk::DeviceCaps& caps = rec.context().caps();
   const DeviceTuning& tuning = device_tuning(caps);
   const std::array<uint32_t, 2> spec = {f16 ? 1u : 0u, tuning.conv_pack_pixel_major ? 1u : 0u};
-  const vk::Pipeline& pipe = rec.context().pipelines().get("nn/conv_pack_input", spec);
   bool zero = true;
   for_each_chunk(nframes, nq, [&](int64_t qa, int64_t q) {
     for_each_chunk(cc, nc, [&](int64_t ca, int64_t n) {
@@ -129,7 +128,8 @@ void pack_input(vk::Recorder& rec, const char* op, const ConvJob& j, const Tenso
                      sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
       } else {
         const Grid g = grid_1d(caps, int64_t(q * rows_p * nseg * (c4b - c4a)) + (zero ? cp4 : 0), 64);
-        rec.dispatch(pipe, bindings, &pp, sizeof pp, g.x, g.y, 1, std::string(op) + "_pack_input");
+        rec.dispatch(rec.context().pipelines().get("nn/conv_pack_input", spec), bindings, &pp, sizeof pp, g.x, g.y, 1,
+                     std::string(op) + "_pack_input");
       }
       zero = false;
     });
